@@ -1,0 +1,226 @@
+"""Exact sampled-data transitions, with switches anywhere inside a sample interval.
+
+Over an interval of length ``T`` that starts in ``modes[0]`` and switches to
+``modes[s]`` at offset ``offsets[s-1]``, the continuous system (zero-order-hold
+input) gives exactly::
+
+    x(T) = F x(0) + G u + w,   w ~ N(0, Qd)
+
+with, for segments ``s = 0..S`` of lengths ``h_s`` in modes ``m_s``,
+``F = Phi_S ... Phi_0``, ``Phi_s = exp(A[m_s] h_s)``. With one switch this is
+Shankar et al. eq. (4), ``F_k = exp(A_{k+1}(T - t_k)) exp(A_k t_k)``, and ``G`` is
+eq. (5); here any number of switches is allowed, and ``Qd`` is the exact
+covariance of the integrated process noise.
+
+Each segment's ``Phi_s``, ``G_s = int_0^h exp(A s) ds B`` and
+``Qd_s = int_0^h exp(A s) Q exp(A' s) ds`` come from ONE block-matrix exponential
+(Van Loan, 1978)::
+
+    expm([[-A, Q, 0], [0, A', 0], [0, B', 0]] h) = [[exp(-A h), exp(-A h) Qd_s, 0],
+                                                    [0,         Phi_s',         0],
+                                                    [0,         G_s',           I]]
+
+and segments compose as ``F <- Phi F``, ``G <- Phi G + G_s``,
+``Qd <- Phi Qd Phi' + Qd_s``. This module is the only place where switchest takes
+matrix exponentials; repeated small queries are cached.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.linalg import expm
+
+from ._checks import check_finite, float_array, int_array, positive_scalar
+from ._linalg import symmetrize
+from .system import SwitchedLinearSystem
+
+__all__ = ["Transition", "interval", "switch_grid", "pairwise_grid", "mode_steps"]
+
+_CACHE_MAX_ELEMENTS = 4096
+
+
+@dataclass(frozen=True, eq=False)
+class Transition:
+    """Exact one-interval transition ``x+ = F x + G u + w``, ``w ~ N(0, Qd)``.
+
+    Attributes
+    ----------
+    F : ndarray, shape (..., n, n)
+    G : ndarray, shape (..., n, l)
+    Qd : ndarray, shape (..., n, n)
+        Symmetric positive semidefinite.
+    """
+
+    F: np.ndarray
+    G: np.ndarray
+    Qd: np.ndarray
+
+
+def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition:
+    """The exact transition over one sample interval with switches inside it.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    T : float or array_like, shape (...)
+        Interval length(s).
+    modes : array_like of int, shape (..., S+1)
+        Active mode on each of the S+1 segments, in order.
+    offsets : array_like, shape (..., S), optional
+        Switch instants measured from the start of the interval, non-decreasing,
+        within ``[0, T]``. Omit (or pass shape ``(..., 0)``) for no switch.
+
+    Returns
+    -------
+    Transition
+        ``F (..., n, n)``, ``G (..., n, l)``, ``Qd (..., n, n)``, the batch shape
+        being the broadcast of ``T``'s shape with the leading axes of ``modes`` and
+        ``offsets`` (Shankar et al. eqs (3)-(5), generalized to S switches).
+
+    Notes
+    -----
+    For a discrete-time system the model passes through unchanged: ``F = A[m]``,
+    ``G = B[m]``, ``Qd = Q[m]``; then ``T`` must equal ``system.dt`` and no switch
+    may fall inside the step.
+    """
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    T = float_array(T, "T")
+    check_finite(T, "T")
+    if np.any(T <= 0):
+        raise ValueError(f"T must be positive, got {T.min():g}")
+    modes = int_array(modes, "modes")
+    if modes.ndim == 0:
+        raise ValueError("modes must have a last axis of length S+1 (one mode per segment), got a scalar")
+    if np.any((modes < 0) | (modes >= system.n_modes)):
+        raise ValueError(f"modes must be in 0..{system.n_modes - 1}, got {modes.min()}..{modes.max()}")
+    if offsets is None:
+        offsets = np.zeros((*modes.shape[:-1], 0))
+    offsets = float_array(offsets, "offsets")
+    if offsets.ndim == 0 or offsets.shape[-1] != modes.shape[-1] - 1:
+        raise ValueError(
+            f"offsets must have a last axis of length S = {modes.shape[-1] - 1} "
+            f"(one fewer than modes), got shape {offsets.shape}"
+        )
+    check_finite(offsets, "offsets")
+    if not system.is_continuous:
+        return _discrete_passthrough(system, T, modes, offsets)
+    batch = np.broadcast_shapes(T.shape, modes.shape[:-1], offsets.shape[:-1])
+    if np.any(offsets < 0) or np.any(offsets > T[..., None]):
+        raise ValueError("offsets must lie within [0, T]")
+    if np.any(np.diff(offsets, axis=-1) < 0):
+        raise ValueError("offsets must be non-decreasing along their last axis")
+    if modes.size + offsets.size + T.size <= _CACHE_MAX_ELEMENTS:
+        return _cached(system, T.tobytes(), T.shape, modes.tobytes(), modes.shape,
+                       offsets.tobytes(), offsets.shape)
+    return _compute(system, T, modes, offsets, batch)
+
+
+def switch_grid(T: float, g: int) -> np.ndarray:
+    """The switching-time grid of Shankar et al. eq. (23): ``tau_i = i T / g - T / (2 g)``.
+
+    The midpoints of ``g`` equal sub-intervals of ``[0, T)``, ``i = 1..g``.
+    """
+    T = positive_scalar(T, "T")
+    if isinstance(g, (bool, np.bool_)) or not isinstance(g, (int, np.integer)) or g < 1:
+        raise ValueError(f"g must be a positive int (number of grid points), got {g!r}")
+    i = np.arange(1, g + 1)
+    return i * T / g - T / (2 * g)
+
+
+def pairwise_grid(system: SwitchedLinearSystem, T: float, g: int) -> Transition:
+    """Transitions for every mode pair and every grid switching time, cached.
+
+    Returns arrays with batch shape ``(L, L, g)``: entry ``[i, j, k]`` switches from
+    mode i to mode j at ``switch_grid(T, g)[k]``; for ``i == j`` it is the interval
+    without a switch. The filters of Shankar et al. §IV evaluate eq. (23) on it.
+    """
+    L = system.n_modes
+    tau = switch_grid(T, g)
+    pairs = np.stack(np.meshgrid(np.arange(L), np.arange(L), indexing="ij"), axis=-1)
+    modes = np.broadcast_to(pairs[:, :, None, :], (L, L, g, 2))
+    offsets = np.broadcast_to(tau[None, None, :, None], (L, L, g, 1))
+    return interval(system, T, modes, offsets)
+
+
+def mode_steps(system: SwitchedLinearSystem, T) -> Transition:
+    """Transitions without a switch, one per mode: batch shape ``(L,)`` (cached)."""
+    return interval(system, T, np.arange(system.n_modes)[:, None])
+
+
+@lru_cache(maxsize=256)
+def _cached(system, T_bytes, T_shape, m_bytes, m_shape, o_bytes, o_shape) -> Transition:
+    T = np.frombuffer(T_bytes, dtype=float).reshape(T_shape)
+    modes = np.frombuffer(m_bytes, dtype=np.int64).reshape(m_shape)
+    offsets = np.frombuffer(o_bytes, dtype=float).reshape(o_shape)
+    batch = np.broadcast_shapes(T.shape, modes.shape[:-1], offsets.shape[:-1])
+    out = _compute(system, T, modes, offsets, batch)
+    for arr in (out.F, out.G, out.Qd):
+        arr.setflags(write=False)
+    return out
+
+
+def _compute(system, T, modes, offsets, batch) -> Transition:
+    n, l = system.n_states, system.n_inputs
+    S1 = modes.shape[-1]
+    T = np.broadcast_to(T, batch)
+    modes = np.broadcast_to(modes, (*batch, S1))
+    offsets = np.broadcast_to(offsets, (*batch, S1 - 1))
+    bounds = np.concatenate([np.zeros((*batch, 1)), offsets, T[..., None]], axis=-1)
+    h = np.diff(bounds, axis=-1)  # (..., S+1) segment lengths
+    Phi, Gs, Qs = _segments(system, modes, h)
+    F, G, Qd = Phi[..., 0, :, :], Gs[..., 0, :, :], Qs[..., 0, :, :]
+    for s in range(1, S1):
+        P = Phi[..., s, :, :]
+        F = P @ F  # F <- Phi_s F
+        G = P @ G + Gs[..., s, :, :]  # G <- Phi_s G + G_s
+        Qd = P @ Qd @ np.swapaxes(P, -1, -2) + Qs[..., s, :, :]  # Qd <- Phi Qd Phi' + Qd_s
+    return Transition(np.ascontiguousarray(F), np.ascontiguousarray(G), symmetrize(Qd))
+
+
+def _segments(system, modes, h):
+    """Phi, G_s, Qd_s for every (mode, length) pair, from one stacked Van Loan expm."""
+    M, q_scale, b_scale = _van_loan_generators(system)
+    n, l = system.n_states, system.n_inputs
+    E = expm(M[modes] * h[..., None, None])
+    Phi = np.swapaxes(E[..., n : 2 * n, n : 2 * n], -1, -2)
+    Qs = symmetrize(Phi @ E[..., :n, n : 2 * n]) / q_scale[modes][..., None, None]
+    Gs = np.swapaxes(E[..., 2 * n :, n : 2 * n], -1, -2) / b_scale[modes][..., None, None]
+    return Phi, Gs, Qs
+
+
+@lru_cache(maxsize=64)
+def _van_loan_generators(system):
+    """Per-mode block generators, with Q and B rescaled to the size of A.
+
+    Scaling the Q and B blocks by ``c`` scales Qd_s and G_s by ``c`` exactly, and
+    keeps the exponential well conditioned when, e.g., Q is tiny next to A.
+    """
+    n, l = system.n_states, system.n_inputs
+    L = system.n_modes
+    a = np.maximum(np.linalg.norm(system.A, ord=2, axis=(1, 2)), 1.0)
+    q = np.linalg.norm(system.Q, ord=2, axis=(1, 2))
+    b = np.linalg.norm(system.B, ord=2, axis=(1, 2)) if l else np.zeros(L)
+    q_scale = np.where(q > 0, a / np.where(q > 0, q, 1.0), 1.0)
+    b_scale = np.where(b > 0, a / np.where(b > 0, b, 1.0), 1.0)
+    M = np.zeros((L, 2 * n + l, 2 * n + l))
+    M[:, :n, :n] = -system.A
+    M[:, :n, n : 2 * n] = system.Q * q_scale[:, None, None]
+    M[:, n : 2 * n, n : 2 * n] = np.swapaxes(system.A, 1, 2)
+    M[:, 2 * n :, n : 2 * n] = np.swapaxes(system.B, 1, 2) * b_scale[:, None, None]
+    return M, q_scale, b_scale
+
+
+def _discrete_passthrough(system, T, modes, offsets) -> Transition:
+    if offsets.shape[-1] != 0:
+        raise ValueError(
+            "a discrete-time system cannot switch inside a step: offsets must be empty, "
+            f"got shape {offsets.shape}"
+        )
+    if np.any(np.abs(T - system.dt) > 1e-9 * system.dt):
+        raise ValueError(f"T must equal the discrete system's dt = {system.dt:g}, got {T.ravel()[0]:g}")
+    m = np.broadcast_to(modes[..., 0], np.broadcast_shapes(T.shape, modes.shape[:-1]))
+    return Transition(system.A[m], system.B[m], system.Q[m])

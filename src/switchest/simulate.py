@@ -1,0 +1,273 @@
+"""Exact, batched simulation of a switched system sampled at given instants.
+
+Between consecutive grid instants the state moves by the exact transition of
+:mod:`switchest.discretize` (switches inside the interval included, process
+noise drawn from its exact covariance ``Qd``); measurements
+``y_k = C[sigma(t_k)] x(t_k) + v_k``, ``v_k ~ N(0, R[sigma(t_k)])``
+(Shankar et al. eqs (1)-(2)). All trials advance together: the only Python loop
+runs over time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._checks import as_rng, check_finite, check_symmetric_psd, float_array
+from ._linalg import psd_sqrt
+from .discretize import interval, mode_steps
+from .signals import SwitchingSignal, sample_segments
+from .system import SwitchedLinearSystem
+
+__all__ = ["Trajectory", "simulate"]
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Simulated samples of N trials.
+
+    Attributes
+    ----------
+    t : ndarray, shape (K,)
+        Sample times.
+    x : ndarray, shape (N, K, n)
+        State at the samples.
+    y : ndarray, shape (N, K, m)
+        Measurements (NaN marks a missing sample when a user blanks one).
+    u : ndarray, shape (N, K, l)
+        Input applied on ``[t_k, t_{k+1})`` (zero-order hold).
+    mode : ndarray of int, shape (N, K)
+        Mode active at each sample, sigma(t_k).
+    signals : tuple of SwitchingSignal, length N
+        The true switching signal of each trial.
+    t_fine, x_fine, mode_fine : ndarray or None
+        The continuous path on a fine grid ``(Kf,)``, ``(N, Kf, n)``, ``(N, Kf)``
+        when :func:`simulate` was given ``fine_dt``; the fine grid contains every
+        sample time.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    u: np.ndarray
+    mode: np.ndarray
+    signals: tuple[SwitchingSignal, ...]
+    t_fine: np.ndarray | None = None
+    x_fine: np.ndarray | None = None
+    mode_fine: np.ndarray | None = None
+
+    @property
+    def n_trials(self) -> int:
+        """Number of trials N."""
+        return self.x.shape[0]
+
+    def segments(self) -> tuple[np.ndarray, np.ndarray]:
+        """True segment modes ``(N, K-1, S+1)`` and switch offsets ``(N, K-1, S)`` per interval.
+
+        The clairvoyant information (exact switching times) that
+        :func:`switchest.discretize.interval` turns into exact transitions.
+        """
+        _, modes, offsets = sample_segments(self.signals, self.t)
+        return modes, offsets
+
+
+SignalSource = SwitchingSignal | Callable[[np.random.Generator], SwitchingSignal]
+
+
+def simulate(
+    system: SwitchedLinearSystem,
+    signal: SignalSource,
+    t,
+    x0,
+    u=None,
+    *,
+    trials: int = 1,
+    rng=None,
+    fine_dt: float | None = None,
+) -> Trajectory:
+    """Simulate ``trials`` independent runs exactly at the sample times ``t``.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    signal : SwitchingSignal or callable
+        One signal shared by all trials, or a generator ``f(rng) -> SwitchingSignal``
+        called once per trial with that trial's own generator (spawned from ``rng``).
+    t : array_like, shape (K,)
+        Strictly increasing sample times (periodic or aperiodic). For a
+        discrete-time system they must be spaced by ``system.dt``.
+    x0 : array_like, shape (n,), or tuple (mean (n,), cov (n, n))
+        Initial state, or the Gaussian it is drawn from (independently per trial).
+    u : array_like, optional
+        Input held on ``[t_k, t_{k+1})``: constant ``(l,)``, per sample ``(K, l)`` or
+        per trial ``(trials, K, l)``. Default zero.
+    trials : int
+        Number of independent runs N.
+    rng : Generator, int or None
+        Source of all randomness (signals, initial states, noises).
+    fine_dt : float, optional
+        Also return the path on a fine grid: each sample interval is split into
+        ``ceil((t_{k+1} - t_k) / fine_dt)`` equal steps (continuous systems only).
+
+    Returns
+    -------
+    Trajectory
+    """
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    if isinstance(trials, (bool, np.bool_)) or not isinstance(trials, (int, np.integer)) or trials < 1:
+        raise ValueError(f"trials must be a positive int, got {trials!r}")
+    rng = as_rng(rng)
+    t = float_array(t, "t", ndim=1)
+    check_finite(t, "t")
+    if t.size < 1 or np.any(np.diff(t) <= 0):
+        raise ValueError("t must be a non-empty, strictly increasing array of sample times")
+    if not system.is_continuous:
+        if t.size > 1 and np.any(np.abs(np.diff(t) - system.dt) > 1e-9 * system.dt):
+            raise ValueError(f"t must be spaced by the discrete system's dt = {system.dt:g}")
+        if fine_dt is not None:
+            raise ValueError("fine_dt applies to continuous-time systems only")
+    signals = _signals(signal, trials, rng, system.n_modes)
+    u = _inputs(u, system.n_inputs, t.size, trials)
+    x = _initial_states(x0, system.n_states, trials, rng)
+
+    grid, sample_index = t, np.arange(t.size)
+    if fine_dt is not None:
+        grid, sample_index = _fine_grid(t, fine_dt)
+    u_grid = u[:, np.searchsorted(t, grid, side="right") - 1]
+    mode_grid, modes, offsets = sample_segments(signals, grid)
+    X = _propagate(system, modes, offsets, grid, x, u_grid, rng)
+    x_s = X if fine_dt is None else X[:, sample_index]
+    mode = mode_grid[:, sample_index]
+    y = _measure(system, x_s, mode, rng)
+    fine = {}
+    if fine_dt is not None:
+        fine = dict(t_fine=grid, x_fine=X, mode_fine=mode_grid)
+    return Trajectory(t=t, x=x_s, y=y, u=u, mode=mode, signals=tuple(signals), **fine)
+
+
+def _propagate(system, modes, offsets, grid, x, u, rng) -> np.ndarray:
+    """States at every grid instant ``(N, G, n)``; the loop runs over time only."""
+    N, n = x.shape
+    X = np.empty((N, grid.size, n))
+    X[:, 0] = x
+    per_length: dict[float, np.ndarray] = {}
+    for k, h in enumerate(np.diff(grid)):
+        # periodic grids repeat one length up to round-off: reuse its per-mode transitions
+        key = float(np.format_float_positional(h, precision=13, unique=False, fractional=False))
+        if key not in per_length:
+            steps = mode_steps(system, h)
+            per_length[key] = _stacked_step(steps.F, steps.G, psd_sqrt(steps.Qd))
+        # [x, u, z] @ [F'; G'; Qd^(1/2)'] for every mode in one batched product, then pick
+        # each trial's mode: L small GEMMs instead of N gathered matrix-vector products
+        xuz = np.concatenate([x, u[:, k], rng.standard_normal((N, n))], axis=1)
+        m0 = modes[:, k, 0]
+        x = _pick(np.matmul(xuz, per_length[key]), m0)
+        if offsets.shape[-1]:
+            switched = np.flatnonzero(np.any(modes[:, k, 1:] != m0[:, None], axis=1))
+            if switched.size:
+                x[switched] = _switched_step(system, h, modes[switched, k], offsets[switched, k],
+                                             xuz[switched])
+        X[:, k + 1] = x
+    return X
+
+
+def _switched_step(system, h, modes, offsets, xuz) -> np.ndarray:
+    """One step for trials with switches inside the interval; identical switch patterns
+    (a signal shared by the trials) are discretized once."""
+    pattern = np.concatenate([modes, offsets], axis=1)
+    unique, inverse = np.unique(pattern, axis=0, return_inverse=True)
+    S1 = modes.shape[1]
+    tr = interval(system, h, unique[:, :S1].astype(np.int64), unique[:, S1:])
+    stacked = _stacked_step(tr.F, tr.G, psd_sqrt(tr.Qd))
+    return np.einsum("qi,qij->qj", xuz, stacked[inverse.ravel()])
+
+
+def _measure(system, x, mode, rng) -> np.ndarray:
+    """``y_k = C[m] x_k + R[m]^(1/2) v_k`` for every trial and sample, one sample at a time."""
+    N, K, _ = x.shape
+    stacked = np.concatenate([np.swapaxes(system.C, 1, 2), np.swapaxes(psd_sqrt(system.R), 1, 2)], axis=1)
+    y = np.empty((N, K, system.n_outputs))
+    for k in range(K):
+        xv = np.concatenate([x[:, k], rng.standard_normal((N, system.n_outputs))], axis=1)
+        y[:, k] = _pick(np.matmul(xv, stacked), mode[:, k])
+    return y
+
+
+def _pick(per_mode: np.ndarray, mode: np.ndarray) -> np.ndarray:
+    """From ``(L, N, d)`` results of every mode, each trial's own ``(N, d)``."""
+    return per_mode[mode, np.arange(mode.size)]
+
+
+def _stacked_step(F, G, Q_sqrt) -> np.ndarray:
+    """``[F'; G'; Q_sqrt']`` of shape (..., 2n + l, n), so ``[x, u, z] @ it`` is one step."""
+    return np.concatenate([np.swapaxes(a, -1, -2) for a in (F, G, Q_sqrt)], axis=-2)
+
+
+def _signals(signal, trials, rng, n_modes) -> list[SwitchingSignal]:
+    if isinstance(signal, SwitchingSignal):
+        signals = [signal] * trials
+    elif callable(signal):
+        signals = [signal(child) for child in rng.spawn(trials)]
+        for i, s in enumerate(signals):
+            if not isinstance(s, SwitchingSignal):
+                raise TypeError(
+                    f"signal(rng) must return a SwitchingSignal, got {type(s).__name__} for trial {i}"
+                )
+    else:
+        raise TypeError(
+            f"signal must be a SwitchingSignal or a callable rng -> SwitchingSignal, "
+            f"got {type(signal).__name__}"
+        )
+    top = max(int(s.modes.max()) for s in signals)
+    if top >= n_modes:
+        raise ValueError(f"signal uses mode {top}, but the system has modes 0..{n_modes - 1}")
+    return signals
+
+
+def _inputs(u, l, K, trials) -> np.ndarray:
+    if u is None:
+        return np.zeros((trials, K, l))
+    u = float_array(u, "u", ndim=(1, 2, 3))
+    check_finite(u, "u")
+    expected = {1: (l,), 2: (K, l), 3: (trials, K, l)}[u.ndim]
+    if u.shape != expected:
+        raise ValueError(
+            f"u must have shape (l,) = ({l},), (K, l) = ({K}, {l}) or (trials, K, l) = "
+            f"({trials}, {K}, {l}), got {u.shape}"
+        )
+    return np.array(np.broadcast_to(u, (trials, K, l)))
+
+
+def _initial_states(x0, n, trials, rng) -> np.ndarray:
+    if isinstance(x0, tuple):
+        if len(x0) != 2:
+            raise ValueError(f"x0 as a tuple must be (mean, cov), got {len(x0)} entries")
+        mean = float_array(x0[0], "x0 mean", ndim=1)
+        cov = float_array(x0[1], "x0 cov", ndim=2)
+        if mean.shape != (n,) or cov.shape != (n, n):
+            raise ValueError(
+                f"x0 must be (mean (n,), cov (n, n)) with n = {n}, got {mean.shape} and {cov.shape}"
+            )
+        check_finite(mean, "x0 mean")
+        check_finite(cov, "x0 cov")
+        cov = check_symmetric_psd(cov, "x0 cov")
+        return mean + rng.standard_normal((trials, n)) @ psd_sqrt(cov).T
+    x0 = float_array(x0, "x0", ndim=1)
+    if x0.shape != (n,):
+        raise ValueError(f"x0 must have shape (n,) = ({n},), got {x0.shape}")
+    check_finite(x0, "x0")
+    return np.broadcast_to(x0, (trials, n)).copy()
+
+
+def _fine_grid(t, fine_dt) -> tuple[np.ndarray, np.ndarray]:
+    """Split each sample interval into equal steps no longer than ``fine_dt``."""
+    if not np.isscalar(fine_dt) or not np.isfinite(fine_dt) or fine_dt <= 0:
+        raise ValueError(f"fine_dt must be a positive finite number, got {fine_dt!r}")
+    parts = np.maximum(np.ceil(np.diff(t) / fine_dt - 1e-9).astype(int), 1)
+    pieces = [t[k] + (t[k + 1] - t[k]) * np.arange(p) / p for k, p in enumerate(parts)]
+    grid = np.concatenate([*pieces, t[-1:]])
+    sample_index = np.concatenate([[0], np.cumsum(parts)])
+    return grid, sample_index
