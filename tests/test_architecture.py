@@ -1,0 +1,70 @@
+"""The dependency arrows of DESIGN.md section 1 point down the layer list, never back up."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "switchest"
+
+# lower index = lower layer; a module may import only from layers at or below its own
+LAYERS = [
+    {"_checks"},
+    {"_linalg"},
+    {"system"},
+    {"signals"},
+    {"discretize"},
+    {"simulate"},
+    {"metrics"},
+    {"analysis", "estimators", "models"},
+    {"plotting"},
+    {"experiments"},
+    {"cli"},
+]
+RANK = {name: i for i, group in enumerate(LAYERS) for name in group}
+
+
+def top_level(path: Path, src: Path = SRC) -> str:
+    return path.relative_to(src).with_suffix("").parts[0]
+
+
+def internal_imports(path: Path, src: Path = SRC):
+    """Top-level switchest modules that ``path`` imports (absolute or relative)."""
+    tree = ast.parse(path.read_text())
+    pkg = path.relative_to(src).parent.parts
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = list(pkg[: len(pkg) - node.level + 1])
+                target = base + (node.module.split(".") if node.module else [])
+                yield from [target[0]] if target else [a.name for a in node.names]
+            elif node.module and node.module.startswith("switchest."):
+                yield node.module.split(".")[1]
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("switchest."):
+                    yield alias.name.split(".")[1]
+
+
+def upward_imports(path: Path, src: Path = SRC) -> list[str]:
+    own = top_level(path, src)
+    assert own in RANK, f"{own} is not placed in a layer: add it to LAYERS"
+    return [t for t in internal_imports(path, src) if t in RANK and RANK[t] > RANK[own]]
+
+
+MODULES = [p for p in SRC.rglob("*.py") if p.parent != SRC or p.name != "__init__.py"]
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(SRC)))
+def test_imports_point_down(path):
+    assert upward_imports(path) == []
+
+
+def test_the_checker_catches_upward_imports(tmp_path):
+    (tmp_path / "estimators").mkdir()
+    system = tmp_path / "system.py"
+    system.write_text("from .experiments import runner\nimport numpy\n")
+    nested = tmp_path / "estimators" / "imm.py"
+    nested.write_text("from ..discretize import interval\nfrom switchest.cli import main\n")
+    assert upward_imports(system, tmp_path) == ["experiments"]
+    assert upward_imports(nested, tmp_path) == ["cli"]
