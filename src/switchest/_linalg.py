@@ -9,7 +9,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import logsumexp
 
-__all__ = ["symmetrize", "psd_sqrt", "cholesky_solve", "joseph_update", "log_normalize"]
+__all__ = ["matvec", "symmetrize", "psd_sqrt", "cholesky_solve", "joseph_update", "log_normalize"]
+
+
+def matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``M @ v`` for stacks of matrices ``(..., a, b)`` and vectors ``(..., b)``, broadcast."""
+    return (M @ v[..., None])[..., 0]
 
 
 def symmetrize(M: np.ndarray) -> np.ndarray:

@@ -37,7 +37,7 @@ from ._checks import check_finite, float_array, int_array, positive_scalar
 from ._linalg import symmetrize
 from .system import SwitchedLinearSystem
 
-__all__ = ["Transition", "interval", "switch_grid", "pairwise_grid", "mode_steps"]
+__all__ = ["Transition", "interval", "switch_grid", "pairwise_grid", "mode_steps", "segment_transitions"]
 
 _CACHE_MAX_ELEMENTS = 4096
 
@@ -149,6 +149,34 @@ def pairwise_grid(system: SwitchedLinearSystem, T: float, g: int) -> Transition:
 def mode_steps(system: SwitchedLinearSystem, T) -> Transition:
     """Transitions without a switch, one per mode: batch shape ``(L,)`` (cached)."""
     return interval(system, T, np.arange(system.n_modes)[:, None])
+
+
+def segment_transitions(system: SwitchedLinearSystem, T: float, modes, offsets) -> Transition:
+    """One transition per trial over an interval of length ``T``, batch shape ``(N,)``.
+
+    ``modes (N, S+1)`` and ``offsets (N, S)`` describe each trial's segments, padded
+    as :func:`switchest.signals.sample_segments` returns them. Trials without a
+    switch reuse the cached per-mode steps; trials that share a switch pattern (a
+    signal common to all trials) are discretized once.
+    """
+    modes = int_array(modes, "modes", ndim=2)
+    offsets = float_array(offsets, "offsets", ndim=2)
+    if offsets.shape != (modes.shape[0], modes.shape[1] - 1):
+        raise ValueError(
+            f"offsets must have shape (N, S) = ({modes.shape[0]}, {modes.shape[1] - 1}), got {offsets.shape}"
+        )
+    steps = mode_steps(system, T)
+    m0 = modes[:, 0]
+    F, G, Qd = steps.F[m0], steps.G[m0], steps.Qd[m0]  # fancy indexing: fresh copies
+    switched = np.flatnonzero(np.any(modes[:, 1:] != m0[:, None], axis=1))
+    if switched.size:
+        pattern = np.concatenate([modes[switched], offsets[switched]], axis=1)
+        unique, inverse = np.unique(pattern, axis=0, return_inverse=True)
+        S1 = modes.shape[1]
+        tr = interval(system, T, unique[:, :S1].astype(np.int64), unique[:, S1:])
+        inverse = inverse.ravel()
+        F[switched], G[switched], Qd[switched] = tr.F[inverse], tr.G[inverse], tr.Qd[inverse]
+    return Transition(F, G, Qd)
 
 
 @lru_cache(maxsize=256)

@@ -17,7 +17,7 @@ import numpy as np
 
 from ._checks import as_rng, check_finite, check_symmetric_psd, float_array
 from ._linalg import psd_sqrt
-from .discretize import interval, mode_steps
+from .discretize import mode_steps, segment_transitions
 from .signals import SwitchingSignal, sample_segments
 from .system import SwitchedLinearSystem
 
@@ -168,21 +168,11 @@ def _propagate(system, modes, offsets, grid, x, u, rng) -> np.ndarray:
         if offsets.shape[-1]:
             switched = np.flatnonzero(np.any(modes[:, k, 1:] != m0[:, None], axis=1))
             if switched.size:
-                x[switched] = _switched_step(system, h, modes[switched, k], offsets[switched, k],
-                                             xuz[switched])
+                tr = segment_transitions(system, h, modes[switched, k], offsets[switched, k])
+                stacked = _stacked_step(tr.F, tr.G, psd_sqrt(tr.Qd))
+                x[switched] = (xuz[switched, None, :] @ stacked)[:, 0]
         X[:, k + 1] = x
     return X
-
-
-def _switched_step(system, h, modes, offsets, xuz) -> np.ndarray:
-    """One step for trials with switches inside the interval; identical switch patterns
-    (a signal shared by the trials) are discretized once."""
-    pattern = np.concatenate([modes, offsets], axis=1)
-    unique, inverse = np.unique(pattern, axis=0, return_inverse=True)
-    S1 = modes.shape[1]
-    tr = interval(system, h, unique[:, :S1].astype(np.int64), unique[:, S1:])
-    stacked = _stacked_step(tr.F, tr.G, psd_sqrt(tr.Qd))
-    return np.einsum("qi,qij->qj", xuz, stacked[inverse.ravel()])
 
 
 def _measure(system, x, mode, rng) -> np.ndarray:

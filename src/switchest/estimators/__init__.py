@@ -1,0 +1,23 @@
+"""Estimators, all on one protocol: ``init -> step -> run -> Estimate`` (DESIGN.md §4)."""
+
+from .base import Estimate, Estimator
+from .imm import IMMFilter, imm_combine, imm_mix
+from .imm_ev1 import IMMEV1Filter
+from .kalman import kf_predict, kf_update, steady_state_gain
+from .mode_kalman import ModeKalmanFilter
+from .switch_time import SwitchTimeKalmanFilter, switch_time_loglik
+
+__all__ = [
+    "Estimate",
+    "Estimator",
+    "IMMEV1Filter",
+    "IMMFilter",
+    "ModeKalmanFilter",
+    "SwitchTimeKalmanFilter",
+    "imm_combine",
+    "imm_mix",
+    "kf_predict",
+    "kf_update",
+    "steady_state_gain",
+    "switch_time_loglik",
+]

@@ -1,0 +1,167 @@
+"""The mode-based Kalman filter: a Kalman filter that follows a given mode sequence.
+
+Zhang & Natarajan, Algorithm 1: at each sample the filter uses the matrices of
+the mode it *believes* is active — the true one, or a mismatched one. For a
+continuous-time system sampled at ``t_k``, the interval ``[t_{k-1}, t_k)`` is
+discretized exactly (:mod:`switchest.discretize`); given the true switching
+offsets inside the intervals it is the clairvoyant filter of Shankar et al.
+(known switching times), the best any method here can do.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._linalg import matvec
+from ..discretize import mode_steps, segment_transitions
+from .base import Estimate, Estimator
+from .kalman import kf_predict, kf_update, steady_state_gain
+
+__all__ = ["KalmanState", "ModeKalmanFilter"]
+
+
+@dataclass(frozen=True, eq=False)
+class KalmanState:
+    """Posterior after the last processed sample: ``x (N, n)``, ``P (N, n, n)``, ``loglik (N,)``."""
+
+    x: np.ndarray
+    P: np.ndarray
+    loglik: np.ndarray
+
+
+class ModeKalmanFilter(Estimator):
+    """Kalman filter along a believed mode sequence (Zhang & Natarajan, Algorithm 1).
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    x0, P0 : array_like
+        Prior mean ``(n,)`` and covariance ``(n, n)`` of the state at the first sample.
+    steady_state : bool
+        Use each mode's steady-state gain ``K_i`` (Zhang & Natarajan eq. (6): the
+        Riccati solution of mode i alone) instead of the time-varying gain; the
+        reported ``P`` is then that mode's steady-state a-posteriori covariance.
+        Requires periodic sampling.
+
+    Notes
+    -----
+    Prediction over ``[t_{k-1}, t_k)`` uses the mode believed at ``t_{k-1}`` (a
+    switch at the sample instants, as in discrete-time models), unless ``run`` is
+    given the segments of each interval (``segments=trajectory.segments()``), in
+    which case the exact switching offsets are used. The update at ``t_k`` uses
+    ``C`` and ``R`` of the mode believed at ``t_k``.
+    """
+
+    def __init__(self, system, x0, P0, *, steady_state: bool = False):
+        self._set_prior(system, x0, P0)
+        self.steady_state = bool(steady_state)
+        self._gains: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def init(self, batch_shape=()) -> KalmanState:
+        """The prior, replicated over ``batch_shape``."""
+        n = self.system.n_states
+        return KalmanState(
+            x=np.broadcast_to(self.x0, (*batch_shape, n)).copy(),
+            P=np.broadcast_to(self.P0, (*batch_shape, n, n)).copy(),
+            loglik=np.zeros(batch_shape),
+        )
+
+    def step(self, state: KalmanState, y, u=None, *, dt=None, mode, prev_mode=None,
+             segment_modes=None, segment_offsets=None) -> KalmanState:
+        """Predict over ``dt`` (skipped when ``None``) and update with ``y (N, m)``.
+
+        ``mode (N,)`` is the believed mode at this sample; ``prev_mode (N,)`` the one
+        during the interval (default ``mode``); ``segment_modes (N, S+1)`` and
+        ``segment_offsets (N, S)`` give exact switches inside the interval instead.
+        """
+        sys = self.system
+        x, P = state.x, state.P
+        mode = np.asarray(mode)
+        if dt is not None:
+            if segment_modes is not None:
+                tr = segment_transitions(sys, dt, segment_modes, segment_offsets)
+                F, G, Qd = tr.F, tr.G, tr.Qd
+            else:
+                m = mode if prev_mode is None else np.asarray(prev_mode)
+                steps = mode_steps(sys, dt)
+                F, G, Qd = steps.F[m], steps.G[m], steps.Qd[m]
+            if u is None:
+                u = np.zeros((*x.shape[:-1], sys.n_inputs))
+            x, P = kf_predict(x, P, F, G, u, Qd)
+        C, R = sys.C[mode], sys.R[mode]
+        if not self.steady_state:
+            x, P, loglik = kf_update(x, P, y, C, R)
+            return KalmanState(x, P, loglik)
+        K, P_prior, P_post = self._steady(dt)
+        observed = ~np.any(np.isnan(y), axis=-1)
+        innovation = np.where(observed[:, None], y - matvec(C, x), 0.0)
+        x = x + matvec(K[mode], innovation)  # x_k|k = x_k|k-1 + K_i (y_k - C_i x_k|k-1), eq. (6)
+        P = np.where(observed[:, None, None], P_post[mode], P_prior[mode])
+        return KalmanState(x, P, np.full(x.shape[0], np.nan))
+
+    def _steady(self, dt):
+        """Per-mode steady-state gains for the sampling step (cached)."""
+        key = float(dt if dt is not None else (self.system.dt or np.nan))
+        if key in self._gains:
+            return self._gains[key]
+        if not np.isfinite(key):
+            if not self._gains:
+                raise ValueError("steady_state=True needs the sampling step: give run() at least two samples")
+            return next(iter(self._gains.values()))
+        steps = mode_steps(self.system, key)
+        sys = self.system
+        out = [steady_state_gain(steps.F[i], sys.C[i], steps.Qd[i], sys.R[i]) for i in range(sys.n_modes)]
+        self._gains[key] = tuple(np.stack(a) for a in zip(*out))
+        return self._gains[key]
+
+    def _output(self, state: KalmanState) -> dict[str, np.ndarray]:
+        return {"x": state.x, "P": state.P, "loglik": state.loglik}
+
+    def run(self, y, u=None, t=None, *, modes, segments=None) -> Estimate:
+        """Filter measurements ``y (..., K, m)`` along the believed ``modes``.
+
+        Parameters
+        ----------
+        y : array_like, shape (..., K, m)
+            Measurements; NaN marks a missing one.
+        u : array_like, optional
+            Inputs held on ``[t_k, t_{k+1})``: ``(l,)``, ``(K, l)`` or ``(..., K, l)``.
+        t : array_like, shape (K,)
+            Sample times (optional for discrete systems).
+        modes : array_like of int, shape (K,) or (..., K)
+            Believed mode at each sample (true or mismatched).
+        segments : tuple of arrays, optional
+            ``(modes (..., K-1, S+1), offsets (..., K-1, S))`` — the exact segments of
+            each interval, e.g. ``trajectory.segments()``: the clairvoyant filter.
+        """
+        y2, u2, t, batch = self._prepare(y, u, t)
+        K = t.size
+        modes = self._modes(modes, batch, K)
+        if self.steady_state and K > 1 and np.ptp(np.diff(t)) > 1e-9 * np.diff(t).max():
+            raise ValueError("steady_state=True requires periodic sample times t")
+        if self.steady_state and K > 1:
+            self._steady(t[1] - t[0])
+        prev = np.concatenate([modes[:, :1], modes[:, :-1]], axis=1)
+        per_step = {"mode": modes, "prev_mode": prev}
+        if segments is not None:
+            per_step.update(self._segments(segments, batch, K))
+        return self._unflatten(self._loop(y2, u2, t, per_step), batch)
+
+    def _segments(self, segments, batch, K) -> dict[str, np.ndarray]:
+        if not (isinstance(segments, tuple) and len(segments) == 2):
+            raise TypeError("segments must be a tuple (modes (..., K-1, S+1), offsets (..., K-1, S))")
+        seg_m, seg_o = (np.asarray(a) for a in segments)
+        N = int(np.prod(batch, dtype=np.int64))
+        if seg_m.shape[:-1] != (*batch, K - 1) or seg_o.shape != (*batch, K - 1, seg_m.shape[-1] - 1):
+            raise ValueError(
+                f"segments must have shapes {(*batch, K - 1, 'S+1')} and {(*batch, K - 1, 'S')}, "
+                f"got {seg_m.shape} and {seg_o.shape}"
+            )
+        seg_m = seg_m.reshape(N, K - 1, -1)
+        seg_o = seg_o.reshape(N, K - 1, -1)
+        # sample k uses interval k-1; sample 0 has no prediction (its entry is never read)
+        pad_m = np.concatenate([seg_m[:, :1], seg_m], axis=1)
+        pad_o = np.concatenate([seg_o[:, :1], seg_o], axis=1)
+        return {"segment_modes": pad_m, "segment_offsets": pad_o}
