@@ -146,8 +146,16 @@ def pairwise_grid(system: SwitchedLinearSystem, T: float, g: int) -> Transition:
     return interval(system, T, modes, offsets)
 
 
-def mode_steps(system: SwitchedLinearSystem, T) -> Transition:
-    """Transitions without a switch, one per mode: batch shape ``(L,)`` (cached)."""
+def mode_steps(system: SwitchedLinearSystem, T: float) -> Transition:
+    """Transitions without a switch, one per mode: batch shape ``(L,)`` (cached).
+
+    Called at every filter step, so it is memoized on ``(system, T)`` directly.
+    """
+    return _mode_steps(system, float(T))
+
+
+@lru_cache(maxsize=256)
+def _mode_steps(system: SwitchedLinearSystem, T: float) -> Transition:
     return interval(system, T, np.arange(system.n_modes)[:, None])
 
 

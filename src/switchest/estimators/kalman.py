@@ -7,9 +7,9 @@ hypotheses, grid points), the last one or two are the vector or matrix.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solve_discrete_are, solve_triangular
+from scipy.linalg import solve_discrete_are
 
-from .._linalg import joseph_update, matvec, symmetrize
+from .._linalg import cholesky_solve, joseph_update, matvec, symmetrize
 
 __all__ = ["kf_predict", "kf_update", "steady_state_gain"]
 
@@ -71,10 +71,8 @@ def kf_update(x, P, y, C, R):
             "innovation covariance C P C' + R is not positive definite: give the system a "
             "measurement noise R or the filter a positive definite P0"
         ) from exc
-    # K' = S^-1 (C P) through two triangular solves with the Cholesky factor of S
-    Kt = solve_triangular(np.swapaxes(Ls, -1, -2), solve_triangular(Ls, np.swapaxes(PCt, -1, -2), lower=True))
-    K = np.swapaxes(Kt, -1, -2)
-    z = solve_triangular(Ls, e[..., None], lower=True)[..., 0]  # whitened innovation
+    K = np.swapaxes(cholesky_solve(Ls, np.swapaxes(PCt, -1, -2)), -1, -2)  # K' = S^-1 (C P)
+    z = np.linalg.solve(Ls, e[..., None])[..., 0]  # whitened innovation Ls^-1 e
     loglik = -0.5 * (np.sum(z**2, axis=-1) + 2 * np.sum(np.log(np.diagonal(Ls, axis1=-2, axis2=-1)), axis=-1)
                      + m * _LOG_2PI)
     if missing.any():
