@@ -72,6 +72,19 @@ class Trajectory:
         _, modes, offsets = sample_segments(self.signals, self.t)
         return modes, offsets
 
+    def switch_times(self) -> np.ndarray:
+        """The first true switching instant inside ``(t_{k-1}, t_k)`` at sample k, ``(N, K)``.
+
+        NaN at sample 0 and where the interval holds no switch: the layout of
+        ``Estimate.switch_time``, for :func:`switchest.metrics.switch_time_error`.
+        """
+        modes, offsets = self.segments()
+        out = np.full(self.mode.shape, np.nan)
+        if offsets.shape[-1]:
+            inside = modes[..., 1] != modes[..., 0]
+            out[:, 1:] = np.where(inside, self.t[:-1] + offsets[..., 0], np.nan)
+        return out
+
 
 SignalSource = SwitchingSignal | Callable[[np.random.Generator], SwitchingSignal]
 
