@@ -11,7 +11,7 @@ def test_rmse_per_step_and_overall():
     est = np.array([[[1.0, 0.0], [2.0, 0.0], [3.0, 1.0]], [[1.0, 0.0], [0.0, 0.0], [1.0, 1.0]]])
     r = rmse(est, truth, start=1)
     np.testing.assert_allclose(r.per_step[:, 0], [1.0, np.sqrt(2.0), np.sqrt(5.0)])
-    np.testing.assert_allclose(r.overall, [np.sqrt((4 + 0 + 9 + 1) / 4), 1.0])
+    np.testing.assert_allclose(r.overall, [np.sqrt((4 + 0 + 9 + 1) / 4), np.sqrt(0.5)])
     with pytest.raises(ValueError, match="share a shape"):
         rmse(est[0], truth)
 

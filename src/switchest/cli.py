@@ -33,7 +33,7 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
         f"[0.9, 1.2] ms from 0.02 s) in {time.perf_counter() - t_start:.2f} s"
     )
     filters = {
-        "known switching times (clairvoyant)": lambda: ModeKalmanFilter(system, x0, P0).run(
+        "clairvoyant (true switch times)": lambda: ModeKalmanFilter(system, x0, P0).run(
             traj.y, u, t, modes=traj.mode, segments=traj.segments()),
         "switch-time KF, g = 1": lambda: SwitchTimeKalmanFilter(system, x0, P0, grid=1).run(
             traj.y, u, t, modes=traj.mode),
@@ -42,8 +42,9 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
         "IMM (modes unknown)": lambda: IMMFilter(system, [[0.5, 0.5], [0.5, 0.5]], x0, P0).run(traj.y, u, t),
     }
     table = Table(title="Boost converter: RMSE after the first 10 samples")
-    for col in ("filter", "RMSE i_L (A)", "RMSE v_0 (V)", "mode accuracy", "switch-time error (ms)", "time (s)"):
-        table.add_column(col, justify="left" if col == "filter" else "right")
+    table.add_column("filter", no_wrap=True)
+    for col in ("RMSE i_L (A)", "RMSE v_0 (V)", "mode accuracy", "switch-time error (ms)", "time (s)"):
+        table.add_column(col, justify="right")
     true_switch = traj.switch_times()
     for name, run in filters.items():
         t_start = time.perf_counter()
