@@ -66,6 +66,13 @@ class IMMEV1Filter(Estimator):
     likelihood : {"innovation", "printed"}
         The ``J_k`` maximized over the grid, see
         :func:`switchest.estimators.switch_time.switch_time_loglik`.
+    switch_time : {"max", "marginal"}
+        ``"max"`` (the paper) keeps the grid point of largest ``J_k`` (eq. (23)).
+        ``"marginal"`` (beyond the paper) treats the switching instant as uniform
+        over the grid and integrates it out: ``b_ji`` is the mean of ``J_k`` over
+        the grid, the destination's posterior is the moment-matched mixture of the
+        g updated hypotheses weighted by ``J_k``, and the reported switching time
+        is their weighted mean.
 
     Notes
     -----
@@ -75,7 +82,8 @@ class IMMEV1Filter(Estimator):
     """
 
     def __init__(self, system, transition=None, *, x0, P0, grid: int = 5, epsilon: float = 1e-9,
-                 mode_prob0=None, predecessor: str = "path", likelihood: str = "innovation"):
+                 mode_prob0=None, predecessor: str = "path", likelihood: str = "innovation",
+                 switch_time: str = "max"):
         self._set_prior(system, x0, P0)
         if not system.is_continuous:
             raise ValueError("IMMEV1Filter needs a continuous-time system (switches inside intervals)")
@@ -90,8 +98,11 @@ class IMMEV1Filter(Estimator):
             raise ValueError(f"predecessor must be 'path' or 'likelihood', got {predecessor!r}")
         if likelihood not in ("innovation", "printed"):
             raise ValueError(f"likelihood must be 'innovation' or 'printed', got {likelihood!r}")
+        if switch_time not in ("max", "marginal"):
+            raise ValueError(f"switch_time must be 'max' or 'marginal', got {switch_time!r}")
         self.predecessor = predecessor
         self.likelihood = likelihood
+        self.switch_time = switch_time
         with np.errstate(divide="ignore"):
             self._log_p0 = np.log(self.mode_prob0)
             self._log_transition = None if transition is None else np.log(self.transition)
@@ -127,22 +138,34 @@ class IMMEV1Filter(Estimator):
         )
         C = sys.C[None, None, :, None]
         R = sys.R[None, None, :, None]
-        J = switch_time_loglik(x_pred, P_pred, y[:, None, None, None, :], C, R,
-                               likelihood=self.likelihood)  # (N, j, i, g)
-        best_k = np.argmax(J, axis=-1)  # eq. (23) for every pair
-        log_b = np.take_along_axis(J, best_k[..., None], axis=-1)[..., 0]  # (N, j, i)
+        y_h = y[:, None, None, None, :]
+        x_up, P_up, J = kf_update(x_pred, P_pred, y_h, C, R)  # every hypothesis updated
+        if self.likelihood == "printed":
+            J = switch_time_loglik(x_pred, P_pred, y_h, C, R, likelihood="printed")
+        tau = switch_grid(dt, self.grid)
+        if self.switch_time == "max":
+            best_k = np.argmax(J, axis=-1)[..., None]  # eq. (23) for every pair (N, j, i, 1)
+            log_b = np.take_along_axis(J, best_k, axis=-1)[..., 0]  # (N, j, i)
+            x_pair = np.take_along_axis(x_up, best_k[..., None], axis=-2)[..., 0, :]
+            P_pair = np.take_along_axis(P_up, best_k[..., None, None], axis=-3)[..., 0, :, :]
+            tau_pair = tau[best_k[..., 0]]
+        else:
+            log_w, log_sum = log_normalize(J)  # weights over the grid
+            log_b = log_sum - np.log(self.grid)  # mean likelihood: tau uniform on the grid
+            w = np.exp(log_w)
+            x_pair = np.einsum("...k,...kn->...n", w, x_up)
+            d = x_up - x_pair[..., None, :]
+            P_pair = np.einsum("...k,...kab->...ab", w, P_up + d[..., :, None] * d[..., None, :])
+            tau_pair = w @ tau
         path = state.log_weight[:, :, None] + log_b
         if self._log_transition is not None:
             path = path + self._log_transition
         chooser = path if self.predecessor == "path" else log_b
-        j_hat = np.argmax(chooser, axis=1)  # (N, i)
+        j_hat = np.argmax(chooser, axis=1)  # (N, i): each destination's predecessor
         n_idx, i_idx = np.arange(N)[:, None], np.arange(L)[None, :]
-        k_hat = best_k[n_idx, j_hat, i_idx]
-        x_sel = x_pred[n_idx, j_hat, i_idx, k_hat]
-        P_sel = P_pred[n_idx, j_hat, i_idx, k_hat]
-        x, P, _ = kf_update(x_sel, P_sel, y[:, None, :], sys.C, sys.R)
+        x, P = x_pair[n_idx, j_hat, i_idx], P_pair[n_idx, j_hat, i_idx]
         log_w, _ = log_normalize(path[n_idx, j_hat, i_idx])  # a^i = b_ji a^j (pi_ji), normalized
-        offset = np.where(j_hat == i_idx, np.nan, switch_grid(dt, self.grid)[k_hat])
+        offset = np.where(j_hat == i_idx, np.nan, tau_pair[n_idx, j_hat, i_idx])
         return IMMEV1State(x, P, log_w, j_hat, offset)
 
     def _output(self, state: IMMEV1State) -> dict[str, np.ndarray]:

@@ -1,0 +1,159 @@
+"""Filter-specific behaviour: textbook equivalence, the clairvoyant bound, switching-time
+estimation and refinement, IMM-EV1 on a clean maneuver."""
+
+import numpy as np
+import pytest
+
+from switchest import SwitchedLinearSystem
+from switchest import signals as sg
+from switchest.discretize import interval, switch_grid
+from switchest.estimators import IMMEV1Filter, ModeKalmanFilter, SwitchTimeKalmanFilter
+from switchest.estimators.kalman import kf_update
+from switchest.estimators.switch_time import switch_time_loglik
+from switchest.metrics import rmse, switch_time_error
+from switchest.models import boost_converter, boost_switching, vehicle_2d, vehicle_maneuver
+from switchest.simulate import simulate
+
+
+def textbook_kf(A, B, C, Q, R, modes, y, u, x0, P0):
+    """x_k|k-1 = A x + B u, P = A P A' + Q; K = P C'(C P C' + R)^-1; standard form."""
+    x, P, xs = x0, P0, []
+    for k in range(y.shape[0]):
+        if k:
+            m = modes[k - 1]
+            x = A[m] @ x + B[m] @ u[k - 1]
+            P = A[m] @ P @ A[m].T + Q[m]
+        m = modes[k]
+        S = C[m] @ P @ C[m].T + R[m]
+        K = P @ C[m].T @ np.linalg.inv(S)
+        x = x + K @ (y[k] - C[m] @ x)
+        P = (np.eye(len(x)) - K @ C[m]) @ P
+        xs.append(x)
+    return np.array(xs)
+
+
+def test_mode_kalman_with_true_modes_is_the_textbook_filter():
+    rng = np.random.default_rng(0)
+    A = rng.standard_normal((3, 3, 3)) * 0.4
+    B = rng.standard_normal((3, 3, 1))
+    C = rng.standard_normal((3, 2, 3))
+    sys = SwitchedLinearSystem.discrete(A, B, C, Q=0.1 * np.eye(3), R=0.2 * np.eye(2), dt=1.0)
+    t = np.arange(30.0)
+    P = np.array([[0.7, 0.2, 0.1], [0.1, 0.8, 0.1], [0.3, 0.3, 0.4]])
+    traj = simulate(sys, sg.markov_at_samples(P, t, rng=1, initial=2), t, np.ones(3),
+                    u=rng.standard_normal((30, 1)), rng=2)
+    est = ModeKalmanFilter(sys, np.zeros(3), np.eye(3)).run(traj.y, traj.u[0], t, modes=traj.mode)
+    ref = textbook_kf(sys.A, sys.B, sys.C, sys.Q, sys.R, traj.mode[0], traj.y[0], traj.u[0],
+                      np.zeros(3), np.eye(3))
+    np.testing.assert_allclose(est.x[0], ref, rtol=1e-9, atol=1e-10)
+
+
+@pytest.fixture(scope="module")
+def boost_data():
+    system = boost_converter()
+    t = sg.periodic(0.5e-3, 0.06)
+    traj = simulate(system, lambda r: boost_switching(r, t_end=0.06), t, np.array([0.0, 100.0]),
+                    u=np.array([100.0]), trials=12, rng=3)
+    return system, t, traj
+
+
+def test_clairvoyant_filter_is_the_best_on_the_boost_converter(boost_data):
+    system, t, traj = boost_data
+    x0, P0, u = np.array([0.0, 100.0]), np.diag([100.0, 100.0]), [100.0]
+    clair = ModeKalmanFilter(system, x0, P0).run(traj.y, u, t, modes=traj.mode, segments=traj.segments())
+    grid5 = SwitchTimeKalmanFilter(system, x0, P0, grid=5).run(traj.y, u, t, modes=traj.mode)
+    at_samples = ModeKalmanFilter(system, x0, P0).run(traj.y, u, t, modes=traj.mode)
+    r = [rmse(e.x, traj.x, start=10).overall for e in (clair, grid5, at_samples)]
+    # the clairvoyant error is process-noise sized; the others are dominated by switch-time errors
+    assert np.all(r[0] < 0.1 * r[1]) and np.all(r[1] < r[2])
+
+
+def test_grid_switch_time_and_refinement_on_low_noise_data():
+    system = boost_converter(measurement_variance=1e-4, process_noise=1e-6)
+    t = sg.periodic(0.5e-3, 0.03)
+    traj = simulate(system, lambda r: boost_switching(r, t_end=0.03), t, np.array([0.0, 100.0]),
+                    u=np.array([100.0]), trials=4, rng=5)
+    x0, P0 = traj.x[0, 0], 1e-6 * np.eye(2)
+    true_switch = traj.switch_times()
+    grid = SwitchTimeKalmanFilter(system, x0, P0, grid=5).run(traj.y, [100.0], t, modes=traj.mode)
+    err_grid = switch_time_error(grid.switch_time, true_switch)
+    assert err_grid.size > 40
+    # on clean data the right cell is found almost always: the error is then at most half a cell
+    assert np.median(err_grid) <= 0.5e-3 / (2 * 5) + 1e-12
+    refined = SwitchTimeKalmanFilter(system, x0, P0, grid=5, refine=True).run(traj.y, [100.0], t, modes=traj.mode)
+    err_ref = switch_time_error(refined.switch_time, true_switch)
+    assert np.median(err_ref) < 0.2 * np.median(err_grid)
+
+
+def test_refinement_never_lowers_the_likelihood_of_the_chosen_time():
+    system = boost_converter()
+    rng = np.random.default_rng(2)
+    T = 0.5e-3
+    x = np.array([5.0, 110.0]) + rng.standard_normal((6, 2))
+    P = np.broadcast_to(np.diag([4.0, 4.0]), (6, 2, 2)).copy()
+    y = rng.normal(110.0, 3.0, (6, 1))
+    u = np.full((6, 1), 100.0)
+    prev, mode = np.zeros(6, int), np.ones(6, int)
+    for refine in (False, True):
+        f = SwitchTimeKalmanFilter(system, np.zeros(2), np.eye(2), grid=3, refine=refine)
+        tau, (F, G, Qd) = f._estimate(x, P, y, u, prev, mode, T)
+        tr = interval(system, T, np.stack([prev, mode], 1), tau[:, None])
+        np.testing.assert_allclose(F, tr.F, rtol=1e-12)
+        xp = np.einsum("nij,nj->ni", F, x) + G[..., 0] * 100.0
+        Pp = F @ P @ np.swapaxes(F, 1, 2) + Qd
+        ll = switch_time_loglik(xp, Pp, y, system.C[mode], system.R[mode])
+        if not refine:
+            grid_ll = ll
+            assert np.all(np.isin(tau, switch_grid(T, 3)))
+        else:
+            assert np.all(ll >= grid_ll - 1e-9)
+
+
+def test_imm_ev1_first_step_is_the_brute_force_best_path():
+    """After one prediction, destination i holds max over (j, tau) of p0_j L_0(j) L_1(i | j, tau)."""
+    system = vehicle_2d(measurement_variance=1e-2, process_noise=1e-2)
+    rng = np.random.default_rng(4)
+    y = rng.normal(0.0, 0.3, (2, 2))
+    u, T, g = np.array([3.0]), 0.5, 4
+    transition = np.array([[0.8, 0.15, 0.05], [0.1, 0.7, 0.2], [0.3, 0.3, 0.4]])
+    f = IMMEV1Filter(system, transition, x0=np.zeros(4), P0=np.eye(4), grid=g, epsilon=1e-3)
+    state = f.step(f.init((1,)), y[None, 0], dt=None)
+    state = f.step(state, y[None, 1], u[None], dt=T)
+    best = np.full(3, -np.inf)
+    for i in range(3):
+        for j in range(3):
+            x0, P0, ll0 = kf_update(np.zeros(4), np.eye(4), y[0], system.C[j], system.R[j])
+            taus = [None] if i == j else switch_grid(T, g)
+            for tau in taus:
+                tr = interval(system, T, [j] if tau is None else [j, i], [] if tau is None else [tau])
+                xp = tr.F @ x0 + tr.G @ u
+                Pp = tr.F @ P0 @ tr.F.T + tr.Qd + 1e-3 * np.eye(4)
+                x1, P1, ll1 = kf_update(xp, Pp, y[1], system.C[i], system.R[i])
+                score = np.log(1 / 3) + ll0 + ll1 + np.log(transition[j, i])
+                if score > best[i]:
+                    best[i], x_best = score, x1
+        np.testing.assert_allclose(state.x[0, i], x_best, rtol=1e-9, atol=1e-12)
+    expected = np.exp(best - best.max()) / np.exp(best - best.max()).sum()
+    np.testing.assert_allclose(np.exp(state.log_weight[0]), expected, rtol=1e-9)
+
+
+def test_imm_ev1_switch_times_fall_in_their_intervals_on_the_maneuver():
+    man = vehicle_maneuver()
+    system = vehicle_2d()
+    traj = simulate(system, man.signal, man.t, np.zeros(4), u=man.u, trials=5, rng=0)
+    est = IMMEV1Filter(system, x0=np.zeros(4), P0=0.1 * np.eye(4), grid=5).run(traj.y, man.u, man.t)
+    for n, k in np.argwhere(np.isfinite(est.switch_time)):
+        assert man.t[k - 1] < est.switch_time[n, k] < man.t[k]
+    np.testing.assert_allclose(est.mode_prob.sum(-1), 1.0, rtol=1e-12)
+
+
+def test_marginal_switch_time_variant_runs_and_weights_sum_to_one():
+    man = vehicle_maneuver()
+    system = vehicle_2d()
+    traj = simulate(system, man.signal, man.t, np.zeros(4), u=man.u, trials=3, rng=1)
+    est = IMMEV1Filter(system, x0=np.zeros(4), P0=np.eye(4), grid=4, switch_time="marginal").run(
+        traj.y, man.u, man.t)
+    np.testing.assert_allclose(est.mode_prob.sum(-1), 1.0, rtol=1e-12)
+    finite = est.switch_time[np.isfinite(est.switch_time)]
+    k = np.searchsorted(man.t, finite)  # each estimate lies inside its own interval
+    assert np.all((finite > man.t[k - 1]) & (finite < man.t[k]))
