@@ -8,6 +8,7 @@ received, and raises ``ValueError`` (wrong value or shape) or ``TypeError``
 from __future__ import annotations
 
 from collections.abc import Sequence
+from numbers import Real
 
 import numpy as np
 
@@ -21,6 +22,7 @@ __all__ = [
     "check_row_stochastic",
     "check_probability_vector",
     "positive_scalar",
+    "positive_int",
 ]
 
 _SYM_RTOL = 1e-9
@@ -152,13 +154,19 @@ def check_probability_vector(p, name: str, *, n: int | None = None) -> np.ndarra
 
 def positive_scalar(value, name: str, *, allow_zero: bool = False) -> float:
     """Return ``value`` as a finite positive (or non-negative) float."""
-    if isinstance(value, (bool, np.bool_)) or not np.isscalar(value):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (Real, np.floating, np.integer)):
         raise TypeError(f"{name} must be a real scalar, got {type(value).__name__}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a real scalar, got {value!r}") from exc
+    v = float(value)
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         want = "non-negative" if allow_zero else "positive"
         raise ValueError(f"{name} must be a finite {want} number, got {value!r}")
     return v
+
+
+def positive_int(value, name: str) -> int:
+    """Return ``value`` as an int >= 1; bools and floats are refused."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+    if value < 1:
+        raise ValueError(f"{name} must be a positive int, got {value}")
+    return int(value)

@@ -200,7 +200,6 @@ def _cached(system, T_bytes, T_shape, m_bytes, m_shape, o_bytes, o_shape) -> Tra
 
 
 def _compute(system, T, modes, offsets, batch) -> Transition:
-    n, l = system.n_states, system.n_inputs
     S1 = modes.shape[-1]
     T = np.broadcast_to(T, batch)
     modes = np.broadcast_to(modes, (*batch, S1))
@@ -220,7 +219,7 @@ def _compute(system, T, modes, offsets, batch) -> Transition:
 def _segments(system, modes, h):
     """Phi, G_s, Qd_s for every (mode, length) pair, from one stacked Van Loan expm."""
     M, q_scale, b_scale = _van_loan_generators(system)
-    n, l = system.n_states, system.n_inputs
+    n = system.n_states
     E = expm(M[modes] * h[..., None, None])
     Phi = np.swapaxes(E[..., n : 2 * n, n : 2 * n], -1, -2)
     Qs = symmetrize(Phi @ E[..., :n, n : 2 * n]) / q_scale[modes][..., None, None]

@@ -405,7 +405,6 @@ def sample_segments(signals, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     trial = np.repeat(np.arange(N), counts)
     times = np.concatenate([s.times for s in signals])
     entered = np.concatenate([s.modes[1:] for s in signals])
-    first_mode = np.array([s.modes[0] for s in signals])
     # mode at the samples: the number of switches at or before t_k selects the mode
     first_sample_after = np.searchsorted(t, times, side="left")  # samples k with t_k >= s
     hist = np.zeros((N, K + 1), dtype=np.int64)

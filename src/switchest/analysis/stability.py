@@ -1,0 +1,411 @@
+"""Stability of switched linear systems under arbitrary and random switching.
+
+* :func:`spectral_radius` — batched.
+* :func:`cqlf` — a common quadratic Lyapunov function ``V(x) = x' P x`` for a family
+  of matrices (Zhang & Natarajan, Lemma 1 (ii) and eq. (13) in discrete time; the
+  continuous-time analogue ``A_i' P + P A_i < 0``), as an LMI re-verified with numpy.
+* :func:`jsr_bounds` — a bracket on the joint spectral radius (beyond the papers):
+  products of bounded length from below, the best common quadratic norm and a
+  prefix-code product tree in that norm from above. It tells how conservative an
+  infeasible CQLF was.
+* :func:`ms_stable_iid` — mean-square stability of i.i.d. random switching.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import cvxpy as cp
+import numpy as np
+
+from .._checks import check_finite, check_probability_vector, float_array, positive_int, positive_scalar
+from ._lmi import max_eigenvalue, min_eigenvalue, solve_sdp, symmetric_block
+
+__all__ = [
+    "JSRBounds",
+    "LyapunovCertificate",
+    "MeanSquareStability",
+    "cqlf",
+    "decrease_margin",
+    "jsr_bounds",
+    "ms_stable_iid",
+    "spectral_radius",
+]
+
+Domain = Literal["discrete", "continuous"]
+
+_MAX_BISECTIONS = 60  # lo = 0 (nilpotent families) never meets the relative tolerance
+
+_FEASIBLE_NOTE = "P >= I certifies stability under arbitrary switching (checked with numpy)"
+_INFEASIBLE_NOTE = (
+    "no common quadratic Lyapunov function was found; this is not a proof of instability "
+    "(a switched system can be stable under arbitrary switching without a CQLF) — "
+    "see jsr_bounds for how conservative the quadratic test is"
+)
+
+
+@dataclass(frozen=True)
+class LyapunovCertificate:
+    """Outcome of :func:`cqlf`.
+
+    Attributes
+    ----------
+    feasible : bool
+        True only when the returned ``P`` passed the numpy re-verification.
+    P : ndarray, shape (n, n), or None
+        The certificate, scaled so that its smallest eigenvalue is 1 (``P >= I``);
+        ``None`` when not feasible.
+    margin : float
+        Verified decrease margin of the scaled ``P``: ``min_i -max eig(A_i' P A_i - P)``
+        (discrete) or ``min_i -max eig(A_i' P + P A_i)`` (continuous). NaN when not
+        feasible.
+    solver_status : str
+        Status reported by the solver that answered (``"optimal"``,
+        ``"infeasible"``, ``"optimal_inaccurate"``, ``"solver_error"``, ...).
+    domain : {"discrete", "continuous"}
+    note : str
+        What the verdict means; an infeasible verdict is not a proof of instability.
+    """
+
+    feasible: bool
+    P: np.ndarray | None
+    margin: float
+    solver_status: str
+    domain: str
+    note: str
+
+
+@dataclass(frozen=True)
+class JSRBounds:
+    """Outcome of :func:`jsr_bounds`: ``lower <= JSR <= upper``.
+
+    Attributes
+    ----------
+    lower : float
+        ``max rho(W)^(1/|W|)`` over the products ``W`` visited.
+    upper : float
+        ``min(ellipsoid, tree)``.
+    ellipsoid : float
+        Best common quadratic norm bound: smallest ``r`` (to ``rtol``) with a CQLF
+        for ``{A_i / r}`` — the bound a CQLF alone can give.
+    tree : float
+        Prefix-code bound ``max ||W||_P^(1/|W|)`` over the leaves of the product
+        tree in the norm of that CQLF (the spectral norm when none was found).
+    word : tuple of int
+        Mode sequence (0-based, first applied first) attaining ``lower``.
+    n_products : int
+        Number of products whose norm and spectral radius were evaluated.
+    """
+
+    lower: float
+    upper: float
+    ellipsoid: float
+    tree: float
+    word: tuple[int, ...]
+    n_products: int
+
+
+@dataclass(frozen=True)
+class MeanSquareStability:
+    """Outcome of :func:`ms_stable_iid`.
+
+    Attributes
+    ----------
+    radius : float
+        Spectral radius of ``sum_i p_i (A_i kron A_i)``.
+    stable : bool
+        ``radius < 1``: the second moment ``E[x_k x_k']`` converges to zero.
+    """
+
+    radius: float
+    stable: bool
+
+
+def spectral_radius(A) -> np.ndarray:
+    """Spectral radius ``max |eig(A)|`` of each matrix in a stack.
+
+    Parameters
+    ----------
+    A : array_like, shape (..., n, n)
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    A = _matrix_stack(A, "A", min_ndim=2)
+    return np.max(np.abs(np.linalg.eigvals(A)), axis=-1)
+
+
+def cqlf(matrices, domain: Domain = "discrete", *, margin: float = 1e-6) -> LyapunovCertificate:
+    """Find a common quadratic Lyapunov function for a family of matrices.
+
+    Discrete time (Zhang & Natarajan, eq. (13)): ``P = P'``, ``P >= I``,
+    ``A_i' P A_i - P <= -margin I`` for all i. Continuous time: ``P >= I``,
+    ``A_i' P + P A_i <= -margin I``. The strict inequalities of the papers are
+    posed with the explicit margin; the homogeneous problem loses nothing by the
+    normalization ``P >= I``. The solver's ``P`` is then re-checked with numpy
+    eigenvalues after rescaling it to ``min eig(P) = 1``; ``feasible`` is True only
+    if the verified decrease margin is at least ``margin / 2`` (half the posed
+    margin, leaving room for the solver's feasibility tolerance).
+
+    Parameters
+    ----------
+    matrices : array_like, shape (L, n, n) or (n, n)
+        The mode matrices (a single matrix is a family of one).
+    domain : {"discrete", "continuous"}, optional
+        ``"discrete"``: ``x_{k+1} = A_i x_k``; ``"continuous"``: ``dx/dt = A_i x``.
+    margin : float, optional
+        Decrease margin posed in the LMI (keyword-only), positive.
+
+    Returns
+    -------
+    LyapunovCertificate
+        An infeasible verdict is not a proof of instability (see ``note``).
+
+    Raises
+    ------
+    ValueError
+        If ``matrices`` is not a stack of finite square matrices, ``domain`` is
+        unknown or ``margin`` is not positive.
+    """
+    A = _matrix_stack(matrices, "matrices", min_ndim=2, max_ndim=3)
+    A = A[None] if A.ndim == 2 else A
+    domain = _check_domain(domain)
+    margin = positive_scalar(margin, "margin")
+    n = A.shape[-1]
+    P = cp.Variable((n, n), symmetric=True)
+    eye = np.eye(n)
+    constraints = [symmetric_block([[P - eye]]) >> 0]
+    for Ai in A:
+        constraints.append(symmetric_block([[_decrease(Ai, P, domain) + margin * eye]]) << 0)
+    problem = cp.Problem(cp.Minimize(0), constraints)
+    outcome = solve_sdp(problem)
+    if outcome.status != cp.OPTIMAL and not (
+        outcome.status == cp.OPTIMAL_INACCURATE and P.value is not None
+    ):
+        return _infeasible(outcome.status, domain, _INFEASIBLE_NOTE)
+    Pv = 0.5 * (P.value + P.value.T)
+    lowest = float(min_eigenvalue(Pv))
+    if lowest <= 0:
+        return _infeasible(
+            outcome.status,
+            domain,
+            f"the solver's P is not positive definite (min eigenvalue {lowest:.3g}); "
+            + _INFEASIBLE_NOTE,
+        )
+    Pv = Pv / lowest
+    verified = decrease_margin(A, Pv, domain=domain)
+    if verified < 0.5 * margin:
+        return _infeasible(
+            outcome.status,
+            domain,
+            f"the solver's P failed the numpy check (decrease margin {verified:.3g} < "
+            f"{0.5 * margin:.3g}); " + _INFEASIBLE_NOTE,
+        )
+    return LyapunovCertificate(
+        feasible=True,
+        P=Pv,
+        margin=verified,
+        solver_status=outcome.status,
+        domain=domain,
+        note=_FEASIBLE_NOTE,
+    )
+
+
+def decrease_margin(matrices, P, *, domain: Domain = "discrete") -> float:
+    """Numpy check of a candidate Lyapunov matrix: ``min_i -max eig(D_i)``.
+
+    ``D_i = A_i' P A_i - P`` (discrete) or ``A_i' P + P A_i`` (continuous). A
+    positive value means ``V(x) = x' P x`` decreases along every mode.
+
+    Parameters
+    ----------
+    matrices : array_like, shape (L, n, n) or (n, n)
+    P : array_like, shape (n, n)
+    domain : {"discrete", "continuous"}, optional
+    """
+    A = _matrix_stack(matrices, "matrices", min_ndim=2, max_ndim=3)
+    A = A[None] if A.ndim == 2 else A
+    P = float_array(P, "P", ndim=2)
+    if P.shape != A.shape[1:]:
+        raise ValueError(f"P must have shape {A.shape[1:]}, got {P.shape}")
+    domain = _check_domain(domain)
+    At = np.swapaxes(A, -1, -2)
+    D = At @ P @ A - P if domain == "discrete" else At @ P + P @ A
+    return float(-np.max(max_eigenvalue(D)))
+
+
+def jsr_bounds(
+    matrices,
+    *,
+    max_length: int = 32,
+    max_products: int = 20000,
+    rtol: float = 1e-4,
+    prune_tol: float = 1e-3,
+) -> JSRBounds:
+    """Bracket the joint spectral radius of a finite family of matrices.
+
+    Beyond the papers (Zhang & Natarajan cite the JSR only as undecidable, their
+    ref. [40]); this shows how far a quadratic certificate is from the truth.
+
+    * Ellipsoid bound: bisection on ``r`` for a CQLF of ``{A_i / r}``
+      (:func:`cqlf`); a CQLF ``P`` gives ``||A_i||_P <= r`` for every mode, hence
+      ``JSR <= r``.
+    * Lower bound: ``JSR >= rho(W)^(1/|W|)`` for every product ``W`` of the
+      ``A_i``; products are enumerated breadth-first up to ``max_length``.
+    * Tree bound (a prefix code in the CQLF norm ``||x||_P = sqrt(x' P x)``):
+      a product ``W`` is not extended once ``||W||_P^(1/|W|) <= lower (1 +
+      prune_tol)`` (pruning), nor beyond ``max_length`` or once ``max_products``
+      are reached. The unextended products (the leaves) form a complete prefix
+      code: every infinite mode sequence factors into leaves, so by
+      submultiplicativity ``JSR <= max_leaves ||W||_P^(1/|W|)``.
+
+    Parameters
+    ----------
+    matrices : array_like, shape (L, n, n)
+    max_length : int, optional
+        Longest product enumerated (keyword-only).
+    max_products : int, optional
+        Budget on the number of products evaluated.
+    rtol : float, optional
+        Relative tolerance of the ellipsoid bisection.
+    prune_tol : float, optional
+        Relative slack of the pruning rule.
+
+    Returns
+    -------
+    JSRBounds
+    """
+    A = _matrix_stack(matrices, "matrices", min_ndim=3, max_ndim=3)
+    max_length = positive_int(max_length, "max_length")
+    max_products = positive_int(max_products, "max_products")
+    rtol = positive_scalar(rtol, "rtol")
+    prune_tol = positive_scalar(prune_tol, "prune_tol")
+    ellipsoid, P = _ellipsoid_bound(A, rtol)
+    norm = _p_norm(P)
+    L = A.shape[0]
+    rho = spectral_radius(A)
+    best = int(np.argmax(rho))
+    lower, word = float(rho[best]), (best,)
+    words = np.arange(L)[:, None]
+    prods = A
+    leaf_bound = 0.0
+    evaluated = L
+    for length in range(1, max_length + 1):
+        growth = norm(prods) ** (1.0 / length)
+        expand = growth > lower * (1.0 + prune_tol)
+        room = evaluated + L * int(expand.sum()) <= max_products
+        if length == max_length or not room:
+            expand[:] = False
+        leaf_bound = max(leaf_bound, float(np.max(growth[~expand], initial=0.0)))
+        if not expand.any():
+            break
+        # children W' = A_i W: mode i applied after the word W
+        prods = np.einsum("iab,wbc->wiac", A, prods[expand]).reshape(-1, *A.shape[1:])
+        words = np.concatenate(
+            [np.repeat(words[expand], L, axis=0), np.tile(np.arange(L), expand.sum())[:, None]],
+            axis=1,
+        )
+        evaluated += prods.shape[0]
+        radii = spectral_radius(prods) ** (1.0 / (length + 1))
+        k = int(np.argmax(radii))
+        if radii[k] > lower:
+            lower, word = float(radii[k]), tuple(int(w) for w in words[k])
+    return JSRBounds(
+        lower=lower,
+        upper=min(ellipsoid, leaf_bound),
+        ellipsoid=ellipsoid,
+        tree=leaf_bound,
+        word=word,
+        n_products=evaluated,
+    )
+
+
+def ms_stable_iid(A, p) -> MeanSquareStability:
+    """Mean-square stability of ``x_{k+1} = A_{s_k} x_k`` with i.i.d. modes.
+
+    With ``P(s_k = i) = p_i`` independently of the past, the second moment obeys
+    ``vec E[x_{k+1} x_{k+1}'] = (sum_i p_i A_i kron A_i) vec E[x_k x_k']``, so the
+    system is mean-square stable iff the spectral radius of that matrix is below 1.
+
+    Parameters
+    ----------
+    A : array_like, shape (L, n, n)
+    p : array_like, shape (L,)
+        Mode probabilities, non-negative, summing to one.
+
+    Returns
+    -------
+    MeanSquareStability
+    """
+    A = _matrix_stack(A, "A", min_ndim=3, max_ndim=3)
+    p = check_probability_vector(p, "p", n=A.shape[0])
+    n = A.shape[-1]
+    M = np.einsum("i,iab,icd->acbd", p, A, A).reshape(n * n, n * n)
+    radius = float(spectral_radius(M))
+    return MeanSquareStability(radius=radius, stable=radius < 1.0)
+
+
+# ---------------------------------------------------------------------- helpers
+def _decrease(A: np.ndarray, P: cp.Variable, domain: str) -> cp.Expression:
+    if domain == "discrete":
+        return A.T @ P @ A - P
+    return A.T @ P + P @ A
+
+
+def _infeasible(status: str, domain: str, note: str) -> LyapunovCertificate:
+    return LyapunovCertificate(
+        feasible=False, P=None, margin=float("nan"), solver_status=status, domain=domain, note=note
+    )
+
+
+def _ellipsoid_bound(A: np.ndarray, rtol: float) -> tuple[float, np.ndarray]:
+    """Smallest ``r`` (to ``rtol``) with a verified CQLF of ``{A_i / r}``, and its P."""
+    rho = float(np.max(spectral_radius(A)))
+    norms = np.linalg.norm(A, ord=2, axis=(-2, -1))
+    hi = float(np.max(norms)) * (1.0 + rtol)
+    if hi == 0.0:
+        return 0.0, np.eye(A.shape[-1])
+    lo = rho
+    best = cqlf(A / hi)
+    P = best.P if best.feasible else np.eye(A.shape[-1])
+    for _ in range(_MAX_BISECTIONS):
+        if hi - lo <= rtol * hi:
+            break
+        mid = 0.5 * (lo + hi)
+        cert = cqlf(A / mid)
+        if cert.feasible:
+            hi, P = mid, cert.P
+        else:
+            lo = mid
+    return hi, P
+
+
+def _p_norm(P: np.ndarray):
+    """``W -> ||W||_P``, the norm induced by ``||x||_P = sqrt(x' P x)``, batched."""
+    R = np.linalg.cholesky(P).T  # P = R' R, ||x||_P = ||R x||
+    R_inv = np.linalg.inv(R)
+    return lambda W: np.linalg.norm(R @ W @ R_inv, ord=2, axis=(-2, -1))
+
+
+def _matrix_stack(value, name: str, *, min_ndim: int, max_ndim: int | None = None) -> np.ndarray:
+    arr = float_array(value, name)
+    if arr.ndim < min_ndim or (max_ndim is not None and arr.ndim > max_ndim):
+        want = f"{min_ndim}" if max_ndim == min_ndim else f"at least {min_ndim}"
+        if max_ndim is not None and max_ndim != min_ndim:
+            want = f"{min_ndim} to {max_ndim}"
+        raise ValueError(f"{name} must have {want} dimensions, got shape {arr.shape}")
+    if arr.shape[-1] != arr.shape[-2] or arr.shape[-1] == 0:
+        raise ValueError(
+            f"{name} must be a stack of non-empty square matrices, got shape {arr.shape}"
+        )
+    check_finite(arr, name)
+    return arr
+
+
+def _check_domain(domain) -> str:
+    if domain not in ("discrete", "continuous"):
+        raise ValueError(f"domain must be 'discrete' or 'continuous', got {domain!r}")
+    return domain
+
