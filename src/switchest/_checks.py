@@ -23,6 +23,7 @@ __all__ = [
     "check_probability_vector",
     "positive_scalar",
     "positive_int",
+    "check_mode",
 ]
 
 _SYM_RTOL = 1e-9
@@ -169,4 +170,13 @@ def positive_int(value, name: str) -> int:
         raise TypeError(f"{name} must be an int, got {type(value).__name__}")
     if value < 1:
         raise ValueError(f"{name} must be a positive int, got {value}")
+    return int(value)
+
+
+def check_mode(value, n_modes: int, name: str) -> int:
+    """Return ``value`` as a 0-based mode index in ``0..n_modes-1``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an int mode index, got {type(value).__name__}")
+    if not 0 <= value < n_modes:
+        raise ValueError(f"{name} must be a mode index in 0..{n_modes - 1}, got {value}")
     return int(value)

@@ -17,6 +17,7 @@ import numpy as np
 
 from ._checks import (
     as_rng,
+    check_mode,
     check_finite,
     check_probability_vector,
     check_row_stochastic,
@@ -131,13 +132,6 @@ def schedule(times, modes) -> SwitchingSignal:
     return SwitchingSignal(times[change], np.concatenate([modes[:1], modes[1:][change]]))
 
 
-def _check_mode(mode, n_modes: int, name: str) -> int:
-    if isinstance(mode, (bool, np.bool_)) or not isinstance(mode, (int, np.integer)):
-        raise TypeError(f"{name} must be an int mode index, got {type(mode).__name__}")
-    if not 0 <= mode < n_modes:
-        raise ValueError(f"{name} must be in 0..{n_modes - 1}, got {mode}")
-    return int(mode)
-
 
 def _check_n_modes(n_modes, minimum: int = 2) -> int:
     if isinstance(n_modes, (bool, np.bool_)) or not isinstance(n_modes, (int, np.integer)):
@@ -175,7 +169,7 @@ def dwell_time(
     if hi < lo:
         raise ValueError(f"max_dwell must be >= min_dwell = {lo:g}, got {hi:g}")
     t_end = _check_span(t_start, t_end)
-    first = _check_mode(initial_mode, n_modes, "initial_mode")
+    first = check_mode(initial_mode, n_modes, "initial_mode")
     rng = as_rng(rng)
     count = int(np.ceil((t_end - t_start) / lo)) + 1
     times = t_start + np.cumsum(rng.uniform(lo, hi, size=count))
@@ -212,7 +206,7 @@ def average_dwell_time(
         raise ValueError(f"N0 must be >= 1 (one switch must be possible), got {N0:g}")
     rate = 2.0 / tau_a if rate is None else positive_scalar(rate, "rate")
     t_end = _check_span(t_start, t_end)
-    first = _check_mode(initial_mode, n_modes, "initial_mode")
+    first = check_mode(initial_mode, n_modes, "initial_mode")
     rng = as_rng(rng)
     n_try = int(rng.poisson(rate * (t_end - t_start)))
     attempts = np.sort(rng.uniform(t_start, t_end, size=n_try))
@@ -276,7 +270,7 @@ def markov_continuous(
     if np.any(np.abs(Q.sum(axis=1)) > 1e-9 * max(1.0, np.abs(Q).max())):
         raise ValueError(f"rates rows must sum to zero (generator matrix), got {Q.sum(axis=1)}")
     t_end = _check_span(t_start, t_end)
-    mode = _check_mode(initial_mode, n_modes, "initial_mode")
+    mode = check_mode(initial_mode, n_modes, "initial_mode")
     rng = as_rng(rng)
     times, modes, t = [], [mode], t_start
     while True:  # sequential by nature: each holding time depends on the mode reached
@@ -322,7 +316,7 @@ def markov_at_samples(transition, t, *, rng, initial=None) -> SwitchingSignal:
         p0 = check_probability_vector(p0, "initial", n=n_modes)
         first = int(rng.choice(n_modes, p=p0))
     else:
-        first = _check_mode(initial, n_modes, "initial")
+        first = check_mode(initial, n_modes, "initial")
     cum = np.cumsum(P, axis=1)
     draws = rng.random(t.size - 1)
     modes = np.empty(t.size, dtype=np.int64)

@@ -28,7 +28,7 @@ from scipy.linalg import qr
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .._checks import check_finite, check_symmetric_psd, float_array, positive_scalar
+from .._checks import check_finite, check_mode, check_symmetric_psd, float_array, positive_int, positive_scalar
 from .._linalg import symmetrize
 from ..discretize import interval
 from ..system import SwitchedLinearSystem
@@ -263,7 +263,7 @@ def observability_matrix(A, C, order: int | None = None) -> np.ndarray:
     """
     A, C = _pair(A, C, batched=True)
     n = A.shape[-1]
-    order = n if order is None else _positive_int(order, "order")
+    order = n if order is None else positive_int(order, "order")
     blocks = [C]
     for _ in range(order - 1):
         blocks.append(blocks[-1] @ A)
@@ -424,7 +424,7 @@ def joint_gramian(system: SwitchedLinearSystem, i: int, j: int, t) -> np.ndarray
         raise ValueError(
             f"system must be continuous-time for the Gramian of Lee et al., got {system.domain!r}"
         )
-    i, j = _mode(i, "i", system.n_modes), _mode(j, "j", system.n_modes)
+    i, j = check_mode(i, system.n_modes, "i"), check_mode(j, system.n_modes, "j")
     t = float_array(t, "t")
     check_finite(t, "t")
     if np.any(t <= 0):
@@ -714,17 +714,3 @@ def _check_system(system) -> None:
         raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
 
 
-def _mode(value, name: str, n_modes: int) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an int mode index, got {type(value).__name__}")
-    if not 0 <= value < n_modes:
-        raise ValueError(f"{name} must be a mode index in [0, {n_modes - 1}], got {value}")
-    return int(value)
-
-
-def _positive_int(value, name: str) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-    if value < 1:
-        raise ValueError(f"{name} must be a positive int, got {value}")
-    return int(value)
