@@ -135,3 +135,20 @@ def test_bad_input(kwargs, err, match):
     args.update(kwargs)
     with pytest.raises(err, match=match):
         simulate(**args)
+
+
+def test_integrated_output_has_the_ito_moments():
+    """dz = C x dt + dv: for x constant (A = 0, Q = 0), z(T) ~ N(C x T, R T)."""
+    sys = SwitchedLinearSystem.continuous(np.zeros((2, 2)), C=[[1.0, 2.0]], R=[[0.3]])
+    t = sg.periodic(0.5, 2.0)
+    N = 20000
+    traj = simulate(sys, sg.schedule([], [0]), t, [1.0, -1.0], trials=N, rng=0, output="integrated",
+                    fine_dt=0.25)
+    z = traj.y[:, :, 0]
+    np.testing.assert_array_equal(z[:, 0], 0.0)
+    mean, var = -1.0 * t, 0.3 * t
+    assert np.all(np.abs(z.mean(0) - mean) < 5 * np.sqrt(var / N) + 1e-12)
+    assert np.all(np.abs(z[:, 1:].var(0) - var[1:]) < 5 * var[1:] * np.sqrt(2 / N))
+    np.testing.assert_allclose(traj.y_fine[:, ::2], traj.y)  # the fine grid halves each interval
+    inc = np.diff(z, axis=1)  # independent increments
+    assert abs(np.corrcoef(inc[:, 0], inc[:, 1])[0, 1]) < 5 / np.sqrt(N)

@@ -21,7 +21,7 @@ from .discretize import mode_steps, segment_transitions
 from .signals import SwitchingSignal, sample_segments
 from .system import SwitchedLinearSystem
 
-__all__ = ["Trajectory", "simulate"]
+__all__ = ["Trajectory", "simulate", "integrated_output_system"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,6 +46,9 @@ class Trajectory:
         The continuous path on a fine grid ``(Kf,)``, ``(N, Kf, n)``, ``(N, Kf)``
         when :func:`simulate` was given ``fine_dt``; the fine grid contains every
         sample time.
+    y_fine : ndarray or None
+        With ``output="integrated"`` and ``fine_dt``: the integrated output on the
+        fine grid ``(N, Kf, m)``.
     """
 
     t: np.ndarray
@@ -57,6 +60,7 @@ class Trajectory:
     t_fine: np.ndarray | None = None
     x_fine: np.ndarray | None = None
     mode_fine: np.ndarray | None = None
+    y_fine: np.ndarray | None = None
 
     @property
     def n_trials(self) -> int:
@@ -99,6 +103,7 @@ def simulate(
     trials: int = 1,
     rng=None,
     fine_dt: float | None = None,
+    output: str = "sampled",
 ) -> Trajectory:
     """Simulate ``trials`` independent runs exactly at the sample times ``t``.
 
@@ -123,6 +128,13 @@ def simulate(
     fine_dt : float, optional
         Also return the path on a fine grid: each sample interval is split into
         ``ceil((t_{k+1} - t_k) / fine_dt)`` equal steps (continuous systems only).
+    output : {"sampled", "integrated"}
+        ``"sampled"``: ``y_k = C x(t_k) + v_k`` with ``v_k ~ N(0, R)``.
+        ``"integrated"`` (continuous systems): the output is the Ito process
+        ``dz = C x dt + dv`` with ``E[dv dv'] = R dt`` (Wang et al. eq. (1), ``R = Xi Xi'``),
+        and ``y_k = z(t_k)`` with ``z(t_0) = 0``. It is simulated exactly, as the
+        extra states of ``d[x; z] = [[A, 0], [C, 0]] [x; z] dt + ...`` (see
+        :func:`integrated_output_system`); an observer uses its increments.
 
     Returns
     -------
@@ -142,6 +154,12 @@ def simulate(
             raise ValueError(f"t must be spaced by the discrete system's dt = {system.dt:g}")
         if fine_dt is not None:
             raise ValueError("fine_dt applies to continuous-time systems only")
+    if output not in ("sampled", "integrated"):
+        raise ValueError(f"output must be 'sampled' or 'integrated', got {output!r}")
+    if output == "integrated":
+        if not system.is_continuous:
+            raise ValueError("output='integrated' applies to continuous-time systems only")
+        return _simulate_integrated(system, signal, t, x0, u, trials=trials, rng=rng, fine_dt=fine_dt)
     signals = _signals(signal, trials, rng, system.n_modes)
     u = _inputs(u, system.n_inputs, t.size, trials)
     x = _initial_states(x0, system.n_states, trials, rng)
@@ -159,6 +177,48 @@ def simulate(
     if fine_dt is not None:
         fine = dict(t_fine=grid, x_fine=X, mode_fine=mode_grid)
     return Trajectory(t=t, x=x_s, y=y, u=u, mode=mode, signals=tuple(signals), **fine)
+
+
+def integrated_output_system(system: SwitchedLinearSystem) -> SwitchedLinearSystem:
+    """The system with its integrated output ``z`` appended to the state.
+
+    ``d[x; z] = [[A, 0], [C, 0]] [x; z] dt + [B; 0] u dt + [dw; dv]`` with noise
+    intensity ``blockdiag(Q, R)``: sampling it exactly gives the exact joint law of
+    the state and the Ito output ``dz = C x dt + dv`` of Wang et al. eq. (1).
+    """
+    L, n, m = system.n_modes, system.n_states, system.n_outputs
+    A = np.zeros((L, n + m, n + m))
+    A[:, :n, :n] = system.A
+    A[:, n:, :n] = system.C
+    B = np.concatenate([system.B, np.zeros((L, m, system.n_inputs))], axis=1)
+    Q = np.zeros((L, n + m, n + m))
+    Q[:, :n, :n] = system.Q
+    Q[:, n:, n:] = system.R
+    C = np.broadcast_to(np.eye(n + m)[n:], (L, m, n + m))
+    return SwitchedLinearSystem.continuous(A, B, C, Q=Q)
+
+
+def _simulate_integrated(system, signal, t, x0, u, *, trials, rng, fine_dt) -> Trajectory:
+    n = system.n_states
+    aug = integrated_output_system(system)
+    if isinstance(x0, tuple) and len(x0) == 2:
+        mean = float_array(x0[0], "x0 mean", ndim=1)
+        cov = float_array(x0[1], "x0 cov", ndim=2)
+        if mean.shape != (n,) or cov.shape != (n, n):
+            raise ValueError(f"x0 must be (mean (n,), cov (n, n)) with n = {n}, got {mean.shape} and {cov.shape}")
+        x0_aug = (np.concatenate([mean, np.zeros(system.n_outputs)]), np.pad(cov, (0, system.n_outputs)))
+    else:
+        x0 = float_array(x0, "x0", ndim=1)
+        if x0.shape != (n,):
+            raise ValueError(f"x0 must have shape (n,) = ({n},), got {x0.shape}")
+        x0_aug = np.concatenate([x0, np.zeros(system.n_outputs)])
+    traj = simulate(aug, signal, t, x0_aug, u, trials=trials, rng=rng, fine_dt=fine_dt)
+    fine = {}
+    if fine_dt is not None:
+        fine = dict(t_fine=traj.t_fine, x_fine=traj.x_fine[..., :n], mode_fine=traj.mode_fine,
+                    y_fine=traj.x_fine[..., n:])
+    return Trajectory(t=traj.t, x=traj.x[..., :n], y=traj.x[..., n:], u=traj.u, mode=traj.mode,
+                      signals=traj.signals, **fine)
 
 
 def _propagate(system, modes, offsets, grid, x, u, rng) -> np.ndarray:
