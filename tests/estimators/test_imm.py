@@ -55,10 +55,11 @@ def test_matches_filterpy_step_for_step():
             theirs.predict(traj.u[0, k - 1])
         theirs.update(traj.y[0, k])
         state = ours.step(state, traj.y[:, k], traj.u[:, k - 1] if k else None, dt=None if k == 0 else 1.0)
-        out = ours._output(state)
-        np.testing.assert_allclose(out["mode_prob"][0], theirs.mu, rtol=1e-9, atol=1e-12)
-        np.testing.assert_allclose(out["x"][0], theirs.x, rtol=1e-9, atol=1e-10)
-        np.testing.assert_allclose(out["P"][0], theirs.P, rtol=1e-9, atol=1e-10)
+        mu = np.exp(state.log_prob)
+        x, P = imm_combine(state.x, state.P, mu)
+        np.testing.assert_allclose(mu[0], theirs.mu, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(x[0], theirs.x, rtol=1e-9, atol=1e-10)
+        np.testing.assert_allclose(P[0], theirs.P, rtol=1e-9, atol=1e-10)
         for j, f in enumerate(theirs.filters):
             np.testing.assert_allclose(state.x[0, j], f.x, rtol=1e-9, atol=1e-10)
 
@@ -75,8 +76,14 @@ def test_missing_measurement_gives_the_predicted_mode_probabilities_and_mixed_pr
     x0j, P0j, _ = imm_mix(state.x, state.P, state.log_prob, np.log(TRANSITION))
     x_pred = np.einsum("jab,njb->nja", sys.A, x0j) + np.einsum("jab,nb->nja", sys.B, u)
     np.testing.assert_allclose(after.x, x_pred, rtol=1e-12)
-    out = est._output(after)
-    np.testing.assert_allclose(out["x"], imm_combine(x_pred, after.P, mu @ TRANSITION)[0], rtol=1e-12)
+    out = est.run(np.stack([np.zeros((2, 2)), np.full((2, 2), np.nan)], axis=1), np.ones(1), np.arange(2.0))
+    state0 = est.step(est.init((2,)), np.zeros((2, 2)), dt=None)
+    x0j, _, _ = imm_mix(state0.x, state0.P, state0.log_prob, np.log(TRANSITION))
+    x_pred0 = np.einsum("jab,njb->nja", sys.A, x0j) + np.einsum("jab,nb->nja", sys.B, u)
+    mu_pred = np.exp(state0.log_prob) @ TRANSITION
+    np.testing.assert_allclose(out.mode_prob[:, 1], mu_pred, rtol=1e-12)
+    P_pred0 = est.step(state0, np.full((2, 2), np.nan), u, dt=1.0).P
+    np.testing.assert_allclose(out.x[:, 1], imm_combine(x_pred0, P_pred0, mu_pred)[0], rtol=1e-12)
 
 
 def test_filterpy_update_none_differs_and_ours_does_not_reuse_the_old_innovation():

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_probability_vector, check_row_stochastic
-from .._linalg import log_normalize, symmetrize
+from .._linalg import log_normalize, mixture_moments
 from ..discretize import mode_steps
 from .base import Estimate, Estimator
 from .kalman import kf_predict, kf_update
@@ -48,20 +48,14 @@ def imm_mix(x, P, log_prob, log_transition):
     """
     joint = log_prob[..., :, None] + log_transition  # log(pi_ij mu_i), (N, i, j)
     log_w, log_c = log_normalize(joint, axis=-2)  # over predecessors i
-    w = np.exp(log_w)
-    x0 = np.einsum("...ij,...in->...jn", w, x)
-    d = x[..., :, None, :] - x0[..., None, :, :]  # x_i - x0_j, (N, i, j, n)
-    spread = d[..., :, None] * d[..., None, :]
-    P0 = np.einsum("...ij,...inm->...jnm", w, P) + np.einsum("...ij,...ijnm->...jnm", w, spread)
-    return x0, symmetrize(P0), log_c
+    x0, P0 = mixture_moments(np.exp(log_w), x, P)
+    return x0, P0, log_c
 
 
 def imm_combine(x, P, prob):
     """Combined estimate ``x = sum_j mu_j x_j``, ``P = sum_j mu_j (P_j + (x_j - x)(x_j - x)')``."""
-    xc = np.einsum("...j,...jn->...n", prob, x)
-    d = x - xc[..., None, :]
-    Pc = np.einsum("...j,...jnm->...nm", prob, P + d[..., :, None] * d[..., None, :])
-    return xc, symmetrize(Pc)
+    xc, Pc = mixture_moments(prob[..., :, None], x, P)
+    return xc[..., 0, :], Pc[..., 0, :, :]
 
 
 class IMMFilter(Estimator):
@@ -113,14 +107,17 @@ class IMMFilter(Estimator):
         return IMMState(x, P, log_prob, total)
 
     def _output(self, state: IMMState) -> dict[str, np.ndarray]:
-        prob = np.exp(state.log_prob)
-        x, P = imm_combine(state.x, state.P, prob)
-        return {"x": x, "P": P, "mode_prob": prob, "mode": np.argmax(state.log_prob, axis=-1),
-                "loglik": state.loglik}
+        # mode-matched moments per sample; run() combines them for all samples at once,
+        # one large product instead of one small one per step
+        return {"x": state.x, "P": state.P, "mode_prob": np.exp(state.log_prob),
+                "mode": np.argmax(state.log_prob, axis=-1), "loglik": state.loglik}
 
     def run(self, y, u=None, t=None) -> Estimate:
         """Filter ``y (..., K, m)``; returns combined ``x``, ``P``, ``mode_prob`` and the
         most probable ``mode`` at each sample."""
         y2, u2, t, batch = self._prepare(y, u, t)
-        return self._unflatten(self._loop(y2, u2, t), batch)
+        per_mode = self._loop(y2, u2, t)
+        x, P = imm_combine(per_mode.x, per_mode.P, per_mode.mode_prob)
+        est = Estimate(x=x, P=P, mode_prob=per_mode.mode_prob, mode=per_mode.mode, loglik=per_mode.loglik)
+        return self._unflatten(est, batch)
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_probability_vector, check_row_stochastic, positive_scalar
-from .._linalg import log_normalize
+from .._linalg import log_normalize, mixture_moments
 from ..discretize import pairwise_grid, switch_grid
 from .base import Estimate, Estimator
 from .kalman import kf_predict, kf_update
@@ -153,9 +153,8 @@ class IMMEV1Filter(Estimator):
             log_w, log_sum = log_normalize(J)  # weights over the grid
             log_b = log_sum - np.log(self.grid)  # mean likelihood: tau uniform on the grid
             w = np.exp(log_w)
-            x_pair = np.einsum("...k,...kn->...n", w, x_up)
-            d = x_up - x_pair[..., None, :]
-            P_pair = np.einsum("...k,...kab->...ab", w, P_up + d[..., :, None] * d[..., None, :])
+            x_pair, P_pair = mixture_moments(w[..., :, None], x_up, P_up)
+            x_pair, P_pair = x_pair[..., 0, :], P_pair[..., 0, :, :]
             tau_pair = w @ tau
         path = state.log_weight[:, :, None] + log_b
         if self._log_transition is not None:

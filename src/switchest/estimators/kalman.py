@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
-from .._linalg import cholesky_solve, joseph_update, matvec, symmetrize
+from .._linalg import joseph_update, matvec, solve_lower, solve_upper, symmetrize
 
 __all__ = ["kf_predict", "kf_update", "steady_state_gain"]
 
@@ -53,9 +53,9 @@ def kf_update(x, P, y, C, R):
     """
     missing = np.isnan(y)
     m = y.shape[-1]
-    C = np.broadcast_to(C, (*np.broadcast_shapes(C.shape[:-2], x.shape[:-1]), *C.shape[-2:]))
-    R = np.broadcast_to(R, (*C.shape[:-2], m, m))
     if missing.any():
+        C = np.broadcast_to(C, (*np.broadcast_shapes(C.shape[:-2], x.shape[:-1], y.shape[:-1]), *C.shape[-2:]))
+        R = np.broadcast_to(R, (*C.shape[:-2], m, m))
         keep = ~missing
         y = np.where(missing, 0.0, y)
         C = C * keep[..., :, None]
@@ -71,8 +71,11 @@ def kf_update(x, P, y, C, R):
             "innovation covariance C P C' + R is not positive definite: give the system a "
             "measurement noise R or the filter a positive definite P0"
         ) from exc
-    K = np.swapaxes(cholesky_solve(Ls, np.swapaxes(PCt, -1, -2)), -1, -2)  # K' = S^-1 (C P)
-    z = np.linalg.solve(Ls, e[..., None])[..., 0]  # whitened innovation Ls^-1 e
+    # one forward substitution gives Ls^-1 [C P | e]: the whitened innovation z = Ls^-1 e
+    # and W = Ls^-1 C P, from which K' = S^-1 C P = Ls'^-1 W by one back substitution
+    We = solve_lower(Ls, np.concatenate([np.swapaxes(PCt, -1, -2), e[..., None]], axis=-1))
+    z = We[..., -1]
+    K = np.swapaxes(solve_upper(np.swapaxes(Ls, -1, -2), We[..., :-1]), -1, -2)
     loglik = -0.5 * (np.sum(z**2, axis=-1) + 2 * np.sum(np.log(np.diagonal(Ls, axis1=-2, axis2=-1)), axis=-1)
                      + m * _LOG_2PI)
     if missing.any():

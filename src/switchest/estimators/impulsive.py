@@ -1,0 +1,504 @@
+"""Impulsive (continuous-discrete) observers under aperiodic sampling (Etienne et al., seed 004).
+
+Etienne, Motchon, Duviella & Guelton, eqs (2)-(3): between two samples the
+observer is a copy of the mode it believes active,
+``dx_hat/dt = A_{sigma_hat} x_hat + B_{sigma_hat} u``; at each (aperiodic) sample
+``t_k`` it jumps::
+
+    x_hat(t_k+) = x_hat(t_k) + G_{sigma_hat(t_k)} (y(t_k) - C_{sigma_hat(t_k)} x_hat(t_k))
+
+The estimated switching signal ``sigma_hat`` is either the true one (synchronous,
+eq. (3)) or a delayed replica whose switches lag the true ones by at most
+``delta`` (Assumption 5). Between samples the observer is propagated exactly
+through :mod:`switchest.discretize`, switches of ``sigma_hat`` inside a sample
+interval included.
+
+:func:`simulate_observer_control` simulates the observer-based feedback
+``u = K_{sigma_hat} x_hat`` of §3.2 exactly, as the extended system (21)-(23);
+:func:`closed_loop_matrices` builds its matrices (with the sign of the jump block
+(22b) corrected, see there).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from numbers import Real
+
+import numpy as np
+
+from .._checks import as_rng, check_finite, float_array
+from .._linalg import joseph_update, matvec
+from ..discretize import mode_steps, segment_transitions
+from ..signals import SwitchingSignal, sample_segments, schedule
+from ..system import SwitchedLinearSystem
+from .base import Estimate, Estimator
+
+__all__ = [
+    "ImpulsiveObserver",
+    "ImpulsiveState",
+    "ObserverControlTrajectory",
+    "closed_loop_matrices",
+    "delayed_replica",
+    "impulsive_update",
+    "simulate_observer_control",
+]
+
+ModeEstimate = str | float | Callable[[SwitchingSignal], SwitchingSignal]
+
+
+# ---------------------------------------------------------------------- pure equations
+def impulsive_update(x, P, y, C, G, R):
+    """The jump of the impulsive observer at a sample (Etienne et al. eq. (2), third line).
+
+    ``x+ = x + G (y - C x)`` with the fixed gain ``G`` of the estimated mode, and
+    the error covariance in Joseph form ``P+ = (I - G C) P (I - G C)' + G R G'``
+    (valid for any gain, optimal or not). A NaN entry of ``y`` is a missing
+    component: its innovation is set to zero and its row of ``C`` dropped, so an
+    all-NaN ``y`` leaves ``x`` and ``P`` unchanged.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., n)
+    P : ndarray, shape (..., n, n)
+    y : ndarray, shape (..., m)
+    C : ndarray, shape (..., m, n)
+    G : ndarray, shape (..., n, m)
+    R : ndarray, shape (..., m, m)
+
+    Returns
+    -------
+    x, P
+        The corrected estimate and error covariance.
+    """
+    observed = ~np.isnan(y)
+    C = C * observed[..., :, None]  # a missing component neither corrects x nor enters P
+    innovation = np.where(observed, y, 0.0) - matvec(C, x)
+    return x + matvec(G, innovation), joseph_update(P, G, C, R)
+
+
+def delayed_replica(signal: SwitchingSignal, delay) -> SwitchingSignal:
+    """The estimated switching signal that detects every switch late (Etienne et al. Assumption 5).
+
+    ``sigma_hat`` switches to the same modes as ``sigma``, at ``s_k + delay_k``;
+    before its first switch it holds ``sigma``'s initial mode.
+
+    Parameters
+    ----------
+    signal : SwitchingSignal
+        The true switching signal ``sigma``.
+    delay : float or array_like, shape (S,)
+        Non-negative detection delay of each switch (one value for all). The
+        delayed switches must stay strictly increasing.
+
+    Returns
+    -------
+    SwitchingSignal
+    """
+    if not isinstance(signal, SwitchingSignal):
+        raise TypeError(f"signal must be a SwitchingSignal, got {type(signal).__name__}")
+    d = float_array(delay, "delay", ndim=(0, 1))
+    check_finite(d, "delay")
+    if d.ndim == 1 and d.shape != signal.times.shape:
+        raise ValueError(
+            f"delay must be a scalar or have one entry per switch ({signal.n_switches},), got {d.shape}"
+        )
+    if np.any(d < 0):
+        raise ValueError(f"delay must be non-negative (a delayed replica), got {float(d.min()):g}")
+    times = signal.times + d
+    if np.any(np.diff(times) <= 0):
+        raise ValueError("delay reorders the switches: the delayed switch times must stay strictly increasing")
+    return SwitchingSignal(times, signal.modes)
+
+
+def closed_loop_matrices(system: SwitchedLinearSystem, K, G) -> tuple[np.ndarray, np.ndarray]:
+    """Flow and jump matrices of the observer-based closed loop (Etienne et al. eqs (21)-(23)).
+
+    With ``u = K_{sigma_hat} x_hat`` and ``z = [x; e]``, ``e = x - x_hat``, the plant
+    (1) and the observer (2) give ``dz/dt = Acl[sigma, sigma_hat] z`` between
+    samples and ``z(t_k+) = J[sigma, sigma_hat] z(t_k)`` at the samples, with (eq. (22a))::
+
+        Acl[j, i] = [[A_j + B_j K_i,            -B_j K_i           ],
+                     [A_ji + B_ji K_i,  A_i - B_ji K_i]]
+        J[j, i]   = [[I,             0          ],
+                     [-G_i C_ji,     I - G_i C_i]]
+
+    ``A_ji = A_j - A_i``, ``B_ji = B_j - B_i``, ``C_ji = C_j - C_i`` (eq. (23)), ``j`` the
+    true and ``i`` the estimated mode (the paper's ``A_{sigma sigma_hat}``).
+
+    Discrepancy: the printed eq. (22b) has ``+G C_ji`` in the lower-left block.
+    From (1)-(2), ``e+ = x - x_hat - G_i (C_j x - C_i x_hat) = -G_i C_ji x + (I - G_i C_i) e``:
+    the sign is minus. It matters only when the output matrices differ between
+    modes (in §4, ``C_1 = C_2`` and the block vanishes).
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous time, with ``L`` modes, ``n`` states, ``l`` inputs, ``m`` outputs.
+    K : array_like, shape (L, l, n)
+        State-feedback gains, applied as ``u = K_i x_hat`` (no minus sign).
+    G : array_like, shape (L, n, m)
+        Observer gains.
+
+    Returns
+    -------
+    Acl, J : ndarray, shape (L, L, 2n, 2n)
+        Indexed ``[true mode, estimated mode]``.
+    """
+    system = _check_system(system)
+    K = _gain_stack(K, "K", (system.n_modes, system.n_inputs, system.n_states), "(L, l, n)")
+    G = _gain_stack(G, "G", (system.n_modes, system.n_states, system.n_outputs), "(L, n, m)")
+    A, B, C = system.A, system.B, system.C
+    n = system.n_states
+    Aj, Ai = A[:, None], A[None, :]  # [j, i]: true mode j, estimated mode i
+    Bj, Bi = B[:, None], B[None, :]
+    BK = Bj @ K[None, :]  # B_j K_i
+    dBK = (Bj - Bi) @ K[None, :]  # B_ji K_i
+    Acl = np.block([[Aj + BK, -BK], [Aj - Ai + dBK, Ai - dBK]])
+    GdC = G[None, :] @ (C[:, None] - C[None, :])  # G_i C_ji
+    eye = np.broadcast_to(np.eye(n), GdC.shape)
+    J = np.block([[eye, np.zeros_like(GdC)], [-GdC, eye - np.broadcast_to(G @ C, GdC.shape)]])
+    return Acl, J
+
+
+# ---------------------------------------------------------------------- the observer
+@dataclass(frozen=True, eq=False)
+class ImpulsiveState:
+    """After the last sample's jump: ``x (N, n)``, error covariance ``P (N, n, n)``,
+    estimated mode ``mode (N,)`` at that sample."""
+
+    x: np.ndarray
+    P: np.ndarray
+    mode: np.ndarray
+
+
+class ImpulsiveObserver(Estimator):
+    """Impulsive observer with synchronous or delayed mode knowledge (Etienne et al. eqs (2)-(3)).
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous-time system (the observer is continuous-discrete).
+    gains : array_like, shape (L, n, m)
+        Observer gains ``G_i``, e.g. ``impulsive_observer_synthesis(...).G``.
+    mode_estimate : {"synchronous"} or float or callable, optional
+        How the observer's switching signal ``sigma_hat`` follows the true one
+        given to :meth:`run`: ``"synchronous"`` (``sigma_hat = sigma``, eq. (3)); a
+        delay ``d >= 0`` (every switch detected ``d`` late, the extreme case of
+        Assumption 5 with ``delta = d``); or a function ``sigma -> sigma_hat``
+        (e.g. random delays through :func:`delayed_replica`, or any mode estimator).
+    x0 : array_like, shape (n,), optional
+        Initial estimate (default zero).
+    P0 : array_like, shape (n, n), optional
+        Covariance of the initial error ``e(0) = x(0) - x0`` (default identity).
+
+    Notes
+    -----
+    The reported ``P`` is the covariance of the error ``e = x - x_hat`` propagated
+    through the error dynamics (4) of the observer's own modes:
+    ``P- = F P F' + Qd`` over each interval (exact transition of ``sigma_hat``'s
+    segments, process noise ``Q``), then :func:`impulsive_update` at the sample.
+    It is the exact error covariance when ``sigma_hat = sigma``; with a wrong
+    mode the error also depends on ``x`` (eqs (21)-(22)) and ``P`` ignores that.
+    The input is held constant over each interval (zero-order hold, as in
+    :func:`switchest.simulate.simulate`).
+    """
+
+    def __init__(self, system, gains, *, mode_estimate: ModeEstimate = "synchronous", x0=None, P0=None):
+        system = _check_system(system)
+        n = system.n_states
+        self._set_prior(system, np.zeros(n) if x0 is None else x0, np.eye(n) if P0 is None else P0)
+        self.G = _gain_stack(gains, "gains", (system.n_modes, n, system.n_outputs), "(L, n, m)")
+        self.mode_estimate = _check_mode_estimate(mode_estimate)
+
+    def estimated_signal(self, signal: SwitchingSignal) -> SwitchingSignal:
+        """The observer's ``sigma_hat`` for a true switching signal ``sigma``."""
+        return _apply_mode_estimate(self.mode_estimate, signal)
+
+    def init(self, batch_shape=()) -> ImpulsiveState:
+        """The initial estimate; ``mode`` is -1 until the first sample sets it."""
+        n = self.system.n_states
+        return ImpulsiveState(
+            x=np.broadcast_to(self.x0, (*batch_shape, n)).copy(),
+            P=np.broadcast_to(self.P0, (*batch_shape, n, n)).copy(),
+            mode=np.full(batch_shape, -1, dtype=np.int64),
+        )
+
+    def step(self, state: ImpulsiveState, y, u=None, *, dt=None, mode,
+             segment_modes=None, segment_offsets=None) -> ImpulsiveState:
+        """Flow over ``dt`` (skipped when ``None``), then jump with ``y (N, m)``.
+
+        ``mode (N,)`` is ``sigma_hat(t_k)``; ``segment_modes (N, S+1)`` and
+        ``segment_offsets (N, S)`` describe ``sigma_hat`` on ``[t_{k-1}, t_k)`` (as
+        :func:`switchest.signals.sample_segments` returns them). Without them the
+        previous sample's estimated mode is held over the interval.
+        """
+        sys = self.system
+        x, P = state.x, state.P
+        mode = np.asarray(mode)
+        if dt is not None:
+            if segment_modes is None and np.any(state.mode < 0):
+                raise ValueError("step needs segment_modes when the state has no estimated mode yet "
+                                 "(dt must be None on the first sample)")
+            if segment_modes is not None:
+                tr = segment_transitions(sys, dt, segment_modes, segment_offsets)
+                F, Gu, Qd = tr.F, tr.G, tr.Qd
+            else:
+                steps = mode_steps(sys, dt)
+                F, Gu, Qd = steps.F[state.mode], steps.G[state.mode], steps.Qd[state.mode]
+            x = matvec(F, x)  # exact flow of dx_hat/dt = A x_hat + B u, eq. (2) first line
+            if u is not None and u.shape[-1]:
+                x = x + matvec(Gu, u)
+            P = F @ P @ np.swapaxes(F, -1, -2) + Qd
+        x, P = impulsive_update(x, P, y, sys.C[mode], self.G[mode], sys.R[mode])
+        return ImpulsiveState(x, P, mode)
+
+    def _output(self, state: ImpulsiveState) -> dict[str, np.ndarray]:
+        return {"x": state.x, "P": state.P, "mode": state.mode}
+
+    def run(self, y, u=None, t=None, *, signals) -> Estimate:
+        """Observe samples ``y (..., K, m)`` taken at the (aperiodic) times ``t``.
+
+        Parameters
+        ----------
+        y : array_like, shape (..., K, m)
+            Samples ``y(t_k)``; NaN marks a missing component.
+        u : array_like, optional
+            Input held on ``[t_k, t_{k+1})``: ``(l,)``, ``(K, l)`` or ``(..., K, l)``.
+        t : array_like, shape (K,)
+            Strictly increasing sample times.
+        signals : SwitchingSignal or sequence of SwitchingSignal
+            The plant's true switching signal, shared by all trials or one per
+            trial (e.g. ``trajectory.signals``); ``sigma_hat`` is derived from it by
+            ``mode_estimate``.
+
+        Returns
+        -------
+        Estimate
+            ``x`` after each jump, the error covariance ``P`` (see the class notes)
+            and ``mode`` = ``sigma_hat(t_k)``.
+        """
+        y2, u2, t, batch = self._prepare(y, u, t)
+        N, K = y2.shape[:2]
+        hat = [self.estimated_signal(s) for s in _per_trial(signals, N)]
+        mode_at, seg_m, seg_o = sample_segments(hat, t)
+        if np.max(mode_at) >= self.system.n_modes or np.max(seg_m, initial=0) >= self.system.n_modes:
+            raise ValueError(f"signals use a mode beyond the system's modes 0..{self.system.n_modes - 1}")
+        # sample k flows over interval k-1; sample 0 has no flow (its entry is never read)
+        pad_m = np.concatenate([np.zeros((N, 1, seg_m.shape[-1]), dtype=np.int64), seg_m], axis=1)
+        pad_o = np.concatenate([np.zeros((N, 1, seg_o.shape[-1])), seg_o], axis=1)
+        per_step = {"mode": mode_at, "segment_modes": pad_m, "segment_offsets": pad_o}
+        return self._unflatten(self._loop(y2, u2, t, per_step), batch)
+
+
+# ---------------------------------------------------------------------- closed loop
+@dataclass(frozen=True, eq=False)
+class ObserverControlTrajectory:
+    """The observer-based closed loop at the samples, after each jump.
+
+    Attributes
+    ----------
+    t : ndarray, shape (K,)
+    x : ndarray, shape (N, K, n)
+        Plant state.
+    x_hat : ndarray, shape (N, K, n)
+        Observer state after the jump.
+    mode, mode_hat : ndarray of int, shape (N, K)
+        ``sigma(t_k)`` and ``sigma_hat(t_k)``.
+    signals, mode_signals : tuple of SwitchingSignal
+        ``sigma`` and ``sigma_hat`` of each trial.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    x_hat: np.ndarray
+    mode: np.ndarray
+    mode_hat: np.ndarray
+    signals: tuple[SwitchingSignal, ...]
+    mode_signals: tuple[SwitchingSignal, ...]
+
+    @property
+    def error(self) -> np.ndarray:
+        """Observation error ``e = x - x_hat``, shape (N, K, n)."""
+        return self.x - self.x_hat
+
+
+def simulate_observer_control(
+    system: SwitchedLinearSystem,
+    K,
+    G,
+    signals,
+    t,
+    x0,
+    x_hat0=None,
+    *,
+    mode_estimate: ModeEstimate = "synchronous",
+    trials: int | None = None,
+    rng=None,
+) -> ObserverControlTrajectory:
+    """Exact simulation of the observer-based control ``u = K_{sigma_hat} x_hat`` (Etienne et al. §3.2).
+
+    The plant (1), the impulsive observer (2) and the continuous feedback
+    ``u(t) = K_{sigma_hat(t)} x_hat(t)`` form the extended system (21) in
+    ``z = [x; x - x_hat]``: it is linear between events, with the matrix
+    ``Acl[sigma, sigma_hat]`` of :func:`closed_loop_matrices`. It is propagated
+    exactly as a switched system over the L*L mode pairs (switches of ``sigma``
+    and of ``sigma_hat`` anywhere inside a sample interval), and jumps by
+    ``J[sigma(t_k), sigma_hat(t_k)]`` at every sample, ``t_0`` included.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous time; its noise matrices are ignored (the paper's model is
+        deterministic).
+    K : array_like, shape (L, l, n)
+        Controller gains (``u = K x_hat``, no minus sign).
+    G : array_like, shape (L, n, m)
+        Observer gains.
+    signals : SwitchingSignal, sequence of SwitchingSignal, or callable
+        The true switching signal: one shared, one per trial, or a generator
+        ``f(rng) -> SwitchingSignal`` called once per trial.
+    t : array_like, shape (K,)
+        Strictly increasing sample times.
+    x0 : array_like, shape (n,) or (N, n)
+        Initial plant state.
+    x_hat0 : array_like, shape (n,) or (N, n), optional
+        Initial observer state (default zero).
+    mode_estimate : {"synchronous"} or float or callable, optional
+        As in :class:`ImpulsiveObserver`.
+    trials : int, optional
+        Number of trials N; inferred from the other arguments when omitted.
+    rng : Generator, int or None
+        Used only when ``signals`` is a generator.
+
+    Returns
+    -------
+    ObserverControlTrajectory
+    """
+    system = _check_system(system)
+    Acl, J = closed_loop_matrices(system, K, G)
+    L, n = system.n_modes, system.n_states
+    t = float_array(t, "t", ndim=1)
+    check_finite(t, "t")
+    if t.size == 0 or np.any(np.diff(t) <= 0):
+        raise ValueError("t must be a non-empty, strictly increasing array of sample times")
+    x0 = _initial(x0, "x0", n)
+    x_hat0 = _initial(np.zeros(n) if x_hat0 is None else x_hat0, "x_hat0", n)
+    N = _trial_count(trials, signals, x0, x_hat0)
+    if callable(signals) and not isinstance(signals, SwitchingSignal):
+        sigma = [signals(child) for child in as_rng(rng).spawn(N)]
+    else:
+        sigma = _per_trial(signals, N)
+    rule = _check_mode_estimate(mode_estimate)
+    sigma_hat = [_apply_mode_estimate(rule, s) for s in sigma]
+    for name, sigs in (("signals", sigma), ("mode_estimate", sigma_hat)):
+        top = max(int(s.modes.max()) for s in sigs)
+        if top >= L:
+            raise ValueError(f"{name} uses mode {top}, but the system has modes 0..{L - 1}")
+    pairs = [_pair_signal(s, h, L) for s, h in zip(sigma, sigma_hat)]
+    extended = SwitchedLinearSystem.continuous(Acl.reshape(L * L, 2 * n, 2 * n))
+    J = J.reshape(L * L, 2 * n, 2 * n)
+    pair_at, seg_m, seg_o = sample_segments(pairs, t)
+    z = np.concatenate([np.broadcast_to(x0, (N, n)), np.broadcast_to(x0 - x_hat0, (N, n))], axis=1)
+    Z = np.empty((N, t.size, 2 * n))
+    z = matvec(J[pair_at[:, 0]], z)  # z(t_0+) = J z(t_0), eq. (21c)
+    Z[:, 0] = z
+    for k, h in enumerate(np.diff(t)):
+        tr = segment_transitions(extended, h, seg_m[:, k], seg_o[:, k])
+        z = matvec(J[pair_at[:, k + 1]], matvec(tr.F, z))  # exact flow (21a), then jump (21c)
+        Z[:, k + 1] = z
+    x, e = Z[..., :n], Z[..., n:]
+    return ObserverControlTrajectory(
+        t=t, x=x, x_hat=x - e, mode=pair_at // L, mode_hat=pair_at % L,
+        signals=tuple(sigma), mode_signals=tuple(sigma_hat),
+    )
+
+
+# ---------------------------------------------------------------------- helpers
+def _pair_signal(sigma: SwitchingSignal, sigma_hat: SwitchingSignal, L: int) -> SwitchingSignal:
+    """The signal of the mode pair ``sigma * L + sigma_hat``, switching when either does."""
+    times = np.union1d(sigma.times, sigma_hat.times)
+    starts = np.concatenate([[-np.inf], times])
+    return schedule(times, sigma.at(starts) * L + sigma_hat.at(starts))
+
+
+def _check_system(system) -> SwitchedLinearSystem:
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    if not system.is_continuous:
+        raise ValueError("system must be continuous-time (the impulsive observer is continuous-discrete), "
+                         f"got domain {system.domain!r}")
+    return system
+
+
+def _gain_stack(value, name: str, shape: tuple[int, int, int], text: str) -> np.ndarray:
+    arr = float_array(value, name, ndim=3)
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {text} = {shape}, got {arr.shape}")
+    check_finite(arr, name)
+    arr = arr.copy()
+    arr.setflags(write=False)
+    return arr
+
+
+def _check_mode_estimate(rule) -> ModeEstimate:
+    if isinstance(rule, str):
+        if rule != "synchronous":
+            raise ValueError(f"mode_estimate must be 'synchronous', a delay >= 0 or a callable, got {rule!r}")
+        return rule
+    if isinstance(rule, Real) and not isinstance(rule, bool):
+        d = float(rule)
+        if not np.isfinite(d) or d < 0:
+            raise ValueError(f"mode_estimate as a delay must be finite and >= 0, got {rule!r}")
+        return d
+    if callable(rule):
+        return rule
+    raise TypeError(
+        f"mode_estimate must be 'synchronous', a delay >= 0 or a callable, got {type(rule).__name__}"
+    )
+
+
+def _apply_mode_estimate(rule: ModeEstimate, signal: SwitchingSignal) -> SwitchingSignal:
+    if not isinstance(signal, SwitchingSignal):
+        raise TypeError(f"signal must be a SwitchingSignal, got {type(signal).__name__}")
+    if isinstance(rule, str):
+        return signal
+    if isinstance(rule, float):
+        return delayed_replica(signal, rule)
+    out = rule(signal)
+    if not isinstance(out, SwitchingSignal):
+        raise TypeError(f"mode_estimate(signal) must return a SwitchingSignal, got {type(out).__name__}")
+    return out
+
+
+def _per_trial(signals, N: int) -> list[SwitchingSignal]:
+    if isinstance(signals, SwitchingSignal):
+        return [signals] * N
+    if isinstance(signals, Sequence) and all(isinstance(s, SwitchingSignal) for s in signals):
+        if len(signals) == N:
+            return list(signals)
+        raise ValueError(f"signals must hold one SwitchingSignal per trial (N = {N}), got {len(signals)}")
+    raise TypeError(
+        f"signals must be a SwitchingSignal or a sequence of them, got {type(signals).__name__}"
+    )
+
+
+def _initial(value, name: str, n: int) -> np.ndarray:
+    arr = float_array(value, name, ndim=(1, 2))
+    if arr.shape[-1] != n:
+        raise ValueError(f"{name} must have shape (n,) or (N, n) with n = {n}, got {arr.shape}")
+    check_finite(arr, name)
+    return arr
+
+
+def _trial_count(trials, signals, *states) -> int:
+    sizes = {s.shape[0] for s in states if s.ndim == 2}
+    if isinstance(signals, Sequence) and not isinstance(signals, SwitchingSignal):
+        sizes.add(len(signals))
+    if trials is not None:
+        if isinstance(trials, (bool, np.bool_)) or not isinstance(trials, (int, np.integer)) or trials < 1:
+            raise ValueError(f"trials must be a positive int, got {trials!r}")
+        sizes.add(int(trials))
+    if len(sizes) > 1:
+        raise ValueError(f"trials, signals, x0 and x_hat0 disagree on the number of trials: {sorted(sizes)}")
+    return sizes.pop() if sizes else 1
