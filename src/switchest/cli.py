@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from . import __version__
 from .estimators import IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
+from .experiments import Store, get, names, run_experiment, write_report
+from .experiments.report import AGREE
 from .metrics import mode_accuracy, rmse, switch_time_error
 from .models import BOOST_INPUT_VOLTAGE, BOOST_SAMPLE_PERIOD, boost_converter, boost_switching
 from .signals import periodic
@@ -57,6 +62,48 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
     return table
 
 
+def _summary_table(summary) -> Table:
+    """Paper vs measured values of one experiment, with their ratio; row notes as a caption."""
+    table = Table(title=summary.title, title_justify="left", caption_justify="left")
+    table.add_column("quantity", overflow="fold")
+    for col in ("paper", "ours", "ours/paper", "unit"):
+        table.add_column(col, justify="right", no_wrap=True)
+    notes = []
+    for row in summary.rows:
+        ratio = row.ratio
+        style = "" if ratio is None else ("green" if abs(ratio - 1) <= AGREE else "red")
+        fmt = (lambda v: "—" if v is None else (v if isinstance(v, str) else f"{v:.4g}"))
+        table.add_row(row.quantity, fmt(row.paper), fmt(row.measured),
+                      "—" if ratio is None else f"[{style}]{ratio:.3f}[/{style}]", row.unit)
+        if row.note:
+            notes.append(f"{row.quantity}: {row.note}")
+    table.caption = "\n".join(notes) or None
+    return table
+
+
+def _run(names: list[str], args, console: Console) -> Path:
+    """Run (or resume) each named experiment into the store; print its summary; return the store path."""
+    out = Path(args.out)
+    store = Store(Path(args.store) if args.store else out / "results.sqlite")
+    for name in names:
+        experiment = get(name)
+        overrides = {"trials": args.trials} if getattr(args, "trials", None) else {}
+        params = experiment.params(quick=args.quick, **overrides)
+        with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                      TimeElapsedColumn(), console=console, transient=True) as progress:
+            bar = progress.add_task(name, total=None)
+            start = time.perf_counter()
+            results = run_experiment(
+                experiment, params, store=store, seed=args.seed, workers=args.workers,
+                scheduler=args.scheduler,
+                on_done=lambda done, total: progress.update(bar, completed=done, total=total),
+            )
+        summary = experiment.summarize(params, results, out / "figures")
+        console.print(_summary_table(summary))
+        console.print(f"[dim]{name}: {len(results)} tasks, {time.perf_counter() - start:.1f} s[/dim]\n")
+    return store.path
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="switchest", description="Estimation in switched linear systems.")
     parser.add_argument("--version", action="version", version=f"switchest {__version__}")
@@ -65,12 +112,61 @@ def main(argv: list[str] | None = None) -> int:
     p_demo.add_argument("--trials", type=int, default=20)
     p_demo.add_argument("--duration", type=float, default=0.1, help="seconds of operation")
     p_demo.add_argument("--seed", type=int, default=0)
+
+    sub.add_parser("list", help="list the registered paper reproductions")
+
+    def runner_options(p):
+        p.add_argument("--quick", action="store_true", help="fewer trials, shorter runs (minutes, not hours)")
+        p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                       help="local worker processes (default: the machine's cores)")
+        p.add_argument("--scheduler", default=None, help="address of a Dask scheduler to run the tasks on")
+        p.add_argument("--seed", type=int, default=0)
+        p.add_argument("--out", default="out", help="output folder (figures, report, default store)")
+        p.add_argument("--store", default=None, help="results store (default OUT/results.sqlite)")
+
+    p_run = sub.add_parser("run", help="run (or resume) one reproduction")
+    p_run.add_argument("name")
+    p_run.add_argument("--trials", type=int, default=None, help="override the number of trials")
+    runner_options(p_run)
+    p_rep = sub.add_parser("reproduce", help="run several reproductions and write the report")
+    p_rep.add_argument("names", nargs="*")
+    p_rep.add_argument("--all", action="store_true", help="every registered reproduction")
+    runner_options(p_rep)
+    p_report = sub.add_parser("report", help="write the HTML report of a results store")
+    p_report.add_argument("--store", required=True)
+    p_report.add_argument("--out", default="out")
+
     args = parser.parse_args(argv)
     console = Console()
     if args.command == "demo":
         if args.trials < 1 or args.duration <= 0:
             parser.error("--trials must be >= 1 and --duration > 0")
         console.print(demo(args.trials, args.duration, args.seed, console))
+    elif args.command == "list":
+        table = Table(title="switchest reproductions")
+        for col in ("name", "paper", "what"):
+            table.add_column(col)
+        for name in names():
+            e = get(name)
+            table.add_row(name, e.paper, e.title)
+        console.print(table)
+    elif args.command in ("run", "reproduce"):
+        if args.workers < 1:
+            parser.error("--workers must be >= 1")
+        chosen = [args.name] if args.command == "run" else (names() if args.all else args.names)
+        if not chosen:
+            parser.error("name the reproductions to run, or pass --all")
+        unknown = [n for n in chosen if n not in names()]
+        if unknown:
+            parser.error(f"unknown reproduction(s) {unknown}; see 'switchest list'")
+        store_path = _run(chosen, args, console)
+        if args.command == "reproduce":
+            report = write_report(Store(store_path), args.out, chosen)
+            console.print(f"report: [bold]{report}[/bold]  (results store: {store_path})")
+    elif args.command == "report":
+        if not Path(args.store).exists():
+            parser.error(f"--store {args.store} does not exist")
+        console.print(f"report: [bold]{write_report(Store(args.store), args.out)}[/bold]")
     return 0
 
 

@@ -1,0 +1,25 @@
+"""Paper reproductions: a registry of named experiments, a resumable parallel runner,
+a SQLite results store and an HTML report (DESIGN.md §6).
+
+Importing this package registers every experiment.
+"""
+
+from . import shankar  # noqa: F401  (registers the Shankar et al. experiments)
+from .registry import EXPERIMENTS, Experiment, Row, Summary, get, names, register
+from .report import write_report
+from .runner import run_experiment, stored_results
+from .store import Store
+
+__all__ = [
+    "EXPERIMENTS",
+    "Experiment",
+    "Row",
+    "Store",
+    "Summary",
+    "get",
+    "names",
+    "register",
+    "run_experiment",
+    "stored_results",
+    "write_report",
+]

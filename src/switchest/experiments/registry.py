@@ -1,0 +1,118 @@
+"""The registry of named paper reproductions.
+
+An experiment is a recipe: parameters that default to the paper's (and a
+``quick`` preset for demos and tests), a function that splits the work into
+independent tasks (a configuration and a block of trials), a function that runs
+one task from its seed and returns JSON-able numbers, and a function that turns
+all finished tasks into a :class:`Summary` — the paper's printed values beside
+ours, the setup, notes on every disagreement — and figures.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["Experiment", "Row", "Summary", "register", "get", "names", "EXPERIMENTS"]
+
+
+@dataclass(frozen=True)
+class Row:
+    """One compared quantity: the paper's value (None where it prints none) and ours."""
+
+    quantity: str
+    measured: float | str
+    paper: float | str | None = None
+    unit: str = ""
+    note: str = ""
+
+    @property
+    def ratio(self) -> float | None:
+        """measured / paper, where both are numbers and the paper's is non-zero."""
+        if isinstance(self.paper, (int, float)) and isinstance(self.measured, (int, float)) and self.paper:
+            return float(self.measured) / float(self.paper)
+        return None
+
+
+@dataclass(frozen=True)
+class Summary:
+    """What an experiment reports: compared rows, the setup, notes and figure files."""
+
+    experiment: str
+    title: str
+    setup: str
+    rows: list[Row]
+    notes: list[str] = field(default_factory=list)
+    figures: list[Path] = field(default_factory=list)
+
+
+Task = dict  # a JSON-able configuration; its "block" entry (if any) selects the trials' seed
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A named reproduction.
+
+    Attributes
+    ----------
+    name, paper, title : str
+    defaults : dict
+        Parameters, defaulting to the paper's setup.
+    quick : dict
+        Overrides for ``--quick`` (fewer trials, shorter runs).
+    tasks : callable
+        ``tasks(params) -> list[dict]``: independent task configurations. Tasks
+        sharing a ``"block"`` value get the same seed, so every configuration sees
+        the same simulated data for a block of trials.
+    run_task : callable
+        ``run_task(config, rng) -> dict``: JSON-able results of one task.
+    summarize : callable
+        ``summarize(params, results, out_dir) -> Summary``, ``results`` being the
+        list of ``(config, result)`` pairs; figures are written under ``out_dir``.
+    """
+
+    name: str
+    paper: str
+    title: str
+    defaults: dict
+    quick: dict
+    tasks: Callable[[dict], list[Task]]
+    run_task: Callable[[Task, np.random.Generator], dict]
+    summarize: Callable[[dict, list[tuple[Task, dict]], Path], Summary]
+
+    def params(self, *, quick: bool = False, **overrides) -> dict:
+        """The parameters of a run: defaults, then the quick preset, then overrides."""
+        params = dict(self.defaults)
+        if quick:
+            params.update(self.quick)
+        unknown = set(overrides) - set(params)
+        if unknown:
+            raise ValueError(f"{self.name} has no parameter(s) {sorted(unknown)}; it has {sorted(params)}")
+        params.update({k: v for k, v in overrides.items() if v is not None})
+        return params
+
+
+EXPERIMENTS: dict[str, Experiment] = {}
+
+
+def register(experiment: Experiment) -> Experiment:
+    """Add ``experiment`` to the registry (names are unique)."""
+    if experiment.name in EXPERIMENTS:
+        raise ValueError(f"an experiment named {experiment.name!r} is already registered")
+    EXPERIMENTS[experiment.name] = experiment
+    return experiment
+
+
+def get(name: str) -> Experiment:
+    """The registered experiment ``name``."""
+    if name not in EXPERIMENTS:
+        raise ValueError(f"unknown experiment {name!r}; known: {', '.join(sorted(EXPERIMENTS))}")
+    return EXPERIMENTS[name]
+
+
+def names() -> list[str]:
+    """Registered experiment names, sorted."""
+    return sorted(EXPERIMENTS)

@@ -1,0 +1,83 @@
+"""Matplotlib figures for trajectories, estimates and reproduction curves.
+
+Every function draws one figure, writes it to ``path`` (PNG) and returns the
+path; nothing is shown on screen, so the functions work on headless machines.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+__all__ = ["curves", "trajectory"]
+
+_STYLE = {"figure.dpi": 110, "axes.grid": True, "grid.alpha": 0.3, "axes.spines.top": False,
+          "axes.spines.right": False, "font.size": 9}
+
+
+def curves(
+    path: str | Path,
+    x: np.ndarray,
+    series: Mapping[str, np.ndarray],
+    *,
+    xlabel: str,
+    ylabel: str | Sequence[str],
+    title: str = "",
+    paper: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    logy: bool = False,
+    markers: Sequence[float] = (),
+) -> Path:
+    """Lines ``series[label]`` against ``x``; 2-D series get one panel per column.
+
+    ``paper`` adds the paper's printed points as black markers (label ->
+    ``(x, y)``); ``markers`` draws vertical lines (e.g. true switching times).
+    """
+    first = np.asarray(next(iter(series.values())))
+    panels = 1 if first.ndim == 1 else first.shape[1]
+    ylabels = [ylabel] * panels if isinstance(ylabel, str) else list(ylabel)
+    with plt.rc_context(_STYLE):
+        fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 3.2), squeeze=False)
+        for p, ax in enumerate(axes[0]):
+            for label, y in series.items():
+                y = np.asarray(y)
+                ax.plot(x, y if y.ndim == 1 else y[:, p], marker="o" if len(x) < 30 else None,
+                        ms=3, label=label)
+            for label, (px, py) in (paper or {}).items():
+                py = np.asarray(py)
+                ax.plot(px, py if py.ndim == 1 else py[:, p], "k^", ms=6, label=f"paper: {label}")
+            for m in markers:
+                ax.axvline(m, color="0.5", lw=0.8, ls=":")
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(ylabels[p])
+            if logy:
+                ax.set_yscale("log")
+        axes[0][-1].legend(fontsize=7, frameon=False)
+        if title:
+            fig.suptitle(title)
+        fig.tight_layout()
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path)
+        plt.close(fig)
+    return path
+
+
+def trajectory(
+    path: str | Path,
+    t: np.ndarray,
+    truth: np.ndarray,
+    estimates: Mapping[str, np.ndarray],
+    *,
+    labels: Sequence[str],
+    title: str = "",
+    markers: Sequence[float] = (),
+) -> Path:
+    """True state components ``truth (K, n)`` and estimates ``(K, n)`` over time, a panel each."""
+    return curves(path, t, {"true": truth, **estimates}, xlabel="t (s)", ylabel=labels, title=title,
+                  markers=markers)
