@@ -42,12 +42,18 @@ def curves(
     panels = 1 if first.ndim == 1 else first.shape[1]
     ylabels = [ylabel] * panels if isinstance(ylabel, str) else list(ylabel)
     with plt.rc_context(_STYLE):
-        fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 3.2), squeeze=False)
-        for p, ax in enumerate(axes[0]):
+        cols = min(panels, 2)
+        rows = -(-panels // cols)
+        fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.2 * rows), squeeze=False)
+        flat = axes.ravel()
+        for ax in flat[panels:]:
+            ax.set_visible(False)
+        for p, ax in enumerate(flat[:panels]):
             for label, y in series.items():
                 y = np.asarray(y)
+                style = {"color": "k", "lw": 2.0, "zorder": 3} if label == "true" else {}
                 ax.plot(x, y if y.ndim == 1 else y[:, p], marker="o" if len(x) < 30 else None,
-                        ms=3, label=label)
+                        ms=3, label=label, **style)
             for label, (px, py) in (paper or {}).items():
                 py = np.asarray(py)
                 ax.plot(px, py if py.ndim == 1 else py[:, p], "k^", ms=6, label=f"paper: {label}")
@@ -57,7 +63,7 @@ def curves(
             ax.set_ylabel(ylabels[p])
             if logy:
                 ax.set_yscale("log")
-        axes[0][-1].legend(fontsize=7, frameon=False)
+        flat[panels - 1].legend(fontsize=7, frameon=False)
         if title:
             fig.suptitle(title)
         fig.tight_layout()
