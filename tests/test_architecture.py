@@ -9,17 +9,19 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "switchest"
 
 # lower index = lower layer; a module may import only from layers at or below its own
 LAYERS = [
-    {"_checks"},
+    {"_checks", "_toml"},
     {"_linalg"},
     {"system"},
     {"signals"},
     {"discretize"},
     {"simulate"},
+    {"modelfile"},
     {"metrics"},
     {"analysis", "estimators", "models"},
     {"plotting"},
     {"experiments"},
     {"cli"},
+    {"__main__"},
 ]
 RANK = {name: i for i, group in enumerate(LAYERS) for name in group}
 

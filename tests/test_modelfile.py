@@ -1,0 +1,103 @@
+"""Model files: exact round trips of every catalog model, and errors that name the key."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from switchest import SwitchedLinearSystem
+from switchest._toml import ModelFileError
+from switchest.modelfile import ModelSpec, load_model, save_model
+from switchest.models.catalog import catalog
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "models"
+
+
+def same(a: ModelSpec, b: ModelSpec) -> bool:
+    sa, sb = a.system, b.system
+    arrays = all(np.array_equal(getattr(sa, k), getattr(sb, k)) for k in "ABCQR")
+    init = (a.initial is None) == (b.initial is None) and (
+        a.initial is None or all(np.array_equal(x, y) for x, y in zip(a.initial, b.initial)))
+    switching = a.switching.keys() == b.switching.keys() and all(
+        np.array_equal(np.asarray(a.switching[k]), np.asarray(b.switching[k])) for k in a.switching)
+    return (arrays and sa.domain == sb.domain and sa.dt == sb.dt and init and switching
+            and a.sampling == b.sampling and a.noise == b.noise and a.description == b.description)
+
+
+@pytest.mark.parametrize("name", sorted(catalog()))
+def test_every_catalog_model_round_trips_exactly(name, tmp_path):
+    spec = catalog()[name]
+    back = load_model(save_model(spec, tmp_path / f"{name}.toml"))
+    assert same(spec, back)
+    t = back.sample_times(rng=0)
+    assert back.signal(np.random.default_rng(0), t).modes.max() < spec.system.n_modes
+
+
+@pytest.mark.parametrize("name", sorted(catalog()))
+def test_shipped_example_files_match_the_catalog(name):
+    assert same(catalog()[name], load_model(EXAMPLES / f"{name}.toml")), (
+        f"examples/models/{name}.toml is stale: regenerate it with save_model(catalog()[{name!r}], ...)")
+
+
+GOOD = """
+domain = "continuous"
+[shared]
+C = [[1.0, 0.0]]
+R = [[0.5]]
+[sampling]
+period = 0.1
+[switching]
+kind = "markov"
+transition = [[0.9, 0.1], [0.2, 0.8]]
+[[modes]]
+A = [[0.0, 1.0], [-1.0, 0.0]]
+[[modes]]
+A = [[-1.0, 0.0], [0.0, -2.0]]
+"""
+
+
+def test_a_hand_written_file_reads(tmp_path):
+    path = tmp_path / "good.toml"
+    path.write_text(GOOD)
+    spec = load_model(path)
+    assert spec.system.n_modes == 2 and spec.system.n_outputs == 1
+    np.testing.assert_array_equal(spec.system.R[1], [[0.5]])
+    assert SwitchedLinearSystem.from_file(path).n_states == 2
+
+
+MALFORMED = [
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0, 0.0], [0.0, 1.0]]\n[[modes]]\nA = [[1.0, 0.0], [0.0]]\n',
+     r"modes\[1\]\.A: expected a matrix of numbers"),
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0, 0.0], [0.0, 1.0]]\n[[modes]]\nA = [[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]\n',
+     r"modes\[1\]\.A: expected 2x2, got 2x3"),
+    ('domain = "hybrid"\n[[modes]]\nA = [[1.0]]\n', r"domain: expected \"continuous\" or \"discrete\""),
+    ('domain = "discrete"\n[[modes]]\nA = [[1.0]]\n', r"dt: required for a discrete-time system"),
+    ('domain = "continuous"\n', r"modes: at least one \[\[modes\]\] table is required"),
+    ('domain = "continuous"\n[shared]\nC = [[1.0]]\n[[modes]]\nA = [[1.0]]\nC = [[2.0]]\n',
+     r"modes\[0\]\.C: also given in \[shared\]"),
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\nR = [[-1.0]]\n', r"modes\[0\]\.R must be symmetric positive definite"),
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\nZ = 3\n', r"modes\[0\]\.Z: unknown key"),
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[[modes]]\nA = [[2.0]]\n[switching]\nkind = "markov"\n'
+     'transition = [[0.5, 0.6], [0.5, 0.5]]\n', r"switching: transition rows must sum to 1"),
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[sampling]\nperiod = -0.1\n',
+     r"sampling\.period: expected a finite positive number"),
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[initial]\nmean = [0.0, 1.0]\n',
+     r"initial\.mean: expected 1, got 2"),
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[switching]\nkind = "dwell"\nmin_dwell = 1.0\n',
+     r"switching\.max_dwell: required for kind 'dwell'"),
+    ('domain = "continuous"\n[[modes\nA = 1\n', r"not valid TOML"),
+]
+
+
+@pytest.mark.parametrize("text, match", MALFORMED, ids=[m for _, m in MALFORMED])
+def test_malformed_files_name_the_file_and_key(text, match, tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ModelFileError, match=match) as exc:
+        load_model(path)
+    assert str(path) in str(exc.value)
+
+
+def test_missing_file():
+    with pytest.raises(ModelFileError, match="no such model file"):
+        load_model("/nonexistent/model.toml")
