@@ -19,6 +19,7 @@ LAYERS = [
     {"metrics"},
     {"analysis", "estimators", "models"},
     {"plotting"},
+    {"tabular"},
     {"experiments"},
     {"cli"},
     {"__main__"},

@@ -17,6 +17,9 @@ from . import __version__
 from .estimators import IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
 from .experiments import Store, get, names, run_experiment, write_report
 from .experiments.report import AGREE
+from .modelfile import load_model
+from .plotting import curves
+from .tabular import METHODS, estimate_table
 from .metrics import mode_accuracy, rmse, switch_time_error
 from .models import BOOST_INPUT_VOLTAGE, BOOST_SAMPLE_PERIOD, boost_converter, boost_switching
 from .signals import periodic
@@ -132,6 +135,15 @@ def main(argv: list[str] | None = None) -> int:
     p_rep.add_argument("names", nargs="*")
     p_rep.add_argument("--all", action="store_true", help="every registered reproduction")
     runner_options(p_rep)
+    p_est = sub.add_parser("estimate", help="estimate states and modes from measured data (CSV)")
+    p_est.add_argument("--model", required=True, help="TOML model file")
+    p_est.add_argument("--data", required=True, help="CSV with columns t, u..., y... (and mode)")
+    p_est.add_argument("--method", required=True, choices=METHODS)
+    p_est.add_argument("--grid", type=int, default=5, help="switching-time grid points per interval")
+    p_est.add_argument("--refine", action="store_true", help="refine the grid maximum (switch-time)")
+    p_est.add_argument("--stay", type=float, default=None, help="per-sample probability of staying in a mode")
+    p_est.add_argument("--out", required=True, help="CSV of the estimates")
+    p_est.add_argument("--plot", default=None, help="PNG figure of the estimates")
     p_report = sub.add_parser("report", help="write the HTML report of a results store")
     p_report.add_argument("--store", required=True)
     p_report.add_argument("--out", default="out")
@@ -163,6 +175,21 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "reproduce":
             report = write_report(Store(store_path), args.out, chosen)
             console.print(f"report: [bold]{report}[/bold]  (results store: {store_path})")
+    elif args.command == "estimate":
+        try:
+            spec = load_model(args.model)
+            table = estimate_table(spec, args.data, method=args.method, grid=args.grid, refine=args.refine,
+                                   stay=args.stay)
+        except (ValueError, OSError) as exc:
+            console.print(f"[red]error:[/red] {exc}")
+            return 2
+        table.to_csv(args.out, index=False)
+        console.print(f"{len(table)} samples estimated with {args.method}: [bold]{args.out}[/bold]")
+        if args.plot:
+            states = table.filter(regex=r"^x\d+$").to_numpy()
+            curves(args.plot, table["t"].to_numpy(), {args.method: states}, xlabel="t",
+                   ylabel=[f"x{i}" for i in range(states.shape[1])], title=f"{args.model}: {args.method}")
+            console.print(f"figure: {args.plot}")
     elif args.command == "report":
         if not Path(args.store).exists():
             parser.error(f"--store {args.store} does not exist")
