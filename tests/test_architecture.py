@@ -19,7 +19,7 @@ LAYERS = [
     {"metrics"},
     {"analysis", "estimators", "models"},
     {"plotting"},
-    {"tabular"},
+    {"tabular", "certify"},
     {"experiments"},
     {"cli"},
     {"__main__"},

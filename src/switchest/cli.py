@@ -15,6 +15,7 @@ from rich.table import Table
 
 from . import __version__
 from .estimators import IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
+from .certify import certify
 from .experiments import Store, get, names, run_experiment, write_report
 from .experiments.report import AGREE
 from .modelfile import load_model
@@ -144,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     p_est.add_argument("--stay", type=float, default=None, help="per-sample probability of staying in a mode")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")
     p_est.add_argument("--plot", default=None, help="PNG figure of the estimates")
+    p_check = sub.add_parser("check", help="certify what switchest can about a model file")
+    p_check.add_argument("--model", required=True, help="TOML model file")
     p_report = sub.add_parser("report", help="write the HTML report of a results store")
     p_report.add_argument("--store", required=True)
     p_report.add_argument("--out", default="out")
@@ -190,6 +193,20 @@ def main(argv: list[str] | None = None) -> int:
             curves(args.plot, table["t"].to_numpy(), {args.method: states}, xlabel="t",
                    ylabel=[f"x{i}" for i in range(states.shape[1])], title=f"{args.model}: {args.method}")
             console.print(f"figure: {args.plot}")
+    elif args.command == "check":
+        try:
+            spec = load_model(args.model)
+        except (ValueError, OSError) as exc:
+            console.print(f"[red]error:[/red] {exc}")
+            return 2
+        table = Table(title=f"switchest check: {args.model}", title_justify="left")
+        for col in ("condition", "verdict", "margin", "paper", "detail"):
+            table.add_column(col, overflow="fold")
+        marks = {True: "[green]holds[/green]", False: "[red]fails[/red]", None: "[yellow]n/a[/yellow]"}
+        for c in certify(spec):
+            table.add_row(c.name, marks[c.verdict], "—" if c.margin is None else f"{c.margin:.3g}", c.paper,
+                          c.detail)
+        console.print(table)
     elif args.command == "report":
         if not Path(args.store).exists():
             parser.error(f"--store {args.store} does not exist")
