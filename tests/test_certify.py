@@ -56,7 +56,8 @@ def test_etienne_pairs_are_jointly_observable():
     assert verdicts("etienne-academic")["joint observability of mode pairs"] is True
 
 
-def test_cli_check_prints_the_table(capsys):
+def test_cli_check_prints_the_table(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "250")
     assert main(["check", "--model", str(EXAMPLES / "zhang-two-mode.toml")]) == 0
     out = capsys.readouterr().out
     assert "tolerable mode mismatches" in out and "holds" in out
