@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-__all__ = ["curves", "trajectory"]
+__all__ = ["bars", "curves", "trajectory"]
 
 _STYLE = {"figure.dpi": 110, "axes.grid": True, "grid.alpha": 0.3, "axes.spines.top": False,
           "axes.spines.right": False, "font.size": 9}
@@ -87,3 +87,35 @@ def trajectory(
     """True state components ``truth (K, n)`` and estimates ``(K, n)`` over time, a panel each."""
     return curves(path, t, {"true": truth, **estimates}, xlabel="t (s)", ylabel=labels, title=title,
                   markers=markers)
+
+
+def bars(
+    path: str | Path,
+    groups: Sequence[str],
+    series: Mapping[str, Sequence[float]],
+    *,
+    ylabel: str,
+    title: str = "",
+    logy: bool = False,
+) -> Path:
+    """Grouped bars: one group per entry of ``groups``, one bar per series (NaN = no bar)."""
+    k = len(series)
+    width = 0.8 / max(k, 1)
+    x = np.arange(len(groups))
+    with plt.rc_context(_STYLE):
+        fig, ax = plt.subplots(figsize=(max(6.0, 1.6 * len(groups) + 2), 3.6))
+        for j, (label, values) in enumerate(series.items()):
+            ax.bar(x + (j - (k - 1) / 2) * width, np.asarray(values, dtype=float), width, label=label)
+        ax.set_xticks(x, groups)
+        ax.set_ylabel(ylabel)
+        if logy:
+            ax.set_yscale("log")
+        ax.legend(fontsize=7, frameon=False, ncol=2)
+        if title:
+            ax.set_title(title)
+        fig.tight_layout()
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path)
+        plt.close(fig)
+    return path

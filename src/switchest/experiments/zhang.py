@@ -1,0 +1,527 @@
+"""Reproductions of Zhang & Natarajan (seed 001): Example 1 (Figs 3-6) and the smart grid (Fig. 7).
+
+The Monte Carlo follows Zhang's conventions (tests/analysis/test_bias_filter.py):
+the true mode ``q_k`` of step k governs ``x_k = A_q x_{k-1} + w_k`` and
+``y_k = C_q x_k + v_k`` (eq. (1)); at every step and in every trial the filter's
+mode ``i_k`` is drawn independently from ``lam[:, q_k]`` (the random variables
+Theta_t, Xi_t of §3), and :class:`~switchest.estimators.ModeKalmanFilter` predicts
+and updates with it (``prev_mode = mode = i_k``). Two filters see the same data and
+the same believed modes: eq. (6)'s steady-state gains, under which the mean error
+is eq. (9) exactly, and Algorithm 1's time-varying gains (the paper's filter), for
+which eq. (9) is an approximation. Tasks of one trial block share their seed and
+draw every random number before the loop, so every configuration of a block sees
+the same noise and the same uniforms behind its believed modes.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .._linalg import psd_sqrt
+from ..analysis.bias import (
+    bias_recursion,
+    bibo_gain,
+    max_mismatch_probability,
+    mean_state,
+    mismatch_dynamics,
+    riccati_gains,
+    stable_mismatch_region,
+    theorem4_bound,
+    unstable_components,
+)
+from ..analysis.stability import cqlf
+from ..estimators import ModeKalmanFilter
+from ..models import SMART_GRID_TAU, smart_grid, zhang_two_mode
+from ..plotting import curves
+from ..system import SwitchedLinearSystem
+from .registry import Experiment, Row, Summary, register
+
+# Zhang & Natarajan §5.1 (printed "A_i" is Lambda_i; 1-based modes as printed)
+EXAMPLE1_PAPER = {
+    "Lambda_1": [[0.2763, -0.0137], [0.0654, 0.3232]],
+    "Lambda_2": [[0.0054, -0.0034], [0.0033, 0.0205]],
+    "Gamma_1,2": [[-1.2401, -0.5234], [-0.4387, -0.8091]],
+    "Gamma_2,1": [[0.7225, -0.0028], [0.1593, 0.6496]],
+    "norm_Lambda": [0.3373, 0.0209],
+    "fig6_lambda": 0.154554,  # lambda_{1,2} = lambda_{2,1} for B = 0.3 by eq. (18)
+    "fig6_bound": 0.3,
+    "eta_sup_input": 1.04,  # unstated; the value that reproduces 0.154554 (tests/data/zhang_example1.json)
+}
+# Zhang & Natarajan §5.2: ||Lambda_q||, the nonzero entries of T_{i,q} = Lambda_i - Gamma_{i,q}
+# (1-based "i,q" -> {(row, col): value}), Algorithm 2's region and Fig. 7's settings
+SMART_GRID_PAPER = {
+    "norm_Lambda": [0.9817, 0.8837, 0.8611],
+    "T": {"1,2": {(1, 1): -0.3303, (2, 2): 0.0385}, "1,3": {(1, 1): -0.3303, (2, 2): 0.0375},
+          "2,1": {(1, 1): 0.1827, (2, 2): -0.0361}, "2,3": {(2, 2): -0.0088},
+          "3,1": {(1, 1): 0.1745, (2, 2): -0.0342}, "3,2": {(2, 2): 0.0086}},
+    "unstable": "{1}",
+    "zero": "λ12, λ13, λ21, λ31",
+    "setting_I": {"2,1": 0.0, "3,1": 0.0, "1,2": 0.0, "1,3": 0.0, "3,2": 0.4, "2,3": 0.7},
+    "setting_II": {"2,1": 0.1, "3,1": 0.1, "1,2": 0.1, "1,3": 0.0, "3,2": 0.3, "2,3": 0.2},
+    "outside_II": "λ12, λ21, λ31",  # printed in the order λ21, λ31, λ12
+}
+SIGMA0 = np.eye(2)  # Algorithm 1's Sigma_0 (unstated; I reproduces the printed mode-1 numbers)
+RICCATI_STEPS = 99  # Algorithm 1 steps at which the printed ||Lambda_1||, T_{1,q} hold
+Z_MAX = 5.0  # |MC mean - (9)| / SE beyond which a step disagrees (P ~ 6e-7 per comparison)
+FILTERS = ("steady", "alg1")
+
+
+# ------------------------------------------------------------------ shared Monte Carlo
+def _blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
+    """(block index, trials in it) covering ``trials``."""
+    sizes = [block_size] * (trials // block_size) + ([trials % block_size] if trials % block_size else [])
+    return list(enumerate(sizes))
+
+
+def _periodic_modes(horizon: int, dwell: int, n_modes: int) -> np.ndarray:
+    """True modes ``q_1..q_K`` (0-based): mode 1, 2, ... each for ``dwell`` steps, cyclically."""
+    return (np.arange(horizon) // dwell) % n_modes
+
+
+def _lam_from(entries: dict[str, float], n_modes: int) -> np.ndarray:
+    """``lam[i, q]`` from the paper's off-diagonal ``{"i,q": value}`` (1-based); diagonal fills each column to 1."""
+    lam = np.zeros((n_modes, n_modes))
+    for key, value in entries.items():
+        i, q = (int(s) - 1 for s in key.split(","))
+        lam[i, q] = value
+    lam[np.arange(n_modes), np.arange(n_modes)] = 1.0 - lam.sum(axis=0)
+    return lam
+
+
+def _monte_carlo(system: SwitchedLinearSystem, modes: np.ndarray, lam: np.ndarray, m0: np.ndarray,
+                 trials: int, rng: np.random.Generator) -> dict:
+    """Additive moments of ``x_hat_k - x_k`` for both filters along ``modes``, believed modes from ``lam``.
+
+    Returns JSON-able sums over the trials, shape (K, n) each: ``<f>_sum``, ``<f>_sq``
+    for f in :data:`FILTERS`, and ``pair_sum``, ``pair_sq`` of the per-trial
+    difference alg1 - steady (whose mean is Algorithm 1's bias minus eq. (9)).
+    """
+    K, n, L = modes.size, system.n_states, system.n_modes
+    sq_q, sq_r = psd_sqrt(system.Q), psd_sqrt(system.R)
+    x = m0 + rng.standard_normal((trials, n)) @ psd_sqrt(SIGMA0).T
+    w = rng.standard_normal((K, trials, n))
+    v = rng.standard_normal((K, trials, system.n_outputs))
+    uniform = rng.random((K, trials))
+    cdf = np.cumsum(lam, axis=0)
+    cdf[-1] = 1.0  # columns sum to one up to rounding
+    filters = {"steady": ModeKalmanFilter(system, m0, SIGMA0, steady_state=True),
+               "alg1": ModeKalmanFilter(system, m0, SIGMA0, steady_state=False)}
+    states = {name: f.init((trials,)) for name, f in filters.items()}
+    acc = {f"{name}_{kind}": np.zeros((K, n)) for name in (*FILTERS, "pair") for kind in ("sum", "sq")}
+    for k, q in enumerate(modes):
+        x = x @ system.A[q].T + w[k] @ sq_q[q].T  # eq. (1): x_k = A_q x_{k-1} + B_q w_k
+        y = x @ system.C[q].T + v[k] @ sq_r[q].T  # y_k = C_q x_k + v_k
+        believed = np.argmax(uniform[k][:, None] < cdf[:, q], axis=1)  # i_k ~ lam[:, q_k]
+        err = {}
+        for name, f in filters.items():
+            states[name] = f.step(states[name], y, dt=system.dt, mode=believed, prev_mode=believed)
+            err[name] = states[name].x - x
+        err["pair"] = err["alg1"] - err["steady"]
+        for name, e in err.items():
+            acc[f"{name}_sum"][k] = e.sum(axis=0)
+            acc[f"{name}_sq"][k] = (e**2).sum(axis=0)
+    return {**{k: v.tolist() for k, v in acc.items()}, "trials": trials}
+
+
+def _group(results: list[tuple[dict, dict]]) -> dict[str, tuple[dict, dict]]:
+    """Configurations (less block and trial count) -> (config, summed results over blocks)."""
+    groups: dict[str, tuple[dict, dict]] = {}
+    for cfg, res in results:
+        key = json.dumps({k: v for k, v in cfg.items() if k not in ("block", "trials")}, sort_keys=True)
+        if key not in groups:
+            groups[key] = (cfg, {k: np.asarray(v, float) for k, v in res.items()})
+        else:
+            total = groups[key][1]
+            for k, v in res.items():
+                total[k] = total[k] + np.asarray(v, float)
+    return groups
+
+
+def _moments(total: dict, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Monte Carlo mean ``(K + 1, n)`` (with the exact ``e_0 = 0`` first) and its standard error ``(K, n)``."""
+    N = total["trials"]
+    mean = total[f"{name}_sum"] / N
+    var = np.maximum(total[f"{name}_sq"] / N - mean**2, 0.0) * N / (N - 1)
+    return np.vstack([np.zeros(mean.shape[1]), mean]), np.sqrt(var / N)
+
+
+def _theory(system: SwitchedLinearSystem, lam: np.ndarray, modes: np.ndarray, m0: np.ndarray) -> np.ndarray:
+    """Eq. (9) with eq. (6)'s steady gains: ``E(e_0), ..., E(e_K)``, shape (K + 1, n)."""
+    return bias_recursion(mismatch_dynamics(system), lam, modes, mean_state(system, modes, m0)[:-1])
+
+
+def _compare(total: dict, theory: np.ndarray) -> dict:
+    """How both filters' Monte Carlo means compare with eq. (9)."""
+    steady, se = _moments(total, "steady")
+    alg1, se_alg1 = _moments(total, "alg1")
+    gap, se_gap = _moments(total, "pair")  # Algorithm 1's bias minus the steady filter's, paired
+    peak = float(np.max(np.linalg.norm(theory, axis=1)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.nan_to_num(np.abs(steady[1:] - theory[1:]) / se, nan=0.0, posinf=np.inf)
+        z_gap = np.nan_to_num(np.abs(gap[1:]) / se_gap, nan=0.0, posinf=np.inf)
+        power = np.nan_to_num(np.abs(theory[1:]) / se, nan=0.0)
+    return {
+        "steady": steady, "alg1": alg1, "se": se, "se_alg1": se_alg1,
+        "z": float(z.max()), "power": float(power.max()), "peak": peak,
+        "gap_rel": float(np.max(np.linalg.norm(alg1 - theory, axis=1)) / peak) if peak else float("nan"),
+        "gap_paired_rel": float(np.max(np.linalg.norm(gap, axis=1)) / peak) if peak else float("nan"),
+        "gap_z": float(z_gap.max()),
+    }
+
+
+def _matrix(M) -> str:
+    return "[" + ", ".join("[" + ", ".join(f"{v:.4f}" for v in row) + "]" for row in np.asarray(M)) + "]"
+
+
+def _lam_text(lam: np.ndarray) -> str:
+    L = lam.shape[0]
+    return ", ".join(f"λ{i + 1}{q + 1}={lam[i, q]:.4g}" for q in range(L) for i in range(L) if i != q)
+
+
+def _switches(modes: np.ndarray) -> list[float]:
+    return [float(k) for k in np.flatnonzero(np.diff(modes)) + 1]
+
+
+# ------------------------------------------------------------------ Example 1, Figs 3-6
+def _example1_x0(cfg: dict, eta: float | None = None) -> np.ndarray:
+    """E(x_0) of a configuration: ``mean_x0``, or for Fig. 6 ``(eta sup||u||) / eta`` along its direction.
+
+    Fig. 6's scale makes our ``eta * sup_j ||E(x_j)||`` equal the 1.04 that the printed
+    0.154554 needs; ``sup_j ||E(x_j)|| = ||E(x_0)||`` because ``||A_1||, ||A_2|| < 1``
+    (checked in the summary).
+    """
+    d = np.asarray(cfg["mean_x0"], float)
+    if cfg["figure"] != "6":
+        return d
+    if eta is None:
+        eta = bibo_gain(mismatch_dynamics(zhang_two_mode()))
+    return cfg["eta_sup_input"] / eta * d / np.linalg.norm(d)
+
+
+def _example1_lam(cfg: dict) -> np.ndarray:
+    """lam of a configuration; Fig. 6's from eq. (18) with the paper's ``eta sup||u||``."""
+    if cfg["figure"] == "6":
+        p = max_mismatch_probability(mismatch_dynamics(zhang_two_mode()), bound=cfg["bound"],
+                                     eta=cfg["eta_sup_input"], sup_input=1.0)
+        return np.array([[1.0 - p, p], [p, 1.0 - p]])
+    return np.asarray(cfg["lam"], float)
+
+
+def _example1_tasks(p: dict) -> list[dict]:
+    configs = []
+    for figure, signal in (("3", 1), ("4", 2)):
+        for lam12, lam21 in p["lambdas"]:
+            configs.append({"figure": figure, "signal": signal, "lam": _lam_from({"1,2": lam12, "2,1": lam21}, 2).tolist()})
+    for signal in (1, 2):
+        for P in p["fig5_P"]:
+            configs.append({"figure": "5", "signal": signal, "lam": _lam_from({"1,2": P, "2,1": P}, 2).tolist()})
+        configs.append({"figure": "6", "signal": signal, "bound": EXAMPLE1_PAPER["fig6_bound"],
+                        "eta_sup_input": EXAMPLE1_PAPER["eta_sup_input"]})
+    common = {"horizon": p["horizon"], "dwell": p["dwells"], "mean_x0": p["mean_x0"]}
+    return [{"block": b, "trials": n, **common, **c} for b, n in _blocks(p["trials"], p["block_size"])
+            for c in configs]
+
+
+def _example1_modes(cfg: dict) -> np.ndarray:
+    return _periodic_modes(cfg["horizon"], cfg["dwell"][cfg["signal"] - 1], 2)
+
+
+def _example1_run(cfg: dict, rng: np.random.Generator) -> dict:
+    return _monte_carlo(zhang_two_mode(), _example1_modes(cfg), _example1_lam(cfg), _example1_x0(cfg),
+                        cfg["trials"], rng)
+
+
+def _example1_summary(p: dict, results, out: Path) -> Summary:
+    system = zhang_two_mode()
+    dyn = mismatch_dynamics(system)
+    eta = bibo_gain(dyn)
+    paper = EXAMPLE1_PAPER
+    norms = np.linalg.norm(dyn.Lambda, ord=2, axis=(-2, -1))
+    lam_max = max_mismatch_probability(dyn, bound=paper["fig6_bound"], eta=paper["eta_sup_input"], sup_input=1.0)
+    cq_lambda = cqlf(dyn.Lambda, "discrete")
+    cq_A = cqlf(system.A, "discrete")
+    A_norms = np.linalg.norm(system.A, ord=2, axis=(-2, -1))
+    rows = [
+        Row("‖Λ_1‖ (printed ‖A_1‖)", float(norms[0]), paper["norm_Lambda"][0]),
+        Row("‖Λ_2‖ (printed ‖A_2‖)", float(norms[1]), paper["norm_Lambda"][1]),
+        Row("Λ_1 = A_1 − K_1 C_1 A_1 (eq. 7)", _matrix(dyn.Lambda[0]), _matrix(paper["Lambda_1"]), "",
+            "steady a-priori Riccati gain, Algorithm 1 line 8"),
+        Row("Λ_2", _matrix(dyn.Lambda[1]), _matrix(paper["Lambda_2"])),
+        Row("Γ_1,2 = A_2 − K_1 C_2 A_2", _matrix(dyn.Gamma[0, 1]), _matrix(paper["Gamma_1,2"])),
+        Row("Γ_2,1 = A_1 − K_2 C_1 A_1", _matrix(dyn.Gamma[1, 0]), _matrix(paper["Gamma_2,1"])),
+        Row("CQLF of Λ_1, Λ_2 (eq. 13, Theorem 3)", "exists" if cq_lambda.feasible else "not found", "exists"),
+        Row("CQLF of A_1, A_2 (original system stable)", "exists" if cq_A.feasible else "not found", "exists"),
+        Row("λ12 = λ21 for B = 0.3 by eq. (18), η·sup‖u‖ = 1.04", float(lam_max), paper["fig6_lambda"], "",
+            "η·sup‖u‖ is not printed; 1.04 is the value that reproduces the printed digits"),
+        Row("BIBO gain η of (10) (bibo_gain)", float(eta), None, "", "1/(1 − max‖Λ_i‖); not printed"),
+    ]
+    groups = _group(results)
+    figs: list[Path] = []
+    notes_z = []
+    # Figs 3-4: theory vs Monte Carlo along each signal
+    for figure, signal in (("3", 1), ("4", 2)):
+        series, markers = {}, []
+        for cfg, total in (g for g in groups.values() if g[0]["figure"] == figure):
+            lam = np.asarray(cfg["lam"])
+            modes = _example1_modes(cfg)
+            m0 = _example1_x0(cfg)
+            theory = _theory(system, lam, modes, m0)
+            c = _compare(total, theory)
+            label = f"λ12={lam[0, 1]:g}, λ21={lam[1, 0]:g}"
+            where = f"Fig. {figure} (signal {signal}), {label}"
+            rows += [
+                Row(f"{where}: peak ‖E(e_k)‖ by (9)", c["peak"], None, "",
+                    f"Monte Carlo peak {np.max(np.linalg.norm(c['alg1'], axis=1)):.4g} (Algorithm 1 gains)"),
+                Row(f"{where}: largest |MC − (9)| / SE, steady gains (eq. 6)", c["z"], "agree", "",
+                    f"below {Z_MAX:g} means agreement; the bias reaches {c['power']:.0f} SE"),
+                Row(f"{where}: Algorithm 1 bias − (9), largest norm / peak", c["gap_paired_rel"], "agree", "",
+                    f"paired with the steady-gain filter, {c['gap_z']:.1f} SE from zero; unpaired "
+                    f"‖MC − (9)‖ / peak = {c['gap_rel']:.3f}"),
+            ]
+            k = np.arange(modes.size + 1)
+            series[f"(9), {label}"] = theory
+            series[f"MC steady, {label}"] = c["steady"]
+            series[f"MC Alg. 1, {label}"] = c["alg1"]
+            markers = _switches(modes) if cfg["dwell"][signal - 1] > 1 else []
+        figs.append(curves(out / f"zhang-example1-fig{figure}.png", k, series, xlabel="step k",
+                           ylabel=["E(e_k), component 1", "E(e_k), component 2"], markers=markers,
+                           title=f"Zhang Fig. {figure}: bias, eq. (9) vs Monte Carlo ({p['trials']} trials), "
+                                 f"signal {signal}"))
+    # Fig. 5: Theorem 4 bound vs Monte Carlo maximum over P
+    fig5 = {}
+    for cfg, total in (g for g in groups.values() if g[0]["figure"] == "5"):
+        lam = np.asarray(cfg["lam"])
+        modes = _example1_modes(cfg)
+        m0 = _example1_x0(cfg)
+        sup_u = float(np.max(np.linalg.norm(mean_state(system, modes, m0), axis=-1)))
+        theory = _theory(system, lam, modes, m0)
+        c = _compare(total, theory)
+        entry = fig5.setdefault(cfg["signal"], {"P": [], "mc": [], "theory": [], "bound": [], "z": []})
+        entry["P"].append(lam[0, 1])
+        entry["mc"].append(float(np.max(np.linalg.norm(c["alg1"], axis=1))))
+        entry["theory"].append(c["peak"])
+        entry["bound"].append(theorem4_bound(dyn, lam[0, 1], eta=eta, sup_input=sup_u))
+        entry["z"].append(c["z"])
+    series5 = {}
+    for signal, e in sorted(fig5.items()):
+        order = np.argsort(e["P"])
+        arr = {k: np.asarray(v)[order] for k, v in e.items()}
+        ratio = arr["mc"] / arr["bound"]
+        rows.append(Row(f"Fig. 5 (signal {signal}): largest MC max‖E(e_k)‖ / Theorem 4 bound over P",
+                        float(ratio.max()), "≤ 1", "",
+                        f"P = {arr['P'].min():g}..{arr['P'].max():g}; (9) reaches at most "
+                        f"{np.max(arr['theory'] / arr['bound']):.3f} of the bound; steady-gain MC vs (9) "
+                        f"within {np.max(arr['z']):.2f} SE"))
+        series5[f"MC Alg. 1, signal {signal}"] = arr["mc"]
+        series5[f"(9), signal {signal}"] = arr["theory"]
+        series5["Theorem 4 bound"] = arr["bound"]  # the same for both signals: sup‖u‖ = ‖E(x_0)‖
+        P_axis = arr["P"]
+    if series5:
+        figs.append(curves(out / "zhang-example1-fig5.png", P_axis, series5, xlabel="mismatch probability P",
+                           ylabel="max_k ‖E(e_k)‖", title="Zhang Fig. 5: Theorem 4 bound vs Monte Carlo"))
+    # Fig. 6: the B = 0.3 design
+    series6 = {}
+    for cfg, total in (g for g in groups.values() if g[0]["figure"] == "6"):
+        lam, modes, m0 = _example1_lam(cfg), _example1_modes(cfg), _example1_x0(cfg, eta)
+        sup_u = float(np.max(np.linalg.norm(mean_state(system, modes, m0), axis=-1)))
+        theory = _theory(system, lam, modes, m0)
+        c = _compare(total, theory)
+        mc_norm = np.linalg.norm(c["alg1"], axis=1)
+        se_norm = float(np.max(np.linalg.norm(c["se_alg1"], axis=1)))
+        sig = cfg["signal"]
+        rows += [
+            Row(f"Fig. 6 (signal {sig}): max_k ‖E(e_k)‖ by (9), λ12 = λ21 = {lam[0, 1]:.6f}", c["peak"], "≤ 0.3",
+                "", f"our η·sup‖u‖ = {eta * sup_u:.4f} (E(x_0) = {np.round(m0, 4).tolist()})"),
+            Row(f"Fig. 6 (signal {sig}): max_k ‖MC bias‖, Algorithm 1 gains", float(mc_norm.max()), "≤ 0.3", "",
+                f"Monte Carlo noise: SE up to {se_norm:.3f} per step; steady-gain MC vs (9) within {c['z']:.2f} SE"),
+        ]
+        series6[f"(9), signal {sig}"] = np.linalg.norm(theory, axis=1)
+        series6[f"MC Alg. 1, signal {sig}"] = mc_norm
+        k6 = np.arange(modes.size + 1)
+    if series6:
+        series6["B = 0.3"] = np.full(k6.size, paper["fig6_bound"])
+        figs.append(curves(out / "zhang-example1-fig6.png", k6, series6, xlabel="step k", ylabel="‖E(e_k)‖",
+                           title="Zhang Fig. 6: λ12 = λ21 = 0.154554 keeps the bias below B = 0.3"))
+    setup = (
+        f"Zhang §5.1: two modes, A_1 = [[0.9, 0], [0.2, 0.8]], A_2 = [[0.5, 0.2], [0.2, 0.4]], C_1 = I, C_2 = 5 I, "
+        f"process noise B_q (0.5 I) B_q', R = 0.3 I. {p['trials']} Monte Carlo trials (paper: 5000) of "
+        f"{p['horizon']} steps; signal 1 holds each mode {p['dwells'][0]} steps, signal 2 {p['dwells'][1]} "
+        f"(both start in mode 1); the filter's mode is drawn at every step from λ[:, q_k]. E(x_0) = "
+        f"{p['mean_x0']} for Figs 3-5, Σ_0 = I, filter prior = (E(x_0), Σ_0) so e_0 = 0. Figs 3-4: "
+        f"(λ12, λ21) in {[tuple(x) for x in p['lambdas']]}; Fig. 5: λ12 = λ21 = P; Fig. 6: λ12 = λ21 from eq. (18) "
+        f"with B = 0.3 and E(x_0) scaled so that η·sup‖u‖ = 1.04."
+    )
+    notes = [
+        "The text prints Λ_i as 'A_i'; the printed matrices and norms are Λ_i of eq. (7) with the gain from the "
+        "steady a-priori covariance (Algorithm 1 line 8), which reproduces all four printed decimals.",
+        "The paper does not state the switching signals, the λ of Figs 3-4, E(x_0), Σ_0, the horizon, η or "
+        "sup‖u‖: every one of these is our choice (setup). Its figures print no numbers, so the reproduced claim "
+        "is the agreement of (9) with Monte Carlo, the bound of Theorem 4 above the Monte Carlo maximum, and the "
+        "B = 0.3 design holding.",
+        "0.154554 needs η·sup‖u‖ = 1.04 in eq. (18) (any value in about [1.039995, 1.040002]). We take η from "
+        f"bibo_gain (= 1/(1 − ‖Λ_1‖) = {eta:.4f}) and, for Fig. 6 only, scale E(x_0) so that η‖E(x_0)‖ = 1.04; "
+        f"sup_k ‖E(x_k)‖ = ‖E(x_0)‖ because ‖A_1‖ = {A_norms[0]:.4f} and ‖A_2‖ = {A_norms[1]:.4f} are below 1. "
+        "The paper's design then applies to our setup and is checked, not assumed.",
+        "With eq. (6)'s steady gains, eq. (9) is the exact mean of the filter's error: the Monte Carlo agrees "
+        f"within {Z_MAX:g} SE at every step. With Algorithm 1's time-varying gains (the paper's filter) the gain "
+        "also depends on the believed-mode history (C_2 = 5 C_1), so (9) misses a few per cent of the peak bias; "
+        "the paired difference of the two filters measures this gap free of most Monte Carlo noise.",
+        "The per-trial error contains (Λ_i − Γ_i,q) x_{k−1} with the random x_{k−1}, so its spread is about "
+        "‖S_1,2‖·std(x) ≈ 2 whatever E(x_0) is: the bias is visible only for E(x_0) well above the noise, hence "
+        "E(x_0) = (5, 5) in Figs 3-5. In Fig. 6 (‖E(x_0)‖ = 0.69) the Monte Carlo maximum includes noise of a "
+        "few SE, which also pushes it above the (9) curve.",
+    ]
+    return Summary("zhang-example1", "Zhang & Natarajan §5.1 (Figs 3-6) — mode-mismatch bias, two-mode example",
+                   setup, rows, notes, figs)
+
+
+register(Experiment(
+    name="zhang-example1",
+    paper="Zhang",
+    title="Figs 3-6: mismatch bias, eq. (9) vs Monte Carlo; Theorem 4 bound vs P; the B = 0.3 design",
+    defaults=dict(trials=5000, block_size=1000, horizon=40, dwells=[10, 1], mean_x0=[5.0, 5.0],
+                  lambdas=[[0.1, 0.3], [0.3, 0.1]], fig5_P=[0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5]),
+    quick=dict(trials=1000, block_size=500, fig5_P=[0.1, 0.2, 0.3, 0.4, 0.5]),
+    tasks=_example1_tasks,
+    run_task=_example1_run,
+    summarize=_example1_summary,
+))
+
+
+# ------------------------------------------------------------------ smart grid, Fig. 7
+def _grid_tasks(p: dict) -> list[dict]:
+    settings = {"I": SMART_GRID_PAPER["setting_I"], "II": SMART_GRID_PAPER["setting_II"]}
+    return [{"block": b, "trials": n, "setting": name, "lam": _lam_from(entries, 3).tolist(),
+             "horizon": p["horizon"], "dwell": p["dwell"], "mean_x0": p["mean_x0"], "tau": p["tau"]}
+            for b, n in _blocks(p["trials"], p["block_size"]) for name, entries in settings.items()]
+
+
+def _grid_run(cfg: dict, rng: np.random.Generator) -> dict:
+    modes = _periodic_modes(cfg["horizon"], cfg["dwell"], 3)
+    return _monte_carlo(smart_grid(cfg["tau"]), modes, np.asarray(cfg["lam"]), np.asarray(cfg["mean_x0"], float),
+                        cfg["trials"], rng)
+
+
+def _set_text(mask: np.ndarray) -> str:
+    L = mask.shape[0]
+    return ", ".join(f"λ{i + 1}{q + 1}" for i in range(L) for q in range(L) if i != q and mask[i, q]) or "none"
+
+
+def _grid_summary(p: dict, results, out: Path) -> Summary:
+    system = smart_grid(p["tau"])
+    paper = SMART_GRID_PAPER
+    steady = mismatch_dynamics(system)
+    printed = mismatch_dynamics(system, gains=riccati_gains(system, P0=SIGMA0, steps=RICCATI_STEPS))
+    n_steady = np.linalg.norm(steady.Lambda, ord=2, axis=(-2, -1))
+    n_alg1 = np.linalg.norm(printed.Lambda, ord=2, axis=(-2, -1))
+    rows = [
+        Row(f"‖Λ_1‖, Algorithm 1 gain after {RICCATI_STEPS} steps from Σ_0 = I", float(n_alg1[0]),
+            paper["norm_Lambda"][0]),
+        Row("‖Λ_1‖, steady-state gain (eq. 6)", float(n_steady[0]), paper["norm_Lambda"][0], "",
+            "mode 1's Riccati recursion converges slowly; the printed value is the transient one"),
+        Row("‖Λ_2‖", float(n_steady[1]), paper["norm_Lambda"][1]),
+        Row("‖Λ_3‖", float(n_steady[2]), paper["norm_Lambda"][2]),
+    ]
+    for key, entries in paper["T"].items():
+        i, q = (int(s) - 1 for s in key.split(","))
+        for (r, c), value in entries.items():
+            ours = float(printed.S[i, q, r - 1, c - 1])
+            note = ""
+            if abs(ours) > 0 and abs(value / ours - 10.0) < 0.5:
+                note = "printed value is ten times ours: a slipped decimal"
+            elif i == 0:
+                note = f"steady-state gain: {steady.S[i, q, r - 1, c - 1]:.4f}"
+            rows.append(Row(f"T_{key}[{r},{c}] = (Λ_i − Γ_i,q)[{r},{c}] (Algorithm 2)", ours, value, "", note))
+    uc = unstable_components(system)
+    region = stable_mismatch_region(system, dynamics=steady)
+    cq_lambda = cqlf(steady.Lambda, "discrete")
+    lam_I = _lam_from(paper["setting_I"], 3)
+    lam_II = _lam_from(paper["setting_II"], 3)
+    unstable = "{" + ", ".join(str(j + 1) for j in np.flatnonzero(uc.components)) + "}"
+    rows += [
+        Row("CQLF of Λ_1, Λ_2, Λ_3 (Theorem 3)", "exists" if cq_lambda.feasible else "not found", "exists"),
+        Row("CQLF of A_1, A_2, A_3 (original system)", "exists" if uc.certificate.feasible else "none: unstable",
+            "none: unstable"),
+        Row("unstable components I (Algorithm 2, step 2)", unstable, paper["unstable"]),
+        Row("Algorithm 2: λ forced to 0", _set_text(~region), paper["zero"]),
+        Row("Fig. 7 Setting I: entries outside the region", _set_text((lam_I > 0) & ~region), "none"),
+        Row("Fig. 7 Setting II: entries outside the region", _set_text((lam_II > 0) & ~region), paper["outside_II"]),
+    ]
+    figs = []
+    modes = _periodic_modes(p["horizon"], p["dwell"], 3)
+    k = np.arange(modes.size + 1)
+    for cfg, total in sorted(_group(results).values(), key=lambda g: g[0]["setting"]):
+        name = cfg["setting"]
+        lam = np.asarray(cfg["lam"])
+        theory = _theory(system, lam, modes, np.asarray(cfg["mean_x0"], float))
+        c = _compare(total, theory)
+        th_norm = np.linalg.norm(theory, axis=1)
+        mc_norm = np.linalg.norm(c["alg1"], axis=1)
+        where = f"Fig. 7 Setting {name}"
+        z_row = Row(f"{where}: largest |MC − (10)| / SE, steady gains (eq. 6)", c["z"], "agree", "",
+                    f"below {Z_MAX:g} means agreement; the bias reaches {c['power']:.1f} SE")
+        if name == "I":
+            rows += [
+                Row(f"{where}: max_k ‖E(e_k)‖ by (10)", float(th_norm.max()), "bounded", "",
+                    "only the stable P_D enters: T_2,3 and T_3,2 have a zero first column"),
+                Row(f"{where}: max_k ‖MC bias‖, Algorithm 1 gains", float(mc_norm.max()), "bounded", "",
+                    f"Monte Carlo noise: SE up to {np.max(np.linalg.norm(c['se_alg1'], axis=1)):.3f}"),
+                z_row,
+            ]
+        else:
+            first = p["dwell"]
+            rows += [
+                Row(f"{where}: ‖E(e_K)‖ at k = {modes.size} by (10)", float(th_norm[-1]), "explodes", "",
+                    f"{th_norm[first]:.3g} at k = {first}: a factor 10^{np.log10(th_norm[-1] / th_norm[first]):.1f}"),
+                Row(f"{where}: ‖MC bias‖ at k = {modes.size}, Algorithm 1 gains", float(mc_norm[-1]), "explodes"),
+                z_row,
+                Row(f"{where}: Algorithm 1 bias − (10), largest norm / peak", c["gap_paired_rel"], "agree", "",
+                    f"paired with the steady-gain filter, {c['gap_z']:.1f} SE from zero; unpaired "
+                    f"‖MC − (10)‖ / peak = {c['gap_rel']:.3f}"),
+            ]
+        series = {"(10), steady gains": th_norm, "MC, steady gains": np.linalg.norm(c["steady"], axis=1),
+                  "MC, Algorithm 1 gains": mc_norm}
+        figs.append(curves(out / f"zhang-smartgrid-setting{name}.png", k, series, xlabel="step k",
+                           ylabel="‖E(e_k)‖", logy=name == "II", markers=_switches(modes),
+                           title=f"Zhang Fig. 7, Setting {name}: bias norm"))
+    setup = (
+        f"Zhang §5.2: smart grid of Table 1 sampled with τ = {p['tau']} (unstated; 0.1 reproduces the printed "
+        f"norms), C = I, Q = 2 I, R = I. {p['trials']} Monte Carlo trials (paper: 5000) of {p['horizon']} steps; "
+        f"true modes 1, 2, 3 for {p['dwell']} steps each, cyclically; E(x_0) = {p['mean_x0']}, Σ_0 = I; the "
+        f"filter's mode is drawn at every step from λ[:, q_k]. Setting I: {_lam_text(lam_I)}; Setting II: "
+        f"{_lam_text(lam_II)}."
+    )
+    notes = [
+        "The text prints Λ_i as 'A_i' and Algorithm 2's T as 'A_i − F_i,q'; Λ_i and T_i,q = Λ_i − Γ_i,q are meant "
+        "and computed.",
+        f"τ is not printed; τ = {SMART_GRID_TAU} is the value at which ‖Λ_2‖, ‖Λ_3‖ and the T_i,q of modes 2-3 "
+        "match to four decimals. The printed ‖Λ_1‖ = 0.9817 and the mode-1 entries of T_1,2, T_1,3 are not "
+        f"steady-state values (0.9828, −0.3307): they match Algorithm 1's gain after {RICCATI_STEPS} steps from "
+        "Σ_0 = I, so the T rows use those gains (the steady value is in the note).",
+        "Printed T_2,3[2,2] = −0.0088 and T_3,2[2,2] = 0.0086 are ten times the computed −0.00088 and 0.00086: "
+        "a slipped decimal. It changes nothing in Algorithm 2 (only first columns matter).",
+        "The switching signal, E(x_0), Σ_0 and the horizon of Fig. 7 are not printed: our choices (setup). The "
+        "claim reproduced is the shape: bounded bias in Setting I, bias growing with E(P_G) in Setting II.",
+        "In Setting I the theoretical bias stays near 1e-3 (only T_2,3 and T_3,2, with entries below 1e-3, act, "
+        "on the decaying P_D), far below the Monte Carlo noise: the Monte Carlo shows bounded noise around zero.",
+        "With Algorithm 1's time-varying gains (the paper's filter) mode 1's gain is still far from steady state "
+        "and is reset by every believed mode 2 or 3, so (10) with steady gains is only an approximation; the gap "
+        "is reported as a fraction of the peak bias.",
+    ]
+    return Summary("zhang-smartgrid", "Zhang & Natarajan §5.2 (Fig. 7) — smart grid, stable and unstable mismatch",
+                   setup, rows, notes, figs)
+
+
+register(Experiment(
+    name="zhang-smartgrid",
+    paper="Zhang",
+    title="Fig. 7: smart-grid bias inside (Setting I) and outside (Setting II) Algorithm 2's stable region",
+    defaults=dict(trials=5000, block_size=1000, horizon=100, dwell=10, mean_x0=[1.0, 1.0], tau=SMART_GRID_TAU),
+    quick=dict(trials=1000, block_size=500),
+    tasks=_grid_tasks,
+    run_task=_grid_run,
+    summarize=_grid_summary,
+))
