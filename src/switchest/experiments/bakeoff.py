@@ -22,6 +22,7 @@ from ..simulate import simulate
 from ..system import SwitchedLinearSystem
 from ..tabular import transition_for
 from .registry import Experiment, Row, Summary, register
+from .scoring import combine, score
 
 METHODS = ("clairvoyant", "kalman-at-samples", "switch-time", "switch-time-refined", "imm", "imm-ev1")
 _LABELS = {
@@ -99,20 +100,9 @@ def _run(cfg: dict, rng: np.random.Generator) -> dict:
     else:
         est = IMMEV1Filter(sys, x0=x0, P0=P0, grid=5).run(traj.y, u, t)
     elapsed = time.perf_counter() - start
-    skip = max(1, t.size // 20)
-    err = est.x[:, skip:] - traj.x[:, skip:]
-    out = {"sse": float(np.sum(err**2)), "count": int(err.shape[0] * err.shape[1]),
-           "scale": float(np.sum(traj.x[:, skip:] ** 2)), "elapsed": elapsed, "trials": cfg["trials"]}
-    if est.mode is not None:
-        out["mode_hits"] = int(np.sum(est.mode[:, skip:] == traj.mode[:, skip:]))
-    if est.switch_time is not None:
-        truth = traj.switch_times()
-        both = np.isfinite(est.switch_time) & np.isfinite(truth)
-        out["switch_abs_err"] = float(np.sum(np.abs(est.switch_time[both] - truth[both])))
-        out["switch_pairs"] = int(both.sum())
-        out["switch_rel_err"] = float(np.sum(np.abs(est.switch_time[both] - truth[both])
-                                             / np.diff(t)[np.nonzero(both)[1] - 1]))
-    return out
+    out = score(est, traj, start=max(1, t.size // 20))
+    out.pop("sse_per_step")
+    return {**out, "elapsed": elapsed}
 
 
 def _stay(spec: ModelSpec, t: np.ndarray) -> float | None:
@@ -121,12 +111,10 @@ def _stay(spec: ModelSpec, t: np.ndarray) -> float | None:
 
 
 def _summary(p: dict, results, out: Path) -> Summary:
-    totals: dict[tuple[str, str], dict] = {}
+    grouped: dict[tuple[str, str], list] = {}
     for cfg, res in results:
-        key = (cfg["case"], cfg["method"])
-        acc = totals.setdefault(key, {})
-        for k, v in res.items():
-            acc[k] = acc.get(k, 0) + v
+        grouped.setdefault((cfg["case"], cfg["method"]), []).append(res)
+    totals = {key: combine(v) for key, v in grouped.items()}
     rows, rel = [], {m: [] for m in METHODS}
     for case in p["cases"]:
         for m in METHODS:
@@ -134,8 +122,8 @@ def _summary(p: dict, results, out: Path) -> Summary:
             if tot is None:
                 rel[m].append(np.nan)
                 continue
-            rmse = np.sqrt(tot["sse"] / tot["count"])
-            rel[m].append(np.sqrt(tot["sse"] / tot["scale"]))
+            rmse = np.sqrt(tot["sse"].sum() / tot["count"])
+            rel[m].append(np.sqrt(tot["sse"].sum() / tot["scale"].sum()))
             parts = [f"relative RMSE {rel[m][-1]:.3g}", f"{tot['elapsed'] / tot['trials'] * 1e3:.1f} ms per trial"]
             if "mode_hits" in tot:
                 parts.append(f"mode accuracy {tot['mode_hits'] / tot['count']:.3f}")

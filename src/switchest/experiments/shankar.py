@@ -28,6 +28,7 @@ from ..signals import periodic
 from ..simulate import simulate
 from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
+from .scoring import blocks, combine, score
 
 # Shankar et al. Table I (100 trials, T = 0.5 ms): RMSE for g = 1..5
 TABLE1_PAPER = {
@@ -43,41 +44,6 @@ VEHICLE_P0 = 0.01 * np.eye(4)
 VEHICLE_TRANSITION = np.array([[0.9, 0.05, 0.05], [0.05, 0.9, 0.05], [0.05, 0.05, 0.9]])
 
 
-def _blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
-    """(block index, trials in it) covering ``trials``."""
-    sizes = [block_size] * (trials // block_size) + ([trials % block_size] if trials % block_size else [])
-    return list(enumerate(sizes))
-
-
-def _errors(est, traj, start: int) -> dict:
-    """Additive error statistics of one method on one block (summed, so blocks combine)."""
-    err = est.x[:, start:] - traj.x[:, start:]
-    out = {"sse": np.sum(err**2, axis=(0, 1)).tolist(), "count": int(err.shape[0] * err.shape[1]),
-           "sse_per_step": np.sum((est.x - traj.x) ** 2, axis=0).tolist(), "trials": traj.n_trials}
-    if est.mode is not None:
-        out["mode_hits"] = int(np.sum(est.mode[:, start:] == traj.mode[:, start:]))
-    if est.switch_time is not None:
-        truth = traj.switch_times()
-        both = np.isfinite(est.switch_time) & np.isfinite(truth)
-        out["switch_abs_err"] = float(np.sum(np.abs(est.switch_time[both] - truth[both])))
-        out["switch_pairs"] = int(both.sum())
-    return out
-
-
-def _combine(results: list[dict]) -> dict:
-    """Sum the additive statistics of several blocks."""
-    total = {}
-    for r in results:
-        for k, v in r.items():
-            if k in ("elapsed",):
-                total[k] = total.get(k, 0.0) + v
-            elif isinstance(v, list):
-                total[k] = (np.asarray(total[k]) + np.asarray(v)) if k in total else np.asarray(v, float)
-            elif isinstance(v, (int, float)):
-                total[k] = total.get(k, 0) + v
-    return total
-
-
 # ------------------------------------------------------------------ Table I
 def _table1_tasks(p: dict) -> list[dict]:
     methods = [{"method": "grid", "g": g} for g in p["grids"]]
@@ -85,7 +51,7 @@ def _table1_tasks(p: dict) -> list[dict]:
     methods += [{"method": "clairvoyant"}, {"method": "imm"}]
     methods += [{"method": "imm-ev1", "g": g} for g in p["ev1_grids"]]
     return [{"block": b, "trials": n, "duration": p["duration"], "process_noise": p["process_noise"],
-             "start": p["start"], **m} for b, n in _blocks(p["trials"], p["block_size"]) for m in methods]
+             "start": p["start"], **m} for b, n in blocks(p["trials"], p["block_size"]) for m in methods]
 
 
 def _table1_run(cfg: dict, rng: np.random.Generator) -> dict:
@@ -106,7 +72,7 @@ def _table1_run(cfg: dict, rng: np.random.Generator) -> dict:
         est = IMMFilter(system, BOOST_TRANSITION, BOOST_X0, BOOST_P0).run(traj.y, u, t)
     else:
         est = IMMEV1Filter(system, x0=BOOST_X0, P0=BOOST_P0, grid=cfg["g"]).run(traj.y, u, t)
-    out = _errors(est, traj, cfg["start"])
+    out = score(est, traj, cfg["start"])
     out.pop("sse_per_step")
     return {**out, "elapsed": time.perf_counter() - start}
 
@@ -125,7 +91,7 @@ def _by_method(results: list[tuple[dict, dict]]) -> dict[str, tuple[dict, dict]]
         key = _label(cfg)
         groups.setdefault(key, []).append(res)
         first.setdefault(key, cfg)
-    return {k: (first[k], _combine(v)) for k, v in groups.items()}
+    return {k: (first[k], combine(v)) for k, v in groups.items()}
 
 
 def _table1_summary(p: dict, results, out: Path) -> Summary:
@@ -187,7 +153,7 @@ register(Experiment(
 def _vehicle_tasks(p: dict) -> list[dict]:
     methods = [{"method": "clairvoyant"}, {"method": "imm"}]
     methods += [{"method": "imm-ev1", "g": g} for g in p["grids"]]
-    return [{"block": b, "trials": n, **m} for b, n in _blocks(p["trials"], p["block_size"]) for m in methods]
+    return [{"block": b, "trials": n, **m} for b, n in blocks(p["trials"], p["block_size"]) for m in methods]
 
 
 def _vehicle_run(cfg: dict, rng: np.random.Generator) -> dict:
@@ -203,7 +169,7 @@ def _vehicle_run(cfg: dict, rng: np.random.Generator) -> dict:
         est = IMMFilter(system, VEHICLE_TRANSITION, x0, VEHICLE_P0).run(traj.y, man.u, man.t)
     else:
         est = IMMEV1Filter(system, x0=x0, P0=VEHICLE_P0, grid=cfg["g"]).run(traj.y, man.u, man.t)
-    out = _errors(est, traj, 0)
+    out = score(est, traj, 0)
     if cfg["block"] == 0:
         out["example_truth"] = traj.x[0].tolist()
         out["example_estimate"] = est.x[0].tolist()

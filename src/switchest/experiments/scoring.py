@@ -1,0 +1,48 @@
+"""Additive error statistics of an estimate, so trial blocks combine by summation."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["blocks", "score", "combine"]
+
+
+def blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
+    """``(block index, trials in it)`` covering ``trials`` in blocks of ``block_size``."""
+    sizes = [block_size] * (trials // block_size) + ([trials % block_size] if trials % block_size else [])
+    return list(enumerate(sizes))
+
+
+def score(est, traj, start: int) -> dict:
+    """Sums over trials (and over samples from ``start`` on) of squared errors and hits.
+
+    ``sse``/``scale`` per state component, ``sse_per_step (K, n)``, ``mode_hits``
+    where the estimate has modes, and switching-time errors (absolute and in units
+    of the sampling interval) where it has switching times.
+    """
+    err = est.x[:, start:] - traj.x[:, start:]
+    out = {"sse": np.sum(err**2, axis=(0, 1)).tolist(), "count": int(err.shape[0] * err.shape[1]),
+           "scale": np.sum(traj.x[:, start:] ** 2, axis=(0, 1)).tolist(),
+           "sse_per_step": np.sum((est.x - traj.x) ** 2, axis=0).tolist(), "trials": traj.n_trials}
+    if est.mode is not None:
+        out["mode_hits"] = int(np.sum(est.mode[:, start:] == traj.mode[:, start:]))
+    if est.switch_time is not None:
+        truth = traj.switch_times()
+        both = np.isfinite(est.switch_time) & np.isfinite(truth)
+        gap = np.abs(est.switch_time[both] - truth[both])
+        out["switch_abs_err"] = float(gap.sum())
+        out["switch_rel_err"] = float(np.sum(gap / np.diff(traj.t)[np.nonzero(both)[1] - 1]))
+        out["switch_pairs"] = int(both.sum())
+    return out
+
+
+def combine(results: list[dict]) -> dict:
+    """Sum the statistics of several blocks (lists element-wise)."""
+    total: dict = {}
+    for r in results:
+        for k, v in r.items():
+            if isinstance(v, list):
+                total[k] = total[k] + np.asarray(v, float) if k in total else np.asarray(v, float)
+            elif isinstance(v, (int, float)):
+                total[k] = total.get(k, 0) + v
+    return total
