@@ -26,6 +26,16 @@ from .bias import (
     unstable_components,
 )
 from .bounds import EstimationErrorBounds, SwitchMatrixBounds, estimation_error_bounds, lemma2_bounds
+from .impulsive import (
+    ClosedLoopCertificate,
+    ImpulsiveObserverCertificate,
+    ImpulsiveObserverSearch,
+    impulsive_closed_loop_analysis,
+    impulsive_observer_search,
+    impulsive_observer_synthesis,
+    theorem8_rate,
+    theorem10_rate,
+)
 from .observability import (
     CombinedObservability,
     DwellTimeObservability,
@@ -57,6 +67,14 @@ from .stability import (
 )
 
 __all__ = [
+    "ClosedLoopCertificate",
+    "ImpulsiveObserverCertificate",
+    "ImpulsiveObserverSearch",
+    "impulsive_closed_loop_analysis",
+    "impulsive_observer_search",
+    "impulsive_observer_synthesis",
+    "theorem8_rate",
+    "theorem10_rate",
     "AutonomousBiasStability",
     "CombinedObservability",
     "DwellTimeObservability",

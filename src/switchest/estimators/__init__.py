@@ -3,6 +3,15 @@
 from .base import Estimate, Estimator
 from .imm import IMMFilter, imm_combine, imm_mix
 from .imm_ev1 import IMMEV1Filter
+from .impulsive import (
+    ImpulsiveObserver,
+    ImpulsiveState,
+    ObserverControlTrajectory,
+    closed_loop_matrices,
+    delayed_replica,
+    impulsive_update,
+    simulate_observer_control,
+)
 from .kalman import kf_predict, kf_update, steady_state_gain
 from .mode_kalman import ModeKalmanFilter
 from .switch_time import SwitchTimeKalmanFilter, switch_time_loglik
@@ -12,12 +21,19 @@ __all__ = [
     "Estimator",
     "IMMEV1Filter",
     "IMMFilter",
+    "ImpulsiveObserver",
+    "ImpulsiveState",
+    "ObserverControlTrajectory",
     "ModeKalmanFilter",
     "SwitchTimeKalmanFilter",
+    "closed_loop_matrices",
+    "delayed_replica",
     "imm_combine",
     "imm_mix",
+    "impulsive_update",
     "kf_predict",
     "kf_update",
+    "simulate_observer_control",
     "steady_state_gain",
     "switch_time_loglik",
 ]

@@ -54,8 +54,8 @@ def impulsive_update(x, P, y, C, G, R):
     ``x+ = x + G (y - C x)`` with the fixed gain ``G`` of the estimated mode, and
     the error covariance in Joseph form ``P+ = (I - G C) P (I - G C)' + G R G'``
     (valid for any gain, optimal or not). A NaN entry of ``y`` is a missing
-    component: its innovation is set to zero and its row of ``C`` dropped, so an
-    all-NaN ``y`` leaves ``x`` and ``P`` unchanged.
+    component: its column of ``G`` is dropped, so an all-NaN ``y`` leaves ``x``
+    and ``P`` unchanged.
 
     Parameters
     ----------
@@ -72,8 +72,8 @@ def impulsive_update(x, P, y, C, G, R):
         The corrected estimate and error covariance.
     """
     observed = ~np.isnan(y)
-    C = C * observed[..., :, None]  # a missing component neither corrects x nor enters P
-    innovation = np.where(observed, y, 0.0) - matvec(C, x)
+    G = G * observed[..., None, :]  # a missing component's gain column is dropped
+    innovation = np.where(observed, y - matvec(C, x), 0.0)
     return x + matvec(G, innovation), joseph_update(P, G, C, R)
 
 
@@ -101,13 +101,16 @@ def delayed_replica(signal: SwitchingSignal, delay) -> SwitchingSignal:
     check_finite(d, "delay")
     if d.ndim == 1 and d.shape != signal.times.shape:
         raise ValueError(
-            f"delay must be a scalar or have one entry per switch ({signal.n_switches},), got {d.shape}"
+            f"delay must be a scalar or have one entry per switch ({signal.n_switches},), "
+            f"got {d.shape}"
         )
     if np.any(d < 0):
         raise ValueError(f"delay must be non-negative (a delayed replica), got {float(d.min()):g}")
     times = signal.times + d
     if np.any(np.diff(times) <= 0):
-        raise ValueError("delay reorders the switches: the delayed switch times must stay strictly increasing")
+        raise ValueError(
+            "delay reorders the switches: the delayed switch times must stay strictly increasing"
+        )
     return SwitchingSignal(times, signal.modes)
 
 
@@ -118,10 +121,10 @@ def closed_loop_matrices(system: SwitchedLinearSystem, K, G) -> tuple[np.ndarray
     (1) and the observer (2) give ``dz/dt = Acl[sigma, sigma_hat] z`` between
     samples and ``z(t_k+) = J[sigma, sigma_hat] z(t_k)`` at the samples, with (eq. (22a))::
 
-        Acl[j, i] = [[A_j + B_j K_i,            -B_j K_i           ],
-                     [A_ji + B_ji K_i,  A_i - B_ji K_i]]
-        J[j, i]   = [[I,             0          ],
-                     [-G_i C_ji,     I - G_i C_i]]
+        Acl[j, i] = [[A_j + B_j K_i,      -B_j K_i      ],
+                     [A_ji + B_ji K_i,    A_i - B_ji K_i]]
+        J[j, i]   = [[I,                  0             ],
+                     [-G_i C_ji,          I - G_i C_i   ]]
 
     ``A_ji = A_j - A_i``, ``B_ji = B_j - B_i``, ``C_ji = C_j - C_i`` (eq. (23)), ``j`` the
     true and ``i`` the estimated mode (the paper's ``A_{sigma sigma_hat}``).
@@ -204,7 +207,9 @@ class ImpulsiveObserver(Estimator):
     :func:`switchest.simulate.simulate`).
     """
 
-    def __init__(self, system, gains, *, mode_estimate: ModeEstimate = "synchronous", x0=None, P0=None):
+    def __init__(
+        self, system, gains, *, mode_estimate: ModeEstimate = "synchronous", x0=None, P0=None
+    ):
         system = _check_system(system)
         n = system.n_states
         self._set_prior(system, np.zeros(n) if x0 is None else x0, np.eye(n) if P0 is None else P0)
@@ -224,8 +229,17 @@ class ImpulsiveObserver(Estimator):
             mode=np.full(batch_shape, -1, dtype=np.int64),
         )
 
-    def step(self, state: ImpulsiveState, y, u=None, *, dt=None, mode,
-             segment_modes=None, segment_offsets=None) -> ImpulsiveState:
+    def step(
+        self,
+        state: ImpulsiveState,
+        y,
+        u=None,
+        *,
+        dt=None,
+        mode,
+        segment_modes=None,
+        segment_offsets=None,
+    ) -> ImpulsiveState:
         """Flow over ``dt`` (skipped when ``None``), then jump with ``y (N, m)``.
 
         ``mode (N,)`` is ``sigma_hat(t_k)``; ``segment_modes (N, S+1)`` and
@@ -238,8 +252,10 @@ class ImpulsiveObserver(Estimator):
         mode = np.asarray(mode)
         if dt is not None:
             if segment_modes is None and np.any(state.mode < 0):
-                raise ValueError("step needs segment_modes when the state has no estimated mode yet "
-                                 "(dt must be None on the first sample)")
+                raise ValueError(
+                    "step needs segment_modes when the state has no estimated mode yet "
+                    "(dt must be None on the first sample)"
+                )
             if segment_modes is not None:
                 tr = segment_transitions(sys, dt, segment_modes, segment_offsets)
                 F, Gu, Qd = tr.F, tr.G, tr.Qd
@@ -279,11 +295,16 @@ class ImpulsiveObserver(Estimator):
             and ``mode`` = ``sigma_hat(t_k)``.
         """
         y2, u2, t, batch = self._prepare(y, u, t)
-        N, K = y2.shape[:2]
+        N = y2.shape[0]
         hat = [self.estimated_signal(s) for s in _per_trial(signals, N)]
         mode_at, seg_m, seg_o = sample_segments(hat, t)
-        if np.max(mode_at) >= self.system.n_modes or np.max(seg_m, initial=0) >= self.system.n_modes:
-            raise ValueError(f"signals use a mode beyond the system's modes 0..{self.system.n_modes - 1}")
+        if (
+            np.max(mode_at) >= self.system.n_modes
+            or np.max(seg_m, initial=0) >= self.system.n_modes
+        ):
+            raise ValueError(
+                f"signals use a mode beyond the system's modes 0..{self.system.n_modes - 1}"
+            )
         # sample k flows over interval k-1; sample 0 has no flow (its entry is never read)
         pad_m = np.concatenate([np.zeros((N, 1, seg_m.shape[-1]), dtype=np.int64), seg_m], axis=1)
         pad_o = np.concatenate([np.zeros((N, 1, seg_o.shape[-1])), seg_o], axis=1)
@@ -336,7 +357,7 @@ def simulate_observer_control(
     trials: int | None = None,
     rng=None,
 ) -> ObserverControlTrajectory:
-    """Exact simulation of the observer-based control ``u = K_{sigma_hat} x_hat`` (Etienne et al. §3.2).
+    """Exact simulation of the observer-based control ``u = K_{sigma_hat} x_hat`` (Etienne §3.2).
 
     The plant (1), the impulsive observer (2) and the continuous feedback
     ``u(t) = K_{sigma_hat(t)} x_hat(t)`` form the extended system (21) in
@@ -395,7 +416,7 @@ def simulate_observer_control(
         top = max(int(s.modes.max()) for s in sigs)
         if top >= L:
             raise ValueError(f"{name} uses mode {top}, but the system has modes 0..{L - 1}")
-    pairs = [_pair_signal(s, h, L) for s, h in zip(sigma, sigma_hat)]
+    pairs = [_pair_signal(s, h, L) for s, h in zip(sigma, sigma_hat, strict=True)]
     extended = SwitchedLinearSystem.continuous(Acl.reshape(L * L, 2 * n, 2 * n))
     J = J.reshape(L * L, 2 * n, 2 * n)
     pair_at, seg_m, seg_o = sample_segments(pairs, t)
@@ -409,8 +430,13 @@ def simulate_observer_control(
         Z[:, k + 1] = z
     x, e = Z[..., :n], Z[..., n:]
     return ObserverControlTrajectory(
-        t=t, x=x, x_hat=x - e, mode=pair_at // L, mode_hat=pair_at % L,
-        signals=tuple(sigma), mode_signals=tuple(sigma_hat),
+        t=t,
+        x=x,
+        x_hat=x - e,
+        mode=pair_at // L,
+        mode_hat=pair_at % L,
+        signals=tuple(sigma),
+        mode_signals=tuple(sigma_hat),
     )
 
 
@@ -426,8 +452,10 @@ def _check_system(system) -> SwitchedLinearSystem:
     if not isinstance(system, SwitchedLinearSystem):
         raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
     if not system.is_continuous:
-        raise ValueError("system must be continuous-time (the impulsive observer is continuous-discrete), "
-                         f"got domain {system.domain!r}")
+        raise ValueError(
+            "system must be continuous-time (the impulsive observer is continuous-discrete), "
+            f"got domain {system.domain!r}"
+        )
     return system
 
 
@@ -444,7 +472,9 @@ def _gain_stack(value, name: str, shape: tuple[int, int, int], text: str) -> np.
 def _check_mode_estimate(rule) -> ModeEstimate:
     if isinstance(rule, str):
         if rule != "synchronous":
-            raise ValueError(f"mode_estimate must be 'synchronous', a delay >= 0 or a callable, got {rule!r}")
+            raise ValueError(
+                f"mode_estimate must be 'synchronous', a delay >= 0 or a callable, got {rule!r}"
+            )
         return rule
     if isinstance(rule, Real) and not isinstance(rule, bool):
         d = float(rule)
@@ -454,7 +484,8 @@ def _check_mode_estimate(rule) -> ModeEstimate:
     if callable(rule):
         return rule
     raise TypeError(
-        f"mode_estimate must be 'synchronous', a delay >= 0 or a callable, got {type(rule).__name__}"
+        "mode_estimate must be 'synchronous', a delay >= 0 or a callable, "
+        f"got {type(rule).__name__}"
     )
 
 
@@ -467,7 +498,9 @@ def _apply_mode_estimate(rule: ModeEstimate, signal: SwitchingSignal) -> Switchi
         return delayed_replica(signal, rule)
     out = rule(signal)
     if not isinstance(out, SwitchingSignal):
-        raise TypeError(f"mode_estimate(signal) must return a SwitchingSignal, got {type(out).__name__}")
+        raise TypeError(
+            f"mode_estimate(signal) must return a SwitchingSignal, got {type(out).__name__}"
+        )
     return out
 
 
@@ -477,7 +510,9 @@ def _per_trial(signals, N: int) -> list[SwitchingSignal]:
     if isinstance(signals, Sequence) and all(isinstance(s, SwitchingSignal) for s in signals):
         if len(signals) == N:
             return list(signals)
-        raise ValueError(f"signals must hold one SwitchingSignal per trial (N = {N}), got {len(signals)}")
+        raise ValueError(
+            f"signals must hold one SwitchingSignal per trial (N = {N}), got {len(signals)}"
+        )
     raise TypeError(
         f"signals must be a SwitchingSignal or a sequence of them, got {type(signals).__name__}"
     )
@@ -496,9 +531,15 @@ def _trial_count(trials, signals, *states) -> int:
     if isinstance(signals, Sequence) and not isinstance(signals, SwitchingSignal):
         sizes.add(len(signals))
     if trials is not None:
-        if isinstance(trials, (bool, np.bool_)) or not isinstance(trials, (int, np.integer)) or trials < 1:
+        if (
+            isinstance(trials, (bool, np.bool_))
+            or not isinstance(trials, (int, np.integer))
+            or trials < 1
+        ):
             raise ValueError(f"trials must be a positive int, got {trials!r}")
         sizes.add(int(trials))
     if len(sizes) > 1:
-        raise ValueError(f"trials, signals, x0 and x_hat0 disagree on the number of trials: {sorted(sizes)}")
+        raise ValueError(
+            f"trials, signals, x0 and x_hat0 disagree on the number of trials: {sorted(sizes)}"
+        )
     return sizes.pop() if sizes else 1
