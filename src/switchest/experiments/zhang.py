@@ -99,7 +99,7 @@ def _monte_carlo(system: SwitchedLinearSystem, modes: np.ndarray, lam: np.ndarra
     for f in :data:`FILTERS`, and ``pair_sum``, ``pair_sq`` of the per-trial
     difference alg1 - steady (whose mean is Algorithm 1's bias minus eq. (9)).
     """
-    K, n, L = modes.size, system.n_states, system.n_modes
+    K, n = modes.size, system.n_states
     sq_q, sq_r = psd_sqrt(system.Q), psd_sqrt(system.R)
     x = m0 + rng.standard_normal((trials, n)) @ psd_sqrt(SIGMA0).T
     w = rng.standard_normal((K, trials, n))
@@ -214,7 +214,8 @@ def _example1_tasks(p: dict) -> list[dict]:
     configs = []
     for figure, signal in (("3", 1), ("4", 2)):
         for lam12, lam21 in p["lambdas"]:
-            configs.append({"figure": figure, "signal": signal, "lam": _lam_from({"1,2": lam12, "2,1": lam21}, 2).tolist()})
+            lam = _lam_from({"1,2": lam12, "2,1": lam21}, 2)
+            configs.append({"figure": figure, "signal": signal, "lam": lam.tolist()})
     for signal in (1, 2):
         for P in p["fig5_P"]:
             configs.append({"figure": "5", "signal": signal, "lam": _lam_from({"1,2": P, "2,1": P}, 2).tolist()})
@@ -260,7 +261,6 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
     ]
     groups = _group(results)
     figs: list[Path] = []
-    notes_z = []
     # Figs 3-4: theory vs Monte Carlo along each signal
     for figure, signal in (("3", 1), ("4", 2)):
         series, markers = {}, []
@@ -344,7 +344,7 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
     if series6:
         series6["B = 0.3"] = np.full(k6.size, paper["fig6_bound"])
         figs.append(curves(out / "zhang-example1-fig6.png", k6, series6, xlabel="step k", ylabel="‖E(e_k)‖",
-                           title="Zhang Fig. 6: λ12 = λ21 = 0.154554 keeps the bias below B = 0.3"))
+                           title="Zhang Fig. 6: bias for λ12 = λ21 = 0.154554, B = 0.3"))
     setup = (
         f"Zhang §5.1: two modes, A_1 = [[0.9, 0], [0.2, 0.8]], A_2 = [[0.5, 0.2], [0.2, 0.4]], C_1 = I, C_2 = 5 I, "
         f"process noise B_q (0.5 I) B_q', R = 0.3 I. {p['trials']} Monte Carlo trials (paper: 5000) of "
@@ -355,24 +355,24 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
         f"with B = 0.3 and E(x_0) scaled so that η·sup‖u‖ = 1.04."
     )
     notes = [
-        "The text prints Λ_i as 'A_i'; the printed matrices and norms are Λ_i of eq. (7) with the gain from the "
-        "steady a-priori covariance (Algorithm 1 line 8), which reproduces all four printed decimals.",
-        "The paper does not state the switching signals, the λ of Figs 3-4, E(x_0), Σ_0, the horizon, η or "
-        "sup‖u‖: every one of these is our choice (setup). Its figures print no numbers, so the reproduced claim "
-        "is the agreement of (9) with Monte Carlo, the bound of Theorem 4 above the Monte Carlo maximum, and the "
-        "B = 0.3 design holding.",
-        "0.154554 needs η·sup‖u‖ = 1.04 in eq. (18) (any value in about [1.039995, 1.040002]). We take η from "
-        f"bibo_gain (= 1/(1 − ‖Λ_1‖) = {eta:.4f}) and, for Fig. 6 only, scale E(x_0) so that η‖E(x_0)‖ = 1.04; "
-        f"sup_k ‖E(x_k)‖ = ‖E(x_0)‖ because ‖A_1‖ = {A_norms[0]:.4f} and ‖A_2‖ = {A_norms[1]:.4f} are below 1. "
-        "The paper's design then applies to our setup and is checked, not assumed.",
-        "With eq. (6)'s steady gains, eq. (9) is the exact mean of the filter's error: the Monte Carlo agrees "
-        f"within {Z_MAX:g} SE at every step. With Algorithm 1's time-varying gains (the paper's filter) the gain "
-        "also depends on the believed-mode history (C_2 = 5 C_1), so (9) misses a few per cent of the peak bias; "
-        "the paired difference of the two filters measures this gap free of most Monte Carlo noise.",
-        "The per-trial error contains (Λ_i − Γ_i,q) x_{k−1} with the random x_{k−1}, so its spread is about "
-        "‖S_1,2‖·std(x) ≈ 2 whatever E(x_0) is: the bias is visible only for E(x_0) well above the noise, hence "
-        "E(x_0) = (5, 5) in Figs 3-5. In Fig. 6 (‖E(x_0)‖ = 0.69) the Monte Carlo maximum includes noise of a "
-        "few SE, which also pushes it above the (9) curve.",
+        ("The text prints Λ_i as 'A_i'; the printed matrices and norms are Λ_i of eq. (7) with the gain from the "
+         "steady a-priori covariance (Algorithm 1 line 8), which reproduces all four printed decimals."),
+        ("The paper does not state the switching signals, the λ of Figs 3-4, E(x_0), Σ_0, the horizon, η or "
+         "sup‖u‖: every one of these is our choice (setup). Its figures print no numbers, so the reproduced claim "
+         "is the agreement of (9) with Monte Carlo, the bound of Theorem 4 above the Monte Carlo maximum, and the "
+         "B = 0.3 design holding."),
+        ("0.154554 needs η·sup‖u‖ = 1.04 in eq. (18) (any value in about [1.039995, 1.040002]). We take η from "
+         f"bibo_gain (= 1/(1 − ‖Λ_1‖) = {eta:.4f}) and, for Fig. 6 only, scale E(x_0) so that η‖E(x_0)‖ = 1.04; "
+         f"sup_k ‖E(x_k)‖ = ‖E(x_0)‖ because ‖A_1‖ = {A_norms[0]:.4f} and ‖A_2‖ = {A_norms[1]:.4f} are below 1. "
+         "The paper's design then applies to our setup and is checked, not assumed."),
+        ("With eq. (6)'s steady gains, eq. (9) is the exact mean of the filter's error: the Monte Carlo agrees "
+         f"within {Z_MAX:g} SE at every step. With Algorithm 1's time-varying gains (the paper's filter) the gain "
+         "also depends on the believed-mode history (C_2 = 5 C_1), so (9) misses a few per cent of the peak bias; "
+         "the paired difference of the two filters measures this gap free of most Monte Carlo noise."),
+        ("The per-trial error contains (Λ_i − Γ_i,q) x_{k−1} with the random x_{k−1}, so its spread is about "
+         "‖S_1,2‖·std(x) ≈ 2 whatever E(x_0) is: the bias is visible only for E(x_0) well above the noise, hence "
+         "E(x_0) = (5, 5) in Figs 3-5. In Fig. 6 (‖E(x_0)‖ = 0.69) the Monte Carlo maximum includes noise of a "
+         "few SE, which also pushes it above the (9) curve."),
     ]
     return Summary("zhang-example1", "Zhang & Natarajan §5.1 (Figs 3-6) — mode-mismatch bias, two-mode example",
                    setup, rows, notes, figs)
@@ -382,9 +382,10 @@ register(Experiment(
     name="zhang-example1",
     paper="Zhang",
     title="Figs 3-6: mismatch bias, eq. (9) vs Monte Carlo; Theorem 4 bound vs P; the B = 0.3 design",
-    defaults=dict(trials=5000, block_size=1000, horizon=40, dwells=[10, 1], mean_x0=[5.0, 5.0],
-                  lambdas=[[0.1, 0.3], [0.3, 0.1]], fig5_P=[0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5]),
-    quick=dict(trials=1000, block_size=500, fig5_P=[0.1, 0.2, 0.3, 0.4, 0.5]),
+    defaults={"trials": 5000, "block_size": 1000, "horizon": 40, "dwells": [10, 1], "mean_x0": [5.0, 5.0],
+              "lambdas": [[0.1, 0.3], [0.3, 0.1]],
+              "fig5_P": [0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5]},
+    quick={"trials": 1000, "block_size": 500, "fig5_P": [0.1, 0.2, 0.3, 0.4, 0.5]},
     tasks=_example1_tasks,
     run_task=_example1_run,
     summarize=_example1_summary,
@@ -495,21 +496,21 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
         f"{_lam_text(lam_II)}."
     )
     notes = [
-        "The text prints Λ_i as 'A_i' and Algorithm 2's T as 'A_i − F_i,q'; Λ_i and T_i,q = Λ_i − Γ_i,q are meant "
-        "and computed.",
-        f"τ is not printed; τ = {SMART_GRID_TAU} is the value at which ‖Λ_2‖, ‖Λ_3‖ and the T_i,q of modes 2-3 "
-        "match to four decimals. The printed ‖Λ_1‖ = 0.9817 and the mode-1 entries of T_1,2, T_1,3 are not "
-        f"steady-state values (0.9828, −0.3307): they match Algorithm 1's gain after {RICCATI_STEPS} steps from "
-        "Σ_0 = I, so the T rows use those gains (the steady value is in the note).",
-        "Printed T_2,3[2,2] = −0.0088 and T_3,2[2,2] = 0.0086 are ten times the computed −0.00088 and 0.00086: "
-        "a slipped decimal. It changes nothing in Algorithm 2 (only first columns matter).",
-        "The switching signal, E(x_0), Σ_0 and the horizon of Fig. 7 are not printed: our choices (setup). The "
-        "claim reproduced is the shape: bounded bias in Setting I, bias growing with E(P_G) in Setting II.",
-        "In Setting I the theoretical bias stays near 1e-3 (only T_2,3 and T_3,2, with entries below 1e-3, act, "
-        "on the decaying P_D), far below the Monte Carlo noise: the Monte Carlo shows bounded noise around zero.",
-        "With Algorithm 1's time-varying gains (the paper's filter) mode 1's gain is still far from steady state "
-        "and is reset by every believed mode 2 or 3, so (10) with steady gains is only an approximation; the gap "
-        "is reported as a fraction of the peak bias.",
+        ("The text prints Λ_i as 'A_i' and Algorithm 2's T as 'A_i − F_i,q'; Λ_i and T_i,q = Λ_i − Γ_i,q are meant "
+         "and computed."),
+        (f"τ is not printed; τ = {SMART_GRID_TAU} is the value at which ‖Λ_2‖, ‖Λ_3‖ and the T_i,q of modes 2-3 "
+         "match to four decimals. The printed ‖Λ_1‖ = 0.9817 and the mode-1 entries of T_1,2, T_1,3 are not "
+         f"steady-state values (0.9828, −0.3307): they match Algorithm 1's gain after {RICCATI_STEPS} steps from "
+         "Σ_0 = I, so the T rows use those gains (the steady value is in the note)."),
+        ("Printed T_2,3[2,2] = −0.0088 and T_3,2[2,2] = 0.0086 are ten times the computed −0.00088 and 0.00086: "
+         "a slipped decimal. It changes nothing in Algorithm 2 (only first columns matter)."),
+        ("The switching signal, E(x_0), Σ_0 and the horizon of Fig. 7 are not printed: our choices (setup). The "
+         "claim reproduced is the shape: bounded bias in Setting I, bias growing with E(P_G) in Setting II."),
+        ("In Setting I the theoretical bias stays near 1e-3 (only T_2,3 and T_3,2, with entries below 1e-3, act, "
+         "on the decaying P_D), far below the Monte Carlo noise: the Monte Carlo shows bounded noise around zero."),
+        ("With Algorithm 1's time-varying gains (the paper's filter) mode 1's gain is still far from steady state "
+         "and is reset by every believed mode 2 or 3, so (10) with steady gains is only an approximation; the gap "
+         "is reported as a fraction of the peak bias."),
     ]
     return Summary("zhang-smartgrid", "Zhang & Natarajan §5.2 (Fig. 7) — smart grid, stable and unstable mismatch",
                    setup, rows, notes, figs)
@@ -519,8 +520,9 @@ register(Experiment(
     name="zhang-smartgrid",
     paper="Zhang",
     title="Fig. 7: smart-grid bias inside (Setting I) and outside (Setting II) Algorithm 2's stable region",
-    defaults=dict(trials=5000, block_size=1000, horizon=100, dwell=10, mean_x0=[1.0, 1.0], tau=SMART_GRID_TAU),
-    quick=dict(trials=1000, block_size=500),
+    defaults={"trials": 5000, "block_size": 1000, "horizon": 100, "dwell": 10, "mean_x0": [1.0, 1.0],
+              "tau": SMART_GRID_TAU},
+    quick={"trials": 1000, "block_size": 500},
     tasks=_grid_tasks,
     run_task=_grid_run,
     summarize=_grid_summary,
