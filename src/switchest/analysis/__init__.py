@@ -36,6 +36,17 @@ from .impulsive import (
     theorem8_rate,
     theorem10_rate,
 )
+from .lee import (
+    LeeAssumptions,
+    LeeCondition,
+    LeeConstants,
+    LeeWindows,
+    default_observer_gains,
+    lee_assumptions,
+    lee_constants,
+    lee_windows,
+    observability_gramians,
+)
 from .observability import (
     CombinedObservability,
     DwellTimeObservability,
@@ -67,6 +78,15 @@ from .stability import (
 )
 
 __all__ = [
+    "LeeAssumptions",
+    "LeeCondition",
+    "LeeConstants",
+    "LeeWindows",
+    "default_observer_gains",
+    "lee_assumptions",
+    "lee_constants",
+    "lee_windows",
+    "observability_gramians",
     "ClosedLoopCertificate",
     "ImpulsiveObserverCertificate",
     "ImpulsiveObserverSearch",

@@ -13,10 +13,28 @@ from .impulsive import (
     simulate_observer_control,
 )
 from .kalman import kf_predict, kf_update, steady_state_gain
+from .min_distance import (
+    DetectionMatch,
+    MinDistanceState,
+    MinimumDistanceDetector,
+    WindowEstimate,
+    augmented_system,
+    exact_step,
+    match_detections,
+    window_estimate,
+)
 from .mode_kalman import ModeKalmanFilter
 from .switch_time import SwitchTimeKalmanFilter, switch_time_loglik
 
 __all__ = [
+    "DetectionMatch",
+    "MinDistanceState",
+    "MinimumDistanceDetector",
+    "WindowEstimate",
+    "augmented_system",
+    "exact_step",
+    "match_detections",
+    "window_estimate",
     "Estimate",
     "Estimator",
     "IMMEV1Filter",

@@ -27,8 +27,9 @@ class Estimate:
     ----------
     x : ndarray, shape (..., K, n)
         State estimate after each sample's measurement.
-    P : ndarray, shape (..., K, n, n)
-        Its covariance as the filter reports it.
+    P : ndarray, shape (..., K, n, n) or None
+        Its covariance as the filter reports it (None for methods without one,
+        e.g. the minimum-distance detector).
     mode_prob : ndarray, shape (..., K, L) or None
         Mode probabilities, where the method gives them.
     mode : ndarray of int, shape (..., K) or None
@@ -41,7 +42,7 @@ class Estimate:
     """
 
     x: np.ndarray
-    P: np.ndarray
+    P: np.ndarray | None = None
     mode_prob: np.ndarray | None = None
     mode: np.ndarray | None = None
     switch_time: np.ndarray | None = None

@@ -1,6 +1,7 @@
 """The published systems, each a function with the paper's parameters as defaults."""
 
 from .etienne import ETIENNE_SCENARIO, EtienneScenario, etienne_academic
+from .lee import LEE_SCENARIO, LeeScenario, fsk_oscillator
 from .shankar import (
     BOOST_INPUT_VOLTAGE,
     BOOST_SAMPLE_PERIOD,
@@ -31,6 +32,9 @@ __all__ = [
     "BOOST_SAMPLE_PERIOD",
     "ETIENNE_SCENARIO",
     "EtienneScenario",
+    "LEE_SCENARIO",
+    "LeeScenario",
+    "fsk_oscillator",
     "IEEE_5BUS_A",
     "IEEE_5BUS_INITIAL_ERROR",
     "IEEE_5BUS_POLES",
