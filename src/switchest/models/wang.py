@@ -158,6 +158,12 @@ IEEE_5BUS_A.setflags(write=False)
 """The linearized 5-bus ``A`` as printed in Wang et al. §6, state ``[d1, w1, d2, w2]``.
 
 Its eigenvalues are the printed {-5.3880, 5.2302, 0, -0.1253} to the last digit.
+The paper computed with more digits than it printed: its gain for the delta_1-only
+mode, ``[20.7170, 187.0468, -123.7698, -568.3264]``, is reproduced to the printed
+digits only with the exact damping ``b_1/M_1 = 0.105263``, ``b_2/M_2 = 0.177778`` and
+couplings ``7.79261``, ``20.38663`` (least-squares fit, within the rounding of the
+printed entries); this rounded ``A`` gives it to about 4e-3
+(tests/analysis/test_ms_design.py).
 """
 
 IEEE_5BUS_SAMPLE_PERIOD = 0.6997

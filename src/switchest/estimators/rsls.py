@@ -1,0 +1,254 @@
+"""Subsystem observers for randomly switched systems with unobservable modes (Wang et al., seed 003).
+
+Wang et al. §3: mode i observes only the sub-state ``z^i = F_i x``. Its
+sub-observer runs closed loop while ``alpha_k = i``::
+
+    dz_hat^i = A22^i z_hat^i dt + L_i (dy - C2^i z_hat^i dt)              eq. (7)
+
+and open loop otherwise, restarted at every switching instant from the combined
+estimate: ``z_hat^j_{k+1} = F_j e^{A_k T} x_hat_k`` (eq. (14)), with
+``x_hat = Phi z_hat``, ``Phi = (F'F)^{-1} F'`` (§3.2).
+
+The output is Ito's ``dy = C x dt + Xi dw`` (eq. (1), Remark 1): the observer is
+fed the integrated output ``y`` on a fine time grid (``simulate(...,
+output="integrated")``, ``Trajectory.y_fine``) and uses its increments, never a
+derivative. Over a fine step ``h`` the closed-loop block is updated in innovation
+form::
+
+    z_hat <- e^{A22 h} z_hat + K_h (Delta y - C2 Psi_h z_hat),
+    Psi_h = int_0^h e^{A22 s} ds,   K_h = (1/h) int_0^h e^{A_c s} ds L
+
+so that the noise-free error obeys ``e <- (e^{A22 h} - K_h C2 Psi_h) e`` exactly,
+whatever the state (the error never picks up a term proportional to a growing
+``x``), and that map agrees with ``e^{A_c h}`` to second order in ``h`` (the
+``h^2`` terms coincide), as does the injected noise covariance with Proposition
+1's integral. Every exponential and integral comes from
+:func:`switchest.discretize.mode_steps`.
+
+The filter state is ``s = [z_hat; x_ol]``: the stacked sub-state estimates and the
+open-loop prediction ``x_ol(t) = e^{A_k (t - kT)} x_hat_k`` that drives the open
+blocks inside the interval. Alongside it the estimator propagates ``Sigma``, the
+exact covariance of the error of ``s`` given the mode path (for a Gaussian
+initial error ``N(0, P0)``); ``P = Phi Sigma_zz Phi'`` is reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._checks import positive_scalar
+from .._linalg import symmetrize
+from ..analysis.ms_design import substate_gains, subsystem_structure
+from ..discretize import mode_steps
+from ..system import SwitchedLinearSystem
+from .base import Estimate, Estimator
+
+__all__ = ["RSLSObserver", "RSLSState"]
+
+_GRID_RTOL = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class RSLSState:
+    """Observer state after the last fine sample.
+
+    Attributes
+    ----------
+    s : ndarray, shape (N, n_s + n)
+        ``[z_hat; x_ol]``.
+    Sigma : ndarray, shape (N, n_s + n, n_s + n)
+        Covariance of the error of ``s`` given the modes.
+    y_prev : ndarray, shape (N, m)
+        The integrated output at the previous fine sample (NaN before the first).
+    tau : ndarray, shape (N,)
+        Time elapsed since the last switching instant.
+    """
+
+    s: np.ndarray
+    Sigma: np.ndarray
+    y_prev: np.ndarray
+    tau: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class _FineStep:
+    """Per-mode matrices of one fine step: ``s+ = A0 s + B nu``, ``nu = Delta y - C s``."""
+
+    A0: np.ndarray  # (L, d, d)
+    B: np.ndarray  # (L, d, m)
+    C: np.ndarray  # (L, m, d)
+
+
+class RSLSObserver(Estimator):
+    """The MS-convergent observer of Wang et al. §3 for randomly switched systems.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous time, no input, no process noise; ``R`` the output-noise
+        intensity ``Xi Xi'``.
+    gains : array_like, shape (L, n, m)
+        Sub-observer gains in state coordinates (columns in each mode's
+        observable subspace), e.g. from :func:`switchest.analysis.ms_design.place_gains`.
+    T : float
+        Switching interval: modes change only at ``t[0] + kT`` (Assumption 1).
+    x0, P0 : array_like
+        Initial estimate ``x_hat(t[0])`` ``(n,)`` and the covariance of its error ``(n, n)``.
+    shared : bool
+        Modes with equal observable subspaces share one sub-observer (default;
+        see :func:`switchest.analysis.ms_design.subsystem_structure`).
+
+    Notes
+    -----
+    ``run(y, t=t_fine, modes=mode_fine)`` takes the integrated output at fine
+    instants ``t`` that include every switching instant ``t[0] + kT``, and the
+    (measured, Assumption 1(d)) mode at each instant; the estimate is returned at
+    every fine instant. NaN in ``y`` marks a lost sample: the steps on either
+    side of it make no correction from that channel.
+    """
+
+    def __init__(self, system, gains, T: float, x0, P0, *, shared: bool = True):
+        self._set_prior(system, x0, P0)
+        self.structure = subsystem_structure(system, shared=shared)
+        self.T = positive_scalar(T, "T")
+        self._L = substate_gains(self.structure, gains)
+        st, L, n_s = self.structure, system.n_modes, self.structure.n_substates
+        # Block-lifted sub-observer models (R^{n_s}; identity dynamics outside the active block):
+        # open loop (A22, B = I) gives e^{A22 h} and Psi_h, closed loop (A_c, B = L) gives K_h h.
+        A22, Ac, Lb = (
+            np.zeros((L, n_s, n_s)),
+            np.zeros((L, n_s, n_s)),
+            np.zeros((L, n_s, system.n_outputs)),
+        )
+        self._C2 = np.zeros((L, system.n_outputs, n_s))
+        self._rows = np.ones((L, n_s))  # 1 on the rows of the blocks that run open loop
+        for i in range(L):
+            if st.block[i] >= 0:
+                r = st.rows(st.block[i])
+                A22[i, r, r] = st.A22[i]
+                Ac[i, r, r] = st.A22[i] - self._L[i] @ st.C2[i]
+                Lb[i, r] = self._L[i]
+                self._C2[i, :, r] = st.C2[i]
+                self._rows[i, r] = 0.0
+        self._open = SwitchedLinearSystem.continuous(
+            A22, B=np.broadcast_to(np.eye(n_s), (L, n_s, n_s))
+        )
+        self._closed = SwitchedLinearSystem.continuous(Ac, B=Lb)
+        n = system.n_states
+        d = n_s + n
+        self._reset = np.zeros((d, d))  # at t = (k+1)T: x_ol <- Phi z_hat (eq. (14))
+        self._reset[:n_s, :n_s] = np.eye(n_s)
+        self._reset[n_s:, :n_s] = st.Phi
+        self._lift = np.concatenate([st.F, np.eye(n)], axis=0)  # s = [F; I] x
+        self._steps: dict[float, _FineStep] = {}
+
+    # ------------------------------------------------------------------ protocol
+    def init(self, batch_shape=()) -> RSLSState:
+        """The prior ``s = [F x0; x0]``, ``Sigma = [F; I] P0 [F; I]'``, replicated over ``batch_shape``."""
+        d = self._lift.shape[0]
+        m = self.system.n_outputs
+        return RSLSState(
+            s=np.broadcast_to(self._lift @ self.x0, (*batch_shape, d)).copy(),
+            Sigma=np.broadcast_to(self._lift @ self.P0 @ self._lift.T, (*batch_shape, d, d)).copy(),
+            y_prev=np.full((*batch_shape, m), np.nan),
+            tau=np.zeros(batch_shape),
+        )
+
+    def step(self, state: RSLSState, y, u=None, *, dt=None, mode) -> RSLSState:
+        """Advance over the fine step ``dt`` ending at the integrated output ``y (N, m)``.
+
+        ``mode (N,)`` is the mode active during the step. With ``dt=None`` (first
+        sample) only ``y`` is recorded.
+        """
+        y = np.asarray(y, dtype=float)
+        if dt is None:
+            return RSLSState(state.s, state.Sigma, y.copy(), state.tau)
+        h = positive_scalar(dt, "dt")
+        tau = state.tau + h
+        if np.any(tau > self.T * (1 + _GRID_RTOL) + 1e-12):
+            raise ValueError(
+                f"the fine grid must contain every switching instant t[0] + kT (T = {self.T:g}); "
+                f"a step of {h:g} crosses one"
+            )
+        mode = np.asarray(mode)
+        fs = self._fine(h)
+        A0, B, C = fs.A0[mode], fs.B[mode], fs.C[mode]
+        innovation = (y - state.y_prev) - np.einsum(
+            "nmd,nd->nm", C, state.s
+        )  # Delta y - C2 Psi_h z_hat
+        observed = np.isfinite(innovation)
+        innovation = np.where(observed, innovation, 0.0)
+        s = np.einsum("nij,nj->ni", A0, state.s) + np.einsum("nim,nm->ni", B, innovation)
+        Bo = B * observed[:, None, :]  # a lost channel corrects nothing and injects no noise
+        E = A0 - Bo @ C  # error map of the step
+        noise = Bo @ (self.system.R[mode] * h) @ np.swapaxes(Bo, -1, -2)  # E[dw dw'] = R h
+        Sigma = symmetrize(E @ state.Sigma @ np.swapaxes(E, -1, -2) + noise)
+        end = tau >= self.T * (1 - _GRID_RTOL) - 1e-12
+        if np.any(end):
+            s = np.where(end[:, None], s @ self._reset.T, s)
+            Sigma = np.where(end[:, None, None], self._reset @ Sigma @ self._reset.T, Sigma)
+            tau = np.where(end, 0.0, tau)
+        return RSLSState(s, Sigma, y.copy(), tau)
+
+    def _output(self, state: RSLSState) -> dict[str, np.ndarray]:
+        st = self.structure
+        n_s = st.n_substates
+        Szz = state.Sigma[:, :n_s, :n_s]
+        return {"x": state.s[:, :n_s] @ st.Phi.T, "P": symmetrize(st.Phi @ Szz @ st.Phi.T)}
+
+    def run(self, y, u=None, t=None, *, modes) -> Estimate:
+        """Observe the integrated output ``y (..., K, m)`` at fine instants ``t (K,)``.
+
+        Parameters
+        ----------
+        y : array_like, shape (..., K, m)
+            Integrated output ``y(t_j)`` (e.g. ``Trajectory.y_fine``).
+        u : None
+            The model has no input (Wang et al. eq. (1)).
+        t : array_like, shape (K,)
+            Fine instants, containing every switching instant ``t[0] + kT``.
+        modes : array_like of int, shape (K,) or (..., K)
+            Mode at each instant (``Trajectory.mode_fine``), constant on each
+            ``[t[0] + kT, t[0] + (k+1)T)``.
+        """
+        if u is not None:
+            raise ValueError("u must be None: Wang et al.'s model (1) has no input")
+        y2, u2, t, batch = self._prepare(y, None, t)
+        K = t.size
+        modes = self._modes(modes, batch, K)
+        # step j covers [t_{j-1}, t_j) and uses the mode at t_{j-1}
+        used = np.concatenate([modes[:, :1], modes[:, :-1]], axis=1)
+        interval = np.floor((t - t[0]) / self.T * (1 + _GRID_RTOL) + _GRID_RTOL).astype(np.int64)
+        interval = np.concatenate([interval[:1], interval[:-1]])
+        first = np.searchsorted(interval, interval, side="left")
+        if np.any(used != used[:, first]):
+            raise ValueError(
+                f"modes must be constant on each switching interval [t[0] + kT, t[0] + (k+1)T), "
+                f"T = {self.T:g} (Wang et al. Assumption 1(a))"
+            )
+        return self._unflatten(self._loop(y2, u2, t, {"mode": used}), batch)
+
+    # ------------------------------------------------------------------ fine-step matrices
+    def _fine(self, h: float) -> _FineStep:
+        key = float(np.format_float_positional(h, precision=13, unique=False, fractional=False))
+        if key in self._steps:
+            return self._steps[key]
+        st, sys = self.structure, self.system
+        n_s, n, L = st.n_substates, sys.n_states, sys.n_modes
+        d = n_s + n
+        expA = mode_steps(sys, h).F  # e^{A_i h}
+        op = mode_steps(self._open, h)  # block b: e^{A22 h}, Psi_h
+        K = mode_steps(self._closed, h).G / h  # block b: K_h = (1/h) int_0^h e^{A_c s} ds L
+        active = 1.0 - self._rows  # 1 on the closed-loop block's rows
+        A0 = np.zeros((L, d, d))
+        A0[:, :n_s, :n_s] = op.F * active[:, :, None] * active[:, None, :]
+        A0[:, :n_s, n_s:] = (st.F @ expA) * self._rows[:, :, None]  # z_hat^j = F_j x_ol, eq. (14)
+        A0[:, n_s:, n_s:] = expA
+        B = np.zeros((L, d, sys.n_outputs))
+        B[:, :n_s] = K
+        C = np.zeros((L, sys.n_outputs, d))
+        C[:, :, :n_s] = self._C2 @ op.G  # C2 Psi_h
+        self._steps[key] = _FineStep(A0, B, C)
+        return self._steps[key]
