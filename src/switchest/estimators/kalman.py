@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
-from .._linalg import joseph_update, matvec, solve_lower, solve_upper, symmetrize
+from .._linalg import joseph_update, matvec, solve_lower, solve_upper, symmetrize, transpose
 
 __all__ = ["kf_predict", "kf_update", "steady_state_gain"]
 
@@ -26,7 +26,7 @@ def kf_predict(x, P, F, G, u, Qd, *, inflation: float = 0.0):
     x_pred = matvec(F, x)
     if u.shape[-1]:
         x_pred = x_pred + matvec(G, u)
-    P_pred = F @ P @ np.swapaxes(F, -1, -2) + Qd
+    P_pred = F @ P @ transpose(F) + Qd
     if inflation:
         P_pred = P_pred + inflation * np.eye(P.shape[-1])
     return x_pred, symmetrize(P_pred)
@@ -62,8 +62,8 @@ def kf_update(x, P, y, C, R):
         pair = keep[..., :, None] & keep[..., None, :]
         R = np.where(pair, R, 0.0) + np.where(missing, 1.0, 0.0)[..., None] * np.eye(m)
     e = y - matvec(C, x)
-    PCt = P @ np.swapaxes(C, -1, -2)
-    S = symmetrize(C @ PCt + R)
+    PCt = P @ transpose(C)
+    S = C @ PCt + R  # Cholesky reads its lower triangle only
     try:
         Ls = np.linalg.cholesky(S)
     except np.linalg.LinAlgError as exc:
@@ -73,9 +73,9 @@ def kf_update(x, P, y, C, R):
         ) from exc
     # one forward substitution gives Ls^-1 [C P | e]: the whitened innovation z = Ls^-1 e
     # and W = Ls^-1 C P, from which K' = S^-1 C P = Ls'^-1 W by one back substitution
-    We = solve_lower(Ls, np.concatenate([np.swapaxes(PCt, -1, -2), e[..., None]], axis=-1))
+    We = solve_lower(Ls, np.concatenate([transpose(PCt), e[..., None]], axis=-1))
     z = We[..., -1]
-    K = np.swapaxes(solve_upper(np.swapaxes(Ls, -1, -2), We[..., :-1]), -1, -2)
+    K = transpose(solve_upper(transpose(Ls), We[..., :-1]))
     loglik = -0.5 * (np.sum(z**2, axis=-1) + 2 * np.sum(np.log(np.diagonal(Ls, axis1=-2, axis2=-1)), axis=-1)
                      + m * _LOG_2PI)
     if missing.any():
