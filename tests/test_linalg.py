@@ -1,10 +1,11 @@
 """Shared batched kernels against their dense definitions."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from switchest._linalg import cholesky_solve, joseph_update, log_normalize, psd_sqrt, symmetrize
+from switchest._linalg import cholesky, cholesky_solve, joseph_update, log_normalize, psd_sqrt, symmetrize
 
 
 def random_psd(rng, shape, n, rank=None):
@@ -55,3 +56,15 @@ def test_log_normalize_is_stable_and_keeps_dead_rows_finite():
 def test_symmetrize():
     M = np.arange(8.0).reshape(2, 2, 2)
     np.testing.assert_array_equal(symmetrize(M), np.swapaxes(symmetrize(M), -1, -2))
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), m=st.integers(1, 10))
+def test_cholesky_matches_lapack_and_refuses_indefinite(seed, m):
+    rng = np.random.default_rng(seed)
+    S = random_psd(rng, (5,), m) + 0.1 * np.eye(m)
+    np.testing.assert_allclose(cholesky(S), np.linalg.cholesky(S), rtol=1e-10, atol=1e-12)
+    bad = S.copy()
+    bad[2] = -np.eye(m)
+    with pytest.raises(np.linalg.LinAlgError):
+        cholesky(bad)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "cholesky",
     "matvec",
     "transpose",
     "symmetrize",
@@ -51,6 +52,30 @@ def psd_sqrt(M: np.ndarray) -> np.ndarray:
     """
     w, V = np.linalg.eigh(symmetrize(M))
     return V * np.sqrt(np.clip(w, 0.0, None))[..., None, :]
+
+
+def cholesky(S: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factors of a stack of symmetric positive definite matrices.
+
+    For the small innovation covariances of measurement updates (``m <= 8``) the
+    factorization runs column by column, vectorized over the whole stack —
+    ``numpy.linalg.cholesky`` spends most of its time per matrix on call overhead
+    there; larger matrices go to LAPACK. Only the lower triangle of ``S`` is read.
+    Raises ``numpy.linalg.LinAlgError`` if a matrix is not positive definite.
+    """
+    m = S.shape[-1]
+    if m > 8:
+        return np.linalg.cholesky(S)
+    L = np.zeros_like(S)
+    for j in range(m):
+        d = S[..., j, j] - np.sum(L[..., j, :j] ** 2, axis=-1)
+        if not np.all(d > 0):
+            raise np.linalg.LinAlgError("Matrix is not positive definite")
+        L[..., j, j] = np.sqrt(d)
+        if j + 1 < m:
+            below = S[..., j + 1 :, j] - (L[..., j + 1 :, :j] @ L[..., j, :j, None])[..., 0]
+            L[..., j + 1 :, j] = below / L[..., j, j, None]
+    return L
 
 
 def solve_lower(L: np.ndarray, B: np.ndarray) -> np.ndarray:

@@ -53,9 +53,15 @@ def imm_mix(x, P, log_prob, log_transition):
 
 
 def imm_combine(x, P, prob):
-    """Combined estimate ``x = sum_j mu_j x_j``, ``P = sum_j mu_j (P_j + (x_j - x)(x_j - x)')``."""
-    xc, Pc = mixture_moments(prob[..., :, None], x, P)
-    return xc[..., 0, :], Pc[..., 0, :, :]
+    """Combined estimate ``x = sum_j mu_j x_j``, ``P = sum_j mu_j (P_j + (x_j - x)(x_j - x)')``.
+
+    Weighted sums over the mode axis by broadcasting: one mixture per sample, for
+    every sample of a run at once.
+    """
+    xc = np.sum(prob[..., None] * x, axis=-2)
+    d = x - xc[..., None, :]
+    Pc = np.sum(prob[..., None, None] * (P + d[..., :, None] * d[..., None, :]), axis=-3)
+    return xc, Pc
 
 
 class IMMFilter(Estimator):

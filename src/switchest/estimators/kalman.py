@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
-from .._linalg import joseph_update, matvec, solve_lower, solve_upper, symmetrize, transpose
+from .._linalg import cholesky, joseph_update, matvec, solve_lower, solve_upper, symmetrize, transpose
 
 __all__ = ["kf_predict", "kf_update", "steady_state_gain"]
 
@@ -65,7 +65,7 @@ def kf_update(x, P, y, C, R):
     PCt = P @ transpose(C)
     S = C @ PCt + R  # Cholesky reads its lower triangle only
     try:
-        Ls = np.linalg.cholesky(S)
+        Ls = cholesky(S)
     except np.linalg.LinAlgError as exc:
         raise np.linalg.LinAlgError(
             "innovation covariance C P C' + R is not positive definite: give the system a "
