@@ -67,3 +67,8 @@ def test_cli_check_prints_the_table(capsys, monkeypatch):
 def test_etienne_theorem_8_certifies_at_least_the_paper_rate():
     check = {c.name: c for c in certify(catalog()["etienne-academic"])}["impulsive observer under aperiodic sampling"]
     assert check.verdict is True and check.margin >= 0.010294  # the paper's beta at its fixed scalars
+
+
+def test_ieee_5bus_critical_interval_is_the_printed_0_7365():
+    check = {c.name: c for c in certify(catalog()["wang-ieee5bus"])}["critical switching interval T_max (i.i.d. modes)"]
+    assert "T_max = 0.7365" in check.detail and check.verdict is True

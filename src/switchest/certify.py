@@ -15,6 +15,7 @@ import numpy as np
 
 from .analysis import (
     combined_observability,
+    critical_interval,
     cqlf,
     dwell_time_observability,
     impulsive_observer_search,
@@ -166,8 +167,42 @@ def _impulsive(spec: ModelSpec) -> Check:
                  bool(best.feasible), detail, best.beta if best.feasible else None)
 
 
+def _wang_critical_interval(spec: ModelSpec) -> Check:
+    """Critical switching interval of Wang et al. Theorem 3 for i.i.d. modes, and the sampling period against it.
+
+    Reports eq. (20) as the paper computes it (``q_max h(T) = 1``; §6's ``T_max = 0.7365``,
+    printed truncated, hence shown truncated to four decimals with the full value beside it),
+    the exact MS threshold for fast sub-observers and, with several sub-states, Example 2's
+    per-sub-state thresholds. The verdict compares the sampling period with the exact
+    threshold: eq. (20) is not a proven bound (for Example 1 it gives 0.0279, below the
+    paper's own T = 0.03, which is MS convergent); the detail compares it with both.
+    """
+    name, paper = "critical switching interval T_max (i.i.d. modes)", "Wang Theorem 3, eq. (20); Example 2"
+    system, switching = spec.system, spec.switching
+    if not system.is_continuous or switching.get("kind") != "iid":
+        return Check(name, paper, None, "applies to continuous-time systems with i.i.d. modes at the switching instants")
+    if system.n_inputs or np.any(system.Q != 0):
+        return Check(name, paper, None, "applies to Wang et al.'s model (1): no input and no process noise")
+    try:
+        ci = critical_interval(system, switching["p"])
+    except ValueError as exc:  # e.g. Assumption 2(b): the modes' observable subspaces do not span the state
+        return Check(name, paper, None, f"not applicable: {exc}")
+    truncated = np.floor(ci.theorem3 * 1e4) / 1e4
+    eq20 = f"eq. (20) T_max = {truncated:.4f} ({ci.theorem3:.6f}, q_max = {ci.q_max:.4g})"
+    exact = f"exact MS threshold {ci.fast_observer:.4f}"
+    per = "" if ci.per_block.size < 2 else "; per sub-state " + ", ".join(f"{v:.4f}" for v in ci.per_block)
+    T = spec.sampling.get("period")
+    if T is None:
+        return Check(name, paper, None, f"{eq20}; {exact}{per}; no sampling period to compare")
+    verdict = bool(T < ci.fast_observer)
+    detail = (f"T = {T:g} {'<' if T < ci.theorem3 else '>='} {eq20}; T {'<' if verdict else '>='} {exact} "
+              f"(fast sub-observers are MS convergent below it){per}")
+    return Check(name, paper, verdict, detail, float(1.0 - T / ci.fast_observer))
+
+
 CHECKS: list[Callable[[ModelSpec], Check]] = [
     _modes_observable, _joint, _combined, _cqlf, _jsr, _lemma1, _ms_iid, _filter_cqlf, _mismatch, _impulsive,
+    _wang_critical_interval,
 ]
 
 

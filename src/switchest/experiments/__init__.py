@@ -4,7 +4,7 @@ a SQLite results store and an HTML report (DESIGN.md §6).
 Importing this package registers every experiment.
 """
 
-from . import bakeoff, etienne, shankar, zhang  # noqa: F401  (importing registers the experiments)
+from . import bakeoff, etienne, lee, shankar, wang, zhang  # noqa: F401  (importing registers the experiments)
 from .registry import EXPERIMENTS, Experiment, Row, Summary, get, names, register
 from .report import write_report
 from .runner import run_experiment, stored_results
