@@ -68,15 +68,22 @@ class Store:
     def __init__(self, path: str | Path):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        with self._connect() as con:
-            con.executescript(_SCHEMA)
+        for attempt in range(100):  # switching to WAL takes no busy handler: retry while another run holds it
+            try:
+                with self._connect() as con:
+                    con.execute("PRAGMA journal_mode=WAL")
+                    con.executescript(_SCHEMA)
+                break
+            except sqlite3.OperationalError:
+                if attempt == 99:
+                    raise
+                time.sleep(0.05 * (1 + attempt % 10))
 
     @contextmanager
     def _connect(self) -> Iterator[sqlite3.Connection]:
         """A short-lived autocommit connection, closed on exit."""
         con = sqlite3.connect(self.path, timeout=60.0, isolation_level=None)
         try:
-            con.execute("PRAGMA journal_mode=WAL")
             con.execute("PRAGMA busy_timeout=60000")
             yield con
         finally:
