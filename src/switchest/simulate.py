@@ -199,19 +199,11 @@ def integrated_output_system(system: SwitchedLinearSystem) -> SwitchedLinearSyst
 
 
 def _simulate_integrated(system, signal, t, x0, u, *, trials, rng, fine_dt) -> Trajectory:
-    n = system.n_states
+    n, m = system.n_states, system.n_outputs
     aug = integrated_output_system(system)
-    if isinstance(x0, tuple) and len(x0) == 2:
-        mean = float_array(x0[0], "x0 mean", ndim=1)
-        cov = float_array(x0[1], "x0 cov", ndim=2)
-        if mean.shape != (n,) or cov.shape != (n, n):
-            raise ValueError(f"x0 must be (mean (n,), cov (n, n)) with n = {n}, got {mean.shape} and {cov.shape}")
-        x0_aug = (np.concatenate([mean, np.zeros(system.n_outputs)]), np.pad(cov, (0, system.n_outputs)))
-    else:
-        x0 = float_array(x0, "x0", ndim=1)
-        if x0.shape != (n,):
-            raise ValueError(f"x0 must have shape (n,) = ({n},), got {x0.shape}")
-        x0_aug = np.concatenate([x0, np.zeros(system.n_outputs)])
+    mean, cov = _initial_moments(x0, n)
+    z0 = np.zeros(m)  # the integrated output starts at 0
+    x0_aug = (np.concatenate([mean, z0]), np.pad(cov, (0, m))) if isinstance(x0, tuple) else np.concatenate([mean, z0])
     traj = simulate(aug, signal, t, x0_aug, u, trials=trials, rng=rng, fine_dt=fine_dt)
     fine = {}
     if fine_dt is not None:
@@ -304,7 +296,8 @@ def _inputs(u, l, K, trials) -> np.ndarray:
     return np.array(np.broadcast_to(u, (trials, K, l)))
 
 
-def _initial_states(x0, n, trials, rng) -> np.ndarray:
+def _initial_moments(x0, n) -> tuple[np.ndarray, np.ndarray]:
+    """Validated ``(mean (n,), cov (n, n))`` of the initial state; a vector has zero covariance."""
     if isinstance(x0, tuple):
         if len(x0) != 2:
             raise ValueError(f"x0 as a tuple must be (mean, cov), got {len(x0)} entries")
@@ -316,13 +309,19 @@ def _initial_states(x0, n, trials, rng) -> np.ndarray:
             )
         check_finite(mean, "x0 mean")
         check_finite(cov, "x0 cov")
-        cov = check_symmetric_psd(cov, "x0 cov")
-        return mean + rng.standard_normal((trials, n)) @ psd_sqrt(cov).T
+        return mean, check_symmetric_psd(cov, "x0 cov")
     x0 = float_array(x0, "x0", ndim=1)
     if x0.shape != (n,):
         raise ValueError(f"x0 must have shape (n,) = ({n},), got {x0.shape}")
     check_finite(x0, "x0")
-    return np.broadcast_to(x0, (trials, n)).copy()
+    return x0, np.zeros((n, n))
+
+
+def _initial_states(x0, n, trials, rng) -> np.ndarray:
+    mean, cov = _initial_moments(x0, n)
+    if isinstance(x0, tuple):  # drawn per trial (a vector x0 draws no random numbers)
+        return mean + rng.standard_normal((trials, n)) @ psd_sqrt(cov).T
+    return np.broadcast_to(mean, (trials, n)).copy()
 
 
 def _fine_grid(t, fine_dt) -> tuple[np.ndarray, np.ndarray]:

@@ -10,7 +10,7 @@ from scipy.linalg import expm
 
 import switchest.experiments.etienne  # noqa: F401  (registers the Etienne experiments)
 from switchest.analysis.impulsive import theorem10_rate
-from switchest.experiments import Store, get, run_experiment
+from switchest.experiments import get
 from switchest.models import ETIENNE_SCENARIO as S
 from switchest.models import etienne_academic
 
@@ -27,26 +27,13 @@ PAPER = {
     "delta": 0.15,
     "theorem10_verdict": "verified",
 }
+from summary_rows import find_row  # noqa: E402
+
 NAMES = ("etienne-sync", "etienne-async")
 
 
-@pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    out = tmp_path_factory.mktemp("etienne")
-    store = Store(out / "results.sqlite")
-    done = {}
-    for name in NAMES:
-        exp = get(name)
-        params = exp.params(quick=True)
-        results = run_experiment(exp, params, store=store)
-        done[name] = (params, results, exp.summarize(params, results, out / "figures"))
-    return done
 
 
-def _row(summary, prefix):
-    found = [r for r in summary.rows if r.quantity.startswith(prefix)]
-    assert len(found) == 1, f"{len(found)} rows start with {prefix!r}"
-    return found[0]
 
 
 def _bound_excess(results, M, beta):
@@ -68,15 +55,15 @@ def test_defaults_are_the_papers_setup():
 # ---------------------------------------------------------------- Fig. 1
 def test_sync_paper_scalars_rows(runs):
     summary = runs["etienne-sync"][2]
-    assert _row(summary, "Theorem 8 at the paper's scalars").measured == "feasible"
+    assert find_row(summary, "Theorem 8 at the paper's scalars").measured == "feasible"
     beta = (S.alpha - math.log(S.mu_s) / S.dwell - math.log(S.mu_c) / S.tau_max) / 2  # eq. (11) by hand
     assert beta == pytest.approx(PAPER["theorem8_beta_eq11"], abs=PAPER["tolerance"])
-    row = _row(summary, "guaranteed rate β of ‖e‖ (eq. 11), paper's scalars")
+    row = find_row(summary, "guaranteed rate β of ‖e‖ (eq. 11), paper's scalars")
     assert row.measured == pytest.approx(beta, rel=1e-12)
-    assert _row(summary, "rate condition (9)").measured == pytest.approx(2 * beta, rel=1e-12)
-    search = _row(summary, "scalar search: best guaranteed β").measured
+    assert find_row(summary, "rate condition (9)").measured == pytest.approx(2 * beta, rel=1e-12)
+    search = find_row(summary, "scalar search: best guaranteed β").measured
     assert search > 5 * beta  # the paper's scalars are far from the best (quick grid: 8.7x)
-    assert _row(summary, "plant ‖x(t_K)‖/‖x(0)‖").measured > 1  # Fig. 1a: the plant is not stable
+    assert find_row(summary, "plant ‖x(t_K)‖/‖x(0)‖").measured > 1  # Fig. 1a: the plant is not stable
 
 
 @pytest.mark.parametrize("gains", ["paper's", "searched"])
@@ -86,13 +73,13 @@ def test_sync_measured_rate_is_at_least_the_guaranteed_beta(runs, gains):
     mine = [r for c, r in results if c["gains"] == key]
     cert = mine[0]["certificate"]
     assert all(r["certificate"] == cert for r in mine)  # deterministic SDP: same in every block
-    rate = _row(summary, f"measured decay rate of ‖e‖, {gains} scalars' gains").measured
+    rate = find_row(summary, f"measured decay rate of ‖e‖, {gains} scalars' gains").measured
     assert rate == min(r["rate_min"] for r in mine)
     assert rate >= cert["beta"] > 0
     # ||e(t_k+)|| <= M exp(-beta t_k) ||e(0+)|| at every sample of every trial (Theorem 8, N0 = 1)
     excess = _bound_excess(mine, cert["M"], cert["beta"])
     assert excess <= 1
-    assert _row(summary, f"largest ‖e(t_k+)‖/‖e(0+)‖ ÷ M e^(−β t_k), {gains}").measured == pytest.approx(excess)
+    assert find_row(summary, f"largest ‖e(t_k+)‖/‖e(0+)‖ ÷ M e^(−β t_k), {gains}").measured == pytest.approx(excess)
     # the error is measured far above the round-off of x - x_hat
     assert min(r["roundoff_min"] for r in mine) > 100 * np.finfo(float).eps
 
@@ -124,18 +111,18 @@ def test_sync_example_trial_follows_the_plant_and_error_dynamics(runs):
 # ---------------------------------------------------------------- Fig. 2
 def test_async_theorem10_verdict_printed_vs_corrected(runs):
     summary = runs["etienne-async"][2]
-    verdict = _row(summary, "Theorem 10 at the paper's scalars")
+    verdict = find_row(summary, "Theorem 10 at the paper's scalars")
     assert verdict.paper == PAPER["theorem10_verdict"] and verdict.measured == "not certified"
-    assert _row(summary, "LMIs (24)-(27), corrected, paper's scalars").measured == "infeasible"
+    assert find_row(summary, "LMIs (24)-(27), corrected, paper's scalars").measured == "infeasible"
     # (31) as printed, by hand: 2 beta = alpha (1 - r) - alpha_bar r - ln mu_s / s
     #                                  - ln mu_c (1 - r) / tau_max - delta ln mu_c_bar / (tau_min s), r = delta / s
     r = S.delta / S.dwell
     two_beta = (S.alpha * (1 - r) - S.alpha_bar * r - math.log(S.mu_s) / S.dwell
                 - math.log(S.mu_c) * (1 - r) / S.tau_max - S.delta * math.log(S.mu_c_bar) / (S.tau_min * S.dwell))
     assert -two_beta == pytest.approx(PAPER["theorem10_lhs_eq28_printed"], abs=PAPER["tolerance"])
-    printed = _row(summary, "(28) as printed")
+    printed = find_row(summary, "(28) as printed")
     assert printed.measured == pytest.approx(-two_beta, rel=1e-12) and printed.measured > 0
-    corrected = _row(summary, "corrected rate β").measured
+    corrected = find_row(summary, "corrected rate β").measured
     assert corrected == pytest.approx(theorem10_rate(S.alpha, S.alpha_bar, S.mu_s, S.mu_c, S.mu_c_bar,
                                                      S.tau_min, S.tau_max, S.dwell, S.delta))
     assert corrected < two_beta / 2 < 0
@@ -143,7 +130,7 @@ def test_async_theorem10_verdict_printed_vs_corrected(runs):
 
 def test_async_largest_certified_delay(runs):
     params, results, summary = runs["etienne-async"]
-    row = _row(summary, "largest δ certified")
+    row = find_row(summary, "largest δ certified")
     assert row.paper == PAPER["delta"]
     assert 0.05 < row.measured < PAPER["delta"]  # certified, but well short of the paper's delay
     search = max((r for c, r in results if c["kind"] == "search"), key=lambda r: r["best"]["delta"])
@@ -167,17 +154,17 @@ def test_async_largest_certified_delay(runs):
 
 def test_async_closed_loop_converges_at_the_papers_delay(runs):
     params, results, summary = runs["etienne-async"]
-    row = _row(summary, f"measured decay rate of ‖z‖, z = (x, e), δ = {PAPER['delta']:g} ")
+    row = find_row(summary, f"measured decay rate of ‖z‖, z = (x, e), δ = {PAPER['delta']:g} ")
     assert row.paper == "asymptotically stable"
     sims = [r for c, r in results if c["kind"] == "simulate" and c["delay"] == PAPER["delta"]]
     assert row.measured == min(r["rate_min"] for r in sims) > 0  # every trial decays, though not certified
     assert sum(r["trials"] for r in sims) == params["trials"]
     # samples corrected with the wrong mode: one per switch at most here (ceil(0.15/0.3)), more than (31)'s 0.5
-    window = _row(summary, "most samples in one mismatch window")
+    window = find_row(summary, "most samples in one mismatch window")
     assert window.measured == math.ceil(PAPER["delta"] / S.tau_min) == 1
     assert window.paper == pytest.approx(PAPER["delta"] / S.tau_min)
     assert sum(r["wrong_samples"] for r in sims) == sum(r["window_samples"] for r in sims) > 0
     # longer delays slow the decay
-    rates = [_row(summary, f"measured decay rate of ‖z‖, z = (x, e), δ = {d:g} ").measured
+    rates = [find_row(summary, f"measured decay rate of ‖z‖, z = (x, e), δ = {d:g} ").measured
              for d in sorted(params["delays"])]
     assert rates[0] > rates[-1]

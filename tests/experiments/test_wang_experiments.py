@@ -19,9 +19,7 @@ from scipy.optimize import minimize_scalar
 
 from switchest.analysis.ms_design import error_dynamics, second_moments
 from switchest.experiments import (
-    Store,
     get,
-    run_experiment,
     wang,  # registers wang-examples and wang-ieee5bus
 )
 from switchest.models import (
@@ -32,6 +30,8 @@ from switchest.models import (
     ieee_5bus_mode_probabilities,
 )
 
+from summary_rows import close_at_printed, find_row  # noqa: E402
+
 DATA = Path(__file__).resolve().parents[1] / "data"
 EX = json.loads((DATA / "wang_examples.json").read_text())["cases"]
 BUS = json.loads((DATA / "wang_ieee5bus.json").read_text())["cases"]
@@ -39,28 +39,10 @@ Z_MAX = 4.0  # per comparison; P(|z| > 4) ~ 6e-5 under a normal null
 NAMES = ("wang-examples", "wang-ieee5bus")
 
 
-@pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    out = tmp_path_factory.mktemp("wang")
-    store = Store(out / "results.sqlite")
-    done = {}
-    for name in NAMES:
-        exp = get(name)
-        params = exp.params(quick=True)
-        results = run_experiment(exp, params, store=store)
-        done[name] = (params, results, exp.summarize(params, results, out / "figures"))
-    return done
 
 
-def _row(summary, prefix):
-    found = [r for r in summary.rows if r.quantity.startswith(prefix)]
-    assert len(found) == 1, f"{len(found)} rows start with {prefix!r}"
-    return found[0]
 
 
-def _close(measured, printed, decimals):
-    """Equal at the printed precision (half a unit of the last printed digit)."""
-    return abs(measured - printed) <= 0.5 * 10.0**-decimals + 1e-12
 
 
 def _summed(results, **match):
@@ -105,26 +87,26 @@ def test_registered_with_the_papers_sizes():
 def test_examples_printed_numbers_and_readings(runs):
     summary = runs["wang-examples"][2]
     for c, name in enumerate(("γ̄^1", "γ̄^2")):
-        row = _row(summary, f"Ex. 1: {name}")
+        row = find_row(summary, f"Ex. 1: {name}")
         assert row.paper == EX["gamma_bar_kalman_bucy"]["value"][c]
-        assert _close(row.measured, row.paper, EX["gamma_bar_kalman_bucy"]["decimals"])
+        assert close_at_printed(row.measured, row.paper, EX["gamma_bar_kalman_bucy"]["decimals"])
     for c in (1, 2):
-        row = _row(summary, f"Ex. 2: T_max^{c}")
-        assert row.paper == EX["T_max_per_component"]["value"][c - 1] and _close(row.measured, row.paper, 4)
-        row = _row(summary, f"Ex. 2: γ for L{c}")
-        assert row.paper == EX["gamma_L40_L15"]["value"][c - 1] and _close(row.measured, row.paper, 4)
+        row = find_row(summary, f"Ex. 2: T_max^{c}")
+        assert row.paper == EX["T_max_per_component"]["value"][c - 1] and close_at_printed(row.measured, row.paper, 4)
+        row = find_row(summary, f"Ex. 2: γ for L{c}")
+        assert row.paper == EX["gamma_L40_L15"]["value"][c - 1] and close_at_printed(row.measured, row.paper, 4)
         printed = EX["gain_bounds"]["value"][c - 1]
-        reading = _row(summary, f"Ex. 2: bound L_{c} > (paper's reading")
-        correct = _row(summary, f"Ex. 2: bound L_{c} > (correct")
+        reading = find_row(summary, f"Ex. 2: bound L_{c} > (paper's reading")
+        correct = find_row(summary, f"Ex. 2: bound L_{c} > (correct")
         assert reading.paper == correct.paper == printed
-        assert _close(reading.measured, printed, 4) and not _close(correct.measured, printed, 2)
+        assert close_at_printed(reading.measured, printed, 4) and not close_at_printed(correct.measured, printed, 2)
     for L, printed in zip(EX["gamma1_example4"]["gains"], EX["gamma1_example4"]["value"], strict=True):
-        assert _close(_row(summary, f"Ex. 4: γ^1 for L1 = {L:g} (paper's reading").measured, printed, 4)
-        assert abs(_row(summary, f"Ex. 4: γ^1 for L1 = {L:g} (correct").measured - printed) > 5e-3
+        assert close_at_printed(find_row(summary, f"Ex. 4: γ^1 for L1 = {L:g} (paper's reading").measured, printed, 4)
+        assert abs(find_row(summary, f"Ex. 4: γ^1 for L1 = {L:g} (correct").measured - printed) > 5e-3
     opt = EX["optimum_example4"]
-    assert _close(_row(summary, "Ex. 4: optimal L1* (paper's reading").measured, opt["value"]["L1"], 1)
-    assert _close(_row(summary, "Ex. 4: σ¹_∞(L1*) (paper's reading").measured, opt["value"]["sigma"], 4)
-    assert _close(_row(summary, "Ex. 3 (a = 10").measured, np.log(2) / 20, 10)
+    assert close_at_printed(find_row(summary, "Ex. 4: optimal L1* (paper's reading").measured, opt["value"]["L1"], 1)
+    assert close_at_printed(find_row(summary, "Ex. 4: σ¹_∞(L1*) (paper's reading").measured, opt["value"]["sigma"], 4)
+    assert close_at_printed(find_row(summary, "Ex. 3 (a = 10").measured, np.log(2) / 20, 10)
 
 
 def test_example4_correct_optimum_against_the_closed_form(runs):
@@ -138,9 +120,9 @@ def test_example4_correct_optimum_against_the_closed_form(runs):
 
     r = minimize_scalar(sigma, bounds=(14.0, 500.0), method="bounded", options={"xatol": 1e-10})
     summary = runs["wang-examples"][2]
-    assert _row(summary, "Ex. 4: optimal L1* (correct").measured == pytest.approx(r.x, rel=1e-5)  # 26.640
-    assert _row(summary, "Ex. 4: σ¹_∞(L1*) (correct)").measured == pytest.approx(r.fun, rel=1e-8)  # 0.4243
-    assert _row(summary, "Ex. 4: correct σ¹_∞ at the printed").measured == pytest.approx(sigma(61.3), rel=1e-9)
+    assert find_row(summary, "Ex. 4: optimal L1* (correct").measured == pytest.approx(r.x, rel=1e-5)  # 26.640
+    assert find_row(summary, "Ex. 4: σ¹_∞(L1*) (correct)").measured == pytest.approx(r.fun, rel=1e-8)  # 0.4243
+    assert find_row(summary, "Ex. 4: correct σ¹_∞ at the printed").measured == pytest.approx(sigma(61.3), rel=1e-9)
 
 
 # ---------------------------------------------------------------- Examples 1-4: Monte Carlo
@@ -157,7 +139,7 @@ def test_examples_monte_carlo_given_the_modes(runs):
             assert np.all(np.abs(z) < Z_MAX), (figure, L1, z)
             checked += 2
     assert checked == 2 * (1 + 1 + 1 + 4 + 2)
-    assert _row(summary, "Monte Carlo given the simulated modes").measured < Z_MAX
+    assert find_row(summary, "Monte Carlo given the simulated modes").measured < Z_MAX
 
 
 def test_given_modes_check_detects_a_wrong_gain():
@@ -201,16 +183,16 @@ def test_examples_divergence_and_tradeoff(runs):
     s = _summed(results, figure="1")[f"L1={L1:g},L2={L2:g}"]
     mc = np.asarray(s["sum"]) / _summed(results, figure="1")["trials"]
     assert mc[-1, 0] > 1e4 * mc[0, 0]
-    assert _row(summary, "Fig. 1: MC growth").measured == pytest.approx(EX["gamma_bar_kalman_bucy"]["value"][0],
+    assert find_row(summary, "Fig. 1: MC growth").measured == pytest.approx(EX["gamma_bar_kalman_bucy"]["value"][0],
                                                                           abs=0.01)
     # Fig. 3: T = 0.25 above T_max: exact factors above 1, the MC mean explodes, the median does not
-    assert _row(summary, "Fig. 3 (T = 0.25): exact second-moment factor, component 1").measured > 2
-    assert _row(summary, "Fig. 3 (T = 0.25): exact second-moment factor, component 2").measured > 1
+    assert find_row(summary, "Fig. 3 (T = 0.25): exact second-moment factor, component 1").measured > 2
+    assert find_row(summary, "Fig. 3 (T = 0.25): exact second-moment factor, component 2").measured > 1
     tot3 = _summed(results, figure="3")
     s3 = tot3["L1=40,L2=15"]
     mc3 = np.asarray(s3["sum"]) / tot3["trials"]
     assert mc3[:, 0].max() > 1e5 * mc3[0, 0]
-    medians = [float(v) for v in _row(summary, "Fig. 3: MC median").measured.split(", ")]
+    medians = [float(v) for v in find_row(summary, "Fig. 3: MC median").measured.split(", ")]
     assert max(medians) < mc3[0, 0]
     # Fig. 6: on the same runs the correct optimum beats the printed L1* = 61.3 by many standard errors
     tot6 = _summed(results, figure="6")
@@ -223,11 +205,11 @@ def test_examples_divergence_and_tradeoff(runs):
 # ---------------------------------------------------------------- IEEE 5-bus
 def test_bus_printed_numbers(runs):
     summary = runs["wang-ieee5bus"][2]
-    row = _row(summary, "T_max: eq. (20)")
+    row = find_row(summary, "T_max: eq. (20)")
     assert row.paper == BUS["T_max"]["value"]
     assert np.floor(row.measured * 1e4) / 1e4 == pytest.approx(BUS["T_max"]["value"], abs=1e-12)  # truncated
-    row = _row(summary, "T = 0.95 T_max")
-    assert _close(row.measured, BUS["T"]["value"], BUS["T"]["decimals"])
+    row = find_row(summary, "T = 0.95 T_max")
+    assert close_at_printed(row.measured, BUS["T"]["value"], BUS["T"]["decimals"])
     for design, key in (("first", "gain_first"), ("aggressive", "gain_aggressive")):
         gain = [r.measured for r in summary.rows
                 if r.quantity.startswith(f"{design} design") and "gain entry" in r.quantity]
@@ -235,13 +217,13 @@ def test_bus_printed_numbers(runs):
         if design == "first":  # the printed A is rounded: 4e-3 (the unrounded A gives every digit, test_ms_design)
             assert np.max(np.abs(np.subtract(gain, BUS[key]["value"]))) < 5e-3
         else:
-            assert all(_close(g, v, BUS[key]["decimals"]) for g, v in zip(gain, BUS[key]["value"], strict=True))
+            assert all(close_at_printed(g, v, BUS[key]["decimals"]) for g, v in zip(gain, BUS[key]["value"], strict=True))
         printed = BUS[f"moment_eigenvalues_{design}"]
         fitted = [r for r in summary.rows if r.quantity.startswith(f"{design}: eigenvalue") and "fitted" in r.quantity]
         scipy_ = [r for r in summary.rows if r.quantity.startswith(f"{design}: eigenvalue") and "scipy" in r.quantity]
         assert [r.paper for r in fitted] == printed["value"]
         decimals = np.broadcast_to(printed["decimals"], 4)
-        assert all(_close(r.measured, r.paper, d) for r, d in zip(fitted, decimals, strict=True))
+        assert all(close_at_printed(r.measured, r.paper, d) for r, d in zip(fitted, decimals, strict=True))
         assert max(abs(r.measured - r.paper) for r in scipy_) > 1e-3  # another (valid) place gain
 
 
@@ -268,7 +250,7 @@ def test_bus_monte_carlo_matches_the_exact_moments(runs):
     # the trade-off: the aggressive design's persistent error is larger, beyond sampling error
     (m1, s1), (m2, s2) = means["first"], means["aggressive"]
     assert m2 - m1 > Z_MAX * np.hypot(s1, s2)
-    assert _row(summary, "Monte Carlo vs exact moments").measured < Z_MAX
+    assert find_row(summary, "Monte Carlo vs exact moments").measured < Z_MAX
 
 
 def test_figures_written(runs):

@@ -14,8 +14,10 @@ import pytest
 
 import switchest.experiments.zhang  # noqa: F401  (registers the Zhang experiments)
 from switchest.analysis.bias import bias_recursion, mean_state, mismatch_dynamics
-from switchest.experiments import Store, get, run_experiment
+from switchest.experiments import get
 from switchest.models.zhang import smart_grid, zhang_two_mode
+
+from summary_rows import close_at_printed, find_row  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 EX1 = json.loads((DATA / "zhang_example1.json").read_text())
@@ -24,28 +26,10 @@ Z_MAX = 5.0  # per step and component; P(|z| > 5) ~ 6e-7 under the null
 NAMES = ("zhang-example1", "zhang-smartgrid")
 
 
-@pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    out = tmp_path_factory.mktemp("zhang")
-    store = Store(out / "results.sqlite")
-    done = {}
-    for name in NAMES:
-        exp = get(name)
-        params = exp.params(quick=True)
-        results = run_experiment(exp, params, store=store)
-        done[name] = (params, results, exp.summarize(params, results, out / "figures"))
-    return done
 
 
-def _row(summary, prefix):
-    found = [r for r in summary.rows if r.quantity.startswith(prefix)]
-    assert len(found) == 1, f"{len(found)} rows start with {prefix!r}"
-    return found[0]
 
 
-def _close(measured, printed, decimals):
-    """Equal at the printed precision (half a unit of the last printed digit)."""
-    return abs(measured - printed) <= 0.5 * 10.0**-decimals + 1e-12
 
 
 def _matrix(M):
@@ -101,34 +85,34 @@ def test_example1_printed_matrices_and_norms(runs):
     summary = runs["zhang-example1"][2]
     cases = EX1["cases"]
     for q in (1, 2):
-        row = _row(summary, f"‖Λ_{q}‖")
+        row = find_row(summary, f"‖Λ_{q}‖")
         assert row.paper == cases["norm_Lambda"]["value"][q - 1]
-        assert _close(row.measured, row.paper, 4)
+        assert close_at_printed(row.measured, row.paper, 4)
     for prefix, key in (("Λ_1 ", "Lambda_1"), ("Λ_2", "Lambda_2"), ("Γ_1,2", "Gamma_1_2"), ("Γ_2,1", "Gamma_2_1")):
-        row = _row(summary, prefix)
+        row = find_row(summary, prefix)
         assert row.paper == _matrix(cases[key]["value"])
         assert row.measured == row.paper  # all four printed decimals
-    assert _row(summary, "CQLF of Λ_1, Λ_2").measured == "exists"
-    assert _row(summary, "CQLF of A_1, A_2").measured == "exists"
+    assert find_row(summary, "CQLF of Λ_1, Λ_2").measured == "exists"
+    assert find_row(summary, "CQLF of A_1, A_2").measured == "exists"
 
 
 def test_example1_fig6_design_reproduces_0154554_and_holds(runs):
     _, results, summary = runs["zhang-example1"]
     case = EX1["cases"]["fig6_max_mismatch"]
-    row = _row(summary, "λ12 = λ21 for B = 0.3")
-    assert row.paper == case["value"] and _close(row.measured, case["value"], 6)
+    row = find_row(summary, "λ12 = λ21 for B = 0.3")
+    assert row.paper == case["value"] and close_at_printed(row.measured, case["value"], 6)
     fig6 = [(cfg, tot) for cfg, tot in _groups(results) if cfg["figure"] == "6"]
     assert len(fig6) == 2
     for cfg, tot in fig6:
         modes, lam, m0 = _example1_case(cfg)
-        assert _close(lam[0, 1], case["value"], 6)
+        assert close_at_printed(lam[0, 1], case["value"], 6)
         theory = _eq9(zhang_two_mode(), modes, lam, m0)
         assert np.max(np.linalg.norm(theory, axis=1)) <= case["bound"]  # the guarantee, on eq. (9)
         mean, se = _mc(tot, "alg1")
         # the paper's filter: below B up to Monte Carlo noise
         assert np.max(np.linalg.norm(mean, axis=1) - Z_MAX * np.linalg.norm(se, axis=1)) <= case["bound"]
         sig = cfg["signal"]
-        assert _row(summary, f"Fig. 6 (signal {sig}): max_k ‖E(e_k)‖").measured == pytest.approx(
+        assert find_row(summary, f"Fig. 6 (signal {sig}): max_k ‖E(e_k)‖").measured == pytest.approx(
             np.max(np.linalg.norm(theory, axis=1)), rel=1e-9)
 
 
@@ -145,7 +129,7 @@ def test_example1_monte_carlo_matches_eq9_with_steady_gains(runs):
         if cfg["figure"] in ("3", "4"):
             assert np.max(np.abs(theory) / se) > 10.0  # the bias is far from zero: the check can fail
             lam12, lam21 = lam[0, 1], lam[1, 0]
-            row = _row(summary, f"Fig. {cfg['figure']} (signal {cfg['signal']}), λ12={lam12:g}, λ21={lam21:g}: "
+            row = find_row(summary, f"Fig. {cfg['figure']} (signal {cfg['signal']}), λ12={lam12:g}, λ21={lam21:g}: "
                                 f"largest |MC")
             assert row.measured == pytest.approx(z.max(), rel=1e-9)
     # lam[i, q] is P(filter mode i | true mode q): the transposed reading is rejected
@@ -167,7 +151,7 @@ def test_example1_algorithm1_gap_and_theorem4_bound(runs):
               if c["figure"] in ("3", "4")]
     assert max(paired) > Z_MAX
     for signal in (1, 2):
-        row = _row(summary, f"Fig. 5 (signal {signal})")
+        row = find_row(summary, f"Fig. 5 (signal {signal})")
         assert 0.0 < row.measured < 1.0  # Theorem 4 bounds the Monte Carlo maximum at every P
 
 
@@ -175,11 +159,11 @@ def test_example1_algorithm1_gap_and_theorem4_bound(runs):
 def test_smartgrid_printed_values(runs):
     summary = runs["zhang-smartgrid"][2]
     norms = GRID["cases"]["norm_Lambda"]["value"]
-    assert _close(_row(summary, "‖Λ_1‖, Algorithm 1 gain after 99 steps").measured, norms[0], 4)
-    steady1 = _row(summary, "‖Λ_1‖, steady-state gain")
-    assert steady1.paper == norms[0] and not _close(steady1.measured, norms[0], 4)  # documented disagreement
+    assert close_at_printed(find_row(summary, "‖Λ_1‖, Algorithm 1 gain after 99 steps").measured, norms[0], 4)
+    steady1 = find_row(summary, "‖Λ_1‖, steady-state gain")
+    assert steady1.paper == norms[0] and not close_at_printed(steady1.measured, norms[0], 4)  # documented disagreement
     for q in (2, 3):
-        assert _close(_row(summary, f"‖Λ_{q}‖").measured, norms[q - 1], 4)
+        assert close_at_printed(find_row(summary, f"‖Λ_{q}‖").measured, norms[q - 1], 4)
     typos = {(t["T"], tuple(t["entry"])): t for t in GRID["cases"]["typos"]["value"]}
     checked = 0
     for key, matrix in GRID["cases"]["T"]["value"].items():
@@ -187,23 +171,23 @@ def test_smartgrid_printed_values(runs):
             for c in (1, 2):
                 if matrix[r - 1][c - 1] == 0.0:
                     continue
-                row = _row(summary, f"T_{key}[{r},{c}]")
+                row = find_row(summary, f"T_{key}[{r},{c}]")
                 assert row.paper == matrix[r - 1][c - 1]
                 if (key, (r, c)) in typos:
-                    assert _close(row.measured, typos[key, (r, c)]["computed_at_printed_precision"], 4)
+                    assert close_at_printed(row.measured, typos[key, (r, c)]["computed_at_printed_precision"], 4)
                     assert row.ratio == pytest.approx(0.1, abs=0.01) and "slipped decimal" in row.note
                 else:
-                    assert _close(row.measured, row.paper, 4)
+                    assert close_at_printed(row.measured, row.paper, 4)
                 checked += 1
     assert checked == 10
-    assert _row(summary, "unstable components").measured == "{1}"
+    assert find_row(summary, "unstable components").measured == "{1}"
     region = GRID["cases"]["stable_region"]["value"]["zero"]
-    assert _row(summary, "Algorithm 2: λ forced to 0").measured == ", ".join(f"λ{k.replace(',', '')}"
+    assert find_row(summary, "Algorithm 2: λ forced to 0").measured == ", ".join(f"λ{k.replace(',', '')}"
                                                                             for k in sorted(region))
     outside = GRID["cases"]["fig7_setting_II"]["outside"]
-    assert _row(summary, "Fig. 7 Setting II: entries outside").measured == ", ".join(
+    assert find_row(summary, "Fig. 7 Setting II: entries outside").measured == ", ".join(
         f"λ{k.replace(',', '')}" for k in sorted(outside))
-    assert _row(summary, "Fig. 7 Setting I: entries outside").measured == "none"
+    assert find_row(summary, "Fig. 7 Setting I: entries outside").measured == "none"
 
 
 def test_smartgrid_fig7_bounded_inside_exploding_outside(runs):
@@ -228,4 +212,4 @@ def test_smartgrid_fig7_bounded_inside_exploding_outside(runs):
         seen.add(cfg["setting"])
     assert seen == {"I", "II"}
     for setting in ("I", "II"):
-        assert _row(summary, f"Fig. 7 Setting {setting}: largest |MC").measured < Z_MAX
+        assert find_row(summary, f"Fig. 7 Setting {setting}: largest |MC").measured < Z_MAX

@@ -165,8 +165,7 @@ class ImpulsiveObserverCertificate:
         """``P^i(theta) = P0^i + theta P1^i`` for ``theta (...)``, shape ``(..., L, n, n)``."""
         if self.P0 is None:
             raise ValueError("the certificate holds no P: the LMIs were not feasible")
-        theta = float_array(theta, "theta")
-        return self.P0 + theta[..., None, None, None] * self.P1
+        return _clock_affine(self.P0, self.P1, theta)
 
     def overshoot(self, N0: float = 1.0) -> float:
         """``M`` in ``||e(t)|| <= M exp(-beta t) ||e(0+)||`` (proof of Theorem 8, eqs (19)-(20)).
@@ -181,9 +180,7 @@ class ImpulsiveObserverCertificate:
         if not self.feasible:
             raise ValueError("no overshoot bound: the certificate is not feasible")
         N0 = positive_scalar(N0, "N0", allow_zero=True)
-        top = float(np.max(max_eigenvalue(self.P0)))
-        low = float(np.min(min_eigenvalue(self.P(np.array([0.0, self.tau_max])))))
-        return math.sqrt(self.mu_s**N0 * top / (min(self.mu_c, 1.0) * low))
+        return _overshoot(self.P0, self.P(np.array([0.0, self.tau_max])), N0 * math.log(self.mu_s), self.mu_c)
 
 
 @dataclass(frozen=True)
@@ -254,8 +251,7 @@ class ClosedLoopCertificate:
         """``Q^i(theta) = Q0^i + theta Q1^i`` for ``theta (...)``, shape ``(..., L, 2n, 2n)``."""
         if self.Q0 is None:
             raise ValueError("the certificate holds no Q: the LMIs were not feasible")
-        theta = float_array(theta, "theta")
-        return self.Q0 + theta[..., None, None, None] * self.Q1
+        return _clock_affine(self.Q0, self.Q1, theta)
 
     def overshoot(self, N0: float = 1.0) -> float:
         """``M`` in ``||z(t)|| <= M exp(-beta t) ||z(0+)||`` (proof of Theorem 10, corrected).
@@ -280,9 +276,21 @@ class ClosedLoopCertificate:
             k["tau_min"],
             k["delta"],
         )
-        top = float(np.max(max_eigenvalue(self.Q0)))
-        low = float(np.min(min_eigenvalue(self.Q(np.array([0.0, k["tau_max"]])))))
-        return math.sqrt(math.exp(N0 * cost) * top / (min(k["mu_c"], 1.0) * low))
+        return _overshoot(self.Q0, self.Q(np.array([0.0, k["tau_max"]])), N0 * cost, k["mu_c"])
+
+
+def _clock_affine(M0: np.ndarray, M1: np.ndarray, theta) -> np.ndarray:
+    """``M0^i + theta M1^i`` for ``theta (...)``: shape ``(..., L, k, k)`` (eq. (10))."""
+    theta = float_array(theta, "theta")
+    return M0 + theta[..., None, None, None] * M1
+
+
+def _overshoot(M0: np.ndarray, M_ends: np.ndarray, log_switch_cost: float, mu_c: float) -> float:
+    """``sqrt(exp(cost) theta_max / (min(mu_c, 1) theta_min))``: ``theta_max`` the largest eigenvalue
+    of the ``M0^i``, ``theta_min`` the smallest of ``M^i(theta)`` at the clock's two ends."""
+    top = float(np.max(max_eigenvalue(M0)))
+    low = float(np.min(min_eigenvalue(M_ends)))
+    return math.sqrt(math.exp(log_switch_cost) * top / (min(mu_c, 1.0) * low))
 
 
 # ---------------------------------------------------------------------- rates

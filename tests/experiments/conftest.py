@@ -1,0 +1,20 @@
+"""Shared by the reproduction tests: one quick run of the module's experiments."""
+
+import pytest
+
+from switchest.experiments import Store, get, run_experiment
+
+
+@pytest.fixture(scope="module")
+def runs(request, tmp_path_factory):
+    """``{name: (params, results, summary)}`` for each name in the test module's ``NAMES``,
+    run at the quick size into one temporary store."""
+    out = tmp_path_factory.mktemp(request.module.__name__.rsplit(".", 1)[-1])
+    store = Store(out / "results.sqlite")
+    done = {}
+    for name in request.module.NAMES:
+        exp = get(name)
+        params = exp.params(quick=True)
+        results = run_experiment(exp, params, store=store)
+        done[name] = (params, results, exp.summarize(params, results, out / "figures"))
+    return done
