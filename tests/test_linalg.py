@@ -5,7 +5,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from switchest._linalg import cholesky, cholesky_solve, joseph_update, log_normalize, psd_sqrt, symmetrize
+from switchest._linalg import (
+    congruence,
+    joseph_update,
+    log_normalize,
+    matvec,
+    mixture_moments,
+    mul,
+    psd_sqrt,
+    shared,
+    spd_solve,
+    symmetrize,
+)
 
 
 def random_psd(rng, shape, n, rank=None):
@@ -21,14 +32,67 @@ def test_psd_sqrt_reproduces_even_singular_matrices(seed, n, rank):
     np.testing.assert_allclose(S @ np.swapaxes(S, -1, -2), M, atol=1e-10 * (1 + np.abs(M).max()))
 
 
-def test_cholesky_solve_matches_solve_for_vectors_and_matrices():
-    rng = np.random.default_rng(0)
-    M = random_psd(rng, (4,), 3) + np.eye(3)
-    L = np.linalg.cholesky(M)
-    b = rng.standard_normal((4, 3))
-    np.testing.assert_allclose(cholesky_solve(L, b), np.linalg.solve(M, b[..., None])[..., 0], rtol=1e-10)
-    B = rng.standard_normal((4, 3, 2))
-    np.testing.assert_allclose(cholesky_solve(L, B), np.linalg.solve(M, B), rtol=1e-10)
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), m=st.integers(1, 10), k=st.integers(1, 4))
+def test_spd_solve_matches_lapack_and_refuses_indefinite(seed, m, k):
+    rng = np.random.default_rng(seed)
+    S = random_psd(rng, (5,), m) + 0.1 * np.eye(m)
+    B = rng.standard_normal((5, m, k))
+    X, logdet = spd_solve(S, B)
+    np.testing.assert_allclose(S @ X, B, atol=1e-9 * (1 + np.abs(B).max()) * np.linalg.cond(S).max())
+    np.testing.assert_allclose(logdet, np.linalg.slogdet(S)[1], rtol=1e-10, atol=1e-10)
+    bad = S.copy()
+    bad[2] = -np.eye(m)
+    with pytest.raises(np.linalg.LinAlgError):
+        spd_solve(bad, B)
+
+
+def test_spd_solve_broadcasts_and_reads_the_lower_triangle_only():
+    rng = np.random.default_rng(3)
+    S = random_psd(rng, (), 3) + np.eye(3)
+    B = rng.standard_normal((2, 4, 3, 2))
+    upper_garbage = S + np.triu(np.full((3, 3), 7.0), 1)
+    X, logdet = spd_solve(upper_garbage, B)
+    assert X.shape == (2, 4, 3, 2) and logdet.shape == (2, 4)
+    np.testing.assert_allclose(X, np.linalg.solve(S, B), rtol=1e-10)
+
+
+def test_shared_factor_products_equal_the_stacked_ones():
+    rng = np.random.default_rng(4)
+    A = rng.standard_normal((6, 3, 4, 2))
+    B = rng.standard_normal((2, 5))
+    v = rng.standard_normal((6, 3, 5))
+    M = rng.standard_normal((4, 5))
+    P = random_psd(rng, (6, 3), 5)
+    F = rng.standard_normal((5, 5))
+    np.testing.assert_allclose(mul(A, B), A @ np.broadcast_to(B, (3, 2, 5)), rtol=1e-12)
+    np.testing.assert_allclose(matvec(M, v), (np.broadcast_to(M, (3, 4, 5)) @ v[..., None])[..., 0], rtol=1e-12)
+    np.testing.assert_allclose(congruence(F, P), congruence(np.broadcast_to(F, (3, 5, 5)), P), rtol=1e-11)
+    np.testing.assert_allclose(congruence(F, P), F @ P @ F.T, rtol=1e-11)
+
+
+def test_shared_collapses_only_identical_stacks():
+    same = np.broadcast_to(np.arange(4.0).reshape(2, 2), (3, 2, 2))
+    assert shared(same).shape == (2, 2)
+    different = same.copy()
+    different[2, 0, 0] = 1.0
+    assert shared(different) is different
+
+
+def test_mixture_moments_match_the_definition_far_from_the_origin():
+    rng = np.random.default_rng(5)
+    x = 1e6 + rng.standard_normal((2, 3, 4))
+    P = random_psd(rng, (2, 3), 4)
+    w = rng.dirichlet(np.ones(3), size=(2, 2)).transpose(0, 2, 1)  # (2, I=3, J=2), columns sum to 1
+    m, S = mixture_moments(w, x, P)
+    for b in range(2):
+        for j in range(2):
+            mean = w[b, :, j] @ x[b]
+            d = x[b] - mean
+            cov = sum(w[b, i, j] * (P[b, i] + np.outer(d[i], d[i])) for i in range(3))
+            np.testing.assert_allclose(m[b, j], mean, rtol=1e-14)
+            np.testing.assert_allclose(S[b, j], cov, rtol=1e-9, atol=1e-9)
+    np.testing.assert_array_equal(S, np.swapaxes(S, -1, -2))
 
 
 def test_joseph_form_equals_standard_form_at_the_optimal_gain_and_stays_psd_otherwise():
@@ -58,13 +122,11 @@ def test_symmetrize():
     np.testing.assert_array_equal(symmetrize(M), np.swapaxes(symmetrize(M), -1, -2))
 
 
-@settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**31), m=st.integers(1, 10))
-def test_cholesky_matches_lapack_and_refuses_indefinite(seed, m):
-    rng = np.random.default_rng(seed)
-    S = random_psd(rng, (5,), m) + 0.1 * np.eye(m)
-    np.testing.assert_allclose(cholesky(S), np.linalg.cholesky(S), rtol=1e-10, atol=1e-12)
-    bad = S.copy()
-    bad[2] = -np.eye(m)
-    with pytest.raises(np.linalg.LinAlgError):
-        cholesky(bad)
+def test_log_normalize_over_a_long_axis_and_a_middle_axis():
+    rng = np.random.default_rng(6)
+    for shape, axis in [((3, 40), -1), ((4, 5, 6), 1)]:
+        w = rng.standard_normal(shape) * 50
+        out, total = log_normalize(w, axis=axis)
+        ref = np.log(np.sum(np.exp(w - w.max()), axis=axis)) + w.max()
+        np.testing.assert_allclose(total, ref, rtol=1e-12)
+        np.testing.assert_allclose(np.exp(out).sum(axis=axis), 1.0, rtol=1e-12)

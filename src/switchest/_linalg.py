@@ -9,14 +9,14 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "cholesky",
     "matvec",
+    "mul",
+    "shared",
+    "congruence",
     "transpose",
     "symmetrize",
     "psd_sqrt",
-    "solve_lower",
-    "solve_upper",
-    "cholesky_solve",
+    "spd_solve",
     "joseph_update",
     "mixture_moments",
     "log_normalize",
@@ -24,8 +24,47 @@ __all__ = [
 
 
 def matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``M @ v`` for stacks of matrices ``(..., a, b)`` and vectors ``(..., b)``, broadcast."""
+    """``M @ v`` for stacks of matrices ``(..., a, b)`` and vectors ``(..., b)``, broadcast.
+
+    A 2-D ``M`` shared by the whole stack of vectors is applied by one matrix product.
+    """
+    if M.ndim == 2:
+        return (v.reshape(-1, v.shape[-1]) @ M.T).reshape(*v.shape[:-1], M.shape[0])
     return (M @ v[..., None])[..., 0]
+
+
+def mul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A @ B`` for a stack ``A (..., a, b)``; a 2-D ``B`` shared by the stack is one GEMM.
+
+    numpy multiplies a stack matrix by matrix, with a fixed cost per matrix that
+    dominates for the small matrices of a filter; a right factor common to the
+    whole stack is applied to all rows of ``A`` at once instead.
+    """
+    if B.ndim == 2 and A.ndim > 2:
+        return (A.reshape(-1, A.shape[-1]) @ B).reshape(*A.shape[:-1], B.shape[-1])
+    return A @ B
+
+
+def shared(M: np.ndarray) -> np.ndarray:
+    """``M[0]`` when every matrix of a stack ``M (L, a, b)`` is the same, else ``M``.
+
+    Filters pass a matrix all modes share (an output matrix, the dynamics of modes
+    that differ only in their input) as one 2-D matrix, which :func:`mul`,
+    :func:`matvec` and :func:`congruence` apply to a whole stack at once.
+    """
+    return M[0] if M.ndim == 3 and np.all(M == M[:1]) else M
+
+
+def congruence(F: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """``F P F'`` for a stack of symmetric ``P`` (not re-symmetrized).
+
+    A 2-D ``F`` shared by the stack takes two shared-factor products,
+    ``(F P) F' = (P F')' F'`` (``P`` symmetric); otherwise ``F @ P @ F'``.
+    """
+    Ft = transpose(F)
+    if F.ndim == 2:
+        return mul(transpose(mul(P, Ft)), Ft)
+    return F @ P @ Ft
 
 
 def transpose(M: np.ndarray) -> np.ndarray:
@@ -54,66 +93,50 @@ def psd_sqrt(M: np.ndarray) -> np.ndarray:
     return V * np.sqrt(np.clip(w, 0.0, None))[..., None, :]
 
 
-def cholesky(S: np.ndarray) -> np.ndarray:
-    """Lower Cholesky factors of a stack of symmetric positive definite matrices.
+def spd_solve(S: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Solve ``S X = B`` for a stack of symmetric positive definite ``S`` by Cholesky; return ``X, log det S``.
 
-    For the small innovation covariances of measurement updates (``m <= 8``) the
-    factorization runs column by column, vectorized over the whole stack —
-    ``numpy.linalg.cholesky`` spends most of its time per matrix on call overhead
-    there; larger matrices go to LAPACK. Only the lower triangle of ``S`` is read.
+    ``S (..., m, m)`` (only its lower triangle is read), ``B (..., m, k)``;
+    leading axes broadcast. ``S = L L'`` is factorized column by column and
+    ``X = L'^-1 L^-1 B`` follows by forward and back substitution — no inverse —
+    with ``log det S = 2 sum log L_ii``. The loops run over matrix entries while
+    every operation is vectorized over the whole stack, which is laid out with
+    the stack axis last (contiguous): for the small ``m`` of measurement vectors
+    that is several times faster than one LAPACK call per matrix.
     Raises ``numpy.linalg.LinAlgError`` if a matrix is not positive definite.
     """
-    m = S.shape[-1]
-    if m > 8:
-        return np.linalg.cholesky(S)
-    L = np.zeros_like(S)
+    m, k = S.shape[-1], B.shape[-1]
+    shape = np.broadcast_shapes(S.shape[:-2], B.shape[:-2])
+    St = _stack_last(np.broadcast_to(S, (*shape, m, m)))  # (m, m, N)
+    X = _stack_last(np.broadcast_to(B, (*shape, m, k))).copy()  # (m, k, N), overwritten in place
+    L = np.zeros_like(St)
     for j in range(m):
-        d = S[..., j, j] - np.sum(L[..., j, :j] ** 2, axis=-1)
+        d = St[j, j].copy()
+        for p in range(j):
+            d -= L[j, p] ** 2
         if not np.all(d > 0):
             raise np.linalg.LinAlgError("Matrix is not positive definite")
-        L[..., j, j] = np.sqrt(d)
-        if j + 1 < m:
-            below = S[..., j + 1 :, j] - (L[..., j + 1 :, :j] @ L[..., j, :j, None])[..., 0]
-            L[..., j + 1 :, j] = below / L[..., j, j, None]
-    return L
+        L[j, j] = np.sqrt(d)
+        for i in range(j + 1, m):
+            L[i, j] = St[i, j]
+            for p in range(j):
+                L[i, j] -= L[i, p] * L[j, p]
+            L[i, j] /= L[j, j]
+    for i in range(m):  # forward: L Y = B
+        for p in range(i):
+            X[i] -= L[i, p] * X[p]
+        X[i] /= L[i, i]
+    for i in reversed(range(m)):  # back: L' X = Y
+        for p in range(i + 1, m):
+            X[i] -= L[p, i] * X[p]
+        X[i] /= L[i, i]
+    logdet = 2.0 * np.sum(np.log(L[np.arange(m), np.arange(m)]), axis=0)
+    return np.ascontiguousarray(np.moveaxis(X, -1, 0)).reshape(*shape, m, k), logdet.reshape(shape)
 
 
-def solve_lower(L: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Solve ``L X = B`` for stacks of lower-triangular ``L (..., m, m)``, ``B (..., m, k)``.
-
-    Forward substitution, one row at a time but vectorized over the whole stack:
-    for the small ``m`` of measurement vectors this is several times faster than
-    ``numpy.linalg.solve`` (a general LU per matrix) and exploits the triangle.
-    """
-    m = L.shape[-1]
-    X = np.empty(np.broadcast_shapes(L.shape[:-2], B.shape[:-2]) + B.shape[-2:])
-    for i in range(m):
-        acc = B[..., i, :] - (L[..., i : i + 1, :i] @ X[..., :i, :])[..., 0, :] if i else B[..., i, :]
-        X[..., i, :] = acc / L[..., i, i, None]
-    return X
-
-
-def solve_upper(U: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Solve ``U X = B`` for stacks of upper-triangular ``U`` by back substitution."""
-    m = U.shape[-1]
-    X = np.empty(np.broadcast_shapes(U.shape[:-2], B.shape[:-2]) + B.shape[-2:])
-    for i in range(m - 1, -1, -1):
-        acc = B[..., i, :] - (U[..., i : i + 1, i + 1 :] @ X[..., i + 1 :, :])[..., 0, :] if i < m - 1 \
-            else B[..., i, :]
-        X[..., i, :] = acc / U[..., i, i, None]
-    return X
-
-
-def cholesky_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve ``(L L') x = b`` for a stack of lower Cholesky factors ``L``.
-
-    ``b`` has shape ``(..., m)`` or ``(..., m, k)`` matching ``L``'s ``(..., m, m)``.
-    Two triangular substitutions, no inverse.
-    """
-    vector = b.ndim == L.ndim - 1
-    rhs = b[..., None] if vector else b
-    x = solve_upper(transpose(L), solve_lower(L, rhs))
-    return x[..., 0] if vector else x
+def _stack_last(M: np.ndarray) -> np.ndarray:
+    """A stack ``(..., a, b)`` as one contiguous array ``(a, b, N)`` with the stack last."""
+    return np.ascontiguousarray(np.moveaxis(M.reshape(-1, *M.shape[-2:]), 0, -1))
 
 
 def joseph_update(P: np.ndarray, K: np.ndarray, C: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -121,30 +144,28 @@ def joseph_update(P: np.ndarray, K: np.ndarray, C: np.ndarray, R: np.ndarray) ->
 
     ``P+ = (I - K C) P (I - K C)' + K R K'`` — valid for any gain, optimal or not,
     and symmetric positive semidefinite by construction (re-symmetrized on return).
+    ``C`` and ``R`` may be 2-D, shared by the stack.
     """
     n = P.shape[-1]
-    IKC = np.eye(n) - K @ C
-    out = IKC @ P @ transpose(IKC) + K @ R @ transpose(K)
+    IKC = np.eye(n) - mul(K, C)
+    out = IKC @ P @ transpose(IKC) + mul(K, R) @ transpose(K)
     return symmetrize(out)
 
 
 def mixture_moments(w: np.ndarray, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Moments of Gaussian mixtures: ``m_j = sum_i w_ij x_i``, ``S_j = sum_i w_ij (P_i + (x_i - m_j)(x_i - m_j)')``.
+    """Moments of Gaussian mixtures: ``m_j = sum_i w_ij x_i``, ``S_j = sum_i w_ij (P_i + d_ij d_ij')``.
 
     ``w (..., I, J)`` are weights over components i for each mixture j (columns sum
-    to one), ``x (..., I, n)``, ``P (..., I, n, n)``. Computed with matrix products
-    as ``sum_i w_ij (P_i + d_i d_i') - e_j e_j'`` around a reference point (the first
-    component, ``d_i = x_i - x_0``, ``e_j = m_j - x_0``), which is exact and keeps
-    the cancellation to the spread of the components, not their size.
+    to one), ``x (..., I, n)``, ``P (..., I, n, n)``; ``d_ij = x_i - m_j`` are the
+    deviations from each mixture's own mean, so nothing cancels however large the
+    means are. Every sum over components is a matrix product.
     """
     n = x.shape[-1]
     wt = transpose(w)  # (..., J, I)
-    ref = x[..., :1, :]
-    d = x - ref
     m = wt @ x
-    second = (P + d[..., :, None] * d[..., None, :]).reshape(*P.shape[:-2], n * n)
-    e = m - ref
-    S = (wt @ second).reshape(*m.shape, n) - e[..., :, None] * e[..., None, :]
+    d = x[..., None, :, :] - m[..., :, None, :]  # (..., J, I, n)
+    spread = transpose(d * wt[..., None]) @ d
+    S = (wt @ P.reshape(*P.shape[:-2], n * n)).reshape(*m.shape, n) + spread
     return m, symmetrize(S)
 
 
@@ -157,9 +178,23 @@ def log_normalize(log_w: np.ndarray, axis: int = -1) -> tuple[np.ndarray, np.nda
     ``-inf`` rather than becoming NaN. (A few numpy lines instead of
     ``scipy.special.logsumexp``, whose per-call overhead dominates a filter step.)
     """
-    top = np.max(log_w, axis=axis, keepdims=True)
-    top = np.where(np.isfinite(top), top, 0.0)
+    a = np.moveaxis(log_w, axis, 0)
+    top = _fold(np.maximum, a)
+    if not np.all(np.isfinite(top)):
+        top = np.where(np.isfinite(top), top, 0.0)
+    shifted = a - top
     with np.errstate(divide="ignore"):
-        total = top + np.log(np.sum(np.exp(log_w - top), axis=axis, keepdims=True))
-    safe = np.where(np.isfinite(total), total, 0.0)
-    return log_w - safe, np.squeeze(total, axis=axis)
+        log_sum = np.log(_fold(np.add, np.exp(shifted)))
+    out = shifted - np.where(np.isfinite(log_sum), log_sum, 0.0)
+    return np.moveaxis(out, 0, axis), top + log_sum
+
+
+def _fold(ufunc: np.ufunc, a: np.ndarray) -> np.ndarray:
+    """``ufunc.reduce(a, axis=0)``; slice by slice for a short axis (the few modes or
+    grid points of a filter), where a numpy reduction costs several times more."""
+    if a.shape[0] > 16:
+        return ufunc.reduce(a, axis=0)
+    out = a[0]
+    for row in a[1:]:
+        out = ufunc(out, row)
+    return out

@@ -79,14 +79,16 @@ class Estimator:
         """
         N, K, _ = y.shape
         state = self.init((N,))
-        outputs = []
+        fields: dict[str, np.ndarray] = {}
         for k in range(K):
             extra = {key: val[:, k] for key, val in (per_step or {}).items()}
             dt = None if k == 0 else t[k] - t[k - 1]
             u_prev = u[:, k - 1] if k else u[:, 0]
             state = self.step(state, y[:, k], u_prev, dt=dt, **extra)
-            outputs.append(self._output(state))
-        fields = {name: np.stack([o[name] for o in outputs], axis=1) for name in outputs[0]}
+            for name, value in self._output(state).items():
+                if k == 0:  # outputs are written in place: no list of K arrays to stack at the end
+                    fields[name] = np.empty((N, K, *value.shape[1:]), dtype=value.dtype)
+                fields[name][:, k] = value
         return Estimate(**fields)
 
     def _prepare(self, y, u, t):

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_probability_vector, check_row_stochastic
-from .._linalg import log_normalize, mixture_moments
+from .._linalg import log_normalize, mixture_moments, shared
 from ..discretize import mode_steps
 from .base import Estimate, Estimator
 from .kalman import kf_predict, kf_update
@@ -55,13 +55,12 @@ def imm_mix(x, P, log_prob, log_transition):
 def imm_combine(x, P, prob):
     """Combined estimate ``x = sum_j mu_j x_j``, ``P = sum_j mu_j (P_j + (x_j - x)(x_j - x)')``.
 
-    Weighted sums over the mode axis by broadcasting: one mixture per sample, for
-    every sample of a run at once.
+    The moments of the mixture of the mode-matched posteriors ``x (..., L, n)``,
+    ``P (..., L, n, n)`` with weights ``prob (..., L)`` (Bar-Shalom, Li &
+    Kirubarajan §11.6.6, the output step of the IMM).
     """
-    xc = np.sum(prob[..., None] * x, axis=-2)
-    d = x - xc[..., None, :]
-    Pc = np.sum(prob[..., None, None] * (P + d[..., :, None] * d[..., None, :]), axis=-3)
-    return xc, Pc
+    xc, Pc = mixture_moments(prob[..., :, None], x, P)
+    return xc[..., 0, :], Pc[..., 0, :, :]
 
 
 class IMMFilter(Estimator):
@@ -87,6 +86,7 @@ class IMMFilter(Estimator):
         with np.errstate(divide="ignore"):
             self._log_transition = np.log(self.transition)
             self._log_p0 = np.log(self.mode_prob0)
+        self._C, self._R = shared(system.C), shared(system.R)  # one matrix for all modes if they agree
 
     def init(self, batch_shape=()) -> IMMState:
         """Every mode-matched filter starts from the prior ``(x0, P0)``."""
@@ -107,23 +107,19 @@ class IMMFilter(Estimator):
             steps = mode_steps(sys, dt)
             if u is None:
                 u = np.zeros((*x.shape[:-2], sys.n_inputs))
-            x, P = kf_predict(x, P, steps.F, steps.G, u[..., None, :], steps.Qd)
-        x, P, ll = kf_update(x, P, y[..., None, :], sys.C, sys.R)
+            x, P = kf_predict(x, P, shared(steps.F), steps.G, u[..., None, :], shared(steps.Qd))
+        x, P, ll = kf_update(x, P, y[..., None, :], self._C, self._R)
         log_prob, total = log_normalize(log_c + ll)  # mu_j ∝ c_j Lambda_j
         return IMMState(x, P, log_prob, total)
 
     def _output(self, state: IMMState) -> dict[str, np.ndarray]:
-        # mode-matched moments per sample; run() combines them for all samples at once,
-        # one large product instead of one small one per step
-        return {"x": state.x, "P": state.P, "mode_prob": np.exp(state.log_prob),
-                "mode": np.argmax(state.log_prob, axis=-1), "loglik": state.loglik}
+        prob = np.exp(state.log_prob)
+        x, P = imm_combine(state.x, state.P, prob)
+        return {"x": x, "P": P, "mode_prob": prob, "mode": np.argmax(state.log_prob, axis=-1),
+                "loglik": state.loglik}
 
     def run(self, y, u=None, t=None) -> Estimate:
         """Filter ``y (..., K, m)``; returns combined ``x``, ``P``, ``mode_prob`` and the
         most probable ``mode`` at each sample."""
         y2, u2, t, batch = self._prepare(y, u, t)
-        per_mode = self._loop(y2, u2, t)
-        x, P = imm_combine(per_mode.x, per_mode.P, per_mode.mode_prob)
-        est = Estimate(x=x, P=P, mode_prob=per_mode.mode_prob, mode=per_mode.mode, loglik=per_mode.loglik)
-        return self._unflatten(est, batch)
-
+        return self._unflatten(self._loop(y2, u2, t), batch)

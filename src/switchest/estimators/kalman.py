@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
-from .._linalg import cholesky, joseph_update, matvec, solve_lower, solve_upper, symmetrize, transpose
+from .._linalg import congruence, joseph_update, matvec, mul, spd_solve, symmetrize, transpose
 
 __all__ = ["kf_predict", "kf_update", "steady_state_gain"]
 
@@ -21,12 +21,13 @@ def kf_predict(x, P, F, G, u, Qd, *, inflation: float = 0.0):
 
     Shankar et al. eqs (6)-(7) with the process noise of the exact discretization
     added; ``inflation`` is the ``epsilon I`` of their Algorithm 1 (§IV). Shapes
-    broadcast over leading axes; ``u`` may have a zero-length last axis.
+    broadcast over leading axes (a 2-D ``F`` or ``Qd`` is shared by the whole
+    stack); ``u`` may have a zero-length last axis.
     """
     x_pred = matvec(F, x)
     if u.shape[-1]:
         x_pred = x_pred + matvec(G, u)
-    P_pred = F @ P @ transpose(F) + Qd
+    P_pred = congruence(F, P) + Qd
     if inflation:
         P_pred = P_pred + inflation * np.eye(P.shape[-1])
     return x_pred, symmetrize(P_pred)
@@ -35,7 +36,7 @@ def kf_predict(x, P, F, G, u, Qd, *, inflation: float = 0.0):
 def kf_update(x, P, y, C, R):
     """Measurement update with innovation log-likelihood; NaN entries of ``y`` are missing.
 
-    ``S = C P C' + R``, ``K = P C' S^-1`` by Cholesky solves (no inverse),
+    ``S = C P C' + R``, ``K = P C' S^-1`` by a Cholesky solve (no inverse),
     ``x+ = x + K (y - C x)``, and the covariance in Joseph form
     ``P+ = (I - K C) P (I - K C)' + K R K'`` (Shankar et al. eqs (8)-(10) in their
     numerically stable form). The log-likelihood is
@@ -44,7 +45,7 @@ def kf_update(x, P, y, C, R):
     A missing component (NaN) is removed exactly: its row of ``C`` is zeroed and
     its noise decoupled, so the update uses the observed components only and the
     log-likelihood is that of their marginal. An all-NaN ``y`` leaves ``x, P``
-    unchanged with log-likelihood 0.
+    unchanged with log-likelihood 0. A 2-D ``C`` or ``R`` is shared by the whole stack.
 
     Returns
     -------
@@ -62,25 +63,22 @@ def kf_update(x, P, y, C, R):
         pair = keep[..., :, None] & keep[..., None, :]
         R = np.where(pair, R, 0.0) + np.where(missing, 1.0, 0.0)[..., None] * np.eye(m)
     e = y - matvec(C, x)
-    PCt = P @ transpose(C)
-    S = C @ PCt + R  # Cholesky reads its lower triangle only
+    PCt = mul(P, transpose(C))
+    CP = transpose(PCt)  # P symmetric
+    S = mul(CP, transpose(C)) + R  # the Cholesky factorization reads its lower triangle only
     try:
-        Ls = cholesky(S)
+        # one solve with S gives both K' = S^-1 C P and S^-1 e
+        X, logdet = spd_solve(S, np.concatenate([CP, e[..., None]], axis=-1))
     except np.linalg.LinAlgError as exc:
         raise np.linalg.LinAlgError(
             "innovation covariance C P C' + R is not positive definite: give the system a "
             "measurement noise R or the filter a positive definite P0"
         ) from exc
-    # one forward substitution gives Ls^-1 [C P | e]: the whitened innovation z = Ls^-1 e
-    # and W = Ls^-1 C P, from which K' = S^-1 C P = Ls'^-1 W by one back substitution
-    We = solve_lower(Ls, np.concatenate([transpose(PCt), e[..., None]], axis=-1))
-    z = We[..., -1]
-    K = transpose(solve_upper(transpose(Ls), We[..., :-1]))
-    loglik = -0.5 * (np.sum(z**2, axis=-1) + 2 * np.sum(np.log(np.diagonal(Ls, axis1=-2, axis2=-1)), axis=-1)
-                     + m * _LOG_2PI)
+    K, Sinv_e = transpose(X[..., :-1]), X[..., -1]
+    loglik = -0.5 * (np.sum(e * Sinv_e, axis=-1) + logdet + m * _LOG_2PI)
     if missing.any():
         loglik = loglik + 0.5 * missing.sum(axis=-1) * _LOG_2PI  # the decoupled unit blocks
-    x_new = x + matvec(K, e)
+    x_new = x + matvec(PCt, Sinv_e)  # K e = P C' S^-1 e
     P_new = joseph_update(P, K, C, R)
     return x_new, P_new, loglik
 
