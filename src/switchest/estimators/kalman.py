@@ -75,7 +75,7 @@ def kf_update(x, P, y, C, R):
             "measurement noise R or the filter a positive definite P0"
         ) from exc
     K, Sinv_e = transpose(X[..., :-1]), X[..., -1]
-    loglik = -0.5 * (np.sum(e * Sinv_e, axis=-1) + logdet + m * _LOG_2PI)
+    loglik = -0.5 * (np.einsum("...i,...i->...", e, Sinv_e) + logdet + m * _LOG_2PI)
     if missing.any():
         loglik = loglik + 0.5 * missing.sum(axis=-1) * _LOG_2PI  # the decoupled unit blocks
     x_new = x + matvec(PCt, Sinv_e)  # K e = P C' S^-1 e
