@@ -442,16 +442,9 @@ class MinimumDistanceDetector(Estimator):
             ``x (..., K, n)``, ``mode (..., K)``, ``switch_time (..., K)``; ``P`` is None.
         """
         y2, u2, t, batch = self._prepare(y, u, t)
-        N, K, _ = y2.shape
-        state = self.init((N,))
-        out = []
-        for k in range(K):
-            state = self.step(state, y2[:, k], u2[:, max(k - 1, 0)], dt=None if k == 0 else t[k] - t[k - 1])
-            out.append(self._output(state))
-        fields = {name: np.stack([o[name] for o in out], axis=1) for name in out[0]}
-        switch = np.where(np.isnan(fields["switch_time"]), np.nan, t[None, :])  # the grid instants
-        est = Estimate(x=fields["x"], P=None, mode=fields["mode"], switch_time=switch)
-        return self._unflatten(est, batch)
+        est = self._loop(y2, u2, t)
+        switch = np.where(np.isnan(est.switch_time), np.nan, t[None, :])  # the grid instants
+        return self._unflatten(replace(est, switch_time=switch), batch)
 
     def estimate_window(self, y, u=None, t=None) -> WindowEstimate:
         """Lee et al. (5)-(8) on one window: ``y (..., K, m)`` on ``t`` spanning exactly ``delta``.
