@@ -1,12 +1,17 @@
 """switchest check: runs on every catalog model and agrees with what the papers state."""
 
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from switchest.certify import certify
+from switchest.analysis import lee_assumptions
+from switchest.analysis import decay_observer_gains
+from switchest.certify import _lee, certify
 from switchest.cli import main
 from switchest.models.catalog import catalog
+from switchest.models.lee import LEE_SCENARIO
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "models"
 
@@ -72,3 +77,70 @@ def test_etienne_theorem_8_certifies_at_least_the_paper_rate():
 def test_ieee_5bus_critical_interval_is_the_printed_0_7365():
     check = {c.name: c for c in certify(catalog()["wang-ieee5bus"])}["critical switching interval T_max (i.i.d. modes)"]
     assert "T_max = 0.7365" in check.detail and check.verdict is True
+
+
+LEE_CHECK = "Lee's assumptions for the given noise bounds"
+
+
+def lee_check(drop=(), **noise):
+    """The Lee check on lee-fsk with noise-table entries dropped or replaced."""
+    spec = catalog()["lee-fsk"]
+    kept = {k: v for k, v in spec.noise.items() if k not in drop}
+    return _lee(replace(spec, noise={**kept, **noise}))
+
+
+def test_lee_check_gives_the_lee_detection_analysis(all_checks):
+    # the lee-detection experiment's quantities: x_min = |x0| - ||b|| u_max horizon, L_i = A_i + 40 I
+    s = LEE_SCENARIO
+    ref = lee_assumptions(s.system(), u_max=s.u_max, v_max=s.v_max, x_min=s.x_min(), delta=s.delta, Delta=s.Delta,
+                          observer_gains=s.observer_gains, min_dwell=s.min_dwell)
+    np.testing.assert_allclose(decay_observer_gains(s.system(), s.observer_decay), s.observer_gains, rtol=0, atol=1e-12)
+    check = {c.name: c for c in all_checks["lee-fsk"]}[LEE_CHECK]
+    assert ref.holds is True and check.verdict is True
+    assert check.margin == pytest.approx(ref.v_max_allowed - s.v_max, rel=1e-9) and check.margin > 0
+    assert f"allowed {ref.v_max_allowed:.4g}" in check.detail and "delta = 0.25 s, Delta = 1 s given" in check.detail
+
+
+@pytest.mark.parametrize("v_max, failing", [(10.0, "(3), (4)"), (0.11, "(4)")])
+def test_lee_check_fails_above_the_allowed_noise_bound(v_max, failing):
+    check = lee_check(v_max=v_max)
+    assert check.verdict is False and check.margin < 0 and f"fail: {failing} at v_max = {v_max:g}" in check.detail
+
+
+def test_lee_check_with_default_gains_allows_less_noise():
+    # pole placement at twice the mode frequencies (lambda_hat = 4 pi) gives E_hat 2.7 instead of 1.05
+    checks = [lee_check(drop=("observer_decay",), v_max=v) for v in (0.1, 0.02)]
+    assert [c.verdict for c in checks] == [False, True]
+    assert checks[0].margin == pytest.approx(checks[1].margin - 0.08, abs=1e-12)
+
+
+def test_lee_check_finds_the_smallest_windows_when_none_are_given():
+    found = lee_check(drop=("delta", "Delta"))
+    assert found.verdict is True and "the smallest satisfying (3)-(4)" in found.detail
+    too_noisy = lee_check(drop=("delta", "Delta"), v_max=10.0)
+    assert too_noisy.verdict is False and "no window up to 1.3 s satisfies (3)" in too_noisy.detail
+
+
+def test_lee_check_does_not_apply_without_a_noise_bound(all_checks):
+    check = {c.name: c for c in all_checks["shankar-vehicle"]}[LEE_CHECK]
+    assert check.verdict is None and "noise.v_max" in check.detail
+
+
+def test_cli_check_reports_lee_on_the_lee_model(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "250")
+    assert main(["check", "--model", str(EXAMPLES / "lee-fsk.toml")]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if LEE_CHECK in line)
+    assert "holds" in row
+
+
+@pytest.mark.parametrize("switching, verdict, note", [
+    ({"kind": "schedule", "times": [2.0, 4.0], "modes": [0, 1, 0]}, True, "dwell 2 s > delta + Delta = 1.25 s"),
+    ({"kind": "dwell", "min_dwell": 1.2, "max_dwell": 2.0}, False, "dwell 1.2 s <= delta + Delta = 1.25 s"),
+    ({"kind": "iid", "p": [0.5, 0.5]}, False, "dwell 0.0025 s <= delta + Delta"),  # one sampling interval
+    ({"kind": "markov-continuous", "rates": [[-1.0, 1.0], [1.0, -1.0]]}, False, "no minimum dwell time"),
+    ({}, True, "Assumption 3: not checked"),
+])
+def test_lee_check_reads_assumption_3_from_the_switching_model(switching, verdict, note):
+    spec = catalog()["lee-fsk"]
+    check = _lee(replace(spec, switching=switching))
+    assert check.verdict is verdict and note in check.detail

@@ -15,12 +15,15 @@ import numpy as np
 
 from .analysis import (
     combined_observability,
-    critical_interval,
     cqlf,
+    critical_interval,
+    decay_observer_gains,
     dwell_time_observability,
     impulsive_observer_search,
     joint_observability,
     jsr_bounds,
+    lee_assumptions,
+    lee_windows,
     mismatch_dynamics,
     mode_observability,
     ms_stable_iid,
@@ -28,6 +31,7 @@ from .analysis import (
 )
 from .discretize import mode_steps
 from .modelfile import ModelSpec
+from .signals import schedule
 
 __all__ = ["Check", "certify", "CHECKS"]
 
@@ -73,6 +77,84 @@ def _joint(spec: ModelSpec) -> Check:
     r = joint_observability(spec.system)
     detail = "rank [O_i O_j] = 2n for every pair" if r.holds else f"fails for pairs {list(r.failing_pairs)}"
     return Check("joint observability of mode pairs", "Lee Assumption 1", bool(r.holds), detail)
+
+
+def _lee(spec: ModelSpec) -> Check:
+    """Lee, Ping & Shim Assumption 1, conditions (3)-(4) and Assumption 3 for the ``[noise]`` bounds.
+
+    Reads from the noise table ``v_max`` (eq. (2); without it the check does not apply),
+    ``x_min`` (a lower bound on ``|x(t)|``, at which (3)-(4) are evaluated), ``u_max``
+    (needed when the system has inputs) and the detector design where given: the
+    windows ``delta``, ``Delta`` (otherwise the smallest multiples of the sampling
+    period satisfying (3) and (4), :func:`~switchest.analysis.lee_windows`) and
+    ``observer_decay`` (gains of :func:`~switchest.analysis.lee.decay_observer_gains`; otherwise
+    :func:`~switchest.analysis.lee.default_observer_gains`). Assumption 3 is checked
+    against the switching model's dwell time (:func:`_lee_dwell`). The margin is
+    ``v_max_allowed - v_max``: positive exactly when (3) and (4) hold.
+    """
+    name, paper = "Lee's assumptions for the given noise bounds", "Lee Assumptions 1-3, conditions (3)-(4)"
+    system, noise = spec.system, spec.noise
+    if not system.is_continuous or system.n_modes < 2 or "v_max" not in noise:
+        return Check(name, paper, None, "applies to continuous-time systems with two or more modes and a noise "
+                                        "bound noise.v_max")
+    needed = ["x_min"] + (["u_max"] if system.n_inputs else [])
+    missing = [k for k in needed if k not in noise]
+    if missing:
+        return Check(name, paper, None, f"needs noise.{missing[0]} besides noise.v_max")
+    modes = mode_observability(system)
+    if not modes.holds:
+        return Check(name, paper, False, f"mode(s) {[i for i, ok in enumerate(modes.observable) if not ok]} "
+                                         "unobservable: Lee §II needs every mode observable")
+    bounds = {"u_max": noise.get("u_max", 0.0), "v_max": noise["v_max"], "x_min": noise["x_min"]}
+    decay = noise.get("observer_decay")
+    gains = None if decay is None else decay_observer_gains(system, decay)
+    dwell, dwell_verdict, dwell_note = _lee_dwell(spec)
+    if "delta" in noise and "Delta" in noise:
+        delta, Delta, windows = noise["delta"], noise["Delta"], "given"
+    else:
+        t_max = dwell.get("min_dwell", 10.0)
+        w = lee_windows(system, **bounds, observer_gains=gains, t_max=t_max, step=spec.sampling.get("period"))
+        if not w.found:
+            failing = "(3)" if w.delta is None else f"(4) (with delta = {w.delta:g} s)"
+            return Check(name, paper, False, f"no window up to {t_max:g} s satisfies {failing} at v_max = "
+                                             f"{bounds['v_max']:g}, x_min = {bounds['x_min']:g}")
+        delta, Delta, windows = w.delta, w.Delta, "the smallest satisfying (3)-(4)"
+    a = lee_assumptions(system, **bounds, delta=delta, Delta=Delta, observer_gains=gains, **dwell)
+    k = a.constants
+    a3 = a.assumption3
+    if a3 is not None:
+        dwell_verdict = a3.holds
+        dwell_note = f"dwell {a3.lhs:g} s {'>' if a3.holds else '<='} delta + Delta = {a3.rhs:g} s"
+    conditions = "hold" if a.condition3.holds and a.condition4.holds else (
+        "fail: " + ", ".join(c for c, r in (("(3)", a.condition3), ("(4)", a.condition4)) if not r.holds))
+    detail = (f"Assumption 1 {'holds' if a.assumption1.holds else 'FAILS'} (PBH margin {a.assumption1.margin:.3g}); "
+              f"(3)-(4) {conditions} at v_max = {bounds['v_max']:g}, noise bound allowed {a.v_max_allowed:.4g} "
+              f"(u_max = {bounds['u_max']:g}, x_min = {bounds['x_min']:g}; delta = {delta:g} s, Delta = {Delta:g} s "
+              f"{windows}; observer decay {k.lambda_hat:.4g}, E_hat(delta) = {k.E_hat:.4g}); "
+              f"Assumption 3: {dwell_note}")
+    verdict = a.assumption1.holds and a.condition3.holds and a.condition4.holds and dwell_verdict is not False
+    return Check(name, paper, bool(verdict), detail, a.v_max_allowed - bounds["v_max"])
+
+
+def _lee_dwell(spec: ModelSpec) -> tuple[dict, bool | None, str]:
+    """What bounds the dwell time for Lee Assumption 3: keywords for ``lee_assumptions``, verdict, note.
+
+    A dwell model gives ``min_dwell``, a schedule its signal; switching at the samples
+    (``iid``, ``markov``) dwells at least one sampling interval; continuous-time Markov
+    and average-dwell models have no minimum dwell, so Assumption 3 fails.
+    """
+    sw = spec.switching
+    kind = sw.get("kind")
+    if kind == "dwell":
+        return {"min_dwell": sw["min_dwell"]}, None, ""
+    if kind == "schedule":
+        return {"signal": schedule(sw["times"], sw["modes"])}, None, ""
+    shortest = spec.sampling.get("period", spec.sampling.get("tau_min"))
+    if kind in ("iid", "markov") and shortest is not None:
+        return {"min_dwell": shortest}, None, ""
+    if kind is None:
+        return {}, None, "not checked (no switching model)"
+    return {}, False, f"fails ({kind} switching has no minimum dwell time)"
 
 
 def _combined(spec: ModelSpec) -> Check:
@@ -201,7 +283,7 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
 
 
 CHECKS: list[Callable[[ModelSpec], Check]] = [
-    _modes_observable, _joint, _combined, _cqlf, _jsr, _lemma1, _ms_iid, _filter_cqlf, _mismatch, _impulsive,
+    _modes_observable, _joint, _lee, _combined, _cqlf, _jsr, _lemma1, _ms_iid, _filter_cqlf, _mismatch, _impulsive,
     _wang_critical_interval,
 ]
 

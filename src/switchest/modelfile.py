@@ -14,9 +14,10 @@ and, optionally::
     [initial]               # Gaussian initial state
     mean = [0.0, 100.0]
     cov = [[25.0, 0.0], [0.0, 25.0]]
-    [noise]                 # bounds for Lee et al.'s conditions (bounded noise)
-    v_max = 0.1
-    u_max = 1.0
+    [noise]                 # bounds for Lee et al.'s conditions (bounded noise):
+    v_max = 0.1             # |v| <= v_max, |u| <= u_max, |x| >= x_min; and, optionally,
+    u_max = 1.0             # their detector's design: windows delta, Delta and
+    x_min = 0.8             # observer_decay (A_i - L_i C_i with poles at -observer_decay ...)
 
 Every error names the file, the table and the key.
 """
@@ -69,7 +70,8 @@ class ModelSpec:
     initial : tuple of arrays or None
         ``(mean (n,), cov (n, n))``.
     noise : dict
-        Bounds such as ``v_max``, ``u_max`` for bounded-noise analyses.
+        Bounds such as ``v_max``, ``u_max``, ``x_min`` for bounded-noise analyses,
+        and the minimum-distance detector's ``delta``, ``Delta``, ``observer_decay``.
     description : str
     """
 

@@ -61,6 +61,7 @@ __all__ = [
     "LeeCondition",
     "LeeConstants",
     "LeeWindows",
+    "decay_observer_gains",
     "default_observer_gains",
     "lee_assumptions",
     "lee_constants",
@@ -245,6 +246,30 @@ def default_observer_gains(system: SwitchedLinearSystem) -> np.ndarray:
             raise ValueError(f"system mode {i} must be observable (Lee et al. §II), (A_{i}, C_{i}) is not")
         rho = max(1.0, 2.0 * float(np.max(np.abs(np.linalg.eigvals(A)))))
         poles = -rho * (1.0 + 0.25 * np.arange(system.n_states))
+        gains.append(place_poles(A.T, C.T, poles).gain_matrix.T)
+    return np.array(gains)
+
+
+def decay_observer_gains(system: SwitchedLinearSystem, decay: float) -> np.ndarray:
+    """Observer gains placing the poles of ``A_i - L_i C_i`` at ``-a``, ``-1.25 a``, ... for ``a = decay``.
+
+    Each pole is repeated ``rank C_i`` times (the multiplicity
+    ``scipy.signal.place_poles`` allows), so with ``C_i = I`` every pole is ``-a``:
+    ``L_i = A_i + a I`` and ``A_i - L_i C_i = -a I``, the gains of the lee-detection
+    experiment (:attr:`switchest.models.lee.LeeScenario.observer_gains`).
+
+    Returns
+    -------
+    ndarray, shape (L, n, m)
+    """
+    _check_system(system)
+    a = positive_scalar(decay, "decay")
+    gains = []
+    for i in range(system.n_modes):
+        A, C = system.A[i], system.C[i]
+        if not is_observable(A, C):
+            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), (A_{i}, C_{i}) is not")
+        poles = -a * (1.0 + 0.25 * (np.arange(system.n_states) // np.linalg.matrix_rank(C)))
         gains.append(place_poles(A.T, C.T, poles).gain_matrix.T)
     return np.array(gains)
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..modelfile import ModelSpec
 from .etienne import ETIENNE_SCENARIO, etienne_academic
+from .lee import LEE_SCENARIO
 from .shankar import BOOST_SAMPLE_PERIOD, boost_converter, vehicle_2d
 from .wang import (
     IEEE_5BUS_SAMPLE_PERIOD,
@@ -27,6 +28,7 @@ def catalog() -> dict[str, ModelSpec]:
     """The papers' systems as :class:`~switchest.modelfile.ModelSpec`, keyed by file name."""
     ex1 = WANG_EXAMPLES["example1"]
     grid = smart_grid()
+    lee = LEE_SCENARIO
     return {
         "shankar-boost": ModelSpec(
             boost_converter(), sampling={"period": BOOST_SAMPLE_PERIOD, "duration": 0.1},
@@ -71,4 +73,18 @@ def catalog() -> dict[str, ModelSpec]:
             initial=(np.zeros(2), np.eye(2)),
             description="Etienne et al. §4 academic example: aperiodic sampling in [0.3, 0.4], average dwell "
                         "time 7 (chatter bound N0 = 1, unstated in the paper); no noise."),
+        "lee-fsk": ModelSpec(
+            lee.system(), sampling={"period": 0.0025, "duration": lee.horizon},  # lee-detection's grid
+            switching={"kind": "dwell", "min_dwell": lee.min_dwell, "max_dwell": lee.max_dwell, "initial_mode": 0},
+            initial=(np.array(lee.x0), np.zeros((2, 2))),
+            noise={"v_max": lee.v_max, "u_max": lee.u_max, "x_min": lee.x_min(), "delta": lee.delta,
+                   "Delta": lee.Delta, "observer_decay": lee.observer_decay},
+            description="Demonstration system for Lee, Ping & Shim (002), which prints no example "
+                        "(switchest.models.lee): a phasor x' = omega_i J x + b u, y = x, omega = (2 pi, 4 pi) rad/s, "
+                        "b = [0, 1]'. Everything is chosen: bounded noise |v| <= 0.1 and input |u| <= 0.02 (Q = R = 0: "
+                        "the noise of Lee et al. is bounded, not Gaussian), x(0) = (1, 0) "
+                        "exactly, so |x(t)| >= x_min = 0.8 over the 10 s; dwell times uniform in [1.3, 2.5] s "
+                        "(above delta + Delta), first mode 0 (the lee-detection experiment draws it at random); "
+                        "the detector's windows delta = 0.25 s, Delta = 1 s and observer gains with "
+                        "A_i - L_i C = -40 I (noise.observer_decay); output on the experiment's 2.5 ms grid."),
     }
