@@ -55,8 +55,8 @@ def test_table1_defaults_are_the_papers_setup(table1):
 def test_table1_rows_cover_every_filter_and_grid(table1):
     _, rows, _ = table1
     found = {(r.filter, r.g) for r in rows}
-    grid_filters = ("switch-time KF", "switch-time KF, refined", "IMM-EV1 (Alg. 1)",
-                    "IMM-EV1, tau marginalized")
+    grid_filters = ("switch-time KF", "switch-time KF, refined", "switch-time KF, tau marginalized",
+                    "IMM-EV1 (Alg. 1)", "IMM-EV1, tau marginalized")
     expected = {("clairvoyant", None), ("IMM", None)}
     expected |= {(f, g) for f in grid_filters for g in GRIDS}
     assert found == expected and len(rows) == len(expected)

@@ -132,12 +132,20 @@ def switch_grid(T: float, g: int) -> np.ndarray:
 
 
 def pairwise_grid(system: SwitchedLinearSystem, T: float, g: int) -> Transition:
-    """Transitions for every mode pair and every grid switching time, cached.
+    """Transitions for every mode pair and every grid switching time (cached).
 
     Returns arrays with batch shape ``(L, L, g)``: entry ``[i, j, k]`` switches from
     mode i to mode j at ``switch_grid(T, g)[k]``; for ``i == j`` it is the interval
-    without a switch. The filters of Shankar et al. §IV evaluate eq. (23) on it.
+    without a switch. The filters of Shankar et al. §IV evaluate eq. (23) on it at
+    every step with a switch, so it is memoized on ``(system, T, g)`` like
+    :func:`mode_steps`.
     """
+    switch_grid(T, g)  # validates T and g before they become a cache key
+    return _pairwise_grid(system, float(T), int(g))
+
+
+@lru_cache(maxsize=64)
+def _pairwise_grid(system: SwitchedLinearSystem, T: float, g: int) -> Transition:
     L = system.n_modes
     tau = switch_grid(T, g)
     pairs = np.stack(np.meshgrid(np.arange(L), np.arange(L), indexing="ij"), axis=-1)

@@ -17,11 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_probability_vector, check_row_stochastic, positive_scalar
-from .._linalg import log_normalize, mixture_moments
+from .._linalg import log_normalize
 from ..discretize import pairwise_grid, switch_grid
 from .base import Estimate, Estimator
 from .kalman import kf_predict, kf_update
-from .switch_time import switch_time_loglik
+from .switch_time import marginalize_switch_time, switch_time_loglik
 
 __all__ = ["IMMEV1State", "IMMEV1Filter"]
 
@@ -150,12 +150,7 @@ class IMMEV1Filter(Estimator):
             P_pair = np.take_along_axis(P_up, best_k[..., None, None], axis=-3)[..., 0, :, :]
             tau_pair = tau[best_k[..., 0]]
         else:
-            log_w, log_sum = log_normalize(J)  # weights over the grid
-            log_b = log_sum - np.log(self.grid)  # mean likelihood: tau uniform on the grid
-            w = np.exp(log_w)
-            x_pair, P_pair = mixture_moments(w[..., :, None], x_up, P_up)
-            x_pair, P_pair = x_pair[..., 0, :], P_pair[..., 0, :, :]
-            tau_pair = w @ tau
+            x_pair, P_pair, log_b, tau_pair = marginalize_switch_time(J, x_up, P_up, tau)
         path = state.log_weight[:, :, None] + log_b
         if self._log_transition is not None:
             path = path + self._log_transition

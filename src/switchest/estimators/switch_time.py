@@ -14,11 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import int_array
+from .._linalg import log_normalize, mixture_moments
 from ..discretize import interval, mode_steps, pairwise_grid, switch_grid
 from .base import Estimate, Estimator
 from .kalman import kf_predict, kf_update
 
-__all__ = ["SwitchTimeState", "SwitchTimeKalmanFilter", "switch_time_loglik"]
+__all__ = ["SwitchTimeState", "SwitchTimeKalmanFilter", "switch_time_loglik", "marginalize_switch_time"]
 
 _GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 
@@ -51,6 +52,28 @@ def switch_time_loglik(x_pred, P_pred, y, C, R, *, likelihood: str = "innovation
     raise ValueError(f"likelihood must be 'innovation' or 'printed', got {likelihood!r}")
 
 
+def marginalize_switch_time(loglik, x_up, P_up, tau):
+    """Collapse the hypotheses of a switching-time grid into one Gaussian (beyond Shankar et al.).
+
+    Instead of keeping the maximizer of eq. (23), the switching instant is
+    integrated out with a uniform prior on the grid ``tau (g,)``: the posterior
+    weights are ``w_i = p(y | tau_i) / sum_k p(y | tau_k)`` from the innovation
+    log-likelihoods ``loglik (..., g)``, the updated estimates ``x_up (..., g, n)``,
+    ``P_up (..., g, n, n)`` are merged by moment matching, and the likelihood of
+    the measurement is the grid mean ``(1/g) sum_i p(y | tau_i)``.
+
+    Returns
+    -------
+    x, P, loglik, tau_mean
+        Merged mean ``(..., n)`` and covariance, ``log((1/g) sum_i p(y | tau_i))``
+        and the posterior mean switching instant ``sum_i w_i tau_i``, each ``(...)``.
+    """
+    log_w, log_sum = log_normalize(loglik)
+    w = np.exp(log_w)
+    x, P = mixture_moments(w[..., :, None], x_up, P_up)
+    return x[..., 0, :], P[..., 0, :, :], log_sum - np.log(tau.size), w @ tau
+
+
 class SwitchTimeKalmanFilter(Estimator):
     """Kalman filter with gridded maximum-likelihood switching times (Shankar et al.).
 
@@ -72,6 +95,12 @@ class SwitchTimeKalmanFilter(Estimator):
         Which ``J_k`` to maximize, see :func:`switch_time_loglik`.
     refine_iterations : int
         Golden-section steps when ``refine=True``.
+    switch_time : {"max", "marginal"}
+        ``"max"``: the grid maximizer of eq. (23) (the paper). ``"marginal"``
+        (beyond the paper): every grid instant is predicted and updated, and the
+        hypotheses are merged with their posterior weights
+        (:func:`marginalize_switch_time`); the reported switching instant is the
+        posterior mean. Needs ``likelihood="innovation"`` and ``refine=False``.
 
     Notes
     -----
@@ -79,7 +108,7 @@ class SwitchTimeKalmanFilter(Estimator):
     """
 
     def __init__(self, system, x0, P0, *, grid: int = 5, refine: bool = False,
-                 likelihood: str = "innovation", refine_iterations: int = 20):
+                 likelihood: str = "innovation", refine_iterations: int = 20, switch_time: str = "max"):
         self._set_prior(system, x0, P0)
         if not system.is_continuous:
             raise ValueError("SwitchTimeKalmanFilter needs a continuous-time system (switches inside intervals)")
@@ -89,6 +118,12 @@ class SwitchTimeKalmanFilter(Estimator):
         iters = int_array(refine_iterations, "refine_iterations", ndim=0)
         if iters < 1:
             raise ValueError(f"refine_iterations must be >= 1, got {int(iters)}")
+        if switch_time not in ("max", "marginal"):
+            raise ValueError(f"switch_time must be 'max' or 'marginal', got {switch_time!r}")
+        if switch_time == "marginal" and (refine or likelihood != "innovation"):
+            raise ValueError("switch_time='marginal' weighs the grid by the innovation likelihood: it needs "
+                             "likelihood='innovation' and refine=False")
+        self.switch_time = switch_time
         self.grid = int(grid)
         self.refine = bool(refine)
         self.likelihood = likelihood
@@ -111,6 +146,7 @@ class SwitchTimeKalmanFilter(Estimator):
         mode = np.asarray(mode)
         N = mode.shape[0]
         offset = np.full(N, np.nan)
+        merged = None  # the switched trials' merged hypotheses with switch_time="marginal"
         x, P = state.x, state.P
         C, R = sys.C[mode], sys.R[mode]
         if dt is not None:
@@ -120,13 +156,17 @@ class SwitchTimeKalmanFilter(Estimator):
             steps = mode_steps(sys, dt)
             F, G, Qd = steps.F[prev], steps.G[prev], steps.Qd[prev]
             sw = np.flatnonzero(prev != mode)
-            if sw.size:
+            if sw.size and self.switch_time == "marginal":
+                merged = self._marginal(x[sw], P[sw], y[sw], u[sw], prev[sw], mode[sw], dt)
+            elif sw.size:
                 tau, tr = self._estimate(x[sw], P[sw], y[sw], u[sw], prev[sw], mode[sw], dt)
                 F, G, Qd = F.copy(), G.copy(), Qd.copy()
                 F[sw], G[sw], Qd[sw] = tr
                 offset[sw] = tau
             x, P = kf_predict(x, P, F, G, u, Qd)
         x, P, loglik = kf_update(x, P, y, C, R)
+        if merged is not None:  # the rows of switched trials above assumed no switch: replace them
+            x[sw], P[sw], loglik[sw], offset[sw] = merged
         return SwitchTimeState(x, P, loglik, offset)
 
     def _estimate(self, x, P, y, u, prev, mode, dt):
@@ -144,6 +184,15 @@ class SwitchTimeKalmanFilter(Estimator):
         half = dt / (2 * self.grid)
         lo, hi = np.clip(tau - half, 0.0, dt), np.clip(tau + half, 0.0, dt)
         return self._golden(x, P, y, u, prev, mode, dt, lo, hi, tau, ll[rows, best], chosen)
+
+    def _marginal(self, x, P, y, u, prev, mode, dt):
+        """Predict and update every grid instant, then merge (:func:`marginalize_switch_time`)."""
+        sys = self.system
+        grid = pairwise_grid(sys, dt, self.grid)
+        F, G, Qd = grid.F[prev, mode], grid.G[prev, mode], grid.Qd[prev, mode]  # (q, g, ...)
+        x_pred, P_pred = kf_predict(x[:, None], P[:, None], F, G, u[:, None], Qd)
+        x_up, P_up, ll = kf_update(x_pred, P_pred, y[:, None], sys.C[mode][:, None], sys.R[mode][:, None])
+        return marginalize_switch_time(ll, x_up, P_up, switch_grid(dt, self.grid))
 
     def _loglik(self, x, P, F, G, u, Qd, y, mode):
         x_pred, P_pred = kf_predict(x, P, F, G, u, Qd)
