@@ -1,8 +1,16 @@
-"""The command line: the demo runs end to end and prints its comparison."""
+"""The command line: the demo runs end to end and prints its comparison; estimate's options and errors."""
 
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
 import pytest
 
 from switchest.cli import main
+from switchest.modelfile import load_model, save_model
+from switchest.simulate import simulate
+from switchest.tabular import METHODS, estimate_table
 
 
 def test_demo_prints_the_comparison(capsys):
@@ -16,3 +24,56 @@ def test_bad_arguments_exit_with_usage(capsys):
         main(["demo", "--trials", "0"])
     assert exc.value.code == 2
     assert "--trials must be >= 1" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------- estimate: options of the new methods
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "models"
+
+
+@pytest.fixture(scope="module")
+def lee_csv(tmp_path_factory):
+    """1.5 s of lee-fsk (601 rows on its 2.5 ms grid), noise-free: enough for one estimation window."""
+    spec = load_model(EXAMPLES / "lee-fsk.toml")
+    t = spec.sample_times(1.5)
+    traj = simulate(spec.system, lambda r: spec.signal(r, t), t, spec.initial, u=np.array([0.01]), rng=0)
+    df = pd.DataFrame({"t": t, "u": 0.01, "y0": traj.y[0, :, 0], "y1": traj.y[0, :, 1]})
+    path = tmp_path_factory.mktemp("lee") / "lee.csv"
+    df.to_csv(path, index=False)
+    return spec, df, path
+
+
+def test_estimate_help_lists_every_method_and_the_integrated_output(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["estimate", "--help"])
+    assert exc.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert all(m in out for m in METHODS) and "for rsls the y columns are the integrated output" in out
+    assert all(flag in out for flag in ("--v-max", "--delta", "--Delta", "--switch-interval"))
+
+
+def test_min_distance_options_override_the_model_file(lee_csv, tmp_path):
+    spec, df, path = lee_csv
+    out = tmp_path / "e.csv"
+    assert main(["estimate", "--model", str(EXAMPLES / "lee-fsk.toml"), "--data", str(path), "--method",
+                 "min-distance", "--v-max", "0.2", "--delta", "0.5", "--Delta", "0.75", "--out", str(out)]) == 0
+    api = estimate_table(spec, df, method="min-distance", v_max=0.2, delta=0.5, Delta=0.75)
+    cli = pd.read_csv(out)
+    np.testing.assert_array_equal(cli.to_numpy(dtype=float), api.to_numpy(dtype=float, na_value=np.nan))
+    # the first estimate comes one window after t = 0: 0.5 s here, the file's delta = 0.25 s otherwise
+    first = {w: int(np.flatnonzero(table["x0"].notna())[0]) for w, table in
+             (("option", cli), ("file", estimate_table(spec, df, method="min-distance")))}
+    assert first == {"option": 200, "file": 100}
+
+
+def test_estimate_errors_name_the_model_tables(lee_csv, tmp_path, capsys):
+    spec, _, path = lee_csv
+    model = save_model(replace(spec, noise={k: v for k, v in spec.noise.items() if k != "v_max"}),
+                       tmp_path / "no-bound.toml")
+    args = ["estimate", "--model", str(model), "--data", str(path), "--out", str(tmp_path / "e.csv")]
+    assert main([*args, "--method", "min-distance"]) == 2
+    out = " ".join(capsys.readouterr().out.split())
+    assert "add v_max to the model file's [noise] table or pass --v-max" in out  # not eaten as markup
+    assert main([*args, "--method", "min-distance", "--v-max", "-1"]) == 2
+    assert "v_max must be a finite positive number, got -1.0" in capsys.readouterr().out
+    assert main([*args, "--method", "imm", "--switch-interval", "0.1"]) == 2
+    assert "switch_interval applies to method 'rsls' only, got method 'imm'" in capsys.readouterr().out

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -138,11 +139,25 @@ def main(argv: list[str] | None = None) -> int:
     runner_options(p_rep)
     p_est = sub.add_parser("estimate", help="estimate states and modes from measured data (CSV)")
     p_est.add_argument("--model", required=True, help="TOML model file")
-    p_est.add_argument("--data", required=True, help="CSV with columns t, u..., y... (and mode)")
-    p_est.add_argument("--method", required=True, choices=METHODS)
+    p_est.add_argument("--data", required=True,
+                       help="CSV with columns t, u..., y... (empty y cells: missing samples) and mode (the known "
+                            "mode, needed by kalman, switch-time, rsls, impulsive); for rsls the y columns are the "
+                            "integrated output at fine instants t including every switching instant t0 + kT")
+    p_est.add_argument("--method", required=True, choices=METHODS,
+                       help="kalman, switch-time (known modes); imm, imm-ev1 (modes unknown); min-distance (Lee et "
+                            "al., uniform t); rsls (Wang et al., integrated output); impulsive (Etienne et al.)")
     p_est.add_argument("--grid", type=int, default=5, help="switching-time grid points per interval")
     p_est.add_argument("--refine", action="store_true", help="refine the grid maximum (switch-time)")
     p_est.add_argument("--stay", type=float, default=None, help="per-sample probability of staying in a mode")
+    p_est.add_argument("--v-max", type=float, default=None,
+                       help="min-distance: noise bound |v| <= v_max (default: the model's noise.v_max)")
+    p_est.add_argument("--delta", type=float, default=None,
+                       help="min-distance: estimation window delta, a multiple of the time step (default: "
+                            "noise.delta)")
+    p_est.add_argument("--Delta", type=float, default=None,
+                       help="min-distance: detection delay Delta (default: noise.Delta)")
+    p_est.add_argument("--switch-interval", type=float, default=None,
+                       help="rsls: switching interval T, modes change only at t0 + kT (default: sampling.period)")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")
     p_est.add_argument("--plot", default=None, help="PNG figure of the estimates")
     p_check = sub.add_parser("check", help="certify what switchest can about a model file")
@@ -182,22 +197,25 @@ def main(argv: list[str] | None = None) -> int:
         try:
             spec = load_model(args.model)
             table = estimate_table(spec, args.data, method=args.method, grid=args.grid, refine=args.refine,
-                                   stay=args.stay)
+                                   stay=args.stay, v_max=args.v_max, delta=args.delta, Delta=args.Delta,
+                                   switch_interval=args.switch_interval)
         except (ValueError, OSError) as exc:
-            console.print(f"[red]error:[/red] {exc}")
+            console.print(f"[red]error:[/red] {escape(str(exc))}")  # messages name [tables] of the model file
             return 2
         table.to_csv(args.out, index=False)
         console.print(f"{len(table)} samples estimated with {args.method}: [bold]{args.out}[/bold]")
         if args.plot:
-            states = table.filter(regex=r"^x\d+$").to_numpy()
+            states = table.filter(regex=r"^x\d+$").to_numpy()  # NaN rows (no estimate) leave gaps
+            switches = table["switch_time"].dropna().to_numpy() if "switch_time" in table else ()
             curves(args.plot, table["t"].to_numpy(), {args.method: states}, xlabel="t",
-                   ylabel=[f"x{i}" for i in range(states.shape[1])], title=f"{args.model}: {args.method}")
+                   ylabel=[f"x{i}" for i in range(states.shape[1])], markers=switches,
+                   title=f"{args.model}: {args.method}" + ("; dotted: estimated switches" if len(switches) else ""))
             console.print(f"figure: {args.plot}")
     elif args.command == "check":
         try:
             spec = load_model(args.model)
         except (ValueError, OSError) as exc:
-            console.print(f"[red]error:[/red] {exc}")
+            console.print(f"[red]error:[/red] {escape(str(exc))}")
             return 2
         table = Table(title=f"switchest check: {args.model}", title_justify="left")
         for col in ("condition", "verdict", "margin", "paper", "detail"):

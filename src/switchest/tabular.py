@@ -6,6 +6,46 @@ input columns ``u0 .. u{l-1}`` and output columns ``y0 .. y{m-1}`` (``u`` and
 at each sample, 0-based) for the methods that need it. An empty cell in an
 output column is a missing sample; anything else that is not a number is
 refused with the row and column named.
+
+The methods (:data:`METHODS`), what each needs and where it finds it:
+
+``kalman``, ``switch-time``
+    Mode-based Kalman filters (Zhang & Natarajan; Shankar et al.) along the
+    ``mode`` column (required); ``[initial]`` starts them.
+``imm``, ``imm-ev1``
+    IMM and Shankar et al.'s Algorithm 1; modes unknown. The transition matrix
+    comes from the switching model (:func:`transition_for`) or ``stay``.
+``min-distance``
+    Lee, Ping & Shim's mode estimation and switching detection
+    (:class:`~switchest.estimators.MinimumDistanceDetector`) on a continuous-time
+    model, the output sampled on a *uniform* grid ``t``. The noise bound
+    ``v_max``, the windows ``delta`` and ``Delta`` (and ``u_max``,
+    ``observer_decay``) come from the model file's ``[noise]`` table; the
+    options ``v_max``, ``delta``, ``Delta`` override it. There is no estimate
+    until the first window of length ``delta`` has filled, nor from a declared
+    switch until the next window has: those rows have empty ``x`` and ``mode``
+    (they are kept, not dropped). A missing sample is bridged by holding the
+    last complete one, which the detector's guarantees do not cover.
+``rsls``
+    Wang et al.'s subsystem observer for randomly switched systems
+    (:class:`~switchest.estimators.RSLSObserver`). **Here the ``y`` columns hold
+    the integrated output** ``z(t) = int_{t_0}^t y`` (Wang et al. eq. (1): the Ito
+    output ``dz = C x dt + Xi dw``, e.g. ``Trajectory.y_fine`` of
+    ``simulate(..., output="integrated")``) at fine instants ``t`` that include
+    every switching instant ``t[0] + kT``; the ``mode`` column (required) gives
+    the mode at each instant. ``T`` is ``sampling.period`` or the option
+    ``switch_interval``; gains by :func:`rsls_gains`.
+``impulsive``
+    Etienne et al.'s impulsive observer at (aperiodic) samples
+    (:class:`~switchest.estimators.ImpulsiveObserver`), along the switching
+    signal of the ``mode`` column (required, :func:`mode_signal`), with gains
+    from Theorem 8's LMIs (:func:`impulsive_gains`).
+
+The estimate table has ``t``, the state estimates ``x0 ..``, their standard
+deviations ``std_x0 ..`` (methods with a covariance: all but
+``min-distance``) and, where the method gives them, ``mode`` (empty where
+undefined), ``p_mode0 ..`` and ``switch_time`` (empty where no switch is
+estimated or declared).
 """
 
 from __future__ import annotations
@@ -17,12 +57,49 @@ import pandas as pd
 from scipy.linalg import expm
 
 from ._checks import check_row_stochastic, positive_scalar
-from .estimators import Estimate, IMMEV1Filter, IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
+from .analysis import (
+    critical_interval,
+    decay_observer_gains,
+    error_dynamics,
+    impulsive_observer_search,
+    ms_convergence,
+    place_gains,
+    steady_state,
+    subsystem_structure,
+)
+from .estimators import (
+    Estimate,
+    IMMEV1Filter,
+    IMMFilter,
+    ImpulsiveObserver,
+    MinimumDistanceDetector,
+    ModeKalmanFilter,
+    RSLSObserver,
+    SwitchTimeKalmanFilter,
+)
 from .modelfile import ModelSpec
+from .signals import SwitchingSignal, schedule
 
-__all__ = ["METHODS", "read_measurements", "estimate_table", "transition_for"]
+__all__ = [
+    "METHODS",
+    "estimate_table",
+    "impulsive_gains",
+    "mode_signal",
+    "read_measurements",
+    "rsls_gains",
+    "transition_for",
+]
 
-METHODS = ("kalman", "switch-time", "imm", "imm-ev1")
+METHODS = ("kalman", "switch-time", "imm", "imm-ev1", "min-distance", "rsls", "impulsive")
+_FILTERS = METHODS[:4]
+_OPTION_OF = {"v_max": "min-distance", "delta": "min-distance", "Delta": "min-distance", "switch_interval": "rsls"}
+_LEE_SETTINGS = {  # option -> (what it is, CLI flag)
+    "v_max": ("the noise bound |v(t)| <= v_max, Lee et al. eq. (2)", "--v-max"),
+    "delta": ("the estimation window, Lee et al. condition (3)", "--delta"),
+    "Delta": ("the detection delay, Lee et al. condition (4)", "--Delta"),
+}
+_GRID_RTOL = 1e-6  # relative spread of the time steps accepted as a uniform grid (as the detector's)
+_POLE_SCALES = np.geomspace(0.25, 2.0, 7)  # pole scales rsls_gains compares (i.i.d. switching)
 
 
 def _columns(prefix: str, count: int) -> list[str]:
@@ -106,45 +183,276 @@ def transition_for(spec: ModelSpec, T: float, *, stay: float | None = None) -> n
 
 
 def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: str, grid: int = 5,
-                   refine: bool = False, stay: float | None = None) -> pd.DataFrame:
+                   refine: bool = False, stay: float | None = None, v_max: float | None = None,
+                   delta: float | None = None, Delta: float | None = None,
+                   switch_interval: float | None = None) -> pd.DataFrame:
     """Run ``method`` on measured data; returns a table of estimates per sample.
 
-    Columns: ``t``, the state estimates ``x0 ..``, their standard deviations
-    ``std_x0 ..``, and where the method gives them ``mode``, ``p_mode0 ..`` and
-    ``switch_time`` (empty where no switch is estimated).
+    Parameters
+    ----------
+    spec : ModelSpec
+        The model file (:func:`switchest.modelfile.load_model`).
+    data : DataFrame or path of a CSV file
+        The measurement table (module docstring; for ``rsls`` the ``y`` columns
+        are the integrated output).
+    method : str
+        One of :data:`METHODS`.
+    grid, refine : int, bool
+        Switching-time grid points per interval (``switch-time``, ``imm-ev1``) and
+        the refinement beyond the grid (``switch-time``).
+    stay : float, optional
+        Per-sample probability of staying in a mode (``imm``, ``imm-ev1``).
+    v_max, delta, Delta : float, optional
+        ``min-distance`` only: noise bound (Lee et al. eq. (2)), estimation window
+        and detection delay (conditions (3), (4)); each overrides the model
+        file's ``[noise]`` entry of the same name.
+    switch_interval : float, optional
+        ``rsls`` only: the switching interval ``T`` (Wang et al. Assumption 1);
+        overrides ``sampling.period``.
+
+    Returns
+    -------
+    DataFrame
+        ``t``, ``x0 ..``, ``std_x0 ..`` (where the method has a covariance), and
+        where the method gives them ``mode`` (nullable integers, empty where
+        undefined), ``p_mode0 ..``, ``switch_time`` (NaN where none).
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    options = {"v_max": v_max, "delta": delta, "Delta": Delta, "switch_interval": switch_interval}
+    for name, value in options.items():
+        if value is not None:
+            if _OPTION_OF[name] != method:
+                raise ValueError(f"{name} applies to method {_OPTION_OF[name]!r} only, got method {method!r}")
+            options[name] = positive_scalar(value, name)
+    meas = read_measurements(data, spec)
+    if method in _FILTERS:
+        est = _filter(spec, meas, method, grid=grid, refine=refine, stay=stay)
+    elif method == "min-distance":
+        est = _min_distance(spec, meas, v_max=options["v_max"], delta=options["delta"], Delta=options["Delta"])
+    elif method == "rsls":
+        est = _rsls(spec, meas, options["switch_interval"])
+    else:
+        est = _impulsive(spec, meas)
+    return _table(meas["t"], est)
+
+
+# ---------------------------------------------------------------------- one runner per method family
+def _filter(spec: ModelSpec, meas: dict, method: str, *, grid: int, refine: bool, stay) -> Estimate:
+    """The Kalman-type filters: mode-based, switch-time, IMM and IMM-EV1."""
+    t, y, u = meas["t"], meas["y"], meas["u"]
+    x0, P0 = _prior(spec)
+    sys = spec.system
+    if method == "kalman":
+        return ModeKalmanFilter(sys, x0, P0).run(y, u, t, modes=_modes(meas, method))
+    if method == "switch-time":
+        return SwitchTimeKalmanFilter(sys, x0, P0, grid=grid, refine=refine).run(y, u, t, modes=_modes(meas, method))
+    if method == "imm":
+        T = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+        return IMMFilter(sys, transition_for(spec, T, stay=stay), x0, P0).run(y, u, t)
+    # Shankar Algorithm 1 uses no transition prior; an explicit one is used when given
+    explicit = stay is not None or spec.switching.get("kind") == "markov"
+    transition = transition_for(spec, float(np.median(np.diff(t))), stay=stay) if explicit else None
+    return IMMEV1Filter(sys, transition, x0=x0, P0=P0, grid=grid).run(y, u, t)
+
+
+def _min_distance(spec: ModelSpec, meas: dict, *, v_max, delta, Delta) -> Estimate:
+    """Lee, Ping & Shim's detector with the model's bounds and windows (options override ``[noise]``).
+
+    ``u_max`` (used only by the detector's assumption check) and the observer
+    gains (``observer_decay``, :func:`~switchest.analysis.lee.decay_observer_gains`;
+    otherwise the detector's default) come from ``[noise]`` alone.
+    """
+    noise = spec.noise
+    settings = {"v_max": v_max, "delta": delta, "Delta": Delta}
+    for name, value in settings.items():
+        if value is None:
+            if name not in noise:
+                what, flag = _LEE_SETTINGS[name]
+                raise ValueError(f"method 'min-distance' needs {name}, {what}: add {name} to the model file's "
+                                 f"[noise] table or pass {flag} ({name}= in Python)")
+            settings[name] = noise[name]
+    t, y = meas["t"], meas["y"]
+    steps = np.diff(t)
+    off = np.abs(steps - steps[0]) > _GRID_RTOL * steps[0] if steps.size else np.zeros(0, dtype=bool)
+    if off.any():
+        row = int(np.flatnonzero(off)[0]) + 1
+        raise ValueError(f"method 'min-distance' needs a uniform time grid (Lee et al.'s continuous output "
+                         f"sampled finely): data row {row} is {steps[row - 1]:.6g} after the previous row, "
+                         f"the first step is {steps[0]:.6g}")
+    if np.isnan(y[0]).any():
+        raise ValueError("method 'min-distance' needs a complete first output sample (data row 0): a missing "
+                         "sample is bridged by holding the last complete one")
+    decay = noise.get("observer_decay")
+    gains = None if decay is None else decay_observer_gains(spec.system, decay)
+    detector = MinimumDistanceDetector(spec.system, **settings, u_max=noise.get("u_max", 0.0), observer_gains=gains)
+    return detector.run(y, meas["u"], t)
+
+
+def _rsls(spec: ModelSpec, meas: dict, switch_interval) -> Estimate:
+    """Wang et al.'s observer on the integrated output, along the ``mode`` column."""
+    modes = _modes(meas, "rsls")
+    T = switch_interval if switch_interval is not None else spec.sampling.get("period")
+    if T is None:
+        raise ValueError("method 'rsls' needs the switching interval T (Wang et al. Assumption 1): set "
+                         "sampling.period in the model file or pass --switch-interval (switch_interval= in Python)")
+    x0, P0 = _prior(spec)
+    return RSLSObserver(spec.system, rsls_gains(spec, T), T, x0, P0).run(meas["y"], t=meas["t"], modes=modes)
+
+
+def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
+    """Sub-observer gains for Wang et al.'s observer when the user gives none.
+
+    Per-mode pole placement (Wang et al. §4.2, §6;
+    :func:`~switchest.analysis.place_gains`) with one free scale ``s``: mode i's
+    observable sub-state gets the poles ``-s rho_i (1, 1.25, 1.5, ...)``,
+    ``rho_i = max(max|eig A22^i|, 1 / T)`` (as fast as the mode's own dynamics and
+    at least one time constant per switching interval). With i.i.d. switching
+    (``switching.kind = "iid"``, probabilities ``p``) ``s`` is the one of seven
+    log-spaced values from 0.25 to 2 that minimizes the exact steady-state mean-square error
+    ``tr Phi V Phi'`` (:func:`~switchest.analysis.steady_state`, Wang et al.
+    eq. (21) corrected) among the designs that pass the exact mean-square test
+    (:func:`~switchest.analysis.ms_convergence`): §5.2's design, restricted to
+    this one-parameter family. Other switching models (outside Wang et al.'s
+    i.i.d. assumption) get ``s = 1``, unchecked.
+
+    Why this design rather than the others of :mod:`switchest.analysis.ms_design`:
+    the Kalman-Bucy gains (§4.1) need no choice but ignore the random switching —
+    the paper's Example 1 shows them diverging (exact MS spectral radius 1.079 on
+    ``wang-example1``) and on ``wang-ieee5bus`` (an eigenvalue 0, no process noise)
+    the Riccati equation has no stabilizing solution. The unrestricted §5.2
+    optimum (:func:`~switchest.analysis.optimal_gains`) needs an MS-stable start
+    and a Nelder-Mead search over every gain entry (about ten minutes on
+    ``wang-ieee5bus``); the one-parameter search costs a few milliseconds per
+    candidate. On ``wang-example1`` it gives ``tr V_x = 0.602`` (the full optimum
+    0.532), on ``wang-ieee5bus`` 0.0519 (the paper's first pole set 0.0517). Scales
+    above 2 are not tried: on ``wang-ieee5bus`` they give gains near ``10^4``, for
+    which the computed steady state turns negative (round-off).
+
+    Returns
+    -------
+    ndarray, shape (L, n, m)
+        Gains in state coordinates.
+
+    Raises
+    ------
+    ValueError
+        With i.i.d. switching, when no candidate is mean-square convergent.
+    """
+    system = spec.system
+    T = positive_scalar(T, "T")
+    structure = subsystem_structure(system)
+    rates = [max(float(np.max(np.abs(np.linalg.eigvals(A22)), initial=0.0)), 1.0 / T) for A22 in structure.A22]
+
+    def design(scale: float) -> np.ndarray:
+        return place_gains(structure, [-scale * r * (1.0 + 0.25 * np.arange(A22.shape[0])) if A22.size else None
+                                       for r, A22 in zip(rates, structure.A22)])
+
+    if spec.switching.get("kind") != "iid":
+        return design(1.0)
+    p = spec.switching["p"]
+    best, best_mu, radius = None, np.inf, np.inf
+    for scale in _POLE_SCALES:
+        gains = design(scale)
+        dyn = error_dynamics(system, gains, T, structure=structure)
+        ms = ms_convergence(dyn, p)
+        radius = min(radius, ms.radius)
+        mu = steady_state(dyn, p).mu_x if ms.stable else np.inf
+        if 0.0 < mu < best_mu:
+            best, best_mu = gains, mu
+    if best is None:
+        limit = critical_interval(system, p, structure=structure).fast_observer
+        raise ValueError(
+            f"method 'rsls': no default sub-observer design is mean-square convergent at T = {T:g} (smallest "
+            f"spectral radius {radius:.4g} >= 1, Wang et al. Theorem 1); fast enough sub-observers converge "
+            f"only for T < {limit:.4g} (critical interval): design gains with switchest.analysis.place_gains "
+            "and run switchest.estimators.RSLSObserver")
+    return best
+
+
+def _impulsive(spec: ModelSpec, meas: dict) -> Estimate:
+    """Etienne et al.'s impulsive observer along the switching signal of the ``mode`` column."""
+    signal = mode_signal(meas["t"], _modes(meas, "impulsive"))
+    x0, P0 = _prior(spec)
+    observer = ImpulsiveObserver(spec.system, impulsive_gains(spec, meas["t"]), x0=x0, P0=P0)
+    return observer.run(meas["y"], meas["u"], meas["t"], signals=signal)
+
+
+def mode_signal(t: np.ndarray, modes: np.ndarray) -> SwitchingSignal:
+    """The switching signal of a ``mode`` column: ``modes[k]`` on ``[t_k, t_{k+1})``.
+
+    It switches at the sample where the column changes. This is the synchronous
+    mode knowledge of Etienne et al. eq. (3) as far as sampled data allow: exact
+    when the switches fall on sample instants; a switch inside ``(t_{k-1}, t_k)``
+    is taken at ``t_k``, i.e. detected late by less than one sampling interval
+    (the delayed knowledge of their Assumption 5, with ``delta <= tau_max``).
+    """
+    return schedule(np.asarray(t, dtype=float)[1:], modes)
+
+
+def impulsive_gains(spec: ModelSpec, t: np.ndarray) -> np.ndarray:
+    """Observer gains from Etienne et al. Theorem 8 for the model's sampling and dwell time.
+
+    The sampling bounds are ``sampling.tau_min`` / ``tau_max`` (or ``period`` for
+    both, Assumption 2) and the dwell time is ``switching.tau_a`` (kind
+    ``average-dwell``) or ``min_dwell`` (kind ``dwell``), Assumption 1. The
+    scalars ``(alpha, mu_s, mu_c)``, which the paper fixes by hand (Remark 12),
+    are searched for the largest guaranteed decay rate
+    (:func:`~switchest.analysis.impulsive_observer_search`, the search
+    ``switchest check`` also runs). The sample times ``t`` must keep to the
+    bounds the gains are designed for.
+
+    Raises
+    ------
+    ValueError
+        When the model lacks the bounds or the dwell time, ``t`` leaves the
+        bounds, or the LMIs give no certificate (with the synthesis' diagnostic).
+    """
+    smp, sw = spec.sampling, spec.switching
+    lo, hi = smp.get("tau_min", smp.get("period")), smp.get("tau_max", smp.get("period"))
+    if lo is None:
+        raise ValueError("method 'impulsive' needs the sampling bounds (Etienne et al. Assumption 2): set "
+                         "sampling.tau_min and sampling.tau_max (or sampling.period) in the model file")
+    dwell = {"average-dwell": sw.get("tau_a"), "dwell": sw.get("min_dwell")}.get(sw.get("kind"))
+    if dwell is None:
+        raise ValueError("method 'impulsive' needs a dwell time (Etienne et al. Assumption 1): a [switching] "
+                         f"table of kind 'average-dwell' (tau_a) or 'dwell' (min_dwell), got {sw.get('kind')!r}")
+    steps = np.diff(np.asarray(t, dtype=float))
+    outside = (steps < lo * (1 - 1e-9)) | (steps > hi * (1 + 1e-9))
+    if outside.any():
+        row = int(np.flatnonzero(outside)[0]) + 1
+        raise ValueError(f"method 'impulsive': data row {row} is {steps[row - 1]:.6g} after the previous row, "
+                         f"outside the model's sampling bounds [{lo:g}, {hi:g}] the gains are designed for "
+                         "(Etienne et al. Assumption 2); widen sampling.tau_min / tau_max")
+    best = impulsive_observer_search(spec.system, lo, hi, dwell).best
+    if not best.feasible:
+        raise ValueError(f"method 'impulsive': Theorem 8's LMIs give no observer for sampling in [{lo:g}, {hi:g}] "
+                         f"and dwell time {dwell:g} (Etienne et al.): {best.note}")
+    return best.G
+
+
+# ---------------------------------------------------------------------- shared pieces
+def _modes(meas: dict, method: str) -> np.ndarray:
+    if "mode" not in meas:
+        raise ValueError(f"method {method!r} needs the known modes: add a 'mode' column to the data")
+    return meas["mode"]
+
+
+def _prior(spec: ModelSpec) -> tuple[np.ndarray, np.ndarray]:
     if spec.initial is None:
         raise ValueError("the model file needs an [initial] table (mean, cov) to start the filter")
-    meas = read_measurements(data, spec)
-    t, y, u = meas["t"], meas["y"], meas["u"]
-    x0, P0 = spec.initial
-    sys = spec.system
-    if method in ("kalman", "switch-time") and "mode" not in meas:
-        raise ValueError(f"method {method!r} needs the known modes: add a 'mode' column to the data")
-    if method == "kalman":
-        est = ModeKalmanFilter(sys, x0, P0).run(y, u, t, modes=meas["mode"])
-    elif method == "switch-time":
-        est = SwitchTimeKalmanFilter(sys, x0, P0, grid=grid, refine=refine).run(y, u, t, modes=meas["mode"])
-    elif method == "imm":
-        T = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-        est = IMMFilter(sys, transition_for(spec, T, stay=stay), x0, P0).run(y, u, t)
-    else:  # Shankar Algorithm 1 uses no transition prior; an explicit one is used when given
-        explicit = stay is not None or spec.switching.get("kind") == "markov"
-        transition = transition_for(spec, float(np.median(np.diff(t))), stay=stay) if explicit else None
-        est = IMMEV1Filter(sys, transition, x0=x0, P0=P0, grid=grid).run(y, u, t)
-    return _table(t, est)
+    return spec.initial
 
 
 def _table(t: np.ndarray, est: Estimate) -> pd.DataFrame:
     n = est.x.shape[-1]
     cols = {"t": t}
     cols.update({f"x{i}": est.x[:, i] for i in range(n)})
-    std = np.sqrt(np.clip(np.diagonal(est.P, axis1=-2, axis2=-1), 0.0, None))
-    cols.update({f"std_x{i}": std[:, i] for i in range(n)})
-    if est.mode is not None:
-        cols["mode"] = est.mode
+    if est.P is not None:
+        std = np.sqrt(np.clip(np.diagonal(est.P, axis1=-2, axis2=-1), 0.0, None))
+        cols.update({f"std_x{i}": std[:, i] for i in range(n)})
+    if est.mode is not None:  # -1 (undefined, e.g. inside a detection window) -> empty
+        cols["mode"] = pd.Series(est.mode, dtype="Int64").where(est.mode >= 0)
     if est.mode_prob is not None:
         cols.update({f"p_mode{j}": est.mode_prob[:, j] for j in range(est.mode_prob.shape[-1])})
     if est.switch_time is not None:
