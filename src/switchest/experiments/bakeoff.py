@@ -31,13 +31,14 @@ from ..tabular import transition_for
 from .registry import Experiment, Row, Summary, register
 from .scoring import combine, score
 
-METHODS = ("clairvoyant", "kalman-at-samples", "switch-time", "switch-time-refined", "imm", "imm-ev1",
-           "min-distance")
+METHODS = ("clairvoyant", "kalman-at-samples", "switch-time", "switch-time-refined", "switch-time-marginal",
+           "imm", "imm-ev1", "min-distance")
 _LABELS = {
     "clairvoyant": "mode KF, true switch times",
     "kalman-at-samples": "mode KF, switches at samples",
     "switch-time": "switch-time KF (g = 5)",
     "switch-time-refined": "switch-time KF refined (g = 2)",
+    "switch-time-marginal": "switch-time KF marginalized (g = 5)",
     "imm": "IMM",
     "imm-ev1": "IMM-EV1 (g = 5)",
     "min-distance": "min-distance detector (Lee)",
@@ -141,7 +142,8 @@ def _run(cfg: dict, rng: np.random.Generator) -> dict:
         est = ModeKalmanFilter(sys, x0, P0).run(traj.y, u, t, modes=traj.mode)
     elif m.startswith("switch-time"):
         refined = m.endswith("refined")
-        est = SwitchTimeKalmanFilter(sys, x0, P0, grid=2 if refined else 5, refine=refined).run(
+        est = SwitchTimeKalmanFilter(sys, x0, P0, grid=2 if refined else 5, refine=refined,
+                                     switch_time="marginal" if m.endswith("marginal") else "max").run(
             traj.y, u, t, modes=traj.mode)
     elif m == "imm":
         est = IMMFilter(sys, transition_for(spec, t[1] - t[0], stay=_stay(spec, t)), x0, P0).run(traj.y, u, t)
