@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-from scipy.linalg import expm
+from scipy.linalg import expm, solve_continuous_lyapunov
 
 from switchest import SwitchedLinearSystem
 from switchest.discretize import interval, mode_steps, pairwise_grid, switch_grid
@@ -163,3 +163,20 @@ def test_bad_arguments(args, match):
         interval(sys, *args)
     with pytest.raises(TypeError, match="SwitchedLinearSystem"):
         interval(np.eye(2), 0.5, [0])
+
+
+@pytest.mark.parametrize("speed", [1e2, 1e3, 1e5])
+def test_fast_non_normal_modes_keep_an_accurate_psd_noise_covariance(speed):
+    # oracle: Qd = X - F X F' with A X + X A' + Q = 0 (A Hurwitz), G = A^-1 (F - I) B. The Van Loan
+    # block alone holds e^{-A h} ~ e^{3 speed h} here and loses every digit of Qd from speed ~ 1e3
+    V = np.random.default_rng(0).standard_normal((3, 3))
+    A = V @ np.diag([-1.0, -2.0, -3.0]) @ np.linalg.inv(V) * speed
+    Q, B, h = np.eye(3), np.ones((3, 1)), 0.05
+    tr = mode_steps(SwitchedLinearSystem.continuous(A[None], B=B[None], Q=Q[None]), h)
+    F = expm(A * h)
+    X = solve_continuous_lyapunov(A, -Q)
+    Qd = X - F @ X @ F.T
+    np.testing.assert_allclose(tr.F[0], F, rtol=1e-12, atol=1e-13 * np.abs(F).max())
+    np.testing.assert_allclose(tr.Qd[0], Qd, rtol=1e-12, atol=1e-12 * np.abs(Qd).max())
+    np.testing.assert_allclose(tr.G[0], np.linalg.solve(A, (F - np.eye(3)) @ B), rtol=1e-12)
+    assert np.linalg.eigvalsh(tr.Qd[0]).min() > 0

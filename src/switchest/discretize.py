@@ -40,6 +40,7 @@ from .system import SwitchedLinearSystem
 __all__ = ["Transition", "interval", "switch_grid", "pairwise_grid", "mode_steps", "segment_transitions"]
 
 _CACHE_MAX_ELEMENTS = 4096
+_VAN_LOAN_REACH = 4.0  # largest ||A|| h exponentiated at once (see _segments)
 
 
 @dataclass(frozen=True, eq=False)
@@ -225,19 +226,34 @@ def _compute(system, T, modes, offsets, batch) -> Transition:
 
 
 def _segments(system, modes, h):
-    """Phi, G_s, Qd_s for every (mode, length) pair, from one stacked Van Loan expm."""
-    M, q_scale, b_scale = _van_loan_generators(system)
+    """Phi, G_s, Qd_s for every (mode, length) pair, from one stacked Van Loan expm.
+
+    The Van Loan block holds ``e^{-A h}``: for a fast mode (``||A|| h`` large) it is
+    so large that ``Qd`` drowns in its round-off (a non-normal ``A`` with
+    ``||A|| h ~ 10`` already loses four digits). Such segments are exponentiated
+    over ``h / 2^k``, with ``||A|| h / 2^k <= 4``, and doubled ``k`` times by the
+    exact recursions ``Phi(2h) = Phi(h)^2``, ``G(2h) = Phi(h) G(h) + G(h)``,
+    ``Qd(2h) = Phi(h) Qd(h) Phi(h)' + Qd(h)`` (a sum of PSD terms, so ``Qd`` stays
+    PSD however stiff the mode).
+    """
+    M, q_scale, b_scale, a_norm = _van_loan_generators(system)
     n = system.n_states
-    E = expm(M[modes] * h[..., None, None])
+    reach = float(np.max(a_norm[modes] * h, initial=0.0))
+    k = int(np.ceil(np.log2(reach / _VAN_LOAN_REACH))) if reach > _VAN_LOAN_REACH else 0
+    E = expm(M[modes] * (h / 2.0**k)[..., None, None])
     Phi = np.swapaxes(E[..., n : 2 * n, n : 2 * n], -1, -2)
     Qs = symmetrize(Phi @ E[..., :n, n : 2 * n]) / q_scale[modes][..., None, None]
     Gs = np.swapaxes(E[..., 2 * n :, n : 2 * n], -1, -2) / b_scale[modes][..., None, None]
+    for _ in range(k):
+        Qs = symmetrize(Phi @ Qs @ np.swapaxes(Phi, -1, -2) + Qs)
+        Gs = Phi @ Gs + Gs
+        Phi = Phi @ Phi
     return Phi, Gs, Qs
 
 
 @lru_cache(maxsize=64)
 def _van_loan_generators(system):
-    """Per-mode block generators, with Q and B rescaled to the size of A.
+    """Per-mode block generators (Q and B rescaled to the size of A) and ``||A_i||``.
 
     Scaling the Q and B blocks by ``c`` scales Qd_s and G_s by ``c`` exactly, and
     keeps the exponential well conditioned when, e.g., Q is tiny next to A.
@@ -249,12 +265,13 @@ def _van_loan_generators(system):
     b = np.linalg.norm(system.B, ord=2, axis=(1, 2)) if l else np.zeros(L)
     q_scale = np.where(q > 0, a / np.where(q > 0, q, 1.0), 1.0)
     b_scale = np.where(b > 0, a / np.where(b > 0, b, 1.0), 1.0)
+    a_norm = np.linalg.norm(system.A, ord=2, axis=(1, 2))
     M = np.zeros((L, 2 * n + l, 2 * n + l))
     M[:, :n, :n] = -system.A
     M[:, :n, n : 2 * n] = system.Q * q_scale[:, None, None]
     M[:, n : 2 * n, n : 2 * n] = np.swapaxes(system.A, 1, 2)
     M[:, 2 * n :, n : 2 * n] = np.swapaxes(system.B, 1, 2) * b_scale[:, None, None]
-    return M, q_scale, b_scale
+    return M, q_scale, b_scale, a_norm
 
 
 def _discrete_passthrough(system, T, modes, offsets) -> Transition:

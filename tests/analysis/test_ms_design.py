@@ -32,6 +32,7 @@ from switchest.analysis.ms_design import (
     substate_gains,
     subsystem_structure,
 )
+from switchest.models.catalog import catalog
 from switchest.models.wang import (
     IEEE_5BUS_A,
     IEEE_5BUS_POLES,
@@ -575,3 +576,23 @@ def test_pole_placement_gain_places_the_poles(seed):
 def test_bad_input(call, exc, match):
     with pytest.raises(exc, match=match):
         call()
+
+
+def test_large_gains_keep_the_noise_injection_psd_and_the_steady_state_growing():
+    # the 5-bus sub-observers with poles scaled up: gains ~1e3 .. 4e5, A_c T up to ~1e4. W (Proposition 1's
+    # noise integral) must stay PSD and the steady-state error must grow with the gain (more output noise
+    # injected, same MS contraction); the Van Loan exponential alone gave W eigenvalues of -7e6 at 2.83
+    spec = catalog()["wang-ieee5bus"]
+    system, T, p = spec.system, spec.sampling["period"], spec.switching["p"]
+    structure = subsystem_structure(system)
+    rates = [max(float(np.max(np.abs(np.linalg.eigvals(A22)), initial=0.0)), 1.0 / T) for A22 in structure.A22]
+    mu = []
+    for scale in (1.0, 2.83, 5.66):
+        poles = [-scale * r * (1.0 + 0.25 * np.arange(A22.shape[0])) if A22.size else None
+                 for r, A22 in zip(rates, structure.A22)]
+        dyn = error_dynamics(system, place_gains(structure, poles), T, structure=structure)
+        assert min(np.linalg.eigvalsh(W).min() for W in dyn.W) >= -1e-12 * max(np.abs(dyn.W).max(), 1.0)
+        ss = steady_state(dyn, p)
+        assert np.linalg.eigvalsh(ss.V).min() > 0
+        mu.append(ss.mu)
+    assert mu[0] < mu[1] < mu[2]
