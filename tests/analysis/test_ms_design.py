@@ -295,6 +295,18 @@ def test_example4_correct_optimum_from_the_library():
     assert res.mu == pytest.approx(sigma1 + r2.fun, rel=1e-9)
 
 
+def test_a_radius_margin_trades_steady_state_error_for_convergence_rate():
+    # Example 4's unconstrained optimum contracts the second moment by 0.948 per interval; asking for
+    # 0.93 must give a design on that boundary with a larger (never smaller) steady-state error
+    free = optimal_gains(SYS, PROB, T, scalar_gains(40.0, 15.0))
+    fast = optimal_gains(SYS, PROB, T, scalar_gains(40.0, 15.0), max_radius=0.93)
+    assert free.radius > 0.93 and fast.success
+    assert fast.radius < 0.93 and fast.radius == pytest.approx(0.93, abs=1e-6)
+    assert fast.mu > free.mu
+    with pytest.raises(ValueError, match="max_radius must be at most 1"):
+        optimal_gains(SYS, PROB, T, scalar_gains(40.0, 15.0), max_radius=1.5)
+
+
 def test_tradeoff_in_T_favours_the_shortest_interval():
     """§5.2's outer problem: the optimal MS error grows with T.
 
