@@ -17,6 +17,7 @@ from scipy.linalg import expm
 
 from switchest import SwitchedLinearSystem
 from switchest.analysis.lee import (
+    decay_observer_gains,
     default_observer_gains,
     lee_assumptions,
     lee_constants,
@@ -274,3 +275,12 @@ def test_demo_model_shape_and_bad_frequencies():
         fsk_oscillator(input_gain=0.0)
     np.testing.assert_allclose(S.observer_gains - sys.A, A_OBS * np.eye(2)[None].repeat(2, 0))
     assert S.x_min() == pytest.approx(1.0 - S.input_gain * S.u_max * S.horizon)
+
+
+def test_decay_observer_gains_are_the_lee_detection_gains():
+    # with C_i = I every pole sits at -a: L_i = A_i + a I, A_i - L_i C = -a I (the experiment's design)
+    s = LEE_SCENARIO
+    gains = decay_observer_gains(s.system(), s.observer_decay)
+    np.testing.assert_allclose(gains, s.observer_gains, rtol=0, atol=1e-12)
+    closed = s.system().A - gains @ s.system().C
+    np.testing.assert_allclose(closed, np.broadcast_to(-s.observer_decay * np.eye(2), closed.shape), atol=1e-12)

@@ -367,8 +367,12 @@ def test_bad_input_is_refused_with_a_message():
         detector().run(y, u[0], t * 1.2)
     bent = t.copy()
     bent[5:] += 1e-4
-    with pytest.raises(ValueError, match="dt must stay equal to the first grid step"):
+    with pytest.raises(ValueError, match=r"t must be a uniform grid: sample 5 is 0.0026 after the previous one"):
         detector().run(y, u[0], bent)
+    d = detector()
+    state = d.step(d.step(d.init(()), y[0], dt=None), y[1], u[0, 0], dt=t[1] - t[0])
+    with pytest.raises(ValueError, match="dt must stay equal to the first grid step"):
+        d.step(state, y[2], u[0, 1], dt=1.5 * (t[1] - t[0]))
     with pytest.raises(ValueError, match=r"y must have shape \(\.\.\., K, m\) with m = 2"):
         detector().run(y[:, :1], u[0], t)
     with pytest.raises(ValueError, match="t must span exactly delta"):

@@ -442,6 +442,12 @@ class MinimumDistanceDetector(Estimator):
             ``x (..., K, n)``, ``mode (..., K)``, ``switch_time (..., K)``; ``P`` is None.
         """
         y2, u2, t, batch = self._prepare(y, u, t)
+        steps = np.diff(t)
+        off = np.flatnonzero(np.abs(steps - steps[0]) > _GRID_RTOL * steps[0]) if steps.size else ()
+        if len(off):  # checked up front, so the message can name the sample
+            k = int(off[0]) + 1
+            raise ValueError(f"t must be a uniform grid: sample {k} is {steps[k - 1]:.6g} after the previous "
+                             f"one, the first step is {steps[0]:.6g}")
         est = self._loop(y2, u2, t)
         switch = np.where(np.isnan(est.switch_time), np.nan, t[None, :])  # the grid instants
         return self._unflatten(replace(est, switch_time=switch), batch)

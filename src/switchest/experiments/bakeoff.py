@@ -152,37 +152,25 @@ def _run(cfg: dict, rng: np.random.Generator) -> dict:
     else:
         detector = _detector(sys)
         est = detector.run(traj.y, u, t)
-        elapsed = time.perf_counter() - start
-        return {**_score_defined(est, traj, start=max(1, t.size // 20), Delta=detector.Delta), "elapsed": elapsed}
     elapsed = time.perf_counter() - start
-    out = score(est, traj, start=max(1, t.size // 20))
+    if m != "min-distance":
+        out = score(est, traj, start=max(1, t.size // 20))
+    else:  # no estimate before its first window ends, nor from a declaration to the end of the next window
+        out = score(replace(est, switch_time=None), traj, start=max(1, t.size // 20), defined=est.mode >= 0)
+        out.update(_detections(est, traj, detector.Delta))
     out.pop("sse_per_step")
     return {**out, "elapsed": elapsed}
 
 
-def _score_defined(est, traj, *, start: int, Delta: float) -> dict:
-    """:func:`~switchest.experiments.scoring.score` over the samples where the detector has an estimate.
-
-    Lee et al.'s detector gives none (``x`` NaN, ``mode`` -1) before its first
-    window ends and from each declaration to the end of the next window. ``count``
-    is the number of samples with an estimate (``samples`` of all, from ``start``);
-    ``sse``, ``scale`` and ``mode_hits`` are summed over those only. Declared
-    switches are matched to the true ones as in Lee et al. Theorem 2
+def _detections(est, traj, Delta: float) -> dict:
+    """Declared switches matched to the true ones as in Lee et al. Theorem 2
     (:func:`~switchest.estimators.min_distance.match_detections`): ``delay_T`` sums the
     delays of the declared ones in sampling periods; ``switches``, ``censored``
-    (undeclared, less than ``Delta`` before the end), ``on_time`` and ``false`` count.
-    """
-    defined = est.mode[:, start:] >= 0
-    truth = traj.x[:, start:]
-    err = np.where(defined[..., None], est.x[:, start:] - truth, 0.0)
+    (undeclared, less than ``Delta`` before the end), ``on_time`` and ``false`` count."""
     m = match_detections(est.switch_time, traj.signals, Delta=Delta, t_end=traj.t[-1])
     delays = m.delay[np.isfinite(m.delay)]
-    return {"sse": np.sum(err**2, axis=(0, 1)).tolist(), "count": int(defined.sum()), "samples": int(defined.size),
-            "scale": np.sum(np.where(defined[..., None], truth, 0.0) ** 2, axis=(0, 1)).tolist(),
-            "mode_hits": int(np.sum(defined & (est.mode[:, start:] == traj.mode[:, start:]))),
-            "trials": traj.n_trials, "delay_T": float(np.sum(delays / np.diff(traj.t).mean())),
-            "declared": int(delays.size), "on_time": m.on_time, "switches": m.n_switches, "censored": m.censored,
-            "false": m.false}
+    return {"delay_T": float(np.sum(delays / np.diff(traj.t).mean())), "declared": int(delays.size),
+            "on_time": m.on_time, "switches": m.n_switches, "censored": m.censored, "false": m.false}
 
 
 def _stay(spec: ModelSpec, t: np.ndarray) -> float | None:

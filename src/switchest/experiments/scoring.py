@@ -13,19 +13,26 @@ def blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
     return list(enumerate(sizes))
 
 
-def score(est, traj, start: int) -> dict:
+def score(est, traj, start: int, defined: np.ndarray | None = None) -> dict:
     """Sums over trials (and over samples from ``start`` on) of squared errors and hits.
 
     ``sse``/``scale`` per state component, ``sse_per_step (K, n)``, ``mode_hits``
     where the estimate has modes, and switching-time errors (absolute and in units
-    of the sampling interval) where it has switching times.
+    of the sampling interval) where it has switching times. ``defined (trials, K)``
+    marks the samples where a method gives an estimate at all (e.g. a detector
+    between its windows): the sums and ``count`` then run over those only, and
+    ``samples`` counts all of them.
     """
-    err = est.x[:, start:] - traj.x[:, start:]
-    out = {"sse": np.sum(err**2, axis=(0, 1)).tolist(), "count": int(err.shape[0] * err.shape[1]),
-           "scale": np.sum(traj.x[:, start:] ** 2, axis=(0, 1)).tolist(),
-           "sse_per_step": np.sum((est.x - traj.x) ** 2, axis=0).tolist(), "trials": traj.n_trials}
+    mask = np.ones(traj.x.shape[:2], dtype=bool) if defined is None else np.asarray(defined, dtype=bool)
+    err = np.where(mask[..., None], est.x - traj.x, 0.0)
+    kept = mask[:, start:, None]
+    out = {"sse": np.sum(err[:, start:] ** 2, axis=(0, 1)).tolist(), "count": int(kept.sum()),
+           "scale": np.sum(np.where(kept, traj.x[:, start:], 0.0) ** 2, axis=(0, 1)).tolist(),
+           "sse_per_step": np.sum(err**2, axis=0).tolist(), "trials": traj.n_trials}
+    if defined is not None:
+        out["samples"] = int(kept.size)
     if est.mode is not None:
-        out["mode_hits"] = int(np.sum(est.mode[:, start:] == traj.mode[:, start:]))
+        out["mode_hits"] = int(np.sum(kept[..., 0] & (est.mode[:, start:] == traj.mode[:, start:])))
     if est.switch_time is not None:
         truth = traj.switch_times()
         both = np.isfinite(est.switch_time) & np.isfinite(truth)
