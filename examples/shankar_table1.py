@@ -47,6 +47,7 @@ from switchest.estimators import (
     ModeKalmanFilter,
     SwitchTimeKalmanFilter,
 )
+from switchest.experiments.shankar import TABLE1_PAPER  # Table I as printed: g, i_L (A), v_0 (V)
 from switchest.metrics import mode_accuracy, rmse, switch_time_error
 from switchest.models import (
     BOOST_INPUT_VOLTAGE,
@@ -70,14 +71,6 @@ DISCARD = 5e-3  # seconds of initial transient left out of the RMSE
 MEAN_GAP = (0.9e-3 + 1.2e-3) / 2
 P_SWITCH = BOOST_SAMPLE_PERIOD / MEAN_GAP
 IMM_TRANSITION = np.array([[1 - P_SWITCH, P_SWITCH], [P_SWITCH, 1 - P_SWITCH]])
-
-PAPER_TABLE1 = {
-    "provenance": "Shankar, Yang & Hespanha (seed 000), Table I: Kalman filter RMSE with "
-                  "gridded switching times, boost converter, T = 0.5 ms, R = 5 V^2, 100 trials",
-    "g": (1, 2, 3, 4, 5),
-    "i_L": (13.5, 10.7, 9.40, 9.17, 9.09),  # amperes
-    "v_0": (2.74, 2.15, 2.00, 1.96, 1.89),  # volts
-}
 
 
 @dataclass(frozen=True)
@@ -119,9 +112,9 @@ def score(name: str, g: int | None, run: Callable[[], Estimate], traj: Trajector
     first = round(DISCARD / BOOST_SAMPLE_PERIOD)
     errors = [] if est.switch_time is None else switch_time_error(est.switch_time, true_switch)
     paper = None
-    if name == "switch-time KF" and g in PAPER_TABLE1["g"]:
-        i = PAPER_TABLE1["g"].index(g)
-        paper = (PAPER_TABLE1["i_L"][i], PAPER_TABLE1["v_0"][i])
+    if name == "switch-time KF" and g in TABLE1_PAPER["g"]:
+        i = TABLE1_PAPER["g"].index(g)
+        paper = (TABLE1_PAPER["i_L"][i], TABLE1_PAPER["v_0"][i])
     return Row(
         filter=name,
         g=g,

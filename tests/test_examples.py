@@ -49,7 +49,7 @@ def table1():
 def test_table1_defaults_are_the_papers_setup(table1):
     ex, _, _ = table1
     assert (ex.TRIALS, ex.DURATION, ex.GRIDS) == (100, 10.0, (1, 2, 3, 4, 5))
-    assert ex.PAPER_TABLE1["g"] == ex.GRIDS
+    assert tuple(ex.TABLE1_PAPER["g"]) == ex.GRIDS
 
 
 def test_table1_rows_cover_every_filter_and_grid(table1):

@@ -14,6 +14,8 @@ from switchest.experiments import get
 from switchest.models import ETIENNE_SCENARIO as S
 from switchest.models import etienne_academic
 
+from summary_rows import find_row
+
 PAPER = {
     "provenance": (
         "Etienne et al. (004) §4: scalars of Theorem 8 (alpha 0.2, mu_s 5, mu_c 0.98) and Theorem 10 "
@@ -27,13 +29,7 @@ PAPER = {
     "delta": 0.15,
     "theorem10_verdict": "verified",
 }
-from summary_rows import find_row  # noqa: E402
-
 NAMES = ("etienne-sync", "etienne-async")
-
-
-
-
 
 
 def _bound_excess(results, M, beta):

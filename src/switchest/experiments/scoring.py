@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..metrics import switch_time_error
+
 __all__ = ["blocks", "score", "combine"]
 
 
@@ -35,11 +37,11 @@ def score(est, traj, start: int, defined: np.ndarray | None = None) -> dict:
         out["mode_hits"] = int(np.sum(kept[..., 0] & (est.mode[:, start:] == traj.mode[:, start:])))
     if est.switch_time is not None:
         truth = traj.switch_times()
-        both = np.isfinite(est.switch_time) & np.isfinite(truth)
-        gap = np.abs(est.switch_time[both] - truth[both])
+        gap = switch_time_error(est.switch_time, truth)
+        period = np.r_[np.nan, np.diff(traj.t)]  # the length of the interval each instant falls in
         out["switch_abs_err"] = float(gap.sum())
-        out["switch_rel_err"] = float(np.sum(gap / np.diff(traj.t)[np.nonzero(both)[1] - 1]))
-        out["switch_pairs"] = int(both.sum())
+        out["switch_rel_err"] = float(switch_time_error(est.switch_time / period, truth / period).sum())
+        out["switch_pairs"] = int(gap.size)
     return out
 
 

@@ -81,10 +81,9 @@ class Store:
 
     @contextmanager
     def _connect(self) -> Iterator[sqlite3.Connection]:
-        """A short-lived autocommit connection, closed on exit."""
+        """A short-lived autocommit connection (``timeout``: SQLite's busy timeout), closed on exit."""
         con = sqlite3.connect(self.path, timeout=60.0, isolation_level=None)
         try:
-            con.execute("PRAGMA busy_timeout=60000")
             yield con
         finally:
             con.close()
