@@ -13,20 +13,19 @@ import pytest
 
 import switchest.experiments.lee as lee_exp  # registers lee-detection
 from switchest.analysis.lee import lee_assumptions
-from switchest.experiments import Store, get, run_experiment
 from switchest.models.lee import LEE_SCENARIO as S
 from switchest.simulate import simulate
 
+from summary_rows import find_row
+
 NAME = "lee-detection"
+NAMES = (NAME,)  # run by the `runs` fixture of conftest.py
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("lee")
-    exp = get(NAME)
-    params = exp.params(quick=True)
-    results = run_experiment(exp, params, store=Store(out / "results.sqlite"))
-    return params, results, exp.summarize(params, results, out / "figures")
+def run(runs):
+    """``(params, results, summary)`` of the quick run."""
+    return runs[NAME]
 
 
 def _at(results, noise, told):
@@ -92,14 +91,14 @@ def test_blocks_share_their_data_across_noise_levels(run):
 
 def test_summary_shows_the_guarantees_beside_ours(run):
     _, _, summary = run
-    within = _rows(summary, f"v = {S.v_max:g}: switches declared within Δ")
-    assert len(within) == 1 and within[0].measured == 1.0 and "Theorem 2" in within[0].paper
-    assert "guarantee met" in within[0].note
-    false = _rows(summary, f"v = {S.v_max:g}: false declarations")
-    assert len(false) == 1 and false[0].measured == 0.0 and false[0].paper == "0 (Lemma 1)"
+    within = find_row(summary, f"v = {S.v_max:g}: switches declared within Δ")
+    assert within.measured == 1.0 and "Theorem 2" in within.paper
+    assert "guarantee met" in within.note
+    false = find_row(summary, f"v = {S.v_max:g}: false declarations")
+    assert false.measured == 0.0 and false.paper == "0 (Lemma 1)"
     # no guarantee is claimed where the assumptions fail
     assert all(r.paper is None for r in _rows(summary, "v = 0.8:"))
-    allowed = _rows(summary, "largest noise bound")[0].measured
+    allowed = find_row(summary, "largest noise bound").measured
     assert S.v_max < allowed < 0.3
     assert len(summary.figures) == 3 and all(f.exists() for f in summary.figures)
 

@@ -259,15 +259,14 @@ def _summary(p: dict, results, out: Path) -> Summary:
     for (v, told), g in sorted(groups.items()):
         if v != told:
             rows += _level_rows(v, told, g, False, status.get(told, base), s.Delta)
-    clean = [v for v in levels if _perfect(groups[(v, v)])]
     first_bad = next((v for v in levels if not _perfect(groups[(v, v)])), None)
-    top = max((v for v in clean if first_bad is None or v < first_bad), default=None)
+    top = max((v for v in levels if first_bad is None or v < first_bad), default=None)  # all perfect below it
     if top is not None:
         rows.append(Row("largest level with every switch on time and no false declaration", top, None, "",
                         f"{top / base.v_max_allowed:.2f} × the noise bound (3)-(4) allow; "
                         + (f"first failure at v = {first_bad:g}" if first_bad is not None else "none failed")))
-    figs = _figures(p, groups, levels, base.v_max_allowed, out)
     examples = [(v, groups[(v, v)]["example"]) for v in levels if "example" in groups[(v, v)]]
+    figs = _figures(groups, levels, examples, base.v_max_allowed, out)
     detector_seconds = sum(g["elapsed"] for g in groups.values()) / sum(g["trials"] for g in groups.values())
     setup = (
         f"Demonstration system (the paper has none): x' = ω_i J x + b u, y = x + v, ω = (2π, 4π) rad/s, "
@@ -319,10 +318,10 @@ def _perfect(g: dict) -> bool:
     return g["late"] == 0 and g["missed"] == 0 and g["false"] == 0
 
 
-def _figures(p: dict, groups: dict, levels: list[float], allowed: float, out: Path) -> list[Path]:
+def _figures(groups: dict, levels: list[float], shown: list[tuple[float, dict]], allowed: float,
+             out: Path) -> list[Path]:
     s = LEE_SCENARIO
     figs = []
-    shown = [(v, groups[(v, v)]["example"]) for v in levels if "example" in groups[(v, v)]]
     if shown:
         ex0 = shown[0][1]
         t = np.asarray(ex0["t"], float)
@@ -336,21 +335,18 @@ def _figures(p: dict, groups: dict, levels: list[float], allowed: float, out: Pa
                                  "declaration to the end of the next window"))
     x = np.asarray(levels, float)
     fractions = {"on time": [], "late": [], "missed": [], "false per switch": []}
+    ecdf = {}
     for v in levels:
         g = groups[(v, v)]
         n = max(g["n_switches"] - g["censored"], 1)
         for key, value in zip(fractions, (g["on_time"], g["late"], g["missed"], g["false"])):
             fractions[key].append(value / n)
+        d = np.sort(np.asarray(g["delays"], float)) / s.Delta
+        ecdf[f"v = {v:g}"] = np.searchsorted(d, DELAY_AXIS, side="right") / n
     figs.append(curves(out / "lee-detection-noise.png", x, {k: np.asarray(v) for k, v in fractions.items()},
                        xlabel="noise bound v_max (detector told the truth)", ylabel="per uncensored switch",
                        markers=[allowed],
                        title="Detections vs noise; dotted: bound of (3)-(4)"))
-    ecdf = {}
-    for v in levels:
-        g = groups[(v, v)]
-        n = max(g["n_switches"] - g["censored"], 1)
-        d = np.sort(np.asarray(g["delays"], float)) / s.Delta
-        ecdf[f"v = {v:g}"] = np.searchsorted(d, DELAY_AXIS, side="right") / n
     figs.append(curves(out / "lee-detection-delays.png", DELAY_AXIS, ecdf, xlabel="detection delay / Δ",
                        ylabel="fraction of switches declared", markers=[1.0],
                        title="Delays; Theorem 2: all by Δ (dotted)"))

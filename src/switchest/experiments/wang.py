@@ -274,22 +274,19 @@ def _window_sd(E2: np.ndarray, E4: np.ndarray, m2: np.ndarray, s2: np.ndarray, s
 def _fine_step_steady_state(system, gains, T: float, p, substeps: int) -> np.ndarray:
     """Diagonal of the exact steady state of the *simulated* observer (its fine-step discretization).
 
-    One interval of :class:`RSLSObserver` per mode, noise-free from unit initial
-    errors (the columns of its error map ``Lambda_h(i)``), and its propagated
-    error covariance from ``P0 = 0`` (the injected ``W_h(i)``); then the
-    second-moment fixed point. Needs one sub-state per state (``n_s = n``, true
-    of both systems here).
+    One interval of :class:`RSLSObserver`, batched over the modes, noise-free from
+    each unit initial error (the columns of its error map ``Lambda_h(i)``), with
+    its propagated error covariance from ``P0 = 0`` (the injected ``W_h(i)``);
+    then the second-moment fixed point. Needs one sub-state per state (``n_s = n``,
+    true of both systems here).
     """
     n, L, m = system.n_states, system.n_modes, system.n_outputs
     t = np.linspace(0.0, T, substeps + 1)
-    quiet = np.zeros((substeps + 1, m))
-    Lam, W = np.zeros((L, n, n)), np.zeros((L, n, n))
-    for i in range(L):
-        modes = np.full(substeps + 1, i)
-        for j in range(n):
-            Lam[i, :, j] = RSLSObserver(system, gains, T, np.eye(n)[j], np.zeros((n, n))).run(
-                quiet, t=t, modes=modes).x[-1]
-        W[i] = RSLSObserver(system, gains, T, np.zeros(n), np.zeros((n, n))).run(quiet, t=t, modes=modes).P[-1]
+    quiet = np.zeros((L, substeps + 1, m))
+    modes = np.repeat(np.arange(L)[:, None], substeps + 1, axis=1)  # run i stays in mode i
+    runs = [RSLSObserver(system, gains, T, e, np.zeros((n, n))).run(quiet, t=t, modes=modes) for e in np.eye(n)]
+    Lam = np.stack([r.x[:, -1] for r in runs], axis=-1)  # (L, n, n): column j from e_0 = unit vector j
+    W = runs[0].P[:, -1]  # the covariance does not depend on the estimate
     K = np.einsum("i,iab,icd->acbd", p, Lam, Lam).reshape(n * n, n * n)
     V = np.linalg.solve(np.eye(n * n) - K, np.einsum("i,iab->ab", p, W).ravel()).reshape(n, n)
     return np.diag(V)
@@ -316,32 +313,32 @@ def _z(mc: float, se: float, exact: float) -> float:
 
 
 # ------------------------------------------------------------------ the paper's printed formulas (Examples 1-4)
-def _gamma_reading(a: float, L: float, p_closed: float, T: float, power: int) -> float:
-    """Second-moment factor of a scalar component, ``p e^{power (a-L) T} + (1-p) e^{2aT}``.
+def _gamma_reading(a: float, L: float, p_closed: float, T: float) -> float:
+    """The paper's misprinted second-moment factor of a scalar component, ``p e^{(a-L) T} + (1-p) e^{2aT}``.
 
-    ``power = 2`` is right (Examples 1-2's gammas); ``power = 1`` is the misprint
-    behind Example 2's gain bounds and Example 4's gamma^1.
+    The right factor has ``e^{2(a-L)T}`` (Examples 1-2's gammas, computed from the
+    library's ``Lambda``); this reading is behind Example 2's gain bounds and
+    Example 4's gamma^1.
     """
-    return p_closed * np.exp(power * (a - L) * T) + (1.0 - p_closed) * np.exp(2.0 * a * T)
+    return p_closed * np.exp((a - L) * T) + (1.0 - p_closed) * np.exp(2.0 * a * T)
 
 
-def _gain_bound_reading(a: float, p_closed: float, T: float, power: int) -> float:
-    """``L`` at which :func:`_gamma_reading` equals 1 (Example 2's bounds)."""
-    return a - np.log((1.0 - (1.0 - p_closed) * np.exp(2.0 * a * T)) / p_closed) / (power * T)
+def _gain_bound_reading(a: float, p_closed: float, T: float) -> float:
+    """``L`` at which :func:`_gamma_reading` equals 1 (Example 2's printed bounds)."""
+    return a - np.log((1.0 - (1.0 - p_closed) * np.exp(2.0 * a * T)) / p_closed) / T
 
 
-def _sigma_reading(a: float, L: float, p_closed: float, T: float, zeta: float, power: int, q: str) -> float:
-    """Example 4's ``sigma_inf = p Q^2 / (1 - gamma)`` under a reading: ``q = "exact"`` integrates
-    ``e^{2(a-L)s} L^2 zeta`` over [0, T] (Proposition 1), ``"infinite"`` to infinity."""
-    full = L**2 * zeta / (2.0 * (L - a))
-    Q2 = full * (1.0 - np.exp(-2.0 * (L - a) * T)) if q == "exact" else full
-    gamma = _gamma_reading(a, L, p_closed, T, power)
+def _sigma_reading(a: float, L: float, p_closed: float, T: float, zeta: float) -> float:
+    """Example 4's ``sigma_inf = p Q^2 / (1 - gamma)`` as the paper evaluates it: :func:`_gamma_reading`
+    and ``Q^2 = int_0^inf e^{2(a-L)s} L^2 zeta ds = L^2 zeta / (2(L - a))`` (Proposition 1 stops at T)."""
+    Q2 = L**2 * zeta / (2.0 * (L - a))
+    gamma = _gamma_reading(a, L, p_closed, T)
     return p_closed * Q2 / (1.0 - gamma) if gamma < 1 else np.inf
 
 
-def _reading_optimum(a, p_closed, T, zeta, power, q) -> tuple[float, float]:
-    lo = _gain_bound_reading(a, p_closed, T, power) + 1e-6
-    r = minimize_scalar(lambda L: _sigma_reading(a, L, p_closed, T, zeta, power, q), bounds=(lo, 1000.0),
+def _reading_optimum(a, p_closed, T, zeta) -> tuple[float, float]:
+    lo = _gain_bound_reading(a, p_closed, T) + 1e-6
+    r = minimize_scalar(lambda L: _sigma_reading(a, L, p_closed, T, zeta), bounds=(lo, 1000.0),
                         method="bounded", options={"xatol": 1e-10})
     return float(r.x), float(r.fun)
 
@@ -411,8 +408,7 @@ def _examples_run(cfg: dict, rng: np.random.Generator) -> dict:
         if cfg["figure"] == "3":  # distribution of log10 e_k^2 per step: medians next to the diverging means
             bins = np.clip(((np.log10(sq + 1e-300) - LOG_BINS[0]) / LOG_BINS[2]).astype(int), 0, _n_log_bins() - 1)
             hist = np.zeros((sq.shape[1], _n_log_bins(), sq.shape[2]), dtype=np.int64)
-            for c in range(sq.shape[2]):
-                np.add.at(hist[:, :, c], (np.broadcast_to(np.arange(sq.shape[1]), bins.shape[:2]), bins[..., c]), 1)
+            np.add.at(hist, (np.arange(sq.shape[1])[:, None], bins, np.arange(sq.shape[2])), 1)  # (step, bin, comp)
             stats[_label(L1, L2)]["log10_hist"] = hist.tolist()
         if cfg.get("path_gain") == L1 and cfg["block"] == 0:
             out["path"] = err[0, :, 0].tolist()  # Fig. 5: one sample path of e_k^1
@@ -520,7 +516,7 @@ def _example2_section(c: _Context) -> dict:
             Row(f"Ex. 2: bound L_{comp + 1} > (correct, e^(2(a−L)T))", float(bounds.min_loop_gain[comp]),
                 paper["gain_bounds"][comp], "", "the second-moment factor is 1 at this gain"),
             Row(f"Ex. 2: bound L_{comp + 1} > (paper's reading, e^((a−L)T))",
-                _gain_bound_reading(a, p_closed, c.T, 1), paper["gain_bounds"][comp]),
+                _gain_bound_reading(a, p_closed, c.T), paper["gain_bounds"][comp]),
         ]
     gains = _scalar_gains(*DESIGN_GAINS)
     M = np.diag(_moment_matrix(c.system, gains, c.T, c.prob))
@@ -607,11 +603,11 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
         M = _moment_matrix(c.system, _scalar_gains(L1, DESIGN_GAINS[1]), c.T, c.prob)[0, 0]
         c.rows += [
             Row(f"Ex. 4: γ^1 for L1 = {L1:g} (correct, e^(2(a−L)T))", float(M), printed),
-            Row(f"Ex. 4: γ^1 for L1 = {L1:g} (paper's reading, e^((a−L)T))", _gamma_reading(ex.a1, L1, ex.p, c.T, 1),
+            Row(f"Ex. 4: γ^1 for L1 = {L1:g} (paper's reading, e^((a−L)T))", _gamma_reading(ex.a1, L1, ex.p, c.T),
                 printed),
         ]
     L_star, s_star = _correct_optimum(c.system, c.T, c.prob)
-    L_read, s_read = _reading_optimum(ex.a1, ex.p, c.T, ex.zeta, 1, "infinite")
+    L_read, s_read = _reading_optimum(ex.a1, ex.p, c.T, ex.zeta)
     c.rows += [
         Row("Ex. 4: optimal L1* (correct: e^(2(a−L)T), Q² = ∫_0^T)", L_star, paper["optimum"][0]),
         Row("Ex. 4: σ¹_∞(L1*) (correct)", s_star, paper["optimum"][1]),
@@ -656,12 +652,12 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
                       f"{_z(float(d_mc), float(d_se), d_exact):.2f} SE: the correct optimum beats the printed one on "
                       "the same runs"))
     grid = np.unique(np.round(np.concatenate([np.geomspace(16.0, 200.0, 20), list(mc_points)]), 3))
-    bound = _gain_bound_reading(ex.a1, ex.p, c.T, 1)
+    bound = _gain_bound_reading(ex.a1, ex.p, c.T)
     c.figs.append(curves(
         c.out / "wang-fig6-tradeoff.png", grid,
         {"correct σ¹_∞ (steady state (21))": np.array([_sigma1(c.system, c.T, c.prob, L) for L in grid]),
          "paper's reading (e^((a−L)T), Q² to ∞)": np.array(
-             [_sigma_reading(ex.a1, L, ex.p, c.T, ex.zeta, 1, "infinite") if L > bound else np.nan for L in grid]),
+             [_sigma_reading(ex.a1, L, ex.p, c.T, ex.zeta) if L > bound else np.nan for L in grid]),
          "Monte Carlo time average": np.array([mc_points.get(L, np.nan) for L in grid])},
         xlabel="L1", ylabel="σ¹_∞(L1, T = 0.03)", logy=True,
         paper={"optimum L1* = 61.3, σ = 0.9864": ([paper["optimum"][0]], [paper["optimum"][1]])},
