@@ -4,16 +4,18 @@ a SQLite results store and an HTML report (DESIGN.md §6).
 Importing this package registers every experiment.
 """
 
-from . import bakeoff, etienne, lee, shankar, wang, zhang  # noqa: F401  (importing registers the experiments)
+# importing the experiment modules registers their experiments
+from . import bakeoff, etienne, lee, shankar, wang, zhang  # noqa: F401
 from .registry import EXPERIMENTS, Experiment, Row, Summary, get, names, register
 from .report import write_report
-from .runner import run_experiment, stored_results
+from .runner import RunInterrupted, run_experiment, stored_results
 from .store import Store
 
 __all__ = [
     "EXPERIMENTS",
     "Experiment",
     "Row",
+    "RunInterrupted",
     "Store",
     "Summary",
     "get",

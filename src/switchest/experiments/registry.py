@@ -16,7 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Experiment", "Row", "Summary", "register", "get", "names", "EXPERIMENTS"]
+from .._checks import positive_int
+
+__all__ = ["Experiment", "Row", "Summary", "register", "get", "names", "EXPERIMENTS", "MAX_BLOCKS"]
 
 
 @dataclass(frozen=True)
@@ -32,7 +34,8 @@ class Row:
     @property
     def ratio(self) -> float | None:
         """measured / paper, where both are numbers and the paper's is non-zero."""
-        if isinstance(self.paper, (int, float)) and isinstance(self.measured, (int, float)) and self.paper:
+        numbers = isinstance(self.paper, (int, float)) and isinstance(self.measured, (int, float))
+        if numbers and self.paper:
             return float(self.measured) / float(self.paper)
         return None
 
@@ -84,15 +87,56 @@ class Experiment:
     summarize: Callable[[dict, list[tuple[Task, dict]], Path], Summary]
 
     def params(self, *, quick: bool = False, **overrides) -> dict:
-        """The parameters of a run: defaults, then the quick preset, then overrides."""
+        """The parameters of a run: defaults, then the quick preset, then overrides.
+
+        Overrides that are ``None`` (options left unset) are skipped.
+
+        Raises
+        ------
+        ValueError
+            For a parameter the experiment does not have; a trial count (``trials``,
+            ``block_size``, ``blocks``, ``cases_per_block``) that is not a positive
+            int (``TypeError`` if not an int at all); or more than :data:`MAX_BLOCKS`
+            trial blocks.
+        """
         params = dict(self.defaults)
         if quick:
             params.update(self.quick)
         unknown = set(overrides) - set(params)
         if unknown:
-            raise ValueError(f"{self.name} has no parameter(s) {sorted(unknown)}; it has {sorted(params)}")
+            raise ValueError(f"{self.name} has no parameter(s) {sorted(unknown)}; "
+                             f"it has {sorted(params)}")
         params.update({k: v for k, v in overrides.items() if v is not None})
+        for name in _COUNTS:
+            if name in params:
+                params[name] = positive_int(params[name], name)
+        _check_blocks(params)
         return params
+
+
+MAX_BLOCKS = 10_000
+"""Most trial blocks a run may plan. Every block is one task per configuration, held in
+memory while planning and kept as a row of the store. The papers' largest setups have 10
+blocks; a thousand times that, at their task sizes (up to minutes each), is months of
+computing, and a larger count is a typo (``--trials 100000000`` once hung in planning)."""
+
+_COUNTS = ("trials", "block_size", "blocks", "cases_per_block")
+
+
+def _check_blocks(params: dict) -> None:
+    """Refuse a run of more than MAX_BLOCKS trial blocks before it is planned."""
+    if "trials" in params and "block_size" in params:
+        n = -(-params["trials"] // params["block_size"])
+        what = (f"trials={params['trials']} in blocks of block_size={params['block_size']} "
+                f"makes {n} blocks")
+    elif "blocks" in params:
+        n = params["blocks"]
+        what = f"blocks={n}"
+    else:
+        return
+    if n > MAX_BLOCKS:
+        raise ValueError(f"{what}, more than the {MAX_BLOCKS} a run may plan (each block is a task "
+                         "in memory and a row of the store): use fewer trials or larger blocks")
 
 
 EXPERIMENTS: dict[str, Experiment] = {}
