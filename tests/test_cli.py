@@ -19,11 +19,11 @@ def test_demo_prints_the_comparison(capsys):
     assert "clairvoyant" in out and "IMM" in out and "RMSE" in out
 
 
-def test_bad_arguments_exit_with_usage(capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(["demo", "--trials", "0"])
-    assert exc.value.code == 2
-    assert "--trials must be >= 1" in capsys.readouterr().err
+def test_bad_arguments_exit_with_one_line(capsys):
+    assert main(["demo", "--trials", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("error: argument --trials: expected a positive integer, got 0 "
+                   "(see 'switchest demo --help')\n")
 
 
 # ---------------------------------------------------------------------- estimate: options of the new methods
@@ -58,7 +58,11 @@ def test_min_distance_options_override_the_model_file(lee_csv, tmp_path):
                  "min-distance", "--v-max", "0.2", "--delta", "0.5", "--Delta", "0.75", "--out", str(out)]) == 0
     api = estimate_table(spec, df, method="min-distance", v_max=0.2, delta=0.5, Delta=0.75)
     cli = pd.read_csv(out)
-    np.testing.assert_array_equal(cli.to_numpy(dtype=float), api.to_numpy(dtype=float, na_value=np.nan))
+    # the same computation in this process; the CLI's table goes through a CSV file read back by
+    # pandas' parser, which is not guaranteed correctly rounded: 1 ulp (NaN where both are NaN)
+    np.testing.assert_allclose(cli.to_numpy(dtype=float),
+                               api.to_numpy(dtype=float, na_value=np.nan),
+                               rtol=np.finfo(float).eps, atol=0, equal_nan=True)
     # the first estimate comes one window after t = 0: 0.5 s here, the file's delta = 0.25 s otherwise
     first = {w: int(np.flatnonzero(table["x0"].notna())[0]) for w, table in
              (("option", cli), ("file", estimate_table(spec, df, method="min-distance")))}
@@ -71,9 +75,11 @@ def test_estimate_errors_name_the_model_tables(lee_csv, tmp_path, capsys):
                        tmp_path / "no-bound.toml")
     args = ["estimate", "--model", str(model), "--data", str(path), "--out", str(tmp_path / "e.csv")]
     assert main([*args, "--method", "min-distance"]) == 2
-    out = " ".join(capsys.readouterr().out.split())
-    assert "add v_max to the model file's [noise] table or pass --v-max" in out  # not eaten as markup
-    assert main([*args, "--method", "min-distance", "--v-max", "-1"]) == 2
-    assert "v_max must be a finite positive number, got -1.0" in capsys.readouterr().out
+    err = capsys.readouterr().err
+    # [noise] is shown, not eaten as rich markup
+    assert "add v_max to the model file's [noise] table or pass --v-max" in err
+    assert main([*args, "--method", "min-distance", "--v-max=-1"]) == 2
+    assert "argument --v-max: expected a finite positive number, got -1" in capsys.readouterr().err
     assert main([*args, "--method", "imm", "--switch-interval", "0.1"]) == 2
-    assert "switch_interval applies to method 'rsls' only, got method 'imm'" in capsys.readouterr().out
+    err = capsys.readouterr().err
+    assert "switch_interval applies to method 'rsls' only, got method 'imm'" in err

@@ -86,7 +86,7 @@ def test_methods_needing_modes_say_so_and_cli_reports_errors(tmp_path, capsys):
     df.drop(columns="mode").to_csv(tmp_path / "nomode.csv", index=False)
     code = main(["estimate", "--model", str(EXAMPLES / "shankar-boost.toml"), "--data",
                  str(tmp_path / "nomode.csv"), "--method", "kalman", "--out", str(tmp_path / "o.csv")])
-    assert code == 2 and "needs the known modes" in capsys.readouterr().out
+    assert code == 2 and "needs the known modes" in capsys.readouterr().err
 
 
 def test_transition_from_the_switching_model():

@@ -8,12 +8,13 @@ which makes a round trip exact.
 
 from __future__ import annotations
 
+import difflib
 import tomllib
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ModelFileError", "read", "dumps", "matrix", "number", "where"]
+__all__ = ["ModelFileError", "read", "dumps", "matrix", "number", "where", "unknown_key"]
 
 
 class ModelFileError(ValueError):
@@ -35,10 +36,33 @@ def read(path: str | Path) -> dict:
         raise ModelFileError(f"{path}: no such model file") from exc
     except tomllib.TOMLDecodeError as exc:
         raise ModelFileError(f"{path}: not valid TOML: {exc}") from exc
+    except UnicodeDecodeError as exc:
+        raise ModelFileError(f"{path}: not a UTF-8 text file: {exc}") from None
+
+
+def unknown_key(source: str, table: str, key, valid) -> ModelFileError:
+    """The error for an unknown model-file key: file, table and key, and the closest valid key.
+
+    A key differing only in case (``a`` for ``A``) or close in spelling (``v_mx``
+    for ``v_max``, :func:`difflib.get_close_matches`) is suggested.
+    """
+    valid, key = sorted(valid), str(key)
+    close = ([v for v in valid if v.lower() == key.lower()]
+             or difflib.get_close_matches(key, valid, n=1))
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    at = f"{table}.{key}" if table else key
+    return ModelFileError(where(source, f"{at}: unknown key; {hint}expected one of {', '.join(valid)}"))
 
 
 def matrix(value, at: str, *, shape: tuple[int | None, int | None] | None = None, ndim: int = 2) -> np.ndarray:
-    """A finite numeric array from a TOML value, with the expected shape (None = any)."""
+    """A finite numeric array from a TOML value, with the expected shape (None = any).
+
+    Only TOML integers and floats are numbers: strings and booleans (which numpy
+    would convert to ``-1.0`` or ``1.0``) are refused.
+    """
+    bad = _non_number(value)
+    if bad is not None:
+        raise ModelFileError(f"{at}: expected numbers, got {bad!r}")
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -55,6 +79,17 @@ def matrix(value, at: str, *, shape: tuple[int | None, int | None] | None = None
     if not np.all(np.isfinite(arr)):
         raise ModelFileError(f"{at}: entries must be finite numbers")
     return arr
+
+
+def _non_number(value):
+    """The first entry of a nested list that is not an int or float (a bool counts as not), or None."""
+    if isinstance(value, (list, tuple)):
+        for item in value:
+            bad = _non_number(item)
+            if bad is not None:
+                return bad
+        return None
+    return value if isinstance(value, bool) or not isinstance(value, (int, float)) else None
 
 
 def number(value, at: str, *, positive: bool = False) -> float:

@@ -1,31 +1,182 @@
-"""The ``switchest`` command line."""
+"""The ``switchest`` command line.
+
+An error the user can cause (an option value, a model or data file, an output
+path, a results store, a scheduler address) is reported as one line on stderr
+naming the option or the file and what was expected, with exit code 2. Any other
+exception is a bug in switchest: one line says so, exit code 1. With ``--debug``
+(before or after the command) the exception propagates with its traceback,
+except for errors in the command line itself. Ctrl-C exits with code 130; an
+interrupted ``run`` or ``reproduce`` says how many tasks are stored and the
+command that resumes it. Long runs show a progress bar with an ETA on a terminal.
+"""
 
 from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 from rich.table import Table
 
 from . import __version__
-from .estimators import IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
 from .certify import certify
-from .experiments import Store, get, names, run_experiment, write_report
+from .estimators import IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
+from .experiments import RunInterrupted, Store, get, names, run_experiment, write_report
 from .experiments.report import AGREE
-from .modelfile import load_model
-from .plotting import curves
-from .tabular import METHODS, estimate_table
+from .experiments.runner import MAX_WORKERS
 from .metrics import mode_accuracy, rmse, switch_time_error
+from .modelfile import load_model
 from .models import BOOST_INPUT_VOLTAGE, BOOST_SAMPLE_PERIOD, boost_converter, boost_switching
+from .plotting import curves
 from .signals import periodic
 from .simulate import simulate
+from .tabular import METHODS, estimate_table
+
+DEMO_MAX_SAMPLES = 10**6
+"""Most trials x samples ``switchest demo`` simulates and filters (about 0.3 GB)."""
+
+_DEMO_BYTES_PER_SAMPLE = 300  # peak memory per trial and sample of the demo: 230-330 B measured
+_DEMO_SCORE_START = 10  # the demo scores the filters after their first 10 samples
+
+
+class _UsageError(Exception):
+    """An error in the command line itself (an option value, a path): exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, raised rather than printed with the usage."""
+
+    def error(self, message: str) -> NoReturn:
+        raise _UsageError(f"{message} (see '{self.prog} --help')")
+
+
+# ---------------------------------------------------------------------- option types (type=)
+def _integer(low: int, what: str, high: int | None = None) -> Callable[[str], int]:
+    """An int option in ``low..high``; ``what`` says what is expected."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if value < low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {value}")
+        return value
+
+    return parse
+
+
+def _real(what: str, *, high: float = np.inf) -> Callable[[str], float]:
+    """A finite float option in ``(0, high]``; ``what`` says what is expected."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if not (np.isfinite(value) and 0 < value <= high):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text}")
+        return value
+
+    return parse
+
+
+def _existing_file(text: str) -> Path:
+    path = Path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"no such file: {text}")
+    if not path.is_file():
+        kind = "a folder" if path.is_dir() else "not a regular file"
+        raise argparse.ArgumentTypeError(f"expected a file, {text} is {kind}")
+    return path
+
+
+_positive = _integer(1, "a positive integer")
+_seed = _integer(0, "a non-negative integer")
+_workers = _integer(1, f"an integer from 1 to {MAX_WORKERS}", MAX_WORKERS)
+_duration = _real("a finite positive number of seconds")
+_window = _real("a finite positive number")
+_probability = _real("a probability in (0, 1]", high=1.0)
+
+
+# ---------------------------------------------------------------------- output paths
+def _output_folder(path: Path, option: str) -> Path:
+    """Create the folder ``path`` (and its parents) or say why it cannot be one."""
+    for place in (path, *path.parents):
+        if place.exists() and not place.is_dir():
+            where = "it is" if place == path else "it is under"
+            raise _UsageError(f"{option} {path}: expected a folder, {where} the file {place}")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _UsageError(f"{option} {path}: cannot create this folder ({exc.strerror})") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise _UsageError(f"{option} {path}: the folder is not writable")
+    return path
+
+
+def _output_file(path: Path, option: str, suffixes: tuple[str, ...] = ()) -> Path:
+    """Check that the file ``path`` can be written: its folder exists and is writable."""
+    if path.is_dir():
+        raise _UsageError(f"{option} {path}: expected a file name, it is a folder")
+    if suffixes and path.suffix.lower().lstrip(".") not in suffixes:
+        raise _UsageError(f"{option} {path}: expected a file name ending in one of "
+                          f"{', '.join('.' + s for s in suffixes)}")
+    folder = path.parent
+    if not folder.is_dir():
+        what = "is a file" if folder.exists() else "does not exist"
+        raise _UsageError(f"{option} {path}: its folder {folder} {what}")
+    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise _UsageError(f"{option} {path}: not writable")
+    return path
+
+
+def _store_path(args: argparse.Namespace) -> Path:
+    return Path(args.store) if args.store else Path(args.out) / "results.sqlite"
+
+
+def _open_store(args: argparse.Namespace) -> Store:
+    """The store of ``--store`` (or OUT/results.sqlite), or a usage error naming the option."""
+    option = "--store" if args.store else "--out"
+    try:
+        return Store(_store_path(args))
+    except (ValueError, OSError) as exc:
+        raise _UsageError(f"{option}: {exc}") from None
+
+
+# ---------------------------------------------------------------------- demo
+def _check_demo_size(trials: int, duration: float) -> None:
+    """Refuse a demo too short to score or too large to hold in memory, before simulating."""
+    samples = np.floor(duration / BOOST_SAMPLE_PERIOD + 1e-9) + 1  # a float: may exceed any int
+    if samples <= _DEMO_SCORE_START:
+        raise _UsageError(
+            f"--duration {duration:g}: the demo scores the filters after their first "
+            f"{_DEMO_SCORE_START} samples (T = {BOOST_SAMPLE_PERIOD * 1e3:g} ms); give at least "
+            f"{_DEMO_SCORE_START * BOOST_SAMPLE_PERIOD:g} s")
+    if trials * samples > DEMO_MAX_SAMPLES:
+        gigabytes = trials * samples * _DEMO_BYTES_PER_SAMPLE / 1e9
+        raise _UsageError(
+            f"--trials {trials} x {samples:.0f} samples (--duration {duration:g} s at T = "
+            f"{BOOST_SAMPLE_PERIOD * 1e3:g} ms) would need about {gigabytes:.3g} GB; the demo is "
+            f"limited to {DEMO_MAX_SAMPLES:,} trials x samples (about "
+            f"{DEMO_MAX_SAMPLES * _DEMO_BYTES_PER_SAMPLE / 1e9:.2g} GB): lower --trials or "
+            "--duration")
 
 
 def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
@@ -42,6 +193,7 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
         f"(T = {BOOST_SAMPLE_PERIOD * 1e3:g} ms, switches every 1.2 ms, then random in "
         f"[0.9, 1.2] ms from 0.02 s) in {time.perf_counter() - t_start:.2f} s"
     )
+    imm_transition = [[0.5, 0.5], [0.5, 0.5]]
     filters = {
         "clairvoyant (true switch times)": lambda: ModeKalmanFilter(system, x0, P0).run(
             traj.y, u, t, modes=traj.mode, segments=traj.segments()),
@@ -49,187 +201,293 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
             traj.y, u, t, modes=traj.mode),
         "switch-time KF, g = 5": lambda: SwitchTimeKalmanFilter(system, x0, P0, grid=5).run(
             traj.y, u, t, modes=traj.mode),
-        "IMM (modes unknown)": lambda: IMMFilter(system, [[0.5, 0.5], [0.5, 0.5]], x0, P0).run(traj.y, u, t),
+        "IMM (modes unknown)": lambda: IMMFilter(system, imm_transition, x0, P0).run(traj.y, u, t),
     }
-    table = Table(title="Boost converter: RMSE after the first 10 samples")
+    table = Table(title=f"Boost converter: RMSE after the first {_DEMO_SCORE_START} samples")
     table.add_column("filter", no_wrap=True)
-    for col in ("RMSE i_L (A)", "RMSE v_0 (V)", "mode accuracy", "switch-time error (ms)", "time (s)"):
+    for col in ("RMSE i_L (A)", "RMSE v_0 (V)", "mode accuracy", "switch-time error (ms)",
+                "time (s)"):
         table.add_column(col, justify="right")
     true_switch = traj.switch_times()
+    start = _DEMO_SCORE_START
     for name, run in filters.items():
         t_start = time.perf_counter()
         est = run()
         elapsed = time.perf_counter() - t_start
-        r = rmse(est.x, traj.x, start=10).overall
-        acc = "-" if est.mode is None else f"{mode_accuracy(est.mode, traj.mode, start=10):.3f}"
-        err = "-" if est.switch_time is None else f"{1e3 * switch_time_error(est.switch_time, true_switch).mean():.3f}"
+        r = rmse(est.x, traj.x, start=start).overall
+        acc = "-" if est.mode is None else f"{mode_accuracy(est.mode, traj.mode, start=start):.3f}"
+        err = ("-" if est.switch_time is None
+               else f"{1e3 * switch_time_error(est.switch_time, true_switch).mean():.3f}")
         table.add_row(name, f"{r[0]:.3f}", f"{r[1]:.3f}", acc, err, f"{elapsed:.2f}")
     return table
 
 
+# ---------------------------------------------------------------------- run, reproduce, report
 def _summary_table(summary) -> Table:
     """Paper vs measured values of one experiment, with their ratio; row notes as a caption."""
-    table = Table(title=summary.title, title_justify="left", caption_justify="left")
+    table = Table(title=escape(summary.title), title_justify="left", caption_justify="left")
     table.add_column("quantity", overflow="fold")
     for col in ("paper", "ours", "ours/paper", "unit"):
         table.add_column(col, justify="right", no_wrap=True)
     notes = []
+
+    def fmt(v) -> str:
+        return "—" if v is None else (escape(v) if isinstance(v, str) else f"{v:.4g}")
+
     for row in summary.rows:
         ratio = row.ratio
         style = "" if ratio is None else ("green" if abs(ratio - 1) <= AGREE else "red")
-        fmt = (lambda v: "—" if v is None else (v if isinstance(v, str) else f"{v:.4g}"))
-        table.add_row(row.quantity, fmt(row.paper), fmt(row.measured),
-                      "—" if ratio is None else f"[{style}]{ratio:.3f}[/{style}]", row.unit)
+        shown = "—" if ratio is None else f"[{style}]{ratio:.3f}[/{style}]"
+        table.add_row(escape(row.quantity), fmt(row.paper), fmt(row.measured), shown,
+                      escape(row.unit))
         if row.note:
-            notes.append(f"{row.quantity}: {row.note}")
+            notes.append(escape(f"{row.quantity}: {row.note}"))
     table.caption = "\n".join(notes) or None
     return table
 
 
-def _run(names: list[str], args, console: Console) -> Path:
-    """Run (or resume) each named experiment into the store; print its summary; return the store path."""
-    out = Path(args.out)
-    store = Store(Path(args.store) if args.store else out / "results.sqlite")
-    for name in names:
+def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store:
+    """Run (or resume) each named experiment into the store; print its summary; return the store."""
+    out = _output_folder(Path(args.out), "--out")
+    store = _open_store(args)
+    plans = []
+    for name in chosen:  # every experiment's parameters are checked before any runs
         experiment = get(name)
-        overrides = {"trials": args.trials} if getattr(args, "trials", None) else {}
-        params = experiment.params(quick=args.quick, **overrides)
-        with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                      TimeElapsedColumn(), console=console, transient=True) as progress:
-            bar = progress.add_task(name, total=None)
+        overrides = {}
+        if getattr(args, "trials", None) is not None:
+            if "trials" not in experiment.defaults:
+                raise _UsageError(f"--trials: experiment {name} has no trials parameter (its "
+                                  f"parameters: {', '.join(sorted(experiment.defaults))})")
+            overrides["trials"] = args.trials
+        try:
+            plans.append((experiment, experiment.params(quick=args.quick, **overrides)))
+        except ValueError as exc:
+            raise _UsageError(f"--trials {args.trials}: {exc}" if overrides else str(exc)) from None
+    for experiment, params in plans:
+        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
+        with Progress(*columns, console=console, transient=True,
+                      disable=not console.is_terminal) as progress:
+            bar = progress.add_task(experiment.name, total=None)
             start = time.perf_counter()
-            results = run_experiment(
-                experiment, params, store=store, seed=args.seed, workers=args.workers,
-                scheduler=args.scheduler,
-                on_done=lambda done, total: progress.update(bar, completed=done, total=total),
-            )
+            try:
+                results = run_experiment(
+                    experiment, params, store=store, seed=args.seed, workers=args.workers,
+                    scheduler=args.scheduler,
+                    on_done=lambda done, total, bar=bar: progress.update(bar, completed=done,
+                                                                         total=total),
+                )
+            except OSError as exc:
+                if args.scheduler is None:
+                    raise
+                raise _UsageError(f"--scheduler {args.scheduler}: {exc}") from None
         summary = experiment.summarize(params, results, out / "figures")
         console.print(_summary_table(summary))
-        console.print(f"[dim]{name}: {len(results)} tasks, {time.perf_counter() - start:.1f} s[/dim]\n")
-    return store.path
+        console.print(f"[dim]{escape(experiment.name)}: {len(results)} tasks, "
+                      f"{time.perf_counter() - start:.1f} s[/dim]\n")
+    return store
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="switchest", description="Estimation in switched linear systems.")
+def _cmd_run(args: argparse.Namespace, console: Console) -> int:
+    chosen = [args.name] if args.command == "run" else (names() if args.all else args.names)
+    if not chosen:
+        raise _UsageError("name the reproductions to run, or pass --all")
+    unknown = [n for n in chosen if n not in names()]
+    if unknown:
+        raise _UsageError(f"unknown reproduction(s) {', '.join(unknown)}; see 'switchest list'")
+    store = _run(chosen, args, console)
+    if args.command == "reproduce":
+        report = write_report(store, args.out, chosen)
+        console.print(f"report: [bold]{escape(str(report))}[/bold]  "
+                      f"(results store: {escape(str(store.path))})")
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace, console: Console) -> int:
+    _output_folder(Path(args.out), "--out")
+    try:
+        store = Store(args.store)
+    except (ValueError, OSError) as exc:
+        raise _UsageError(f"--store: {exc}") from None
+    console.print(f"report: [bold]{escape(str(write_report(store, args.out)))}[/bold]")
+    return 0
+
+
+# ---------------------------------------------------------------------- demo, list, estimate, check
+def _cmd_demo(args: argparse.Namespace, console: Console) -> int:
+    _check_demo_size(args.trials, args.duration)
+    console.print(demo(args.trials, args.duration, args.seed, console))
+    return 0
+
+
+def _cmd_list(args: argparse.Namespace, console: Console) -> int:
+    table = Table(title="switchest reproductions")
+    for col in ("name", "paper", "what"):
+        table.add_column(col)
+    for name in names():
+        e = get(name)
+        table.add_row(escape(name), escape(e.paper), escape(e.title))
+    console.print(table)
+    return 0
+
+
+def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
+    out = _output_file(Path(args.out), "--out")
+    plot = args.plot and _output_file(Path(args.plot), "--plot", ("png", "pdf", "svg"))
+    spec = load_model(args.model)
+    table = estimate_table(spec, args.data, method=args.method, grid=args.grid, refine=args.refine,
+                           stay=args.stay, v_max=args.v_max, delta=args.delta, Delta=args.Delta,
+                           switch_interval=args.switch_interval)
+    table.to_csv(out, index=False)
+    console.print(f"{len(table)} samples estimated with {args.method}: "
+                  f"[bold]{escape(str(out))}[/bold]")
+    if plot is not None:
+        states = table.filter(regex=r"^x\d+$").to_numpy()  # NaN rows (no estimate) leave gaps
+        switches = table["switch_time"].dropna().to_numpy() if "switch_time" in table else ()
+        title = f"{args.model}: {args.method}" + (
+            "; dotted: estimated switches" if len(switches) else "")
+        curves(plot, table["t"].to_numpy(), {args.method: states}, xlabel="t",
+               ylabel=[f"x{i}" for i in range(states.shape[1])], markers=switches, title=title)
+        console.print(f"figure: {escape(str(plot))}")
+    return 0
+
+
+def _cmd_check(args: argparse.Namespace, console: Console) -> int:
+    spec = load_model(args.model)
+    table = Table(title=escape(f"switchest check: {args.model}"), title_justify="left")
+    for col in ("condition", "verdict", "margin", "paper", "detail"):
+        table.add_column(col, overflow="fold")
+    marks = {True: "[green]holds[/green]", False: "[red]fails[/red]", None: "[yellow]n/a[/yellow]"}
+    for c in certify(spec):
+        margin = "—" if c.margin is None else f"{c.margin:.3g}"
+        table.add_row(escape(c.name), marks[c.verdict], margin, escape(c.paper), escape(c.detail))
+    console.print(table)
+    return 0
+
+
+# ---------------------------------------------------------------------- the parser and main
+def _parser() -> _Parser:
+    parser = _Parser(prog="switchest", description="Estimation in switched linear systems.")
     parser.add_argument("--version", action="version", version=f"switchest {__version__}")
+    debug = argparse.ArgumentParser(add_help=False)  # --debug before or after the command
+    debug.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                       help="show the traceback of an error")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True)
-    p_demo = sub.add_parser("demo", help="simulate the boost converter and compare filters")
-    p_demo.add_argument("--trials", type=int, default=20)
-    p_demo.add_argument("--duration", type=float, default=0.1, help="seconds of operation")
-    p_demo.add_argument("--seed", type=int, default=0)
 
-    sub.add_parser("list", help="list the registered paper reproductions")
+    def command(name: str, run: Callable, **kwargs) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, parents=[debug], **kwargs)
+        p.set_defaults(run=run)
+        return p
+
+    p_demo = command("demo", _cmd_demo, help="simulate the boost converter and compare filters")
+    p_demo.add_argument("--trials", type=_positive, default=20)
+    p_demo.add_argument("--duration", type=_duration, default=0.1, help="seconds of operation")
+    p_demo.add_argument("--seed", type=_seed, default=0)
+
+    command("list", _cmd_list, help="list the registered paper reproductions")
 
     def runner_options(p):
-        p.add_argument("--quick", action="store_true", help="fewer trials, shorter runs (minutes, not hours)")
-        p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+        p.add_argument("--quick", action="store_true",
+                       help="fewer trials, shorter runs (minutes, not hours)")
+        p.add_argument("--workers", type=_workers, default=os.cpu_count() or 1,
                        help="local worker processes (default: the machine's cores)")
-        p.add_argument("--scheduler", default=None, help="address of a Dask scheduler to run the tasks on")
-        p.add_argument("--seed", type=int, default=0)
-        p.add_argument("--out", default="out", help="output folder (figures, report, default store)")
+        p.add_argument("--scheduler", default=None,
+                       help="address of a Dask scheduler to run the tasks on")
+        p.add_argument("--seed", type=_seed, default=0)
+        p.add_argument("--out", default="out",
+                       help="output folder (figures, report, default store)")
         p.add_argument("--store", default=None, help="results store (default OUT/results.sqlite)")
 
-    p_run = sub.add_parser("run", help="run (or resume) one reproduction")
+    p_run = command("run", _cmd_run, help="run (or resume) one reproduction")
     p_run.add_argument("name")
-    p_run.add_argument("--trials", type=int, default=None, help="override the number of trials")
+    p_run.add_argument("--trials", type=_positive, default=None,
+                       help="override the number of trials")
     runner_options(p_run)
-    p_rep = sub.add_parser("reproduce", help="run several reproductions and write the report")
+    p_rep = command("reproduce", _cmd_run, help="run several reproductions and write the report")
     p_rep.add_argument("names", nargs="*")
     p_rep.add_argument("--all", action="store_true", help="every registered reproduction")
     runner_options(p_rep)
-    p_est = sub.add_parser("estimate", help="estimate states and modes from measured data (CSV)")
-    p_est.add_argument("--model", required=True, help="TOML model file")
-    p_est.add_argument("--data", required=True,
-                       help="CSV with columns t, u..., y... (empty y cells: missing samples) and mode (the known "
-                            "mode, needed by kalman, switch-time, rsls, impulsive); for rsls the y columns are the "
-                            "integrated output at fine instants t including every switching instant t0 + kT")
+    p_est = command("estimate", _cmd_estimate,
+                    help="estimate states and modes from measured data (CSV)")
+    p_est.add_argument("--model", required=True, type=_existing_file, help="TOML model file")
+    p_est.add_argument("--data", required=True, type=_existing_file,
+                       help="CSV with columns t, u..., y... (empty or NaN y cells: missing "
+                            "samples) and mode (the known mode, needed by kalman, switch-time, "
+                            "rsls, impulsive); for rsls the y columns are the integrated output "
+                            "at fine instants t including every switching instant t0 + kT")
     p_est.add_argument("--method", required=True, choices=METHODS,
-                       help="kalman, switch-time (known modes); imm, imm-ev1 (modes unknown); min-distance (Lee et "
-                            "al., uniform t); rsls (Wang et al., integrated output); impulsive (Etienne et al.)")
-    p_est.add_argument("--grid", type=int, default=5, help="switching-time grid points per interval")
-    p_est.add_argument("--refine", action="store_true", help="refine the grid maximum (switch-time)")
-    p_est.add_argument("--stay", type=float, default=None, help="per-sample probability of staying in a mode")
-    p_est.add_argument("--v-max", type=float, default=None,
-                       help="min-distance: noise bound |v| <= v_max (default: the model's noise.v_max)")
-    p_est.add_argument("--delta", type=float, default=None,
-                       help="min-distance: estimation window delta, a multiple of the time step (default: "
-                            "noise.delta)")
-    p_est.add_argument("--Delta", type=float, default=None,
+                       help="kalman, switch-time (known modes); imm, imm-ev1 (modes unknown); "
+                            "min-distance (Lee et al., uniform t); rsls (Wang et al., integrated "
+                            "output); impulsive (Etienne et al.)")
+    p_est.add_argument("--grid", type=_positive, default=5,
+                       help="switching-time grid points per interval")
+    p_est.add_argument("--refine", action="store_true",
+                       help="refine the grid maximum (switch-time)")
+    p_est.add_argument("--stay", type=_probability, default=None,
+                       help="per-sample probability of staying in a mode")
+    p_est.add_argument("--v-max", type=_window, default=None,
+                       help="min-distance: noise bound |v| <= v_max (default: the model's "
+                            "noise.v_max)")
+    p_est.add_argument("--delta", type=_window, default=None,
+                       help="min-distance: estimation window delta, a multiple of the time step "
+                            "(default: noise.delta)")
+    p_est.add_argument("--Delta", type=_window, default=None,
                        help="min-distance: detection delay Delta (default: noise.Delta)")
-    p_est.add_argument("--switch-interval", type=float, default=None,
-                       help="rsls: switching interval T, modes change only at t0 + kT (default: sampling.period)")
+    p_est.add_argument("--switch-interval", type=_window, default=None,
+                       help="rsls: switching interval T, modes change only at t0 + kT (default: "
+                            "sampling.period)")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")
-    p_est.add_argument("--plot", default=None, help="PNG figure of the estimates")
-    p_check = sub.add_parser("check", help="certify what switchest can about a model file")
-    p_check.add_argument("--model", required=True, help="TOML model file")
-    p_report = sub.add_parser("report", help="write the HTML report of a results store")
-    p_report.add_argument("--store", required=True)
+    p_est.add_argument("--plot", default=None, help="figure of the estimates (.png, .pdf, .svg)")
+    p_check = command("check", _cmd_check, help="certify what switchest can about a model file")
+    p_check.add_argument("--model", required=True, type=_existing_file, help="TOML model file")
+    p_report = command("report", _cmd_report, help="write the HTML report of a results store")
+    p_report.add_argument("--store", required=True, type=_existing_file)
     p_report.add_argument("--out", default="out")
+    return parser
 
-    args = parser.parse_args(argv)
-    console = Console()
-    if args.command == "demo":
-        if args.trials < 1 or args.duration <= 0:
-            parser.error("--trials must be >= 1 and --duration > 0")
-        console.print(demo(args.trials, args.duration, args.seed, console))
-    elif args.command == "list":
-        table = Table(title="switchest reproductions")
-        for col in ("name", "paper", "what"):
-            table.add_column(col)
-        for name in names():
-            e = get(name)
-            table.add_row(name, e.paper, e.title)
-        console.print(table)
-    elif args.command in ("run", "reproduce"):
-        if args.workers < 1:
-            parser.error("--workers must be >= 1")
-        chosen = [args.name] if args.command == "run" else (names() if args.all else args.names)
-        if not chosen:
-            parser.error("name the reproductions to run, or pass --all")
-        unknown = [n for n in chosen if n not in names()]
-        if unknown:
-            parser.error(f"unknown reproduction(s) {unknown}; see 'switchest list'")
-        store_path = _run(chosen, args, console)
-        if args.command == "reproduce":
-            report = write_report(Store(store_path), args.out, chosen)
-            console.print(f"report: [bold]{report}[/bold]  (results store: {store_path})")
-    elif args.command == "estimate":
-        try:
-            spec = load_model(args.model)
-            table = estimate_table(spec, args.data, method=args.method, grid=args.grid, refine=args.refine,
-                                   stay=args.stay, v_max=args.v_max, delta=args.delta, Delta=args.Delta,
-                                   switch_interval=args.switch_interval)
-        except (ValueError, OSError) as exc:
-            console.print(f"[red]error:[/red] {escape(str(exc))}")  # messages name [tables] of the model file
-            return 2
-        table.to_csv(args.out, index=False)
-        console.print(f"{len(table)} samples estimated with {args.method}: [bold]{args.out}[/bold]")
-        if args.plot:
-            states = table.filter(regex=r"^x\d+$").to_numpy()  # NaN rows (no estimate) leave gaps
-            switches = table["switch_time"].dropna().to_numpy() if "switch_time" in table else ()
-            curves(args.plot, table["t"].to_numpy(), {args.method: states}, xlabel="t",
-                   ylabel=[f"x{i}" for i in range(states.shape[1])], markers=switches,
-                   title=f"{args.model}: {args.method}" + ("; dotted: estimated switches" if len(switches) else ""))
-            console.print(f"figure: {args.plot}")
-    elif args.command == "check":
-        try:
-            spec = load_model(args.model)
-        except (ValueError, OSError) as exc:
-            console.print(f"[red]error:[/red] {escape(str(exc))}")
-            return 2
-        table = Table(title=f"switchest check: {args.model}", title_justify="left")
-        for col in ("condition", "verdict", "margin", "paper", "detail"):
-            table.add_column(col, overflow="fold")
-        marks = {True: "[green]holds[/green]", False: "[red]fails[/red]", None: "[yellow]n/a[/yellow]"}
-        for c in certify(spec):
-            table.add_row(c.name, marks[c.verdict], "—" if c.margin is None else f"{c.margin:.3g}", c.paper,
-                          c.detail)
-        console.print(table)
-    elif args.command == "report":
-        if not Path(args.store).exists():
-            parser.error(f"--store {args.store} does not exist")
-        console.print(f"report: [bold]{write_report(Store(args.store), args.out)}[/bold]")
-    return 0
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``switchest`` with ``argv`` (default: the process's arguments); return the exit code."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    errors = Console(stderr=True, soft_wrap=True, highlight=False)
+    debug = False
+    try:
+        args = _parser().parse_args(argv)
+        debug = args.debug
+        return args.run(args, Console())
+    except _UsageError as exc:
+        _say(errors, "error", str(exc))
+        return 2
+    except RunInterrupted as exc:
+        if debug:
+            raise
+        _say(errors, "interrupted", f"{exc.stored} of {exc.total} tasks of {exc.experiment} are "
+                                    f"stored in {_store_path(args)}")
+        _say(errors, "resume with", shlex.join(["switchest", *argv]))
+        return 130
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        _say(errors, "interrupted", "stopped by Ctrl-C")
+        return 130
+    except (ValueError, OSError) as exc:  # the library's and the file system's word on the input
+        if debug:
+            raise
+        _say(errors, "error", str(exc) or type(exc).__name__)
+        return 2
+    except Exception as exc:  # anything else is a bug: say so in one line
+        if debug:
+            raise
+        _say(errors, "internal error", f"{type(exc).__name__}: {exc} -- a bug in switchest; re-run "
+                                       "with --debug for the traceback and report it")
+        return 1
+
+
+def _say(console: Console, label: str, message: str) -> None:
+    """One line on stderr: ``label: message`` (line breaks folded, markup shown as text)."""
+    line = " ".join(part.strip() for part in message.splitlines())
+    console.print(f"[bold red]{label}:[/bold red] {escape(line)}")
 
 
 if __name__ == "__main__":

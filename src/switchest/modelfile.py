@@ -19,11 +19,15 @@ and, optionally::
     u_max = 1.0             # their detector's design: windows delta, Delta and
     x_min = 0.8             # observer_decay (A_i - L_i C_i with poles at -observer_decay ...)
 
-Every error names the file, the table and the key.
+The bounds ``v_max``, ``u_max``, ``x_min`` are finite and non-negative; ``delta``,
+``Delta`` and ``observer_decay`` finite and positive. Every error names the file,
+the table and the key; an unknown key, at any level, is an error that suggests
+the closest valid one.
 """
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,6 +58,10 @@ _SWITCHING_KEYS = {
     "iid": {"p"},
     "schedule": {"times", "modes"},
 }
+_SAMPLING_KEYS = {"period", "tau_min", "tau_max", "duration"}
+_INITIAL_KEYS = {"mean", "cov"}
+_NOISE_BOUNDS = {"v_max", "u_max", "x_min"}  # bounds on |v|, |u|, |x|: zero is meaningful
+_NOISE_DESIGN = {"delta", "Delta", "observer_decay"}  # windows (s) and a decay rate (1/s)
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,7 +156,15 @@ def save_model(spec: ModelSpec, path: str | Path) -> Path:
 
 
 def load_model(path: str | Path) -> ModelSpec:
-    """Read a TOML model file."""
+    """Read a TOML model file.
+
+    Raises
+    ------
+    ModelFileError
+        (a ValueError) naming the file, the table and the key of anything
+        malformed: unknown keys (with the closest valid one), wrong types, shapes
+        or values; also for a file that is not UTF-8 TOML or does not exist.
+    """
     source = str(path)
     doc = _toml.read(path)
     system = SwitchedLinearSystem.from_dict(doc, source=source)
@@ -173,10 +189,9 @@ def _table(value, source: str, name: str) -> dict:
 
 def _sampling(table, source: str) -> dict:
     table = _table(table, source, "sampling")
-    unknown = set(table) - {"period", "tau_min", "tau_max", "duration"}
-    if unknown:
-        raise _toml.ModelFileError(_toml.where(source, f"sampling.{sorted(unknown)[0]}: unknown key; expected "
-                                                       f"period, tau_min, tau_max or duration"))
+    for key in table:
+        if key not in _SAMPLING_KEYS:
+            raise _toml.unknown_key(source, "sampling", key, _SAMPLING_KEYS)
     out = {k: _toml.number(v, _toml.where(source, f"sampling.{k}"), positive=True) for k, v in table.items()}
     if "period" in out and ("tau_min" in out or "tau_max" in out):
         raise _toml.ModelFileError(_toml.where(source, "sampling.period: give either period or tau_min/tau_max"))
@@ -192,44 +207,55 @@ def _switching(table, source: str, L: int) -> dict:
     if not table:
         return {}
     kind = table.get("kind")
-    if kind not in _SWITCHING_KEYS:
-        raise _toml.ModelFileError(_toml.where(source, f"switching.kind: expected one of "
+    if not isinstance(kind, str) or kind not in _SWITCHING_KEYS:
+        close = (difflib.get_close_matches(kind, _SWITCHING_KEYS, n=1)
+                 if isinstance(kind, str) else [])
+        hint = f"did you mean {close[0]!r}? " if close else ""
+        raise _toml.ModelFileError(_toml.where(source, f"switching.kind: {hint}expected one of "
                                                        f"{sorted(_SWITCHING_KEYS)}, got {kind!r}"))
-    unknown = set(table) - _SWITCHING_KEYS[kind] - {"kind"}
-    if unknown:
-        raise _toml.ModelFileError(_toml.where(source, f"switching.{sorted(unknown)[0]}: unknown key for kind "
-                                                       f"{kind!r}; expected {sorted(_SWITCHING_KEYS[kind])}"))
+    for key in table:
+        if key != "kind" and key not in _SWITCHING_KEYS[kind]:
+            owners = sorted(k for k, keys in _SWITCHING_KEYS.items() if key in keys)
+            if not owners:
+                raise _toml.unknown_key(source, "switching", key, _SWITCHING_KEYS[kind] | {"kind"})
+            takes = ", ".join(sorted(_SWITCHING_KEYS[kind]))
+            raise _toml.ModelFileError(_toml.where(
+                source, f"switching.{key}: not a parameter of kind {kind!r} (it is one of kind "
+                        f"{owners[0]!r}); kind {kind!r} takes {takes}"))
     out = {"kind": kind}
-    at = lambda k: _toml.where(source, f"switching.{k}")  # noqa: E731
+    at = lambda k: _toml.where(source, f"switching.{k}")
     try:
         for key, value in table.items():
             if key in ("kind",):
                 continue
             if key in ("min_dwell", "max_dwell", "tau_a", "N0", "rate"):
                 out[key] = _toml.number(value, at(key), positive=True)
-            elif key in ("initial_mode",):
+            elif key == "initial_mode" or (key == "initial" and not isinstance(value, list)):
                 if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < L:
-                    raise _toml.ModelFileError(f"{at(key)}: expected a mode index in 0..{L - 1}, got {value!r}")
+                    raise _toml.ModelFileError(f"{at(key)}: expected a mode index in 0..{L - 1}, "
+                                               f"got {value!r}")
                 out[key] = value
             elif key in ("transition", "rates"):
                 out[key] = _toml.matrix(value, at(key), shape=(L, L))
-            elif key == "p":
+            elif key in ("p", "initial"):  # probabilities (initial: or a mode index, above)
                 out[key] = _toml.matrix(value, at(key), shape=(L,), ndim=1)
-            elif key == "initial":
-                out[key] = value if isinstance(value, int) else _toml.matrix(value, at(key), shape=(L,), ndim=1)
             elif key == "times":
                 out[key] = _toml.matrix(value, at(key), ndim=1)
             elif key == "modes":
-                out[key] = np.asarray(value)
+                indices = isinstance(value, list) and all(
+                    isinstance(v, int) and not isinstance(v, bool) and 0 <= v < L for v in value)
+                if not indices:
+                    raise _toml.ModelFileError(f"{at(key)}: expected a list of mode indices in "
+                                               f"0..{L - 1}, got {value!r}")
+                out[key] = np.asarray(value, dtype=np.int64)
         missing = {"dwell": ["min_dwell", "max_dwell"], "average-dwell": ["tau_a", "N0"], "markov": ["transition"],
                    "markov-continuous": ["rates"], "iid": ["p"], "schedule": ["times", "modes"]}[kind]
         for key in missing:
             if key not in out:
                 raise _toml.ModelFileError(f"{at(key)}: required for kind {kind!r}")
-        # the generators validate the parameters (stochastic rows, dwell bounds, ...)
-        signal = _draw_signal(out, L, np.random.default_rng(0), np.arange(3.0))
-        if signal.modes.max() >= L:
-            raise ValueError(f"modes must be in 0..{L - 1}, got {int(signal.modes.max())}")
+        # the generators validate the parameters (stochastic rows, dwell bounds, ...):
+        # draw a signal over a few of its switches
+        _draw_signal(out, L, np.random.default_rng(0), np.arange(3.0) * _time_scale(out))
     except _toml.ModelFileError:
         raise
     except (TypeError, ValueError) as exc:
@@ -237,14 +263,27 @@ def _switching(table, source: str, L: int) -> dict:
     return out
 
 
+def _time_scale(sw: dict) -> float:
+    """A time over which the switching model makes a few switches (probing its parameters)."""
+    if "min_dwell" in sw:
+        return sw["min_dwell"]
+    if "tau_a" in sw:
+        return min(sw["tau_a"], 1.0 / sw["rate"]) if "rate" in sw else sw["tau_a"]
+    if "rates" in sw:
+        return 1.0 / max(float(np.max(np.abs(sw["rates"]))), 1.0)
+    return 1.0
+
+
 def _initial(table, source: str, n: int):
     if table is None:
         return None
     table = _table(table, source, "initial")
-    unknown = set(table) - {"mean", "cov"}
-    if unknown or "mean" not in table:
-        key = sorted(unknown)[0] if unknown else "mean"
-        raise _toml.ModelFileError(_toml.where(source, f"initial.{key}: expected keys mean and cov"))
+    for key in table:
+        if key not in _INITIAL_KEYS:
+            raise _toml.unknown_key(source, "initial", key, _INITIAL_KEYS)
+    if "mean" not in table:
+        raise _toml.ModelFileError(_toml.where(source, "initial.mean: required (cov defaults to "
+                                                       "zero)"))
     mean = _toml.matrix(table["mean"], _toml.where(source, "initial.mean"), shape=(n,), ndim=1)
     cov = _toml.matrix(table.get("cov", np.zeros((n, n)).tolist()), _toml.where(source, "initial.cov"),
                        shape=(n, n))
@@ -257,4 +296,12 @@ def _initial(table, source: str, n: int):
 
 def _noise(table, source: str) -> dict:
     table = _table(table, source, "noise")
-    return {k: _toml.number(v, _toml.where(source, f"noise.{k}")) for k, v in table.items()}
+    out = {}
+    for key, value in table.items():
+        if key not in _NOISE_BOUNDS | _NOISE_DESIGN:
+            raise _toml.unknown_key(source, "noise", key, _NOISE_BOUNDS | _NOISE_DESIGN)
+        at = _toml.where(source, f"noise.{key}")
+        out[key] = _toml.number(value, at, positive=key in _NOISE_DESIGN)
+        if out[key] < 0:
+            raise _toml.ModelFileError(f"{at}: a bound on a norm must be >= 0, got {value!r}")
+    return out

@@ -4,8 +4,11 @@ A measurement table has a column ``t`` (sample times, strictly increasing),
 input columns ``u0 .. u{l-1}`` and output columns ``y0 .. y{m-1}`` (``u`` and
 ``y`` alone when there is one of each), and optionally ``mode`` (the known mode
 at each sample, 0-based) for the methods that need it. An empty cell in an
-output column is a missing sample; anything else that is not a number is
-refused with the row and column named.
+output column (or ``NaN``) is a missing sample; anything else that is not a
+finite number (``n/a``, ``NA``, ``null``, ``-``, ``inf`` ...) is refused with the
+row and column named. Other columns are ignored, but a ``y``/``u`` column the
+model does not have is refused, as are a duplicated column name and, in a CSV
+file, a row with more or fewer fields than the header.
 
 The methods (:data:`METHODS`), what each needs and where it finds it:
 
@@ -50,6 +53,10 @@ estimated or declared).
 
 from __future__ import annotations
 
+import csv
+import re
+from dataclasses import dataclass
+from numbers import Real
 from pathlib import Path
 
 import numpy as np
@@ -105,49 +112,182 @@ def _columns(prefix: str, count: int) -> list[str]:
     return [prefix] if count == 1 else [f"{prefix}{i}" for i in range(count)]
 
 
+_SIGNAL_NAME = re.compile(r"[yu]\d*")  # names the model's output and input columns take
+_MISSING_TEXT = ("", "nan")  # the only cells that mean "no sample" (case-insensitive, stripped)
+
+
+@dataclass(frozen=True)
+class _Table:
+    """A measurement table as given: its cells, a name for messages, the file line of each row."""
+
+    frame: pd.DataFrame
+    name: str  # "data" or "<path>: data"
+    lines: list[int] | None = None
+
+    def row(self, i: int) -> str:
+        return f"{self.name} row {i}" + ("" if self.lines is None else f" (line {self.lines[i]})")
+
+
 def read_measurements(data: pd.DataFrame | str | Path, spec: ModelSpec) -> dict[str, np.ndarray]:
     """Validate a measurement table against the model; returns ``t``, ``y``, ``u`` (and ``mode``).
 
-    Raises ValueError naming the row and column of a non-numeric cell, unsorted or
-    duplicated times, a missing column or an input gap.
+    Only an empty cell or ``NaN`` (any case) is a missing value, and only in an
+    output column; every other cell must be a finite number (``n/a``, ``NA``,
+    ``null``, ``-`` or ``inf`` are refused, not read as missing). Columns other
+    than ``t``, the model's ``u``/``y`` columns and ``mode`` are ignored, except
+    that a ``y``/``u`` column the model does not have is refused.
+
+    Raises
+    ------
+    ValueError
+        Naming the file (for a CSV path), the row and the column: a cell that is
+        not a finite number, a missing value outside the outputs, unsorted,
+        repeated or non-finite times, a missing column, a ``y``/``u`` column more
+        than the model has, a duplicated column name, a row with more or fewer
+        fields than the header, a mode index out of range, an empty table.
+    TypeError
+        When ``data`` is neither a DataFrame nor a path.
     """
-    if not isinstance(data, pd.DataFrame):
-        data = pd.read_csv(data, skipinitialspace=True)
+    if isinstance(data, pd.DataFrame):
+        table = _Table(data, "data")
+    elif isinstance(data, (str, Path)):
+        table = _read_csv(Path(data))
+    else:
+        raise TypeError(f"data must be a DataFrame or the path of a CSV file, got "
+                        f"{type(data).__name__}")
     sys = spec.system
     y_cols, u_cols = _columns("y", sys.n_outputs), _columns("u", sys.n_inputs) if sys.n_inputs else []
     need = ["t", *u_cols, *y_cols]
-    missing = [c for c in need if c not in data.columns]
-    if missing:
-        raise ValueError(f"data is missing column(s) {missing}; expected {need} (+ optional 'mode'), "
-                         f"got {list(data.columns)}")
+    names = [str(c) for c in table.frame.columns]
+    _check_header(table.name, names, need)
+    if len(table.frame) == 0:
+        raise ValueError(f"{table.name} has no rows; expected at least one sample")
     out = {}
-    for col in need + (["mode"] if "mode" in data.columns else []):
-        values = pd.to_numeric(data[col], errors="coerce")
-        bad = values.isna() & data[col].notna() & (data[col].astype(str).str.strip() != "")
-        if bad.any():
-            row = int(np.flatnonzero(bad.to_numpy())[0])
-            raise ValueError(f"data row {row}, column {col!r}: not a number ({data[col].iloc[row]!r})")
-        arr = values.to_numpy(dtype=float)
-        if col != "y" and not col.startswith("y") and np.isnan(arr).any():
-            row = int(np.flatnonzero(np.isnan(arr))[0])
-            raise ValueError(f"data row {row}, column {col!r}: empty; only outputs may be missing")
-        out[col] = arr
+    for col in need + (["mode"] if "mode" in names else []):
+        values = _numbers(table, names.index(col), col)
+        gone = np.isnan(values)
+        if col not in y_cols and gone.any():
+            row = int(np.flatnonzero(gone)[0])
+            raise ValueError(f"{table.row(row)}, column {col!r}: empty (or NaN); only the "
+                             "outputs y may be missing")
+        out[col] = values
     t = out["t"]
     steps = np.diff(t)
     if np.any(steps == 0):
         row = int(np.flatnonzero(steps == 0)[0]) + 1
-        raise ValueError(f"data row {row}: time {t[row]:g} repeats the previous row; times must be unique")
+        raise ValueError(f"{table.row(row)}: time {t[row]:g} repeats the previous row; times "
+                         "must be unique")
     if np.any(steps < 0):
         row = int(np.flatnonzero(steps < 0)[0]) + 1
-        raise ValueError(f"data row {row}: time {t[row]:g} is before the previous row's; sort the data by t")
+        raise ValueError(f"{table.row(row)}: time {t[row]:g} is before the previous row's; sort "
+                         "the data by t")
     result = {"t": t, "y": np.stack([out[c] for c in y_cols], axis=-1),
               "u": np.stack([out[c] for c in u_cols], axis=-1) if u_cols else np.zeros((t.size, 0))}
     if "mode" in out:
         modes = out["mode"]
-        if np.any(modes != np.round(modes)) or np.any((modes < 0) | (modes >= sys.n_modes)):
-            raise ValueError(f"data column 'mode' must hold mode indices 0..{sys.n_modes - 1}")
+        wrong = (modes != np.round(modes)) | (modes < 0) | (modes >= sys.n_modes)
+        if wrong.any():
+            row = int(np.flatnonzero(wrong)[0])
+            raise ValueError(f"{table.row(row)}, column 'mode': {modes[row]:g} is not a mode "
+                             f"index; column 'mode' must hold mode indices 0..{sys.n_modes - 1}")
         result["mode"] = modes.astype(np.int64)
     return result
+
+
+def _read_csv(path: Path) -> _Table:
+    """The cells of a CSV file as text, refusing rows whose field count differs from the header's.
+
+    Read with the csv module rather than pandas, which renames a duplicated header
+    (``y0.1``), pads short rows with NaN and reads ``n/a``, ``NA``, ``null``... as
+    missing. Blank lines are skipped; a UTF-8 byte-order mark is allowed.
+    """
+    header, rows, lines = None, [], []
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(fh, skipinitialspace=True)
+            for fields in reader:
+                if len(fields) <= 1 and not "".join(fields).strip():
+                    continue  # a blank line
+                if header is None:
+                    header = [f.strip() for f in fields]
+                elif len(fields) != len(header):
+                    raise ValueError(f"{path}: line {reader.line_num} has {len(fields)} "
+                                     f"field(s), the header has {len(header)} "
+                                     f"({', '.join(header)})")
+                else:
+                    rows.append(fields)
+                    lines.append(reader.line_num)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a UTF-8 text file ({exc.reason} at byte "
+                         f"{exc.start})") from None
+    except csv.Error as exc:
+        raise ValueError(f"{path}: line {reader.line_num}: not valid CSV ({exc})") from None
+    if header is None:
+        raise ValueError(f"{path}: empty file; expected a header line naming the columns t, "
+                         "u..., y...")
+    return _Table(pd.DataFrame(rows, columns=header, dtype=object), f"{path}: data", lines)
+
+
+def _check_header(name: str, columns: list[str], need: list[str]) -> None:
+    """Refuse a duplicated column name, a missing column, a ``y``/``u`` column the model lacks."""
+    seen = set()
+    for c in columns:
+        if c and c in seen:
+            raise ValueError(f"{name}: column {c!r} appears more than once in the header")
+        seen.add(c)
+    missing = [c for c in need if c not in seen]
+    if missing:
+        raise ValueError(f"{name} is missing column(s) {missing}; expected {need} (+ optional "
+                         f"'mode'), got {columns}")
+    extra = [c for c in columns if _SIGNAL_NAME.fullmatch(c) and c not in need]
+    if extra:
+        raise ValueError(f"{name} has column(s) {extra} the model does not have: its outputs "
+                         f"and inputs are {[c for c in need if c != 't']}")
+
+
+def _numbers(table: _Table, index: int, col: str) -> np.ndarray:
+    """Column ``col`` as floats, NaN for a missing value (an empty or NaN cell).
+
+    Text is parsed by ``float`` (exact: the double nearest the decimal), refusing
+    what it would read but is no plain number (``1_000``) and every other text.
+    """
+    cells = table.frame.iloc[:, index]
+    if pd.api.types.is_bool_dtype(cells) or pd.api.types.is_complex_dtype(cells):
+        raise ValueError(f"{table.name} column {col!r}: holds {cells.dtype} values, expected "
+                         "real numbers")
+    if pd.api.types.is_numeric_dtype(cells):
+        values = cells.to_numpy(dtype=float, na_value=np.nan)
+    else:
+        values = np.empty(len(cells))
+        for row, cell in enumerate(cells.tolist()):
+            value = _number(cell)
+            if value is None:
+                raise ValueError(f"{table.row(row)}, column {col!r}: not a number ({cell!r}); a "
+                                 "missing sample is an empty cell or NaN")
+            values[row] = value
+    bad = np.isinf(values)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{table.row(row)}, column {col!r}: {values[row]} is not a finite number")
+    return values
+
+
+def _number(cell) -> float | None:
+    """One cell as a float, NaN if missing, None if it is no number."""
+    if isinstance(cell, str):
+        text = cell.strip()
+        if text.lower() in _MISSING_TEXT:
+            return np.nan
+        if "_" not in text:
+            try:
+                return float(text)
+            except ValueError:
+                pass
+    elif isinstance(cell, (Real, np.number)) and not isinstance(cell, (bool, np.bool_)):
+        return float(cell)
+    elif cell is None or (np.ndim(cell) == 0 and pd.isna(cell)):
+        return np.nan
+    return None
 
 
 def transition_for(spec: ModelSpec, T: float, *, stay: float | None = None) -> np.ndarray:
