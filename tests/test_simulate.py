@@ -127,7 +127,7 @@ def test_input_shapes():
         (dict(signal=sg.schedule([0.1], [0, 2])), ValueError, "signal uses mode 2"),
         (dict(signal=lambda r: 3), TypeError, "must return a SwitchingSignal"),
         (dict(signal="abc"), TypeError, "signal must be a SwitchingSignal"),
-        (dict(fine_dt=-1.0), ValueError, "fine_dt must be a positive"),
+        (dict(fine_dt=-1.0), ValueError, "fine_dt must be a finite positive"),
     ],
 )
 def test_bad_input(kwargs, err, match):

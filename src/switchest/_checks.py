@@ -7,7 +7,9 @@ received, and raises ``ValueError`` (wrong value or shape) or ``TypeError``
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
+from functools import lru_cache
 from numbers import Real
 
 import numpy as np
@@ -17,16 +19,22 @@ __all__ = [
     "float_array",
     "int_array",
     "check_finite",
+    "check_cores",
+    "broadcast_batch",
     "check_square_stack",
     "check_symmetric_psd",
     "check_row_stochastic",
     "check_probability_vector",
     "positive_scalar",
     "positive_int",
+    "check_bool",
     "check_mode",
+    "memory_limit",
+    "check_memory",
 ]
 
 _SYM_RTOL = 1e-9
+_INT_MAX = 2**62
 
 
 def as_rng(rng: np.random.Generator | int | np.random.SeedSequence | None, name: str = "rng"):
@@ -36,6 +44,9 @@ def as_rng(rng: np.random.Generator | int | np.random.SeedSequence | None, name:
     """
     if isinstance(rng, np.random.Generator):
         return rng
+    if isinstance(rng, (bool, np.bool_)):  # an int to Python, but never meant as a seed
+        raise TypeError(f"{name} must be a numpy Generator, an int seed, a SeedSequence or None, "
+                        "got bool")
     if rng is None or isinstance(rng, (int, np.integer, np.random.SeedSequence)):
         if isinstance(rng, (int, np.integer)) and rng < 0:
             raise ValueError(f"{name} must be a non-negative seed, got {rng}")
@@ -46,14 +57,47 @@ def as_rng(rng: np.random.Generator | int | np.random.SeedSequence | None, name:
     )
 
 
-def float_array(value, name: str, *, ndim: int | Sequence[int] | None = None) -> np.ndarray:
-    """Convert ``value`` to a float64 array, checking its number of dimensions."""
+def float_array(
+    value, name: str, *, ndim: int | Sequence[int] | None = None, masked: str = "error"
+) -> np.ndarray:
+    """Convert ``value`` to a float64 array, checking its kind and number of dimensions.
+
+    Integers and real floats are accepted. Booleans, complex numbers, dates and
+    durations, strings and other objects raise ``TypeError`` naming the dtype:
+    converting them would drop information silently (an imaginary part, the meaning
+    of a mask or of a date).
+
+    A numpy masked array with masked entries raises ``ValueError`` unless
+    ``masked="nan"``: then its masked entries become NaN, the package's mark of a
+    missing sample (used for measurements ``y``).
+    """
+    if masked not in ("error", "nan"):
+        raise ValueError(f"masked must be 'error' or 'nan', got {masked!r}")
     if isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be numeric, got {type(value).__name__}")
+    mask = np.ma.getmaskarray(value) if isinstance(value, np.ma.MaskedArray) else None
+    raw = _as_array(np.ma.getdata(value) if mask is not None else value, name)
+    kind = raw.dtype.kind
+    if kind == "O":
+        bad = [type(v).__name__ for v in raw.flat if not _is_real(v)][:1]
+        if bad or raw.size == 0:
+            got = f"a {bad[0]}" if bad else "nothing"
+            raise TypeError(f"{name} must be a real numeric array, got dtype object holding {got}")
+    elif kind not in "iuf":
+        raise TypeError(
+            f"{name} must be a real numeric array (int or float), got dtype {raw.dtype}"
+        )
     try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a numeric array, got {type(value).__name__}") from exc
+        arr = raw.astype(float, copy=False)
+    except OverflowError:
+        raise ValueError(f"{name} holds a number too large for a float64") from None
+    if mask is not None and mask.any():
+        if masked == "error":
+            raise ValueError(
+                f"{name} must not have masked entries, got {int(mask.sum())} masked "
+                f"(pass NaN where a value is missing, if {name} allows it)"
+            )
+        arr = np.where(mask, np.nan, arr)  # a masked entry is a missing sample
     if ndim is not None:
         allowed = (ndim,) if isinstance(ndim, int) else tuple(ndim)
         if arr.ndim not in allowed:
@@ -65,8 +109,16 @@ def float_array(value, name: str, *, ndim: int | Sequence[int] | None = None) ->
 
 
 def int_array(value, name: str, *, ndim: int | None = None) -> np.ndarray:
-    """Convert ``value`` to an int64 array; floats are accepted only if integral."""
-    arr = np.asarray(value)
+    """Convert ``value`` to an int64 array; floats are accepted only if integral.
+
+    Booleans, complex numbers, strings, objects and masked arrays with masked
+    entries are refused.
+    """
+    if isinstance(value, np.ma.MaskedArray):
+        if np.ma.getmaskarray(value).any():
+            raise ValueError(f"{name} must not have masked entries")
+        value = np.ma.getdata(value)
+    arr = _as_array(value, name)
     if arr.dtype == bool or not (
         np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)
     ):
@@ -74,10 +126,27 @@ def int_array(value, name: str, *, ndim: int | None = None) -> np.ndarray:
     if np.issubdtype(arr.dtype, np.floating):
         if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
             raise ValueError(f"{name} must hold integers, got non-integral values")
+    if arr.size and (arr.max() > _INT_MAX or arr.min() < -_INT_MAX):
+        bad = arr.max() if arr.max() > _INT_MAX else arr.min()
+        raise ValueError(f"{name} must hold integers within +-2**62, got {float(bad):g}")
     arr = arr.astype(np.int64)
     if ndim is not None and arr.ndim != ndim:
         raise ValueError(f"{name} must have {ndim} dimensions, got shape {arr.shape}")
     return arr
+
+
+def _as_array(value, name: str) -> np.ndarray:
+    """``np.asarray(value)``, with a ragged nesting reported under ``name``."""
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(
+            f"{name} must be a rectangular numeric array, got a ragged {type(value).__name__}"
+        ) from exc
+
+
+def _is_real(v) -> bool:
+    return isinstance(v, (Real, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
 
 def check_finite(arr: np.ndarray, name: str) -> None:
@@ -87,6 +156,42 @@ def check_finite(arr: np.ndarray, name: str) -> None:
         raise ValueError(
             f"{name} must be finite, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}"
         )
+
+
+def broadcast_batch(shapes: dict[str, tuple[int, ...]]) -> tuple[int, ...]:
+    """The broadcast of named batch shapes; ``ValueError`` naming them all when they clash."""
+    try:
+        return np.broadcast_shapes(*shapes.values())
+    except ValueError:
+        listed = ", ".join(f"{name} {shape}" for name, shape in shapes.items())
+        raise ValueError(f"the batch shapes must broadcast together, got {listed}") from None
+
+
+def check_cores(arrays: dict[str, np.ndarray], cores: dict[str, str]) -> tuple[int, ...]:
+    """Check stacks of vectors and matrices against their core axes; return the batch shape.
+
+    ``cores`` names each array's trailing (core) axes with letters, e.g.
+    ``{"x": "n", "P": "nn", "C": "mn"}``: every array must have those axes, one
+    letter must stand for one size in every array, and the leading (batch) axes
+    must broadcast together. Errors name the array and the axis.
+    """
+    sizes: dict[str, tuple[int, str]] = {}
+    batches = {}
+    for name, arr in arrays.items():
+        core = cores[name]
+        if arr.ndim < len(core):
+            raise ValueError(
+                f"{name} must have shape (..., {', '.join(core)}), got shape {arr.shape}"
+            )
+        for letter, size in zip(core, arr.shape[arr.ndim - len(core):]):
+            seen = sizes.setdefault(letter, (size, name))
+            if seen[0] != size:
+                raise ValueError(
+                    f"{name} has {letter} = {size} in its shape {arr.shape}, but {seen[1]} has "
+                    f"{letter} = {seen[0]}"
+                )
+        batches[name] = arr.shape[: arr.ndim - len(core)]
+    return broadcast_batch(batches)
 
 
 def check_square_stack(arr: np.ndarray, name: str) -> None:
@@ -103,6 +208,7 @@ def check_symmetric_psd(arr: np.ndarray, name: str, *, definite: bool = False) -
     semidefiniteness.
     """
     check_square_stack(arr, name)
+    check_finite(arr, name)  # NaN would pass every comparison below
     scale = max(float(np.max(np.abs(arr), initial=0.0)), np.finfo(float).tiny)
     asym = float(np.max(np.abs(arr - np.swapaxes(arr, -1, -2)), initial=0.0))
     kind = "positive definite" if definite else "positive semidefinite"
@@ -154,7 +260,9 @@ def check_probability_vector(p, name: str, *, n: int | None = None) -> np.ndarra
 
 
 def positive_scalar(value, name: str, *, allow_zero: bool = False) -> float:
-    """Return ``value`` as a finite positive (or non-negative) float."""
+    """Return ``value`` (a real number or a 0-d real array) as a finite positive float."""
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+        value = value[()]
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (Real, np.floating, np.integer)):
         raise TypeError(f"{name} must be a real scalar, got {type(value).__name__}")
     v = float(value)
@@ -173,6 +281,13 @@ def positive_int(value, name: str) -> int:
     return int(value)
 
 
+def check_bool(value, name: str) -> bool:
+    """Return ``value`` as a bool; only ``True``/``False`` (Python or numpy) are accepted."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {type(value).__name__}")
+    return bool(value)
+
+
 def check_mode(value, n_modes: int, name: str) -> int:
     """Return ``value`` as a 0-based mode index in ``0..n_modes-1``."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
@@ -180,3 +295,35 @@ def check_mode(value, n_modes: int, name: str) -> int:
     if not 0 <= value < n_modes:
         raise ValueError(f"{name} must be a mode index in 0..{n_modes - 1}, got {value}")
     return int(value)
+
+
+@lru_cache(maxsize=1)
+def memory_limit() -> int:
+    """Bytes one call may plan to allocate: half of the machine's physical memory.
+
+    Read with ``os.sysconf``; 4 GiB where the platform does not report it.
+    """
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        total = 0
+    return total // 2 if total > 0 else 4 * 2**30
+
+
+def check_memory(nbytes: float, what: str) -> None:
+    """Refuse up front a computation whose arrays would not fit in :func:`memory_limit`.
+
+    ``what`` names the arguments that set the size and how it is counted, e.g.
+    ``"trials = 100000000: the outputs (N K (n + m + l + 1) floats)"``; the message
+    adds the estimate and the limit.
+    """
+    limit = memory_limit()
+    if nbytes > limit:
+        raise ValueError(
+            f"{what} would take about {_gib(nbytes)}, more than the limit of {_gib(limit)} "
+            "(half of this machine's physical memory); reduce the size"
+        )
+
+
+def _gib(nbytes: float) -> str:
+    return f"{nbytes / 2**30:.3g} GiB"

@@ -33,14 +33,23 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import expm
 
-from ._checks import check_finite, float_array, int_array, positive_scalar
+from ._checks import check_finite, check_memory, float_array, int_array, positive_scalar
 from ._linalg import symmetrize
 from .system import SwitchedLinearSystem
 
-__all__ = ["Transition", "interval", "switch_grid", "pairwise_grid", "mode_steps", "segment_transitions"]
+__all__ = [
+    "Transition",
+    "interval",
+    "switch_grid",
+    "pairwise_grid",
+    "pairwise_grid_nbytes",
+    "mode_steps",
+    "segment_transitions",
+]
 
 _CACHE_MAX_ELEMENTS = 4096
 _VAN_LOAN_REACH = 4.0  # largest ||A|| h exponentiated at once (see _segments)
+_EXPM_COPIES = 8  # arrays of the stacked blocks' size alive at once in expm and the compositions
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,14 +90,19 @@ def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition
         being the broadcast of ``T``'s shape with the leading axes of ``modes`` and
         ``offsets`` (Shankar et al. eqs (3)-(5), generalized to S switches).
 
+    Raises
+    ------
+    ValueError
+        On a bad shape or value, and when the block exponentials of the whole batch
+        would not fit in memory (:func:`switchest._checks.check_memory`).
+
     Notes
     -----
     For a discrete-time system the model passes through unchanged: ``F = A[m]``,
     ``G = B[m]``, ``Qd = Q[m]``; then ``T`` must equal ``system.dt`` and no switch
     may fall inside the step.
     """
-    if not isinstance(system, SwitchedLinearSystem):
-        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    _check_system(system)
     T = float_array(T, "T")
     check_finite(T, "T")
     if np.any(T <= 0):
@@ -107,13 +121,22 @@ def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition
             f"(one fewer than modes), got shape {offsets.shape}"
         )
     check_finite(offsets, "offsets")
+    try:
+        batch = np.broadcast_shapes(T.shape, modes.shape[:-1], offsets.shape[:-1])
+    except ValueError:
+        raise ValueError(
+            f"T {T.shape}, modes {modes.shape[:-1]} (without the last axis) and offsets "
+            f"{offsets.shape[:-1]} (without the last axis) must broadcast to one batch shape"
+        ) from None
     if not system.is_continuous:
         return _discrete_passthrough(system, T, modes, offsets)
-    batch = np.broadcast_shapes(T.shape, modes.shape[:-1], offsets.shape[:-1])
-    if np.any(offsets < 0) or np.any(offsets > T[..., None]):
-        raise ValueError("offsets must lie within [0, T]")
-    if np.any(np.diff(offsets, axis=-1) < 0):
-        raise ValueError("offsets must be non-decreasing along their last axis")
+    _check_offsets(offsets, T[..., None])
+    d = 2 * system.n_states + system.n_inputs
+    check_memory(
+        _EXPM_COPIES * 8 * d * d * int(np.prod(batch, dtype=float)) * modes.shape[-1],
+        f"interval over a batch of shape {batch} with {modes.shape[-1]} segments "
+        f"({_EXPM_COPIES} copies of one {d}x{d} block exponential per segment)",
+    )
     if modes.size + offsets.size + T.size <= _CACHE_MAX_ELEMENTS:
         return _cached(system, T.tobytes(), T.shape, modes.tobytes(), modes.shape,
                        offsets.tobytes(), offsets.shape)
@@ -126,8 +149,11 @@ def switch_grid(T: float, g: int) -> np.ndarray:
     The midpoints of ``g`` equal sub-intervals of ``[0, T)``, ``i = 1..g``.
     """
     T = positive_scalar(T, "T")
-    if isinstance(g, (bool, np.bool_)) or not isinstance(g, (int, np.integer)) or g < 1:
+    if isinstance(g, (bool, np.bool_)) or not isinstance(g, (int, np.integer)):
+        raise TypeError(f"g must be a positive int (number of grid points), got {type(g).__name__}")
+    if g < 1:
         raise ValueError(f"g must be a positive int (number of grid points), got {g!r}")
+    check_memory(8 * g, f"switch_grid with g = {g} points")
     i = np.arange(1, g + 1)
     return i * T / g - T / (2 * g)
 
@@ -142,7 +168,20 @@ def pairwise_grid(system: SwitchedLinearSystem, T: float, g: int) -> Transition:
     :func:`mode_steps`.
     """
     switch_grid(T, g)  # validates T and g before they become a cache key
+    check_memory(pairwise_grid_nbytes(system, g),
+                 f"pairwise_grid with g = {g} switching instants and L = {system.n_modes} modes")
     return _pairwise_grid(system, float(T), int(g))
+
+
+def pairwise_grid_nbytes(system: SwitchedLinearSystem, g: int) -> int:
+    """Bytes :func:`pairwise_grid` works in: the block exponentials of its ``2 L^2 g`` segments.
+
+    ``_EXPM_COPIES`` arrays of the stacked ``(2n + l) x (2n + l)`` blocks are alive at
+    once inside ``expm`` and the compositions; the result itself is smaller.
+    """
+    _check_system(system)
+    L, d = system.n_modes, 2 * system.n_states + system.n_inputs
+    return _EXPM_COPIES * 8 * d * d * 2 * L * L * int(g)
 
 
 @lru_cache(maxsize=64)
@@ -160,7 +199,8 @@ def mode_steps(system: SwitchedLinearSystem, T: float) -> Transition:
 
     Called at every filter step, so it is memoized on ``(system, T)`` directly.
     """
-    return _mode_steps(system, float(T))
+    _check_system(system)
+    return _mode_steps(system, positive_scalar(T, "T"))
 
 
 @lru_cache(maxsize=256)
@@ -176,13 +216,22 @@ def segment_transitions(system: SwitchedLinearSystem, T: float, modes, offsets) 
     switch reuse the cached per-mode steps; trials that share a switch pattern (a
     signal common to all trials) are discretized once.
     """
+    steps = mode_steps(system, T)  # validates system and T
+    T = float(T)
     modes = int_array(modes, "modes", ndim=2)
+    if modes.shape[1] == 0:
+        raise ValueError(f"modes must have shape (N, S+1) with S+1 >= 1, got {modes.shape}")
+    if np.any((modes < 0) | (modes >= system.n_modes)):
+        raise ValueError(
+            f"modes must be in 0..{system.n_modes - 1}, got {modes.min()}..{modes.max()}"
+        )
     offsets = float_array(offsets, "offsets", ndim=2)
     if offsets.shape != (modes.shape[0], modes.shape[1] - 1):
         raise ValueError(
             f"offsets must have shape (N, S) = ({modes.shape[0]}, {modes.shape[1] - 1}), got {offsets.shape}"
         )
-    steps = mode_steps(system, T)
+    check_finite(offsets, "offsets")  # every row, also those without a switch
+    _check_offsets(offsets, T)
     m0 = modes[:, 0]
     F, G, Qd = steps.F[m0], steps.G[m0], steps.Qd[m0]  # fancy indexing: fresh copies
     switched = np.flatnonzero(np.any(modes[:, 1:] != m0[:, None], axis=1))
@@ -194,6 +243,20 @@ def segment_transitions(system: SwitchedLinearSystem, T: float, modes, offsets) 
         inverse = inverse.ravel()
         F[switched], G[switched], Qd[switched] = tr.F[inverse], tr.G[inverse], tr.Qd[inverse]
     return Transition(F, G, Qd)
+
+
+def _check_system(system) -> None:
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+
+
+def _check_offsets(offsets: np.ndarray, T) -> None:
+    """Switch offsets lie in ``[0, T]`` and do not decrease (``T`` broadcasts against them)."""
+    if np.any(offsets < 0) or np.any(offsets > T):
+        lo, hi = float(offsets.min()), float(offsets.max())
+        raise ValueError(f"offsets must lie within [0, T], got {lo:g}..{hi:g}")
+    if np.any(np.diff(offsets, axis=-1) < 0):
+        raise ValueError("offsets must be non-decreasing along their last axis")
 
 
 @lru_cache(maxsize=256)
@@ -222,7 +285,19 @@ def _compute(system, T, modes, offsets, batch) -> Transition:
         F = P @ F  # F <- Phi_s F
         G = P @ G + Gs[..., s, :, :]  # G <- Phi_s G + G_s
         Qd = P @ Qd @ np.swapaxes(P, -1, -2) + Qs[..., s, :, :]  # Qd <- Phi Qd Phi' + Qd_s
+    _check_overflow(T, F, G, Qd)
     return Transition(np.ascontiguousarray(F), np.ascontiguousarray(G), symmetrize(Qd))
+
+
+def _check_overflow(T, *parts) -> None:
+    """An unstable mode over a long interval overflows: refuse it rather than return inf/NaN."""
+    finite = np.logical_and.reduce([np.isfinite(p).all(axis=(-2, -1)) for p in parts])
+    if not np.all(finite):
+        bad = float(np.broadcast_to(T, finite.shape)[~finite].max())
+        raise ValueError(
+            f"the transition over T = {bad:g} overflows the floating-point range (an unstable "
+            "mode over too long an interval); shorten T"
+        )
 
 
 def _segments(system, modes, h):
@@ -239,6 +314,8 @@ def _segments(system, modes, h):
     M, q_scale, b_scale, a_norm = _van_loan_generators(system)
     n = system.n_states
     reach = float(np.max(a_norm[modes] * h, initial=0.0))
+    if not np.isfinite(reach):
+        raise ValueError(f"the interval T = {float(np.max(h)):g} is too long: ||A|| T overflows")
     k = int(np.ceil(np.log2(reach / _VAN_LOAN_REACH))) if reach > _VAN_LOAN_REACH else 0
     E = expm(M[modes] * (h / 2.0**k)[..., None, None])
     Phi = np.swapaxes(E[..., n : 2 * n, n : 2 * n], -1, -2)

@@ -45,8 +45,7 @@ def rmse(estimate, truth, *, start: int = 0) -> RMSE:
         raise ValueError(f"estimate and truth must share a shape (N, K, n) or (K, n), got {est.shape} and {ref.shape}")
     if est.ndim == 2:
         est, ref = est[None], ref[None]
-    if not 0 <= start < est.shape[1]:
-        raise ValueError(f"start must be in 0..{est.shape[1] - 1}, got {start}")
+    start = _check_start(start, est.shape[1])
     sq = (est - ref) ** 2
     with np.errstate(invalid="ignore"):
         per_step = np.sqrt(np.nanmean(sq, axis=0))
@@ -60,6 +59,7 @@ def mode_accuracy(estimated, true, *, start: int = 0) -> float:
     ref = int_array(true, "true")
     if est.shape != ref.shape or est.ndim < 1:
         raise ValueError(f"estimated and true must share a shape (..., K), got {est.shape} and {ref.shape}")
+    start = _check_start(start, est.shape[-1])
     return float(np.mean(est[..., start:] == ref[..., start:]))
 
 
@@ -77,3 +77,12 @@ def switch_time_error(estimated, true) -> np.ndarray:
         raise ValueError(f"estimated and true must share a shape, got {est.shape} and {ref.shape}")
     both = np.isfinite(est) & np.isfinite(ref)
     return np.abs(est[both] - ref[both])
+
+
+def _check_start(start, K: int) -> int:
+    """``start`` as a sample index in ``0..K-1``."""
+    if isinstance(start, (bool, np.bool_)) or not isinstance(start, (int, np.integer)):
+        raise TypeError(f"start must be an int sample index, got {type(start).__name__}")
+    if not 0 <= start < K:
+        raise ValueError(f"start must be in 0..{K - 1}, got {start}")
+    return int(start)

@@ -7,18 +7,26 @@ stored as the switch instants ``times (S,)`` and the modes ``modes (S+1,)``, wit
 Generators draw one signal from an explicit ``rng``; pass them as
 ``lambda rng: dwell_time(..., rng=rng)`` to :func:`switchest.simulate.simulate`
 to get one independent signal per trial.
+
+A generator refuses up front, with ``ValueError``, a request whose expected number
+of switches (or of sample times) exceeds :data:`MAX_EVENTS` = 10**7 (rate x
+duration, or duration / mean gap): such a signal would take minutes to draw and
+gigabytes downstream, and is almost always a unit mistake.
 """
 
 from __future__ import annotations
 
+from bisect import bisect_right
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ._checks import (
     as_rng,
-    check_mode,
     check_finite,
+    check_memory,
+    check_mode,
     check_probability_vector,
     check_row_stochastic,
     float_array,
@@ -38,7 +46,13 @@ __all__ = [
     "periodic",
     "aperiodic",
     "sample_segments",
+    "MAX_EVENTS",
 ]
+
+MAX_EVENTS = 10**7
+"""Most switches (or sample times) a generator draws for one signal, in expectation."""
+
+_CHUNK = 2**20  # random gaps drawn at once when the worst case would need more
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,6 +104,8 @@ class SwitchingSignal:
     def at(self, t) -> np.ndarray:
         """sigma(t), vectorized over ``t``; right-continuous (the new mode at a switch)."""
         t = float_array(t, "t")
+        if np.any(np.isnan(t)):
+            raise ValueError("t must not hold NaN: sigma(t) is defined at instants only")
         return self.modes[np.searchsorted(self.times, t, side="right")]
 
     def switches_in(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
@@ -98,6 +114,7 @@ class SwitchingSignal:
         A switch exactly at ``t0`` is not returned (sigma(t0) already holds its new
         mode), nor one at ``t1`` (it does not act on ``[t0, t1)``).
         """
+        t0, t1 = (_finite_scalar(v, name) for v, name in ((t0, "t0"), (t1, "t1")))
         lo = np.searchsorted(self.times, t0, side="right")
         hi = np.searchsorted(self.times, t1, side="left")
         return self.times[lo:hi].copy(), self.modes[lo + 1 : hi + 1].copy()
@@ -106,7 +123,7 @@ class SwitchingSignal:
         """The signal equal to ``self`` before ``at`` and to ``other`` from ``at`` on."""
         if not isinstance(other, SwitchingSignal):
             raise TypeError(f"other must be a SwitchingSignal, got {type(other).__name__}")
-        at = float(at)
+        at = _finite_scalar(at, "at")
         i = np.searchsorted(self.times, at, side="left")  # self's switches before `at`
         j = np.searchsorted(other.times, at, side="right")  # other's switches after `at`
         times = np.concatenate([self.times[:i], [at], other.times[j:]])
@@ -123,6 +140,7 @@ def schedule(times, modes) -> SwitchingSignal:
     schedule may list a mode twice in a row.
     """
     times = float_array(times, "times", ndim=1)
+    check_finite(times, "times")  # before merging: a dropped repeat must not hide a NaN
     modes = int_array(modes, "modes", ndim=1)
     if modes.shape[0] != times.shape[0] + 1:
         raise ValueError(
@@ -130,7 +148,6 @@ def schedule(times, modes) -> SwitchingSignal:
         )
     change = modes[1:] != modes[:-1]
     return SwitchingSignal(times[change], np.concatenate([modes[:1], modes[1:][change]]))
-
 
 
 def _check_n_modes(n_modes, minimum: int = 2) -> int:
@@ -170,11 +187,30 @@ def dwell_time(
         raise ValueError(f"max_dwell must be >= min_dwell = {lo:g}, got {hi:g}")
     t_end = _check_span(t_start, t_end)
     first = check_mode(initial_mode, n_modes, "initial_mode")
+    span = t_end - float(t_start)
+    _check_events(span / (0.5 * (lo + hi)), "switches",
+                  "(t_end - t_start) / ((min_dwell + max_dwell) / 2)")
     rng = as_rng(rng)
-    count = int(np.ceil((t_end - t_start) / lo)) + 1
-    times = t_start + np.cumsum(rng.uniform(lo, hi, size=count))
+    times = _uniform_increments(float(t_start), t_end, lo, hi, rng)
     times = times[times < t_end]
     return SwitchingSignal(times, _next_modes(first, times.size, n_modes, rng))
+
+
+def _uniform_increments(t_start: float, t_end: float, lo: float, hi: float, rng) -> np.ndarray:
+    """``t_start + cumsum(gaps)``, gaps uniform on ``[lo, hi]``, drawn until one passes ``t_end``.
+
+    The worst case needs ``ceil((t_end - t_start) / lo) + 1`` gaps: that many are drawn
+    at once when it is at most ``_CHUNK``, otherwise ``_CHUNK`` at a time, so a tiny
+    ``lo`` beside a large ``hi`` costs what the gaps need, not what the worst case would.
+    """
+    need = np.ceil((t_end - t_start) / lo) + 1  # a float: may exceed every integer type
+    parts, last = [], t_start
+    while last <= t_end and need > 0:
+        size = int(min(need, _CHUNK))
+        part = last + np.cumsum(rng.uniform(lo, hi, size=size))
+        parts.append(part)
+        last, need = float(part[-1]), need - size
+    return np.concatenate(parts)
 
 
 def average_dwell_time(
@@ -207,6 +243,7 @@ def average_dwell_time(
     rate = 2.0 / tau_a if rate is None else positive_scalar(rate, "rate")
     t_end = _check_span(t_start, t_end)
     first = check_mode(initial_mode, n_modes, "initial_mode")
+    _check_events(rate * (t_end - float(t_start)), "switch attempts", "rate * (t_end - t_start)")
     rng = as_rng(rng)
     n_try = int(rng.poisson(rate * (t_end - t_start)))
     attempts = np.sort(rng.uniform(t_start, t_end, size=n_try))
@@ -230,18 +267,21 @@ def satisfies_average_dwell_time(signal: SwitchingSignal, tau_a: float, N0: floa
 
     The tightest intervals run from just before one switch to just after another,
     so it suffices that ``j - i + 1 <= N0 + (t_j - t_i) / tau_a`` for all switch
-    pairs ``i <= j``; checked for every lag ``j - i`` at once per lag.
+    pairs ``i <= j``. With ``a_j = j - t_j / tau_a`` that reads
+    ``a_j - min_{i <= j} a_i <= N0 - 1``: one pass with a running minimum, O(S).
+    A slack of ``1e-12 max(1, |t|)`` in time absorbs round-off (it exceeds the
+    rounding of ``t / tau_a`` by more than three orders of magnitude).
     """
+    if not isinstance(signal, SwitchingSignal):
+        raise TypeError(f"signal must be a SwitchingSignal, got {type(signal).__name__}")
     tau_a = positive_scalar(tau_a, "tau_a")
     N0 = positive_scalar(N0, "N0")
     t = signal.times
-    slack = 1e-12 * max(1.0, float(np.abs(t).max(initial=0.0)))
-    for lag in range(t.size):
-        if lag + 1 <= N0:
-            continue
-        if np.any(lag + 1 > N0 + (t[lag:] - t[: t.size - lag] + slack) / tau_a):
-            return False
-    return True
+    if t.size == 0:
+        return True
+    slack = 1e-12 * max(1.0, float(np.abs(t).max()))
+    a = np.arange(t.size) - t / tau_a
+    return bool(np.all(a - np.minimum.accumulate(a) <= N0 - 1 + slack / tau_a))
 
 
 def markov_continuous(
@@ -258,6 +298,10 @@ def markov_continuous(
     equal minus the row sum of the off-diagonal entries (rows sum to zero). Holding
     times are exponential with rate ``-rates[i, i]``; a mode with zero outflow is
     absorbing.
+
+    The jump chain is drawn in blocks: uniforms pick each next mode (the inverse
+    of the cumulative jump probabilities), unit exponentials divided by the
+    outflow rates give the holding times.
     """
     Q = float_array(rates, "rates", ndim=2)
     n_modes = Q.shape[0]
@@ -271,19 +315,34 @@ def markov_continuous(
         raise ValueError(f"rates rows must sum to zero (generator matrix), got {Q.sum(axis=1)}")
     t_end = _check_span(t_start, t_end)
     mode = check_mode(initial_mode, n_modes, "initial_mode")
+    out = -np.diag(Q)
+    expected = float(out.max()) * (t_end - float(t_start))
+    _check_events(expected, "switches", "max(-rates[i, i]) * (t_end - t_start)")
     rng = as_rng(rng)
-    times, modes, t = [], [mode], t_start
-    while True:  # sequential by nature: each holding time depends on the mode reached
-        out = -Q[mode, mode]
-        if out <= 0:
+    moving = (out > 0).tolist()
+    cum = np.cumsum(off, axis=1)
+    cdf = (cum / np.where(cum[:, -1:] > 0, cum[:, -1:], 1.0)).tolist()  # each row ends at 1.0
+    scale = np.where(out > 0, 1.0 / np.where(out > 0, out, 1.0), np.inf)  # absorbing: hold for ever
+    block = int(min(_CHUNK, expected + 4.0 * np.sqrt(expected) + 16))
+    times, modes, t = [], [np.array([mode])], float(t_start)
+    while moving[mode]:
+        hold = rng.standard_exponential(block)
+        u = rng.random(block).tolist()
+        path = []  # the mode held during each holding time of the block
+        for k in range(block):  # sequential by nature: each jump leaves the mode reached
+            path.append(mode)
+            if moving[mode]:
+                mode = bisect_right(cdf[mode], u[k])
+        path = np.array(path)
+        with np.errstate(invalid="ignore"):  # 0 * inf: a zero draw in an absorbing mode
+            left = t + np.cumsum(np.where(scale[path] < np.inf, hold * scale[path], np.inf))
+        jumps = int(np.searchsorted(left, t_end, side="left"))  # the jumps before t_end
+        times.append(left[:jumps])
+        modes.append(np.append(path[1:], mode)[:jumps])
+        if jumps < block:
             break
-        t += rng.exponential(1.0 / out)
-        if t >= t_end:
-            break
-        mode = int(rng.choice(n_modes, p=off[mode] / out))
-        times.append(t)
-        modes.append(mode)
-    return SwitchingSignal(np.asarray(times, dtype=float), np.asarray(modes))
+        t = float(left[-1])
+    return SwitchingSignal(np.concatenate(times) if times else np.zeros(0), np.concatenate(modes))
 
 
 def _at_samples(t, modes: np.ndarray) -> SwitchingSignal:
@@ -344,6 +403,7 @@ def periodic(T: float, t_end: float, *, t_start: float = 0.0) -> np.ndarray:
     """
     T = positive_scalar(T, "T")
     t_end = _check_span(t_start, t_end)
+    _check_events((t_end - float(t_start)) / T, "sample times", "(t_end - t_start) / T")
     count = int(np.floor((t_end - t_start) / T * (1 + 1e-9) + 1e-9)) + 1
     return t_start + T * np.arange(count)
 
@@ -358,8 +418,11 @@ def aperiodic(tau_min: float, tau_max: float, t_end: float, *, rng, t_start: flo
     if hi < lo:
         raise ValueError(f"tau_max must be >= tau_min = {lo:g}, got {hi:g}")
     t_end = _check_span(t_start, t_end)
-    count = int(np.ceil((t_end - t_start) / lo)) + 1
-    t = t_start + np.concatenate([[0.0], np.cumsum(as_rng(rng).uniform(lo, hi, size=count))])
+    span = t_end - float(t_start)
+    _check_events(span / (0.5 * (lo + hi)), "sample times",
+                  "(t_end - t_start) / ((tau_min + tau_max) / 2)")
+    drawn = _uniform_increments(float(t_start), t_end, lo, hi, as_rng(rng))
+    t = np.concatenate([[float(t_start)], drawn])
     return t[t <= t_end]
 
 
@@ -388,6 +451,9 @@ def sample_segments(signals, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     t = _sample_times(t)
     if isinstance(signals, SwitchingSignal):
         raise TypeError("signals must be a sequence of SwitchingSignal (one per trial), got one signal")
+    if not isinstance(signals, Sequence):
+        got = type(signals).__name__
+        raise TypeError(f"signals must be a sequence of SwitchingSignal, got {got}")
     signals = list(signals)
     if not signals or not all(isinstance(s, SwitchingSignal) for s in signals):
         raise TypeError("signals must be a non-empty sequence of SwitchingSignal objects")
@@ -415,6 +481,9 @@ def sample_segments(signals, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     key = trial * (K - 1) + k  # sorted, since each trial's times are increasing
     per_interval = np.bincount(key, minlength=N * (K - 1))
     S = int(per_interval.max(initial=0))
+    check_memory(8 * N * (K - 1) * (2 * S + 1),
+                 f"sample_segments with N = {N} signals, K = {K} samples and up to S = {S} "
+                 "switches in one interval (N (K-1) (2S+1) values)")
     group_start = np.concatenate([[0], np.cumsum(per_interval)[:-1]])
     rank = np.arange(key.size) - group_start[key]
     length = np.diff(t)
@@ -427,6 +496,21 @@ def sample_segments(signals, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     for s_ in range(S):  # pad with the last mode: a loop over the (small) switch count only
         modes[:, :, s_ + 1] = np.where(inner[:, :, s_] >= 0, inner[:, :, s_], modes[:, :, s_])
     return mode_at, modes, offsets
+
+
+def _check_events(expected: float, what: str, how: str) -> None:
+    """Refuse more than ``MAX_EVENTS`` expected events; ``how`` writes the estimate in arguments."""
+    if not expected <= MAX_EVENTS:
+        raise ValueError(
+            f"{how} = {expected:.3g} expected {what}, more than the limit MAX_EVENTS = "
+            f"{MAX_EVENTS:.0e}; check the units of the rates, dwell times and duration"
+        )
+
+
+def _finite_scalar(value, name: str) -> float:
+    arr = float_array(value, name, ndim=0)
+    check_finite(arr, name)
+    return float(arr)
 
 
 def _check_span(t_start, t_end) -> float:

@@ -15,7 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._checks import as_rng, check_finite, check_symmetric_psd, float_array
+from ._checks import (
+    as_rng,
+    check_finite,
+    check_memory,
+    check_symmetric_psd,
+    float_array,
+    positive_scalar,
+)
 from ._linalg import psd_sqrt
 from .discretize import mode_steps, segment_transitions
 from .signals import SwitchingSignal, sample_segments
@@ -139,6 +146,13 @@ def simulate(
     Returns
     -------
     Trajectory
+
+    Raises
+    ------
+    ValueError
+        Also when the outputs would not fit in memory: ``N (K (n + m + l + 1) +
+        Kf (n + 1))`` floats against :func:`switchest._checks.memory_limit` (half
+        of the physical memory), estimated before anything is drawn.
     """
     if not isinstance(system, SwitchedLinearSystem):
         raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
@@ -154,19 +168,21 @@ def simulate(
             raise ValueError(f"t must be spaced by the discrete system's dt = {system.dt:g}")
         if fine_dt is not None:
             raise ValueError("fine_dt applies to continuous-time systems only")
-    if output not in ("sampled", "integrated"):
+    if not isinstance(output, str) or output not in ("sampled", "integrated"):
         raise ValueError(f"output must be 'sampled' or 'integrated', got {output!r}")
+    parts = None if fine_dt is None else _fine_parts(t, fine_dt)
     if output == "integrated":
         if not system.is_continuous:
             raise ValueError("output='integrated' applies to continuous-time systems only")
         return _simulate_integrated(system, signal, t, x0, u, trials=trials, rng=rng, fine_dt=fine_dt)
+    _check_size(system, trials, t.size, parts)
     signals = _signals(signal, trials, rng, system.n_modes)
     u = _inputs(u, system.n_inputs, t.size, trials)
     x = _initial_states(x0, system.n_states, trials, rng)
 
     grid, sample_index = t, np.arange(t.size)
-    if fine_dt is not None:
-        grid, sample_index = _fine_grid(t, fine_dt)
+    if parts is not None:
+        grid, sample_index = _fine_grid(t, parts)
     u_grid = u[:, np.searchsorted(t, grid, side="right") - 1]
     mode_grid, modes, offsets = sample_segments(signals, grid)
     X = _propagate(system, modes, offsets, grid, x, u_grid, rng)
@@ -186,6 +202,10 @@ def integrated_output_system(system: SwitchedLinearSystem) -> SwitchedLinearSyst
     intensity ``blockdiag(Q, R)``: sampling it exactly gives the exact joint law of
     the state and the Ito output ``dz = C x dt + dv`` of Wang et al. eq. (1).
     """
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    if not system.is_continuous:
+        raise ValueError("system must be continuous-time: the integrated output is an Ito integral")
     L, n, m = system.n_modes, system.n_states, system.n_outputs
     A = np.zeros((L, n + m, n + m))
     A[:, :n, :n] = system.A
@@ -324,11 +344,30 @@ def _initial_states(x0, n, trials, rng) -> np.ndarray:
     return np.broadcast_to(mean, (trials, n)).copy()
 
 
-def _fine_grid(t, fine_dt) -> tuple[np.ndarray, np.ndarray]:
-    """Split each sample interval into equal steps no longer than ``fine_dt``."""
-    if not np.isscalar(fine_dt) or not np.isfinite(fine_dt) or fine_dt <= 0:
-        raise ValueError(f"fine_dt must be a positive finite number, got {fine_dt!r}")
-    parts = np.maximum(np.ceil(np.diff(t) / fine_dt - 1e-9).astype(int), 1)
+def _check_size(system, trials: int, K: int, parts) -> None:
+    """Refuse up front outputs that would not fit in memory (before any signal is drawn)."""
+    n, m, l = system.n_states, system.n_outputs, system.n_inputs
+    Kf = 0.0 if parts is None else float(parts.sum()) + 1  # floats: no overflow
+    fine = "" if parts is None else f" and Kf = {Kf:.4g} fine instants"
+    check_memory(
+        8 * trials * (K * (n + m + l + 1) + Kf * (n + 1)),
+        f"simulate with trials = {trials}, K = {K} samples{fine} "
+        f"(N (K (n + m + l + 1) + Kf (n + 1)) floats, n = {n}, m = {m}, l = {l})",
+    )
+
+
+def _fine_parts(t, fine_dt) -> np.ndarray:
+    """Fine steps per sample interval, ``ceil((t_{k+1} - t_k) / fine_dt)`` and at least 1.
+
+    Floats, so that an absurd ``fine_dt`` gives a huge count to refuse, not an overflow.
+    """
+    fine_dt = positive_scalar(fine_dt, "fine_dt")
+    return np.maximum(np.ceil(np.diff(t) / fine_dt - 1e-9), 1.0)
+
+
+def _fine_grid(t, parts) -> tuple[np.ndarray, np.ndarray]:
+    """Split each sample interval into ``parts[k]`` equal steps."""
+    parts = parts.astype(np.int64)
     pieces = [t[k] + (t[k + 1] - t[k]) * np.arange(p) / p for k, p in enumerate(parts)]
     grid = np.concatenate([*pieces, t[-1:]])
     sample_index = np.concatenate([[0], np.cumsum(parts)])

@@ -82,7 +82,8 @@ class SwitchedLinearSystem:
         B : array_like, shape (L, n, l) or (n, l), optional
             Input matrices; ``None`` means no input (``l = 0``).
         C : array_like, shape (L, m, n) or (m, n), optional
-            Output matrices; ``None`` means the full state is measured (``C = I``).
+            Output matrices, at least one output (``m >= 1``); ``None`` means the
+            full state is measured (``C = I``).
         Q : array_like, shape (L, n, n) or (n, n), optional
             Process-noise intensity; ``None`` means no process noise.
         R : array_like, shape (L, m, m) or (m, m), optional
@@ -90,7 +91,8 @@ class SwitchedLinearSystem:
             means noise-free measurements.
 
         A 2-D argument is shared by all modes; the number of modes L is the
-        leading size of the 3-D arguments, which must agree.
+        leading size of the 3-D arguments, which must agree. Every matrix must be
+        real and finite: boolean, complex or date arrays raise ``TypeError``.
         """
         return cls._build(A, B, C, Q, R, domain="continuous", dt=None)
 
@@ -126,9 +128,9 @@ class SwitchedLinearSystem:
                         f"systems[{i}] must have attributes A, B, C, D, missing {k} "
                         f"({type(sys).__name__})"
                     )
-                mats[k].append(np.atleast_2d(np.asarray(getattr(sys, k), dtype=float)))
-            dt = getattr(sys, "dt", 0)
-            dts.append(0.0 if dt is None or dt is False else (1.0 if dt is True else float(dt)))
+                value = float_array(getattr(sys, k), f"systems[{i}].{k}", ndim=(0, 1, 2))
+                mats[k].append(np.atleast_2d(value))
+            dts.append(_time_base(getattr(sys, "dt", 0), f"systems[{i}].dt"))
         for i, D in enumerate(mats["D"]):
             if np.any(D != 0):
                 raise ValueError(f"systems[{i}].D must be zero (no feedthrough), got {D.tolist()}")
@@ -196,12 +198,13 @@ class SwitchedLinearSystem:
         B, C, Q, R default as in :meth:`continuous`. Errors name the file, the table
         and the key (``"m.toml: modes[2].A: expected 4x4, got 4x3"``).
         """
+        if not isinstance(doc, dict):
+            raise TypeError(f"doc must be a dict (a parsed model file), got {type(doc).__name__}")
         allowed_top = {"domain", "dt", "shared", "modes", "sampling", "switching", "initial", "noise",
                        "description"}
         for key in doc:
             if key not in allowed_top:
-                raise _toml.ModelFileError(_toml.where(source, f"{key}: unknown key; expected one of "
-                                                              f"{sorted(allowed_top)}"))
+                raise _toml.unknown_key(source, "", key, allowed_top)
         domain = doc.get("domain")
         if domain not in ("continuous", "discrete"):
             raise _toml.ModelFileError(_toml.where(source, f"domain: expected \"continuous\" or \"discrete\", "
@@ -222,8 +225,7 @@ class SwitchedLinearSystem:
         for table, entries in [("shared", shared)] + [(f"modes[{i}]", m) for i, m in enumerate(modes)]:
             for key in entries:
                 if key not in ("A", "B", "C", "Q", "R"):
-                    raise _toml.ModelFileError(_toml.where(source, f"{table}.{key}: unknown key; expected "
-                                                                   f"A, B, C, Q or R"))
+                    raise _toml.unknown_key(source, table, key, "ABCQR")
         values = {}
         for key in "ABCQR":
             given = [i for i, m in enumerate(modes) if key in m]
@@ -273,11 +275,13 @@ class SwitchedLinearSystem:
             lambda *a: cls.discrete(*a, dt=dt))
         try:
             return build(*(arrays.get(k) for k in "ABCQR"))
-        except ValueError as exc:
+        except (TypeError, ValueError) as exc:
             raise _toml.ModelFileError(f"{source}: {exc}") from None
 
     @classmethod
     def _build(cls, A, B, C, Q, R, *, domain: Domain, dt: float | None) -> SwitchedLinearSystem:
+        if A is None:
+            raise TypeError("A is required: the mode state matrices, shape (L, n, n) or (n, n)")
         given = {"A": A, "B": B, "C": C, "Q": Q, "R": R}
         arrays = {}
         for name, value in given.items():
@@ -296,6 +300,10 @@ class SwitchedLinearSystem:
         m = C.shape[-2]
         _expect(B, "B", (n, B.shape[-1]), "(n, l) with n = %d" % n)
         _expect(C, "C", (m, n), "(m, n) with n = %d" % n)
+        if m == 0:  # nothing to estimate from: every estimator and analysis needs an output
+            raise ValueError(
+                f"C must have at least one row (m >= 1 outputs), got shape {C.shape[1:]}"
+            )
         if Q is None:
             Q = np.zeros((n_modes, n, n))
         else:
@@ -306,7 +314,9 @@ class SwitchedLinearSystem:
             R = np.zeros((n_modes, m, m))
         else:
             R = _stack(arrays["R"], n_modes)
-            _expect(R, "R", (m, m), "(m, m) with m = %d outputs" % m)
+            identity = "" if "C" in arrays else " (C defaults to the identity)"
+            outputs = f"m = {m} outputs{identity}"
+            _expect(R, "R", (m, m), f"(m, m) with {outputs}")
             R = check_symmetric_psd(R, "R", definite=True)
         fields = {}
         for name, arr in zip("ABCQR", (A, B, C, Q, R)):
@@ -354,6 +364,15 @@ class SwitchedLinearSystem:
         )
 
 
+def _time_base(dt, name: str) -> float:
+    """python-control's ``dt``: 0 or None continuous, True an unspecified step (1), or the step."""
+    if dt is None or dt is False:
+        return 0.0
+    if dt is True:
+        return 1.0
+    return positive_scalar(dt, name, allow_zero=True)
+
+
 def _count_modes(arrays: dict[str, np.ndarray]) -> int:
     counts = {name: a.shape[0] for name, a in arrays.items() if a.ndim == 3}
     if len(set(counts.values())) > 1:
@@ -361,7 +380,10 @@ def _count_modes(arrays: dict[str, np.ndarray]) -> int:
         raise ValueError(f"the stacked arguments disagree on the number of modes: {listed}")
     n_modes = next(iter(counts.values()), 1)
     if n_modes == 0:
-        raise ValueError("a switched system needs at least one mode, got L = 0")
+        stacked = ", ".join(counts)
+        raise ValueError(
+            f"a switched system needs at least one mode, got L = 0 ({stacked} stacked over 0 modes)"
+        )
     return n_modes
 
 
@@ -373,3 +395,4 @@ def _stack(arr: np.ndarray, n_modes: int) -> np.ndarray:
 def _expect(arr: np.ndarray, name: str, shape: tuple[int, int], text: str) -> None:
     if arr.shape[1:] != shape:
         raise ValueError(f"{name} must be {text} per mode, got shape {arr.shape[1:]}")
+

@@ -50,7 +50,15 @@ from itertools import product
 import numpy as np
 from scipy.linalg import schur
 
-from .._checks import check_finite, check_symmetric_psd, float_array, int_array, positive_int, positive_scalar
+from .._checks import (
+    broadcast_batch,
+    check_finite,
+    check_symmetric_psd,
+    float_array,
+    int_array,
+    positive_int,
+    positive_scalar,
+)
 from .._linalg import joseph_update, psd_sqrt
 from ..estimators.kalman import steady_state_gain
 from ..system import SwitchedLinearSystem
@@ -360,7 +368,7 @@ def transformed_system(dynamics: MismatchDynamics, lam) -> TransformedSystem:
     -------
     TransformedSystem
     """
-    lam = _check_lam(lam, dynamics.n_modes)
+    lam = _check_lam(lam, _check_dynamics(dynamics).n_modes)
     F = np.einsum("iq,iab->qab", lam, dynamics.Lambda)
     G = np.einsum("iq,iqab->qab", lam, dynamics.S)
     return TransformedSystem(F=_frozen(F), G=_frozen(G), lam=_frozen(lam))
@@ -384,10 +392,11 @@ def mean_state(system: SwitchedLinearSystem, modes, mean_x0) -> np.ndarray:
     ndarray, shape (..., K + 1, n)
         ``E(x_0), ..., E(x_K)``.
     """
+    _check_discrete(system)
     modes = _check_modes(modes, system.n_modes)
     n = system.n_states
     m0 = _vector(mean_x0, "mean_x0", n)
-    batch = np.broadcast_shapes(modes.shape[:-1], m0.shape[:-1])
+    batch = broadcast_batch({"modes": modes.shape[:-1], "mean_x0": m0.shape[:-1]})
     modes = np.broadcast_to(modes, (*batch, modes.shape[-1]))
     out = np.empty((*batch, modes.shape[-1] + 1, n))
     out[..., 0, :] = m0
@@ -435,7 +444,7 @@ def bias_recursion(dynamics: MismatchDynamics, lam, modes, mean_x, *, e0=None) -
         )
     check_finite(u, "mean_x")
     e = np.zeros(n) if e0 is None else _vector(e0, "e0", n)
-    batch = np.broadcast_shapes(modes.shape[:-1], u.shape[:-2], e.shape[:-1])
+    batch = broadcast_batch({"modes": modes.shape[:-1], "mean_x": u.shape[:-2], "e0": e.shape[:-1]})
     modes = np.broadcast_to(modes, (*batch, K))
     u = np.broadcast_to(u, (*batch, K, n))
     out = np.empty((*batch, K + 1, n))
@@ -478,7 +487,7 @@ def autonomous_stability(
     -------
     AutonomousBiasStability
     """
-    certificate = cqlf(dynamics.Lambda, "discrete", margin=margin)
+    certificate = cqlf(_check_dynamics(dynamics).Lambda, "discrete", margin=margin)
     radius = spectral_radius(dynamics.Lambda)
     if lam is None:
         return AutonomousBiasStability(radius, certificate, None, None, None)
@@ -615,9 +624,8 @@ def stable_mismatch_region(
     ndarray of bool, shape (L, L)
         ``mask[i, q]`` True when Algorithm 2 allows ``lam[i, q] > 0``.
     """
-    dyn = mismatch_dynamics(system) if dynamics is None else dynamics
-    if not isinstance(dyn, MismatchDynamics):
-        raise TypeError(f"dynamics must be a MismatchDynamics, got {type(dyn).__name__}")
+    _check_discrete(system)
+    dyn = mismatch_dynamics(system) if dynamics is None else _check_dynamics(dynamics)
     if dyn.Lambda.shape != system.A.shape:
         raise ValueError(
             f"dynamics must belong to system: Lambda has shape {dyn.Lambda.shape}, "
@@ -653,7 +661,7 @@ def bibo_gain(dynamics: MismatchDynamics, *, margin: float = 1e-6) -> float:
     float
         ``inf`` when neither ``P = I`` nor a CQLF gives ``r < 1``.
     """
-    Lam = dynamics.Lambda
+    Lam = _check_dynamics(dynamics).Lambda
     best = _p_gain(Lam, np.eye(Lam.shape[-1]))
     certificate = cqlf(Lam, "discrete", margin=margin)
     if certificate.feasible:
@@ -713,7 +721,7 @@ def tolerance_region(
     -------
     ToleranceCheck
     """
-    lam = _check_lam(lam, dynamics.n_modes)
+    lam = _check_lam(lam, _check_dynamics(dynamics).n_modes)
     threshold = positive_scalar(bound, "bound") / _gain_product(eta, sup_input)
     norms = _s_norms(dynamics)  # (L, L), zero on the diagonal
     value = np.einsum("iq,iq->q", lam, norms)
@@ -784,7 +792,7 @@ def _s_norms(dynamics: MismatchDynamics) -> np.ndarray:
 
 def _best_wrong_norm(dynamics: MismatchDynamics) -> np.ndarray:
     """``min_{i != q} ||S_{i,q}||`` for each q, shape (L,)."""
-    L = dynamics.n_modes
+    L = _check_dynamics(dynamics).n_modes
     if L < 2:
         raise ValueError(f"dynamics must have at least two modes for a mode mismatch, got {L}")
     norms = _s_norms(dynamics)
@@ -839,6 +847,13 @@ def _vector(value, name: str, n: int) -> np.ndarray:
         raise ValueError(f"{name} must have shape (..., {n}), got {v.shape}")
     check_finite(v, name)
     return v
+
+
+def _check_dynamics(dynamics) -> MismatchDynamics:
+    if not isinstance(dynamics, MismatchDynamics):
+        got = type(dynamics).__name__
+        raise TypeError(f"dynamics must be a MismatchDynamics, got {got}")
+    return dynamics
 
 
 def _check_discrete(system) -> None:

@@ -38,7 +38,7 @@ from typing import Literal
 
 import numpy as np
 
-from .._checks import check_finite, check_symmetric_psd, float_array
+from .._checks import broadcast_batch, check_finite, check_symmetric_psd, float_array
 
 __all__ = [
     "EstimationErrorBounds",
@@ -153,11 +153,17 @@ def lemma2_bounds(
     for name, B in (("B_i", B_i), ("B_j", B_j)):
         if B.shape[-2] != n:
             raise ValueError(f"{name} must have shape (..., {n}, l), got {B.shape}")
-    if form not in ("printed", "proof"):
+    if not isinstance(form, str) or form not in ("printed", "proof"):
         raise ValueError(f"form must be 'printed' or 'proof', got {form!r}")
     T = _times(T, "T")
     t_bar = _times(t_bar, "t_bar")
     t_hat = _times(t_hat, "t_hat")
+    F_error = None if F_error is None else _times(F_error, "F_error")
+    shapes = {"A_i": A_i.shape[:-2], "A_j": A_j.shape[:-2], "B_i": B_i.shape[:-2],
+              "B_j": B_j.shape[:-2], "T": T.shape, "t_bar": t_bar.shape, "t_hat": t_hat.shape}
+    broadcast_batch(shapes if F_error is None else {**shapes, "F_error": F_error.shape})
+    if F_error is not None and np.any(F_error < 0):
+        raise ValueError(f"F_error must be a norm (non-negative), got minimum {F_error.min():.3g}")
     if np.any(T <= 0):
         raise ValueError(f"T must be positive, got minimum {T.min():.3g}")
     for name, t in (("t_bar", t_bar), ("t_hat", t_hat)):
@@ -175,7 +181,7 @@ def lemma2_bounds(
         F_bound = tt * d * np.exp((d + 3 * a + b) * T)
     else:
         F_bound = tt * d * np.exp((d + 2 * a) * tt + b * (T - t_bar) + a * t_bar)
-    F_use = F_bound if F_error is None else _times(F_error, "F_error")
+    F_use = F_bound if F_error is None else F_error
     if form == "printed":
         G_bound = F_use * np.exp(a * T) * nb_i + tt * np.exp(b * T) * (
             np.exp(a * T) * nb_i + np.exp(b * T) * nb_j
@@ -236,6 +242,8 @@ def estimation_error_bounds(K, H, *, mean_prediction_error, prediction_mse_trace
     R = check_symmetric_psd(R, "R")
     z_mean = _times(mean_prediction_error, "mean_prediction_error")
     omega_tr = _times(prediction_mse_trace, "prediction_mse_trace")
+    broadcast_batch({"K": K.shape[:-2], "mean_prediction_error": z_mean.shape,
+                     "prediction_mse_trace": omega_tr.shape})
     for name, v in (("mean_prediction_error", z_mean), ("prediction_mse_trace", omega_tr)):
         if np.any(v < 0):
             raise ValueError(f"{name} must be non-negative, got minimum {v.min():.3g}")

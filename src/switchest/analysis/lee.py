@@ -49,7 +49,7 @@ from itertools import combinations
 import numpy as np
 from scipy.signal import place_poles
 
-from .._checks import check_finite, float_array, positive_int, positive_scalar
+from .._checks import check_finite, check_memory, float_array, positive_int, positive_scalar
 from .._linalg import symmetrize
 from ..discretize import interval, mode_steps
 from ..signals import SwitchingSignal
@@ -71,6 +71,7 @@ __all__ = [
 
 _N_SHIFTS = 161
 _BOUND_TOL = 1e-8
+_MAX_EXPONENT = 700.0  # e^700 ~ 1e304: the largest growth factor a float64 holds
 
 
 # ---------------------------------------------------------------------- results
@@ -139,7 +140,8 @@ class LeeConstants:
 
     def S_Delta(self, v_max: float) -> float:
         """``S_Delta = v_max^2 (1 + C_max (mu e^{lambda Delta} + 2) E_hat(delta))^2 Delta`` (§IV)."""
-        return positive_scalar(v_max, "v_max", allow_zero=True) ** 2 * self.s_factor
+        v_max = positive_scalar(v_max, "v_max", allow_zero=True)
+        return v_max * v_max * self.s_factor  # a product: inf, not OverflowError, for a huge v_max
 
     def reset_threshold(self, v_max: float) -> float:
         """``v_max (mu e^{lambda Delta} + 1) E_hat(delta)``, the threshold of (21) and (23)."""
@@ -329,6 +331,9 @@ def lee_constants(
     n_grid = positive_int(n_grid, "n_grid")
     if n_grid < 3:
         raise ValueError(f"n_grid must be at least 3, got {n_grid}")
+    _check_grid(system, n_grid, f"lee_constants with n_grid = {n_grid} quadrature nodes")
+    _check_horizon(system, delta, "delta")
+    _check_horizon(system, Delta, "Delta")
     gains = _gains(system, observer_gains)
     closed = system.A - gains @ system.C
     L_max = float(np.max(np.linalg.norm(gains, ord=2, axis=(1, 2))))
@@ -427,8 +432,9 @@ def lee_assumptions(
     off = joint.margin[~np.eye(system.n_modes, dtype=bool)]
     pbh = float(off.min()) if off.size else float("inf")
     a1 = LeeCondition(holds=bool(joint.holds), margin=pbh, lhs=k.omega_min_delta, rhs=0.0)
-    lhs3, rhs3 = k.omega_min_delta * x_min**2, (u_max * np.sqrt(k.N_u_delta) + 2 * v_max * np.sqrt(k.delta)) ** 2
-    lhs4 = k.omega_min_Delta * x_min**2
+    lhs3 = k.omega_min_delta * x_min * x_min  # products, not **: inf rather than OverflowError
+    rhs3 = (u_max * np.sqrt(k.N_u_delta) + 2 * v_max * np.sqrt(k.delta)) ** 2
+    lhs4 = k.omega_min_Delta * x_min * x_min
     rhs4 = 0.5 * (u_max * np.sqrt(k.N_u_Delta) + v_max * _noise_gain4(k)) ** 2
     c3 = LeeCondition(holds=bool(lhs3 > rhs3), margin=float(lhs3 - rhs3), lhs=float(lhs3), rhs=float(rhs3))
     c4 = LeeCondition(holds=bool(lhs4 > rhs4), margin=float(lhs4 - rhs4), lhs=float(lhs4), rhs=float(rhs4))
@@ -496,10 +502,12 @@ def lee_windows(
         raise ValueError(f"step must not exceed t_max = {t_max:g}, got {step:g}")
     gains = _gains(system, observer_gains)
     K = int(np.floor(t_max / step * (1 + 1e-12)))
+    _check_grid(system, K, f"lee_windows with t_max / step = {K} scan points")
+    _check_horizon(system, t_max, "t_max")
     t = step * np.arange(1, K + 1)
     omega = _omega_min(system, t)
     N_u = _n_u_cumulative(system, t)
-    ok3 = omega * x_min**2 > (u_max * np.sqrt(N_u) + 2 * v_max * np.sqrt(t)) ** 2
+    ok3 = omega * (x_min * x_min) > (u_max * np.sqrt(N_u) + 2 * v_max * np.sqrt(t)) ** 2
     if not ok3.any():
         return LeeWindows(found=False, delta=None, Delta=None, step=step, assumptions=None)
     delta = float(t[np.argmax(ok3)])
@@ -512,7 +520,7 @@ def lee_windows(
     mu_c, lam_c = _best_growth(_shift_table(system.A), t)
     growth = mu_c * np.exp(lam_c * t)
     gain = 2 * np.sqrt(t) * (1 + C_max * (growth + 1) ** 2 * E_hat)
-    ok4 = omega * x_min**2 > 0.5 * (u_max * np.sqrt(N_u) + v_max * gain) ** 2
+    ok4 = omega * (x_min * x_min) > 0.5 * (u_max * np.sqrt(N_u) + v_max * gain) ** 2
     if not ok4.any():
         return LeeWindows(found=False, delta=delta, Delta=None, step=step, assumptions=None)
     Delta = float(t[np.argmax(ok4)])
@@ -548,6 +556,26 @@ def _gains(system: SwitchedLinearSystem, observer_gains) -> np.ndarray:
             f"{abscissa[i]:.3g} in mode {i}"
         )
     return np.array(gains)
+
+
+def _check_grid(system: SwitchedLinearSystem, count: int, what: str) -> None:
+    """Refuse a time grid whose per-node matrices would not fit in memory.
+
+    Per node: the exponentials of every mode and the Van Loan blocks of every mode
+    pair's Gramian, ``8 L^2 (4n)^2`` floats with the copies ``expm`` makes.
+    """
+    L, n = system.n_modes, system.n_states
+    check_memory(8 * count * 8 * L * L * (4 * n) ** 2, f"{what} (8 L^2 (4n)^2 floats per node)")
+
+
+def _check_horizon(system: SwitchedLinearSystem, value: float, name: str) -> None:
+    """Refuse a window over which ``e^{A_i t}`` may overflow: ``max_i ||A_i|| t <= 700``."""
+    exponent = float(np.max(np.linalg.norm(system.A, ord=2, axis=(1, 2)))) * value
+    if exponent > _MAX_EXPONENT:
+        raise ValueError(
+            f"{name} = {value:g} is too long for this system: max ||A_i|| {name} = {exponent:.3g} "
+            f"> {_MAX_EXPONENT:g}, and the exponentials e^(A_i t) of the bounds overflow"
+        )
 
 
 def _dual(system: SwitchedLinearSystem) -> SwitchedLinearSystem:
@@ -702,6 +730,9 @@ def _assumption3(signal, min_dwell, delta: float, Delta: float) -> LeeCondition 
         return LeeCondition(holds=d > need, margin=d - need, lhs=d, rhs=need)
     if signal is None:
         return None
+    if not isinstance(signal, (SwitchingSignal, Sequence)) or isinstance(signal, str):
+        got = type(signal).__name__
+        raise TypeError(f"signal must be a SwitchingSignal or a sequence of them, got {got}")
     signals = [signal] if isinstance(signal, SwitchingSignal) else list(signal)
     for i, s in enumerate(signals):
         if not isinstance(s, SwitchingSignal):

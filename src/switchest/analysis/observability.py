@@ -28,7 +28,15 @@ from scipy.linalg import qr
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .._checks import check_finite, check_mode, check_symmetric_psd, float_array, positive_int, positive_scalar
+from .._checks import (
+    broadcast_batch,
+    check_finite,
+    check_mode,
+    check_symmetric_psd,
+    float_array,
+    positive_int,
+    positive_scalar,
+)
 from .._linalg import symmetrize
 from ..discretize import interval
 from ..system import SwitchedLinearSystem
@@ -264,6 +272,7 @@ def observability_matrix(A, C, order: int | None = None) -> np.ndarray:
     A, C = _pair(A, C, batched=True)
     n = A.shape[-1]
     order = n if order is None else positive_int(order, "order")
+    C = np.broadcast_to(C, (*np.broadcast_shapes(A.shape[:-2], C.shape[:-2]), *C.shape[-2:]))
     blocks = [C]
     for _ in range(order - 1):
         blocks.append(blocks[-1] @ A)
@@ -517,7 +526,7 @@ def uniform_observability(A, H, T: float, *, R=None, rtol: float = _RTOL) -> Uni
     -------
     UniformObservability
     """
-    A, H = _pair(A, H, batched=False)
+    A, H = _pair(A, H, batched=False, output="H")
     T = positive_scalar(T, "T")
     rtol = positive_scalar(rtol, "rtol")
     m, n = H.shape
@@ -697,15 +706,24 @@ def _augmented(system: SwitchedLinearSystem, i: int, j: int) -> tuple[np.ndarray
     return Abar, np.concatenate([system.C[i], system.C[j]], axis=1)
 
 
-def _pair(A, C, *, batched: bool) -> tuple[np.ndarray, np.ndarray]:
+def _pair(A, C, *, batched: bool, output: str = "C") -> tuple[np.ndarray, np.ndarray]:
+    """Validated ``(A, C)``; ``output`` is the name of the output matrix in messages.
+
+    At least one output is required (``m >= 1``), as for a
+    :class:`~switchest.system.SwitchedLinearSystem`.
+    """
     A = float_array(A, "A", ndim=None if batched else 2)
-    C = float_array(C, "C", ndim=None if batched else 2)
+    C = float_array(C, output, ndim=None if batched else 2)
     if A.ndim < 2 or A.shape[-1] != A.shape[-2] or A.shape[-1] == 0:
         raise ValueError(f"A must be a non-empty square (n, n) matrix, got shape {A.shape}")
-    if C.ndim < 2 or C.shape[-1] != A.shape[-1]:
-        raise ValueError(f"C must have shape (m, {A.shape[-1]}) to match A, got {C.shape}")
+    if C.ndim < 2 or C.shape[-1] != A.shape[-1] or C.shape[-2] == 0:
+        raise ValueError(
+            f"{output} must have shape (m, {A.shape[-1]}) with m >= 1 to match A, got {C.shape}"
+        )
+    if batched:
+        broadcast_batch({"A": A.shape[:-2], output: C.shape[:-2]})
     check_finite(A, "A")
-    check_finite(C, "C")
+    check_finite(C, output)
     return A, C
 
 

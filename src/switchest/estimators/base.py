@@ -5,6 +5,10 @@ frozen dataclass of arrays), ``step(state, y, u, dt=..., ...)`` processes one
 sample and returns the new state, and ``run(y, u, t, ...)`` loops ``step`` over
 time and collects an :class:`Estimate`. ``step`` predicts over ``dt`` (skipped
 when ``dt is None``: the first sample) and then updates with ``y``.
+
+``run`` validates its arguments: NaN in ``y`` marks a missing measurement, and so
+does a masked entry of a numpy masked ``y`` (a masked ``u`` is an error); an
+estimate that would not fit in memory is refused before the first step.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_finite, check_symmetric_psd, float_array, int_array
+from .._checks import check_finite, check_memory, check_symmetric_psd, float_array, int_array
 from ..system import SwitchedLinearSystem
 
 __all__ = ["Estimate", "Estimator"]
@@ -39,6 +43,10 @@ class Estimate:
         estimates no switch in that interval.
     loglik : ndarray, shape (..., K) or None
         Log-likelihood of each measurement given the past, where defined.
+    outlier : ndarray of bool, shape (..., K) or None
+        True where the filter rejected the measurement (its innovation overflowed or
+        failed the filter's ``gate``) and treated the sample as missing; given by the
+        filters with a ``gate`` option.
     """
 
     x: np.ndarray
@@ -47,6 +55,7 @@ class Estimate:
     mode: np.ndarray | None = None
     switch_time: np.ndarray | None = None
     loglik: np.ndarray | None = None
+    outlier: np.ndarray | None = None
 
 
 class Estimator:
@@ -92,9 +101,13 @@ class Estimator:
         return Estimate(**fields)
 
     def _prepare(self, y, u, t):
-        """Validate measurements, inputs and times; flatten the batch axes to one."""
+        """Validate measurements, inputs and times; flatten the batch axes to one.
+
+        NaN in ``y`` marks a missing measurement, and so does a masked entry when
+        ``y`` is a numpy masked array; ``u`` must be complete (no NaN, no mask).
+        """
         sys = self.system
-        y = float_array(y, "y")
+        y = float_array(y, "y", masked="nan")
         if y.ndim < 2 or y.shape[-1] != sys.n_outputs:
             raise ValueError(
                 f"y must have shape (..., K, m) with m = {sys.n_outputs} outputs, got {y.shape}"
@@ -104,6 +117,15 @@ class Estimator:
         batch, K = y.shape[:-2], y.shape[-2]
         if K == 0:
             raise ValueError("y must hold at least one sample, got K = 0")
+        if 0 in batch:
+            raise ValueError(f"y must hold at least one trial, got batch shape {batch}")
+        N = int(np.prod(batch, dtype=np.int64))
+        n, L = sys.n_states, sys.n_modes
+        check_memory(  # the Estimate: x, P, mode probabilities and per-sample scalars
+            8 * N * K * (n * n + n + L + 4),
+            f"{type(self).__name__}.run on y of shape {y.shape} (N K (n^2 + n + L + 4) floats "
+            f"for the estimate, n = {n}, L = {L})",
+        )
         l = sys.n_inputs
         if u is None:
             u = np.zeros((*batch, K, l))
@@ -116,7 +138,6 @@ class Estimator:
                 f"u must have shape (l,) = ({l},), (K, l) = ({K}, {l}) or {(*batch, K, l)}, got {u.shape}"
             )
         t = self._times(t, K)
-        N = int(np.prod(batch, dtype=np.int64))
         return y.reshape(N, K, -1), u.reshape(N, K, l), t, batch
 
     def _times(self, t, K) -> np.ndarray:

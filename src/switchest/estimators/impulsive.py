@@ -27,7 +27,7 @@ from numbers import Real
 
 import numpy as np
 
-from .._checks import as_rng, check_finite, float_array
+from .._checks import as_rng, check_cores, check_finite, float_array
 from .._linalg import joseph_update, matvec
 from ..discretize import mode_steps, segment_transitions
 from ..signals import SwitchingSignal, sample_segments, schedule
@@ -71,6 +71,15 @@ def impulsive_update(x, P, y, C, G, R):
     x, P
         The corrected estimate and error covariance.
     """
+    arrays = {k: float_array(v, k) for k, v in zip("xPyCGR", (x, P, y, C, G, R))}
+    check_cores(arrays, {"x": "n", "P": "nn", "y": "m", "C": "mn", "G": "nm", "R": "mm"})
+    for name in "xPCGR":
+        check_finite(arrays[name], name)
+    return _jump(*arrays.values())
+
+
+def _jump(x, P, y, C, G, R):
+    """:func:`impulsive_update` on validated arrays (the observer's per-sample kernel)."""
     observed = ~np.isnan(y)
     G = G * observed[..., None, :]  # a missing component's gain column is dropped
     innovation = np.where(observed, y - matvec(C, x), 0.0)
@@ -266,7 +275,7 @@ class ImpulsiveObserver(Estimator):
             if u is not None and u.shape[-1]:
                 x = x + matvec(Gu, u)
             P = F @ P @ np.swapaxes(F, -1, -2) + Qd
-        x, P = impulsive_update(x, P, y, sys.C[mode], self.G[mode], sys.R[mode])
+        x, P = _jump(x, P, y, sys.C[mode], self.G[mode], sys.R[mode])
         return ImpulsiveState(x, P, mode)
 
     def _output(self, state: ImpulsiveState) -> dict[str, np.ndarray]:
@@ -278,7 +287,7 @@ class ImpulsiveObserver(Estimator):
         Parameters
         ----------
         y : array_like, shape (..., K, m)
-            Samples ``y(t_k)``; NaN marks a missing component.
+            Samples ``y(t_k)``; NaN (or a masked entry) marks a missing component.
         u : array_like, optional
             Input held on ``[t_k, t_{k+1})``: ``(l,)``, ``(K, l)`` or ``(..., K, l)``.
         t : array_like, shape (K,)
@@ -397,6 +406,7 @@ def simulate_observer_control(
     ObserverControlTrajectory
     """
     system = _check_system(system)
+    rng = as_rng(rng)
     Acl, J = closed_loop_matrices(system, K, G)
     L, n = system.n_modes, system.n_states
     t = float_array(t, "t", ndim=1)
@@ -407,7 +417,7 @@ def simulate_observer_control(
     x_hat0 = _initial(np.zeros(n) if x_hat0 is None else x_hat0, "x_hat0", n)
     N = _trial_count(trials, signals, x0, x_hat0)
     if callable(signals) and not isinstance(signals, SwitchingSignal):
-        sigma = [signals(child) for child in as_rng(rng).spawn(N)]
+        sigma = [signals(child) for child in rng.spawn(N)]
     else:
         sigma = _per_trial(signals, N)
     rule = _check_mode_estimate(mode_estimate)

@@ -62,11 +62,12 @@ Implementation notes (where this departs from the letter of the paper)
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .._checks import check_finite, float_array, positive_scalar
+from .._checks import check_finite, check_memory, float_array, positive_scalar
 from ..analysis.lee import LeeAssumptions, LeeConstants, lee_assumptions, lee_constants
 from ..discretize import mode_steps
 from ..signals import SwitchingSignal
@@ -108,7 +109,16 @@ def augmented_system(system: SwitchedLinearSystem, observer_gains: np.ndarray) -
     ``Qd = int_0^h e^{M' s} H'H e^{M s} ds``, so that ``Z(h) = F' Z(0)`` and
     ``int_0^h |y - C x~|^2 = Z(0)' Qd Z(0)`` — no quadrature.
     """
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
     L, n, l, m = system.n_modes, system.n_states, system.n_inputs, system.n_outputs
+    observer_gains = float_array(observer_gains, "observer_gains", ndim=3)
+    if observer_gains.shape != (L, n, m):
+        raise ValueError(
+            f"observer_gains must have shape (L, n, m) = ({L}, {n}, {m}), "
+            f"got {observer_gains.shape}"
+        )
+    check_finite(observer_gains, "observer_gains")
     d = 3 * n + l + 2 * m
     xt, z, xh = slice(0, n), slice(n, 2 * n), slice(2 * n, 3 * n)
     u, yy, yd = slice(3 * n, 3 * n + l), slice(3 * n + l, 3 * n + l + m), slice(3 * n + l + m, d)
@@ -342,7 +352,7 @@ class MinimumDistanceDetector(Estimator):
         only records ``y``. Every later ``dt`` must equal the first one.
         """
         sys = self.system
-        y = float_array(y, "y")
+        y = float_array(y, "y", masked="nan")
         if y.shape != state.y_last.shape:
             raise ValueError(f"y must have shape {state.y_last.shape}, got {y.shape}")
         missing = np.isnan(y).any(axis=-1, keepdims=True)
@@ -448,6 +458,10 @@ class MinimumDistanceDetector(Estimator):
             k = int(off[0]) + 1
             raise ValueError(f"t must be a uniform grid: sample {k} is {steps[k - 1]:.6g} after the previous "
                              f"one, the first step is {steps[0]:.6g}")
+        if steps.size:  # the history of s over the last Delta, one value per grid step and trial
+            check_memory(8 * y2.shape[0] * (self.Delta / steps[0] + 2),
+                         f"Delta / (grid step) = {self.Delta / steps[0]:.3g} values of s per trial "
+                         f"for N = {y2.shape[0]} trials")
         est = self._loop(y2, u2, t)
         switch = np.where(np.isnan(est.switch_time), np.nan, t[None, :])  # the grid instants
         return self._unflatten(replace(est, switch_time=switch), batch)
@@ -574,8 +588,13 @@ def match_detections(switch_time, signals, *, Delta: float, t_end: float,
     DetectionMatch
     """
     st = float_array(switch_time, "switch_time", ndim=(1, 2))
+    if np.any(np.isinf(st)):
+        raise ValueError("switch_time must hold finite instants (NaN where nothing is declared)")
     st = st[None] if st.ndim == 1 else st
-    sigs = [signals] if isinstance(signals, SwitchingSignal) else list(signals)
+    sigs = [signals] if isinstance(signals, SwitchingSignal) else signals
+    if not isinstance(sigs, Sequence) or not all(isinstance(s, SwitchingSignal) for s in sigs):
+        raise TypeError(f"signals must be a SwitchingSignal or a sequence of them, got "
+                        f"{type(signals).__name__}")
     if len(sigs) != st.shape[0]:
         raise ValueError(f"signals must hold one signal per trial ({st.shape[0]}), got {len(sigs)}")
     Delta = positive_scalar(Delta, "Delta")

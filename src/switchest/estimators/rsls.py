@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import positive_scalar
+from .._checks import check_bool, float_array, positive_scalar
 from .._linalg import symmetrize
 from ..analysis.ms_design import substate_gains, subsystem_structure
 from ..discretize import mode_steps
@@ -111,7 +111,7 @@ class RSLSObserver(Estimator):
 
     def __init__(self, system, gains, T: float, x0, P0, *, shared: bool = True):
         self._set_prior(system, x0, P0)
-        self.structure = subsystem_structure(system, shared=shared)
+        self.structure = subsystem_structure(system, shared=check_bool(shared, "shared"))
         self.T = positive_scalar(T, "T")
         self._L = substate_gains(self.structure, gains)
         st, L, n_s = self.structure, system.n_modes, self.structure.n_substates
@@ -162,7 +162,7 @@ class RSLSObserver(Estimator):
         ``mode (N,)`` is the mode active during the step. With ``dt=None`` (first
         sample) only ``y`` is recorded.
         """
-        y = np.asarray(y, dtype=float)
+        y = float_array(y, "y", masked="nan")
         if dt is None:
             return RSLSState(state.s, state.Sigma, y.copy(), state.tau)
         h = positive_scalar(dt, "dt")
