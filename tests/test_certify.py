@@ -1,13 +1,17 @@
 """switchest check: runs on every catalog model and agrees with what the papers state."""
 
+import re
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from switchest.analysis import lee_assumptions
-from switchest.certify import _lee, certify
+from switchest import SwitchedLinearSystem
+from switchest.analysis import critical_interval, lee_assumptions
+from switchest.certify import _impulsive, _jsr, _lee, _wang_critical_interval, certify
 from switchest.cli import main
+from switchest.modelfile import ModelSpec
 from switchest.models.catalog import catalog
 from switchest.models.lee import LEE_SCENARIO
 
@@ -141,3 +145,66 @@ def test_lee_check_reads_assumption_3_from_the_switching_model(switching, verdic
     spec = catalog()["lee-fsk"]
     check = _lee(replace(spec, switching=switching))
     assert check.verdict is verdict and note in check.detail
+
+
+# ------------------------------------------------------------------ large models, rounding
+def random_stable_spec(n, *, continuous, rng, switching=None, **sampling):
+    """A random 2-mode model: Schur (discrete) or Hurwitz (continuous) modes, 2 outputs."""
+    A = rng.standard_normal((2, n, n)) / np.sqrt(n)
+    C = rng.standard_normal((2, 2, n))
+    if continuous:
+        A -= (np.max(np.linalg.eigvals(A).real, axis=1) + 0.5)[:, None, None] * np.eye(n)
+        system = SwitchedLinearSystem.continuous(A, C=C, Q=np.zeros((n, n)), R=np.eye(2))
+    else:
+        A *= 0.9 / np.max(np.abs(np.linalg.eigvals(A)), axis=1)[:, None, None]
+        system = SwitchedLinearSystem.discrete(A, C=C, Q=np.eye(n), R=np.eye(2), dt=0.1)
+    return ModelSpec(system=system, sampling={"duration": 1.0, **sampling},
+                     switching=switching or {"kind": "iid", "p": [0.5, 0.5]})
+
+
+def test_certify_finishes_on_a_200_state_model_and_says_what_it_skipped():
+    spec = random_stable_spec(200, continuous=False, rng=np.random.default_rng(0))
+    checks = {c.name: c for c in certify(spec)}
+    assert not any("could not be evaluated" in c.detail for c in checks.values())
+    for name in ("CQLF of the mode matrices (discrete)",
+                 "CQLF of the filter error matrices Lambda_i", "tolerable mode mismatches"):
+        assert checks[name].verdict is None
+        assert re.search(r"skipped: an n = 200 CQLF.* needs ~\d+(\.\d+)? GiB; limit 1 GiB",
+                         checks[name].detail)
+    jsr = checks["joint spectral radius of the sampled modes"]
+    assert "spectral norm" in jsr.detail and jsr.margin is not None
+    ms = checks["mean-square stability under i.i.d. modes (open loop)"]
+    assert ms.verdict is True and 0 < ms.margin < 1  # matrix-free: no 40000 x 40000 matrix
+
+
+def test_large_continuous_models_skip_the_critical_interval_and_the_impulsive_lmis():
+    rng = np.random.default_rng(1)
+    iid = random_stable_spec(200, continuous=True, rng=rng, period=0.1)
+    check = _wang_critical_interval(iid)
+    assert check.verdict is None
+    assert re.search(r"skipped: the critical interval of an n = 200 model .* needs ~\d+ GiB; "
+                     r"limit 1 GiB", check.detail)
+    dwell = random_stable_spec(200, continuous=True, rng=rng, tau_min=0.05, tau_max=0.1,
+                               switching={"kind": "dwell", "min_dwell": 1.0, "max_dwell": 2.0})
+    check = _impulsive(dwell)
+    assert check.verdict is None and "skipped: an n = 200 impulsive-observer LMI" in check.detail
+
+
+def test_a_period_equal_to_the_critical_interval_is_not_decided_by_rounding():
+    spec = catalog()["wang-example1"]
+    threshold = critical_interval(spec.system, spec.switching["p"]).fast_observer
+    at = _wang_critical_interval(replace(spec, sampling={**spec.sampling, "period": threshold}))
+    assert at.verdict is None and "equals the exact MS threshold" in at.detail
+    below = _wang_critical_interval(
+        replace(spec, sampling={**spec.sampling, "period": 0.99 * threshold}))
+    assert below.verdict is True
+
+
+def test_jsr_verdict_of_a_marginal_family_is_inconclusive_not_a_coin_toss():
+    # rotations: JSR = 1 exactly, computed 1 +- ulps; the outward-rounded bracket holds 1
+    th = 0.3
+    rot = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    system = SwitchedLinearSystem.discrete(np.stack([rot, rot.T]), C=np.eye(2), Q=np.eye(2),
+                                           R=np.eye(2), dt=1.0)
+    check = _jsr(ModelSpec(system=system, sampling={"duration": 1.0}))
+    assert check.verdict is None and "JSR in [1, 1]" in check.detail  # both bounds print as 1

@@ -14,6 +14,7 @@ from switchest._linalg import (
     mul,
     psd_sqrt,
     shared,
+    spd_factor,
     spd_solve,
     symmetrize,
 )
@@ -130,3 +131,41 @@ def test_log_normalize_over_a_long_axis_and_a_middle_axis():
         ref = np.log(np.sum(np.exp(w - w.max()), axis=axis)) + w.max()
         np.testing.assert_allclose(total, ref, rtol=1e-12)
         np.testing.assert_allclose(np.exp(out).sum(axis=axis), 1.0, rtol=1e-12)
+
+
+def test_joseph_form_does_not_overflow_where_the_result_is_representable():
+    # States on scales 2^500 apart: D P D has entries up to 2^1000 and the covariance after
+    # the update is D P+ D, representable; the unscaled products reach 2^1500 on the way.
+    rng = np.random.default_rng(7)
+    P = random_psd(rng, (), 2) + np.eye(2)
+    K, C, R = rng.standard_normal((2, 1)), rng.standard_normal((1, 2)), np.array([[0.3]])
+    D = np.diag([2.0**500, 1.0])
+    with np.errstate(over="raise"):
+        ref = joseph_update(P, K, C, R)
+    big = joseph_update(D @ P @ D, D @ K, C @ np.linalg.inv(D), R)
+    assert np.all(np.isfinite(big))
+    # powers of two scale exactly: only the rounding of the unscaled update remains
+    D_inv = np.linalg.inv(D)
+    np.testing.assert_allclose(D_inv @ big @ D_inv, ref, rtol=8 * np.finfo(float).eps)
+
+
+def test_spd_factor_is_scale_free():
+    # S entries of 1e300 and 1e-300 in one matrix: no overflow or underflow, the
+    # log-determinant exact to rounding, the whitened vector's norm is b' S^-1 b
+    rng = np.random.default_rng(8)
+    S0 = random_psd(rng, (), 3) + np.eye(3)
+    D = np.diag([1e150, 1.0, 1e-150])
+    S = D @ S0 @ D
+    b = D @ rng.standard_normal(3)
+    factor = spd_factor(S)
+    X, q = factor.solve_quadratic(b[:, None])
+    eps = np.finfo(float).eps
+    cond = np.linalg.cond(S0)
+    # log det (D S0 D) = log det S0 + 2 log det D
+    np.testing.assert_allclose(factor.logdet,
+                               np.linalg.slogdet(S0)[1] + 2 * np.log(D.diagonal()).sum(),
+                               rtol=0, atol=16 * eps * cond)
+    np.testing.assert_allclose(D @ X[:, 0], np.linalg.solve(S0, np.linalg.solve(D, b)),
+                               rtol=16 * eps * cond)
+    np.testing.assert_allclose(q[0], b @ np.linalg.solve(S, b), rtol=16 * eps * cond)
+    assert q[0] >= 0

@@ -6,6 +6,8 @@ axes are the vector or matrix.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 __all__ = [
@@ -16,6 +18,9 @@ __all__ = [
     "transpose",
     "symmetrize",
     "psd_sqrt",
+    "pow2_scale",
+    "SPDFactor",
+    "spd_factor",
     "spd_solve",
     "joseph_update",
     "mixture_moments",
@@ -97,45 +102,148 @@ def psd_sqrt(M: np.ndarray) -> np.ndarray:
     return V * np.sqrt(np.clip(w, 0.0, None))[..., None, :]
 
 
-def spd_solve(S: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Solve ``S X = B`` for a stack of symmetric positive definite ``S`` by Cholesky; return ``X, log det S``.
+def pow2_scale(v: np.ndarray) -> np.ndarray:
+    """A power of two ``d`` with ``v / d^2`` in ``[0.5, 2)`` for each ``v > 0``; 1 where ``v <= 0``.
 
-    ``S (..., m, m)`` (only its lower triangle is read), ``B (..., m, k)``;
-    leading axes broadcast. ``S = L L'`` is factorized column by column and
-    ``X = L'^-1 L^-1 B`` follows by forward and back substitution — no inverse —
-    with ``log det S = 2 sum log L_ii``. The loops run over matrix entries while
-    every operation is vectorized over the whole stack, which is laid out with
-    the stack axis last (contiguous): for the small ``m`` of measurement vectors
-    that is several times faster than one LAPACK call per matrix.
-    Raises ``numpy.linalg.LinAlgError`` if a matrix is not positive definite.
+    Dividing a matrix by such scales is exact in floating point (only exponents
+    change), so an equilibrated computation rounds exactly as the raw one would,
+    but cannot overflow or underflow where the raw one would.
     """
-    m, k = S.shape[-1], B.shape[-1]
-    shape = np.broadcast_shapes(S.shape[:-2], B.shape[:-2])
-    St = _stack_last(np.broadcast_to(S, (*shape, m, m)))  # (m, m, N)
-    X = _stack_last(np.broadcast_to(B, (*shape, m, k))).copy()  # (m, k, N), overwritten in place
+    _, exponent = np.frexp(np.where(v > 0, v, 1.0))
+    return np.ldexp(1.0, exponent // 2)
+
+
+@dataclass(frozen=True, eq=False)
+class SPDFactor:
+    """Cholesky factor of a stack of symmetric positive definite matrices, equilibrated.
+
+    ``S = D L L' D`` with ``D = diag(d)``, ``d_i`` a power of two near
+    ``sqrt(S_ii)`` (:func:`pow2_scale`), and ``L`` the lower Cholesky factor of
+    ``D^-1 S D^-1``, whose diagonal lies in ``[0.5, 2)``: entries of ``S`` of ``1e300`` or
+    ``1e-300`` neither overflow nor underflow in the factorization. Made by
+    :func:`spd_factor`. The stack is stored last (``L (m, m, N)``, ``d (m, N)``)
+    so that the loops over matrix entries operate on whole contiguous stacks.
+
+    Attributes
+    ----------
+    L : ndarray, shape (m, m, N)
+    d : ndarray, shape (m, N)
+    shape : tuple of int
+        The batch shape of the stack.
+    """
+
+    L: np.ndarray
+    d: np.ndarray
+    shape: tuple[int, ...]
+
+    def lower(self) -> np.ndarray:
+        """The lower-triangular factor ``D L`` of ``S = (D L)(D L)'``, shape ``(..., m, m)``."""
+        m = self.L.shape[0]
+        return self._unstack(self.d[:, None, :] * self.L, m)
+
+    @property
+    def logdet(self) -> np.ndarray:
+        """``log det S = 2 sum log L_ii + 2 sum log d_i``, shape ``shape``."""
+        m = self.L.shape[0]
+        diag = self.L[np.arange(m), np.arange(m)] * self.d  # about sqrt(S_ii): no overflow
+        return (2.0 * np.sum(np.log(diag), axis=0)).reshape(self.shape)
+
+    def whiten(self, B: np.ndarray) -> np.ndarray:
+        """``W = L^-1 D^-1 B`` for ``B (..., m, k)`` (forward substitution): ``W'W = B' S^-1 B``."""
+        return self._unstack(self._forward(self._stack(B)), B.shape[-1])
+
+    def solve(self, B: np.ndarray) -> np.ndarray:
+        """``X = S^-1 B`` for ``B (..., m, k)`` by forward and back substitution, no inverse."""
+        return self._unstack(self._back(self._forward(self._stack(B))), B.shape[-1])
+
+    def solve_quadratic(self, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``X = S^-1 B`` and the quadratic forms ``q_j = b_j' S^-1 b_j = |L^-1 D^-1 b_j|^2``
+        of the columns of ``B (..., m, k)``: ``q (..., k)`` is a sum of squares, never
+        negative however ill-conditioned ``S`` is (``inf`` where it overflows)."""
+        W = self._forward(self._stack(B))
+        q = np.einsum("ikn,ikn->nk", W, W).reshape(*self.shape, B.shape[-1])
+        return self._unstack(self._back(W), B.shape[-1]), q
+
+    def _stack(self, B: np.ndarray) -> np.ndarray:
+        m = self.L.shape[0]
+        return _stack_last(np.broadcast_to(B, (*self.shape, m, B.shape[-1]))).copy()
+
+    def _unstack(self, X: np.ndarray, k: int) -> np.ndarray:
+        m = self.L.shape[0]
+        return np.ascontiguousarray(np.moveaxis(X, -1, 0)).reshape(*self.shape, m, k)
+
+    def _forward(self, X: np.ndarray) -> np.ndarray:
+        """``L^-1 D^-1 X`` in place on a stack-last ``X (m, k, N)``."""
+        L = self.L
+        X /= self.d[:, None, :]
+        for i in range(L.shape[0]):
+            for p in range(i):
+                X[i] -= L[i, p] * X[p]
+            X[i] /= L[i, i]
+        return X
+
+    def _back(self, X: np.ndarray) -> np.ndarray:
+        """``D^-1 L'^-1 X`` in place on a stack-last ``X (m, k, N)``."""
+        L = self.L
+        m = L.shape[0]
+        for i in reversed(range(m)):
+            for p in range(i + 1, m):
+                X[i] -= L[p, i] * X[p]
+            X[i] /= L[i, i]
+        X /= self.d[:, None, :]
+        return X
+
+
+def spd_factor(S: np.ndarray) -> SPDFactor:
+    """Equilibrated Cholesky factorization of a stack of symmetric positive definite ``S``.
+
+    ``S (..., m, m)``; only its lower triangle and diagonal are read. The stack is
+    scaled by powers of two to unit diagonal (exact), then ``L`` is computed column
+    by column with every operation vectorized over the whole stack: for the small
+    ``m`` of measurement vectors that is several times faster than one LAPACK call
+    per matrix. See :class:`SPDFactor`.
+
+    Raises ``numpy.linalg.LinAlgError`` if a matrix is not positive definite or
+    holds a non-finite entry.
+    """
+    m = S.shape[-1]
+    shape = S.shape[:-2]
+    St = _stack_last(S)  # (m, m, N)
+    diag = St[np.arange(m), np.arange(m)]
+    if not np.all(diag > 0):
+        raise np.linalg.LinAlgError("Matrix is not positive definite")
+    d = pow2_scale(diag)
+    St = St / d[:, None, :] / d[None, :, :]  # exact: powers of two
     L = np.zeros_like(St)
     for j in range(m):
-        d = St[j, j].copy()
+        piv = St[j, j].copy()
         for p in range(j):
-            d -= L[j, p] ** 2
-        if not np.all(d > 0):
+            piv -= L[j, p] ** 2
+        if not np.all(piv > 0):
             raise np.linalg.LinAlgError("Matrix is not positive definite")
-        L[j, j] = np.sqrt(d)
+        L[j, j] = np.sqrt(piv)
         for i in range(j + 1, m):
             L[i, j] = St[i, j]
             for p in range(j):
                 L[i, j] -= L[i, p] * L[j, p]
             L[i, j] /= L[j, j]
-    for i in range(m):  # forward: L Y = B
-        for p in range(i):
-            X[i] -= L[i, p] * X[p]
-        X[i] /= L[i, i]
-    for i in reversed(range(m)):  # back: L' X = Y
-        for p in range(i + 1, m):
-            X[i] -= L[p, i] * X[p]
-        X[i] /= L[i, i]
-    logdet = 2.0 * np.sum(np.log(L[np.arange(m), np.arange(m)]), axis=0)
-    return np.ascontiguousarray(np.moveaxis(X, -1, 0)).reshape(*shape, m, k), logdet.reshape(shape)
+    if not np.all(np.isfinite(L)):  # an infinite entry of S (a NaN one fails a pivot above)
+        raise np.linalg.LinAlgError("Matrix has non-finite entries")
+    return SPDFactor(L=L, d=d, shape=shape)
+
+
+def spd_solve(S: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Solve ``S X = B`` for a stack of symmetric positive definite ``S``; return ``X, log det S``.
+
+    ``S (..., m, m)`` (only its lower triangle is read), ``B (..., m, k)``;
+    leading axes broadcast. By the equilibrated Cholesky factorization of
+    :func:`spd_factor` and forward and back substitution — no inverse.
+    Raises ``numpy.linalg.LinAlgError`` if a matrix is not positive definite.
+    """
+    m = S.shape[-1]
+    shape = np.broadcast_shapes(S.shape[:-2], B.shape[:-2])
+    factor = spd_factor(np.broadcast_to(S, (*shape, m, m)))
+    return factor.solve(B), factor.logdet
 
 
 def _stack_last(M: np.ndarray) -> np.ndarray:
@@ -149,11 +257,27 @@ def joseph_update(P: np.ndarray, K: np.ndarray, C: np.ndarray, R: np.ndarray) ->
     ``P+ = (I - K C) P (I - K C)' + K R K'`` — valid for any gain, optimal or not,
     and symmetric positive semidefinite by construction (re-symmetrized on return).
     ``C`` and ``R`` may be 2-D, shared by the stack.
+
+    Should an intermediate product overflow, the update is evaluated again in state
+    coordinates equilibrated by ``D = diag(d)``, ``d_i`` a power of two near
+    ``sqrt(P_ii)`` (:func:`pow2_scale`): ``P+ = D (M P~ M' + K~ R K~') D`` with
+    ``P~ = D^-1 P D^-1``, ``K~ = D^-1 K``, ``M = I - K~ (C D)``. That scaling is exact,
+    so both evaluations round alike, but the second overflows only where ``P+``
+    itself is beyond the floating-point range (states of wildly different scales,
+    priors of ``1e300``).
     """
     n = P.shape[-1]
-    IKC = np.eye(n) - mul(K, C)
-    out = IKC @ P @ transpose(IKC) + mul(K, R) @ transpose(K)
-    return symmetrize(out)
+    with np.errstate(over="ignore", invalid="ignore"):
+        IKC = np.eye(n) - mul(K, C)
+        out = IKC @ P @ transpose(IKC) + mul(K, R) @ transpose(K)
+    if np.all(np.isfinite(out)):
+        return symmetrize(out)
+    d = pow2_scale(np.diagonal(P, axis1=-2, axis2=-1))  # (..., n)
+    K_s = K / d[..., :, None]
+    IKC = np.eye(n) - K_s @ (C * d[..., None, :])
+    P_s = P / d[..., :, None] / d[..., None, :]
+    out = IKC @ P_s @ transpose(IKC) + mul(K_s, R) @ transpose(K_s)
+    return symmetrize(out) * d[..., :, None] * d[..., None, :]
 
 
 def mixture_moments(w: np.ndarray, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

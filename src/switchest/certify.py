@@ -4,6 +4,12 @@ Each check returns a :class:`Check`: its verdict (True, False, or None where it
 is inconclusive or does not apply), a margin where one is defined, a one-line
 detail and the paper it comes from. ``switchest check --model M.toml`` prints
 them; :func:`certify` returns them.
+
+Every check finishes in bounded time and memory: a check whose estimated size is
+beyond its budget (an LMI of many states, the ``n^2 x n^2`` second-moment matrices
+on a grid) is skipped with a note saying what it needs and the limit, and the JSR
+of a large model is bounded in the spectral norm with fewer products. Verdicts
+compare a computed number with a threshold beyond that number's rounding.
 """
 
 from __future__ import annotations
@@ -12,7 +18,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
+from ._checks import memory_limit
 from .analysis import (
     combined_observability,
     cqlf,
@@ -29,6 +37,8 @@ from .analysis import (
     ms_stable_iid,
     stable_mismatch_region,
 )
+from .analysis._lmi import lmi_nbytes
+from .analysis.ms_design import critical_interval_nbytes
 from .discretize import mode_steps
 from .modelfile import ModelSpec
 from .signals import schedule
@@ -45,6 +55,40 @@ class Check:
     verdict: bool | None
     detail: str
     margin: float | None = None
+
+
+#: Memory one check may plan for its largest solve (or its Kronecker matrices): 1 GiB, a
+#: CQLF of about 50 states with two modes, solved in a minute or two (its time grows like
+#: n^6); never more than :func:`switchest._checks.memory_limit`.
+_BUDGET = 2**30
+#: Work for the JSR's products, in flops (~25 n^3 per product: a product, its eigenvalues
+#: and singular values): 20000 products up to n = 20, 25 at n = 200.
+_JSR_FLOPS = 5e9
+_JSR_BISECTIONS = 16  # CQLF solves of the ellipsoid bisection (rtol 1e-4 from a 2x bracket)
+#: Relative accuracy of :func:`critical_interval`'s thresholds (Brent's method to 1e-13,
+#: absolute and relative); a period closer than ten times that is not compared.
+_CROSSING_RTOL = 1e-12
+
+
+def _limit() -> float:
+    return min(memory_limit(), _BUDGET)
+
+
+def _skip(need: float, what: str) -> str | None:
+    """The note of a check too large to run (None when it fits the budget)."""
+    if need <= _limit():
+        return None
+    return f"skipped: {what} needs ~{_gib(need)}; limit {_gib(_limit())}"
+
+
+def _gib(nbytes: float) -> str:
+    gib = nbytes / 2**30
+    return f"{gib:.0f} GiB" if gib >= 100 else f"{gib:.3g} GiB"
+
+
+def _cqlf_skip(spec: ModelSpec, what: str) -> str | None:
+    n, L = spec.system.n_states, spec.system.n_modes
+    return _skip(lmi_nbytes(n, L + 1), f"an n = {n} {what}")
 
 
 def _period(spec: ModelSpec) -> float | None:
@@ -164,22 +208,37 @@ def _combined(spec: ModelSpec) -> Check:
 
 
 def _cqlf(spec: ModelSpec) -> Check:
+    name = f"CQLF of the mode matrices ({spec.system.domain})"
+    skipped = _cqlf_skip(spec, "CQLF")
+    if skipped:
+        return Check(name, "Zhang eq. (13) / Lemma 3", None, skipped)
     r = cqlf(spec.system.A, domain=spec.system.domain)
     detail = ("common quadratic Lyapunov function found: stable under arbitrary switching" if r.feasible
               else f"no CQLF ({r.solver_status}); not a proof of instability, see the JSR bounds")
-    return Check(f"CQLF of the mode matrices ({spec.system.domain})", "Zhang eq. (13) / Lemma 3",
-                 bool(r.feasible), detail, r.margin if r.feasible else None)
+    return Check(name, "Zhang eq. (13) / Lemma 3", bool(r.feasible), detail,
+                 r.margin if r.feasible else None)
 
 
 def _jsr(spec: ModelSpec) -> Check:
+    """JSR bounds; for a large model in the spectral norm (no CQLF bisection) with fewer products.
+
+    The bounds are rounded outward (:func:`~switchest.analysis.jsr_bounds`), so comparing
+    them with 1 is robust to rounding.
+    """
     F = _sampled_modes(spec)
     if F is None:
         return Check("joint spectral radius of the sampled modes", "beyond the papers", None,
                      "needs a sampling period")
-    r = jsr_bounds(F)
+    n, L = spec.system.n_states, spec.system.n_modes
+    quadratic = _JSR_BISECTIONS * lmi_nbytes(n, L + 1) <= _limit()  # the CQLF norm, if it fits
+    budget = int(min(20000, max(L, _JSR_FLOPS / (25.0 * n**3))))
+    r = jsr_bounds(F, quadratic=quadratic, max_products=budget)
     verdict = True if r.upper < 1 else (False if r.lower >= 1 else None)
+    how = "" if quadratic else (f"; spectral norm, {r.n_products} products: the CQLF bisection of "
+                                f"an n = {n} model is beyond the LMI budget")
     return Check("joint spectral radius of the sampled modes", "beyond the papers", verdict,
-                 f"JSR in [{r.lower:.4g}, {r.upper:.4g}] (switching at the samples)", 1 - r.upper)
+                 f"JSR in [{r.lower:.4g}, {r.upper:.4g}] (switching at the samples{how})",
+                 1 - r.upper)
 
 
 def _lemma1(spec: ModelSpec) -> Check:
@@ -212,6 +271,10 @@ def _filter_cqlf(spec: ModelSpec) -> Check:
     if sys.is_continuous or not sys.has_measurement_noise:
         return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2", None,
                      "applies to discrete-time systems with measurement noise")
+    skipped = _cqlf_skip(spec, "CQLF of the Lambda_i")
+    if skipped:
+        return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2",
+                     None, skipped)
     r = cqlf(mismatch_dynamics(sys).Lambda, domain="discrete")
     detail = ("the mode-based Kalman filter's bias is stable under any matched mode sequence" if r.feasible
               else f"no CQLF for the Lambda_i ({r.solver_status})")
@@ -224,6 +287,9 @@ def _mismatch(spec: ModelSpec) -> Check:
     if sys.is_continuous or not sys.has_measurement_noise or sys.n_modes < 2:
         return Check("tolerable mode mismatches", "Zhang Algorithm 2", None,
                      "applies to discrete-time systems with measurement noise and two or more modes")
+    skipped = _cqlf_skip(spec, "CQLF of the A_i (Algorithm 2, step 1)")
+    if skipped:
+        return Check("tolerable mode mismatches", "Zhang Algorithm 2", None, skipped)
     mask = stable_mismatch_region(sys)
     allowed = [(int(i), int(q)) for i, q in zip(*np.nonzero(mask)) if i != q]
     return Check("tolerable mode mismatches", "Zhang Algorithm 2", True,
@@ -240,6 +306,12 @@ def _impulsive(spec: ModelSpec) -> Check:
         return Check("impulsive observer under aperiodic sampling", "Etienne Theorem 8", None,
                      "needs an (average) dwell-time switching model")
     lo, hi = smp.get("tau_min", smp.get("period")), smp.get("tau_max", smp.get("period"))
+    n, L = spec.system.n_states, spec.system.n_modes
+    # blocks of up to 2n (the jump LMIs (7)), about two per mode
+    skipped = _skip(lmi_nbytes(2 * n, 2 * L + 1), f"an n = {n} impulsive-observer LMI (Theorem 8)")
+    if skipped:
+        return Check("impulsive observer under aperiodic sampling", "Etienne Theorem 8", None,
+                     skipped)
     r = impulsive_observer_search(spec.system, lo, hi, dwell)
     best = r.best
     detail = (f"gains found with guaranteed decay rate beta = {best.beta:.4g} for sampling in [{lo:g}, {hi:g}], "
@@ -265,6 +337,11 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
         return Check(name, paper, None, "applies to continuous-time systems with i.i.d. modes at the switching instants")
     if system.n_inputs or np.any(system.Q != 0):
         return Check(name, paper, None, "applies to Wang et al.'s model (1): no input and no process noise")
+    skipped = _skip(critical_interval_nbytes(system),
+                    f"the critical interval of an n = {system.n_states} model (its n^2 x n^2 "
+                    "second-moment matrices on a grid of T)")
+    if skipped:
+        return Check(name, paper, None, skipped)
     try:
         ci = critical_interval(system, switching["p"])
     except ValueError as exc:  # e.g. Assumption 2(b): the modes' observable subspaces do not span the state
@@ -276,6 +353,10 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
     T = spec.sampling.get("period")
     if T is None:
         return Check(name, paper, None, f"{eq20}; {exact}{per}; no sampling period to compare")
+    if abs(T - ci.fast_observer) <= _CROSSING_RTOL * ci.fast_observer:
+        return Check(name, paper, None,
+                     f"T = {T:g} equals the {exact} to its accuracy; {eq20}{per}",
+                     float(1.0 - T / ci.fast_observer))
     verdict = bool(T < ci.fast_observer)
     detail = (f"T = {T:g} {'<' if T < ci.theorem3 else '>='} {eq20}; T {'<' if verdict else '>='} {exact} "
               f"(fast sub-observers are MS convergent below it){per}")
@@ -289,12 +370,18 @@ CHECKS: list[Callable[[ModelSpec], Check]] = [
 
 
 def certify(spec: ModelSpec) -> list[Check]:
-    """Run every check on the model; a check that fails to run says why instead of stopping the rest."""
+    """Run every check on the model; a check that fails to run says why, the rest go on.
+
+    BLAS runs on one thread (as in the experiment runner): the checks' matrices are small
+    or their work sequential, and threads on a busy machine were measured to slow them
+    tenfold.
+    """
     out = []
-    for check in CHECKS:
-        try:
-            out.append(check(spec))
-        except (ValueError, np.linalg.LinAlgError) as exc:
-            name = check.__name__.strip("_").replace("_", " ")
-            out.append(Check(name, "", None, f"could not be evaluated: {exc}"))
+    with threadpool_limits(1):
+        for check in CHECKS:
+            try:
+                out.append(check(spec))
+            except (ValueError, np.linalg.LinAlgError) as exc:
+                name = check.__name__.strip("_").replace("_", " ")
+                out.append(Check(name, "", None, f"could not be evaluated: {exc}"))
     return out

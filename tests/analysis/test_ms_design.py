@@ -348,6 +348,10 @@ def test_steady_state_scalar_closed_form_and_eq21():
     )  # diagonal case agrees
     moments = second_moments(dyn, PROB, np.diag([0.25, 0.25]), 400)
     np.testing.assert_allclose(moments[-1], ss.V, rtol=1e-10, atol=1e-14)
+    # a V0 singular up to round-off (an eigenvalue of -2e-16 beside 2) is a second moment
+    rank_one = np.array([[1.0, 1.0], [1.0, 1.0 - 4e-16]])
+    assert np.linalg.eigvalsh(rank_one)[0] < 0
+    assert np.all(np.isfinite(second_moments(dyn, PROB, rank_one, 3)))
 
 
 def test_steady_state_5bus_differs_from_printed_eq21():
@@ -567,6 +571,20 @@ def test_pole_placement_gain_places_the_poles(seed):
             ),
             ValueError,
             r"V0 must have shape \(n_s, n_s\) = \(2, 2\)",
+        ),
+        (  # a second moment is PSD: eigenvalue -0.5 is no round-off (tolerance 1e-12 x 1.5)
+            lambda: second_moments(
+                error_dynamics(SYS, scalar_gains(40, 15), T), PROB, [[0.5, 1.0], [1.0, 0.5]], 2
+            ),
+            ValueError,
+            "V0 must be symmetric positive semidefinite, got eigenvalue -0.5",
+        ),
+        (
+            lambda: second_moments(
+                error_dynamics(SYS, scalar_gains(40, 15), T), PROB, [[1, np.nan], [np.nan, 1]], 2
+            ),
+            ValueError,
+            "V0 must be finite",
         ),
         (
             lambda: optimal_gains(SYS, PROB, 0.25, scalar_gains(40, 15)),

@@ -5,6 +5,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from switchest.analysis import stability
 from switchest.analysis._lmi import SolveOutcome
@@ -15,6 +17,8 @@ from switchest.analysis.stability import (
     ms_stable_iid,
     spectral_radius,
 )
+
+EPS = np.finfo(float).eps
 
 REFERENCE = {
     "zhang_example1_A": {
@@ -187,7 +191,16 @@ def test_jsr_of_nilpotent_and_unit_families():
     # {E12, E21} has JSR 1 (E12 E21 is a projection)
     E12 = np.array([[0.0, 1.0], [0.0, 0.0]])
     b = jsr_bounds(E12[None])
-    assert b.lower == 0.0 and b.upper == pytest.approx(0.0, abs=1e-12)
+    assert b.lower == 0.0  # rho = 0 lowered by its rounding allowance, clipped at 0: exactly 0
+    # The upper bound is rigorous, so it allows for rounding. A CQLF of E12 / r needs
+    # P_22 ~ 1 / r^2: its decrease margin is verified only while the rounding of A' P A - P,
+    # ~ 2 (3n + 1) eps / r^2, stays below it, i.e. down to r ~ sqrt(14 eps) ~ 6e-8; the
+    # solver's P is not the optimal one, so the bisection stops within a few halvings of that.
+    assert 0.0 < b.upper <= 1e-5
+    # In the spectral norm the tree stops at E12^2 = 0 (zero to working precision): its bound
+    # is the square root of the rounding allowance of a product of two unit-norm 2 x 2
+    # matrices, 2 (k + 3) n eps cond(I)_F = 2 * 5 * 2 * 2 eps = 40 eps
+    assert jsr_bounds(E12[None], quadratic=False).upper <= np.sqrt(40 * EPS) * (1 + 1e-9)
     b = jsr_bounds(np.stack([E12, E12.T]))
     assert b.lower == pytest.approx(1.0) and b.upper == pytest.approx(1.0)
 
@@ -246,3 +259,79 @@ def test_ms_rejects_bad_probabilities():
         ms_stable_iid(SCHUR_PAIR_UNSTABLE_PRODUCT, [0.5, 0.6])
     with pytest.raises(ValueError, match="p must have length 2"):
         ms_stable_iid(SCHUR_PAIR_UNSTABLE_PRODUCT, [1.0])
+
+
+# ------------------------------------------------------------------ verdicts robust to rounding
+def test_cqlf_accepts_a_margin_only_beyond_its_rounding(monkeypatch):
+    # The "solver" returns P = I for A = a I: the decrease margin is 1 - a^2. Half the posed
+    # margin, 5e-7, must be met beyond the rounding allowance of the check (about 1e-14 here).
+    def fake_solve(problem, **_):
+        (P,) = problem.variables()
+        P.value = np.eye(2)
+        return SolveOutcome("optimal", "CLARABEL", True)
+
+    monkeypatch.setattr(stability, "solve_sdp", fake_solve)
+    just = np.sqrt(1 - 0.5e-6 - 1e-16) * np.eye(2)  # margin 5e-7 + 1e-16: within rounding
+    cert = cqlf(just[None], margin=1e-6)
+    assert not cert.feasible and "rounding allowance" in cert.note
+    clear = np.sqrt(1 - 0.5e-6 - 1e-12) * np.eye(2)  # 1e-12 above: beyond any rounding here
+    assert cqlf(clear[None], margin=1e-6).feasible
+
+
+def test_decrease_margin_refuses_a_non_finite_P():
+    A = np.array(REFERENCE["zhang_example1_A"]["value"])
+    with pytest.raises(ValueError, match=r"P must be finite, got nan at index \(0, 1\)"):
+        decrease_margin(A, [[1.0, np.nan], [np.nan, 1.0]])
+    with pytest.raises(ValueError, match="P must be finite, got inf"):
+        decrease_margin(A, [[np.inf, 0.0], [0.0, 1.0]])
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31), n=st.integers(1, 4), top=st.floats(0.05, 3.0))
+def test_jsr_bracket_holds_and_is_ordered_whatever_the_rounding(seed, n, top):
+    # Symmetric matrices sharing their eigenvectors: the JSR is the largest |eigenvalue|, `top`.
+    # The stored matrices are that family rounded, whose JSR is top to within a few ulps of
+    # ||A|| (Weyl): 4 n eps top.
+    rng = np.random.default_rng(seed)
+    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    d = rng.uniform(-top, top, size=(2, n))
+    d[0, 0] = top
+    A = np.einsum("ab,kb,cb->kac", Q, d, Q)
+    slack = 4 * n * EPS * top
+    for quadratic in (False, True) if seed % 5 == 0 else (False,):  # the CQLF bisection is slow
+        b = jsr_bounds(A, quadratic=quadratic)
+        assert b.lower <= b.upper
+        assert b.lower <= top + slack and b.upper >= top - slack
+
+
+def test_jsr_in_the_spectral_norm_and_its_option():
+    A = np.array(REFERENCE["gripenberg_pair"]["value"])
+    lo_ref, hi_ref = REFERENCE["gripenberg_pair"]["jsr_interval"]
+    b = jsr_bounds(A, quadratic=False)
+    assert b.lower <= hi_ref and b.upper >= lo_ref
+    assert b.ellipsoid >= np.max(np.linalg.norm(A, 2, axis=(1, 2)))  # the spectral-norm bound
+    with pytest.raises(TypeError, match="quadratic must be a bool, got str"):
+        jsr_bounds(A, quadratic="no")
+
+
+def test_ms_stability_of_orthogonal_modes_is_not_decided_by_the_last_bits():
+    # Orthogonal A_i preserve E[x'x]: the radius is 1 exactly, computed 1 +- a few ulps;
+    # "radius < 1" alone would call it stable on some machines.
+    rng = np.random.default_rng(6)
+    A = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(2)])
+    res = ms_stable_iid(A, [0.3, 0.7])
+    assert res.radius == pytest.approx(1.0, rel=1e-13) and not res.stable
+
+
+def test_ms_stability_matrix_free_beyond_n_32_equals_the_dense_radius():
+    rng = np.random.default_rng(7)
+    n, p = 40, np.array([0.25, 0.75])
+    A = rng.normal(size=(2, n, n)) / np.sqrt(n)
+    M = np.einsum("i,iab,icd->acbd", p, A, A).reshape(n * n, n * n)
+    dense = float(np.max(np.abs(np.linalg.eigvals(M))))
+    res = ms_stable_iid(A, p)
+    # ARPACK converges to a relative 1e-12; both carry the rounding of n^2 x n^2 eigenvalues
+    size = float(p @ np.sum(A * A, axis=(1, 2)))
+    tol = 1e-12 * dense + 2 * 2 * (n * n + 2) * EPS * size
+    assert res.radius == pytest.approx(dense, rel=0, abs=tol)
+    assert res.stable == (dense < 1)

@@ -118,7 +118,7 @@ def test_marginal_switch_time_step_is_the_moment_matched_posterior_mixture():
     x, P = np.array([5.0, 110.0]) + rng.standard_normal(2), np.diag([4.0, 9.0])
     y = np.array([113.0])
     f = SwitchTimeKalmanFilter(system, np.zeros(2), np.eye(2), grid=g, switch_time="marginal")
-    prior = SwitchTimeState(x[None], P[None], np.zeros(1), np.full(1, np.nan))
+    prior = SwitchTimeState(x[None], P[None], np.zeros(1), np.full(1, np.nan), np.zeros(1, bool))
     state = f.step(prior, y[None], np.array([[u0]]), dt=T, mode=np.array([1]), prev_mode=np.array([0]))
     tau = switch_grid(T, g)
     C, R = system.C[1], system.R[1]

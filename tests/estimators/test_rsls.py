@@ -199,8 +199,13 @@ def test_batched_equals_looped_and_single_trajectory():
         np.testing.assert_allclose(one.x, batch.x[n], rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(one.P, batch.P[n], rtol=1e-12, atol=1e-14)
     stacked = RSLSObserver(SYS, gains, 0.03, XHAT0, 0.1 * np.eye(2), shared=False)
-    np.testing.assert_array_equal(
-        stacked.run(traj.y_fine, t=traj.t_fine, modes=traj.mode_fine).x, batch.x
+    # the same sub-observers, built and indexed another way: a few ulps of rounding per fine
+    # step may differ (order of 2-term sums, FMA or not), carried without growth by the
+    # contracting observer over its K steps
+    K = traj.t_fine.size
+    np.testing.assert_allclose(
+        stacked.run(traj.y_fine, t=traj.t_fine, modes=traj.mode_fine).x, batch.x,
+        rtol=4 * K * np.finfo(float).eps, atol=4 * K * np.finfo(float).eps * np.abs(batch.x).max(),
     )
     np.testing.assert_array_equal(batch.x[:, 0], np.broadcast_to(XHAT0, (3, 2)))
 

@@ -65,10 +65,17 @@ from scipy.linalg import LinAlgError, solve_continuous_are
 from scipy.optimize import brentq, minimize
 from scipy.signal import place_poles
 
-from .._checks import check_finite, check_probability_vector, float_array, positive_scalar
+from .._checks import (
+    check_finite,
+    check_probability_vector,
+    check_symmetric_psd,
+    float_array,
+    positive_scalar,
+)
 from .._linalg import psd_sqrt, symmetrize
 from ..discretize import interval, mode_steps
 from ..system import SwitchedLinearSystem
+from ._lmi import rounding_allowance
 from .observability import combined_observability, mode_decompositions
 from .stability import ms_stable_iid, spectral_radius
 
@@ -81,6 +88,7 @@ __all__ = [
     "SteadyState",
     "SubsystemStructure",
     "critical_interval",
+    "critical_interval_nbytes",
     "decoupled_gain_bounds",
     "error_dynamics",
     "kalman_bucy_gains",
@@ -191,18 +199,18 @@ class MSConvergence:
     gamma : float
         ``E||Lambda_k||^2`` (Wang et al. Theorem 2).
     gamma_holds : bool
-        ``gamma < 1``: Theorem 2's sufficient condition.
+        ``gamma < 1`` beyond rounding: Theorem 2's sufficient condition.
     moment_eigenvalues : ndarray, shape (n_s,)
         Eigenvalues of ``M = E[Lambda_k' Lambda_k] = sum_i p_i Lambda(i)' Lambda(i)``,
         descending (the numbers of §6 and of Example 2).
     moment_bound : float
         ``lambda_max(M)``: ``E||e_{k+1}||^2 <= lambda_max(M) E||e_k||^2 + c``.
     moment_holds : bool
-        ``moment_bound < 1`` (sufficient; §5.1 "M is stable").
+        ``moment_bound < 1`` beyond rounding (sufficient; §5.1 "M is stable").
     radius : float
         ``rho(E[Lambda_k kron Lambda_k])`` (:func:`switchest.analysis.ms_stable_iid`).
     stable : bool
-        ``radius < 1``: necessary and sufficient for MS convergence.
+        ``radius < 1`` beyond rounding: necessary and sufficient for MS convergence.
     """
 
     gamma: float
@@ -284,7 +292,7 @@ class GainBounds:
         ``L C2 > A22 - max_rate``: the loop gain bound (Example 2's
         ``L_1 > ..., L_2 > ...`` for unit output gains).
     feasible : ndarray of bool, shape (B,)
-        ``o_g < 1``.
+        ``o_g < 1`` beyond its rounding.
     """
 
     mode: np.ndarray
@@ -469,20 +477,25 @@ def ms_convergence(dyn: ErrorDynamics, p) -> MSConvergence:
     ``e_{k+1} = Lambda_k e_k + Gamma_k d_k`` converges in mean square iff
     ``rho(sum_i p_i Lambda(i) kron Lambda(i)) < 1`` (the second-moment recursion);
     ``lambda_max(E[Lambda'Lambda]) < 1`` and Theorem 2's ``E||Lambda||^2 < 1`` are
-    successively stronger sufficient conditions.
+    successively stronger sufficient conditions. Each verdict asks its value to be
+    below 1 by more than its rounding allowance
+    (:func:`~switchest.analysis._lmi.rounding_allowance`: ``n_s + L`` terms of size
+    ``sum_i p_i ||Lambda(i)||_F^2``), so that it does not depend on the last bits.
     """
     p = _probabilities(p, dyn.Lam.shape[0])
+    L, n_s = dyn.Lam.shape[0], dyn.Lam.shape[-1]
     norms = np.linalg.norm(dyn.Lam, ord=2, axis=(1, 2))
     gamma = float(p @ norms**2)  # Theorem 2: gamma = E||Lambda_k||^2
     M = symmetrize(np.einsum("i,iba,ibc->ac", p, dyn.Lam, dyn.Lam))  # E[Lambda' Lambda]
     eig = np.linalg.eigvalsh(M)[::-1]
+    allowance = rounding_allowance(float(p @ np.sum(dyn.Lam**2, axis=(1, 2))), n_s + L)
     ms = ms_stable_iid(dyn.Lam, p)
     return MSConvergence(
         gamma=gamma,
-        gamma_holds=gamma < 1.0,
+        gamma_holds=bool(gamma + allowance < 1.0),
         moment_eigenvalues=eig,
         moment_bound=float(eig[0]),
-        moment_holds=bool(eig[0] < 1.0),
+        moment_holds=bool(eig[0] + allowance < 1.0),
         radius=ms.radius,
         stable=ms.stable,
     )
@@ -497,12 +510,21 @@ def second_moments(dyn: ErrorDynamics, p, V0, steps: int) -> np.ndarray:
     Returns
     -------
     ndarray, shape (steps + 1, n_s, n_s)
+
+    Raises
+    ------
+    ValueError
+        If ``V0`` is not a finite symmetric positive semidefinite ``(n_s, n_s)`` matrix
+        (a second moment); an eigenvalue below ``-1e-12`` times its largest entry is not
+        round-off (:func:`switchest._checks.check_symmetric_psd`).
     """
     p = _probabilities(p, dyn.Lam.shape[0])
     n_s = dyn.Lam.shape[-1]
     V = float_array(V0, "V0", ndim=2)
     if V.shape != (n_s, n_s):
         raise ValueError(f"V0 must have shape (n_s, n_s) = ({n_s}, {n_s}), got {V.shape}")
+    check_finite(V, "V0")
+    V = check_symmetric_psd(V, "V0")
     if not isinstance(steps, (int, np.integer)) or isinstance(steps, bool) or steps < 0:
         raise ValueError(f"steps must be a non-negative int, got {steps!r}")
     noise = np.einsum("i,iab->ab", p, dyn.W)
@@ -586,6 +608,12 @@ def critical_interval(
         per_block=per_block,
         q_max=q_max,
     )
+
+
+def critical_interval_nbytes(system: SwitchedLinearSystem) -> float:
+    """Memory of the ``n^2 x n^2`` second-moment matrices :func:`critical_interval` stacks over
+    its grid of ``T``: ``8 G n^4`` bytes (``G = 96`` grid points, at most ``n`` sub-states)."""
+    return 8.0 * _GRID_POINTS * float(system.n_states) ** 4
 
 
 # ---------------------------------------------------------------------- gains
@@ -751,7 +779,7 @@ def decoupled_gain_bounds(
         )
     mode = np.array([c[0] for c in closers])
     open_loop = np.einsum("i,igg->g", p, O**2)  # rows of the closing mode are zero in O
-    feasible = open_loop < 1.0
+    feasible = open_loop + rounding_allowance(open_loop, system.n_modes) < 1.0  # L terms
     with np.errstate(divide="ignore", invalid="ignore"):
         max_rate = np.where(feasible, np.log((1.0 - open_loop) / p[mode]) / (2.0 * T), -np.inf)
     a22 = np.array([structure.A22[i][0, 0] for i in mode])

@@ -18,9 +18,11 @@ from typing import Literal
 
 import cvxpy as cp
 import numpy as np
+from scipy.sparse.linalg import ArpackError, LinearOperator, eigs
+from threadpoolctl import threadpool_limits
 
 from .._checks import check_finite, check_probability_vector, float_array, positive_int, positive_scalar
-from ._lmi import max_eigenvalue, min_eigenvalue, solve_sdp, symmetric_block
+from ._lmi import max_eigenvalue, min_eigenvalue, rounding_allowance, solve_sdp, symmetric_block
 
 __all__ = [
     "JSRBounds",
@@ -36,6 +38,8 @@ __all__ = [
 Domain = Literal["discrete", "continuous"]
 
 _MAX_BISECTIONS = 60  # lo = 0 (nilpotent families) never meets the relative tolerance
+_DENSE_KRON_MAX = 32  # n above which ms_stable_iid works matrix-free (n^2 x n^2 would be dense)
+_EPS = np.finfo(float).eps
 
 _FEASIBLE_NOTE = "P >= I certifies stability under arbitrary switching (checked with numpy)"
 _INFEASIBLE_NOTE = (
@@ -52,7 +56,8 @@ class LyapunovCertificate:
     Attributes
     ----------
     feasible : bool
-        True only when the returned ``P`` passed the numpy re-verification.
+        True only when the returned ``P`` passed the numpy re-verification, with
+        the rounding of that check allowed for.
     P : ndarray, shape (n, n), or None
         The certificate, scaled so that its smallest eigenvalue is 1 (``P >= I``);
         ``None`` when not feasible.
@@ -80,15 +85,20 @@ class LyapunovCertificate:
 class JSRBounds:
     """Outcome of :func:`jsr_bounds`: ``lower <= JSR <= upper``.
 
+    Both bounds are rounded outward by the rounding allowance of their computation, so
+    that the bracket holds whatever the last bits of the arithmetic, and
+    ``lower <= upper`` always.
+
     Attributes
     ----------
     lower : float
-        ``max rho(W)^(1/|W|)`` over the products ``W`` visited.
+        ``max rho(W)^(1/|W|)`` over the products ``W`` visited, rounded down.
     upper : float
-        ``min(ellipsoid, tree)``.
+        ``min(ellipsoid, tree)``, rounded up.
     ellipsoid : float
         Best common quadratic norm bound: smallest ``r`` (to ``rtol``) with a CQLF
-        for ``{A_i / r}`` — the bound a CQLF alone can give.
+        for ``{A_i / r}`` — the bound a CQLF alone can give (``max_i ||A_i||_2``
+        when :func:`jsr_bounds` was called with ``quadratic=False``).
     tree : float
         Prefix-code bound ``max ||W||_P^(1/|W|)`` over the leaves of the product
         tree in the norm of that CQLF (the spectral norm when none was found).
@@ -115,7 +125,8 @@ class MeanSquareStability:
     radius : float
         Spectral radius of ``sum_i p_i (A_i kron A_i)``.
     stable : bool
-        ``radius < 1``: the second moment ``E[x_k x_k']`` converges to zero.
+        ``radius < 1`` by more than the rounding allowance of ``radius``: the second
+        moment ``E[x_k x_k']`` converges to zero.
     """
 
     radius: float
@@ -146,8 +157,11 @@ def cqlf(matrices, domain: Domain = "discrete", *, margin: float = 1e-6) -> Lyap
     posed with the explicit margin; the homogeneous problem loses nothing by the
     normalization ``P >= I``. The solver's ``P`` is then re-checked with numpy
     eigenvalues after rescaling it to ``min eig(P) = 1``; ``feasible`` is True only
-    if the verified decrease margin is at least ``margin / 2`` (half the posed
-    margin, leaving room for the solver's feasibility tolerance).
+    if the verified decrease margin, less the rounding allowance of its computation
+    (:func:`~switchest.analysis._lmi.rounding_allowance`: forming ``A_i' P A_i - P``
+    and its eigenvalues, ``2 (3n + 1) eps`` times the size of the terms), is at least
+    ``margin / 2`` (half the posed margin, leaving room for the solver's feasibility
+    tolerance). The smallest eigenvalue of ``P`` must likewise exceed its rounding.
 
     Parameters
     ----------
@@ -186,22 +200,27 @@ def cqlf(matrices, domain: Domain = "discrete", *, margin: float = 1e-6) -> Lyap
     ):
         return _infeasible(outcome.status, domain, _INFEASIBLE_NOTE)
     Pv = 0.5 * (P.value + P.value.T)
+    if not np.all(np.isfinite(Pv)):
+        return _infeasible(outcome.status, domain,
+                           "the solver's P is not finite; " + _INFEASIBLE_NOTE)
     lowest = float(min_eigenvalue(Pv))
-    if lowest <= 0:
+    if lowest <= rounding_allowance(np.linalg.norm(Pv), n):
         return _infeasible(
             outcome.status,
             domain,
-            f"the solver's P is not positive definite (min eigenvalue {lowest:.3g}); "
-            + _INFEASIBLE_NOTE,
+            f"the solver's P is not positive definite beyond rounding (min eigenvalue "
+            f"{lowest:.3g}); " + _INFEASIBLE_NOTE,
         )
     Pv = Pv / lowest
-    verified = decrease_margin(A, Pv, domain=domain)
-    if verified < 0.5 * margin:
+    margins, allowance = _verified_decrease(A, Pv, domain)
+    verified = float(np.min(margins))
+    if np.min(margins - allowance) < 0.5 * margin:
         return _infeasible(
             outcome.status,
             domain,
-            f"the solver's P failed the numpy check (decrease margin {verified:.3g} < "
-            f"{0.5 * margin:.3g}); " + _INFEASIBLE_NOTE,
+            f"the solver's P failed the numpy check (decrease margin {verified:.3g}, less its "
+            f"rounding allowance {float(np.max(allowance)):.2g}, < {0.5 * margin:.3g}); "
+            + _INFEASIBLE_NOTE,
         )
     return LyapunovCertificate(
         feasible=True,
@@ -217,23 +236,29 @@ def decrease_margin(matrices, P, *, domain: Domain = "discrete") -> float:
     """Numpy check of a candidate Lyapunov matrix: ``min_i -max eig(D_i)``.
 
     ``D_i = A_i' P A_i - P`` (discrete) or ``A_i' P + P A_i`` (continuous). A
-    positive value means ``V(x) = x' P x`` decreases along every mode.
+    positive value means ``V(x) = x' P x`` decreases along every mode. The value is
+    as computed; :func:`cqlf` compares it with its threshold only beyond its rounding.
 
     Parameters
     ----------
     matrices : array_like, shape (L, n, n) or (n, n)
     P : array_like, shape (n, n)
+        Finite.
     domain : {"discrete", "continuous"}, optional
+
+    Raises
+    ------
+    ValueError
+        If ``matrices`` or ``P`` is not finite or their shapes disagree.
     """
     A = _matrix_stack(matrices, "matrices", min_ndim=2, max_ndim=3)
     A = A[None] if A.ndim == 2 else A
     P = float_array(P, "P", ndim=2)
     if P.shape != A.shape[1:]:
         raise ValueError(f"P must have shape {A.shape[1:]}, got {P.shape}")
+    check_finite(P, "P")
     domain = _check_domain(domain)
-    At = np.swapaxes(A, -1, -2)
-    D = At @ P @ A - P if domain == "discrete" else At @ P + P @ A
-    return float(-np.max(max_eigenvalue(D)))
+    return float(np.min(_verified_decrease(A, P, domain)[0]))
 
 
 def jsr_bounds(
@@ -243,6 +268,7 @@ def jsr_bounds(
     max_products: int = 20000,
     rtol: float = 1e-4,
     prune_tol: float = 1e-3,
+    quadratic: bool = True,
 ) -> JSRBounds:
     """Bracket the joint spectral radius of a finite family of matrices.
 
@@ -256,10 +282,22 @@ def jsr_bounds(
       ``A_i``; products are enumerated breadth-first up to ``max_length``.
     * Tree bound (a prefix code in the CQLF norm ``||x||_P = sqrt(x' P x)``):
       a product ``W`` is not extended once ``||W||_P^(1/|W|) <= lower (1 +
-      prune_tol)`` (pruning), nor beyond ``max_length`` or once ``max_products``
-      are reached. The unextended products (the leaves) form a complete prefix
-      code: every infinite mode sequence factors into leaves, so by
-      submultiplicativity ``JSR <= max_leaves ||W||_P^(1/|W|)``.
+      prune_tol)`` (pruning) or ``W`` is zero to working precision, nor beyond
+      ``max_length`` or once ``max_products`` are reached. The unextended
+      products (the leaves) form a complete prefix code: every infinite mode
+      sequence factors into leaves, so by submultiplicativity
+      ``JSR <= max_leaves ||W||_P^(1/|W|)``.
+
+    Rounding: a product ``W`` of ``k`` matrices is computed to within
+    ``(k + 1) n`` rounding errors of ``prod_j ||A_{w_j}||_F`` (the matrix products
+    and the eigen- or singular value solver,
+    :func:`~switchest.analysis._lmi.rounding_allowance`), and its ``P``-norm to
+    within ``cond(R)`` times that (``P = R' R``). Each
+    ``rho(W)`` is lowered and each ``||W||_P`` raised by that allowance before the
+    ``k``-th root, which is then rounded outward by a few ulps: the bracket holds
+    whatever the last bits of the arithmetic. Singular values are perfectly
+    conditioned, eigenvalues of a non-normal product need not be; should the two
+    bounds still cross, ``lower`` is lowered to ``upper``.
 
     Parameters
     ----------
@@ -272,6 +310,10 @@ def jsr_bounds(
         Relative tolerance of the ellipsoid bisection.
     prune_tol : float, optional
         Relative slack of the pruning rule.
+    quadratic : bool, optional
+        Search the best common quadratic norm (an LMI bisection whose cost grows
+        like ``n^6``); ``False`` bounds in the spectral norm instead
+        (``ellipsoid = max_i ||A_i||_2``), for large ``n``.
 
     Returns
     -------
@@ -282,19 +324,26 @@ def jsr_bounds(
     max_products = positive_int(max_products, "max_products")
     rtol = positive_scalar(rtol, "rtol")
     prune_tol = positive_scalar(prune_tol, "prune_tol")
-    ellipsoid, P = _ellipsoid_bound(A, rtol)
-    norm = _p_norm(P)
-    L = A.shape[0]
-    rho = spectral_radius(A)
-    best = int(np.argmax(rho))
-    lower, word = float(rho[best]), (best,)
+    if not isinstance(quadratic, (bool, np.bool_)):
+        raise TypeError(f"quadratic must be a bool, got {type(quadratic).__name__}")
+    L, n = A.shape[0], A.shape[-1]
+    ellipsoid, P = _ellipsoid_bound(A, rtol) if quadratic else (_spectral_bound(A, 0.0), np.eye(n))
+    norm, cond = _p_norm(P)
+    size_A = np.linalg.norm(A, axis=(-2, -1))  # Frobenius: bounds every entry's rounding
+    radii = _radius_below(spectral_radius(A), size_A, n, 1)
+    best = int(np.argmax(radii))
+    lower, word = float(radii[best]), (best,)
     words = np.arange(L)[:, None]
-    prods = A
+    prods, sizes = A, size_A  # sizes: prod_j ||A_{w_j}||_F along each word
     leaf_bound = 0.0
     evaluated = L
     for length in range(1, max_length + 1):
-        growth = norm(prods) ** (1.0 / length)
-        expand = growth > lower * (1.0 + prune_tol)
+        slack = rounding_allowance(cond * sizes, (length + 3) * n)
+        norms = norm(prods)
+        growth = (norms + slack) ** (1.0 / length) * (1.0 + 4 * _EPS)
+        # a product that is zero to working precision is a leaf: its children would be too,
+        # and the k-th root of their rounding allowance only grows with k
+        expand = (growth > lower * (1.0 + prune_tol)) & (norms > slack)
         room = evaluated + L * int(expand.sum()) <= max_products
         if length == max_length or not room:
             expand[:] = False
@@ -302,24 +351,33 @@ def jsr_bounds(
         if not expand.any():
             break
         # children W' = A_i W: mode i applied after the word W
-        prods = np.einsum("iab,wbc->wiac", A, prods[expand]).reshape(-1, *A.shape[1:])
+        prods = np.einsum("iab,wbc->wiac", A, prods[expand]).reshape(-1, n, n)
+        sizes = (sizes[expand][:, None] * size_A[None, :]).ravel()
         words = np.concatenate(
             [np.repeat(words[expand], L, axis=0), np.tile(np.arange(L), expand.sum())[:, None]],
             axis=1,
         )
         evaluated += prods.shape[0]
-        radii = spectral_radius(prods) ** (1.0 / (length + 1))
+        radii = _radius_below(spectral_radius(prods), sizes, n, length + 1)
         k = int(np.argmax(radii))
         if radii[k] > lower:
             lower, word = float(radii[k]), tuple(int(w) for w in words[k])
+    upper = min(ellipsoid, leaf_bound)
     return JSRBounds(
-        lower=lower,
-        upper=min(ellipsoid, leaf_bound),
+        lower=min(lower, upper),
+        upper=upper,
         ellipsoid=ellipsoid,
         tree=leaf_bound,
         word=word,
         n_products=evaluated,
     )
+
+
+def _radius_below(rho: np.ndarray, sizes: np.ndarray, n: int, k: int) -> np.ndarray:
+    """``rho(W)^(1/k)`` of computed products ``W`` of ``k`` matrices, rounded down by the
+    rounding allowance of ``W`` and of its eigenvalues (exact for normal ``W``)."""
+    certain = np.maximum(rho - rounding_allowance(sizes, (k + 1) * n), 0.0)
+    return certain ** (1.0 / k) * (1.0 - 4 * _EPS)
 
 
 def ms_stable_iid(A, p) -> MeanSquareStability:
@@ -328,6 +386,15 @@ def ms_stable_iid(A, p) -> MeanSquareStability:
     With ``P(s_k = i) = p_i`` independently of the past, the second moment obeys
     ``vec E[x_{k+1} x_{k+1}'] = (sum_i p_i A_i kron A_i) vec E[x_k x_k']``, so the
     system is mean-square stable iff the spectral radius of that matrix is below 1.
+    ``stable`` asks it to be below 1 by more than the rounding allowance of the
+    computed radius (:func:`~switchest.analysis._lmi.rounding_allowance`: ``n^2 + L``
+    terms of size ``sum_i p_i ||A_i||_F^2``, the Frobenius norm of that matrix's
+    absolute value), so the verdict does not depend on the last bits.
+
+    Up to ``n = 32`` the ``n^2 x n^2`` matrix is formed and its eigenvalues computed;
+    beyond, the spectral radius of the map ``X -> sum_i p_i A_i X A_i'`` is found
+    matrix-free by Arnoldi iteration (ARPACK, to a relative ``1e-12``, added to the
+    allowance), in ``O(L n^3)`` per iteration and ``O(n^2)`` memory.
 
     Parameters
     ----------
@@ -338,13 +405,51 @@ def ms_stable_iid(A, p) -> MeanSquareStability:
     Returns
     -------
     MeanSquareStability
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If the iteration for a large ``n`` does not converge.
     """
     A = _matrix_stack(A, "A", min_ndim=3, max_ndim=3)
     p = check_probability_vector(p, "p", n=A.shape[0])
+    L, n = A.shape[0], A.shape[-1]
+    size = float(p @ np.sum(A * A, axis=(-2, -1)))  # || sum_i p_i |A_i| kron |A_i| ||_F
+    allowance = rounding_allowance(size, n * n + L)
+    if n <= _DENSE_KRON_MAX:
+        M = np.einsum("i,iab,icd->acbd", p, A, A).reshape(n * n, n * n)
+        radius = float(spectral_radius(M))
+    else:
+        radius = _operator_radius(A, p)
+        allowance = allowance + _ARPACK_TOL * radius
+    return MeanSquareStability(radius=radius, stable=bool(radius + allowance < 1.0))
+
+
+_ARPACK_TOL = 1e-12
+
+
+def _operator_radius(A: np.ndarray, p: np.ndarray) -> float:
+    """Spectral radius of ``X -> sum_i p_i A_i X A_i'`` on ``n x n`` matrices, by ARPACK."""
     n = A.shape[-1]
-    M = np.einsum("i,iab,icd->acbd", p, A, A).reshape(n * n, n * n)
-    radius = float(spectral_radius(M))
-    return MeanSquareStability(radius=radius, stable=radius < 1.0)
+    At = np.ascontiguousarray(np.swapaxes(A, -1, -2))
+
+    def apply(v):
+        X = v.reshape(n, n)
+        return np.einsum("i,iab->ab", p, A @ X @ At).ravel()
+
+    op = LinearOperator((n * n, n * n), matvec=apply, dtype=float)
+    start = np.eye(n).ravel()  # inside the PSD cone, where the dominant eigenvector lies
+    try:
+        # one BLAS thread: a sequential iteration of n x n products gains little from threads
+        # and, on a busy machine, was measured 16x slower with them (n = 200)
+        with threadpool_limits(1):
+            values = eigs(op, k=1, which="LM", v0=start, tol=_ARPACK_TOL, return_eigenvectors=False)
+    except ArpackError as exc:
+        raise np.linalg.LinAlgError(
+            f"the spectral radius of the {n * n} x {n * n} second-moment map did not converge: "
+            f"{exc}"
+        ) from exc
+    return float(np.max(np.abs(values)))
 
 
 # ---------------------------------------------------------------------- helpers
@@ -354,17 +459,41 @@ def _decrease(A: np.ndarray, P: cp.Variable, domain: str) -> cp.Expression:
     return A.T @ P + P @ A
 
 
+def _verified_decrease(A: np.ndarray, P: np.ndarray, domain: str) -> tuple[np.ndarray, np.ndarray]:
+    """Per mode, ``-max eig(D_i)`` and the rounding allowance of that number.
+
+    Each entry of ``D_i`` is a sum of ``2n + 1`` products bounded by
+    ``|A_i|' |P| |A_i| + |P|`` (discrete) or ``|A_i|' |P| + |P| |A_i|`` (continuous), and the
+    symmetric eigensolver adds ``n eps ||D_i||``: ``3n + 1`` terms of that size (Frobenius).
+    """
+    n = A.shape[-1]
+    At = np.swapaxes(A, -1, -2)
+    absA, absP = np.abs(A), np.abs(P)
+    if domain == "discrete":
+        D = At @ P @ A - P
+        size = np.swapaxes(absA, -1, -2) @ absP @ absA + absP
+    else:
+        D = At @ P + P @ A
+        size = np.swapaxes(absA, -1, -2) @ absP + absP @ absA
+    return -max_eigenvalue(D), rounding_allowance(np.linalg.norm(size, axis=(-2, -1)), 3 * n + 1)
+
+
 def _infeasible(status: str, domain: str, note: str) -> LyapunovCertificate:
     return LyapunovCertificate(
         feasible=False, P=None, margin=float("nan"), solver_status=status, domain=domain, note=note
     )
 
 
+def _spectral_bound(A: np.ndarray, rtol: float) -> float:
+    """``max_i ||A_i||_2 (1 + rtol)``, raised by the rounding of the singular values."""
+    top = float(np.max(np.linalg.norm(A, ord=2, axis=(-2, -1))))
+    return top * (1.0 + rtol) + float(rounding_allowance(top, A.shape[-1]))
+
+
 def _ellipsoid_bound(A: np.ndarray, rtol: float) -> tuple[float, np.ndarray]:
     """Smallest ``r`` (to ``rtol``) with a verified CQLF of ``{A_i / r}``, and its P."""
     rho = float(np.max(spectral_radius(A)))
-    norms = np.linalg.norm(A, ord=2, axis=(-2, -1))
-    hi = float(np.max(norms)) * (1.0 + rtol)
+    hi = _spectral_bound(A, rtol)
     if hi == 0.0:
         return 0.0, np.eye(A.shape[-1])
     lo = rho
@@ -383,10 +512,12 @@ def _ellipsoid_bound(A: np.ndarray, rtol: float) -> tuple[float, np.ndarray]:
 
 
 def _p_norm(P: np.ndarray):
-    """``W -> ||W||_P``, the norm induced by ``||x||_P = sqrt(x' P x)``, batched."""
+    """``(W -> ||W||_P, cond)``: the norm induced by ``||x||_P = sqrt(x' P x)``, batched,
+    and ``||R||_F ||R^-1||_F`` (``P = R' R``), by which it magnifies rounding in ``W``."""
     R = np.linalg.cholesky(P).T  # P = R' R, ||x||_P = ||R x||
     R_inv = np.linalg.inv(R)
-    return lambda W: np.linalg.norm(R @ W @ R_inv, ord=2, axis=(-2, -1))
+    cond = float(np.linalg.norm(R) * np.linalg.norm(R_inv))
+    return (lambda W: np.linalg.norm(R @ W @ R_inv, ord=2, axis=(-2, -1))), cond
 
 
 def _matrix_stack(value, name: str, *, min_ndim: int, max_ndim: int | None = None) -> np.ndarray:

@@ -5,6 +5,12 @@ with the mode transition probabilities, after each update the mode
 probabilities are re-weighted by the filters' likelihoods. Switches are assumed
 to happen at the sample instants. Mode probabilities are kept as log-weights.
 
+Outliers: a mode whose filter rejects the measurement (its normalized innovation
+squared overflows or exceeds ``gate``, :func:`~switchest.estimators.kalman.kf_update`)
+is not updated and gets likelihood zero at that sample; when every mode rejects
+it, the sample is treated as missing — no update, the mode probabilities stay the
+predicted ones — and it is flagged in ``Estimate.outlier``.
+
 Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k);
 rows sum to one.
 """
@@ -15,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_probability_vector, check_row_stochastic
+from .._checks import check_probability_vector, check_row_stochastic, positive_scalar
 from .._linalg import log_normalize, mixture_moments, shared
 from ..discretize import mode_steps
 from .base import Estimate, Estimator
@@ -27,12 +33,14 @@ __all__ = ["IMMState", "IMMFilter", "imm_mix", "imm_combine"]
 @dataclass(frozen=True, eq=False)
 class IMMState:
     """Mode-matched posteriors ``x (N, L, n)``, ``P (N, L, n, n)`` and log mode
-    probabilities ``log_prob (N, L)``; ``loglik (N,)`` of the last measurement."""
+    probabilities ``log_prob (N, L)``; ``loglik (N,)`` of the last measurement and
+    ``outlier (N,)``, True where every mode rejected it."""
 
     x: np.ndarray
     P: np.ndarray
     log_prob: np.ndarray
     loglik: np.ndarray
+    outlier: np.ndarray
 
 
 def imm_mix(x, P, log_prob, log_transition):
@@ -75,10 +83,16 @@ class IMMFilter(Estimator):
         Prior mean and covariance of the state at the first sample (every mode).
     mode_prob0 : array_like, shape (L,), optional
         Prior mode probabilities at the first sample; uniform by default.
+    gate : float, optional
+        Largest normalized innovation squared ``e' S^-1 e`` a mode-matched filter
+        accepts (keyword-only); e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None``
+        rejects only measurements whose innovation overflows. A sample every mode
+        rejects is treated as missing and flagged in ``Estimate.outlier``.
     """
 
-    def __init__(self, system, transition, x0, P0, mode_prob0=None):
+    def __init__(self, system, transition, x0, P0, mode_prob0=None, *, gate: float | None = None):
         self._set_prior(system, x0, P0)
+        self.gate = None if gate is None else positive_scalar(gate, "gate")
         L = system.n_modes
         self.transition = check_row_stochastic(transition, "transition", n=L)
         p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
@@ -96,6 +110,7 @@ class IMMFilter(Estimator):
             P=np.broadcast_to(self.P0, (*batch_shape, L, n, n)).copy(),
             log_prob=np.broadcast_to(self._log_p0, (*batch_shape, L)).copy(),
             loglik=np.zeros(batch_shape),
+            outlier=np.zeros(batch_shape, dtype=bool),
         )
 
     def step(self, state: IMMState, y, u=None, *, dt=None) -> IMMState:
@@ -108,18 +123,22 @@ class IMMFilter(Estimator):
             if u is None:
                 u = np.zeros((*x.shape[:-2], sys.n_inputs))
             x, P = kf_predict(x, P, shared(steps.F), steps.G, u[..., None, :], shared(steps.Qd))
-        x, P, ll = kf_update(x, P, y[..., None, :], self._C, self._R)
+        x, P, ll = kf_update(x, P, y[..., None, :], self._C, self._R, gate=self.gate)
+        outlier = np.zeros(ll.shape[:-1], dtype=bool)
+        if np.isneginf(ll).any():  # a mode rejected y; if every mode did, it is a missing sample
+            outlier = np.all(np.isneginf(ll), axis=-1)
+            ll = np.where(outlier[..., None], 0.0, ll)
         log_prob, total = log_normalize(log_c + ll)  # mu_j ∝ c_j Lambda_j
-        return IMMState(x, P, log_prob, total)
+        return IMMState(x, P, log_prob, total, outlier)
 
     def _output(self, state: IMMState) -> dict[str, np.ndarray]:
         prob = np.exp(state.log_prob)
         x, P = imm_combine(state.x, state.P, prob)
         return {"x": x, "P": P, "mode_prob": prob, "mode": np.argmax(state.log_prob, axis=-1),
-                "loglik": state.loglik}
+                "loglik": state.loglik, "outlier": state.outlier}
 
     def run(self, y, u=None, t=None) -> Estimate:
-        """Filter ``y (..., K, m)``; returns combined ``x``, ``P``, ``mode_prob`` and the
-        most probable ``mode`` at each sample."""
+        """Filter ``y (..., K, m)``; returns combined ``x``, ``P``, ``mode_prob``, the
+        most probable ``mode``, ``loglik`` and the ``outlier`` flags at each sample."""
         y2, u2, t, batch = self._prepare(y, u, t)
         return self._unflatten(self._loop(y2, u2, t), batch)

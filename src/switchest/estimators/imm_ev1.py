@@ -8,6 +8,12 @@ transition of the estimated instant (eqs (4)-(5)), adds ``epsilon I`` to the
 predicted covariance (§IV), and updates; its weight is
 ``a^i_{k+1} = b_ji a^j_k`` (times ``pi_ji`` when a transition matrix is given),
 normalized, kept in log domain.
+
+Outliers: a hypothesis (predecessor, destination, grid point) whose filter rejects
+the measurement (its normalized innovation squared overflows or exceeds ``gate``,
+:func:`~switchest.estimators.kalman.kf_update`) gets likelihood zero; when every
+hypothesis rejects it, the sample is treated as missing and flagged in
+``Estimate.outlier``.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from .._linalg import log_normalize
 from ..discretize import pairwise_grid, switch_grid
 from .base import Estimate, Estimator
 from .kalman import kf_predict, kf_update
-from .switch_time import marginalize_switch_time, switch_time_loglik
+from .switch_time import _switch_time_loglik, marginalize_switch_time
 
 __all__ = ["IMMEV1State", "IMMEV1Filter"]
 
@@ -31,13 +37,15 @@ class IMMEV1State:
     """Per-destination filters ``x (N, L, n)``, ``P (N, L, n, n)``, normalized log-weights
     ``log_weight (N, L)``, and for the last interval each destination's chosen
     predecessor ``predecessor (N, L)`` and switch offset ``switch_offset (N, L)``
-    (NaN when the predecessor is the same mode)."""
+    (NaN when the predecessor is the same mode); ``outlier (N,)`` is True where
+    every hypothesis rejected the last measurement."""
 
     x: np.ndarray
     P: np.ndarray
     log_weight: np.ndarray
     predecessor: np.ndarray
     switch_offset: np.ndarray
+    outlier: np.ndarray
 
 
 class IMMEV1Filter(Estimator):
@@ -73,6 +81,11 @@ class IMMEV1Filter(Estimator):
         the grid, the destination's posterior is the moment-matched mixture of the
         g updated hypotheses weighted by ``J_k``, and the reported switching time
         is their weighted mean.
+    gate : float, optional
+        Largest normalized innovation squared ``e' S^-1 e`` a hypothesis accepts
+        (keyword-only); ``None`` rejects only measurements whose innovation
+        overflows. A sample every hypothesis rejects is treated as missing and
+        flagged in ``Estimate.outlier``.
 
     Notes
     -----
@@ -83,7 +96,7 @@ class IMMEV1Filter(Estimator):
 
     def __init__(self, system, transition=None, *, x0, P0, grid: int = 5, epsilon: float = 1e-9,
                  mode_prob0=None, predecessor: str = "path", likelihood: str = "innovation",
-                 switch_time: str = "max"):
+                 switch_time: str = "max", gate: float | None = None):
         self._set_prior(system, x0, P0)
         if not system.is_continuous:
             raise ValueError("IMMEV1Filter needs a continuous-time system (switches inside intervals)")
@@ -91,6 +104,7 @@ class IMMEV1Filter(Estimator):
         switch_grid(1.0, grid)
         self.grid = int(grid)
         self.epsilon = positive_scalar(epsilon, "epsilon", allow_zero=True)
+        self.gate = None if gate is None else positive_scalar(gate, "gate")
         self.transition = None if transition is None else check_row_stochastic(transition, "transition", n=L)
         p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
         self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
@@ -116,6 +130,7 @@ class IMMEV1Filter(Estimator):
             log_weight=np.broadcast_to(self._log_p0, (*batch_shape, L)).copy(),
             predecessor=np.broadcast_to(np.arange(L), (*batch_shape, L)).copy(),
             switch_offset=np.full((*batch_shape, L), np.nan),
+            outlier=np.zeros(batch_shape, dtype=bool),
         )
 
     def step(self, state: IMMEV1State, y, u=None, *, dt=None) -> IMMEV1State:
@@ -125,9 +140,11 @@ class IMMEV1Filter(Estimator):
         L = sys.n_modes
         N = state.x.shape[0]
         if dt is None:  # first sample: update each mode's filter with the prior
-            x, P, ll = kf_update(state.x, state.P, y[:, None, :], sys.C, sys.R)
+            x, P, ll = kf_update(state.x, state.P, y[:, None, :], sys.C, sys.R, gate=self.gate)
+            outlier = np.all(np.isneginf(ll), axis=-1)  # every mode rejected y: a missing sample
+            ll = np.where(outlier[:, None], 0.0, ll)
             log_w, _ = log_normalize(state.log_weight + ll)
-            return IMMEV1State(x, P, log_w, state.predecessor, state.switch_offset)
+            return IMMEV1State(x, P, log_w, state.predecessor, state.switch_offset, outlier)
         if u is None:
             u = np.zeros((N, sys.n_inputs))
         grid = pairwise_grid(sys, dt, self.grid)  # [j, i, k]: from j to i at tau_k
@@ -139,9 +156,16 @@ class IMMEV1Filter(Estimator):
         C = sys.C[None, None, :, None]
         R = sys.R[None, None, :, None]
         y_h = y[:, None, None, None, :]
-        x_up, P_up, J = kf_update(x_pred, P_pred, y_h, C, R)  # every hypothesis updated
+        # every hypothesis updated; a rejected one keeps its prediction, J = -inf
+        x_up, P_up, J = kf_update(x_pred, P_pred, y_h, C, R, gate=self.gate)
         if self.likelihood == "printed":
-            J = switch_time_loglik(x_pred, P_pred, y_h, C, R, likelihood="printed")
+            J = np.where(np.isneginf(J), -np.inf,
+                         _switch_time_loglik(x_pred, P_pred, y_h, C, R, likelihood="printed"))
+        outlier = np.all(np.isneginf(J), axis=(1, 2, 3))  # every hypothesis rejected y
+        if outlier.any():  # a missing sample: every hypothesis keeps its prediction
+            J = np.where(outlier[:, None, None, None], 0.0, J)
+            x_up = np.where(outlier[:, None, None, None, None], x_pred, x_up)
+            P_up = np.where(outlier[:, None, None, None, None, None], P_pred, P_up)
         tau = switch_grid(dt, self.grid)
         if self.switch_time == "max":
             best_k = np.argmax(J, axis=-1)[..., None]  # eq. (23) for every pair (N, j, i, 1)
@@ -160,7 +184,7 @@ class IMMEV1Filter(Estimator):
         x, P = x_pair[n_idx, j_hat, i_idx], P_pair[n_idx, j_hat, i_idx]
         log_w, _ = log_normalize(path[n_idx, j_hat, i_idx])  # a^i = b_ji a^j (pi_ji), normalized
         offset = np.where(j_hat == i_idx, np.nan, tau_pair[n_idx, j_hat, i_idx])
-        return IMMEV1State(x, P, log_w, j_hat, offset)
+        return IMMEV1State(x, P, log_w, j_hat, offset, outlier)
 
     def _output(self, state: IMMEV1State) -> dict[str, np.ndarray]:
         best = np.argmax(state.log_weight, axis=-1)
@@ -171,6 +195,7 @@ class IMMEV1Filter(Estimator):
             "mode_prob": np.exp(state.log_weight),
             "mode": best,
             "switch_time": state.switch_offset[rows, best],
+            "outlier": state.outlier,
         }
 
     def run(self, y, u=None, t=None) -> Estimate:
@@ -180,5 +205,5 @@ class IMMEV1Filter(Estimator):
         est = self._loop(y2, u2, t)
         start = np.concatenate([[np.nan], t[:-1]])
         est = Estimate(x=est.x, P=est.P, mode_prob=est.mode_prob, mode=est.mode,
-                       switch_time=est.switch_time + start)
+                       switch_time=est.switch_time + start, outlier=est.outlier)
         return self._unflatten(est, batch)

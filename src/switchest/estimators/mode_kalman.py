@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._checks import check_bool, check_finite, float_array, int_array, positive_scalar
 from .._linalg import matvec
 from ..discretize import mode_steps, segment_transitions
 from .base import Estimate, Estimator
@@ -24,11 +25,13 @@ __all__ = ["KalmanState", "ModeKalmanFilter"]
 
 @dataclass(frozen=True, eq=False)
 class KalmanState:
-    """Posterior after the last processed sample: ``x (N, n)``, ``P (N, n, n)``, ``loglik (N,)``."""
+    """Posterior after the last processed sample: ``x (N, n)``, ``P (N, n, n)``, ``loglik (N,)``
+    and ``outlier (N,)``, True where the measurement was rejected."""
 
     x: np.ndarray
     P: np.ndarray
     loglik: np.ndarray
+    outlier: np.ndarray
 
 
 class ModeKalmanFilter(Estimator):
@@ -44,6 +47,11 @@ class ModeKalmanFilter(Estimator):
         Riccati solution of mode i alone) instead of the time-varying gain; the
         reported ``P`` is then that mode's steady-state a-posteriori covariance.
         Requires periodic sampling.
+    gate : float, optional
+        Largest normalized innovation squared ``e' S^-1 e`` accepted. A measurement
+        beyond it, or one whose innovation overflows (whatever the gate), is
+        rejected: treated as missing and flagged in ``Estimate.outlier`` (its
+        ``loglik`` is 0, as for a missing sample).
 
     Notes
     -----
@@ -54,9 +62,10 @@ class ModeKalmanFilter(Estimator):
     ``C`` and ``R`` of the mode believed at ``t_k``.
     """
 
-    def __init__(self, system, x0, P0, *, steady_state: bool = False):
+    def __init__(self, system, x0, P0, *, steady_state: bool = False, gate: float | None = None):
         self._set_prior(system, x0, P0)
-        self.steady_state = bool(steady_state)
+        self.steady_state = check_bool(steady_state, "steady_state")
+        self.gate = None if gate is None else positive_scalar(gate, "gate")
         self._gains: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def init(self, batch_shape=()) -> KalmanState:
@@ -66,6 +75,7 @@ class ModeKalmanFilter(Estimator):
             x=np.broadcast_to(self.x0, (*batch_shape, n)).copy(),
             P=np.broadcast_to(self.P0, (*batch_shape, n, n)).copy(),
             loglik=np.zeros(batch_shape),
+            outlier=np.zeros(batch_shape, dtype=bool),
         )
 
     def step(self, state: KalmanState, y, u=None, *, dt=None, mode, prev_mode=None,
@@ -92,14 +102,23 @@ class ModeKalmanFilter(Estimator):
             x, P = kf_predict(x, P, F, G, u, Qd)
         C, R = sys.C[mode], sys.R[mode]
         if not self.steady_state:
-            x, P, loglik = kf_update(x, P, y, C, R)
-            return KalmanState(x, P, loglik)
+            x, P, loglik = kf_update(x, P, y, C, R, gate=self.gate)
+            outlier = np.isneginf(loglik)  # the core's mark of a rejected measurement
+            return KalmanState(x, P, np.where(outlier, 0.0, loglik), outlier)
         K, P_prior, P_post = self._steady(dt)
         observed = ~np.any(np.isnan(y), axis=-1)
         innovation = np.where(observed[:, None], y - matvec(C, x), 0.0)
+        S = C @ P_prior[mode] @ np.swapaxes(C, -1, -2) + R  # steady innovation covariance
+        with np.errstate(over="ignore", invalid="ignore"):
+            nis = np.einsum("...i,...i->...", innovation,
+                            np.linalg.solve(S, innovation[..., None])[..., 0])
+        accepted = nis < np.inf if self.gate is None else nis <= self.gate  # False for inf, NaN
+        outlier = observed & ~accepted
+        used = observed & ~outlier
+        innovation = np.where(used[:, None], innovation, 0.0)
         x = x + matvec(K[mode], innovation)  # x_k|k = x_k|k-1 + K_i (y_k - C_i x_k|k-1), eq. (6)
-        P = np.where(observed[:, None, None], P_post[mode], P_prior[mode])
-        return KalmanState(x, P, np.full(x.shape[0], np.nan))
+        P = np.where(used[:, None, None], P_post[mode], P_prior[mode])
+        return KalmanState(x, P, np.full(x.shape[0], np.nan), outlier)
 
     def _steady(self, dt):
         """Per-mode steady-state gains for the sampling step (cached)."""
@@ -117,7 +136,7 @@ class ModeKalmanFilter(Estimator):
         return self._gains[key]
 
     def _output(self, state: KalmanState) -> dict[str, np.ndarray]:
-        return {"x": state.x, "P": state.P, "loglik": state.loglik}
+        return {"x": state.x, "P": state.P, "loglik": state.loglik, "outlier": state.outlier}
 
     def run(self, y, u=None, t=None, *, modes, segments=None) -> Estimate:
         """Filter measurements ``y (..., K, m)`` along the believed ``modes``.
@@ -125,7 +144,8 @@ class ModeKalmanFilter(Estimator):
         Parameters
         ----------
         y : array_like, shape (..., K, m)
-            Measurements; NaN marks a missing one.
+            Measurements; NaN marks a missing one (so does a masked entry of a numpy
+            masked array).
         u : array_like, optional
             Inputs held on ``[t_k, t_{k+1})``: ``(l,)``, ``(K, l)`` or ``(..., K, l)``.
         t : array_like, shape (K,)
@@ -135,6 +155,7 @@ class ModeKalmanFilter(Estimator):
         segments : tuple of arrays, optional
             ``(modes (..., K-1, S+1), offsets (..., K-1, S))`` — the exact segments of
             each interval, e.g. ``trajectory.segments()``: the clairvoyant filter.
+            Offsets are finite, non-decreasing and within ``[0, t_k - t_{k-1}]``.
         """
         y2, u2, t, batch = self._prepare(y, u, t)
         K = t.size
@@ -146,19 +167,34 @@ class ModeKalmanFilter(Estimator):
         prev = np.concatenate([modes[:, :1], modes[:, :-1]], axis=1)
         per_step = {"mode": modes, "prev_mode": prev}
         if segments is not None:
-            per_step.update(self._segments(segments, batch, K))
+            per_step.update(self._segments(segments, batch, t))
         return self._unflatten(self._loop(y2, u2, t, per_step), batch)
 
-    def _segments(self, segments, batch, K) -> dict[str, np.ndarray]:
+    def _segments(self, segments, batch, t) -> dict[str, np.ndarray]:
+        """Validate ``(modes, offsets)``: modes in range, offsets finite in their interval."""
         if not (isinstance(segments, tuple) and len(segments) == 2):
             raise TypeError("segments must be a tuple (modes (..., K-1, S+1), offsets (..., K-1, S))")
-        seg_m, seg_o = (np.asarray(a) for a in segments)
+        K = t.size
+        seg_m = int_array(segments[0], "segments[0] (modes)")
+        seg_o = float_array(segments[1], "segments[1] (offsets)")
         N = int(np.prod(batch, dtype=np.int64))
-        if seg_m.shape[:-1] != (*batch, K - 1) or seg_o.shape != (*batch, K - 1, seg_m.shape[-1] - 1):
+        if (seg_m.ndim == 0 or seg_m.shape[-1] == 0 or seg_m.shape[:-1] != (*batch, K - 1)
+                or seg_o.shape != (*batch, K - 1, seg_m.shape[-1] - 1)):
             raise ValueError(
                 f"segments must have shapes {(*batch, K - 1, 'S+1')} and {(*batch, K - 1, 'S')}, "
                 f"got {seg_m.shape} and {seg_o.shape}"
             )
+        L = self.system.n_modes
+        if np.any((seg_m < 0) | (seg_m >= L)):
+            raise ValueError(f"segments[0] (modes) must be in 0..{L - 1}, "
+                             f"got {seg_m.min()}..{seg_m.max()}")
+        check_finite(seg_o, "segments[1] (offsets)")
+        length = np.diff(t)[:, None]  # interval k-1 -> k; offsets are measured from its start
+        if np.any(seg_o < 0) or np.any(seg_o > length):
+            raise ValueError("segments[1] (offsets) must lie within [0, t[k] - t[k-1]] of their "
+                             f"interval, got {seg_o.min():g}..{seg_o.max():g}")
+        if np.any(np.diff(seg_o, axis=-1) < 0):
+            raise ValueError("segments[1] (offsets) must be non-decreasing within each interval")
         seg_m = seg_m.reshape(N, K - 1, -1)
         seg_o = seg_o.reshape(N, K - 1, -1)
         # sample k uses interval k-1; sample 0 has no prediction (its entry is never read)

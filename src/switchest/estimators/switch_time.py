@@ -13,9 +13,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import int_array
+from .._checks import (
+    check_bool,
+    check_cores,
+    check_finite,
+    check_memory,
+    float_array,
+    int_array,
+    positive_scalar,
+)
 from .._linalg import log_normalize, mixture_moments
-from ..discretize import interval, mode_steps, pairwise_grid, switch_grid
+from ..discretize import interval, mode_steps, pairwise_grid, pairwise_grid_nbytes, switch_grid
 from .base import Estimate, Estimator
 from .kalman import kf_predict, kf_update
 
@@ -26,13 +34,15 @@ _GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 
 @dataclass(frozen=True, eq=False)
 class SwitchTimeState:
-    """Posterior ``x (N, n)``, ``P (N, n, n)``, ``loglik (N,)`` and the estimated switch
-    offset inside the last interval, ``switch_offset (N,)`` (NaN without a switch)."""
+    """Posterior ``x (N, n)``, ``P (N, n, n)``, ``loglik (N,)``, the estimated switch
+    offset inside the last interval, ``switch_offset (N,)`` (NaN without a switch), and
+    ``outlier (N,)``, True where the measurement was rejected."""
 
     x: np.ndarray
     P: np.ndarray
     loglik: np.ndarray
     switch_offset: np.ndarray
+    outlier: np.ndarray
 
 
 def switch_time_loglik(x_pred, P_pred, y, C, R, *, likelihood: str = "innovation"):
@@ -43,13 +53,27 @@ def switch_time_loglik(x_pred, P_pred, y, C, R, *, likelihood: str = "innovation
     maximum-likelihood switching time. ``likelihood="printed"`` gives the paper's
     literal ``J_k(tau) = p(y_{k+1} | x_{k+1} = x-(tau)) = N(y; C x-(tau), R)``, which
     ignores the prediction covariance (and so how much each hypothesis is
-    trusted). Both are evaluated by the Kalman core; shapes broadcast.
+    trusted). Both are evaluated by the Kalman core; shapes broadcast. NaN entries
+    of ``y`` are missing components.
     """
-    if likelihood == "innovation":
-        return kf_update(x_pred, P_pred, y, C, R)[2]
-    if likelihood == "printed":
-        return kf_update(x_pred, np.zeros_like(P_pred), y, C, R)[2]
-    raise ValueError(f"likelihood must be 'innovation' or 'printed', got {likelihood!r}")
+    _check_likelihood(likelihood)
+    arrays = {k: float_array(v, k) for k, v in zip(("x_pred", "P_pred", "y", "C", "R"),
+                                                   (x_pred, P_pred, y, C, R))}
+    check_cores(arrays, {"x_pred": "n", "P_pred": "nn", "y": "m", "C": "mn", "R": "mm"})
+    for name in ("x_pred", "P_pred", "C", "R"):
+        check_finite(arrays[name], name)
+    return _switch_time_loglik(*arrays.values(), likelihood=likelihood)
+
+
+def _switch_time_loglik(x_pred, P_pred, y, C, R, *, likelihood: str):
+    """:func:`switch_time_loglik` on validated arrays (the filter's per-step kernel)."""
+    P = P_pred if likelihood == "innovation" else np.zeros_like(P_pred)  # "printed": R alone
+    return kf_update(x_pred, P, y, C, R)[2]
+
+
+def _check_likelihood(likelihood) -> None:
+    if not isinstance(likelihood, str) or likelihood not in ("innovation", "printed"):
+        raise ValueError(f"likelihood must be 'innovation' or 'printed', got {likelihood!r}")
 
 
 def marginalize_switch_time(loglik, x_up, P_up, tau):
@@ -101,6 +125,13 @@ class SwitchTimeKalmanFilter(Estimator):
         hypotheses are merged with their posterior weights
         (:func:`marginalize_switch_time`); the reported switching instant is the
         posterior mean. Needs ``likelihood="innovation"`` and ``refine=False``.
+    gate : float, optional
+        Largest normalized innovation squared accepted. A measurement beyond it,
+        or one whose innovation overflows (whatever the gate), is rejected: treated
+        as missing and flagged in ``Estimate.outlier``. Where every grid instant
+        rejects it, the measurement says nothing of the switching instant: the
+        hypotheses are weighed equally (``"marginal"``) or the middle grid instant
+        is taken (``"max"``, as for a missing measurement).
 
     Notes
     -----
@@ -108,26 +139,31 @@ class SwitchTimeKalmanFilter(Estimator):
     """
 
     def __init__(self, system, x0, P0, *, grid: int = 5, refine: bool = False,
-                 likelihood: str = "innovation", refine_iterations: int = 20, switch_time: str = "max"):
+                 likelihood: str = "innovation", refine_iterations: int = 20, switch_time: str = "max",
+                 gate: float | None = None):
         self._set_prior(system, x0, P0)
         if not system.is_continuous:
             raise ValueError("SwitchTimeKalmanFilter needs a continuous-time system (switches inside intervals)")
         switch_grid(1.0, grid)  # validates g
-        if likelihood not in ("innovation", "printed"):
-            raise ValueError(f"likelihood must be 'innovation' or 'printed', got {likelihood!r}")
+        check_memory(pairwise_grid_nbytes(system, grid),
+                     f"grid = {grid} switching instants per interval (the transitions of every "
+                     f"mode pair at every instant, L = {system.n_modes} modes)")
+        refine = check_bool(refine, "refine")
+        _check_likelihood(likelihood)
         iters = int_array(refine_iterations, "refine_iterations", ndim=0)
         if iters < 1:
             raise ValueError(f"refine_iterations must be >= 1, got {int(iters)}")
-        if switch_time not in ("max", "marginal"):
+        if not isinstance(switch_time, str) or switch_time not in ("max", "marginal"):
             raise ValueError(f"switch_time must be 'max' or 'marginal', got {switch_time!r}")
         if switch_time == "marginal" and (refine or likelihood != "innovation"):
             raise ValueError("switch_time='marginal' weighs the grid by the innovation likelihood: it needs "
                              "likelihood='innovation' and refine=False")
         self.switch_time = switch_time
         self.grid = int(grid)
-        self.refine = bool(refine)
+        self.refine = refine
         self.likelihood = likelihood
         self.refine_iterations = int(iters)
+        self.gate = None if gate is None else positive_scalar(gate, "gate")
 
     def init(self, batch_shape=()) -> SwitchTimeState:
         """The prior, replicated over ``batch_shape``."""
@@ -137,6 +173,7 @@ class SwitchTimeKalmanFilter(Estimator):
             P=np.broadcast_to(self.P0, (*batch_shape, n, n)).copy(),
             loglik=np.zeros(batch_shape),
             switch_offset=np.full(batch_shape, np.nan),
+            outlier=np.zeros(batch_shape, dtype=bool),
         )
 
     def step(self, state: SwitchTimeState, y, u=None, *, dt=None, mode, prev_mode=None) -> SwitchTimeState:
@@ -164,10 +201,11 @@ class SwitchTimeKalmanFilter(Estimator):
                 F[sw], G[sw], Qd[sw] = tr
                 offset[sw] = tau
             x, P = kf_predict(x, P, F, G, u, Qd)
-        x, P, loglik = kf_update(x, P, y, C, R)
+        x, P, loglik = kf_update(x, P, y, C, R, gate=self.gate)
         if merged is not None:  # the rows of switched trials above assumed no switch: replace them
             x[sw], P[sw], loglik[sw], offset[sw] = merged
-        return SwitchTimeState(x, P, loglik, offset)
+        outlier = np.isneginf(loglik)  # the core's mark of a rejected measurement
+        return SwitchTimeState(x, P, np.where(outlier, 0.0, loglik), offset, outlier)
 
     def _estimate(self, x, P, y, u, prev, mode, dt):
         """Grid maximum of eq. (23), optionally refined; returns offsets and (F, G, Qd)."""
@@ -176,6 +214,9 @@ class SwitchTimeKalmanFilter(Estimator):
         F, G, Qd = grid.F[prev, mode], grid.G[prev, mode], grid.Qd[prev, mode]  # (q, g, ...)
         ll = self._loglik(x[:, None], P[:, None], F, G, u[:, None], Qd, y[:, None], mode[:, None])
         best = np.argmax(ll, axis=1)
+        # a missing or rejected y says nothing of the instant: take the middle of the grid
+        uninformed = np.all(np.isnan(y), axis=-1) | np.all(np.isneginf(ll), axis=1)
+        best[uninformed] = self.grid // 2
         rows = np.arange(best.size)
         tau = switch_grid(dt, self.grid)[best]
         chosen = (F[rows, best], G[rows, best], Qd[rows, best])
@@ -183,7 +224,8 @@ class SwitchTimeKalmanFilter(Estimator):
             return tau, chosen
         half = dt / (2 * self.grid)
         lo, hi = np.clip(tau - half, 0.0, dt), np.clip(tau + half, 0.0, dt)
-        return self._golden(x, P, y, u, prev, mode, dt, lo, hi, tau, ll[rows, best], chosen)
+        best_ll = np.where(uninformed, np.inf, ll[rows, best])  # nothing to refine there
+        return self._golden(x, P, y, u, prev, mode, dt, lo, hi, tau, best_ll, chosen)
 
     def _marginal(self, x, P, y, u, prev, mode, dt):
         """Predict and update every grid instant, then merge (:func:`marginalize_switch_time`)."""
@@ -191,13 +233,23 @@ class SwitchTimeKalmanFilter(Estimator):
         grid = pairwise_grid(sys, dt, self.grid)
         F, G, Qd = grid.F[prev, mode], grid.G[prev, mode], grid.Qd[prev, mode]  # (q, g, ...)
         x_pred, P_pred = kf_predict(x[:, None], P[:, None], F, G, u[:, None], Qd)
-        x_up, P_up, ll = kf_update(x_pred, P_pred, y[:, None], sys.C[mode][:, None], sys.R[mode][:, None])
-        return marginalize_switch_time(ll, x_up, P_up, switch_grid(dt, self.grid))
+        x_up, P_up, ll = kf_update(x_pred, P_pred, y[:, None], sys.C[mode][:, None],
+                                   sys.R[mode][:, None], gate=self.gate)
+        rejected = np.all(np.isneginf(ll), axis=1)  # predictions kept, weighed equally
+        ll[rejected] = 0.0
+        x, P, loglik, tau = marginalize_switch_time(ll, x_up, P_up, switch_grid(dt, self.grid))
+        loglik[rejected] = -np.inf  # flagged by step as a rejected measurement
+        return x, P, loglik, tau
 
     def _loglik(self, x, P, F, G, u, Qd, y, mode):
+        """``J_k`` of each hypothesis; ``-inf`` where the gate rejects ``y`` under it."""
         x_pred, P_pred = kf_predict(x, P, F, G, u, Qd)
-        return switch_time_loglik(x_pred, P_pred, y, self.system.C[mode], self.system.R[mode],
-                                  likelihood=self.likelihood)
+        C, R = self.system.C[mode], self.system.R[mode]
+        ll = _switch_time_loglik(x_pred, P_pred, y, C, R, likelihood=self.likelihood)
+        if self.gate is not None:
+            gated = np.isneginf(kf_update(x_pred, P_pred, y, C, R, gate=self.gate)[2])
+            ll = np.where(gated, -np.inf, ll)
+        return ll
 
     def _golden(self, x, P, y, u, prev, mode, dt, lo, hi, best_tau, best_ll, best_tr):
         """Batched golden-section maximization of the exact likelihood on ``[lo, hi]``.
@@ -231,7 +283,8 @@ class SwitchTimeKalmanFilter(Estimator):
         return best_tau, (best_F, best_G, best_Q)
 
     def _output(self, state: SwitchTimeState) -> dict[str, np.ndarray]:
-        return {"x": state.x, "P": state.P, "loglik": state.loglik, "switch_time": state.switch_offset}
+        return {"x": state.x, "P": state.P, "loglik": state.loglik, "switch_time": state.switch_offset,
+                "outlier": state.outlier}
 
     def run(self, y, u=None, t=None, *, modes) -> Estimate:
         """Filter ``y (..., K, m)`` given the true ``modes`` at the samples ``(K,)`` or ``(..., K)``.
@@ -242,8 +295,14 @@ class SwitchTimeKalmanFilter(Estimator):
         y2, u2, t, batch = self._prepare(y, u, t)
         K = t.size
         modes = self._modes(modes, batch, K)
+        n, N = self.system.n_states, y2.shape[0]
+        check_memory(  # a step's hypotheses: F, Qd, P predicted and updated, and temporaries
+            8 * N * self.grid * (6 * n * n + 4 * n + self.system.n_inputs * n),
+            f"grid = {self.grid} switching-time hypotheses for each of N = {N} trials",
+        )
         prev = np.concatenate([modes[:, :1], modes[:, :-1]], axis=1)
         est = self._loop(y2, u2, t, {"mode": modes, "prev_mode": prev})
         start = np.concatenate([[np.nan], t[:-1]])
-        est = Estimate(x=est.x, P=est.P, loglik=est.loglik, switch_time=est.switch_time + start)
+        est = Estimate(x=est.x, P=est.P, loglik=est.loglik, switch_time=est.switch_time + start,
+                       outlier=est.outlier)
         return self._unflatten(est, batch)
