@@ -1,0 +1,355 @@
+"""The compiled IMM kernel against the issue's yardstick, a plain scalar numba IMM (issue 13).
+
+Three contenders on the vehicle of :mod:`bench_imm` (Shankar et al. §V.B: n = 4, m = 2,
+L = 3 modes differing by their input, T = 0.5 s, u = 1, Markov switching at the samples):
+
+* **yardstick** — :func:`yardstick_imm` below: a plain scalar IMM compiled with numba, written
+  independently of switchest (textbook equations: mixing with probabilities, Cholesky solves,
+  Joseph form; no missing samples, no gating, no irregular times, no equilibration), trials
+  outer, time inner;
+* **compiled** — ``switchest.estimators._compiled.imm_run``, the kernel ``IMMFilter`` is to call
+  (trials in blocks of 16 across SIMD lanes; log-domain mixing, NaN handling, gating, per-step
+  transition table, equilibrated Cholesky), timed through its Python wrapper, argument checks
+  included;
+* **numpy** — ``switchest.estimators.IMMFilter.run`` as it stands (numpy, batched over trials).
+
+Shapes (trials x steps): 500 x 200, 100 x 20 000 (the papers' shape), 10 000 x 200. Each shape
+is measured interleaved (yardstick, compiled, numpy, yardstick, ...) by CPU time
+(``time.process_time``) with BLAS limited to one thread, after a warm-up call that compiles;
+the best of the repeats is reported per trial-step, with the ratios to the yardstick and the
+load average. The issue's target: compiled within 1.5x of the yardstick. A second table gives
+the compiled kernel's cost per trial-step at N = 10 and N = 1 000 (target: within 2x).
+
+Run: ``python benchmarks/bench_engine.py [--quick]`` (``--quick``: a tenth of the trials).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import numpy as np
+from bench_imm import T, vehicle_data
+from harness import Section, markdown_table, print_sections, quick_flag, single_threaded_blas
+from numba import njit
+
+from switchest.discretize import mode_steps
+from switchest.estimators import IMMFilter
+from switchest.estimators._compiled import imm_run, raise_for_status
+
+SHAPES = [(500, 200), (100, 20_000), (10_000, 200)]
+REPEATS = 3
+NUMPY_BUDGET = 60.0  # CPU seconds: no new numpy repeat starts once its calls used this up
+SCALING_N = (10, 1_000)
+SCALING_K = 200
+TARGET_RATIO = 1.5
+
+
+@njit(cache=True)
+def yardstick_imm(y, u, F, G, Qd, C, R, transition, x0, P0, mu0, x_out, P_out, mu_out):
+    """A plain scalar IMM (Blom & Bar-Shalom, 1988): one trial at a time, one step at a time.
+
+    Mode ``j`` predicts with ``F[j]``, ``G[j]``, ``Qd[j]`` and is updated with ``C[j]``,
+    ``R[j]``; ``transition[i, j]`` = P(j next | i now). Sample 0 is update only. Writes the
+    combined mean and covariance and the mode probabilities of every trial and sample.
+    """
+    N, K, m = y.shape
+    L, n, _ = F.shape
+    n_in = u.shape[2]
+    x, P = np.empty((L, n)), np.empty((L, n, n))
+    xm, Pm = np.empty((L, n)), np.empty((L, n, n))
+    mu, c, w, loglik = np.empty(L), np.empty(L), np.empty((L, L)), np.empty(L)
+    e, S, Lc = np.empty(m), np.empty((m, m)), np.empty((m, m))
+    PCt, Kg, KR = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    A, T1, T2, xp = np.empty((n, n)), np.empty((n, n)), np.empty((n, n)), np.empty(n)
+    v = np.empty(m)
+    for i in range(N):
+        for j in range(L):
+            mu[j] = mu0[j]
+            for r in range(n):
+                x[j, r] = x0[r]
+                for s in range(n):
+                    P[j, r, s] = P0[r, s]
+        for k in range(K):
+            if k > 0:
+                for j in range(L):  # mixing
+                    c[j] = 0.0
+                    for q in range(L):
+                        c[j] += transition[q, j] * mu[q]
+                    for q in range(L):
+                        w[q, j] = transition[q, j] * mu[q] / c[j]
+                for j in range(L):
+                    for r in range(n):
+                        acc = 0.0
+                        for q in range(L):
+                            acc += w[q, j] * x[q, r]
+                        xm[j, r] = acc
+                    for r in range(n):
+                        for s in range(n):
+                            acc = 0.0
+                            for q in range(L):
+                                acc += w[q, j] * (P[q, r, s] + (x[q, r] - xm[j, r])
+                                                  * (x[q, s] - xm[j, s]))
+                            Pm[j, r, s] = acc
+                for j in range(L):  # predict: x = F x + G u, P = F P F' + Qd
+                    for r in range(n):
+                        acc = 0.0
+                        for s in range(n):
+                            acc += F[j, r, s] * xm[j, s]
+                        for s in range(n_in):
+                            acc += G[j, r, s] * u[i, k - 1, s]
+                        x[j, r] = acc
+                    for r in range(n):
+                        for s in range(n):
+                            acc = 0.0
+                            for q in range(n):
+                                acc += F[j, r, q] * Pm[j, q, s]
+                            T1[r, s] = acc
+                    for r in range(n):
+                        for s in range(n):
+                            acc = Qd[j, r, s]
+                            for q in range(n):
+                                acc += T1[r, q] * F[j, s, q]
+                            T2[r, s] = acc
+                    for r in range(n):
+                        for s in range(n):
+                            P[j, r, s] = 0.5 * (T2[r, s] + T2[s, r])
+            else:
+                for j in range(L):
+                    c[j] = mu[j]
+            for j in range(L):  # update each mode
+                for a in range(m):
+                    acc = y[i, k, a]
+                    for r in range(n):
+                        acc -= C[j, a, r] * x[j, r]
+                    e[a] = acc
+                for r in range(n):
+                    for a in range(m):
+                        acc = 0.0
+                        for s in range(n):
+                            acc += P[j, r, s] * C[j, a, s]
+                        PCt[r, a] = acc
+                for a in range(m):
+                    for b in range(m):
+                        acc = R[j, a, b]
+                        for r in range(n):
+                            acc += C[j, a, r] * PCt[r, b]
+                        S[a, b] = acc
+                for a in range(m):  # Cholesky S = Lc Lc'
+                    for b in range(a + 1):
+                        acc = S[a, b]
+                        for q in range(b):
+                            acc -= Lc[a, q] * Lc[b, q]
+                        Lc[a, b] = math.sqrt(acc) if a == b else acc / Lc[b, b]
+                logdet, nis = 0.0, 0.0
+                for a in range(m):  # v = Lc^-1 e
+                    acc = e[a]
+                    for b in range(a):
+                        acc -= Lc[a, b] * v[b]
+                    v[a] = acc / Lc[a, a]
+                    nis += v[a] * v[a]
+                    logdet += 2.0 * math.log(Lc[a, a])
+                loglik[j] = -0.5 * (nis + logdet + m * math.log(2.0 * math.pi))
+                for r in range(n):  # K = P C' S^-1, row by row
+                    for a in range(m):
+                        acc = PCt[r, a]
+                        for b in range(a):
+                            acc -= Lc[a, b] * Kg[r, b]
+                        Kg[r, a] = acc / Lc[a, a]
+                    for a in range(m - 1, -1, -1):
+                        acc = Kg[r, a]
+                        for b in range(a + 1, m):
+                            acc -= Lc[b, a] * Kg[r, b]
+                        Kg[r, a] = acc / Lc[a, a]
+                for r in range(n):  # x = x + K e
+                    acc = 0.0
+                    for a in range(m):
+                        acc += Kg[r, a] * e[a]
+                    xp[r] = x[j, r] + acc
+                for r in range(n):  # Joseph form
+                    x[j, r] = xp[r]
+                    for s in range(n):
+                        acc = 1.0 if r == s else 0.0
+                        for a in range(m):
+                            acc -= Kg[r, a] * C[j, a, s]
+                        A[r, s] = acc
+                    for b in range(m):
+                        acc = 0.0
+                        for a in range(m):
+                            acc += Kg[r, a] * R[j, a, b]
+                        KR[r, b] = acc
+                for r in range(n):
+                    for s in range(n):
+                        acc = 0.0
+                        for q in range(n):
+                            acc += A[r, q] * P[j, q, s]
+                        T1[r, s] = acc
+                for r in range(n):
+                    for s in range(n):
+                        acc = 0.0
+                        for q in range(n):
+                            acc += T1[r, q] * A[s, q]
+                        for a in range(m):
+                            acc += KR[r, a] * Kg[s, a]
+                        T2[r, s] = acc
+                for r in range(n):
+                    for s in range(n):
+                        P[j, r, s] = 0.5 * (T2[r, s] + T2[s, r])
+            top = -math.inf  # mu_j proportional to c_j Lambda_j
+            for j in range(L):
+                top = max(top, loglik[j])
+            total = 0.0
+            for j in range(L):
+                mu[j] = c[j] * math.exp(loglik[j] - top)
+                total += mu[j]
+            for j in range(L):
+                mu[j] /= total
+            for r in range(n):  # combined output
+                acc = 0.0
+                for j in range(L):
+                    acc += mu[j] * x[j, r]
+                x_out[i, k, r] = acc
+            for r in range(n):
+                for s in range(n):
+                    acc = 0.0
+                    for j in range(L):
+                        acc += mu[j] * (P[j, r, s] + (x[j, r] - x_out[i, k, r])
+                                        * (x[j, s] - x_out[i, k, s]))
+                    P_out[i, k, r, s] = acc
+            for j in range(L):
+                mu_out[i, k, j] = mu[j]
+
+
+class Contenders:
+    """The three IMMs on one simulated batch, each a call returning ``(x, P, mode_prob)``."""
+
+    def __init__(self, trials: int, steps: int):
+        system, transition, x0, P0, traj = vehicle_data(trials, steps)
+        self.y, self.u, self.t = traj.y, traj.u, traj.t
+        self.trials, self.steps = trials, steps
+        steps_ = mode_steps(system, T)
+        L = system.n_modes
+        self.tables = (steps_.F, steps_.G, steps_.Qd)
+        self.C, self.R = system.C, system.R
+        self.transition, self.x0, self.P0 = transition, x0, P0
+        self.mu0 = np.full(L, 1.0 / L)
+        self.trans = np.tile(np.arange(L), (steps, 1))  # mode j always uses entry j (periodic)
+        self.imm = IMMFilter(system, transition, x0, P0)
+
+    def yardstick(self):
+        N, K, (L, n, _) = self.trials, self.steps, self.tables[0].shape
+        x, P, mu = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K, L))
+        yardstick_imm(self.y, self.u, *self.tables, self.C, self.R, self.transition, self.x0,
+                      self.P0, self.mu0, x, P, mu)
+        return x, P, mu
+
+    def compiled(self):
+        out = imm_run(self.y, self.u, *self.tables, self.trans, self.C, self.R,
+                      np.log(self.transition), self.x0, self.P0, np.log(self.mu0))
+        raise_for_status(out.status)
+        return out.x, out.P, out.mode_prob
+
+    def numpy(self):
+        est = self.imm.run(self.y, self.u, self.t)
+        return est.x, est.P, est.mode_prob
+
+
+def cpu_time(fn):
+    """CPU seconds of one call of ``fn`` and its result."""
+    start = time.process_time()
+    result = fn()
+    return time.process_time() - start, result
+
+
+def compare_shape(trials: int, steps: int) -> tuple[list, list[str]]:
+    """Interleaved repeats of the three contenders at one shape; a table row per contender."""
+    bench = Contenders(trials, steps)
+    names = ("yardstick", "compiled", "numpy")
+    calls = {name: getattr(bench, name) for name in names}
+    times: dict[str, list[float]] = {name: [] for name in names}
+    results = {}
+    load_before = os.getloadavg()
+    for _ in range(REPEATS):
+        for name in names:
+            if name == "numpy" and sum(times[name]) >= NUMPY_BUDGET:
+                continue
+            seconds, results[name] = cpu_time(calls[name])
+            times[name].append(seconds)
+    load_after = os.getloadavg()
+    per = {name: min(times[name]) / (trials * steps) for name in names}
+    rows = [(f"{trials} x {steps}", name, f"{per[name] * 1e6:.3f}",
+             f"{per[name] / per['yardstick']:.2f}", len(times[name]),
+             ", ".join(f"{s:.3g}" for s in times[name])) for name in names]
+    ref = results["yardstick"]
+
+    def deviation(name):  # largest difference relative to the largest value, over x, P, mu
+        return max(np.abs(a - b).max() / np.abs(b).max() for a, b in zip(results[name], ref))
+
+    diffs = [
+        f"{trials} x {steps}: compiled and numpy agree with the yardstick to "
+        f"{deviation('compiled'):.1e} and {deviation('numpy'):.1e} of the largest value "
+        f"(x, P, mode probabilities, every sample; largest |x| {np.abs(ref[0]).max():.2g}, so "
+        f"y - C x cancels that many digits); load average {load_before[0]:.2f} -> "
+        f"{load_after[0]:.2f}"
+    ]
+    return rows, diffs
+
+
+def scaling(trials_list=SCALING_N, steps=SCALING_K, repeats=10) -> Section:
+    """The compiled kernel's cost per trial-step at few and many trials (interleaved)."""
+    benches = {N: Contenders(N, steps) for N in trials_list}
+    for bench in benches.values():
+        bench.compiled()
+    times: dict[int, list[float]] = {N: [] for N in trials_list}
+    for _ in range(repeats):
+        for N, bench in benches.items():
+            times[N].append(cpu_time(bench.compiled)[0])
+    per = {N: min(times[N]) / (N * steps) for N in trials_list}
+    base = per[trials_list[-1]]
+    rows = [(f"{N} x {steps}", f"{per[N] * 1e6:.3f}", f"{per[N] / base:.2f}") for N in trials_list]
+    return Section(
+        "Compiled IMM: cost per trial-step against the number of trials",
+        markdown_table(["trials x steps", "us per trial-step (CPU, best)",
+                        f"ratio to N = {trials_list[-1]}"], rows),
+        (f"best of {repeats} interleaved calls each, wrapper and argument checks included; "
+         "issue 13's target: N = 10 within 2x of N = 1 000.",),
+    )
+
+
+def run(*, quick: bool = False) -> list[Section]:
+    """Warm up (compile), then measure every shape; returns the result sections."""
+    warm = Contenders(5, 20)
+    start = time.process_time()
+    warm.yardstick()
+    warm.compiled()
+    compile_note = (f"warm-up (numba compile or on-disk cache load of both kernels): "
+                    f"{time.process_time() - start:.2f} CPU-s")
+    rows, notes = [], [compile_note]
+    for trials, steps in SHAPES:
+        if quick:
+            trials = max(trials // 10, 10)
+        shape_rows, shape_notes = compare_shape(trials, steps)
+        rows += shape_rows
+        notes += shape_notes
+    ratios = [float(r[3]) for r in rows if r[1] == "compiled"]
+    verdict = "meets" if max(ratios) <= TARGET_RATIO else "does NOT meet"
+    notes.append(f"compiled / yardstick at most {max(ratios):.2f}: {verdict} the target "
+                 f"of {TARGET_RATIO}x")
+    table = markdown_table(["trials x steps", "contender", "us per trial-step (CPU, best)",
+                            "ratio to yardstick", "repeats", "CPU-s of each call"], rows)
+    return [Section("IMM engine: compiled kernel vs the plain scalar numba yardstick vs numpy "
+                    f"(vehicle, n = 4, m = 2, L = 3, T = {T} s)", table, tuple(notes)),
+            scaling()]
+
+
+def main(argv=None) -> None:
+    quick = quick_flag(__doc__.splitlines()[0], argv)
+    with single_threaded_blas() as blas:
+        print(f"BLAS limited to one thread: {blas['single_threaded']}; "
+              f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+        print_sections(run(quick=quick))
+
+
+if __name__ == "__main__":
+    main()

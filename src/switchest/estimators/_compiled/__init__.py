@@ -1,0 +1,53 @@
+"""The compiled time loops of the Gaussian filters (numba ``njit``, ``cache=True``).
+
+One implementation of each equation: the functions of :mod:`.linalg` (Kalman prediction,
+equilibrated-Cholesky innovation, Joseph-form correction, IMM interaction and output) over
+blocks of trials laid across SIMD lanes, called by one compiled kernel (:mod:`.bank`: a bank
+of mode-matched Kalman filters with IMM interaction, the Kalman filter being its one-mode
+case) that loops over trials and samples. ``run`` calls it on a whole record,
+``step`` (the streaming API) on one sample. Kernels return a status code instead of raising;
+:func:`raise_for_status` raises the package's error for it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .imm import IMMOutput, IMMStepOutput, imm_run, imm_step
+from .kalman import KalmanOutput, kalman_run, kalman_steady_run, kalman_steady_step, kalman_step
+from .linalg import ACCEPTED, GATED, NOT_FINITE, NOT_POSITIVE_DEFINITE, OK, PARTLY_GATED
+
+__all__ = [
+    "ACCEPTED",
+    "GATED",
+    "PARTLY_GATED",
+    "IMMOutput",
+    "IMMStepOutput",
+    "KalmanOutput",
+    "imm_run",
+    "imm_step",
+    "kalman_run",
+    "kalman_steady_run",
+    "kalman_steady_step",
+    "kalman_step",
+    "raise_for_status",
+]
+
+_MESSAGES = {
+    NOT_POSITIVE_DEFINITE: (
+        "innovation covariance C P C' + R is not positive definite: give the system a "
+        "measurement noise R or the filter a positive definite P0"
+    ),
+    NOT_FINITE: (
+        "innovation covariance C P C' + R is not finite: the state covariance overflowed "
+        "(an unstable mode over long intervals, or a huge P0)"
+    ),
+}
+
+
+def raise_for_status(status: int) -> None:
+    """Raise ``numpy.linalg.LinAlgError`` with the package's message for a kernel's failure
+    code; return quietly for ``OK``."""
+    if status == OK:
+        return
+    raise np.linalg.LinAlgError(_MESSAGES[status])

@@ -1,0 +1,57 @@
+"""Boundary checks of the compiled kernels' arrays: shapes that agree and indices in range.
+
+The kernels index their tables without bounds checks, so every array is checked here, once
+per call, before it reaches compiled code; each is converted to the one type the kernels are
+compiled for (writeable C-contiguous float64, int64 indices: numba compiles a kernel again
+for a read-only array, such as the cached transitions of :mod:`switchest.discretize`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..._checks import float_array, int_array
+
+__all__ = ["floats", "indices", "check_gate"]
+
+
+def floats(value, name: str, axes: str, sizes: dict[str, int]) -> np.ndarray:
+    """``value`` as a C-contiguous float64 array whose axes are named by ``axes``.
+
+    ``axes`` names each axis by one letter (``"NKm"``); ``sizes`` maps the letters bound so far
+    to their sizes and is extended with the new ones, so arrays that share a letter must agree.
+    """
+    arr = np.require(float_array(value, name), requirements=["C_CONTIGUOUS", "WRITEABLE"])
+    return _bind(arr, name, axes, sizes)
+
+
+def indices(value, name: str, axes: str, sizes: dict[str, int], bound: str) -> np.ndarray:
+    """``value`` as a C-contiguous int64 array of shape ``axes``, each entry in
+    ``0..sizes[bound] - 1`` (an index into a table of that many entries)."""
+    arr = np.require(int_array(value, name), requirements=["C_CONTIGUOUS", "WRITEABLE"])
+    arr = _bind(arr, name, axes, sizes)
+    if arr.size and (arr.min() < 0 or arr.max() >= sizes[bound]):
+        raise ValueError(
+            f"{name} must index 0..{sizes[bound] - 1} ({bound} = {sizes[bound]} entries), "
+            f"got {arr.min()}..{arr.max()}"
+        )
+    return arr
+
+
+def check_gate(gate) -> float:
+    """The gate on the normalized innovation squared: a positive number or ``inf``."""
+    if isinstance(gate, (bool, np.bool_)) or not isinstance(gate, (int, float, np.number)):
+        raise TypeError(f"gate must be a positive number or inf, got {type(gate).__name__}")
+    if math.isnan(gate) or gate <= 0:
+        raise ValueError(f"gate must be a positive number or inf, got {gate}")
+    return float(gate)
+
+
+def _bind(arr: np.ndarray, name: str, axes: str, sizes: dict[str, int]) -> np.ndarray:
+    if arr.ndim != len(axes) or any(sizes.setdefault(a, s) != s for a, s in zip(axes, arr.shape)):
+        expected = ", ".join(f"{a}={sizes[a]}" if a in sizes else a for a in axes)
+        raise ValueError(f"{name} must have shape ({', '.join(axes)}) = ({expected}), "
+                         f"got {arr.shape}")
+    return arr

@@ -1,0 +1,211 @@
+"""The compiled kernel of the Gaussian filters: a bank of mode-matched Kalman filters.
+
+:func:`filter_bank` runs, for every trial and every sample, ``L`` Kalman filters (one per
+mode) with the interaction of the IMM between them (Blom & Bar-Shalom, 1988; Bar-Shalom,
+Li & Kirubarajan §11.6.6). With one mode the interaction and the combination reduce to
+copies and it is the Kalman filter (Shankar et al. eqs (6)-(10)): :mod:`.kalman` and
+:mod:`.imm` call this one kernel, for a whole record (``run``) or for one sample
+(``step``, the streaming API), so each equation has one implementation.
+
+Trials are processed in blocks of ``lanes`` laid across SIMD lanes (:mod:`.linalg`); the
+results do not depend on the block size.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .linalg import (
+    ACCEPTED,
+    GATED,
+    OK,
+    PARTLY_GATED,
+    combine,
+    correct,
+    gather_matrices,
+    gather_samples,
+    innovation,
+    jit,
+    log_normalize,
+    mix,
+    observe,
+    predict,
+)
+
+__all__ = ["LANES", "filter_bank"]
+
+LANES = 16  # trials per block: four AVX2 registers of float64 per row of lanes
+
+
+@jit
+def _lane_index(index, i0, nb, k, j, out):
+    """``out[b]``: entry ``[trial, k, j]`` of ``index (N or 1, K or 1, L)`` for trial
+    ``i0 + b``; an axis of length 1 is shared by all trials (or samples)."""
+    for b in range(nb):
+        i = i0 + b if index.shape[0] > 1 else 0
+        out[b] = index[i, k if index.shape[1] > 1 else 0, j]
+
+
+@jit
+def _copy_rows(src, dst, nb):
+    """``dst[:, :nb] = src[:, :nb]`` as loops (numba compiles slice assignment slowly)."""
+    for j in range(src.shape[0]):
+        for b in range(nb):
+            dst[j, b] = src[j, b]
+
+
+@jit
+def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transition, x_init,
+                P_init, log_prob_init, predict_first, gate, lanes, x_out, P_out, prob_out,
+                mode_out, loglik_out, flag_out, x_last, P_last, log_prob_last):
+    """Filter ``N`` trials over ``K`` samples with ``L`` interacting mode-matched filters.
+
+    Parameters
+    ----------
+    y : (N, K, m) float64
+        Measurements; NaN components are missing.
+    u : (N, K, l) float64
+        Inputs; ``u[:, k-1]`` is held over the interval into sample ``k``, ``u[:, 0]`` over
+        the interval into sample 0 when ``predict_first``.
+    F, G, Qd : (M, n, n), (M, n, l), (M, n, n) float64
+        Table of exact transitions.
+    trans : (N or 1, K, L) int64
+        Transition of mode ``j`` into sample ``k`` of each trial (shared if the first axis
+        has length 1).
+    C, R : (M', m, n), (M', m, m) float64
+        Table of output matrices and measurement-noise covariances.
+    out_index : (N or 1, K or 1, L) int64
+        Which ``C``, ``R`` mode ``j`` uses at sample ``k`` of each trial.
+    transition, log_transition : (L, L) float64
+        Mode transition matrix and its logarithm (``transition[i, j]`` = P(j next | i now)).
+    x_init, P_init, log_prob_init : (N, L, n), (N, L, n, n), (N, L) float64
+        Mode-matched state of every trial before the first sample.
+    predict_first : bool
+        Whether the first sample is mixed and predicted into (a streaming step) or only
+        updated (the start of a record).
+    gate : float
+        Largest normalized innovation squared a mode accepts.
+    lanes : int
+        Trials per block.
+    x_out, P_out, prob_out, mode_out, loglik_out, flag_out
+        Written: combined estimate ``(N, K, n)``, ``(N, K, n, n)``, mode probabilities
+        ``(N, K, L)``, most probable mode, log-likelihood (0 when nothing was observed or the
+        sample was gated) and flag ``(N, K)``.
+    x_last, P_last, log_prob_last
+        Written: the mode-matched state after the last sample, shaped as ``x_init`` etc.
+
+    Returns
+    -------
+    status : int
+        ``OK`` or the failure code that stopped the kernel.
+
+    Notes
+    -----
+    Gating (mode by mode): a mode whose normalized innovation squared exceeds ``gate``, or
+    whose likelihood is not finite (an outlier such as 1e300 overflows it), does not use the
+    measurement: its estimate is not updated and its likelihood is taken as 0 (a truncated
+    likelihood), flag ``PARTLY_GATED``. If no mode can use it the sample is treated as
+    missing: no mode is updated, the mode probabilities stay the predicted ``c``, the
+    log-likelihood is 0, flag ``GATED``.
+    """
+    N, K, m = y.shape
+    n_modes, n = x_init.shape[1], x_init.shape[2]
+    n_in = u.shape[2]
+    B = lanes
+    x, P = np.empty((n_modes, n, B)), np.empty((n_modes, n, n, B))
+    log_prob, prob = np.empty((n_modes, B)), np.empty((n_modes, B))
+    Fl, Gl, Ql = np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((n, n, B))
+    Cl, Rl = np.empty((n_modes, m, n, B)), np.empty((n_modes, m, m, B))
+    idx = np.empty(B, dtype=np.int64)
+    yl, ul, obs, n_obs = np.empty((m, B)), np.empty((n_in, B)), np.empty((m, B)), np.empty(B)
+    e, z, scale = np.empty((n_modes, m, B)), np.empty((n_modes, m, B)), np.empty((n_modes, m, B))
+    PCt, chol = np.empty((n_modes, n, m, B)), np.empty((n_modes, m, m, B))
+    nis, loglik, work = np.empty((n_modes, B)), np.empty((n_modes, B)), np.empty((3, B))
+    gain, T = np.empty((n, m, B)), np.empty((n, m, B))
+    AP, xs = np.empty((n, n, B)), np.empty((n, B))
+    log_c, w = np.empty((n_modes, B)), np.empty((n_modes, n_modes, B))
+    xm, Pm = np.empty((n_modes, n, B)), np.empty((n_modes, n, n, B))
+    a, use = np.empty((n_modes, B)), np.empty((n_modes, B), dtype=np.bool_)
+    total, flag, best = np.empty(B), np.empty(B, dtype=np.uint8), np.empty(B, dtype=np.int64)
+    xc, Pc = np.empty((n, B)), np.empty((n, n, B))
+    for i0 in range(0, N, B):
+        nb = min(B, N - i0)
+        for j in range(n_modes):
+            for b in range(nb):
+                log_prob[j, b] = log_prob_init[i0 + b, j]
+                prob[j, b] = math.exp(log_prob[j, b])
+            for r in range(n):
+                for b in range(nb):
+                    x[j, r, b] = x_init[i0 + b, j, r]
+                for c in range(n):
+                    for b in range(nb):
+                        P[j, r, c, b] = P_init[i0 + b, j, r, c]
+        for k in range(K):
+            gather_samples(y, i0, nb, k, yl)
+            observe(yl, nb, obs, n_obs)
+            if k > 0 or predict_first:
+                gather_samples(u, i0, nb, max(k - 1, 0), ul)
+                if n_modes > 1:
+                    mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm)
+                else:
+                    _copy_rows(log_prob, log_c, nb)
+                for j in range(n_modes):
+                    _lane_index(trans, i0, nb, k, j, idx)
+                    gather_matrices(F, idx, nb, Fl)
+                    gather_matrices(G, idx, nb, Gl)
+                    gather_matrices(Qd, idx, nb, Ql)
+                    predict(x[j], P[j], Fl, Gl, ul, Ql, nb, AP, xs)
+            else:
+                _copy_rows(log_prob, log_c, nb)
+            if k == 0 or out_index.shape[1] > 1:
+                for j in range(n_modes):
+                    _lane_index(out_index, i0, nb, k, j, idx)
+                    gather_matrices(C, idx, nb, Cl[j])
+                    gather_matrices(R, idx, nb, Rl[j])
+            for j in range(n_modes):
+                status = innovation(x[j], P[j], yl, Cl[j], Rl[j], obs, n_obs, nb, e[j], PCt[j],
+                                    chol[j], scale[j], z[j], nis[j], loglik[j], work)
+                if status != OK:
+                    return status
+            for b in range(nb):  # the gating decision, before anything changes
+                top = -math.inf
+                for j in range(n_modes):
+                    use[j, b] = math.isfinite(loglik[j, b]) and nis[j, b] <= gate
+                    a[j, b] = log_c[j, b] + loglik[j, b] if use[j, b] else -math.inf
+                    top = max(top, a[j, b])
+                flag[b] = ACCEPTED
+                for j in range(n_modes):
+                    if top == -math.inf:  # no mode can use it: the sample counts as missing
+                        flag[b] = GATED
+                        use[j, b] = False
+                        a[j, b] = log_c[j, b]
+                    elif not use[j, b]:
+                        flag[b] = PARTLY_GATED
+            for j in range(n_modes):
+                correct(x[j], P[j], Cl[j], Rl[j], use[j], nb, PCt[j], chol[j], scale[j], z[j],
+                        gain, T, AP)
+            log_normalize(a, prob, total, nb)  # log mu_j = log c_j + log Lambda_j, normalized
+            _copy_rows(a, log_prob, nb)
+            combine(x, P, prob, log_prob, nb, xc, Pc, best)
+            for b in range(nb):
+                i = i0 + b
+                mode_out[i, k] = best[b]
+                seen = flag[b] != GATED and n_obs[b] > 0
+                loglik_out[i, k] = total[b] if seen else 0.0
+                flag_out[i, k] = flag[b]
+                for j in range(n_modes):
+                    prob_out[i, k, j] = prob[j, b]
+                for r in range(n):
+                    x_out[i, k, r] = xc[r, b]
+                    for c in range(n):
+                        P_out[i, k, r, c] = Pc[r, c, b]
+        for b in range(nb):
+            for j in range(n_modes):
+                log_prob_last[i0 + b, j] = log_prob[j, b]
+                for r in range(n):
+                    x_last[i0 + b, j, r] = x[j, r, b]
+                    for c in range(n):
+                        P_last[i0 + b, j, r, c] = P[j, r, c, b]
+    return OK

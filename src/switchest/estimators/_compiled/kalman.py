@@ -1,0 +1,246 @@
+"""Compiled Kalman filters along given transitions: the whole loop over trials and samples.
+
+``kalman_run`` filters every trial over every sample inside compiled code; ``kalman_step``
+processes one sample of every trial (the streaming API). Both call the kernel of
+:mod:`.bank` with one mode, so they run the one implementation of each equation
+(:mod:`.linalg`). ``kalman_steady_run`` and ``kalman_steady_step`` apply fixed gains.
+
+Transitions come as a table ``F (M, n, n)``, ``G (M, n, l)``, ``Qd (M, n, n)`` with an index
+``trans (N, K)``: entry ``k`` is the transition predicting into sample ``k`` (entry 0 is not
+used by ``kalman_run``: the first sample is update only). One index covers irregular sample
+times, believed modes and exact switches inside an interval; the caller builds the table of
+the distinct transitions. Output matrices come as ``C (L, m, n)``, ``R (L, m, m)`` with
+``mode (N, K)``. The input held over the interval into sample ``k`` is ``u[:, k-1]``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..._checks import positive_int
+from .arrays import check_gate, floats, indices
+from .bank import LANES, filter_bank
+from .linalg import OK, gather_matrices, gather_samples, jit, observe, predict_mean
+
+__all__ = ["KalmanOutput", "kalman_run", "kalman_step", "kalman_steady_run", "kalman_steady_step"]
+
+
+class KalmanOutput(NamedTuple):
+    """Posterior after each sample, for every trial.
+
+    Attributes
+    ----------
+    x : ndarray, shape (N, K, n) (``(N, n)`` from a step)
+    P : ndarray, shape (N, K, n, n) (``(N, n, n)`` from a step)
+    loglik : ndarray, shape (N, K) (``(N,)`` from a step)
+        Log-likelihood of each measurement given the past; 0 when nothing was observed or the
+        sample was gated; NaN for fixed gains (that filter has no likelihood).
+    flag : ndarray of uint8, shape (N, K) (``(N,)`` from a step)
+        ``ACCEPTED`` (0) or ``GATED`` (1): an outlier or a gated measurement, treated as
+        missing.
+    status : int
+        ``OK`` or the failure code that stopped the kernel (outputs then incomplete);
+        :func:`switchest.estimators._compiled.raise_for_status` turns it into an exception.
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    loglik: np.ndarray
+    flag: np.ndarray
+    status: int
+
+
+def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, *, gate=math.inf,
+               lanes: int = LANES) -> KalmanOutput:
+    """Kalman filter of ``N`` trials over ``K`` samples (Shankar et al. eqs (6)-(10)).
+
+    Parameters
+    ----------
+    y : array_like, shape (N, K, m)
+        Measurements; a NaN component is missing (update with the observed ones only).
+    u : array_like, shape (N, K, l)
+        Inputs; ``u[:, k-1]`` is held over the interval into sample ``k``.
+    F, G, Qd : array_like, shapes (M, n, n), (M, n, l), (M, n, n)
+        Table of exact transitions ``x+ = F x + G u + w``, ``w ~ N(0, Qd)``.
+    trans : array_like of int, shape (N, K)
+        ``trans[:, k]`` indexes the transition into sample ``k``; ``trans[:, 0]`` is unused.
+    C, R : array_like, shapes (L, m, n), (L, m, m)
+        Output matrices and measurement-noise covariances.
+    mode : array_like of int, shape (N, K)
+        Which ``C``, ``R`` each sample uses.
+    x0, P0 : array_like, shapes (n,), (n, n)
+        Prior at the first sample.
+    gate : float
+        Largest normalized innovation squared ``e' S^-1 e`` accepted (``inf``: no gate);
+        a measurement beyond it, or with a non-finite likelihood, is treated as missing.
+    lanes : int
+        Trials per SIMD block (the results do not depend on it).
+    """
+    sizes: dict[str, int] = {}
+    y = floats(y, "y", "NKm", sizes)
+    u = floats(u, "u", "NKl", sizes)
+    F = floats(F, "F", "Mnn", sizes)
+    G = floats(G, "G", "Mnl", sizes)
+    Qd = floats(Qd, "Qd", "Mnn", sizes)
+    trans = indices(trans, "trans", "NK", sizes, "M")
+    C = floats(C, "C", "Lmn", sizes)
+    R = floats(R, "R", "Lmm", sizes)
+    mode = indices(mode, "mode", "NK", sizes, "L")
+    x0 = floats(x0, "x0", "n", sizes)
+    P0 = floats(P0, "P0", "nn", sizes)
+    N = sizes["N"]
+    return _one_mode(y, u, F, G, Qd, trans, C, R, mode, np.tile(x0, (N, 1)),
+                     np.tile(P0, (N, 1, 1)), False, check_gate(gate), positive_int(lanes, "lanes"))
+
+
+def kalman_step(x, P, y, u, F, G, Qd, C, R, *, predict_first: bool,
+                gate=math.inf) -> KalmanOutput:
+    """One sample of every trial: predict (when ``predict_first``) and update.
+
+    ``x (N, n)``, ``P (N, n, n)`` the posterior at the previous sample, ``y (N, m)``,
+    ``u (N, l)`` the input held over the interval, and per-trial ``F (N, n, n)``,
+    ``G (N, n, l)``, ``Qd (N, n, n)``, ``C (N, m, n)``, ``R (N, m, m)``; the equations and
+    ``gate`` as in :func:`kalman_run`, whose compiled kernel runs this one sample.
+    """
+    sizes: dict[str, int] = {}
+    x = floats(x, "x", "Nn", sizes)
+    P = floats(P, "P", "Nnn", sizes)
+    y = floats(y, "y", "Nm", sizes)
+    u = floats(u, "u", "Nl", sizes)
+    F = floats(F, "F", "Nnn", sizes)
+    G = floats(G, "G", "Nnl", sizes)
+    Qd = floats(Qd, "Qd", "Nnn", sizes)
+    C = floats(C, "C", "Nmn", sizes)
+    R = floats(R, "R", "Nmm", sizes)
+    own = np.arange(sizes["N"])[:, None]  # trial i uses entry i of the per-trial "tables"
+    out = _one_mode(y[:, None], u[:, None], F, G, Qd, own, C, R, own, x, P, bool(predict_first),
+                    check_gate(gate), LANES)
+    return KalmanOutput(out.x[:, 0], out.P[:, 0], out.loglik[:, 0], out.flag[:, 0], out.status)
+
+
+def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, gate, lanes):
+    """The bank kernel with one mode: a Kalman filter of every trial from ``x_init (N, n)``,
+    ``P_init (N, n, n)``."""
+    N, K, _ = y.shape
+    n = x_init.shape[1]
+    x, P, loglik = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K))
+    flag = np.empty((N, K), dtype=np.uint8)
+    status = filter_bank(y, u, F, G, Qd, trans[:, :, None], C, R, mode[:, :, None],
+                         np.ones((1, 1)), np.zeros((1, 1)), x_init[:, None], P_init[:, None],
+                         np.zeros((N, 1)), predict_first, gate, lanes, x, P, np.empty((N, K, 1)),
+                         np.empty((N, K), dtype=np.int64), loglik, flag, np.empty((N, 1, n)),
+                         np.empty((N, 1, n, n)), np.empty((N, 1)))
+    return KalmanOutput(x, P, loglik, flag, int(status))
+
+
+def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x0) -> KalmanOutput:
+    """Kalman filter with fixed gains (Zhang & Natarajan eq. (6)), every trial and sample.
+
+    ``x_k|k = x_k|k-1 + K_i (y_k - C_i x_k|k-1)`` with the gain ``gain[i] (n, m)`` of the
+    mode ``i = mode[:, k]``; a sample with any component missing is not used at all. The
+    reported covariance is read from the tables ``P_post[i]`` after an update and
+    ``P_prior[i]`` otherwise, shape ``(L, n, n)``; ``loglik`` is NaN (the fixed-gain filter
+    has no likelihood). Other arguments as in :func:`kalman_run`.
+    """
+    sizes: dict[str, int] = {}
+    y = floats(y, "y", "NKm", sizes)
+    u = floats(u, "u", "NKl", sizes)
+    F = floats(F, "F", "Mnn", sizes)
+    G = floats(G, "G", "Mnl", sizes)
+    trans = indices(trans, "trans", "NK", sizes, "M")
+    C = floats(C, "C", "Lmn", sizes)
+    mode = indices(mode, "mode", "NK", sizes, "L")
+    gain = floats(gain, "gain", "Lnm", sizes)
+    P_prior = floats(P_prior, "P_prior", "Lnn", sizes)
+    P_post = floats(P_post, "P_post", "Lnn", sizes)
+    x0 = floats(x0, "x0", "n", sizes)
+    N, K, n = sizes["N"], sizes["K"], sizes["n"]
+    x, P = np.empty((N, K, n)), np.empty((N, K, n, n))
+    _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, np.tile(x0, (N, 1)), False,
+                   LANES, x, P)
+    return KalmanOutput(x, P, np.full((N, K), np.nan), np.zeros((N, K), dtype=np.uint8), OK)
+
+
+def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, *,
+                       predict_first: bool) -> KalmanOutput:
+    """One sample of every trial with fixed gains, as :func:`kalman_steady_run` (whose kernel
+    runs it), with per-trial ``F``, ``G``, ``C``, ``gain (N, n, m)``, ``P_prior``,
+    ``P_post (N, n, n)``."""
+    sizes: dict[str, int] = {}
+    x = floats(x, "x", "Nn", sizes)
+    y = floats(y, "y", "Nm", sizes)
+    u = floats(u, "u", "Nl", sizes)
+    F = floats(F, "F", "Nnn", sizes)
+    G = floats(G, "G", "Nnl", sizes)
+    C = floats(C, "C", "Nmn", sizes)
+    gain = floats(gain, "gain", "Nnm", sizes)
+    P_prior = floats(P_prior, "P_prior", "Nnn", sizes)
+    P_post = floats(P_post, "P_post", "Nnn", sizes)
+    N, n = sizes["N"], sizes["n"]
+    own = np.arange(N)[:, None]
+    x_out, P_out = np.empty((N, 1, n)), np.empty((N, 1, n, n))
+    _steady_filter(y[:, None], u[:, None], F, G, own, C, own, gain, P_prior, P_post, x,
+                   bool(predict_first), LANES, x_out, P_out)
+    return KalmanOutput(x_out[:, 0], P_out[:, 0], np.full(N, np.nan), np.zeros(N, dtype=np.uint8),
+                        OK)
+
+
+@jit
+def _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x_init, predict_first,
+                   lanes, x_out, P_out):
+    """Fixed-gain filter of every trial from ``x_init[i]``, in blocks of ``lanes`` trials:
+    ``x <- F x + G u`` (:func:`.linalg.predict_mean`), then ``x <- x + K (y - C x)`` in the
+    lanes where every component of ``y`` is observed (Zhang & Natarajan eq. (6)); ``P`` is
+    copied from the tables."""
+    N, K, m = y.shape
+    n, n_in, B = x_init.shape[1], u.shape[2], lanes
+    x, xs, yl, ul = np.empty((n, B)), np.empty((n, B)), np.empty((m, B)), np.empty((n_in, B))
+    Fl, Gl = np.empty((n, n, B)), np.empty((n, n_in, B))
+    Cl, Kl, e = np.empty((m, n, B)), np.empty((n, m, B)), np.empty((m, B))
+    obs, n_obs, idx = np.empty((m, B)), np.empty(B), np.empty(B, dtype=np.int64)
+    for i0 in range(0, N, B):
+        nb = min(B, N - i0)
+        for r in range(n):
+            for b in range(nb):
+                x[r, b] = x_init[i0 + b, r]
+        for k in range(K):
+            if k > 0 or predict_first:
+                for b in range(nb):
+                    idx[b] = trans[i0 + b, k]
+                gather_matrices(F, idx, nb, Fl)
+                gather_matrices(G, idx, nb, Gl)
+                gather_samples(u, i0, nb, max(k - 1, 0), ul)
+                predict_mean(x, Fl, Gl, ul, nb, xs)
+            for b in range(nb):
+                idx[b] = mode[i0 + b, k]
+            gather_matrices(C, idx, nb, Cl)
+            gather_matrices(gain, idx, nb, Kl)
+            gather_samples(y, i0, nb, k, yl)
+            observe(yl, nb, obs, n_obs)
+            _steady_correct(x, yl, Cl, Kl, n_obs, nb, e)
+            for b in range(nb):
+                table = P_post if n_obs[b] == m else P_prior
+                for r in range(n):
+                    x_out[i0 + b, k, r] = x[r, b]
+                    for c in range(n):
+                        P_out[i0 + b, k, r, c] = table[idx[b], r, c]
+
+
+@jit
+def _steady_correct(x, y, C, gain, n_obs, nb, e):
+    """``x <- x + K (y - C x)`` in the lanes where all ``m`` components of ``y`` are observed
+    (Zhang & Natarajan eq. (6)); the other lanes keep ``x`` as predicted."""
+    m, n = C.shape[0], C.shape[1]
+    for a in range(m):
+        for b in range(nb):
+            e[a, b] = y[a, b]
+        for j in range(n):
+            for b in range(nb):
+                e[a, b] -= C[a, j, b] * x[j, b]
+    for i in range(n):
+        for a in range(m):
+            for b in range(nb):
+                x[i, b] += gain[i, a, b] * e[a, b] if n_obs[b] == m else 0.0

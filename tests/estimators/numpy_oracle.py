@@ -1,0 +1,179 @@
+"""Plain numpy versions of the compiled filters' equations, one trial and one sample at a time.
+
+The oracle the compiled kernels of :mod:`switchest.estimators._compiled` are checked against:
+written for clarity, not speed, with LAPACK (``numpy.linalg``) where the kernels use explicit
+loops, no equilibration, and the observed components selected by boolean indexing. The
+semantics are those the kernels document (Shankar et al. eqs (6)-(10); Blom & Bar-Shalom 1988;
+Bar-Shalom, Li & Kirubarajan §11.6.6).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import solve_triangular
+
+LOG_2PI = np.log(2.0 * np.pi)
+
+
+def predict(x, P, F, G, u, Qd):
+    """``x- = F x + G u``, ``P- = F P F' + Qd``, symmetrized."""
+    P_pred = F @ P @ F.T + Qd
+    return F @ x + G @ u, 0.5 * (P_pred + P_pred.T)
+
+
+def innovation(x, P, y, C, R):
+    """``(obs, e, S, nis, loglik)`` over the observed components; ``None`` if none observed."""
+    obs = ~np.isnan(y)
+    if not obs.any():
+        return None
+    Co, Ro = C[obs], R[np.ix_(obs, obs)]
+    e = y[obs] - Co @ x
+    S = Co @ P @ Co.T + Ro
+    chol = np.linalg.cholesky(S)
+    with np.errstate(over="ignore", invalid="ignore"):
+        z = solve_triangular(chol, e, lower=True)
+        nis = z @ z
+        loglik = -0.5 * (nis + 2.0 * np.log(np.diag(chol)).sum() + obs.sum() * LOG_2PI)
+    return obs, e, S, nis, loglik
+
+
+def correct(x, P, C, R, obs, e, S):
+    """``K = P C' S^-1``, ``x + K e``, Joseph form ``(I - K C) P (I - K C)' + K R K'``."""
+    Co, Ro = C[obs], R[np.ix_(obs, obs)]
+    K = np.linalg.solve(S, Co @ P).T
+    A = np.eye(x.size) - K @ Co
+    P_new = A @ P @ A.T + K @ Ro @ K.T
+    return x + K @ e, 0.5 * (P_new + P_new.T)
+
+
+def accepts(inn, gate) -> bool:
+    """Whether a measurement passes the gate (a finite likelihood and ``nis <= gate``)."""
+    return bool(np.isfinite(inn[4]) and inn[3] <= gate)
+
+
+def update(x, P, y, C, R, gate):
+    """Gated update: ``x, P, loglik, flag`` (flag 1: gated, treated as missing)."""
+    inn = innovation(x, P, y, C, R)
+    if inn is None:
+        return x, P, 0.0, 0
+    if not accepts(inn, gate):
+        return x, P, 0.0, 1
+    obs, e, S, _, loglik = inn
+    return (*correct(x, P, C, R, obs, e, S), loglik, 0)
+
+
+def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, gate=np.inf):
+    """Every trial and sample, as the compiled ``kalman_run``."""
+    N, K, _ = y.shape
+    n = x0.size
+    xs, Ps = np.empty((N, K, n)), np.empty((N, K, n, n))
+    lls, flags = np.empty((N, K)), np.empty((N, K), dtype=int)
+    for i in range(N):
+        x, P = x0, P0
+        for k in range(K):
+            if k:
+                t = trans[i, k]
+                x, P = predict(x, P, F[t], G[t], u[i, k - 1], Qd[t])
+            md = mode[i, k]
+            x, P, lls[i, k], flags[i, k] = update(x, P, y[i, k], C[md], R[md], gate)
+            xs[i, k], Ps[i, k] = x, P
+    return xs, Ps, lls, flags
+
+
+def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x0):
+    """Fixed gains: ``x + K_i (y - C_i x)`` when all of ``y`` is observed; P from the tables."""
+    N, K, _ = y.shape
+    xs, Ps = np.empty((N, K, x0.size)), np.empty((N, K, x0.size, x0.size))
+    for i in range(N):
+        x = x0
+        for k in range(K):
+            if k:
+                t = trans[i, k]
+                x = F[t] @ x + G[t] @ u[i, k - 1]
+            md = mode[i, k]
+            observed = not np.isnan(y[i, k]).any()
+            if observed:
+                x = x + gain[md] @ (y[i, k] - C[md] @ x)
+            xs[i, k], Ps[i, k] = x, (P_post if observed else P_prior)[md]
+    return xs, Ps
+
+
+def log_sum_exp(a):
+    """``log sum exp(a)``; ``-inf`` when every entry is ``-inf``."""
+    top = a.max()
+    if top == -np.inf:
+        return -np.inf
+    return top + np.log(np.exp(a - top).sum())
+
+
+def imm_mix(x, P, log_prob, log_transition):
+    """Mixed means and covariances and ``log c`` (Bar-Shalom, Li & Kirubarajan §11.6.6)."""
+    L = log_prob.size
+    xm, Pm, log_c = np.zeros_like(x), np.zeros_like(P), np.empty(L)
+    for j in range(L):
+        joint = log_prob + log_transition[:, j]
+        log_c[j] = log_sum_exp(joint)
+        if log_c[j] == -np.inf:
+            continue
+        w = np.exp(joint - log_c[j])
+        xm[j] = w @ x
+        d = x - xm[j]
+        Pm[j] = np.einsum("i,irc->rc", w, P) + (w[:, None] * d).T @ d
+    return xm, Pm, log_c
+
+
+def imm_trial_step(x, P, log_prob, y, u, F, G, Qd, tr, C, R, log_transition, predict_first,
+                   gate):
+    """One IMM cycle of one trial: ``x, P, log_prob, loglik, flag``; the log-likelihood is 0
+    when nothing was observed or every mode gated the measurement."""
+    L = log_prob.size
+    x, P = x.copy(), P.copy()
+    if predict_first:
+        x, P, log_c = imm_mix(x, P, log_prob, log_transition)
+        for j in range(L):
+            x[j], P[j] = predict(x[j], P[j], F[tr[j]], G[tr[j]], u, Qd[tr[j]])
+    else:
+        log_c = log_prob.copy()
+    inns = [innovation(x[j], P[j], y, C[j], R[j]) for j in range(L)]
+    flag, seen = 0, inns[0] is not None
+    if not seen:
+        a = log_c
+    else:
+        use = np.array([accepts(inn, gate) for inn in inns])
+        a = np.where(use, log_c + np.array([inn[4] for inn in inns]), -np.inf)
+        if a.max() == -np.inf:
+            flag, a, seen = 1, log_c, False
+        else:
+            flag = 0 if use.all() else 2
+            for j in np.flatnonzero(use):
+                obs, e, S = inns[j][:3]
+                x[j], P[j] = correct(x[j], P[j], C[j], R[j], obs, e, S)
+    total = log_sum_exp(a)
+    return x, P, a - total, total if seen else 0.0, flag
+
+
+def imm_combine(x, P, log_prob):
+    """Combined mean and covariance of the mode-matched posteriors, ``mu``, argmax mode."""
+    mu = np.exp(log_prob)
+    xc = mu @ x
+    d = x - xc
+    Pc = np.einsum("j,jrc->rc", mu, P) + (mu[:, None] * d).T @ d
+    return xc, Pc, mu, int(np.argmax(log_prob))
+
+
+def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, gate=np.inf):
+    """Every trial and sample, as the compiled ``imm_run``."""
+    N, K, _ = y.shape
+    L, n = log_prob0.size, x0.size
+    out = {"x": np.empty((N, K, n)), "P": np.empty((N, K, n, n)),
+           "mode_prob": np.empty((N, K, L)), "mode": np.empty((N, K), dtype=int),
+           "loglik": np.empty((N, K)), "flag": np.empty((N, K), dtype=int)}
+    for i in range(N):
+        x, P, lp = np.tile(x0, (L, 1)), np.tile(P0, (L, 1, 1)), log_prob0
+        for k in range(K):
+            x, P, lp, out["loglik"][i, k], out["flag"][i, k] = imm_trial_step(
+                x, P, lp, y[i, k], u[i, k - 1 if k else 0], F, G, Qd, trans[k], C, R,
+                log_transition, k > 0, gate)
+            (out["x"][i, k], out["P"][i, k], out["mode_prob"][i, k],
+             out["mode"][i, k]) = imm_combine(x, P, lp)
+    return out

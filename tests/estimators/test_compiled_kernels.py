@@ -1,0 +1,451 @@
+"""The compiled Kalman and IMM kernels against their numpy oracle (numpy_oracle.py, beside this).
+
+Tolerance: every float output equals the oracle to RTOL = 1e-9 relative to the largest entry
+of the oracle's array (entrywise relative error means nothing for entries that cancel to ~0).
+The two sides differ only in operation order and factorization (explicit equilibrated Cholesky
+loops vs LAPACK); each step is backward stable, so they agree to a few ulps times the
+condition number of S (< 1e4 for these systems) per step, and a stable filter does not
+amplify that over the <= 30 steps used here: observed agreement is ~1e-15, RTOL is the
+issue's contract.
+"""
+
+import numpy as np
+import pytest
+from numpy_oracle import imm_run as oracle_imm_run
+from numpy_oracle import imm_trial_step as oracle_imm_trial_step
+from numpy_oracle import kalman_run as oracle_kalman_run
+from numpy_oracle import kalman_steady_run as oracle_steady_run
+
+from switchest.discretize import interval, mode_steps
+from switchest.estimators import IMMFilter, ModeKalmanFilter
+from switchest.estimators._compiled import (
+    GATED,
+    PARTLY_GATED,
+    imm_run,
+    imm_step,
+    kalman_run,
+    kalman_steady_run,
+    kalman_steady_step,
+    kalman_step,
+    raise_for_status,
+)
+from switchest.estimators._compiled.linalg import NOT_FINITE, NOT_POSITIVE_DEFINITE, OK
+from switchest.system import SwitchedLinearSystem
+
+RTOL = 1e-9
+# (n states, m outputs, l inputs, L modes, M table entries)
+CASES = [(1, 1, 0, 1, 1), (2, 3, 1, 2, 3), (4, 2, 2, 3, 4), (3, 1, 1, 3, 2), (4, 3, 0, 2, 5)]
+
+
+def assert_close(actual, expected, rtol=RTOL):
+    """Entrywise ``|actual - expected| <= rtol * max |expected|`` (see the module docstring)."""
+    expected = np.asarray(expected)
+    np.testing.assert_allclose(actual, expected, rtol=0.0, atol=rtol * np.abs(expected).max())
+
+
+def spd(rng, shape, n, floor=0.1):
+    W = rng.standard_normal((*shape, n, n))
+    return W @ np.swapaxes(W, -1, -2) / n + floor * np.eye(n)
+
+
+def problem(seed, n, m, l, L, M, N=4, K=30, missing=True):
+    """Random tables, a simulated batch and NaN holes: a dict of the kernels' arguments."""
+    rng = np.random.default_rng(seed)
+    W = rng.standard_normal((M, n, n))
+    radius = np.abs(np.linalg.eigvals(W)).max(axis=-1)
+    F = 0.95 * W / np.maximum(radius, 1.0)[:, None, None]
+    G = rng.standard_normal((M, n, l))
+    V = rng.standard_normal((M, n, max(n - 1, 1)))
+    Qd = 0.2 * V @ np.swapaxes(V, -1, -2)  # rank n - 1: a singular process noise
+    C = rng.standard_normal((L, m, n))
+    R = spd(rng, (L,), m)
+    trans = rng.integers(0, M, (N, K))  # irregular: another table entry per trial and step
+    mode = rng.integers(0, L, (N, K))
+    u = rng.standard_normal((N, K, l))
+    x = rng.standard_normal((N, n))
+    y = np.empty((N, K, m))
+    for k in range(K):
+        if k:
+            t = trans[:, k]
+            x = np.einsum("nij,nj->ni", F[t], x) + np.einsum("nij,nj->ni", G[t], u[:, k - 1])
+            x += 0.3 * rng.standard_normal((N, n))
+        y[:, k] = np.einsum("nij,nj->ni", C[mode[:, k]], x) + rng.standard_normal((N, m))
+    if missing:
+        y[rng.random((N, K, m)) < 0.15] = np.nan  # single components
+        y[rng.random((N, K)) < 0.1] = np.nan  # whole samples
+    return dict(y=y, u=u, F=F, G=G, Qd=Qd, trans=trans, C=C, R=R, mode=mode,
+                x0=rng.standard_normal(n), P0=spd(rng, (), n, floor=0.5))
+
+
+def imm_problem(seed, n, m, l, L, M, **kw):
+    """The arguments of ``imm_run``: per-mode transitions ``(K, L)`` and an asymmetric
+    transition matrix with one impossible switch (a ``-inf`` log-probability) when L = 3."""
+    p = problem(seed, n, m, l, L, M, **kw)
+    rng = np.random.default_rng(seed + 1)
+    K = p["y"].shape[1]
+    transition = rng.dirichlet(np.ones(L), size=L) + 2.0 * np.eye(L)
+    if L == 3:
+        transition[0, 2] = 0.0
+    transition /= transition.sum(axis=1, keepdims=True)
+    with np.errstate(divide="ignore"):
+        log_transition = np.log(transition)
+    del p["mode"]
+    p.update(trans=rng.integers(0, M, (K, L)), log_transition=log_transition,
+             log_prob0=np.log(rng.dirichlet(np.ones(L))))
+    return p
+
+
+def kalman_args(p):
+    keys = ["y", "u", "F", "G", "Qd", "trans", "C", "R", "mode", "x0", "P0"]
+    return [p[key] for key in keys]
+
+
+def imm_args(p):
+    keys = ["y", "u", "F", "G", "Qd", "trans", "C", "R", "log_transition", "x0", "P0",
+            "log_prob0"]
+    return [p[key] for key in keys]
+
+
+def assert_imm_equal(out, ref):
+    assert out.status == OK
+    for name in ("x", "P", "mode_prob", "loglik"):
+        assert_close(getattr(out, name), ref[name])
+    np.testing.assert_array_equal(out.flag, ref["flag"])
+    top2 = np.sort(ref["mode_prob"], axis=-1)[..., -2:] if ref["mode_prob"].shape[-1] > 1 else None
+    clear = np.ones(out.mode.shape, bool) if top2 is None else top2[..., 1] - top2[..., 0] > 1e-6
+    np.testing.assert_array_equal(out.mode[clear], ref["mode"][clear])  # ties may break either way
+
+
+# ---------------------------------------------------------------- Kalman
+@pytest.mark.parametrize("case", CASES)
+def test_kalman_run_matches_the_oracle(case):
+    p = problem(10 + sum(case), *case)
+    out = kalman_run(*kalman_args(p))
+    x, P, loglik, flag = oracle_kalman_run(*kalman_args(p))
+    assert out.status == OK
+    assert_close(out.x, x)
+    assert_close(out.P, P)
+    assert_close(out.loglik, loglik)
+    np.testing.assert_array_equal(out.flag, flag)
+    np.testing.assert_array_equal(out.P, np.swapaxes(out.P, -1, -2))  # mirrored, exactly
+    unobserved = np.all(np.isnan(p["y"]), axis=-1)
+    assert unobserved.any()
+    np.testing.assert_array_equal(out.loglik[unobserved], 0.0)  # written as 0, not computed
+
+
+def test_kalman_run_with_switches_inside_the_intervals():
+    rng = np.random.default_rng(5)
+    n, L, N, K = 3, 2, 3, 25
+    A = rng.standard_normal((L, n, n)) - 1.5 * np.eye(n)
+    system = SwitchedLinearSystem.continuous(A=A, B=rng.standard_normal((L, n, 1)),
+                                             C=rng.standard_normal((L, 2, n)),
+                                             Q=0.1 * np.eye(n), R=0.2 * np.eye(2))
+    t = np.cumsum(rng.uniform(0.2, 0.6, K))  # irregular sample times
+    # interval into sample k of trial i: a switch prev -> next at a random offset, or none
+    modes = rng.integers(0, L, (N, K))
+    offsets = rng.uniform(0.0, 1.0, (N, K)) * np.diff(t, prepend=0.0)
+    table, trans = [], np.zeros((N, K), dtype=np.int64)
+    for i in range(N):
+        for k in range(1, K):
+            seg = [modes[i, k - 1], modes[i, k]]
+            tr = interval(system, t[k] - t[k - 1], seg, [offsets[i, k]])
+            trans[i, k] = len(table)
+            table.append(tr)
+    F, G, Qd = (np.stack([getattr(tr, f) for tr in table]) for f in ("F", "G", "Qd"))
+    switched = modes[:, 1:] != modes[:, :-1]
+    assert switched.sum() > 10  # the case exercises intra-interval switches
+    p = problem(6, n, 2, 1, L, 1, N=N, K=K)
+    p.update(F=F, G=G, Qd=Qd, trans=trans, C=system.C, R=system.R, mode=modes)
+    out = kalman_run(*kalman_args(p))
+    x, P, loglik, _ = oracle_kalman_run(*kalman_args(p))
+    assert_close(out.x, x)
+    assert_close(out.P, P)
+    assert_close(out.loglik, loglik)
+
+
+def test_a_gated_sample_equals_a_missing_sample():
+    p = problem(7, 3, 2, 1, 2, 3, missing=False)
+    gate = 2.0  # the 63 % quantile of chi2(2): many samples fail it
+    out = kalman_run(*kalman_args(p), gate=gate)
+    ref = oracle_kalman_run(*kalman_args(p), gate=gate)
+    gated = out.flag == GATED
+    assert 0 < gated.sum() < gated.size - 10
+    np.testing.assert_array_equal(out.flag, ref[3])
+    assert_close(out.x, ref[0])
+    assert_close(out.P, ref[1])
+    np.testing.assert_array_equal(out.loglik[gated], 0.0)  # written as 0, not computed
+    holes = dict(p, y=np.where(gated[..., None], np.nan, p["y"]))
+    nan_run = kalman_run(*kalman_args(holes))  # no gate, the gated samples missing instead
+    assert_close(out.x, nan_run.x)
+    assert_close(out.P, nan_run.P)
+    assert_close(out.loglik, nan_run.loglik)
+
+
+def test_an_outlier_is_dropped_and_the_filter_goes_on():
+    p = problem(8, 2, 2, 1, 1, 1, missing=False)
+    p["y"][1, 12, 0] = 1e300  # e' S^-1 e overflows
+    out = kalman_run(*kalman_args(p))
+    assert out.status == OK and out.flag[1, 12] == GATED and out.flag.sum() == GATED
+    assert np.all(np.isfinite(out.x)) and np.all(np.isfinite(out.P))
+    holes = dict(p, y=p["y"].copy())
+    holes["y"][1, 12] = np.nan
+    nan_run = kalman_run(*kalman_args(holes))
+    assert_close(out.x, nan_run.x)
+    assert_close(out.P, nan_run.P)
+
+
+def scaled(p, s):
+    """The same problem in units ``s`` times smaller: ``x -> s x``, ``P -> s^2 P``."""
+    return dict(p, y=s * p["y"], G=s * p["G"], Qd=s * s * p["Qd"], R=s * s * p["R"],
+                x0=s * p["x0"], P0=s * s * p["P0"])
+
+
+def test_a_problem_scaled_by_1e50():
+    # s = 2^166 ~ 9e49: a power of two scales every input exactly and commutes with rounding,
+    # so x and P scale as s and s^2 to round-off; log det S shifts by 2 m_obs log s, which
+    # rounds at ulp(2 m log s) ~ 1e-13 absolute: loglik agrees to 1e-9 of its scale.
+    s = 2.0**166
+    p = problem(9, 3, 2, 1, 2, 3)
+    out, big = kalman_run(*kalman_args(p)), kalman_run(*kalman_args(scaled(p, s)))
+    assert big.status == OK
+    assert_close(big.x / s, out.x)
+    assert_close(big.P / s**2, out.P)
+    n_obs = np.sum(~np.isnan(p["y"]), axis=-1)
+    assert_close(big.loglik + n_obs * np.log(s), out.loglik)
+
+
+def test_measurements_of_1e300_and_1e_300_scale_are_equilibrated():
+    # output i in units d_i = 2^(+-500) (an exact scaling): S has entries ~1e300 and ~1e-300,
+    # the estimate is unchanged and the log-likelihood shifts by -sum log d_i over observed i
+    p = problem(11, 3, 2, 1, 2, 3)
+    d = np.array([2.0**500, 2.0**-500])
+    out = kalman_run(*kalman_args(p))
+    far = kalman_run(*kalman_args(dict(p, y=d * p["y"], C=d[:, None] * p["C"],
+                                       R=d[:, None] * p["R"] * d)))
+    assert far.status == OK
+    assert_close(far.x, out.x)
+    assert_close(far.P, out.P)
+    shift = np.where(np.isnan(p["y"]), 0.0, np.log(d)).sum(axis=-1)
+    assert_close(far.loglik + shift, out.loglik)
+
+
+def test_a_failed_factorization_is_a_status_then_the_package_error():
+    p = problem(12, 2, 2, 0, 1, 1, missing=False)
+    singular = kalman_run(*kalman_args(dict(p, R=np.zeros_like(p["R"]), P0=np.zeros((2, 2)))))
+    assert singular.status == NOT_POSITIVE_DEFINITE
+    with pytest.raises(np.linalg.LinAlgError, match="C P C' \\+ R is not positive definite"):
+        raise_for_status(singular.status)
+    overflow = kalman_run(*kalman_args(dict(p, P0=np.full((2, 2), np.inf))))
+    assert overflow.status == NOT_FINITE
+    with pytest.raises(np.linalg.LinAlgError, match="is not finite: the state covariance"):
+        raise_for_status(overflow.status)
+    raise_for_status(OK)
+
+
+def test_kalman_step_equals_run():
+    p = problem(13, 3, 2, 1, 2, 4)
+    run = kalman_run(*kalman_args(p), gate=6.0)
+    N, K, n = run.x.shape
+    x, P = np.tile(p["x0"], (N, 1)), np.tile(p["P0"], (N, 1, 1))
+    for k in range(K):
+        t, md = p["trans"][:, k], p["mode"][:, k]
+        step = kalman_step(x, P, p["y"][:, k], p["u"][:, max(k - 1, 0)], p["F"][t], p["G"][t],
+                           p["Qd"][t], p["C"][md], p["R"][md], predict_first=k > 0, gate=6.0)
+        x, P = step.x, step.P
+        # the same compiled functions on the same numbers: equal to the last bit in practice
+        assert_close(x, run.x[:, k], rtol=1e-14)
+        assert_close(P, run.P[:, k], rtol=1e-14)
+        assert_close(step.loglik, run.loglik[:, k], rtol=1e-14)
+        np.testing.assert_array_equal(step.flag, run.flag[:, k])
+
+
+def test_steady_state_run_and_step_match_the_oracle():
+    p = problem(14, 3, 2, 1, 2, 3)
+    rng = np.random.default_rng(14)
+    L, n, m = 2, 3, 2
+    gain, P_prior, P_post = rng.standard_normal((L, n, m)), spd(rng, (L,), n), spd(rng, (L,), n)
+    args = [p[k] for k in ("y", "u", "F", "G", "trans", "C", "mode")]
+    out = kalman_steady_run(*args, gain, P_prior, P_post, p["x0"])
+    x, P = oracle_steady_run(*args, gain, P_prior, P_post, p["x0"])
+    assert_close(out.x, x)
+    np.testing.assert_array_equal(out.P, P)  # copied from the tables, not computed
+    assert np.all(np.isnan(out.loglik))
+    xs = np.tile(p["x0"], (4, 1))
+    for k in range(p["y"].shape[1]):
+        t, md = p["trans"][:, k], p["mode"][:, k]
+        step = kalman_steady_step(xs, p["y"][:, k], p["u"][:, max(k - 1, 0)], p["F"][t],
+                                  p["G"][t], p["C"][md], gain[md], P_prior[md], P_post[md],
+                                  predict_first=k > 0)
+        xs = step.x
+        assert_close(xs, out.x[:, k], rtol=1e-14)
+        np.testing.assert_array_equal(step.P, out.P[:, k])
+
+
+# ---------------------------------------------------------------- IMM
+@pytest.mark.parametrize("case", CASES)
+def test_imm_run_matches_the_oracle(case):
+    p = imm_problem(20 + sum(case), *case)
+    assert_imm_equal(imm_run(*imm_args(p)), oracle_imm_run(*imm_args(p)))
+
+
+def test_imm_gating_matches_the_oracle_and_a_gated_sample_equals_a_missing_one():
+    p = imm_problem(21, 3, 2, 1, 3, 3, missing=False)
+    gate = 3.0
+    out = imm_run(*imm_args(p), gate=gate)
+    assert_imm_equal(out, oracle_imm_run(*imm_args(p), gate=gate))
+    gated = out.flag == GATED
+    assert gated.any() and (out.flag == PARTLY_GATED).any()
+    assert_close(out.mode_prob.sum(axis=-1), np.ones(out.flag.shape))  # no NaN, no [0, 0]
+    holes = dict(p, y=np.where(gated[..., None], np.nan, p["y"]))
+    nan_run = imm_run(*imm_args(holes), gate=gate)
+    for name in ("x", "P", "mode_prob", "loglik"):
+        assert_close(getattr(out, name), getattr(nan_run, name))
+
+
+def test_imm_outlier_is_dropped_and_the_filter_goes_on():
+    p = imm_problem(22, 2, 2, 1, 3, 2, missing=False)
+    p["y"][2, 9, 1] = -1e300
+    out = imm_run(*imm_args(p))
+    assert out.status == OK and out.flag[2, 9] == GATED and out.flag.sum() == GATED
+    assert np.all(np.isfinite(out.x)) and np.all(np.isfinite(out.mode_prob))
+    holes = dict(p, y=p["y"].copy())
+    holes["y"][2, 9] = np.nan
+    nan_run = imm_run(*imm_args(holes))
+    for name in ("x", "P", "mode_prob", "loglik"):
+        assert_close(getattr(out, name), getattr(nan_run, name))
+
+
+def test_imm_with_one_mode_is_the_kalman_filter():
+    p = imm_problem(23, 3, 2, 1, 1, 3)
+    imm = imm_run(*imm_args(p))
+    K = p["y"].shape[1]
+    kal = kalman_run(*kalman_args(dict(p, trans=np.tile(p["trans"][:, 0], (4, 1)),
+                                       mode=np.zeros((4, K), dtype=int))))
+    assert_close(imm.x, kal.x)
+    assert_close(imm.P, kal.P)
+    assert_close(imm.loglik, kal.loglik)
+
+
+def test_imm_a_problem_scaled_by_1e50():
+    # as for the Kalman filter; the mode probabilities depend on loglik differences, where the
+    # common shift -m_obs log s cancels up to its rounding (~1e-13): they agree to 1e-9
+    s = 2.0**166
+    p = imm_problem(24, 4, 2, 1, 3, 3)
+    out, big = imm_run(*imm_args(p)), imm_run(*imm_args(scaled(p, s)))
+    assert big.status == OK
+    assert_close(big.x / s, out.x)
+    assert_close(big.P / s**2, out.P)
+    assert_close(big.mode_prob, out.mode_prob)
+
+
+def test_imm_step_equals_run():
+    p = imm_problem(25, 3, 2, 1, 3, 4)
+    run = imm_run(*imm_args(p), gate=8.0)
+    N, K, n = run.x.shape
+    L = p["log_prob0"].size
+    x, P = np.tile(p["x0"], (N, L, 1)), np.tile(p["P0"], (N, L, 1, 1))
+    log_prob = np.tile(p["log_prob0"], (N, 1))
+    for k in range(K):
+        step = imm_step(x, P, log_prob, p["y"][:, k], p["u"][:, max(k - 1, 0)], p["F"], p["G"],
+                        p["Qd"], p["trans"][k], p["C"], p["R"], p["log_transition"],
+                        predict_first=k > 0, gate=8.0)
+        x, P, log_prob = step.x, step.P, step.log_prob
+        # the same compiled kernel on the same numbers: equal to the last bit in practice
+        assert_close(step.combined_x, run.x[:, k], rtol=1e-14)
+        assert_close(step.combined_P, run.P[:, k], rtol=1e-14)
+        assert_close(step.mode_prob, run.mode_prob[:, k], rtol=1e-14)
+        assert_close(np.exp(log_prob), run.mode_prob[:, k], rtol=1e-14)
+        assert_close(step.loglik, run.loglik[:, k], rtol=1e-14)
+        np.testing.assert_array_equal(step.mode, run.mode[:, k])
+        np.testing.assert_array_equal(step.flag, run.flag[:, k])
+
+
+def test_imm_mixing_of_an_all_but_unreachable_mode_stays_in_the_log_domain():
+    # mode 2 is reached only from modes 1 and 2, whose probabilities exp(-800) underflow to 0:
+    # its predicted probability c_2 ~ exp(-800) must come out finite, not log(0) = -inf
+    p = imm_problem(26, 2, 2, 1, 3, 2, N=3, K=2)
+    p["log_prob0"] = np.array([0.0, -800.0, -800.0])
+    x0 = np.tile(p["x0"], (3, 3, 1))
+    P0 = np.tile(p["P0"], (3, 3, 1, 1))
+    log_prob = np.tile(p["log_prob0"], (3, 1))
+    step = imm_step(x0, P0, log_prob, p["y"][:, 1], p["u"][:, 0], p["F"], p["G"], p["Qd"],
+                    p["trans"][1], p["C"], p["R"], p["log_transition"], predict_first=True)
+    ref = oracle_imm_trial_step(x0[0], P0[0], log_prob[0], p["y"][0, 1], p["u"][0, 0], p["F"],
+                                p["G"], p["Qd"], p["trans"][1], p["C"], p["R"],
+                                p["log_transition"], True, np.inf)
+    assert -2000.0 < step.log_prob[0, 2] < -700.0
+    assert_close(step.log_prob[0], ref[2])  # ~800 in scale: agreement to ~1e-6 absolute
+    assert_close(step.x[0], ref[0])
+
+
+def test_results_do_not_depend_on_the_block_of_lanes():
+    p = problem(27, 3, 2, 1, 2, 3, N=7)
+    q = imm_problem(27, 3, 2, 1, 3, 3, N=7)
+    kal = [kalman_run(*kalman_args(p), gate=5.0, lanes=lanes) for lanes in (1, 3, 16)]
+    imm = [imm_run(*imm_args(q), gate=5.0, lanes=lanes) for lanes in (1, 3, 16)]
+    # each lane runs the same IEEE operations whatever its block: equal to the last bit
+    for out in kal[1:]:
+        for name in ("x", "P", "loglik"):
+            assert_close(getattr(out, name), getattr(kal[0], name), rtol=1e-14)
+    for out in imm[1:]:
+        for name in ("x", "P", "mode_prob", "loglik"):
+            assert_close(getattr(out, name), getattr(imm[0], name), rtol=1e-14)
+        np.testing.assert_array_equal(out.flag, imm[0].flag)
+
+
+# ---------------------------------------------------------------- the package's filters
+def vehicle_case():
+    from switchest.models import vehicle_2d
+    from switchest.signals import markov_at_samples
+    from switchest.simulate import simulate
+
+    system = vehicle_2d(measurement_variance=0.05, process_noise=1e-3)
+    transition = np.array([[0.9, 0.06, 0.04], [0.1, 0.85, 0.05], [0.02, 0.08, 0.9]])
+    t = 0.5 * np.arange(30)
+    traj = simulate(system, lambda rng: markov_at_samples(transition, t, rng=rng), t,
+                    (np.zeros(4), np.eye(4)), np.ones(1), trials=4, rng=3)
+    y = traj.y.copy()
+    y[0, 5] = np.nan
+    y[1, 7, 0] = np.nan
+    return system, transition, traj, y
+
+
+def test_the_kernels_reproduce_the_package_numpy_filters():
+    system, transition, traj, y = vehicle_case()
+    steps = mode_steps(system, 0.5)
+    x0, P0 = np.zeros(4), np.eye(4)
+    ref = IMMFilter(system, transition, x0, P0).run(y, traj.u, traj.t)
+    L, K = 3, traj.t.size
+    out = imm_run(y, traj.u, steps.F, steps.G, steps.Qd, np.tile(np.arange(L), (K, 1)),
+                  system.C, system.R, np.log(transition), x0, P0, np.full(L, -np.log(L)))
+    assert_close(out.x, ref.x)
+    assert_close(out.P, ref.P)
+    assert_close(out.mode_prob, ref.mode_prob)
+    ref = ModeKalmanFilter(system, x0, P0).run(y, traj.u, traj.t, modes=traj.mode)
+    prev = np.concatenate([traj.mode[:, :1], traj.mode[:, :-1]], axis=1)  # mode during interval
+    out = kalman_run(y, traj.u, steps.F, steps.G, steps.Qd, prev, system.C, system.R, traj.mode,
+                     x0, P0)
+    assert_close(out.x, ref.x)
+    assert_close(out.P, ref.P)
+    assert_close(out.loglik, ref.loglik)
+
+
+# ---------------------------------------------------------------- boundary checks
+def test_the_kernels_refuse_inconsistent_arrays():
+    p = problem(30, 2, 2, 1, 2, 3, N=2, K=4)
+    with pytest.raises(ValueError, match=r"Qd must have shape \(M, n, n\) = \(M=3, n=2, n=2\), "
+                                         r"got \(3, 2, 3\)"):
+        kalman_run(*kalman_args(dict(p, Qd=np.zeros((3, 2, 3)))))
+    with pytest.raises(ValueError, match=r"trans must index 0..2 \(M = 3 entries\), got 3..3"):
+        kalman_run(*kalman_args(dict(p, trans=np.full((2, 4), 3))))
+    with pytest.raises(ValueError, match=r"mode must index 0..1 \(L = 2 entries\), got -1..0"):
+        kalman_run(*kalman_args(dict(p, mode=-np.eye(2, 4, dtype=int))))
+    with pytest.raises(ValueError, match="gate must be a positive number or inf, got nan"):
+        kalman_run(*kalman_args(p), gate=np.nan)
+    with pytest.raises(TypeError, match="gate must be a positive number or inf, got str"):
+        kalman_run(*kalman_args(p), gate="3")
+    with pytest.raises(ValueError, match="lanes must be a positive int, got 0"):
+        kalman_run(*kalman_args(p), lanes=0)
+    q = imm_problem(30, 2, 2, 1, 2, 3, N=2, K=4)
+    with pytest.raises(ValueError, match=r"log_prob0 must have shape \(L\) = \(L=2\), got \(3,\)"):
+        imm_run(*imm_args(dict(q, log_prob0=np.zeros(3))))
