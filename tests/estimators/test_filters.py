@@ -222,3 +222,33 @@ def test_marginal_switch_time_variant_runs_and_weights_sum_to_one():
     finite = est.switch_time[np.isfinite(est.switch_time)]
     k = np.searchsorted(man.t, finite)  # each estimate lies inside its own interval
     assert np.all((finite > man.t[k - 1]) & (finite < man.t[k]))
+
+
+def test_steady_state_filter_keeps_no_state_between_runs():
+    # a run at T = 1 ms after one at T = 0.5 ms gives what a fresh filter gives (the gains of the
+    # first period used to be reused at the next run's first sample)
+    system = boost_converter()
+    x0, P0, u = np.zeros(2), np.eye(2), [30.0]
+    runs = {}
+    for T in (0.5e-3, 1e-3):
+        t = sg.periodic(T, 40 * T)
+        traj = simulate(system, lambda r, t=t, T=T: sg.dwell_time(2, t[-1], 3 * T, 6 * T, rng=r),
+                        t, x0, u=u, trials=2, rng=0)
+        runs[T] = (t, traj)
+    t, traj = runs[1e-3]
+    fresh = ModeKalmanFilter(system, x0, P0, steady_state=True).run(traj.y, u, t, modes=traj.mode)
+    reused = ModeKalmanFilter(system, x0, P0, steady_state=True)
+    t_other, other = runs[0.5e-3]
+    reused.run(other.y, u, t_other, modes=other.mode)
+    again = reused.run(traj.y, u, t, modes=traj.mode)
+    # same computation on the same input in one process: equal to rounding (a few ulps)
+    np.testing.assert_allclose(again.P, fresh.P, rtol=1e-14, atol=0)
+    np.testing.assert_allclose(again.x, fresh.x, rtol=1e-14, atol=1e-12)
+
+
+def test_steady_state_step_needs_the_period_at_a_first_sample():
+    f = ModeKalmanFilter(boost_converter(), np.zeros(2), np.eye(2), steady_state=True)
+    with pytest.raises(ValueError, match="needs the sampling period at the first sample"):
+        f.step(f.init((1,)), np.zeros((1, 1)), dt=None, mode=np.zeros(1, int))
+    state = f.step(f.init((1,)), np.zeros((1, 1)), dt=None, mode=np.zeros(1, int), period=1e-3)
+    assert np.all(np.isfinite(state.P))

@@ -11,6 +11,7 @@ offsets inside the intervals it is the clairvoyant filter of Shankar et al.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -66,7 +67,6 @@ class ModeKalmanFilter(Estimator):
         self._set_prior(system, x0, P0)
         self.steady_state = check_bool(steady_state, "steady_state")
         self.gate = None if gate is None else positive_scalar(gate, "gate")
-        self._gains: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def init(self, batch_shape=()) -> KalmanState:
         """The prior, replicated over ``batch_shape``."""
@@ -79,12 +79,15 @@ class ModeKalmanFilter(Estimator):
         )
 
     def step(self, state: KalmanState, y, u=None, *, dt=None, mode, prev_mode=None,
-             segment_modes=None, segment_offsets=None) -> KalmanState:
+             segment_modes=None, segment_offsets=None, period=None) -> KalmanState:
         """Predict over ``dt`` (skipped when ``None``) and update with ``y (N, m)``.
 
         ``mode (N,)`` is the believed mode at this sample; ``prev_mode (N,)`` the one
         during the interval (default ``mode``); ``segment_modes (N, S+1)`` and
         ``segment_offsets (N, S)`` give exact switches inside the interval instead.
+        ``period`` is the sampling period whose steady-state gains apply
+        (``steady_state=True``); it defaults to ``dt`` (to ``system.dt`` for a
+        discrete system) and must be given at a first sample of a continuous system.
         """
         sys = self.system
         x, P = state.x, state.P
@@ -105,7 +108,7 @@ class ModeKalmanFilter(Estimator):
             x, P, loglik = kf_update(x, P, y, C, R, gate=self.gate)
             outlier = np.isneginf(loglik)  # the core's mark of a rejected measurement
             return KalmanState(x, P, np.where(outlier, 0.0, loglik), outlier)
-        K, P_prior, P_post = self._steady(dt)
+        K, P_prior, P_post = self._steady(period if dt is None else dt)
         observed = ~np.any(np.isnan(y), axis=-1)
         innovation = np.where(observed[:, None], y - matvec(C, x), 0.0)
         S = C @ P_prior[mode] @ np.swapaxes(C, -1, -2) + R  # steady innovation covariance
@@ -120,20 +123,14 @@ class ModeKalmanFilter(Estimator):
         P = np.where(used[:, None, None], P_post[mode], P_prior[mode])
         return KalmanState(x, P, np.full(x.shape[0], np.nan), outlier)
 
-    def _steady(self, dt):
-        """Per-mode steady-state gains for the sampling step (cached)."""
-        key = float(dt if dt is not None else (self.system.dt or np.nan))
-        if key in self._gains:
-            return self._gains[key]
-        if not np.isfinite(key):
-            if not self._gains:
-                raise ValueError("steady_state=True needs the sampling step: give run() at least two samples")
-            return next(iter(self._gains.values()))
-        steps = mode_steps(self.system, key)
-        sys = self.system
-        out = [steady_state_gain(steps.F[i], sys.C[i], steps.Qd[i], sys.R[i]) for i in range(sys.n_modes)]
-        self._gains[key] = tuple(np.stack(a) for a in zip(*out))
-        return self._gains[key]
+    def _steady(self, period):
+        """Per-mode steady-state gain and covariances for the sampling ``period``."""
+        if period is None:
+            if self.system.dt is None:
+                raise ValueError("steady_state=True needs the sampling period at the first sample: "
+                                 "give step() period=T, or run() at least two samples")
+            period = self.system.dt
+        return _steady_gains(self.system, positive_scalar(period, "period"))
 
     def _output(self, state: KalmanState) -> dict[str, np.ndarray]:
         return {"x": state.x, "P": state.P, "loglik": state.loglik, "outlier": state.outlier}
@@ -162,13 +159,12 @@ class ModeKalmanFilter(Estimator):
         modes = self._modes(modes, batch, K)
         if self.steady_state and K > 1 and np.ptp(np.diff(t)) > 1e-9 * np.diff(t).max():
             raise ValueError("steady_state=True requires periodic sample times t")
-        if self.steady_state and K > 1:
-            self._steady(t[1] - t[0])
+        fixed = {"period": t[1] - t[0]} if self.steady_state and K > 1 else None
         prev = np.concatenate([modes[:, :1], modes[:, :-1]], axis=1)
         per_step = {"mode": modes, "prev_mode": prev}
         if segments is not None:
             per_step.update(self._segments(segments, batch, t))
-        return self._unflatten(self._loop(y2, u2, t, per_step), batch)
+        return self._unflatten(self._loop(y2, u2, t, per_step, fixed), batch)
 
     def _segments(self, segments, batch, t) -> dict[str, np.ndarray]:
         """Validate ``(modes, offsets)``: modes in range, offsets finite in their interval."""
@@ -201,3 +197,14 @@ class ModeKalmanFilter(Estimator):
         pad_m = np.concatenate([seg_m[:, :1], seg_m], axis=1)
         pad_o = np.concatenate([seg_o[:, :1], seg_o], axis=1)
         return {"segment_modes": pad_m, "segment_offsets": pad_o}
+
+
+@lru_cache(maxsize=64)
+def _steady_gains(system, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stacked per-mode ``K_i``, a-priori and a-posteriori steady-state covariances of mode i
+    alone at ``period`` (Zhang & Natarajan eq. (6)); a function of its arguments only, so a
+    filter keeps no state between runs."""
+    steps = mode_steps(system, period)
+    out = [steady_state_gain(steps.F[i], system.C[i], steps.Qd[i], system.R[i])
+           for i in range(system.n_modes)]
+    return tuple(np.stack(a) for a in zip(*out))
