@@ -18,11 +18,11 @@ Three pieces shared by every certificate in :mod:`switchest.analysis`:
 
 from __future__ import annotations
 
+import importlib
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import cvxpy as cp
 import numpy as np
 
 from .._linalg import symmetrize
@@ -39,7 +39,19 @@ __all__ = [
 
 #: Solver statuses that decide a problem; anything else (``optimal_inaccurate``,
 #: ``infeasible_inaccurate``, ``solver_error``, ...) is not a verdict.
-DECIDED = (cp.OPTIMAL, cp.INFEASIBLE, cp.UNBOUNDED)
+
+
+class _Cvxpy:
+    """cvxpy, imported at its first use: the import costs seconds, and simulating or
+    filtering never solves an LMI (``import switchest.estimators`` stays quick)."""
+
+    def __getattr__(self, name: str):
+        return getattr(importlib.import_module("cvxpy"), name)
+
+
+cp = _Cvxpy()
+
+DECIDED = ("optimal", "infeasible", "unbounded")  # cp.OPTIMAL, cp.INFEASIBLE, cp.UNBOUNDED
 _SOLVERS = ("CLARABEL", "CVXOPT")
 #: Peak memory of one solve, in bytes per LMI block per n^4: measured 45-62 for the CQLF
 #: of n = 20..40 states with L = 1..3 modes through cvxpy and CLARABEL. Its time grows like

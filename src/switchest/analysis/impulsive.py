@@ -88,14 +88,13 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import cvxpy as cp
 import numpy as np
 
 from .._checks import float_array, positive_scalar
 from .._linalg import symmetrize
 from ..estimators.impulsive import closed_loop_matrices
 from ..system import SwitchedLinearSystem
-from ._lmi import max_eigenvalue, min_eigenvalue, solve_sdp, symmetric_block
+from ._lmi import cp, max_eigenvalue, min_eigenvalue, solve_sdp, symmetric_block
 
 __all__ = [
     "ClosedLoopCertificate",

@@ -47,7 +47,6 @@ from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
-from scipy.signal import place_poles
 
 from .._checks import check_finite, check_memory, float_array, positive_int, positive_scalar
 from .._linalg import symmetrize
@@ -240,6 +239,7 @@ def default_observer_gains(system: SwitchedLinearSystem) -> np.ndarray:
     -------
     ndarray, shape (L, n, m)
     """
+    from scipy.signal import place_poles  # scipy.signal: most of a second to import
     _check_system(system)
     gains = []
     for i in range(system.n_modes):
@@ -264,6 +264,7 @@ def decay_observer_gains(system: SwitchedLinearSystem, decay: float) -> np.ndarr
     -------
     ndarray, shape (L, n, m)
     """
+    from scipy.signal import place_poles  # scipy.signal: most of a second to import
     _check_system(system)
     a = positive_scalar(decay, "decay")
     gains = []
@@ -742,3 +743,4 @@ def _assumption3(signal, min_dwell, delta: float, Delta: float) -> LeeCondition 
     first = min((float(s.times[0]) for s in signals if s.times.size), default=np.inf)
     margin = min(dwell - need, first - delta)
     return LeeCondition(holds=bool(margin > 0), margin=float(margin), lhs=dwell, rhs=need)
+

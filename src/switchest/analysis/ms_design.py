@@ -63,7 +63,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import LinAlgError, solve_continuous_are
 from scipy.optimize import brentq, minimize
-from scipy.signal import place_poles
 
 from .._checks import (
     check_finite,
@@ -645,6 +644,7 @@ def place_gains(
     ndarray, shape (L, n, m)
         Gains in state coordinates (``F_b' L_i``).
     """
+    from scipy.signal import place_poles  # scipy.signal: most of a second to import
     L, n = structure.block.size, structure.F.shape[1]
     m = structure.C2[0].shape[0]
     if isinstance(poles, (str, bytes)) or not isinstance(poles, Sequence) or len(poles) != L:

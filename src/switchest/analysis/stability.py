@@ -16,13 +16,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-import cvxpy as cp
 import numpy as np
 from scipy.sparse.linalg import ArpackError, LinearOperator, eigs
 from threadpoolctl import threadpool_limits
 
 from .._checks import check_finite, check_probability_vector, float_array, positive_int, positive_scalar
-from ._lmi import max_eigenvalue, min_eigenvalue, rounding_allowance, solve_sdp, symmetric_block
+from ._lmi import (
+    cp,
+    max_eigenvalue,
+    min_eigenvalue,
+    rounding_allowance,
+    solve_sdp,
+    symmetric_block,
+)
 
 __all__ = [
     "JSRBounds",
