@@ -2,7 +2,8 @@
 
 The oracle the compiled kernels of :mod:`switchest.estimators._compiled` are checked against:
 written for clarity, not speed, with LAPACK (``numpy.linalg``) where the kernels use explicit
-loops, no equilibration, and the observed components selected by boolean indexing. The
+loops (the innovation covariance equilibrated by its diagonal as theirs, so both factor the
+same matrices), and the observed components selected by boolean indexing. The
 semantics are those the kernels document (Shankar et al. eqs (6)-(10); Blom & Bar-Shalom 1988;
 Bar-Shalom, Li & Kirubarajan §11.6.6).
 """
@@ -13,6 +14,19 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 LOG_2PI = np.log(2.0 * np.pi)
+EPS = np.finfo(float).eps
+
+
+def repair(P, indefinite_only=False):
+    """``(P', changed)``: eigenvalues below ``n eps max|eig|`` (``indefinite_only``: below minus
+    that) raised to it, as the kernels' ``linalg.repair``."""
+    P = 0.5 * (P + P.T)
+    w, V = np.linalg.eigh(P)
+    level = P.shape[0] * EPS * np.abs(w).max()
+    if not w[0] < (-level if indefinite_only else level):
+        return P, False
+    fixed = (V * np.maximum(w, level)) @ V.T
+    return 0.5 * (fixed + fixed.T), True
 
 
 def predict(x, P, F, G, u, Qd):
@@ -29,21 +43,42 @@ def innovation(x, P, y, C, R):
     Co, Ro = C[obs], R[np.ix_(obs, obs)]
     e = y[obs] - Co @ x
     S = Co @ P @ Co.T + Ro
-    chol = np.linalg.cholesky(S)
+    d = np.sqrt(np.diag(S))  # equilibrated, as the kernels: S = D L L' D
+    if not np.all(d > 0):
+        raise np.linalg.LinAlgError("Matrix is not positive definite")
+    chol = np.linalg.cholesky(S / d[:, None] / d[None, :])
     with np.errstate(over="ignore", invalid="ignore"):
-        z = solve_triangular(chol, e, lower=True)
+        z = solve_triangular(chol, e / d, lower=True)
         nis = z @ z
-        loglik = -0.5 * (nis + 2.0 * np.log(np.diag(chol)).sum() + obs.sum() * LOG_2PI)
+        log_det = 2.0 * (np.log(np.diag(chol)).sum() + np.log(d).sum())
+        loglik = -0.5 * (nis + log_det + obs.sum() * LOG_2PI)
     return obs, e, S, nis, loglik
 
 
 def correct(x, P, C, R, obs, e, S):
-    """``K = P C' S^-1``, ``x + K e``, Joseph form ``(I - K C) P (I - K C)' + K R K'``."""
+    """``K = P C' S^-1``, ``x + K e``, Joseph form ``(I - K C) P (I - K C)' + K R K'``; where
+    that loses its digits (a posterior variance below ``eps`` times the prior's, a correlation
+    beyond ``1 + sqrt(eps)``) the information form ``L (I + L' C' R^-1 C L)^-1 L'``
+    (``P = L L'``), and where that fails too Joseph's repaired if indefinite."""
     Co, Ro = C[obs], R[np.ix_(obs, obs)]
     K = np.linalg.solve(S, Co @ P).T
     A = np.eye(x.size) - K @ Co
     P_new = A @ P @ A.T + K @ Ro @ K.T
-    return x + K @ e, 0.5 * (P_new + P_new.T)
+    P_new = 0.5 * (P_new + P_new.T)
+    post = np.diag(P_new)
+    root = np.sqrt(np.abs(post))
+    bound = (1.0 + np.sqrt(EPS)) * np.outer(root, root)
+    if np.all(post >= EPS * np.diag(P)) and np.all(np.abs(P_new) <= bound):
+        return x + K @ e, P_new
+    try:
+        L = np.linalg.cholesky(P)
+        W = solve_triangular(np.linalg.cholesky(Ro), Co @ L, lower=True)
+        Z = solve_triangular(np.linalg.cholesky(np.eye(x.size) + W.T @ W), L.T, lower=True)
+        P_new = Z.T @ Z
+        P_new = 0.5 * (P_new + P_new.T)
+    except np.linalg.LinAlgError:
+        P_new = repair(P_new, indefinite_only=True)[0]
+    return x + K @ e, P_new
 
 
 def accepts(inn, gate) -> bool:
@@ -51,9 +86,21 @@ def accepts(inn, gate) -> bool:
     return bool(np.isfinite(inn[4]) and inn[3] <= gate)
 
 
+def robust_innovation(x, P, y, C, R):
+    """``(P, innovation)``: a ``P`` whose ``S`` fails its factorization is repaired and the
+    innovation taken once more (``LinAlgError`` if ``P`` needs no repair or fails again)."""
+    try:
+        return P, innovation(x, P, y, C, R)
+    except np.linalg.LinAlgError:
+        P, changed = repair(P)
+        if not changed:
+            raise
+        return P, innovation(x, P, y, C, R)
+
+
 def update(x, P, y, C, R, gate):
     """Gated update: ``x, P, loglik, flag`` (flag 1: gated, treated as missing)."""
-    inn = innovation(x, P, y, C, R)
+    P, inn = robust_innovation(x, P, y, C, R)
     if inn is None:
         return x, P, 0.0, 0
     if not accepts(inn, gate):
@@ -134,7 +181,10 @@ def imm_trial_step(x, P, log_prob, y, u, F, G, Qd, tr, C, R, log_transition, pre
             x[j], P[j] = predict(x[j], P[j], F[tr[j]], G[tr[j]], u, Qd[tr[j]])
     else:
         log_c = log_prob.copy()
-    inns = [innovation(x[j], P[j], y, C[j], R[j]) for j in range(L)]
+    inns = []
+    for j in range(L):
+        P[j], inn = robust_innovation(x[j], P[j], y, C[j], R[j])
+        inns.append(inn)
     flag, seen = 0, inns[0] is not None
     if not seen:
         a = log_c

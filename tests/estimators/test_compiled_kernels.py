@@ -378,6 +378,62 @@ def test_imm_mixing_of_an_all_but_unreachable_mode_stays_in_the_log_domain():
     assert_close(step.x[0], ref[0])
 
 
+def test_imm_a_diffuse_prior_takes_the_information_form_lane_by_lane():
+    # P0 = 1e300 I, C invertible (m = n): Joseph's form loses every digit of the first
+    # posterior (K C = I to eps), which the kernel detects lane by lane and replaces by the
+    # information form, as the oracle does; the posterior (P0^-1 + C' R^-1 C)^-1 is then as
+    # well conditioned as R, so RTOL holds (observed ~1e-12). Trials 0 and 2 are diffuse,
+    # 1 and 3 not: one block of lanes takes both paths.
+    p = imm_problem(40, 2, 2, 1, 2, 3, missing=False)
+    out = imm_run(*imm_args(dict(p, P0=1e300 * np.eye(2))))
+    assert out.repaired == 0
+    assert_imm_equal(out, oracle_imm_run(*imm_args(dict(p, P0=1e300 * np.eye(2)))))
+    N, L = p["y"].shape[0], p["log_prob0"].size
+    P = np.tile(p["P0"], (N, L, 1, 1))
+    P[::2] = 1e300 * np.eye(2)
+    x, log_prob = np.tile(p["x0"], (N, L, 1)), np.tile(p["log_prob0"], (N, 1))
+    step = imm_step(x, P, log_prob, p["y"][:, 0], p["u"][:, 0], p["F"], p["G"], p["Qd"],
+                    p["trans"][0], p["C"], p["R"], p["log_transition"], predict_first=False)
+    assert step.status == OK and step.repaired == 0
+    for i in range(N):
+        ref = oracle_imm_trial_step(x[i], P[i], log_prob[i], p["y"][i, 0], p["u"][i, 0],
+                                    p["F"], p["G"], p["Qd"], p["trans"][0], p["C"], p["R"],
+                                    p["log_transition"], False, np.inf)
+        assert_close(step.x[i], ref[0])
+        assert_close(step.P[i], ref[1])
+        assert_close(step.log_prob[i], ref[2])
+
+
+def test_imm_covariances_beyond_1_over_eps_are_repaired_and_reported():
+    # P0 = 1e300 I with m < n: the states the measurement does not see keep 1e300 while the
+    # seen ones fall to ~1, a condition number beyond 1/eps, so Joseph's and the information
+    # form both round to an indefinite matrix or an S that fails its factorization: the kernel
+    # repairs the covariance (eigenvalues raised to n eps max|eig|) and reports it. The results
+    # are determined only to rounding there, so they are checked for finiteness and positive
+    # variances, not against the oracle.
+    p = imm_problem(42, 3, 2, 1, 2, 3, missing=False)
+    out = imm_run(*imm_args(dict(p, P0=1e300 * np.eye(3))))
+    assert out.status == OK and out.repaired > 0 and out.smallest_eigenvalue < 0.0
+    assert np.all(np.isfinite(out.x)) and np.all(np.isfinite(out.P))
+    assert np.all(np.diagonal(out.P, axis1=-2, axis2=-1) > 0.0)
+    assert_close(out.mode_prob.sum(axis=-1), np.ones(out.flag.shape))
+    clean = imm_run(*imm_args(p))
+    assert clean.repaired == 0 and np.isinf(clean.smallest_eigenvalue)
+
+
+def test_imm_filter_warns_about_a_repaired_covariance():
+    # the problem of the test above, through IMMFilter: the kernel's report becomes the numpy
+    # core's RuntimeWarning
+    p = imm_problem(42, 3, 2, 1, 2, 3, missing=False)
+    sys = SwitchedLinearSystem.discrete(p["F"][:2], p["G"][:2], p["C"], Q=p["Qd"][:2],
+                                        R=p["R"], dt=1.0)
+    y = p["y"]
+    est = IMMFilter(sys, np.exp(p["log_transition"]), np.zeros(3), 1e300 * np.eye(3))
+    with pytest.warns(RuntimeWarning, match="singular or indefinite to working precision"):
+        out = est.run(y)
+    assert np.all(np.isfinite(out.x)) and np.all(np.isfinite(out.P))
+
+
 def test_results_do_not_depend_on_the_block_of_lanes():
     p = problem(27, 3, 2, 1, 2, 3, N=7)
     q = imm_problem(27, 3, 2, 1, 3, 3, N=7)
@@ -410,17 +466,27 @@ def vehicle_case():
     return system, transition, traj, y
 
 
-def test_the_kernels_reproduce_the_package_numpy_filters():
+def test_the_kernels_reproduce_the_package_filters():
+    # IMMFilter.run is the kernel: its transition table (one entry per mode and distinct step,
+    # irregular times here) and its outputs must equal the oracle's; ModeKalmanFilter (still on
+    # the numpy core) must equal kalman_run
     system, transition, traj, y = vehicle_case()
-    steps = mode_steps(system, 0.5)
     x0, P0 = np.zeros(4), np.eye(4)
-    ref = IMMFilter(system, transition, x0, P0).run(y, traj.u, traj.t)
     L, K = 3, traj.t.size
-    out = imm_run(y, traj.u, steps.F, steps.G, steps.Qd, np.tile(np.arange(L), (K, 1)),
-                  system.C, system.R, np.log(transition), x0, P0, np.full(L, -np.log(L)))
-    assert_close(out.x, ref.x)
-    assert_close(out.P, ref.P)
-    assert_close(out.mode_prob, ref.mode_prob)
+    t = traj.t + np.where(np.arange(K) % 3 == 1, 0.2, 0.0)  # steps 0.7, 0.3 and 0.5
+    steps, which = np.unique(np.diff(t), return_inverse=True)
+    table = [mode_steps(system, h) for h in steps]
+    trans = np.zeros((K, L), dtype=int)
+    trans[1:] = np.arange(L) + L * which[:, None]
+    ref = oracle_imm_run(y, traj.u, np.concatenate([s.F for s in table]),
+                         np.concatenate([s.G for s in table]),
+                         np.concatenate([s.Qd for s in table]), trans, system.C, system.R,
+                         np.log(transition), x0, P0, np.full(L, -np.log(L)))
+    out = IMMFilter(system, transition, x0, P0).run(y, traj.u, t)
+    for name in ("x", "P", "mode_prob", "loglik"):
+        assert_close(getattr(out, name), ref[name])
+    np.testing.assert_array_equal(out.outlier, ref["flag"] == GATED)
+    steps = mode_steps(system, 0.5)
     ref = ModeKalmanFilter(system, x0, P0).run(y, traj.u, traj.t, modes=traj.mode)
     prev = np.concatenate([traj.mode[:, :1], traj.mode[:, :-1]], axis=1)  # mode during interval
     out = kalman_run(y, traj.u, steps.F, steps.G, steps.Qd, prev, system.C, system.R, traj.mode,

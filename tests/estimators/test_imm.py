@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from numpy_oracle import imm_combine, imm_mix
 
 from switchest import SwitchedLinearSystem
 from switchest import signals as sg
 from switchest.estimators import IMMFilter
-from switchest.estimators.imm import imm_combine, imm_mix
 from switchest.simulate import simulate
 
 filterpy = pytest.importorskip("filterpy")
@@ -54,9 +54,10 @@ def test_matches_filterpy_step_for_step():
         if k:
             theirs.predict(traj.u[0, k - 1])
         theirs.update(traj.y[0, k])
-        state = ours.step(state, traj.y[:, k], traj.u[:, k - 1] if k else None, dt=None if k == 0 else 1.0)
+        state = ours.step(state, traj.y[:, k], traj.u[:, k - 1] if k else None,
+                          dt=None if k == 0 else 1.0)
         mu = np.exp(state.log_prob)
-        x, P = imm_combine(state.x, state.P, mu)
+        x, P = state.combined_x, state.combined_P
         np.testing.assert_allclose(mu[0], theirs.mu, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(x[0], theirs.x, rtol=1e-9, atol=1e-10)
         np.testing.assert_allclose(P[0], theirs.P, rtol=1e-9, atol=1e-10)
@@ -72,18 +73,23 @@ def test_missing_measurement_gives_the_predicted_mode_probabilities_and_mixed_pr
     mu = np.exp(state.log_prob)
     u = np.ones((2, 1))
     after = est.step(state, np.full((2, 2), np.nan), u, dt=1.0)
-    np.testing.assert_allclose(np.exp(after.log_prob), mu @ TRANSITION, rtol=1e-12)  # mu_k = P' mu_{k-1}
-    x0j, P0j, _ = imm_mix(state.x, state.P, state.log_prob, np.log(TRANSITION))
+    # mu_k = P' mu_{k-1}
+    np.testing.assert_allclose(np.exp(after.log_prob), mu @ TRANSITION, rtol=1e-12)
+    x0j = np.stack([imm_mix(*a, np.log(TRANSITION))[0]
+                    for a in zip(state.x, state.P, state.log_prob)])
     x_pred = np.einsum("jab,njb->nja", sys.A, x0j) + np.einsum("jab,nb->nja", sys.B, u)
     np.testing.assert_allclose(after.x, x_pred, rtol=1e-12)
-    out = est.run(np.stack([np.zeros((2, 2)), np.full((2, 2), np.nan)], axis=1), np.ones(1), np.arange(2.0))
+    out = est.run(np.stack([np.zeros((2, 2)), np.full((2, 2), np.nan)], axis=1), np.ones(1),
+                  np.arange(2.0))
     state0 = est.step(est.init((2,)), np.zeros((2, 2)), dt=None)
-    x0j, _, _ = imm_mix(state0.x, state0.P, state0.log_prob, np.log(TRANSITION))
+    x0j = np.stack([imm_mix(*a, np.log(TRANSITION))[0]
+                    for a in zip(state0.x, state0.P, state0.log_prob)])
     x_pred0 = np.einsum("jab,njb->nja", sys.A, x0j) + np.einsum("jab,nb->nja", sys.B, u)
     mu_pred = np.exp(state0.log_prob) @ TRANSITION
     np.testing.assert_allclose(out.mode_prob[:, 1], mu_pred, rtol=1e-12)
     P_pred0 = est.step(state0, np.full((2, 2), np.nan), u, dt=1.0).P
-    np.testing.assert_allclose(out.x[:, 1], imm_combine(x_pred0, P_pred0, mu_pred)[0], rtol=1e-12)
+    x_comb = np.stack([imm_combine(*a)[0] for a in zip(x_pred0, P_pred0, np.log(mu_pred))])
+    np.testing.assert_allclose(out.x[:, 1], x_comb, rtol=1e-12)
 
 
 def test_filterpy_update_none_differs_and_ours_does_not_reuse_the_old_innovation():

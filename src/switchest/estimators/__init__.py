@@ -1,7 +1,7 @@
 """Estimators, all on one protocol: ``init -> step -> run -> Estimate`` (DESIGN.md §4)."""
 
 from .base import Estimate, Estimator
-from .imm import IMMFilter, imm_combine, imm_mix
+from .imm import IMMFilter
 from .imm_ev1 import IMMEV1Filter
 from .impulsive import (
     ImpulsiveObserver,
@@ -35,8 +35,6 @@ __all__ = [
     "Estimate",
     "Estimator",
     "exact_step",
-    "imm_combine",
-    "imm_mix",
     "IMMEV1Filter",
     "IMMFilter",
     "impulsive_update",

@@ -5,11 +5,18 @@ with the mode transition probabilities, after each update the mode
 probabilities are re-weighted by the filters' likelihoods. Switches are assumed
 to happen at the sample instants. Mode probabilities are kept as log-weights.
 
+Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
+:mod:`switchest.estimators._compiled` (``imm_run``, ``imm_step``), which holds the one
+implementation of each equation: interaction (Blom & Bar-Shalom, 1988), mode-matched
+Kalman prediction and update (Joseph form; the information form where that loses its
+digits, a covariance beyond ``1/eps`` repaired with a ``RuntimeWarning``), and the
+combined output (Bar-Shalom, Li & Kirubarajan §11.6.6).
+
 Outliers: a mode whose filter rejects the measurement (its normalized innovation
-squared overflows or exceeds ``gate``, :func:`~switchest.estimators.kalman.kf_update`)
-is not updated and gets likelihood zero at that sample; when every mode rejects
-it, the sample is treated as missing — no update, the mode probabilities stay the
-predicted ones — and it is flagged in ``Estimate.outlier``.
+squared overflows or exceeds ``gate``) is not updated and gets likelihood zero at
+that sample; when every mode rejects it, the sample is treated as missing — no
+update, the mode probabilities stay the predicted ones — and it is flagged in
+``Estimate.outlier``.
 
 Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k);
 rows sum to one.
@@ -17,58 +24,46 @@ rows sum to one.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .._checks import check_probability_vector, check_row_stochastic, positive_scalar
-from .._linalg import log_normalize, mixture_moments, shared
 from ..discretize import mode_steps
+from ._compiled import GATED, imm_run, imm_step, raise_for_status, warn_for_repairs
 from .base import Estimate, Estimator
-from .kalman import kf_predict, kf_update
 
-__all__ = ["IMMState", "IMMFilter", "imm_mix", "imm_combine"]
+__all__ = ["IMMState", "IMMFilter"]
 
 
 @dataclass(frozen=True, eq=False)
 class IMMState:
-    """Mode-matched posteriors ``x (N, L, n)``, ``P (N, L, n, n)`` and log mode
-    probabilities ``log_prob (N, L)``; ``loglik (N,)`` of the last measurement and
-    ``outlier (N,)``, True where every mode rejected it."""
+    """The state of the IMM after a sample, for ``N`` trials.
+
+    Attributes
+    ----------
+    x, P : ndarray, shapes (N, L, n), (N, L, n, n)
+        Mode-matched posteriors.
+    log_prob : ndarray, shape (N, L)
+        Log mode probabilities.
+    loglik : ndarray, shape (N,)
+        Log-likelihood of the last measurement given the past (0 when nothing was observed
+        or every mode rejected it).
+    outlier : ndarray of bool, shape (N,)
+        True where every mode rejected the last measurement.
+    combined_x, combined_P : ndarray, shapes (N, n), (N, n, n)
+        The combined estimate, the moments of the mixture of the mode-matched posteriors
+        (Bar-Shalom, Li & Kirubarajan §11.6.6, the output of the IMM): what ``run`` reports.
+    """
 
     x: np.ndarray
     P: np.ndarray
     log_prob: np.ndarray
     loglik: np.ndarray
     outlier: np.ndarray
-
-
-def imm_mix(x, P, log_prob, log_transition):
-    """IMM interaction step.
-
-    Predicted mode probabilities ``c_j = sum_i pi_ij mu_i``, mixing weights
-    ``mu_{i|j} = pi_ij mu_i / c_j``, mixed means ``x0_j = sum_i mu_{i|j} x_i`` and
-    covariances ``P0_j = sum_i mu_{i|j} (P_i + (x_i - x0_j)(x_i - x0_j)')``
-    (Blom & Bar-Shalom; Bar-Shalom, Li & Kirubarajan §11.6.6). All in log domain
-    until the weights are used.
-
-    Returns ``x0 (N, L, n)``, ``P0 (N, L, n, n)`` and ``log c (N, L)``.
-    """
-    joint = log_prob[..., :, None] + log_transition  # log(pi_ij mu_i), (N, i, j)
-    log_w, log_c = log_normalize(joint, axis=-2)  # over predecessors i
-    x0, P0 = mixture_moments(np.exp(log_w), x, P)
-    return x0, P0, log_c
-
-
-def imm_combine(x, P, prob):
-    """Combined estimate ``x = sum_j mu_j x_j``, ``P = sum_j mu_j (P_j + (x_j - x)(x_j - x)')``.
-
-    The moments of the mixture of the mode-matched posteriors ``x (..., L, n)``,
-    ``P (..., L, n, n)`` with weights ``prob (..., L)`` (Bar-Shalom, Li &
-    Kirubarajan §11.6.6, the output step of the IMM).
-    """
-    xc, Pc = mixture_moments(prob[..., :, None], x, P)
-    return xc[..., 0, :], Pc[..., 0, :, :]
+    combined_x: np.ndarray
+    combined_P: np.ndarray
 
 
 class IMMFilter(Estimator):
@@ -100,7 +95,7 @@ class IMMFilter(Estimator):
         with np.errstate(divide="ignore"):
             self._log_transition = np.log(self.transition)
             self._log_p0 = np.log(self.mode_prob0)
-        self._C, self._R = shared(system.C), shared(system.R)  # one matrix for all modes if they agree
+        self._gate = math.inf if self.gate is None else self.gate
 
     def init(self, batch_shape=()) -> IMMState:
         """Every mode-matched filter starts from the prior ``(x0, P0)``."""
@@ -111,34 +106,69 @@ class IMMFilter(Estimator):
             log_prob=np.broadcast_to(self._log_p0, (*batch_shape, L)).copy(),
             loglik=np.zeros(batch_shape),
             outlier=np.zeros(batch_shape, dtype=bool),
+            combined_x=np.broadcast_to(self.x0, (*batch_shape, n)).copy(),
+            combined_P=np.broadcast_to(self.P0, (*batch_shape, n, n)).copy(),
         )
 
     def step(self, state: IMMState, y, u=None, *, dt=None) -> IMMState:
-        """Mix, predict over ``dt`` (skipped when ``None``), update with ``y (N, m)``."""
-        sys = self.system
-        x, P, log_c = state.x, state.P, state.log_prob
-        if dt is not None:
-            x, P, log_c = imm_mix(x, P, state.log_prob, self._log_transition)
-            steps = mode_steps(sys, dt)
-            if u is None:
-                u = np.zeros((*x.shape[:-2], sys.n_inputs))
-            x, P = kf_predict(x, P, shared(steps.F), steps.G, u[..., None, :], shared(steps.Qd))
-        x, P, ll = kf_update(x, P, y[..., None, :], self._C, self._R, gate=self.gate)
-        outlier = np.zeros(ll.shape[:-1], dtype=bool)
-        if np.isneginf(ll).any():  # a mode rejected y; if every mode did, it is a missing sample
-            outlier = np.all(np.isneginf(ll), axis=-1)
-            ll = np.where(outlier[..., None], 0.0, ll)
-        log_prob, total = log_normalize(log_c + ll)  # mu_j ∝ c_j Lambda_j
-        return IMMState(x, P, log_prob, total, outlier)
+        """Mix and predict over ``dt`` (skipped when ``None``), update with ``y (..., m)``.
 
-    def _output(self, state: IMMState) -> dict[str, np.ndarray]:
-        prob = np.exp(state.log_prob)
-        x, P = imm_combine(state.x, state.P, prob)
-        return {"x": x, "P": P, "mode_prob": prob, "mode": np.argmax(state.log_prob, axis=-1),
-                "loglik": state.loglik, "outlier": state.outlier}
+        One sample of the compiled kernel (:func:`~switchest.estimators._compiled.imm_step`),
+        the one ``run`` loops over: interaction (Blom & Bar-Shalom, 1988), mode-matched
+        prediction and update, mode probabilities ``mu_j ∝ c_j Lambda_j`` and the combined
+        output (Bar-Shalom, Li & Kirubarajan §11.6.6).
+        """
+        sys = self.system
+        batch = state.log_prob.shape[:-1]
+        L, n = sys.n_modes, sys.n_states
+        N = int(np.prod(batch, dtype=np.int64))
+        y = np.asarray(y, dtype=float).reshape(N, sys.n_outputs)
+        if u is None:
+            u = np.zeros((N, sys.n_inputs))
+        u = np.broadcast_to(np.asarray(u, dtype=float), (*batch, sys.n_inputs)).reshape(N, -1)
+        if dt is None:  # update only: the transition table is not read
+            F, G, Qd = np.zeros((L, n, n)), np.zeros((L, n, sys.n_inputs)), np.zeros((L, n, n))
+        else:
+            steps = mode_steps(sys, dt)
+            F, G, Qd = steps.F, steps.G, steps.Qd
+        out = imm_step(state.x.reshape(N, L, n), state.P.reshape(N, L, n, n),
+                       state.log_prob.reshape(N, L), y, u, F, G, Qd,
+                       np.arange(L), sys.C, sys.R, self._log_transition,
+                       predict_first=dt is not None, gate=self._gate)
+        raise_for_status(out.status)
+        warn_for_repairs(out)
+        return IMMState(
+            x=out.x.reshape(*batch, L, n), P=out.P.reshape(*batch, L, n, n),
+            log_prob=out.log_prob.reshape(*batch, L), loglik=out.loglik.reshape(batch),
+            outlier=(out.flag == GATED).reshape(batch),
+            combined_x=out.combined_x.reshape(*batch, n),
+            combined_P=out.combined_P.reshape(*batch, n, n),
+        )
 
     def run(self, y, u=None, t=None) -> Estimate:
         """Filter ``y (..., K, m)``; returns combined ``x``, ``P``, ``mode_prob``, the
-        most probable ``mode``, ``loglik`` and the ``outlier`` flags at each sample."""
+        most probable ``mode``, ``loglik`` and the ``outlier`` flags at each sample.
+
+        The whole record runs in the compiled kernel
+        (:func:`~switchest.estimators._compiled.imm_run`), with one exact transition per mode
+        and distinct sampling step.
+        """
         y2, u2, t, batch = self._prepare(y, u, t)
-        return self._unflatten(self._loop(y2, u2, t), batch)
+        sys = self.system
+        L, K = sys.n_modes, t.size
+        steps, which = np.unique(np.diff(t), return_inverse=True)
+        if steps.size == 0:  # one sample: update only, the table is not read
+            steps = np.ones(1)
+        table = [mode_steps(sys, h) for h in steps]
+        F = np.concatenate([s.F for s in table])
+        G = np.concatenate([s.G for s in table])
+        Qd = np.concatenate([s.Qd for s in table])
+        trans = np.zeros((K, L), dtype=np.int64)
+        trans[1:] = np.arange(L) + L * which.reshape(-1, 1)
+        out = imm_run(y2, u2, F, G, Qd, trans, sys.C, sys.R, self._log_transition,
+                      self.x0, self.P0, self._log_p0, gate=self._gate)
+        raise_for_status(out.status)
+        warn_for_repairs(out)
+        est = Estimate(x=out.x, P=out.P, mode_prob=out.mode_prob, mode=out.mode,
+                       loglik=out.loglik, outlier=out.flag == GATED)
+        return self._unflatten(est, batch)

@@ -6,10 +6,13 @@ blocks of trials laid across SIMD lanes, called by one compiled kernel (:mod:`.b
 of mode-matched Kalman filters with IMM interaction, the Kalman filter being its one-mode
 case) that loops over trials and samples. ``run`` calls it on a whole record,
 ``step`` (the streaming API) on one sample. Kernels return a status code instead of raising;
-:func:`raise_for_status` raises the package's error for it.
+:func:`raise_for_status` raises the package's error for it, and :func:`warn_for_repairs` the
+package's ``RuntimeWarning`` for covariances repaired to their rounding level.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
@@ -31,6 +34,7 @@ __all__ = [
     "kalman_steady_step",
     "kalman_step",
     "raise_for_status",
+    "warn_for_repairs",
 ]
 
 _MESSAGES = {
@@ -51,3 +55,17 @@ def raise_for_status(status: int) -> None:
     if status == OK:
         return
     raise np.linalg.LinAlgError(_MESSAGES[status])
+
+
+def warn_for_repairs(output) -> None:
+    """Issue the package's ``RuntimeWarning`` if a kernel's output (:class:`IMMOutput`,
+    :class:`KalmanOutput`, ...) reports covariances repaired to their rounding level: their
+    condition number was beyond ``1/eps`` (the numpy core's message, for the same event)."""
+    if output.repaired:
+        warnings.warn(
+            "the state covariance P is singular or indefinite to working precision (condition "
+            "number beyond 1/eps): its eigenvalues were raised to its rounding level (its "
+            f"smallest eigenvalue was {output.smallest_eigenvalue:.3g})",
+            RuntimeWarning,
+            stacklevel=3,
+        )

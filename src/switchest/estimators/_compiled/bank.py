@@ -20,18 +20,22 @@ import numpy as np
 from .linalg import (
     ACCEPTED,
     GATED,
+    NOT_POSITIVE_DEFINITE,
     OK,
     PARTLY_GATED,
     combine,
     correct,
     gather_matrices,
     gather_samples,
+    information_form,
     innovation,
     jit,
+    joseph_lost,
     log_normalize,
     mix,
     observe,
     predict,
+    repair,
 )
 
 __all__ = ["LANES", "filter_bank"]
@@ -59,7 +63,7 @@ def _copy_rows(src, dst, nb):
 @jit
 def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transition, x_init,
                 P_init, log_prob_init, predict_first, gate, lanes, x_out, P_out, prob_out,
-                mode_out, loglik_out, flag_out, x_last, P_last, log_prob_last):
+                mode_out, loglik_out, flag_out, x_last, P_last, log_prob_last, report):
     """Filter ``N`` trials over ``K`` samples with ``L`` interacting mode-matched filters.
 
     Parameters
@@ -95,6 +99,9 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
         sample was gated) and flag ``(N, K)``.
     x_last, P_last, log_prob_last
         Written: the mode-matched state after the last sample, shaped as ``x_init`` etc.
+    report : (2,) float64
+        Written: the number of covariances repaired (:func:`.linalg.repair`) and the smallest
+        eigenvalue one had before its repair (``inf`` if none), for the caller's warning.
 
     Returns
     -------
@@ -109,6 +116,13 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
     likelihood), flag ``PARTLY_GATED``. If no mode can use it the sample is treated as
     missing: no mode is updated, the mode probabilities stay the predicted ``c``, the
     log-likelihood is 0, flag ``GATED``.
+
+    Ill-conditioned covariances, lane by lane: where Joseph's form loses its digits the
+    posterior is taken in information form (:func:`.linalg.joseph_lost`,
+    :func:`.linalg.information_form`); a posterior neither form resolves is repaired if
+    indefinite, and a lane whose innovation covariance fails its factorization has its prior
+    ``P`` repaired and is factored once more (:func:`.linalg.repair`); ``report`` counts the
+    repairs. Only a lane whose ``P`` needs no repair and still fails stops the kernel.
     """
     N, K, m = y.shape
     n_modes, n = x_init.shape[1], x_init.shape[2]
@@ -130,6 +144,9 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
     a, use = np.empty((n_modes, B)), np.empty((n_modes, B), dtype=np.bool_)
     total, flag, best = np.empty(B), np.empty(B, dtype=np.uint8), np.empty(B, dtype=np.int64)
     xc, Pc = np.empty((n, B)), np.empty((n, n, B))
+    bad, lost = np.zeros(B, dtype=np.bool_), np.empty(B, dtype=np.bool_)
+    prior, root = np.empty((n, n, B)), np.empty((n, B))
+    report[0], report[1] = 0.0, math.inf
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
         for j in range(n_modes):
@@ -166,7 +183,14 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
                     gather_matrices(R, idx, nb, Rl[j])
             for j in range(n_modes):
                 status = innovation(x[j], P[j], yl, Cl[j], Rl[j], obs, n_obs, nb, e[j], PCt[j],
-                                    chol[j], scale[j], z[j], nis[j], loglik[j], work)
+                                    chol[j], scale[j], z[j], nis[j], loglik[j], work, bad)
+                if status == NOT_POSITIVE_DEFINITE:  # repair the failing lanes' P, retry once
+                    for b in range(nb):
+                        if bad[b] and not repair(P[j], b, False, report):
+                            return status
+                    status = innovation(x[j], P[j], yl, Cl[j], Rl[j], obs, n_obs, nb, e[j],
+                                        PCt[j], chol[j], scale[j], z[j], nis[j], loglik[j],
+                                        work, bad)
                 if status != OK:
                     return status
             for b in range(nb):  # the gating decision, before anything changes
@@ -185,7 +209,12 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
                         flag[b] = PARTLY_GATED
             for j in range(n_modes):
                 correct(x[j], P[j], Cl[j], Rl[j], use[j], nb, PCt[j], chol[j], scale[j], z[j],
-                        gain, T, AP)
+                        gain, T, AP, prior)
+                if joseph_lost(P[j], prior, use[j], nb, root, lost):  # rare: lane by lane
+                    for b in range(nb):
+                        if lost[b] and n_obs[b] > 0.0 and not information_form(
+                                P[j], prior, Cl[j], Rl[j], obs, b):
+                            repair(P[j], b, True, report)
             log_normalize(a, prob, total, nb)  # log mu_j = log c_j + log Lambda_j, normalized
             _copy_rows(a, log_prob, nb)
             combine(x, P, prob, log_prob, nb, xc, Pc, best)

@@ -47,6 +47,12 @@ class IMMOutput(NamedTuple):
         ``ACCEPTED`` (0), ``GATED`` (1: treated as missing) or ``PARTLY_GATED`` (2).
     status : int
         ``linalg.OK`` or the failure code that stopped the kernel (outputs then incomplete).
+    repaired : int
+        How many covariances (of a mode, trial and sample) were repaired to their rounding
+        level (:func:`.linalg.repair`); :func:`~switchest.estimators._compiled.warn_for_repairs`
+        warns about them.
+    smallest_eigenvalue : float
+        The smallest eigenvalue a repaired covariance had (``inf`` if none was).
     """
 
     x: np.ndarray
@@ -56,6 +62,8 @@ class IMMOutput(NamedTuple):
     loglik: np.ndarray
     flag: np.ndarray
     status: int
+    repaired: int = 0
+    smallest_eigenvalue: float = math.inf
 
 
 class IMMStepOutput(NamedTuple):
@@ -68,7 +76,8 @@ class IMMStepOutput(NamedTuple):
     combined_x, combined_P, mode_prob, mode : ndarray, shapes (N, n), (N, n, n), (N, L), (N,)
         The combined estimate and mode probabilities, as :class:`IMMOutput` reports them.
     loglik, flag : ndarray, shape (N,)
-    status : int
+    status, repaired, smallest_eigenvalue
+        As in :class:`IMMOutput`.
     """
 
     x: np.ndarray
@@ -81,6 +90,8 @@ class IMMStepOutput(NamedTuple):
     loglik: np.ndarray
     flag: np.ndarray
     status: int
+    repaired: int = 0
+    smallest_eigenvalue: float = math.inf
 
 
 def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
@@ -157,7 +168,8 @@ def imm_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
                                 log_transition, x, P, log_prob, bool(predict_first),
                                 check_gate(gate), LANES)
     return IMMStepOutput(x, P, log_prob, out.x[:, 0], out.P[:, 0], out.mode_prob[:, 0],
-                         out.mode[:, 0], out.loglik[:, 0], out.flag[:, 0], out.status)
+                         out.mode[:, 0], out.loglik[:, 0], out.flag[:, 0], out.status,
+                         out.repaired, out.smallest_eigenvalue)
 
 
 def _bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_init,
@@ -170,7 +182,10 @@ def _bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_
     prob, mode = np.empty((N, K, L)), np.empty((N, K), dtype=np.int64)
     loglik, flag = np.empty((N, K)), np.empty((N, K), dtype=np.uint8)
     last = np.empty_like(x_init), np.empty_like(P_init), np.empty_like(log_prob_init)
+    report = np.empty(2)
     status = filter_bank(y, u, F, G, Qd, trans, C, R, np.arange(L)[None, None],
                          np.exp(log_transition), log_transition, x_init, P_init, log_prob_init,
-                         predict_first, gate, lanes, x, P, prob, mode, loglik, flag, *last)
-    return (IMMOutput(x, P, prob, mode, loglik, flag, int(status)), *last)
+                         predict_first, gate, lanes, x, P, prob, mode, loglik, flag, *last,
+                         report)
+    return (IMMOutput(x, P, prob, mode, loglik, flag, int(status), int(report[0]),
+                      float(report[1])), *last)

@@ -44,6 +44,9 @@ class KalmanOutput(NamedTuple):
     status : int
         ``OK`` or the failure code that stopped the kernel (outputs then incomplete);
         :func:`switchest.estimators._compiled.raise_for_status` turns it into an exception.
+    repaired, smallest_eigenvalue
+        How many covariances were repaired to their rounding level, and the smallest
+        eigenvalue one had (``inf`` if none was): see :class:`.imm.IMMOutput`.
     """
 
     x: np.ndarray
@@ -51,6 +54,8 @@ class KalmanOutput(NamedTuple):
     loglik: np.ndarray
     flag: np.ndarray
     status: int
+    repaired: int = 0
+    smallest_eigenvalue: float = math.inf
 
 
 def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, *, gate=math.inf,
@@ -118,7 +123,8 @@ def kalman_step(x, P, y, u, F, G, Qd, C, R, *, predict_first: bool,
     own = np.arange(sizes["N"])[:, None]  # trial i uses entry i of the per-trial "tables"
     out = _one_mode(y[:, None], u[:, None], F, G, Qd, own, C, R, own, x, P, bool(predict_first),
                     check_gate(gate), LANES)
-    return KalmanOutput(out.x[:, 0], out.P[:, 0], out.loglik[:, 0], out.flag[:, 0], out.status)
+    return KalmanOutput(out.x[:, 0], out.P[:, 0], out.loglik[:, 0], out.flag[:, 0], out.status,
+                        out.repaired, out.smallest_eigenvalue)
 
 
 def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, gate, lanes):
@@ -127,13 +133,13 @@ def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, 
     N, K, _ = y.shape
     n = x_init.shape[1]
     x, P, loglik = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K))
-    flag = np.empty((N, K), dtype=np.uint8)
+    flag, report = np.empty((N, K), dtype=np.uint8), np.empty(2)
     status = filter_bank(y, u, F, G, Qd, trans[:, :, None], C, R, mode[:, :, None],
                          np.ones((1, 1)), np.zeros((1, 1)), x_init[:, None], P_init[:, None],
                          np.zeros((N, 1)), predict_first, gate, lanes, x, P, np.empty((N, K, 1)),
                          np.empty((N, K), dtype=np.int64), loglik, flag, np.empty((N, 1, n)),
-                         np.empty((N, 1, n, n)), np.empty((N, 1)))
-    return KalmanOutput(x, P, loglik, flag, int(status))
+                         np.empty((N, 1, n, n)), np.empty((N, 1)), report)
+    return KalmanOutput(x, P, loglik, flag, int(status), int(report[0]), float(report[1]))
 
 
 def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x0) -> KalmanOutput:

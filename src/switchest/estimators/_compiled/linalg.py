@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 __all__ = [
@@ -41,6 +42,9 @@ __all__ = [
     "predict",
     "innovation",
     "correct",
+    "joseph_lost",
+    "information_form",
+    "repair",
     "log_normalize",
     "mix",
     "combine",
@@ -57,6 +61,8 @@ GATED = 1  # the measurement was an outlier or failed the gate: treated as missi
 PARTLY_GATED = 2  # IMM only: some modes gated the measurement, others used it
 
 _LOG_2PI = math.log(2.0 * math.pi)
+_EPS = 2.220446049250313e-16  # numpy.finfo(float).eps
+_CORRELATION_BOUND = 1.0 + math.sqrt(_EPS)
 _TINY_SUM = 1e-250  # below it, a sum of probability products is redone in the log domain
 
 jit = njit(cache=True, error_model="numpy")  # how every function of the engine is compiled
@@ -139,7 +145,7 @@ def predict(x, P, F, G, u, Qd, nb, FP, xs):
 
 
 @jit
-def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work):
+def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work, bad):
     """Innovation of ``y`` against ``(x, P)`` over each lane's observed components.
 
     ``e = y - C x``, ``P C'`` and ``S = C P C' + R`` (Shankar et al. eq. (8)), with every
@@ -156,7 +162,10 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
     Returns
     -------
     status
-        ``OK``, or the failure code of the first failing factorization in the block.
+        ``OK``; ``NOT_FINITE`` if a lane's ``S`` has a non-finite diagonal; else
+        ``NOT_POSITIVE_DEFINITE`` if a lane's factorization failed, ``bad (B,)`` then marking
+        those lanes (the others are complete), so that the caller can repair their ``P`` and
+        call again.
     """
     n, m = x.shape[0], y.shape[0]
     log_det, det, pivot = work[0], work[1], work[2]
@@ -198,8 +207,6 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
             log_det[b] += math.log(d)
     if not finite:
         return NOT_FINITE
-    if not positive:
-        return NOT_POSITIVE_DEFINITE
     for a in range(m):  # D^-1/2 S D^-1/2: |S_ac| <= sqrt(S_aa S_cc), so nothing overflows
         for c in range(a + 1):
             for b in range(nb):
@@ -215,8 +222,6 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
             root = math.sqrt(pivot[b])
             chol[j, j, b] = root
             det[b] *= pivot[b]
-        if not positive:
-            return NOT_POSITIVE_DEFINITE
         for i in range(j + 1, m):
             for p in range(j):
                 for b in range(nb):
@@ -236,7 +241,11 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
             nis[b] += z[a, b] * z[a, b]
     for b in range(nb):
         loglik[b] = -0.5 * (nis[b] + log_det[b] + math.log(det[b]) + n_obs[b] * _LOG_2PI)
-    return OK
+    if positive:
+        return OK
+    for b in range(nb):  # a failed pivot leaves NaN (or 0) in det: the lanes to repair
+        bad[b] = not det[b] > 0.0
+    return NOT_POSITIVE_DEFINITE
 
 
 @jit
@@ -263,7 +272,7 @@ def _solve(chol, scale, v, nb):
 
 
 @jit
-def correct(x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP):
+def correct(x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP, prior):
     """Measurement update, in the lanes where ``use`` is true (Shankar et al. eqs (9)-(10)).
 
     From what :func:`innovation` left: ``K = P C' S^-1`` by Cholesky solves (no inverse),
@@ -272,9 +281,14 @@ def correct(x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP):
     ``A = I - K C`` without forming ``A``: ``A P = P - K (P C')'``, then
     ``A P A' + K R K' = A P + (K R - A P C') K'`` (O(n^2 m) instead of O(n^3)); the upper
     triangle is computed and mirrored, so ``P`` is exactly symmetric. The other lanes get
-    ``K = 0``, which leaves ``x`` and ``P`` exactly as they were. ``z`` is overwritten.
+    ``K = 0``, which leaves ``x`` and ``P`` exactly as they were. ``z`` is overwritten;
+    ``prior (n, n, B)`` gets the covariance before the update (for :func:`joseph_lost`).
     """
     n, m = x.shape[0], z.shape[0]
+    for i in range(n):
+        for j in range(n):
+            for b in range(nb):
+                prior[i, j, b] = P[i, j, b]
     for a in range(m - 1, -1, -1):  # S^-1 e = D^-1/2 L'^-1 z
         for c in range(a + 1, m):
             for b in range(nb):
@@ -322,6 +336,175 @@ def correct(x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP):
                     P[i, j, b] += T[i, a, b] * K[j, a, b]
             for b in range(nb):
                 P[j, i, b] = P[i, j, b]
+
+
+@jit
+def joseph_lost(P, prior, use, nb, root, lost):
+    """Mark the lanes where Joseph's form has lost its digits; return whether there is one.
+
+    Joseph's ``A = I - K C`` is accurate to ``eps |K C|`` only, so ``A P A'`` carries an error
+    of about ``eps^2 |K C|^2 P``. Where the update removes nearly all the prior variance of a
+    state (``P+_ii < eps P_ii``: a diffuse prior, a nearly noise-free measurement) or the
+    result is no longer a covariance (a correlation beyond ``1 + sqrt(eps)``, or a NaN), that
+    error has swamped ``P+``: ``lost[b]`` is set there, among the lanes that ``use`` the
+    measurement, for :func:`information_form`. ``root (n, B)`` is scratch.
+    """
+    n = P.shape[0]
+    for b in range(nb):
+        lost[b] = False
+    for i in range(n):
+        for b in range(nb):
+            lost[b] |= not P[i, i, b] >= _EPS * prior[i, i, b]
+            root[i, b] = math.sqrt(abs(P[i, i, b]))
+    for i in range(n):
+        for j in range(i + 1, n):
+            for b in range(nb):
+                lost[b] |= not abs(P[i, j, b]) <= _CORRELATION_BOUND * root[i, b] * root[j, b]
+    found = False
+    for b in range(nb):
+        lost[b] &= use[b]
+        found |= lost[b]
+    return found
+
+
+@jit
+def _cholesky(A, out):
+    """Equilibrated Cholesky factor of one symmetric ``A (n, n)`` (lower triangle read):
+    ``out = D L`` (lower, zero above), ``A = (D L)(D L)'``, with ``D`` the powers of two near
+    ``sqrt(A_ii)`` and ``L`` the factor of ``D^-1 A D^-1`` (no overflow for entries of 1e300).
+    Returns False if ``A`` is not positive definite or not finite."""
+    n = A.shape[0]
+    d = np.empty(n)
+    for i in range(n):
+        if not (A[i, i] > 0.0 and math.isfinite(A[i, i])):
+            return False
+        d[i] = math.ldexp(1.0, math.frexp(A[i, i])[1] // 2)
+    for j in range(n):
+        for i in range(j):
+            out[i, j] = 0.0
+        pivot = A[j, j] / d[j] / d[j]
+        for p in range(j):
+            pivot -= out[j, p] * out[j, p]
+        if not (pivot > 0.0 and math.isfinite(pivot)):
+            return False
+        out[j, j] = math.sqrt(pivot)
+        for i in range(j + 1, n):
+            v = A[i, j] / d[i] / d[j]
+            for p in range(j):
+                v -= out[i, p] * out[j, p]
+            out[i, j] = v / out[j, j]
+    for i in range(n):
+        for j in range(i + 1):
+            out[i, j] *= d[i]
+    return True
+
+
+@jit
+def _forward(Lo, B):
+    """``B <- Lo^-1 B`` for a lower-triangular ``Lo (m, m)`` and ``B (m, k)``."""
+    for a in range(Lo.shape[0]):
+        for c in range(a):
+            for q in range(B.shape[1]):
+                B[a, q] -= Lo[a, c] * B[c, q]
+        for q in range(B.shape[1]):
+            B[a, q] /= Lo[a, a]
+
+
+@jit
+def information_form(P, prior, C, R, obs, b):
+    """Lane ``b`` of the posterior in information form, where Joseph's has lost its digits.
+
+    ``P+ = (P^-1 + C' R^-1 C)^-1 = L (I + L' C' R^-1 C L)^-1 L'`` with ``P = L L'`` the prior
+    (``prior``), over the observed components of ``y`` (``obs``); computed as the Gram matrix
+    ``Z' Z``, ``Z = N^-1 L'``, ``N N' = I + W' W``, ``W = R^-1/2 C L``: accurate to the
+    conditioning of ``C' R^-1 C`` however diffuse the prior. A scalar path for one lane (rare).
+    Returns False, leaving ``P`` alone, if ``P`` or ``R`` is not positive definite.
+    """
+    n, m = P.shape[0], C.shape[0]
+    A = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = prior[i, j, b]
+    Lp = np.empty((n, n))
+    if not _cholesky(A, Lp):
+        return False
+    Rd = np.empty((m, m))
+    for a in range(m):
+        for c in range(m):
+            unit = 1.0 - obs[a, b] if a == c else 0.0
+            Rd[a, c] = R[a, c, b] * obs[a, b] * obs[c, b] + unit
+    Lr = np.empty((m, m))
+    if not _cholesky(Rd, Lr):
+        return False
+    W = np.zeros((m, n))  # R^-1/2 C L, the unobserved rows zero
+    for a in range(m):
+        for j in range(n):
+            for i in range(j, n):
+                W[a, j] += C[a, i, b] * obs[a, b] * Lp[i, j]
+    _forward(Lr, W)
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = 1.0 if i == j else 0.0
+            for a in range(m):
+                A[i, j] += W[a, i] * W[a, j]
+    Ln = np.empty((n, n))
+    if not _cholesky(A, Ln):
+        return False
+    Z = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            Z[i, j] = Lp[j, i]
+    _forward(Ln, Z)
+    for i in range(n):
+        for j in range(i, n):
+            v = 0.0
+            for q in range(n):
+                v += Z[q, i] * Z[q, j]
+            P[i, j, b] = v
+            P[j, i, b] = v
+    return True
+
+
+@jit
+def repair(P, b, indefinite_only, report):
+    """Raise lane ``b``'s covariance's eigenvalues to its rounding level ``n eps max|eig|``.
+
+    A covariance whose condition number exceeds ``1/eps`` (a prior of 1e300 on a state seen
+    only through the dynamics, a mixture of estimates 1e50 apart) cannot be told from a
+    singular or indefinite one: its eigenvalues below that level (with ``indefinite_only``,
+    below minus that level: negative beyond rounding) are raised to it, as much as is known
+    about them. Returns whether ``P`` was changed; ``report`` ``[count, smallest eigenvalue]``
+    records it for the caller's ``RuntimeWarning``. A non-finite ``P`` is left alone.
+    """
+    n = P.shape[0]
+    A = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = 0.5 * (P[i, j, b] + P[j, i, b])
+            if not math.isfinite(A[i, j]):
+                return False
+    w, V = np.linalg.eigh(A)
+    top = 0.0
+    for i in range(n):
+        top = max(top, abs(w[i]))
+    level = n * _EPS * top
+    if not w[0] < (-level if indefinite_only else level):
+        return False
+    report[0] += 1.0
+    report[1] = min(report[1], w[0])
+    for i in range(n):
+        w[i] = max(w[i], level)
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = 0.0
+            for q in range(n):
+                A[i, j] += V[i, q] * w[q] * V[j, q]
+    for i in range(n):
+        for j in range(i, n):
+            v = 0.5 * (A[i, j] + A[j, i])
+            P[i, j, b] = v
+            P[j, i, b] = v
+    return True
 
 
 @jit
