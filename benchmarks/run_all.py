@@ -18,6 +18,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import bench_engine
 import bench_imm
 import bench_imm_ev1
 import bench_simulate
@@ -32,6 +33,7 @@ from harness import (
 HERE = Path(__file__).resolve().parent
 BENCHMARKS = [
     ("IMM vs FilterPy", bench_imm),
+    ("IMM engine vs a plain scalar numba IMM", bench_engine),
     ("IMM-EV1 scaling", bench_imm_ev1),
     ("Simulation", bench_simulate),
 ]
