@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from scipy.linalg import solve_triangular
 
 from .._checks import check_bool, check_finite, float_array, int_array, positive_scalar
 from .._linalg import matvec
@@ -108,13 +109,11 @@ class ModeKalmanFilter(Estimator):
             x, P, loglik = kf_update(x, P, y, C, R, gate=self.gate)
             outlier = np.isneginf(loglik)  # the core's mark of a rejected measurement
             return KalmanState(x, P, np.where(outlier, 0.0, loglik), outlier)
-        K, P_prior, P_post = self._steady(period if dt is None else dt)
+        K, P_prior, P_post, whiten = self._steady(period if dt is None else dt)
         observed = ~np.any(np.isnan(y), axis=-1)
         innovation = np.where(observed[:, None], y - matvec(C, x), 0.0)
-        S = C @ P_prior[mode] @ np.swapaxes(C, -1, -2) + R  # steady innovation covariance
-        with np.errstate(over="ignore", invalid="ignore"):
-            nis = np.einsum("...i,...i->...", innovation,
-                            np.linalg.solve(S, innovation[..., None])[..., 0])
+        with np.errstate(over="ignore", invalid="ignore"):  # e' S^-1 e = |W e|^2, S^-1 = W' W
+            nis = np.sum(matvec(whiten[mode], innovation) ** 2, axis=-1)
         accepted = nis < np.inf if self.gate is None else nis <= self.gate  # False for inf, NaN
         outlier = observed & ~accepted
         used = observed & ~outlier
@@ -200,11 +199,17 @@ class ModeKalmanFilter(Estimator):
 
 
 @lru_cache(maxsize=64)
-def _steady_gains(system, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _steady_gains(system, period: float) -> tuple[np.ndarray, ...]:
     """Stacked per-mode ``K_i``, a-priori and a-posteriori steady-state covariances of mode i
-    alone at ``period`` (Zhang & Natarajan eq. (6)); a function of its arguments only, so a
-    filter keeps no state between runs."""
+    alone at ``period`` (Zhang & Natarajan eq. (6)), and the whitening ``W_i = L_i^-1`` of the
+    steady innovation covariance ``S_i = C_i P_i C_i' + R_i = L_i L_i'`` (for the gate's
+    ``e' S_i^-1 e = |W_i e|^2``); a function of its arguments only, so a filter keeps no state
+    between runs."""
     steps = mode_steps(system, period)
     out = [steady_state_gain(steps.F[i], system.C[i], steps.Qd[i], system.R[i])
            for i in range(system.n_modes)]
-    return tuple(np.stack(a) for a in zip(*out))
+    K, P_prior, P_post = (np.stack(a) for a in zip(*out))
+    S = system.C @ P_prior @ np.swapaxes(system.C, -1, -2) + system.R
+    eye = np.eye(system.n_outputs)
+    whiten = np.stack([solve_triangular(np.linalg.cholesky(S_i), eye, lower=True) for S_i in S])
+    return K, P_prior, P_post, whiten

@@ -245,6 +245,8 @@ class SwitchTimeKalmanFilter(Estimator):
         """``J_k`` of each hypothesis; ``-inf`` where the gate rejects ``y`` under it."""
         x_pred, P_pred = kf_predict(x, P, F, G, u, Qd)
         C, R = self.system.C[mode], self.system.R[mode]
+        if self.likelihood == "innovation":  # the core applies the gate itself
+            return kf_update(x_pred, P_pred, y, C, R, gate=self.gate)[2]
         ll = _switch_time_loglik(x_pred, P_pred, y, C, R, likelihood=self.likelihood)
         if self.gate is not None:
             gated = np.isneginf(kf_update(x_pred, P_pred, y, C, R, gate=self.gate)[2])

@@ -23,7 +23,7 @@ import numpy as np
 from ..._checks import positive_int
 from .arrays import check_gate, floats, indices
 from .bank import LANES, filter_bank
-from .linalg import OK, gather_matrices, gather_samples, jit, observe, predict_mean
+from .linalg import OK, gather_matrices, gather_samples, jit, observe, predict_mean, residual
 
 __all__ = ["KalmanOutput", "kalman_run", "kalman_step", "kalman_steady_run", "kalman_steady_step"]
 
@@ -240,12 +240,7 @@ def _steady_correct(x, y, C, gain, n_obs, nb, e):
     """``x <- x + K (y - C x)`` in the lanes where all ``m`` components of ``y`` are observed
     (Zhang & Natarajan eq. (6)); the other lanes keep ``x`` as predicted."""
     m, n = C.shape[0], C.shape[1]
-    for a in range(m):
-        for b in range(nb):
-            e[a, b] = y[a, b]
-        for j in range(n):
-            for b in range(nb):
-                e[a, b] -= C[a, j, b] * x[j, b]
+    residual(x, y, C, nb, e)
     for i in range(n):
         for a in range(m):
             for b in range(nb):

@@ -145,6 +145,18 @@ def predict(x, P, F, G, u, Qd, nb, FP, xs):
 
 
 @jit
+def residual(x, y, C, nb, e):
+    """``e = y - C x`` in every lane (the innovation before missing components are removed)."""
+    m, n = C.shape[0], C.shape[1]
+    for a in range(m):
+        for b in range(nb):
+            e[a, b] = y[a, b]
+        for j in range(n):
+            for b in range(nb):
+                e[a, b] -= C[a, j, b] * x[j, b]
+
+
+@jit
 def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work, bad):
     """Innovation of ``y`` against ``(x, P)`` over each lane's observed components.
 
@@ -169,12 +181,8 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
     """
     n, m = x.shape[0], y.shape[0]
     log_det, det, pivot = work[0], work[1], work[2]
+    residual(x, y, C, nb, e)
     for a in range(m):
-        for b in range(nb):
-            e[a, b] = y[a, b]
-        for j in range(n):
-            for b in range(nb):
-                e[a, b] -= C[a, j, b] * x[j, b]
         for b in range(nb):
             e[a, b] = e[a, b] if obs[a, b] > 0.0 else 0.0
         for i in range(n):
