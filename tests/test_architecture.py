@@ -9,11 +9,11 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "switchest"
 
 # lower index = lower layer; a module may import only from layers at or below its own
 LAYERS = [
-    {"_checks", "_toml"},
+    {"_checks", "_toml", "_jit"},
     {"_linalg"},
     {"system"},
     {"signals"},
-    {"discretize"},
+    {"discretize", "dyadic"},
     {"simulate"},
     {"modelfile"},
     {"metrics"},

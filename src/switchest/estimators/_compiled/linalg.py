@@ -25,7 +25,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from ..._jit import jit
 
 __all__ = [
     "jit",
@@ -65,7 +66,6 @@ _EPS = 2.220446049250313e-16  # numpy.finfo(float).eps
 _CORRELATION_BOUND = 1.0 + math.sqrt(_EPS)
 _TINY_SUM = 1e-250  # below it, a sum of probability products is redone in the log domain
 
-jit = njit(cache=True, error_model="numpy")  # how every function of the engine is compiled
 
 
 @jit
