@@ -127,10 +127,13 @@ def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, gate=np.inf):
     return xs, Ps, lls, flags
 
 
-def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x0):
-    """Fixed gains: ``x + K_i (y - C_i x)`` when all of ``y`` is observed; P from the tables."""
+def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x0,
+                      gate=np.inf):
+    """Fixed gains: ``x + K_i (y - C_i x)`` when all of ``y`` is observed and its normalized
+    innovation squared ``|W_i e|^2`` is finite and within ``gate``; P from the tables."""
     N, K, _ = y.shape
     xs, Ps = np.empty((N, K, x0.size)), np.empty((N, K, x0.size, x0.size))
+    flags = np.zeros((N, K), dtype=np.uint8)
     for i in range(N):
         x = x0
         for k in range(K):
@@ -138,11 +141,17 @@ def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x0):
                 t = trans[i, k]
                 x = F[t] @ x + G[t] @ u[i, k - 1]
             md = mode[i, k]
-            observed = not np.isnan(y[i, k]).any()
-            if observed:
-                x = x + gain[md] @ (y[i, k] - C[md] @ x)
-            xs[i, k], Ps[i, k] = x, (P_post if observed else P_prior)[md]
-    return xs, Ps
+            used = False
+            if not np.isnan(y[i, k]).any():
+                e = y[i, k] - C[md] @ x
+                with np.errstate(over="ignore", invalid="ignore"):
+                    nis = float(np.sum((whiten[md] @ e) ** 2))
+                used = bool(np.isfinite(nis) and nis <= gate)
+                flags[i, k] = 0 if used else 1
+                if used:
+                    x = x + gain[md] @ e
+            xs[i, k], Ps[i, k] = x, (P_post if used else P_prior)[md]
+    return xs, Ps, flags
 
 
 def log_sum_exp(a):

@@ -259,26 +259,32 @@ def test_kalman_step_equals_run():
         np.testing.assert_array_equal(step.flag, run.flag[:, k])
 
 
-def test_steady_state_run_and_step_match_the_oracle():
+@pytest.mark.parametrize("gate", [np.inf, 2.0])
+def test_steady_state_run_and_step_match_the_oracle(gate):
     p = problem(14, 3, 2, 1, 2, 3)
     rng = np.random.default_rng(14)
     L, n, m = 2, 3, 2
     gain, P_prior, P_post = rng.standard_normal((L, n, m)), spd(rng, (L,), n), spd(rng, (L,), n)
+    whiten = np.tril(rng.standard_normal((L, m, m))) + 2 * np.eye(m)
     args = [p[k] for k in ("y", "u", "F", "G", "trans", "C", "mode")]
-    out = kalman_steady_run(*args, gain, P_prior, P_post, p["x0"])
-    x, P = oracle_steady_run(*args, gain, P_prior, P_post, p["x0"])
+    out = kalman_steady_run(*args, gain, P_prior, P_post, whiten, p["x0"], gate=gate)
+    x, P, flag = oracle_steady_run(*args, gain, P_prior, P_post, whiten, p["x0"], gate)
     assert_close(out.x, x)
     np.testing.assert_array_equal(out.P, P)  # copied from the tables, not computed
+    np.testing.assert_array_equal(out.flag, flag)
     assert np.all(np.isnan(out.loglik))
+    if np.isfinite(gate):  # the case exercises the gate
+        assert 0 < np.count_nonzero(flag == GATED) < flag.size
     xs = np.tile(p["x0"], (4, 1))
     for k in range(p["y"].shape[1]):
         t, md = p["trans"][:, k], p["mode"][:, k]
         step = kalman_steady_step(xs, p["y"][:, k], p["u"][:, max(k - 1, 0)], p["F"][t],
                                   p["G"][t], p["C"][md], gain[md], P_prior[md], P_post[md],
-                                  predict_first=k > 0)
+                                  whiten[md], predict_first=k > 0, gate=gate)
         xs = step.x
         assert_close(xs, out.x[:, k], rtol=1e-14)
         np.testing.assert_array_equal(step.P, out.P[:, k])
+        np.testing.assert_array_equal(step.flag, out.flag[:, k])
 
 
 # ---------------------------------------------------------------- IMM

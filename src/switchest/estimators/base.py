@@ -80,19 +80,17 @@ class Estimator:
         self.P0 = check_symmetric_psd(P0, "P0")
 
     # ------------------------------------------------------------------ the loop
-    def _loop(self, y, u, t, per_step: dict[str, np.ndarray] | None = None,
-              fixed: dict | None = None) -> Estimate:
+    def _loop(self, y, u, t, per_step: dict[str, np.ndarray] | None = None) -> Estimate:
         """Run ``step`` over time on prepared ``y (N, K, m)``, ``u (N, K, l)``, ``t (K,)``.
 
         ``per_step`` maps a keyword of ``step`` to an array whose axis 1 is time;
-        entry ``k`` is passed with sample ``k``. ``fixed`` holds keywords passed
-        unchanged with every sample.
+        entry ``k`` is passed with sample ``k``.
         """
         N, K, _ = y.shape
         state = self.init((N,))
         fields: dict[str, np.ndarray] = {}
         for k in range(K):
-            extra = {key: val[:, k] for key, val in (per_step or {}).items()} | (fixed or {})
+            extra = {key: val[:, k] for key, val in (per_step or {}).items()}
             dt = None if k == 0 else t[k] - t[k - 1]
             u_prev = u[:, k - 1] if k else u[:, 0]
             state = self.step(state, y[:, k], u_prev, dt=dt, **extra)

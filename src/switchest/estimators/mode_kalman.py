@@ -10,17 +10,34 @@ offsets inside the intervals it is the clairvoyant filter of Shankar et al.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from .._checks import check_bool, check_finite, float_array, int_array, positive_scalar
-from .._linalg import matvec
+from .._checks import (
+    check_bool,
+    check_finite,
+    check_memory,
+    float_array,
+    int_array,
+    positive_scalar,
+)
 from ..discretize import mode_steps, segment_transitions
+from ..dyadic import dyadic_table, interval_transitions
+from ._compiled import (
+    GATED,
+    kalman_run,
+    kalman_steady_run,
+    kalman_steady_step,
+    kalman_step,
+    raise_for_status,
+    warn_for_repairs,
+)
 from .base import Estimate, Estimator
-from .kalman import kf_predict, kf_update, steady_state_gain
+from .kalman import steady_state_gain
 
 __all__ = ["KalmanState", "ModeKalmanFilter"]
 
@@ -68,6 +85,7 @@ class ModeKalmanFilter(Estimator):
         self._set_prior(system, x0, P0)
         self.steady_state = check_bool(steady_state, "steady_state")
         self.gate = None if gate is None else positive_scalar(gate, "gate")
+        self._gate = math.inf if self.gate is None else self.gate
 
     def init(self, batch_shape=()) -> KalmanState:
         """The prior, replicated over ``batch_shape``."""
@@ -89,38 +107,34 @@ class ModeKalmanFilter(Estimator):
         ``period`` is the sampling period whose steady-state gains apply
         (``steady_state=True``); it defaults to ``dt`` (to ``system.dt`` for a
         discrete system) and must be given at a first sample of a continuous system.
+        One sample of the compiled kernel that ``run`` loops over
+        (:func:`~switchest.estimators._compiled.kalman_step`).
         """
         sys = self.system
-        x, P = state.x, state.P
         mode = np.asarray(mode)
-        if dt is not None:
-            if segment_modes is not None:
-                tr = segment_transitions(sys, dt, segment_modes, segment_offsets)
-                F, G, Qd = tr.F, tr.G, tr.Qd
-            else:
-                m = mode if prev_mode is None else np.asarray(prev_mode)
-                steps = mode_steps(sys, dt)
-                F, G, Qd = steps.F[m], steps.G[m], steps.Qd[m]
-            if u is None:
-                u = np.zeros((*x.shape[:-1], sys.n_inputs))
-            x, P = kf_predict(x, P, F, G, u, Qd)
-        C, R = sys.C[mode], sys.R[mode]
-        if not self.steady_state:
-            x, P, loglik = kf_update(x, P, y, C, R, gate=self.gate)
-            outlier = np.isneginf(loglik)  # the core's mark of a rejected measurement
-            return KalmanState(x, P, np.where(outlier, 0.0, loglik), outlier)
-        K, P_prior, P_post, whiten = self._steady(period if dt is None else dt)
-        observed = ~np.any(np.isnan(y), axis=-1)
-        innovation = np.where(observed[:, None], y - matvec(C, x), 0.0)
-        with np.errstate(over="ignore", invalid="ignore"):  # e' S^-1 e = |W e|^2, S^-1 = W' W
-            nis = np.sum(matvec(whiten[mode], innovation) ** 2, axis=-1)
-        accepted = nis < np.inf if self.gate is None else nis <= self.gate  # False for inf, NaN
-        outlier = observed & ~accepted
-        used = observed & ~outlier
-        innovation = np.where(used[:, None], innovation, 0.0)
-        x = x + matvec(K[mode], innovation)  # x_k|k = x_k|k-1 + K_i (y_k - C_i x_k|k-1), eq. (6)
-        P = np.where(used[:, None, None], P_post[mode], P_prior[mode])
-        return KalmanState(x, P, np.full(x.shape[0], np.nan), outlier)
+        N, n = mode.shape[0], sys.n_states
+        y = np.asarray(y, dtype=float).reshape(N, sys.n_outputs)
+        u = np.zeros((N, sys.n_inputs)) if u is None else np.broadcast_to(u, (N, sys.n_inputs))
+        if dt is None:  # update only: the transition is not read
+            F, G, Qd = np.zeros((N, n, n)), np.zeros((N, n, sys.n_inputs)), np.zeros((N, n, n))
+        elif segment_modes is not None:
+            tr = segment_transitions(sys, dt, segment_modes, segment_offsets)
+            F, G, Qd = tr.F, tr.G, tr.Qd
+        else:
+            m = mode if prev_mode is None else np.asarray(prev_mode)
+            steps = mode_steps(sys, dt)
+            F, G, Qd = steps.F[m], steps.G[m], steps.Qd[m]
+        if self.steady_state:
+            K, P_prior, P_post, whiten = self._steady(period if dt is None else dt)
+            out = kalman_steady_step(state.x, y, u, F, G, sys.C[mode], K[mode], P_prior[mode],
+                                     P_post[mode], whiten[mode], predict_first=dt is not None,
+                                     gate=self._gate)
+        else:
+            out = kalman_step(state.x, state.P, y, u, F, G, Qd, sys.C[mode], sys.R[mode],
+                              predict_first=dt is not None, gate=self._gate)
+            raise_for_status(out.status)
+            warn_for_repairs(out)
+        return KalmanState(out.x, out.P, out.loglik, out.flag == GATED)
 
     def _steady(self, period):
         """Per-mode steady-state gain and covariances for the sampling ``period``."""
@@ -130,9 +144,6 @@ class ModeKalmanFilter(Estimator):
                                  "give step() period=T, or run() at least two samples")
             period = self.system.dt
         return _steady_gains(self.system, positive_scalar(period, "period"))
-
-    def _output(self, state: KalmanState) -> dict[str, np.ndarray]:
-        return {"x": state.x, "P": state.P, "loglik": state.loglik, "outlier": state.outlier}
 
     def run(self, y, u=None, t=None, *, modes, segments=None) -> Estimate:
         """Filter measurements ``y (..., K, m)`` along the believed ``modes``.
@@ -158,14 +169,59 @@ class ModeKalmanFilter(Estimator):
         modes = self._modes(modes, batch, K)
         if self.steady_state and K > 1 and np.ptp(np.diff(t)) > 1e-9 * np.diff(t).max():
             raise ValueError("steady_state=True requires periodic sample times t")
-        fixed = {"period": t[1] - t[0]} if self.steady_state and K > 1 else None
-        prev = np.concatenate([modes[:, :1], modes[:, :-1]], axis=1)
-        per_step = {"mode": modes, "prev_mode": prev}
-        if segments is not None:
-            per_step.update(self._segments(segments, batch, t))
-        return self._unflatten(self._loop(y2, u2, t, per_step, fixed), batch)
+        seg = None if segments is None else self._segments(segments, batch, t)
+        F, G, Qd, trans = self._transitions(t, modes, seg)
+        sys = self.system
+        if self.steady_state:
+            gain, P_prior, P_post, whiten = self._steady(t[1] - t[0] if K > 1 else None)
+            out = kalman_steady_run(y2, u2, F, G, trans, sys.C, modes, gain, P_prior, P_post,
+                                    whiten, self.x0, gate=self._gate)
+        else:
+            out = kalman_run(y2, u2, F, G, Qd, trans, sys.C, sys.R, modes, self.x0, self.P0,
+                             gate=self._gate)
+            raise_for_status(out.status)
+            warn_for_repairs(out)
+        est = Estimate(x=out.x, P=out.P, loglik=out.loglik, outlier=out.flag == GATED)
+        return self._unflatten(est, batch)
 
-    def _segments(self, segments, batch, t) -> dict[str, np.ndarray]:
+    def _transitions(self, t, modes, seg):
+        """The table of distinct exact transitions and the index of each trial's into each
+        sample (the layout of :func:`~switchest.estimators._compiled.kalman_run`).
+
+        Without segments an interval is predicted in the mode believed at its start: one
+        entry per (distinct step, mode). With segments (``(modes (N, K-1, S+1), offsets)``)
+        each interval with a switch gets the exact transition of its segments (Shankar et al.
+        eqs (3)-(5)), composed from the step's dyadic table
+        (:func:`switchest.dyadic.interval_transitions`: no matrix exponential per interval).
+        """
+        sys = self.system
+        L, (N, K) = sys.n_modes, modes.shape
+        steps, which = np.unique(np.diff(t), return_inverse=True)
+        if steps.size == 0:  # one sample: update only, the table is not read
+            steps = np.ones(1)
+        table = [mode_steps(sys, h) for h in steps]
+        F = [np.concatenate([s.F for s in table])]
+        G = [np.concatenate([s.G for s in table])]
+        Qd = [np.concatenate([s.Qd for s in table])]
+        trans = np.zeros((N, K), dtype=np.int64)
+        first = modes[:, :-1] if seg is None else seg[0][..., 0]
+        trans[:, 1:] = L * which + first
+        if seg is not None:
+            seg_m, seg_o = seg
+            rows, cols = np.nonzero(np.any(seg_m[..., 1:] != seg_m[..., :1], axis=-1))
+            check_memory(8 * rows.size * sys.n_states * (2 * sys.n_states + sys.n_inputs),
+                         f"the exact transitions of {rows.size} intervals with a switch")
+            for d in np.unique(which[cols]):  # intervals with a switch, by their length
+                at = which[cols] == d
+                r, c = rows[at], cols[at]
+                tr = interval_transitions(dyadic_table(sys, steps[d]), seg_m[r, c], seg_o[r, c])
+                trans[r, c + 1] = sum(len(a) for a in F) + np.arange(r.size)
+                F.append(tr.F)
+                G.append(tr.G)
+                Qd.append(tr.Qd)
+        return np.concatenate(F), np.concatenate(G), np.concatenate(Qd), trans
+
+    def _segments(self, segments, batch, t) -> tuple[np.ndarray, np.ndarray]:
         """Validate ``(modes, offsets)``: modes in range, offsets finite in their interval."""
         if not (isinstance(segments, tuple) and len(segments) == 2):
             raise TypeError("segments must be a tuple (modes (..., K-1, S+1), offsets (..., K-1, S))")
@@ -190,12 +246,7 @@ class ModeKalmanFilter(Estimator):
                              f"interval, got {seg_o.min():g}..{seg_o.max():g}")
         if np.any(np.diff(seg_o, axis=-1) < 0):
             raise ValueError("segments[1] (offsets) must be non-decreasing within each interval")
-        seg_m = seg_m.reshape(N, K - 1, -1)
-        seg_o = seg_o.reshape(N, K - 1, -1)
-        # sample k uses interval k-1; sample 0 has no prediction (its entry is never read)
-        pad_m = np.concatenate([seg_m[:, :1], seg_m], axis=1)
-        pad_o = np.concatenate([seg_o[:, :1], seg_o], axis=1)
-        return {"segment_modes": pad_m, "segment_offsets": pad_o}
+        return seg_m.reshape(N, K - 1, -1), seg_o.reshape(N, K - 1, -1)
 
 
 @lru_cache(maxsize=64)

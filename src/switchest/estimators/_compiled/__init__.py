@@ -43,8 +43,8 @@ _MESSAGES = {
         "measurement noise R or the filter a positive definite P0"
     ),
     NOT_FINITE: (
-        "innovation covariance C P C' + R is not finite: the state covariance overflowed "
-        "(an unstable mode over long intervals, or a huge P0)"
+        "innovation covariance C P C' + R is not finite: the state covariance P is not "
+        "finite, it overflowed (an unstable mode over long intervals, or a huge P0)"
     ),
 }
 

@@ -23,7 +23,17 @@ import numpy as np
 from ..._checks import positive_int
 from .arrays import check_gate, floats, indices
 from .bank import LANES, filter_bank
-from .linalg import OK, gather_matrices, gather_samples, jit, observe, predict_mean, residual
+from .linalg import (
+    ACCEPTED,
+    GATED,
+    OK,
+    gather_matrices,
+    gather_samples,
+    jit,
+    observe,
+    predict_mean,
+    residual,
+)
 
 __all__ = ["KalmanOutput", "kalman_run", "kalman_step", "kalman_steady_run", "kalman_steady_step"]
 
@@ -142,14 +152,20 @@ def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, 
     return KalmanOutput(x, P, loglik, flag, int(status), int(report[0]), float(report[1]))
 
 
-def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x0) -> KalmanOutput:
+def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x0, *,
+                      gate=math.inf, lanes: int = LANES) -> KalmanOutput:
     """Kalman filter with fixed gains (Zhang & Natarajan eq. (6)), every trial and sample.
 
     ``x_k|k = x_k|k-1 + K_i (y_k - C_i x_k|k-1)`` with the gain ``gain[i] (n, m)`` of the
     mode ``i = mode[:, k]``; a sample with any component missing is not used at all. The
     reported covariance is read from the tables ``P_post[i]`` after an update and
     ``P_prior[i]`` otherwise, shape ``(L, n, n)``; ``loglik`` is NaN (the fixed-gain filter
-    has no likelihood). Other arguments as in :func:`kalman_run`.
+    has no likelihood).
+
+    ``whiten (L, m, m)`` holds ``W_i = L_i^-1`` for the steady innovation covariance
+    ``S_i = C_i P_prior[i] C_i' + R_i = L_i L_i'``: the normalized innovation squared is
+    ``e' S_i^-1 e = |W_i e|^2``. A measurement whose NIS exceeds ``gate`` or is not finite is
+    not used (flag ``GATED``). Other arguments as in :func:`kalman_run`.
     """
     sizes: dict[str, int] = {}
     y = floats(y, "y", "NKm", sizes)
@@ -162,19 +178,22 @@ def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x0) -> 
     gain = floats(gain, "gain", "Lnm", sizes)
     P_prior = floats(P_prior, "P_prior", "Lnn", sizes)
     P_post = floats(P_post, "P_post", "Lnn", sizes)
+    whiten = floats(whiten, "whiten", "Lmm", sizes)
     x0 = floats(x0, "x0", "n", sizes)
     N, K, n = sizes["N"], sizes["K"], sizes["n"]
     x, P = np.empty((N, K, n)), np.empty((N, K, n, n))
-    _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, np.tile(x0, (N, 1)), False,
-                   LANES, x, P)
-    return KalmanOutput(x, P, np.full((N, K), np.nan), np.zeros((N, K), dtype=np.uint8), OK)
+    flag = np.empty((N, K), dtype=np.uint8)
+    _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten,
+                   np.tile(x0, (N, 1)), False, check_gate(gate), positive_int(lanes, "lanes"),
+                   x, P, flag)
+    return KalmanOutput(x, P, np.full((N, K), np.nan), flag, OK)
 
 
-def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, *,
-                       predict_first: bool) -> KalmanOutput:
+def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, whiten, *,
+                       predict_first: bool, gate=math.inf) -> KalmanOutput:
     """One sample of every trial with fixed gains, as :func:`kalman_steady_run` (whose kernel
     runs it), with per-trial ``F``, ``G``, ``C``, ``gain (N, n, m)``, ``P_prior``,
-    ``P_post (N, n, n)``."""
+    ``P_post (N, n, n)``, ``whiten (N, m, m)``."""
     sizes: dict[str, int] = {}
     x = floats(x, "x", "Nn", sizes)
     y = floats(y, "y", "Nm", sizes)
@@ -185,28 +204,31 @@ def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, *,
     gain = floats(gain, "gain", "Nnm", sizes)
     P_prior = floats(P_prior, "P_prior", "Nnn", sizes)
     P_post = floats(P_post, "P_post", "Nnn", sizes)
+    whiten = floats(whiten, "whiten", "Nmm", sizes)
     N, n = sizes["N"], sizes["n"]
     own = np.arange(N)[:, None]
     x_out, P_out = np.empty((N, 1, n)), np.empty((N, 1, n, n))
-    _steady_filter(y[:, None], u[:, None], F, G, own, C, own, gain, P_prior, P_post, x,
-                   bool(predict_first), LANES, x_out, P_out)
-    return KalmanOutput(x_out[:, 0], P_out[:, 0], np.full(N, np.nan), np.zeros(N, dtype=np.uint8),
-                        OK)
+    flag = np.empty((N, 1), dtype=np.uint8)
+    _steady_filter(y[:, None], u[:, None], F, G, own, C, own, gain, P_prior, P_post, whiten, x,
+                   bool(predict_first), check_gate(gate), LANES, x_out, P_out, flag)
+    return KalmanOutput(x_out[:, 0], P_out[:, 0], np.full(N, np.nan), flag[:, 0], OK)
 
 
 @jit
-def _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x_init, predict_first,
-                   lanes, x_out, P_out):
+def _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x_init,
+                   predict_first, gate, lanes, x_out, P_out, flag_out):
     """Fixed-gain filter of every trial from ``x_init[i]``, in blocks of ``lanes`` trials:
     ``x <- F x + G u`` (:func:`.linalg.predict_mean`), then ``x <- x + K (y - C x)`` in the
-    lanes where every component of ``y`` is observed (Zhang & Natarajan eq. (6)); ``P`` is
-    copied from the tables."""
+    lanes where every component of ``y`` is observed and its normalized innovation squared
+    ``|W e|^2`` passes ``gate`` (Zhang & Natarajan eq. (6)); ``P`` is copied from the
+    tables."""
     N, K, m = y.shape
     n, n_in, B = x_init.shape[1], u.shape[2], lanes
     x, xs, yl, ul = np.empty((n, B)), np.empty((n, B)), np.empty((m, B)), np.empty((n_in, B))
     Fl, Gl = np.empty((n, n, B)), np.empty((n, n_in, B))
-    Cl, Kl, e = np.empty((m, n, B)), np.empty((n, m, B)), np.empty((m, B))
+    Cl, Kl, Wl, e = np.empty((m, n, B)), np.empty((n, m, B)), np.empty((m, m, B)), np.empty((m, B))
     obs, n_obs, idx = np.empty((m, B)), np.empty(B), np.empty(B, dtype=np.int64)
+    nis, use = np.empty(B), np.empty(B, dtype=np.bool_)
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
         for r in range(n):
@@ -224,11 +246,18 @@ def _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x_init, pr
                 idx[b] = mode[i0 + b, k]
             gather_matrices(C, idx, nb, Cl)
             gather_matrices(gain, idx, nb, Kl)
+            gather_matrices(whiten, idx, nb, Wl)
             gather_samples(y, i0, nb, k, yl)
             observe(yl, nb, obs, n_obs)
-            _steady_correct(x, yl, Cl, Kl, n_obs, nb, e)
+            residual(x, yl, Cl, nb, e)
+            _whitened_norm(e, Wl, nb, nis)
             for b in range(nb):
-                table = P_post if n_obs[b] == m else P_prior
+                seen = n_obs[b] == m
+                use[b] = seen and math.isfinite(nis[b]) and nis[b] <= gate
+                flag_out[i0 + b, k] = GATED if seen and not use[b] else ACCEPTED
+            _steady_correct(x, e, Kl, use, nb)
+            for b in range(nb):
+                table = P_post if use[b] else P_prior
                 for r in range(n):
                     x_out[i0 + b, k, r] = x[r, b]
                     for c in range(n):
@@ -236,12 +265,26 @@ def _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, x_init, pr
 
 
 @jit
-def _steady_correct(x, y, C, gain, n_obs, nb, e):
-    """``x <- x + K (y - C x)`` in the lanes where all ``m`` components of ``y`` are observed
-    (Zhang & Natarajan eq. (6)); the other lanes keep ``x`` as predicted."""
-    m, n = C.shape[0], C.shape[1]
-    residual(x, y, C, nb, e)
+def _whitened_norm(e, W, nb, nis):
+    """``nis[b] = |W e|^2`` (= ``e' S^-1 e`` for ``S^-1 = W' W``) in every lane; NaN where a
+    component of ``e`` is missing."""
+    m = e.shape[0]
+    for b in range(nb):
+        nis[b] = 0.0
+    for a in range(m):
+        for b in range(nb):
+            v = 0.0
+            for c in range(a + 1):  # W is lower triangular
+                v += W[a, c, b] * e[c, b]
+            nis[b] += v * v
+
+
+@jit
+def _steady_correct(x, e, gain, use, nb):
+    """``x <- x + K e`` in the lanes that use their measurement (Zhang & Natarajan eq. (6));
+    the other lanes keep ``x`` as predicted."""
+    n, m = gain.shape[0], gain.shape[1]
     for i in range(n):
         for a in range(m):
             for b in range(nb):
-                x[i, b] += gain[i, a, b] * e[a, b] if n_obs[b] == m else 0.0
+                x[i, b] += gain[i, a, b] * e[a, b] if use[b] else 0.0
