@@ -107,8 +107,8 @@ def sweep(name: str, values, fixed: dict, systems: dict, data: dict) -> Section:
             f"{math.log(timing.best / previous[1]) / math.log(value / previous[0]):.2f}")
         previous = (value, timing.best)
         rows.append((N, K, g, L, format_seconds(timing.best), format_seconds(timing.best / K),
-                     format_seconds(timing.best / (N * K)), format_seconds(timing.best / (hypotheses * K)),
-                     slope))
+                     format_seconds(timing.best / (N * K)),
+                     format_seconds(timing.best / (hypotheses * K)), slope))
     table = markdown_table(
         ["N", "K", "g", "L", "run (best)", "per step", "per trial-step", "per hypothesis-step",
          f"slope vs {name}"], rows)
@@ -118,7 +118,8 @@ def sweep(name: str, values, fixed: dict, systems: dict, data: dict) -> Section:
         N, K, L = fixed["N"], fixed["K"], fixed["L"]
         traj = data[L]
         imm = IMMFilter(systems[L], transition_matrix(L), np.zeros(4), np.eye(4))
-        ref = best_time(lambda: imm.run(traj.y[:N, :K], traj.u[:N, :K], traj.t[:K]), repeat=3, budget=3.0)
+        ref = best_time(lambda: imm.run(traj.y[:N, :K], traj.u[:N, :K], traj.t[:K]), repeat=3,
+                        budget=3.0)
         notes.append(f"for scale: IMMFilter (L = {L}, no switch-time search) on the same "
                      f"{N} x {K} data takes {format_seconds(ref.best)}, "
                      f"{format_seconds(ref.best / (N * K))} per trial-step.")
@@ -129,7 +130,8 @@ def sweep(name: str, values, fixed: dict, systems: dict, data: dict) -> Section:
 def run(*, quick: bool = False) -> list[Section]:
     """All four sweeps; returns one section per sweep."""
     plan = SWEEPS["quick" if quick else "default"]
-    modes = sorted({L for name, vals, fixed in plan for L in (vals if name == "L" else (fixed["L"],))})
+    modes = sorted({L for name, vals, fixed in plan
+                    for L in (vals if name == "L" else (fixed["L"],))})
     trials = max(max(vals) if name == "N" else fixed["N"] for name, vals, fixed in plan)
     steps = max(max(vals) if name == "K" else fixed["K"] for name, vals, fixed in plan)
     systems = {L: vehicle_variant(L) for L in modes}

@@ -13,7 +13,8 @@ state drawn from N(0, I):
   (:func:`switchest.signals.dwell_time`); the time to draw the signals alone is
   reported beside the whole simulation.
 
-Run: ``python benchmarks/bench_simulate.py [--quick]``.
+Run: ``python benchmarks/bench_simulate.py [--quick]`` (``--quick``: a twentieth of the
+trials).
 """
 
 from __future__ import annotations
@@ -61,8 +62,8 @@ def _row(label: str, trials: int, samples: int, timing, switches: float) -> tupl
 def run(*, quick: bool = False) -> list[Section]:
     """Time both workloads; one section with one row per measurement."""
     system = vehicle_2d(measurement_variance=0.05, process_noise=1e-3)
-    fixed_trials = FIXED_TRIALS // 5 if quick else FIXED_TRIALS
-    random_trials = RANDOM_TRIALS // 5 if quick else RANDOM_TRIALS
+    fixed_trials = FIXED_TRIALS // 20 if quick else FIXED_TRIALS
+    random_trials = RANDOM_TRIALS // 20 if quick else RANDOM_TRIALS
     t = periodic(T, T * (SAMPLES - 1))
     t_end = float(t[-1]) + T
     x0 = (np.zeros(4), np.eye(4))
@@ -85,14 +86,16 @@ def run(*, quick: bool = False) -> list[Section]:
     signals_only = best_time(lambda: [draw(c) for c in children], repeat=3, budget=10.0)
 
     rows = [
-        _row("fixed maneuver schedule (shared signal)", fixed_trials, SAMPLES, fixed, signal.n_switches),
+        _row("fixed maneuver schedule (shared signal)", fixed_trials, SAMPLES, fixed,
+             signal.n_switches),
         _row("random dwell-time signal per trial (whole simulate)", random_trials, SAMPLES, randoms,
              mean_switches),
-        (f"... of which drawing the {random_trials} signals", "", "", format_seconds(signals_only.best),
-         "", "", signals_only.repeats),
+        (f"... of which drawing the {random_trials} signals", "", "",
+         format_seconds(signals_only.best), "", "", signals_only.repeats),
     ]
-    table = markdown_table(["workload", "trials x samples", "switches per trial", "wall time (best)",
-                            "per trial-sample", "M trial-samples / s", "runs timed"], rows)
+    table = markdown_table(["workload", "trials x samples", "switches per trial",
+                            "wall time (best)", "per trial-sample", "M trial-samples / s",
+                            "runs timed"], rows)
     notes = (
         f"output arrays of the fixed-schedule run (x, y, u, mode): {out_bytes / 2**20:.0f} MiB.",
         ("every switch falls inside a sample interval: those intervals use exact two-segment "

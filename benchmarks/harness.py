@@ -1,6 +1,11 @@
 """Small timing utilities shared by the switchest benchmarks (not part of the test suite).
 
-* :func:`best_time` — repeat a call and keep the best wall time (``time.perf_counter``);
+* :func:`compare_interleaved` — time k contenders interleaved (A B C A B C ...) by CPU
+  time (``time.process_time``), with the load average before and after; a
+  :class:`Comparison` gives each contender's min and median per unit of work and the
+  ratios of medians and of mins to a reference (:func:`comparison_rows` tabulates them);
+* :func:`best_time` — repeat a call and keep the best wall time (``time.perf_counter``),
+  for sweeps of one implementation over sizes;
 * :func:`single_threaded_blas` — run the measurements with every loaded BLAS limited to
   one thread (threadpoolctl) and report that it did;
 * :func:`machine_info` — CPU count, load average, library versions and BLAS threads;
@@ -8,11 +13,19 @@
 
 Under CPU contention a threaded BLAS on 3x3..9x9 matrices has been measured to run a
 hundred times slower (DESIGN.md §4), so every measurement here runs single-threaded.
+
+Why interleaved CPU time: the machine is shared. Wall time charges a contender for the
+time other processes held the core; CPU time (user + system, all threads of this
+process) does not, and interleaving the contenders round by round exposes them to the
+same drift of load, cache and clock frequency, so their ratio holds up where the absolute
+numbers move. The load average printed beside each ratio says how busy the machine was.
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
+import importlib.metadata
 import os
 import platform
 import sys
@@ -28,13 +41,20 @@ import scipy.linalg  # load SciPy's own BLAS now, so the thread limit reaches it
 from threadpoolctl import threadpool_info, threadpool_limits
 
 __all__ = [
+    "Comparison",
+    "Contender",
     "Section",
     "Timing",
     "best_time",
     "blas_report",
+    "compare_interleaved",
+    "comparison_header",
+    "comparison_rows",
+    "format_load",
     "format_seconds",
     "machine_info",
     "markdown_table",
+    "package_versions",
     "print_sections",
     "quick_flag",
     "single_threaded_blas",
@@ -73,6 +93,151 @@ def best_time(fn: Callable[[], Any], *, repeat: int = 3, budget: float | None = 
         if budget is not None and sum(times) >= budget:
             break
     return Timing(best=min(times), times=tuple(times), result=result)
+
+
+@dataclass(frozen=True)
+class Contender:
+    """One contender of an interleaved comparison.
+
+    Parameters
+    ----------
+    name : str
+        Label in tables and the key of the :class:`Comparison`'s dictionaries.
+    call : callable
+        ``call()`` does the work once; its return value is kept (the last one), so
+        the caller can check that the contenders agree. Block on asynchronous work
+        inside it (e.g. ``jax.block_until_ready``).
+    units : float
+        Units of work per call (e.g. trials x steps): times are reported per unit.
+    number : int
+        Calls per timed sample, for calls too short to time alone; the sample is their
+        CPU time divided by ``number``.
+    warmup : callable, optional
+        Called once before timing (compilation, caches); default ``call`` itself. Give
+        a cheap call on a slice of the data when ``call`` is slow.
+    """
+
+    name: str
+    call: Callable[[], Any]
+    units: float = 1.0
+    number: int = 1
+    warmup: Callable[[], Any] | None = None
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """CPU and wall seconds per call of each contender, round by round, and the load."""
+
+    names: tuple[str, ...]
+    units: dict[str, float]
+    cpu: dict[str, tuple[float, ...]]
+    wall: dict[str, tuple[float, ...]]
+    results: dict[str, Any] = field(repr=False)
+    load_before: tuple[float, float, float]
+    load_after: tuple[float, float, float]
+
+    def calls(self, name: str) -> int:
+        """How many samples of ``name`` were timed."""
+        return len(self.cpu[name])
+
+    def min(self, name: str) -> float:
+        """Least CPU seconds per unit of work of ``name`` (the least disturbed sample)."""
+        return min(self.cpu[name]) / self.units[name]
+
+    def median(self, name: str) -> float:
+        """Median CPU seconds per unit of work of ``name``."""
+        return float(np.median(self.cpu[name])) / self.units[name]
+
+    def wall_median(self, name: str) -> float:
+        """Median wall seconds per unit of work of ``name`` (for reference only)."""
+        return float(np.median(self.wall[name])) / self.units[name]
+
+    def ratio(self, name: str, reference: str) -> tuple[float, float]:
+        """``(ratio of medians, ratio of mins)`` of ``name`` to ``reference`` per unit of work."""
+        return (self.median(name) / self.median(reference), self.min(name) / self.min(reference))
+
+
+def compare_interleaved(
+    contenders: Sequence[Contender],
+    *,
+    rounds: int = 5,
+    budget: float | None = None,
+    warm_up: bool = True,
+) -> Comparison:
+    """Time ``contenders`` interleaved by CPU time: A B C, A B C, ... for ``rounds`` rounds.
+
+    Each contender is first warmed up once (untimed). Each timed sample is the CPU time
+    (``time.process_time``: user + system of every thread of this process) of ``number``
+    calls divided by ``number``; the wall time (``time.perf_counter``) is recorded beside
+    it. The garbage collector runs, untimed, before every sample. With ``budget`` (CPU
+    seconds), a contender whose samples have used it up sits out the remaining rounds
+    (each contender is timed at least once), so one slow contender does not stretch the
+    run; the others keep their rounds. ``os.getloadavg()`` is read before and after.
+    """
+    if rounds < 1:
+        raise ValueError(f"rounds must be >= 1, got {rounds}")
+    names = tuple(c.name for c in contenders)
+    if len(set(names)) != len(names):
+        raise ValueError(f"contender names must be unique, got {names}")
+    if warm_up:
+        for c in contenders:
+            (c.warmup or c.call)()
+    cpu: dict[str, list[float]] = {c.name: [] for c in contenders}
+    wall: dict[str, list[float]] = {c.name: [] for c in contenders}
+    results: dict[str, Any] = {}
+    load_before = os.getloadavg()
+    for _ in range(rounds):
+        for c in contenders:
+            if budget is not None and cpu[c.name] and sum(cpu[c.name]) * c.number >= budget:
+                continue
+            results.pop(c.name, None)  # free the previous result before the next call
+            gc.collect()
+            start_cpu, start_wall = time.process_time(), time.perf_counter()
+            for _ in range(c.number):
+                result = c.call()
+            cpu[c.name].append((time.process_time() - start_cpu) / c.number)
+            wall[c.name].append((time.perf_counter() - start_wall) / c.number)
+            results[c.name] = result
+    return Comparison(
+        names=names,
+        units={c.name: float(c.units) for c in contenders},
+        cpu={k: tuple(v) for k, v in cpu.items()},
+        wall={k: tuple(v) for k, v in wall.items()},
+        results=results,
+        load_before=load_before,
+        load_after=os.getloadavg(),
+    )
+
+
+def format_load(comparison: Comparison) -> str:
+    """The 1-minute load average before and after a comparison, e.g. ``'0.91 -> 0.95'``."""
+    return f"{comparison.load_before[0]:.2f} -> {comparison.load_after[0]:.2f}"
+
+
+def comparison_header(unit: str, reference: str) -> list[str]:
+    """Column titles matching :func:`comparison_rows`."""
+    return [f"median per {unit} (CPU)", "min (CPU)", f"median / {reference}",
+            f"min / {reference}", "samples", f"wall median per {unit}", "load (1 min)"]
+
+
+def comparison_rows(comparison: Comparison, reference: str, *, prefix: Sequence[Any] = (),
+                    labels: dict[str, str] | None = None,
+                    names: Sequence[str] | None = None) -> list[list[Any]]:
+    """One table row per contender: ``prefix`` cells, its label, then :func:`comparison_header`.
+
+    Ratios are to ``reference`` (its own row shows 1), per unit of work; the load is the
+    1-minute load average before and after the comparison. ``names`` picks and orders the
+    contenders (default: all, in the order they ran).
+    """
+    labels = labels or {}
+    rows = []
+    for name in comparison.names if names is None else names:
+        med, low = comparison.ratio(name, reference)
+        rows.append([*prefix, labels.get(name, name), format_seconds(comparison.median(name)),
+                     format_seconds(comparison.min(name)), f"{med:.3g}", f"{low:.3g}",
+                     comparison.calls(name), format_seconds(comparison.wall_median(name)),
+                     format_load(comparison)])
+    return rows
 
 
 def blas_report() -> list[dict[str, Any]]:
@@ -121,6 +286,20 @@ def _cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+PEERS = ("numba", "filterpy", "dynamax", "jax", "jaxlib")
+
+
+def package_versions(names: Sequence[str] = PEERS) -> dict[str, str]:
+    """Installed versions of the named distributions (``'not installed'`` where missing)."""
+    versions = {}
+    for name in names:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            versions[name] = "not installed"
+    return versions
+
+
 def machine_info() -> dict[str, Any]:
     """CPU, load, Python / NumPy / SciPy versions and the BLAS libraries with their threads."""
     try:
@@ -136,6 +315,7 @@ def machine_info() -> dict[str, Any]:
         "platform": platform.platform(),
         "numpy": np.__version__,
         "scipy": scipy.__version__,
+        "peers": package_versions(),
         "blas": blas_report(),
     }
 
@@ -151,7 +331,8 @@ def format_seconds(seconds: float) -> str:
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     """A GitHub-flavoured markdown table; cells are converted with ``str``."""
-    lines = ["| " + " | ".join(map(str, header)) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines = ["| " + " | ".join(map(str, header)) + " |",
+             "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(map(str, row)) + " |" for row in rows]
     return "\n".join(lines)
 

@@ -1,12 +1,15 @@
 """Run every switchest benchmark and write ``benchmarks/results.md``.
 
-All measurements run with BLAS limited to one thread (threadpoolctl); the file
-records the machine (CPU count, load average before and after each benchmark,
-NumPy / SciPy versions, BLAS libraries and their threads) next to one markdown
-table per benchmark.
+All measurements run with BLAS limited to one thread (threadpoolctl). Comparisons of
+contenders (switchest vs FilterPy, vs dynamax, vs a numba yardstick; refine vs grid;
+few vs many trials) are interleaved by CPU time (``harness.compare_interleaved``);
+the sweeps of one implementation (IMM-EV1 scaling, simulation) keep the best wall
+time of repeats. The file records the machine (CPU count, load average before and
+after each benchmark, NumPy / SciPy and peer library versions, BLAS libraries and
+their threads) next to the markdown tables of every benchmark.
 
-Run: ``python benchmarks/run_all.py [--quick]`` (about two minutes in full on
-two cores, a third of it FilterPy's loop over 500 trials).
+Run: ``python benchmarks/run_all.py [--quick]`` (several minutes in full on two
+cores; ``--quick`` is a smoke run of about a minute).
 """
 
 from __future__ import annotations
@@ -15,14 +18,19 @@ import argparse
 import datetime
 import os
 import subprocess
+import sys
 import time
+import traceback
 from pathlib import Path
 
 import bench_engine
 import bench_imm
 import bench_imm_ev1
+import bench_mode_kalman
 import bench_simulate
+import bench_switch_time
 from harness import (
+    Section,
     format_seconds,
     machine_info,
     markdown_table,
@@ -34,6 +42,8 @@ HERE = Path(__file__).resolve().parent
 BENCHMARKS = [
     ("IMM vs FilterPy", bench_imm),
     ("IMM engine vs a plain scalar numba IMM", bench_engine),
+    ("Kalman filter vs dynamax", bench_mode_kalman),
+    ("Switching-time estimation: refine vs grid", bench_switch_time),
     ("IMM-EV1 scaling", bench_imm_ev1),
     ("Simulation", bench_simulate),
 ]
@@ -54,7 +64,8 @@ def _load() -> str:
     return ", ".join(f"{v:.2f}" for v in os.getloadavg())
 
 
-def _machine_section(info: dict, blas: dict, loads: list[tuple[str, str, str, str]], quick: bool) -> str:
+def _machine_section(info: dict, blas: dict, loads: list[tuple[str, str, str, str]],
+                     quick: bool) -> str:
     libs = markdown_table(
         ["library", "API", "version", "threads by default", "threads during the runs"],
         [(b["library"], b["api"], b["version"], b["threads"], i["threads"])
@@ -65,7 +76,9 @@ def _machine_section(info: dict, blas: dict, loads: list[tuple[str, str, str, st
         "",
         (f"- CPU: {info['cpu']}; `os.cpu_count()` = {info['cpu_count']}, usable by this process: "
          f"{info['usable_cpus']}"),
-        f"- Python {info['python']}, NumPy {info['numpy']}, SciPy {info['scipy']}; {info['platform']}",
+        (f"- Python {info['python']}, NumPy {info['numpy']}, SciPy {info['scipy']}; "
+         f"{info['platform']}"),
+        "- peers and compilers: " + ", ".join(f"{k} {v}" for k, v in info["peers"].items()),
         f"- switchest source: {_source_revision()}",
         ("- BLAS limited to one thread with `threadpoolctl.threadpool_limits(1)`: "
          f"**{'yes' if blas['single_threaded'] else 'NO'}**"),
@@ -85,17 +98,24 @@ def _machine_section(info: dict, blas: dict, loads: list[tuple[str, str, str, st
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="reduced sizes for a smoke run")
-    parser.add_argument("--output", type=Path, default=HERE / "results.md", help="markdown file to write")
+    parser.add_argument("--output", type=Path, default=HERE / "results.md",
+                        help="markdown file to write")
     args = parser.parse_args(argv)
 
     info = machine_info()
-    loads, body = [], []
+    loads, body, failed = [], [], []
     with single_threaded_blas() as blas:
         print(f"BLAS limited to one thread: {blas['single_threaded']}", flush=True)
         for title, module in BENCHMARKS:
             before = _load()
             start = time.perf_counter()
-            sections = module.run(quick=args.quick)
+            try:
+                sections = module.run(quick=args.quick)
+            except Exception as exc:  # noqa: BLE001 - report it, run the rest, exit non-zero
+                traceback.print_exc()
+                failed.append(title)
+                sections = [Section(f"{title}: FAILED", markdown_table(
+                    ["exception"], [[f"`{type(exc).__name__}: {exc}`"]]))]
             elapsed = time.perf_counter() - start
             loads.append((title, before, _load(), format_seconds(elapsed)))
             print_sections(sections)
@@ -103,11 +123,16 @@ def main(argv=None) -> None:
 
     stamp = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
     header = (f"# switchest benchmark results\n\nWritten by `benchmarks/run_all.py` on {stamp}. "
-              "Timings are wall-clock bests of repeated runs (`time.perf_counter`); see "
-              "`benchmarks/README.md` for what each benchmark measures.\n")
+              "Comparisons of contenders are interleaved rounds timed by CPU time "
+              "(`time.process_time`; median and min, ratios of medians and of mins, with the "
+              "load average); the IMM-EV1 and simulation sweeps are wall-clock bests of "
+              "repeats (`time.perf_counter`). See `benchmarks/README.md` for what each "
+              "benchmark measures.\n")
     text = "\n".join([header, _machine_section(info, blas, loads, args.quick), *body])
     args.output.write_text(text)
     print(f"wrote {args.output}")
+    if failed:
+        sys.exit(f"benchmarks that raised: {', '.join(failed)}")
 
 
 if __name__ == "__main__":
