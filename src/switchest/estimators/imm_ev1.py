@@ -9,36 +9,45 @@ predicted covariance (§IV), and updates; its weight is
 ``a^i_{k+1} = b_ji a^j_k`` (times ``pi_ji`` when a transition matrix is given),
 normalized, kept in log domain.
 
+Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
+:mod:`switchest.estimators._compiled.imm_ev1` (``imm_ev1_run``, ``imm_ev1_step``), which
+holds the one implementation of each equation.
+
 Outliers: a hypothesis (predecessor, destination, grid point) whose filter rejects
-the measurement (its normalized innovation squared overflows or exceeds ``gate``,
-:func:`~switchest.estimators.kalman.kf_update`) gets likelihood zero; when every
-hypothesis rejects it, the sample is treated as missing and flagged in
-``Estimate.outlier``.
+the measurement (its normalized innovation squared overflows or exceeds ``gate``)
+gets likelihood zero; when every hypothesis rejects it, the sample is treated as
+missing and flagged in ``Estimate.outlier``.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_probability_vector, check_row_stochastic, positive_scalar
-from .._linalg import log_normalize
+from .._checks import (
+    check_memory,
+    check_probability_vector,
+    check_row_stochastic,
+    float_array,
+    positive_scalar,
+)
 from ..discretize import pairwise_grid, switch_grid
+from ._compiled import raise_for_status, warn_for_repairs
+from ._compiled.imm_ev1 import imm_ev1_run, imm_ev1_step
 from .base import Estimate, Estimator
-from .kalman import kf_predict, kf_update
-from .switch_time import _switch_time_loglik, marginalize_switch_time
 
 __all__ = ["IMMEV1State", "IMMEV1Filter"]
 
 
 @dataclass(frozen=True, eq=False)
 class IMMEV1State:
-    """Per-destination filters ``x (N, L, n)``, ``P (N, L, n, n)``, normalized log-weights
-    ``log_weight (N, L)``, and for the last interval each destination's chosen
-    predecessor ``predecessor (N, L)`` and switch offset ``switch_offset (N, L)``
-    (NaN when the predecessor is the same mode); ``outlier (N,)`` is True where
-    every hypothesis rejected the last measurement."""
+    """Per-destination filters ``x (..., L, n)``, ``P (..., L, n, n)``, normalized
+    log-weights ``log_weight (..., L)``, and for the last interval each destination's chosen
+    predecessor ``predecessor (..., L)`` and switch offset ``switch_offset (..., L)``
+    (NaN when the predecessor is the same mode); ``outlier (...)`` is True where
+    every hypothesis rejected the last measurement. ``...`` is the batch shape."""
 
     x: np.ndarray
     P: np.ndarray
@@ -72,8 +81,10 @@ class IMMEV1Filter(Estimator):
         Chen. ``"likelihood"`` maximizes ``b_ji`` alone, the literal reading of the
         printed line "j_hat = max_j b_ij" of Algorithm 1.
     likelihood : {"innovation", "printed"}
-        The ``J_k`` maximized over the grid, see
-        :func:`switchest.estimators.switch_time.switch_time_loglik`.
+        The ``J_k`` maximized over the grid (§IV): ``"innovation"`` is
+        ``log N(y; C x-(tau), C P-(tau) C' + R)``, the likelihood of the measurement given
+        the past; ``"printed"`` the paper's literal ``J_k(tau) = N(y; C x-(tau), R)``, which
+        ignores the prediction covariance (the update is the Kalman one either way).
     switch_time : {"max", "marginal"}
         ``"max"`` (the paper) keeps the grid point of largest ``J_k`` (eq. (23)).
         ``"marginal"`` (beyond the paper) treats the switching instant as uniform
@@ -99,13 +110,15 @@ class IMMEV1Filter(Estimator):
                  switch_time: str = "max", gate: float | None = None):
         self._set_prior(system, x0, P0)
         if not system.is_continuous:
-            raise ValueError("IMMEV1Filter needs a continuous-time system (switches inside intervals)")
+            raise ValueError("IMMEV1Filter needs a continuous-time system "
+                             "(switches inside intervals)")
         L = system.n_modes
         switch_grid(1.0, grid)
         self.grid = int(grid)
         self.epsilon = positive_scalar(epsilon, "epsilon", allow_zero=True)
         self.gate = None if gate is None else positive_scalar(gate, "gate")
-        self.transition = None if transition is None else check_row_stochastic(transition, "transition", n=L)
+        self.transition = (None if transition is None
+                           else check_row_stochastic(transition, "transition", n=L))
         p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
         self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
         if predecessor not in ("path", "likelihood"):
@@ -119,7 +132,9 @@ class IMMEV1Filter(Estimator):
         self.switch_time = switch_time
         with np.errstate(divide="ignore"):
             self._log_p0 = np.log(self.mode_prob0)
-            self._log_transition = None if transition is None else np.log(self.transition)
+            self._log_transition = (np.zeros((L, L)) if transition is None
+                                    else np.log(self.transition))
+        self._gate = math.inf if self.gate is None else self.gate
 
     def init(self, batch_shape=()) -> IMMEV1State:
         """Every destination filter starts from the prior."""
@@ -135,75 +150,88 @@ class IMMEV1Filter(Estimator):
 
     def step(self, state: IMMEV1State, y, u=None, *, dt=None) -> IMMEV1State:
         """One sample of Algorithm 1: switch-time grid search for every mode pair,
-        predecessor selection, prediction and update."""
-        sys = self.system
-        L = sys.n_modes
-        N = state.x.shape[0]
-        if dt is None:  # first sample: update each mode's filter with the prior
-            x, P, ll = kf_update(state.x, state.P, y[:, None, :], sys.C, sys.R, gate=self.gate)
-            outlier = np.all(np.isneginf(ll), axis=-1)  # every mode rejected y: a missing sample
-            ll = np.where(outlier[:, None], 0.0, ll)
-            log_w, _ = log_normalize(state.log_weight + ll)
-            return IMMEV1State(x, P, log_w, state.predecessor, state.switch_offset, outlier)
-        if u is None:
-            u = np.zeros((N, sys.n_inputs))
-        grid = pairwise_grid(sys, dt, self.grid)  # [j, i, k]: from j to i at tau_k
-        # predictions for every (trial, predecessor j, destination i, grid point k)
-        x_pred, P_pred = kf_predict(
-            state.x[:, :, None, None, :], state.P[:, :, None, None, :, :],
-            grid.F, grid.G, u[:, None, None, None, :], grid.Qd, inflation=self.epsilon,
-        )
-        C = sys.C[None, None, :, None]
-        R = sys.R[None, None, :, None]
-        y_h = y[:, None, None, None, :]
-        # every hypothesis updated; a rejected one keeps its prediction, J = -inf
-        x_up, P_up, J = kf_update(x_pred, P_pred, y_h, C, R, gate=self.gate)
-        if self.likelihood == "printed":
-            J = np.where(np.isneginf(J), -np.inf,
-                         _switch_time_loglik(x_pred, P_pred, y_h, C, R, likelihood="printed"))
-        outlier = np.all(np.isneginf(J), axis=(1, 2, 3))  # every hypothesis rejected y
-        if outlier.any():  # a missing sample: every hypothesis keeps its prediction
-            J = np.where(outlier[:, None, None, None], 0.0, J)
-            x_up = np.where(outlier[:, None, None, None, None], x_pred, x_up)
-            P_up = np.where(outlier[:, None, None, None, None, None], P_pred, P_up)
-        tau = switch_grid(dt, self.grid)
-        if self.switch_time == "max":
-            best_k = np.argmax(J, axis=-1)[..., None]  # eq. (23) for every pair (N, j, i, 1)
-            log_b = np.take_along_axis(J, best_k, axis=-1)[..., 0]  # (N, j, i)
-            x_pair = np.take_along_axis(x_up, best_k[..., None], axis=-2)[..., 0, :]
-            P_pair = np.take_along_axis(P_up, best_k[..., None, None], axis=-3)[..., 0, :, :]
-            tau_pair = tau[best_k[..., 0]]
-        else:
-            x_pair, P_pair, log_b, tau_pair = marginalize_switch_time(J, x_up, P_up, tau)
-        path = state.log_weight[:, :, None] + log_b
-        if self._log_transition is not None:
-            path = path + self._log_transition
-        chooser = path if self.predecessor == "path" else log_b
-        j_hat = np.argmax(chooser, axis=1)  # (N, i): each destination's predecessor
-        n_idx, i_idx = np.arange(N)[:, None], np.arange(L)[None, :]
-        x, P = x_pair[n_idx, j_hat, i_idx], P_pair[n_idx, j_hat, i_idx]
-        log_w, _ = log_normalize(path[n_idx, j_hat, i_idx])  # a^i = b_ji a^j (pi_ji), normalized
-        offset = np.where(j_hat == i_idx, np.nan, tau_pair[n_idx, j_hat, i_idx])
-        return IMMEV1State(x, P, log_w, j_hat, offset, outlier)
+        predecessor selection, prediction and update; update only when ``dt`` is ``None``.
 
-    def _output(self, state: IMMEV1State) -> dict[str, np.ndarray]:
-        best = np.argmax(state.log_weight, axis=-1)
-        rows = np.arange(best.size)
-        return {
-            "x": state.x[rows, best],
-            "P": state.P[rows, best],
-            "mode_prob": np.exp(state.log_weight),
-            "mode": best,
-            "switch_time": state.switch_offset[rows, best],
-            "outlier": state.outlier,
-        }
+        One sample of the compiled kernel
+        (:func:`~switchest.estimators._compiled.imm_ev1.imm_ev1_step`), the one ``run``
+        loops over.
+        """
+        sys = self.system
+        batch = state.log_weight.shape[:-1]
+        L, n, m = sys.n_modes, sys.n_states, sys.n_outputs
+        N = int(np.prod(batch, dtype=np.int64))
+        y = float_array(y, "y")
+        if y.shape != (*batch, m):
+            raise ValueError(f"y must have shape {(*batch, m)} (the state's batch shape and "
+                             f"m = {m} outputs), got {y.shape}")
+        u = np.zeros(sys.n_inputs) if u is None else float_array(u, "u")
+        try:
+            u = np.broadcast_to(u, (*batch, sys.n_inputs)).reshape(N, sys.n_inputs)
+        except ValueError:
+            raise ValueError(f"u must broadcast to {(*batch, sys.n_inputs)} (the state's batch "
+                             f"shape and l = {sys.n_inputs} inputs), got {u.shape}") from None
+        steps = None if dt is None else np.array([positive_scalar(dt, "dt")])
+        F, G, Qd, tau = self._transitions(steps)
+        out = imm_ev1_step(
+            state.x.reshape(N, L, n), state.P.reshape(N, L, n, n),
+            state.log_weight.reshape(N, L), state.predecessor.reshape(N, L),
+            state.switch_offset.reshape(N, L), y.reshape(N, m), u, F, G, Qd, tau[0],
+            sys.C, sys.R, self._log_transition, predict_first=dt is not None,
+            **self._options())
+        raise_for_status(out.status)
+        warn_for_repairs(out)
+        return IMMEV1State(
+            x=out.x.reshape(*batch, L, n), P=out.P.reshape(*batch, L, n, n),
+            log_weight=out.log_weight.reshape(*batch, L),
+            predecessor=out.predecessor.reshape(*batch, L),
+            switch_offset=out.switch_offset.reshape(*batch, L),
+            outlier=out.outlier.reshape(batch),
+        )
 
     def run(self, y, u=None, t=None) -> Estimate:
         """Filter ``y (..., K, m)``; ``switch_time`` holds the MAP path's estimated
-        absolute switching instant in ``(t_{k-1}, t_k)``, NaN where it has none."""
+        absolute switching instant in ``(t_{k-1}, t_k)``, NaN where it has none.
+
+        The whole record runs in the compiled kernel
+        (:func:`~switchest.estimators._compiled.imm_ev1.imm_ev1_run`), with the transitions
+        of every hypothesis computed once per distinct sampling step.
+        """
         y2, u2, t, batch = self._prepare(y, u, t)
-        est = self._loop(y2, u2, t)
+        sys = self.system
+        steps, which = np.unique(np.diff(t), return_inverse=True)
+        F, G, Qd, tau = self._transitions(steps if steps.size else None)
+        table = np.zeros(t.size, dtype=np.int64)
+        table[1:] = which
+        out = imm_ev1_run(y2, u2, F, G, Qd, table, tau, sys.C, sys.R, self._log_transition,
+                          self.x0, self.P0, self._log_p0, **self._options())
+        raise_for_status(out.status)
+        warn_for_repairs(out)
         start = np.concatenate([[np.nan], t[:-1]])
-        est = Estimate(x=est.x, P=est.P, mode_prob=est.mode_prob, mode=est.mode,
-                       switch_time=est.switch_time + start, outlier=est.outlier)
+        est = Estimate(x=out.x, P=out.P, mode_prob=out.mode_prob, mode=out.mode,
+                       switch_time=out.switch_offset + start, outlier=out.outlier)
         return self._unflatten(est, batch)
+
+    def _transitions(self, steps):
+        """The hypotheses' transitions ``F, G, Qd (D L L g, ...)`` for each sampling step of
+        ``steps (D,)`` (:func:`~switchest.discretize.pairwise_grid`: from ``j`` to ``i`` at
+        each instant of eq. (23)) and their grids ``tau (D, g)``; zeros of one step when
+        ``steps`` is ``None`` (nothing is predicted)."""
+        sys = self.system
+        L, n, l, m, g = sys.n_modes, sys.n_states, sys.n_inputs, sys.n_outputs, self.grid
+        M = L * L * g
+        if steps is None:
+            return np.zeros((M, n, n)), np.zeros((M, n, l)), np.zeros((M, n, n)), np.zeros((1, g))
+        check_memory(8 * steps.size * M * (2 * n * n + n * l + m * (n + l + m)),
+                     f"{steps.size} distinct sampling steps x L^2 g = {M} switching hypotheses "
+                     f"(their transitions)")
+        grids = [pairwise_grid(sys, h, g) for h in steps]
+        F = np.concatenate([gr.F.reshape(M, n, n) for gr in grids])
+        G = np.concatenate([gr.G.reshape(M, n, l) for gr in grids])
+        Qd = np.concatenate([gr.Qd.reshape(M, n, n) for gr in grids])
+        return F, G, Qd, np.stack([switch_grid(h, g) for h in steps])
+
+    def _options(self) -> dict:
+        """The kernel's options (:func:`~switchest.estimators._compiled.imm_ev1.imm_ev1_run`)."""
+        return {"epsilon": self.epsilon, "gate": self._gate,
+                "printed": self.likelihood == "printed", "marginal": self.switch_time == "marginal",
+                "by_path": self.predecessor == "path"}
