@@ -1,5 +1,7 @@
 """The command line: the demo runs end to end and prints its comparison; estimate's options and errors."""
 
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -7,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from switchest import cli as cli_module
 from switchest.cli import main
 from switchest.modelfile import load_model, save_model
 from switchest.simulate import simulate
@@ -49,6 +52,36 @@ def test_estimate_help_lists_every_method_and_the_integrated_output(capsys):
     out = " ".join(capsys.readouterr().out.split())
     assert all(m in out for m in METHODS) and "for rsls the y columns are the integrated output" in out
     assert all(flag in out for flag in ("--v-max", "--delta", "--Delta", "--switch-interval"))
+
+
+def test_the_parser_offers_the_methods_of_tabular():
+    """cli repeats tabular.METHODS for --method, so that building the parser imports no tabular."""
+    assert cli_module._METHODS == METHODS
+
+
+# what no command's --help may import: each takes from a tenth of a second to over a second
+_HEAVY = ("scipy", "numba", "pandas", "matplotlib", "cvxpy", "switchest.experiments",
+          "switchest.estimators", "switchest.tabular")
+_HELP = """
+import sys
+from switchest.cli import main
+try:
+    main(sys.argv[1:])
+except SystemExit:
+    pass
+print(" ".join(sys.modules))
+"""
+
+
+@pytest.mark.parametrize("command", [[], ["demo"], ["list"], ["run"], ["reproduce"],
+                                     ["estimate"], ["check"], ["report"]])
+def test_help_imports_none_of_the_heavy_modules(command):
+    """``switchest [command] --help`` answers at once: it imports neither the experiments, the
+    estimators, scipy, numba, pandas nor matplotlib (checked in a fresh interpreter)."""
+    done = subprocess.run([sys.executable, "-c", _HELP, *command, "--help"], capture_output=True,
+                          text=True, check=True)
+    loaded = set(done.stdout.splitlines()[-1].split())  # the line after the help
+    assert not [m for m in _HEAVY if m in loaded], sorted(loaded)
 
 
 def test_min_distance_options_override_the_model_file(lee_csv, tmp_path):

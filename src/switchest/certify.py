@@ -18,9 +18,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from ._checks import memory_limit
+from ._threads import one_blas_thread
 from .analysis import (
     combined_observability,
     cqlf,
@@ -377,7 +377,7 @@ def certify(spec: ModelSpec) -> list[Check]:
     tenfold.
     """
     out = []
-    with threadpool_limits(1):
+    with one_blas_thread():
         for check in CHECKS:
             try:
                 out.append(check(spec))

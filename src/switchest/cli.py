@@ -7,56 +7,60 @@ exception is a bug in switchest: one line says so, exit code 1. With ``--debug``
 (before or after the command) the exception propagates with its traceback,
 except for errors in the command line itself. Ctrl-C exits with code 130; an
 interrupted ``run`` or ``reproduce`` says how many tasks are stored and the
-command that resumes it. Long runs show a progress bar with an ETA on a terminal.
+command that resumes it. Long runs show a progress bar with an ETA on a terminal, and the
+first run after install says so there while numba compiles the filter kernels.
+
+The commands import what they use when they run: the experiments, the estimators, pandas and
+matplotlib take seconds to import, and ``switchest --help`` needs none of them.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shlex
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
-import numpy as np
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
-from rich.table import Table
 
 from . import __version__
-from .certify import certify
-from .estimators import IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
-from .experiments import RunInterrupted, Store, get, names, run_experiment, write_report
-from .experiments.report import AGREE
-from .experiments.runner import MAX_WORKERS
-from .metrics import mode_accuracy, rmse, switch_time_error
-from .modelfile import load_model
-from .models import BOOST_INPUT_VOLTAGE, BOOST_SAMPLE_PERIOD, boost_converter, boost_switching
-from .plotting import curves
-from .signals import periodic
-from .simulate import simulate
-from .tabular import METHODS, estimate_table
+
+if TYPE_CHECKING:
+    from rich.table import Table
+
+    from .certify import Check
+    from .experiments import Store
+    from .modelfile import ModelSpec
 
 DEMO_MAX_SAMPLES = 10**6
 """Most trials x samples ``switchest demo`` simulates and filters (about 0.3 GB)."""
 
 _DEMO_BYTES_PER_SAMPLE = 300  # peak memory per trial and sample of the demo: 230-330 B measured
 _DEMO_SCORE_START = 10  # the demo scores the filters after their first 10 samples
+_METHODS = ("kalman", "switch-time", "imm", "imm-ev1", "min-distance", "rsls", "impulsive")
+"""``switchest.tabular.METHODS``, repeated so that building the parser does not import tabular
+(pandas, scipy, the estimators); tests/test_cli.py holds the two equal."""
+_COMPILING = "compiling the filter kernels (once after install; it can take a few minutes)…"
 
 
 class _UsageError(Exception):
     """An error in the command line itself (an option value, a path): exit code 2."""
+
+
+class _Interrupted(Exception):
+    """A run stopped by Ctrl-C, its tasks so far stored (``run``: the runner's
+    ``RunInterrupted``): exit code 130."""
+
+    def __init__(self, run):
+        super().__init__(str(run))
+        self.run = run
 
 
 class _Parser(argparse.ArgumentParser):
@@ -82,7 +86,7 @@ def _integer(low: int, what: str, high: int | None = None) -> Callable[[str], in
     return parse
 
 
-def _real(what: str, *, high: float = np.inf) -> Callable[[str], float]:
+def _real(what: str, *, high: float = math.inf) -> Callable[[str], float]:
     """A finite float option in ``(0, high]``; ``what`` says what is expected."""
 
     def parse(text: str) -> float:
@@ -90,7 +94,7 @@ def _real(what: str, *, high: float = np.inf) -> Callable[[str], float]:
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-        if not (np.isfinite(value) and 0 < value <= high):
+        if not (math.isfinite(value) and 0 < value <= high):
             raise argparse.ArgumentTypeError(f"expected {what}, got {text}")
         return value
 
@@ -107,9 +111,15 @@ def _existing_file(text: str) -> Path:
     return path
 
 
+def _workers(text: str) -> int:
+    """``--workers``: an int from 1 to the runner's ``MAX_WORKERS``."""
+    from .experiments.runner import MAX_WORKERS
+
+    return _integer(1, f"an integer from 1 to {MAX_WORKERS}", MAX_WORKERS)(text)
+
+
 _positive = _integer(1, "a positive integer")
 _seed = _integer(0, "a non-negative integer")
-_workers = _integer(1, f"an integer from 1 to {MAX_WORKERS}", MAX_WORKERS)
 _duration = _real("a finite positive number of seconds")
 _window = _real("a finite positive number")
 _probability = _real("a probability in (0, 1]", high=1.0)
@@ -147,12 +157,45 @@ def _output_file(path: Path, option: str, suffixes: tuple[str, ...] = ()) -> Pat
     return path
 
 
+# ---------------------------------------------------------------------- library calls
+def certify(spec: ModelSpec) -> list[Check]:
+    """:func:`switchest.certify.certify` (a name of this module, as tests replace it)."""
+    from .certify import certify as checks
+
+    return checks(spec)
+
+
+def run_experiment(*args, **kwargs) -> list[tuple[dict, dict]]:
+    """:func:`switchest.experiments.run_experiment` (a name of this module, as tests replace
+    it)."""
+    from .experiments import run_experiment as run
+
+    return run(*args, **kwargs)
+
+
+@contextmanager
+def _compile_notice() -> Iterator[None]:
+    """Say so on stderr when numba starts to compile the filter kernels inside the block: once
+    after install (or an upgrade), never when they load from the on-disk cache. Only on a
+    terminal, as the progress bar."""
+    errors = Console(stderr=True, highlight=False)
+    if not errors.is_terminal:
+        yield
+        return
+    from .estimators._compiled.warmup import on_first_compile
+
+    with on_first_compile(lambda: errors.print(f"[dim]{_COMPILING}[/dim]")):
+        yield
+
+
 def _store_path(args: argparse.Namespace) -> Path:
     return Path(args.store) if args.store else Path(args.out) / "results.sqlite"
 
 
 def _open_store(args: argparse.Namespace) -> Store:
     """The store of ``--store`` (or OUT/results.sqlite), or a usage error naming the option."""
+    from .experiments import Store
+
     option = "--store" if args.store else "--out"
     try:
         return Store(_store_path(args))
@@ -163,6 +206,10 @@ def _open_store(args: argparse.Namespace) -> Store:
 # ---------------------------------------------------------------------- demo
 def _check_demo_size(trials: int, duration: float) -> None:
     """Refuse a demo too short to score or too large to hold in memory, before simulating."""
+    import numpy as np
+
+    from .models import BOOST_SAMPLE_PERIOD
+
     samples = np.floor(duration / BOOST_SAMPLE_PERIOD + 1e-9) + 1  # a float: may exceed any int
     if samples <= _DEMO_SCORE_START:
         raise _UsageError(
@@ -181,6 +228,15 @@ def _check_demo_size(trials: int, duration: float) -> None:
 
 def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
     """Simulate the boost converter of Shankar et al. §V.A and compare four filters."""
+    import numpy as np
+    from rich.table import Table
+
+    from .estimators import IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
+    from .metrics import mode_accuracy, rmse, switch_time_error
+    from .models import BOOST_INPUT_VOLTAGE, BOOST_SAMPLE_PERIOD, boost_converter, boost_switching
+    from .signals import periodic
+    from .simulate import simulate
+
     system = boost_converter()
     t = periodic(BOOST_SAMPLE_PERIOD, duration)
     u = np.array([BOOST_INPUT_VOLTAGE])
@@ -225,6 +281,10 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
 # ---------------------------------------------------------------------- run, reproduce, report
 def _summary_table(summary) -> Table:
     """Paper vs measured values of one experiment, with their ratio; row notes as a caption."""
+    from rich.table import Table
+
+    from .experiments.report import AGREE
+
     table = Table(title=escape(summary.title), title_justify="left", caption_justify="left")
     table.add_column("quantity", overflow="fold")
     for col in ("paper", "ours", "ours/paper", "unit"):
@@ -248,6 +308,18 @@ def _summary_table(summary) -> Table:
 
 def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store:
     """Run (or resume) each named experiment into the store; print its summary; return the store."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from .estimators._compiled.warmup import warm_up
+    from .experiments import get
+
     out = _output_folder(Path(args.out), "--out")
     store = _open_store(args)
     plans = []
@@ -263,6 +335,9 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
             plans.append((experiment, experiment.params(quick=args.quick, **overrides)))
         except ValueError as exc:
             raise _UsageError(f"--trials {args.trials}: {exc}" if overrides else str(exc)) from None
+    if args.scheduler is None:  # compile here, before the progress bar and the workers start
+        with _compile_notice():
+            warm_up()
     for experiment, params in plans:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
@@ -289,13 +364,20 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
 
 
 def _cmd_run(args: argparse.Namespace, console: Console) -> int:
+    from .experiments import RunInterrupted, names, write_report
+
     chosen = [args.name] if args.command == "run" else (names() if args.all else args.names)
     if not chosen:
         raise _UsageError("name the reproductions to run, or pass --all")
     unknown = [n for n in chosen if n not in names()]
     if unknown:
         raise _UsageError(f"unknown reproduction(s) {', '.join(unknown)}; see 'switchest list'")
-    store = _run(chosen, args, console)
+    try:
+        store = _run(chosen, args, console)
+    except RunInterrupted as exc:
+        if args.debug:
+            raise
+        raise _Interrupted(exc) from None
     if args.command == "reproduce":
         report = write_report(store, args.out, chosen)
         console.print(f"report: [bold]{escape(str(report))}[/bold]  "
@@ -304,6 +386,8 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
 
 
 def _cmd_report(args: argparse.Namespace, console: Console) -> int:
+    from .experiments import Store, write_report
+
     _output_folder(Path(args.out), "--out")
     try:
         store = Store(args.store)
@@ -316,11 +400,17 @@ def _cmd_report(args: argparse.Namespace, console: Console) -> int:
 # ---------------------------------------------------------------------- demo, list, estimate, check
 def _cmd_demo(args: argparse.Namespace, console: Console) -> int:
     _check_demo_size(args.trials, args.duration)
-    console.print(demo(args.trials, args.duration, args.seed, console))
+    with _compile_notice():
+        table = demo(args.trials, args.duration, args.seed, console)
+    console.print(table)
     return 0
 
 
 def _cmd_list(args: argparse.Namespace, console: Console) -> int:
+    from rich.table import Table
+
+    from .experiments import get, names
+
     table = Table(title="switchest reproductions")
     for col in ("name", "paper", "what"):
         table.add_column(col)
@@ -332,16 +422,23 @@ def _cmd_list(args: argparse.Namespace, console: Console) -> int:
 
 
 def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
+    from .modelfile import load_model
+    from .tabular import estimate_table
+
     out = _output_file(Path(args.out), "--out")
     plot = args.plot and _output_file(Path(args.plot), "--plot", ("png", "pdf", "svg"))
     spec = load_model(args.model)
-    table = estimate_table(spec, args.data, method=args.method, grid=args.grid, refine=args.refine,
-                           stay=args.stay, v_max=args.v_max, delta=args.delta, Delta=args.Delta,
-                           switch_interval=args.switch_interval)
+    with _compile_notice():
+        table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
+                               refine=args.refine, stay=args.stay, v_max=args.v_max,
+                               delta=args.delta, Delta=args.Delta,
+                               switch_interval=args.switch_interval)
     table.to_csv(out, index=False)
     console.print(f"{len(table)} samples estimated with {args.method}: "
                   f"[bold]{escape(str(out))}[/bold]")
     if plot is not None:
+        from .plotting import curves
+
         states = table.filter(regex=r"^x\d+$").to_numpy()  # NaN rows (no estimate) leave gaps
         switches = table["switch_time"].dropna().to_numpy() if "switch_time" in table else ()
         title = f"{args.model}: {args.method}" + (
@@ -353,6 +450,10 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
 
 
 def _cmd_check(args: argparse.Namespace, console: Console) -> int:
+    from rich.table import Table
+
+    from .modelfile import load_model
+
     spec = load_model(args.model)
     table = Table(title=escape(f"switchest check: {args.model}"), title_justify="left")
     for col in ("condition", "verdict", "margin", "paper", "detail"):
@@ -416,7 +517,7 @@ def _parser() -> _Parser:
                             "samples) and mode (the known mode, needed by kalman, switch-time, "
                             "rsls, impulsive); for rsls the y columns are the integrated output "
                             "at fine instants t including every switching instant t0 + kT")
-    p_est.add_argument("--method", required=True, choices=METHODS,
+    p_est.add_argument("--method", required=True, choices=_METHODS,
                        help="kalman, switch-time (known modes); imm, imm-ev1 (modes unknown); "
                             "min-distance (Lee et al., uniform t); rsls (Wang et al., integrated "
                             "output); impulsive (Etienne et al.)")
@@ -459,10 +560,9 @@ def main(argv: list[str] | None = None) -> int:
     except _UsageError as exc:
         _say(errors, "error", str(exc))
         return 2
-    except RunInterrupted as exc:
-        if debug:
-            raise
-        _say(errors, "interrupted", f"{exc.stored} of {exc.total} tasks of {exc.experiment} are "
+    except _Interrupted as exc:
+        run = exc.run
+        _say(errors, "interrupted", f"{run.stored} of {run.total} tasks of {run.experiment} are "
                                     f"stored in {_store_path(args)}")
         _say(errors, "resume with", shlex.join(["switchest", *argv]))
         return 130

@@ -24,7 +24,7 @@ from ._checks import (
     positive_scalar,
 )
 from ._linalg import psd_sqrt
-from .discretize import mode_steps, segment_transitions
+from ._threads import one_blas_thread
 from .signals import SwitchingSignal, sample_segments
 from .system import SwitchedLinearSystem
 
@@ -100,6 +100,7 @@ class Trajectory:
 SignalSource = SwitchingSignal | Callable[[np.random.Generator], SwitchingSignal]
 
 
+@one_blas_thread()
 def simulate(
     system: SwitchedLinearSystem,
     signal: SignalSource,
@@ -153,6 +154,11 @@ def simulate(
         Also when the outputs would not fit in memory: ``N (K (n + m + l + 1) +
         Kf (n + 1))`` floats against :func:`switchest._checks.memory_limit` (half
         of the physical memory), estimated before anything is drawn.
+
+    Notes
+    -----
+    BLAS runs on one thread during the call (:func:`switchest._threads.one_blas_thread`):
+    threads only slow down its small products, many times over on a busy machine.
     """
     if not isinstance(system, SwitchedLinearSystem):
         raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
@@ -235,6 +241,9 @@ def _simulate_integrated(system, signal, t, x0, u, *, trials, rng, fine_dt) -> T
 
 def _propagate(system, modes, offsets, grid, x, u, rng) -> np.ndarray:
     """States at every grid instant ``(N, G, n)``; the loop runs over time only."""
+    # imported here: `import switchest` imports this module, and discretize imports scipy
+    from .discretize import mode_steps, segment_transitions
+
     N, n = x.shape
     X = np.empty((N, grid.size, n))
     X[:, 0] = x

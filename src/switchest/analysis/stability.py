@@ -18,9 +18,9 @@ from typing import Literal
 
 import numpy as np
 from scipy.sparse.linalg import ArpackError, LinearOperator, eigs
-from threadpoolctl import threadpool_limits
 
 from .._checks import check_finite, check_probability_vector, float_array, positive_int, positive_scalar
+from .._threads import one_blas_thread
 from ._lmi import (
     cp,
     max_eigenvalue,
@@ -448,7 +448,7 @@ def _operator_radius(A: np.ndarray, p: np.ndarray) -> float:
     try:
         # one BLAS thread: a sequential iteration of n x n products gains little from threads
         # and, on a busy machine, was measured 16x slower with them (n = 200)
-        with threadpool_limits(1):
+        with one_blas_thread():
             values = eigs(op, k=1, which="LM", v0=start, tol=_ARPACK_TOL, return_eigenvectors=False)
     except ArpackError as exc:
         raise np.linalg.LinAlgError(

@@ -32,8 +32,9 @@ from collections.abc import Callable, Hashable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
+from .._threads import one_blas_thread
+from ..estimators._compiled.warmup import warm_up
 from .registry import Experiment, get
 from .store import Claimant, Store, process_token, task_key
 
@@ -87,7 +88,7 @@ def execute_task(name: str, config: dict, seed: list[int]) -> tuple[dict, float]
     experiment = get(name)
     rng = np.random.default_rng(np.random.SeedSequence(seed[0], spawn_key=tuple(seed[1:])))
     start = time.perf_counter()
-    with threadpool_limits(1):
+    with one_blas_thread():
         result = experiment.run_task(config, rng)
     return result, time.perf_counter() - start
 
@@ -390,7 +391,10 @@ def _backend(scheduler: str | None, workers: int, tasks: int) -> _Backend:
     if scheduler is not None:
         return _Dask(scheduler)
     size = min(workers, tasks, _cores())
-    return _Pool(size) if size > 1 else _InProcess()
+    if size == 1:
+        return _InProcess()
+    warm_up()  # the workers start with the compiled kernels rather than each compiling them
+    return _Pool(size)
 
 
 def _cores() -> int:

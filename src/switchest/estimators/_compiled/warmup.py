@@ -1,0 +1,117 @@
+"""Compile the filter kernels before their first use, and tell when numba compiles.
+
+numba compiles a kernel at its first call after install and keeps it on disk (``cache=True``:
+``__pycache__`` beside the sources, or ``NUMBA_CACHE_DIR``); later processes load it. The
+first compile of the IMM's kernel takes about 20 s of one core, loading it a fraction of a
+second.
+
+- :func:`warm_up` calls every kernel once on tiny arrays, through the wrappers the estimators
+  call, so what it compiles are the signatures the estimators use. The experiment runner calls
+  it before it starts worker processes, which then inherit (fork) or load (spawn) the kernels
+  instead of each compiling them.
+- :func:`on_first_compile` calls back when numba starts to compile. numba looks in the
+  on-disk cache first and compiles (broadcasting its ``numba:compile`` event) only when the
+  cache has no entry for the signature, for this source and this numba: the command line
+  announces the wait there, and says nothing when the cache is warm.
+
+A kernel module registers its warm-up when it is imported (``_compiled/__init__`` imports
+every kernel module, so all have registered before :func:`warm_up` runs)::
+
+    from .warmup import register
+
+    @register
+    def _warm_up() -> None:
+        my_kernel_run(...)  # tiny arrays, of the dtypes and layouts the estimators pass
+
+This module imports no kernel module at its top, so that they can import it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+import numpy as np
+from numba.core.event import Listener, install_listener
+
+__all__ = ["on_first_compile", "register", "warm_up"]
+
+_WARM_UPS: list[Callable[[], object]] = []
+
+
+def register(warm_up: Callable[[], object]) -> Callable[[], object]:
+    """Add ``warm_up`` (no arguments: it calls a module's kernels once on tiny arrays) to
+    what :func:`warm_up` runs; returns it, so it can decorate the function."""
+    _WARM_UPS.append(warm_up)
+    return warm_up
+
+
+def warm_up() -> bool:
+    """Call every registered kernel once; return whether numba compiled any of them (the
+    on-disk cache lacked it) rather than only load them."""
+    compiled = []
+    with on_first_compile(lambda: compiled.append(True)):
+        for run in _WARM_UPS:
+            run()
+    return bool(compiled)
+
+
+class _FirstCompile(Listener):
+    """Calls its callback at the start of the first compile it hears of."""
+
+    def __init__(self, callback: Callable[[], object]):
+        self._callback, self._heard = callback, False
+
+    def on_start(self, event) -> None:
+        if not self._heard:
+            self._heard = True
+            self._callback()
+
+    def on_end(self, event) -> None:
+        pass
+
+
+@contextmanager
+def on_first_compile(callback: Callable[[], object]) -> Iterator[None]:
+    """Call ``callback()`` when numba starts to compile something inside the block (once,
+    before the first compile; never if every kernel loads from the cache or memory)."""
+    with install_listener("numba:compile", _FirstCompile(callback)):
+        yield
+
+
+# ---------------------------------------------------------------------- the kernels of imm, kalman
+def _model(L: int = 2) -> tuple[np.ndarray, ...]:
+    """``F, G, Qd, C, R``, each ``(L, 1, 1)``: ``L`` modes of one state, input and output."""
+    one = np.ones((L, 1, 1))
+    return one, np.zeros((L, 1, 1)), one, one, one
+
+
+@register
+def _imm() -> None:
+    """:func:`.imm.imm_run` and :func:`.imm.imm_step`: one trial, two samples, two modes."""
+    from .imm import imm_run, imm_step
+
+    F, G, Qd, C, R = _model()
+    log_transition = np.log(np.full((2, 2), 0.5))
+    imm_run(np.zeros((1, 2, 1)), np.zeros((1, 2, 1)), F, G, Qd, np.array([[0, 0], [0, 1]]), C,
+            R, log_transition, np.zeros(1), np.eye(1), np.log([0.5, 0.5]))
+    imm_step(np.zeros((1, 2, 1)), np.ones((1, 2, 1, 1)), np.log(np.full((1, 2), 0.5)),
+             np.zeros((1, 1)), np.zeros((1, 1)), F, G, Qd, np.array([0, 1]), C, R,
+             log_transition, predict_first=True)
+
+
+@register
+def _kalman() -> None:
+    """:mod:`.kalman`'s filters along given transitions, with computed and with fixed gains,
+    over a record and one step: one trial, two samples, one mode."""
+    from .kalman import kalman_run, kalman_steady_run, kalman_steady_step, kalman_step
+
+    F, G, Qd, C, R = _model(1)
+    y, u, index = np.zeros((1, 2, 1)), np.zeros((1, 2, 1)), np.zeros((1, 2), dtype=np.int64)
+    gain = np.full((1, 1, 1), 0.5)
+    kalman_run(y, u, F, G, Qd, index, C, R, index, np.zeros(1), np.eye(1))
+    kalman_step(np.zeros((1, 1)), np.ones((1, 1, 1)), np.zeros((1, 1)), np.zeros((1, 1)), F, G,
+                Qd, C, R, predict_first=True)
+    kalman_steady_run(y, u, F, G, index, C, index, gain, Qd, Qd, R, np.zeros(1))
+    kalman_steady_step(np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1)), F, G, C, gain, Qd,
+                       Qd, R, predict_first=True)

@@ -1,0 +1,70 @@
+"""Warming the compiled kernels: after it, a new process loads every kernel from numba's on-disk
+cache and compiles nothing; a compile is announced once, a load never."""
+
+import json
+import subprocess
+import sys
+
+from numba import njit
+
+from switchest.estimators._compiled import warmup
+
+# In a fresh process: warm up, then report every kernel of the compiled engine numba holds a
+# signature of, with its cache hits and misses (numba's own account of loading and compiling).
+_FRESH_PROCESS = """
+import json, sys
+from numba.core.dispatcher import Dispatcher
+from switchest.estimators._compiled import warmup
+
+compiled = warmup.warm_up()
+kernels = {
+    f"{name}.{attr}": [sum(value.stats.cache_hits.values()),
+                       sum(value.stats.cache_misses.values())]
+    for name, module in list(sys.modules.items())
+    if name.startswith("switchest.estimators._compiled.")
+    for attr, value in vars(module).items()
+    if isinstance(value, Dispatcher) and value.signatures
+}
+print(json.dumps({"compiled": compiled, "kernels": kernels}))
+"""
+
+
+def test_after_warm_up_a_new_process_loads_every_kernel_from_the_cache():
+    warmup.warm_up()  # compiles what the cache lacks (minutes after install), else loads
+    done = subprocess.run([sys.executable, "-c", _FRESH_PROCESS], capture_output=True,
+                          text=True, check=True)
+    report = json.loads(done.stdout)
+    kernels = report["kernels"]
+    assert report["compiled"] is False, kernels
+    assert kernels and all(hits >= 1 and misses == 0 for hits, misses in kernels.values()), kernels
+
+
+def test_a_compile_is_announced_once_and_a_compiled_function_not_at_all():
+    @njit  # no on-disk cache: compiled in this process
+    def double(x):
+        return 2.0 * x
+
+    @njit
+    def triple(x):
+        return 3.0 * x
+
+    heard = []
+    with warmup.on_first_compile(lambda: heard.append("first block")):
+        double(1.0)
+        triple(1.0)
+    with warmup.on_first_compile(lambda: heard.append("second block")):
+        double(2.0)  # compiled for float64 already
+    assert heard == ["first block"]
+
+
+def test_warm_up_runs_what_kernel_modules_register_and_says_whether_it_compiled(monkeypatch):
+    @njit
+    def kernel(x):
+        return x + 1.0
+
+    calls = []
+    monkeypatch.setattr(warmup, "_WARM_UPS", [])
+    warmup.register(lambda: calls.append(kernel(1.0)))
+    assert warmup.warm_up() is True
+    assert warmup.warm_up() is False
+    assert calls == [2.0, 2.0]
