@@ -242,12 +242,13 @@ def _simulate_integrated(system, signal, t, x0, u, *, trials, rng, fine_dt) -> T
 def _propagate(system, modes, offsets, grid, x, u, rng) -> np.ndarray:
     """States at every grid instant ``(N, G, n)``; the loop runs over time only."""
     # imported here: `import switchest` imports this module, and discretize imports scipy
-    from .discretize import mode_steps, segment_transitions
+    from .discretize import mode_steps
 
     N, n = x.shape
     X = np.empty((N, grid.size, n))
     X[:, 0] = x
     per_length: dict[float, np.ndarray] = {}
+    switched = _switched_steps(system, modes, offsets, grid)
     for k, h in enumerate(np.diff(grid)):
         # periodic grids repeat one length up to round-off: reuse its per-mode transitions
         key = float(np.format_float_positional(h, precision=13, unique=False, fractional=False))
@@ -257,16 +258,46 @@ def _propagate(system, modes, offsets, grid, x, u, rng) -> np.ndarray:
         # [x, u, z] @ [F'; G'; Qd^(1/2)'] for every mode in one batched product, then pick
         # each trial's mode: L small GEMMs instead of N gathered matrix-vector products
         xuz = np.concatenate([x, u[:, k], rng.standard_normal((N, n))], axis=1)
-        m0 = modes[:, k, 0]
-        x = _pick(np.matmul(xuz, per_length[key]), m0)
-        if offsets.shape[-1]:
-            switched = np.flatnonzero(np.any(modes[:, k, 1:] != m0[:, None], axis=1))
-            if switched.size:
-                tr = segment_transitions(system, h, modes[switched, k], offsets[switched, k])
-                stacked = _stacked_step(tr.F, tr.G, psd_sqrt(tr.Qd))
-                x[switched] = (xuz[switched, None, :] @ stacked)[:, 0]
+        x = _pick(np.matmul(xuz, per_length[key]), modes[:, k, 0])
+        if k in switched:
+            rows, stacked = switched[k]
+            x[rows] = (xuz[rows, None, :] @ stacked)[:, 0]
         X[:, k + 1] = x
     return X
+
+
+def _switched_steps(system, modes, offsets, grid) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """For each grid interval ``k`` with a switch inside in some trials: those trials and
+    their stacked exact steps ``[F'; G'; Qd^(1/2)']``.
+
+    All the switched intervals are discretized at once, from the dyadic table of each
+    interval length (:func:`switchest.dyadic.interval_transitions`: exact, without a matrix
+    exponential per interval); a discrete-time system cannot switch inside a step, and
+    :func:`switchest.discretize.segment_transitions` says so.
+    """
+    from .discretize import segment_transitions
+    from .dyadic import dyadic_table, interval_transitions
+
+    if not offsets.shape[-1]:
+        return {}
+    rows, ks = np.nonzero(np.any(modes[..., 1:] != modes[..., :1], axis=-1))
+    if not rows.size:
+        return {}
+    lengths = np.diff(grid)[ks]
+    if not system.is_continuous:  # raises: no switch inside a discrete step
+        segment_transitions(system, lengths[0], modes[rows[:1], ks[0]], offsets[rows[:1], ks[0]])
+    n, M = system.n_states, rows.size
+    F, G, Qd = np.empty((M, n, n)), np.empty((M, n, system.n_inputs)), np.empty((M, n, n))
+    for h in np.unique(lengths):
+        at = lengths == h
+        tr = interval_transitions(dyadic_table(system, h), modes[rows[at], ks[at]],
+                                  offsets[rows[at], ks[at]])
+        F[at], G[at], Qd[at] = tr.F, tr.G, tr.Qd
+    stacked = _stacked_step(F, G, psd_sqrt(Qd))
+    order = np.argsort(ks, kind="stable")
+    starts = np.flatnonzero(np.diff(ks[order], prepend=-1))
+    return {int(ks[order[a]]): (rows[order[a:b]], stacked[order[a:b]])
+            for a, b in zip(starts, [*starts[1:], order.size])}
 
 
 def _measure(system, x, mode, rng) -> np.ndarray:

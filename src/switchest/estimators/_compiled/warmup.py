@@ -115,3 +115,15 @@ def _kalman() -> None:
     kalman_steady_run(y, u, F, G, index, C, index, gain, Qd, Qd, R, np.zeros(1))
     kalman_steady_step(np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1)), F, G, C, gain, Qd,
                        Qd, R, predict_first=True)
+
+
+@register
+def _dyadic() -> None:
+    """:func:`switchest.dyadic.interval_transitions` (the clairvoyant filter's and the
+    simulation's switched intervals): one interval of a one-state, two-mode system."""
+    from ...dyadic import DyadicTable, interval_transitions
+
+    one = np.ones((2, 1, 1, 1))
+    table = DyadicTable(1.0, 0, one, np.zeros((2, 1, 1, 1)), one, -np.ones((2, 1, 1)),
+                        np.ones((2, 1, 1)), np.ones((2, 1, 1)))
+    interval_transitions(table, np.array([[0, 1]]), np.array([[0.5]]))
