@@ -89,8 +89,9 @@ def _table(system: SwitchedLinearSystem, T: float) -> DyadicTable:
     h = T / 2.0 ** np.arange(depth + 1)
     modes = np.arange(system.n_modes)[:, None, None]
     tr = interval(system, h[None, :], modes)  # (L, D+1): Van Loan, the module's exponentials
-    return DyadicTable(T, depth, *(np.ascontiguousarray(a) for a in (tr.F, tr.G, tr.Qd)),
-                       system.A, system.B, system.Q)
+    # writeable C-contiguous copies: the one array type the kernel is compiled for
+    arrays = (np.array(a, order="C") for a in (tr.F, tr.G, tr.Qd, system.A, system.B, system.Q))
+    return DyadicTable(T, depth, *arrays)
 
 
 def interval_transitions(table: DyadicTable, modes, offsets) -> Transition:
