@@ -35,6 +35,7 @@ from scipy.linalg import expm
 
 from ._checks import check_finite, check_memory, float_array, int_array, positive_scalar
 from ._linalg import symmetrize
+from ._threads import one_blas_thread
 from .system import SwitchedLinearSystem
 
 __all__ = [
@@ -45,11 +46,16 @@ __all__ = [
     "pairwise_grid_nbytes",
     "mode_steps",
     "segment_transitions",
+    "OFFSET_BITS",
+    "OffsetTable",
+    "offset_table",
+    "offset_table_nbytes",
 ]
 
 _CACHE_MAX_ELEMENTS = 4096
 _VAN_LOAN_REACH = 4.0  # largest ||A|| h exponentiated at once (see _segments)
 _EXPM_COPIES = 8  # arrays of the stacked blocks' size alive at once in expm and the compositions
+OFFSET_BITS = 11  # an offset table splits T into 2^11 coarse steps, each into 2^11 fine ones
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +75,7 @@ class Transition:
     Qd: np.ndarray
 
 
+@one_blas_thread()
 def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition:
     """The exact transition over one sample interval with switches inside it.
 
@@ -361,3 +368,96 @@ def _discrete_passthrough(system, T, modes, offsets) -> Transition:
         raise ValueError(f"T must equal the discrete system's dt = {system.dt:g}, got {T.ravel()[0]:g}")
     m = np.broadcast_to(modes[..., 0], np.broadcast_shapes(T.shape, modes.shape[:-1]))
     return Transition(system.A[m], system.B[m], system.Q[m])
+
+
+@dataclass(frozen=True, eq=False)
+class OffsetTable:
+    """Flows from which a switch at any offset of an interval is composed exactly.
+
+    With ``N = 2^OFFSET_BITS`` and ``h = T / N^2``, an offset ``tau`` is quantized to
+    ``(j N + q) h`` (``0 <= j < N``, ``0 <= q <= N``) and a switch from mode ``a`` to mode ``b``
+    there is the composition, in time order, of three entries of the table (Shankar et al.
+    eq. (4), ``F = exp(A_b (T - tau)) exp(A_a tau)``, and eq. (5), with the exact process
+    noise)::
+
+        coarse[a, j],  switch[a, b, q],  coarse[b, N - 1 - j]
+
+    composed as in the module docstring (``F <- Phi F``, ``G <- Phi G + G_s``,
+    ``Qd <- Phi Qd Phi' + Qd_s``).
+
+    Attributes
+    ----------
+    T : float
+        The interval length.
+    coarse : Transition
+        Batch shape ``(L, N)``: mode ``i`` over ``j T / N``, ``j = 0..N-1``.
+    switch : Transition
+        Batch shape ``(L, L, N + 1)``: a span ``T / N`` that switches from mode ``a`` to
+        mode ``b`` at ``q h``: ``a`` over ``q h``, then ``b`` over ``(N - q) h``.
+    """
+
+    T: float
+    coarse: Transition
+    switch: Transition
+
+
+def offset_table(system: SwitchedLinearSystem, T: float) -> OffsetTable:
+    """The :class:`OffsetTable` of a continuous-time ``system`` for intervals of length ``T``
+    (cached on ``(system, T)``).
+
+    The flows of one mode over ``q h`` and ``j T / N`` compose those over the dyadic lengths
+    ``2^i h``, ``i = 0..2 OFFSET_BITS - 1``, of the set bits of ``q`` or ``j N`` (the flows of
+    one mode commute), each one Van Loan exponential (:func:`interval`): ``2 OFFSET_BITS``
+    exponentials per mode, every entry exact to the rounding of a dozen products. The
+    resolution ``T / 2^(2 OFFSET_BITS)`` (2.4e-7 T) is what a switch offset is quantized to.
+    """
+    T = positive_scalar(T, "T")
+    _check_system(system)
+    if not system.is_continuous:
+        raise ValueError("an offset table needs a continuous-time system (switches inside "
+                         "intervals)")
+    check_memory(offset_table_nbytes(system),
+                 f"offset_table of L (N + L (N + 1)) flows (N = {2**OFFSET_BITS}, "
+                 f"L = {system.n_modes} modes, n = {system.n_states} states)")
+    return _offset_table(system, T)
+
+
+def offset_table_nbytes(system: SwitchedLinearSystem) -> int:
+    """Bytes of one :class:`OffsetTable`: ``L (N + L (N + 1))`` flows ``(F, G, Qd)``."""
+    _check_system(system)
+    n, l, L, N = system.n_states, system.n_inputs, system.n_modes, 2**OFFSET_BITS
+    return 8 * L * (N + L * (N + 1)) * n * (2 * n + l)
+
+
+@lru_cache(maxsize=32)
+def _offset_table(system: SwitchedLinearSystem, T: float) -> OffsetTable:
+    N = 2**OFFSET_BITS
+    lengths = T / N**2 * 2.0 ** np.arange(2 * OFFSET_BITS)  # exact: powers of two times T
+    dyadic = interval(system, lengths[None, :], np.arange(system.n_modes)[:, None, None])
+    F, G, Qd = _binary_table(dyadic, 0)  # mode i over q h, q = 0..N-1; then q = N: T / N
+    F, G, Qd = (np.concatenate([a, b[:, OFFSET_BITS : OFFSET_BITS + 1]], axis=1)
+                for a, b in zip((F, G, Qd), (dyadic.F, dyadic.G, dyadic.Qd)))
+    Fa, Ga, Qa = F[:, None], G[:, None], Qd[:, None]  # a over q h, then b over (N - q) h
+    Fb, Gb, Qb = F[None, :, ::-1], G[None, :, ::-1], Qd[None, :, ::-1]
+    switch = Transition(Fb @ Fa, Fb @ Ga + Gb,  # F <- Phi F, G <- Phi G + G_s
+                        symmetrize(Fb @ Qa @ np.swapaxes(Fb, -1, -2) + Qb))
+    table = OffsetTable(T, Transition(*_binary_table(dyadic, OFFSET_BITS)), switch)
+    for part in (table.coarse, table.switch):
+        for arr in (part.F, part.G, part.Qd):
+            arr.setflags(write=False)
+    return table
+
+
+def _binary_table(dyadic: Transition, first: int):
+    """``F, G, Qd`` of entries ``q = 0..2^OFFSET_BITS - 1`` from the dyadic flows ``first ..
+    first + OFFSET_BITS - 1`` (batch ``(L, 2 OFFSET_BITS)``): entry ``q`` composes the flows of
+    the set bits of ``q``, built by doubling the table with one bit at a time."""
+    L, n, l = dyadic.F.shape[0], dyadic.F.shape[-1], dyadic.G.shape[-1]
+    F = np.broadcast_to(np.eye(n), (L, 1, n, n))
+    G, Qd = np.zeros((L, 1, n, l)), np.zeros((L, 1, n, n))
+    for i in range(first, first + OFFSET_BITS):
+        Phi, Gs, Qs = dyadic.F[:, i : i + 1], dyadic.G[:, i : i + 1], dyadic.Qd[:, i : i + 1]
+        F = np.concatenate([F, Phi @ F], axis=1)  # F <- Phi F
+        G = np.concatenate([G, Phi @ G + Gs], axis=1)  # G <- Phi G + G_s
+        Qd = np.concatenate([Qd, Phi @ Qd @ np.swapaxes(Phi, -1, -2) + Qs], axis=1)
+    return np.ascontiguousarray(F), G, symmetrize(Qd)

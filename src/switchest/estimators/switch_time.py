@@ -5,11 +5,17 @@ changes between ``t_{k-1}`` and ``t_k`` the instant of the switch is not. It is
 estimated by maximizing the likelihood of the new measurement over a grid of
 ``g`` candidate instants (eq. (23)), and the filter then predicts with the
 transition of the estimated instant (eqs (4)-(5), (6)-(10)).
+
+Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
+:mod:`switchest.estimators._compiled.switch_time`, which holds the one implementation of
+the filter; :func:`switch_time_loglik` and :func:`marginalize_switch_time` are the
+numpy forms of its likelihood and merge, for other filters.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -23,13 +29,30 @@ from .._checks import (
     positive_scalar,
 )
 from .._linalg import log_normalize, mixture_moments
-from ..discretize import interval, mode_steps, pairwise_grid, pairwise_grid_nbytes, switch_grid
+from ..discretize import (
+    OFFSET_BITS,
+    interval,
+    mode_steps,
+    offset_table,
+    offset_table_nbytes,
+    pairwise_grid,
+    pairwise_grid_nbytes,
+    switch_grid,
+)
+from ._compiled import GATED, raise_for_status, warn_for_repairs
+from ._compiled.switch_time import switch_time_run
 from .base import Estimate, Estimator
-from .kalman import kf_predict, kf_update
+from .kalman import kf_update
 
-__all__ = ["SwitchTimeState", "SwitchTimeKalmanFilter", "switch_time_loglik", "marginalize_switch_time"]
+__all__ = [
+    "SwitchTimeState",
+    "SwitchTimeKalmanFilter",
+    "switch_time_loglik",
+    "marginalize_switch_time",
+]
 
-_GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+_TABLE_BUDGET = 2**28  # bytes of offset tables per kernel call (refine=True, irregular times)
+_CACHED_BYTES = 2**25  # the kernel's tables are kept for the next call up to this size
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,12 +136,16 @@ class SwitchTimeKalmanFilter(Estimator):
     refine : bool
         Beyond the paper: polish the grid maximum by a golden-section search of
         the exact likelihood over the grid cell around it, ``[tau - T/(2g),
-        tau + T/(2g)]`` (batched over trials; ``refine_iterations`` steps shrink
-        the cell by 0.618 each).
+        tau + T/(2g)]`` (``refine_iterations`` steps shrink the cell by 0.618
+        each); the grid instant is kept unless a probe beats it. Each probe is
+        quantized to ``T / 2^22`` (2.4e-7 T, below the bracket of 6.6e-5 T / g that
+        20 steps leave) and its transition composed exactly from three flows of a
+        table (:func:`switchest.discretize.offset_table`), without a matrix exponential.
     likelihood : {"innovation", "printed"}
         Which ``J_k`` to maximize, see :func:`switch_time_loglik`.
     refine_iterations : int
-        Golden-section steps when ``refine=True``.
+        Golden-section steps when ``refine=True`` (beyond about 30 the bracket is below the
+        quantum ``T / 2^22`` and further steps repeat probes).
     switch_time : {"max", "marginal"}
         ``"max"``: the grid maximizer of eq. (23) (the paper). ``"marginal"``
         (beyond the paper): every grid instant is predicted and updated, and the
@@ -139,11 +166,12 @@ class SwitchTimeKalmanFilter(Estimator):
     """
 
     def __init__(self, system, x0, P0, *, grid: int = 5, refine: bool = False,
-                 likelihood: str = "innovation", refine_iterations: int = 20, switch_time: str = "max",
-                 gate: float | None = None):
+                 likelihood: str = "innovation", refine_iterations: int = 20,
+                 switch_time: str = "max", gate: float | None = None):
         self._set_prior(system, x0, P0)
         if not system.is_continuous:
-            raise ValueError("SwitchTimeKalmanFilter needs a continuous-time system (switches inside intervals)")
+            raise ValueError("SwitchTimeKalmanFilter needs a continuous-time system (switches "
+                             "inside intervals)")
         switch_grid(1.0, grid)  # validates g
         check_memory(pairwise_grid_nbytes(system, grid),
                      f"grid = {grid} switching instants per interval (the transitions of every "
@@ -156,8 +184,11 @@ class SwitchTimeKalmanFilter(Estimator):
         if not isinstance(switch_time, str) or switch_time not in ("max", "marginal"):
             raise ValueError(f"switch_time must be 'max' or 'marginal', got {switch_time!r}")
         if switch_time == "marginal" and (refine or likelihood != "innovation"):
-            raise ValueError("switch_time='marginal' weighs the grid by the innovation likelihood: it needs "
-                             "likelihood='innovation' and refine=False")
+            raise ValueError("switch_time='marginal' weighs the grid by the innovation "
+                             "likelihood: it needs likelihood='innovation' and refine=False")
+        if refine:
+            check_memory(offset_table_nbytes(system),
+                         f"refine=True (an offset table of L = {system.n_modes} modes)")
         self.switch_time = switch_time
         self.grid = int(grid)
         self.refine = refine
@@ -176,135 +207,128 @@ class SwitchTimeKalmanFilter(Estimator):
             outlier=np.zeros(batch_shape, dtype=bool),
         )
 
-    def step(self, state: SwitchTimeState, y, u=None, *, dt=None, mode, prev_mode=None) -> SwitchTimeState:
+    def step(self, state: SwitchTimeState, y, u=None, *, dt=None, mode,
+             prev_mode=None) -> SwitchTimeState:
         """Predict over ``dt`` from ``prev_mode`` to ``mode``, estimating the switch time
-        when they differ, then update with ``y (N, m)``."""
-        sys = self.system
-        mode = np.asarray(mode)
-        N = mode.shape[0]
-        offset = np.full(N, np.nan)
-        merged = None  # the switched trials' merged hypotheses with switch_time="marginal"
-        x, P = state.x, state.P
-        C, R = sys.C[mode], sys.R[mode]
-        if dt is not None:
-            prev = mode if prev_mode is None else np.asarray(prev_mode)
-            if u is None:
-                u = np.zeros((N, sys.n_inputs))
-            steps = mode_steps(sys, dt)
-            F, G, Qd = steps.F[prev], steps.G[prev], steps.Qd[prev]
-            sw = np.flatnonzero(prev != mode)
-            if sw.size and self.switch_time == "marginal":
-                merged = self._marginal(x[sw], P[sw], y[sw], u[sw], prev[sw], mode[sw], dt)
-            elif sw.size:
-                tau, tr = self._estimate(x[sw], P[sw], y[sw], u[sw], prev[sw], mode[sw], dt)
-                F, G, Qd = F.copy(), G.copy(), Qd.copy()
-                F[sw], G[sw], Qd[sw] = tr
-                offset[sw] = tau
-            x, P = kf_predict(x, P, F, G, u, Qd)
-        x, P, loglik = kf_update(x, P, y, C, R, gate=self.gate)
-        if merged is not None:  # the rows of switched trials above assumed no switch: replace them
-            x[sw], P[sw], loglik[sw], offset[sw] = merged
-        outlier = np.isneginf(loglik)  # the core's mark of a rejected measurement
-        return SwitchTimeState(x, P, np.where(outlier, 0.0, loglik), offset, outlier)
+        when they differ, then update with ``y (..., m)``.
 
-    def _estimate(self, x, P, y, u, prev, mode, dt):
-        """Grid maximum of eq. (23), optionally refined; returns offsets and (F, G, Qd)."""
-        sys = self.system
-        grid = pairwise_grid(sys, dt, self.grid)
-        F, G, Qd = grid.F[prev, mode], grid.G[prev, mode], grid.Qd[prev, mode]  # (q, g, ...)
-        ll = self._loglik(x[:, None], P[:, None], F, G, u[:, None], Qd, y[:, None], mode[:, None])
-        best = np.argmax(ll, axis=1)
-        # a missing or rejected y says nothing of the instant: take the middle of the grid
-        uninformed = np.all(np.isnan(y), axis=-1) | np.all(np.isneginf(ll), axis=1)
-        best[uninformed] = self.grid // 2
-        rows = np.arange(best.size)
-        tau = switch_grid(dt, self.grid)[best]
-        chosen = (F[rows, best], G[rows, best], Qd[rows, best])
-        if not self.refine:
-            return tau, chosen
-        half = dt / (2 * self.grid)
-        lo, hi = np.clip(tau - half, 0.0, dt), np.clip(tau + half, 0.0, dt)
-        best_ll = np.where(uninformed, np.inf, ll[rows, best])  # nothing to refine there
-        return self._golden(x, P, y, u, prev, mode, dt, lo, hi, tau, best_ll, chosen)
-
-    def _marginal(self, x, P, y, u, prev, mode, dt):
-        """Predict and update every grid instant, then merge (:func:`marginalize_switch_time`)."""
-        sys = self.system
-        grid = pairwise_grid(sys, dt, self.grid)
-        F, G, Qd = grid.F[prev, mode], grid.G[prev, mode], grid.Qd[prev, mode]  # (q, g, ...)
-        x_pred, P_pred = kf_predict(x[:, None], P[:, None], F, G, u[:, None], Qd)
-        x_up, P_up, ll = kf_update(x_pred, P_pred, y[:, None], sys.C[mode][:, None],
-                                   sys.R[mode][:, None], gate=self.gate)
-        rejected = np.all(np.isneginf(ll), axis=1)  # predictions kept, weighed equally
-        ll[rejected] = 0.0
-        x, P, loglik, tau = marginalize_switch_time(ll, x_up, P_up, switch_grid(dt, self.grid))
-        loglik[rejected] = -np.inf  # flagged by step as a rejected measurement
-        return x, P, loglik, tau
-
-    def _loglik(self, x, P, F, G, u, Qd, y, mode):
-        """``J_k`` of each hypothesis; ``-inf`` where the gate rejects ``y`` under it."""
-        x_pred, P_pred = kf_predict(x, P, F, G, u, Qd)
-        C, R = self.system.C[mode], self.system.R[mode]
-        if self.likelihood == "innovation":  # the core applies the gate itself
-            return kf_update(x_pred, P_pred, y, C, R, gate=self.gate)[2]
-        ll = _switch_time_loglik(x_pred, P_pred, y, C, R, likelihood=self.likelihood)
-        if self.gate is not None:
-            gated = np.isneginf(kf_update(x_pred, P_pred, y, C, R, gate=self.gate)[2])
-            ll = np.where(gated, -np.inf, ll)
-        return ll
-
-    def _golden(self, x, P, y, u, prev, mode, dt, lo, hi, best_tau, best_ll, best_tr):
-        """Batched golden-section maximization of the exact likelihood on ``[lo, hi]``.
-
-        The grid point is kept if no probed instant beats it, so refining never
-        lowers the likelihood of the chosen switching time.
+        One sample of the compiled kernel that ``run`` loops over
+        (:func:`~switchest.estimators._compiled.switch_time.switch_time_run`); ``dt=None``
+        (a first sample) updates only. ``mode`` and ``prev_mode`` (default ``mode``: no
+        switch) broadcast over the batch.
         """
-        best_F, best_G, best_Q = (a.copy() for a in best_tr)
-        best_tau, best_ll = best_tau.copy(), best_ll.copy()
-        pair = np.stack([prev, mode], axis=1)
-
-        def probe(tau):
-            tr = interval(self.system, dt, pair, tau[:, None])
-            ll = self._loglik(x, P, tr.F, tr.G, u, tr.Qd, y, mode)
-            better = ll > best_ll
-            best_tau[better], best_ll[better] = tau[better], ll[better]
-            best_F[better], best_G[better], best_Q[better] = tr.F[better], tr.G[better], tr.Qd[better]
-            return ll
-
-        a, b = lo.copy(), hi.copy()
-        c, d = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
-        fc, fd = probe(c), probe(d)
-        for _ in range(self.refine_iterations):
-            left = fc > fd  # the maximum lies in [a, d]
-            a, b = np.where(left, a, c), np.where(left, d, b)
-            c_new, d_new = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
-            probe_at = np.where(left, c_new, d_new)
-            f_new = probe(probe_at)
-            c, d = np.where(left, c_new, d), np.where(left, c, d_new)
-            fc, fd = np.where(left, f_new, fd), np.where(left, fc, f_new)
-        return best_tau, (best_F, best_G, best_Q)
-
-    def _output(self, state: SwitchTimeState) -> dict[str, np.ndarray]:
-        return {"x": state.x, "P": state.P, "loglik": state.loglik, "switch_time": state.switch_offset,
-                "outlier": state.outlier}
+        sys = self.system
+        batch = state.x.shape[:-1]
+        N, n = int(np.prod(batch, dtype=np.int64)), sys.n_states
+        y = np.asarray(y, dtype=float).reshape(N, sys.n_outputs)
+        u = np.zeros(sys.n_inputs) if u is None else np.asarray(u, dtype=float)
+        u = np.broadcast_to(u, (*batch, sys.n_inputs)).reshape(N, sys.n_inputs)
+        mode = np.broadcast_to(np.asarray(mode), batch).reshape(N)
+        prev = mode if prev_mode is None else np.asarray(prev_mode)
+        prev = np.broadcast_to(prev, batch).reshape(N)
+        steps = np.empty(0) if dt is None else np.array([positive_scalar(dt, "dt")])
+        out = self._kernel(y[:, None], u[:, None], np.zeros(1, dtype=np.int64), mode[:, None],
+                           prev[:, None], steps, state.x.reshape(N, n),
+                           state.P.reshape(N, n, n), predict_first=dt is not None)
+        return SwitchTimeState(out.x[:, 0].reshape(*batch, n), out.P[:, 0].reshape(*batch, n, n),
+                               out.loglik[:, 0].reshape(batch), out.offset[:, 0].reshape(batch),
+                               (out.flag[:, 0] == GATED).reshape(batch))
 
     def run(self, y, u=None, t=None, *, modes) -> Estimate:
-        """Filter ``y (..., K, m)`` given the true ``modes`` at the samples ``(K,)`` or ``(..., K)``.
+        """Filter ``y (..., K, m)`` given the true ``modes`` at the samples, ``(K,)`` or
+        ``(..., K)``.
 
         The returned ``switch_time`` holds the estimated absolute switching instant
-        in ``(t_{k-1}, t_k)`` at sample k, NaN where the mode did not change.
+        in ``(t_{k-1}, t_k)`` at sample k, NaN where the mode did not change. The whole record
+        runs in the compiled kernel, with the transition tables of each distinct sampling step
+        (with ``refine=True`` and many distinct steps, in stretches of samples whose offset
+        tables fit 256 MiB).
         """
         y2, u2, t, batch = self._prepare(y, u, t)
         K = t.size
         modes = self._modes(modes, batch, K)
         n, N = self.system.n_states, y2.shape[0]
-        check_memory(  # a step's hypotheses: F, Qd, P predicted and updated, and temporaries
+        check_memory(  # grid x trials hypotheses, the bound of the numpy filter, kept as the limit
             8 * N * self.grid * (6 * n * n + 4 * n + self.system.n_inputs * n),
             f"grid = {self.grid} switching-time hypotheses for each of N = {N} trials",
         )
         prev = np.concatenate([modes[:, :1], modes[:, :-1]], axis=1)
-        est = self._loop(y2, u2, t, {"mode": modes, "prev_mode": prev})
+        held = np.concatenate([u2[:, :1], u2[:, :-1]], axis=1)  # u[:, k-1] over interval k
+        into = np.concatenate([[np.nan], np.diff(t)])  # the interval into each sample
+        per_step = offset_table_nbytes(self.system) if self.refine else 0
+        distinct = np.unique(into[1:]).size
+        span = K if per_step * distinct <= _TABLE_BUDGET else max(1, _TABLE_BUDGET // per_step)
+        x, P = np.tile(self.x0, (N, 1)), np.tile(self.P0, (N, 1, 1))
+        parts = []
+        for k0 in range(0, K, span):
+            k1 = min(K, k0 + span)
+            valid = into[k0:k1][~np.isnan(into[k0:k1])]
+            steps, which = np.unique(valid, return_inverse=True)
+            which = np.concatenate([[0], which]) if k0 == 0 else which
+            out = self._kernel(y2[:, k0:k1], held[:, k0:k1], which, modes[:, k0:k1],
+                               prev[:, k0:k1], steps, x, P, predict_first=k0 > 0)
+            x, P = out.x[:, -1], out.P[:, -1]
+            parts.append(out)
+
+        def joined(field):
+            arrays = [getattr(out, field) for out in parts]
+            return arrays[0] if len(arrays) == 1 else np.concatenate(arrays, axis=1)
+
         start = np.concatenate([[np.nan], t[:-1]])
-        est = Estimate(x=est.x, P=est.P, loglik=est.loglik, switch_time=est.switch_time + start,
-                       outlier=est.outlier)
+        est = Estimate(x=joined("x"), P=joined("P"), loglik=joined("loglik"),
+                       switch_time=joined("offset") + start, outlier=joined("flag") == GATED)
         return self._unflatten(est, batch)
+
+    def _kernel(self, y, u, which, mode, prev, steps, x, P, *, predict_first):
+        """The compiled filter over ``y (N, K, m)`` from ``x (N, n)``, ``P (N, n, n)`` with the
+        transition tables of the sampling ``steps (D,)`` (:func:`_tables`); raises for a failure
+        and warns of repaired covariances."""
+        key = (self.system, tuple(steps.tolist()), self.grid, self.refine)
+        size = steps.size * offset_table_nbytes(self.system) if self.refine else 0
+        F, G, Qd, grid_tau, levels = (_cached_tables if size <= _CACHED_BYTES else _tables)(*key)
+        out = switch_time_run(y, u, which, mode, prev, self.system.C, self.system.R, F, G, Qd,
+                              steps, grid_tau, x, P, levels=levels, predict_first=predict_first,
+                              marginal=self.switch_time == "marginal",
+                              printed=self.likelihood == "printed",
+                              gate=np.inf if self.gate is None else self.gate,
+                              iterations=self.refine_iterations if self.refine else 0)
+        raise_for_status(out.status)
+        warn_for_repairs(out)
+        return out
+
+    def _estimate(self, x, P, y, u, prev, mode, dt):
+        """The switching instants the filter estimates for one sample of the trials ``x (N, n)``,
+        ``P (N, n, n)`` (a step of the kernel), with their exact transitions (for inspection).
+
+        Returns ``tau (N,)`` and ``(F, G, Qd)`` of :func:`switchest.discretize.interval` at
+        ``tau``; every trial must switch (``prev != mode``).
+        """
+        N = x.shape[0]
+        state = SwitchTimeState(x, P, np.zeros(N), np.full(N, np.nan), np.zeros(N, dtype=bool))
+        tau = self.step(state, y, u, dt=dt, mode=mode, prev_mode=prev).switch_offset
+        tr = interval(self.system, dt, np.stack([prev, mode], axis=1), tau[:, None])
+        return tau, (tr.F, tr.G, tr.Qd)
+
+
+def _tables(system, steps: tuple, g: int, refine: bool):
+    """The kernel's transition table for the distinct sampling ``steps`` (the layout of
+    :mod:`switchest.estimators._compiled.switch_time`): per step and mode the transition without
+    a switch (:func:`~switchest.discretize.mode_steps`), per step, mode pair and grid instant the
+    switched one (:func:`~switchest.discretize.pairwise_grid`, eq. (23)) and, with ``refine``,
+    the offset tables (:func:`~switchest.discretize.offset_table`); the grid ``(D, g)`` and the
+    refinement levels ``(N1, N0 + 1)``."""
+    n, l = system.n_states, system.n_inputs
+    parts = [mode_steps(system, h) for h in steps] + [pairwise_grid(system, h, g) for h in steps]
+    levels = (0, 0)
+    if refine:
+        tables = [offset_table(system, h) for h in steps]
+        parts += [tab.coarse for tab in tables] + [tab.switch for tab in tables]
+        levels = (2**OFFSET_BITS, 2**OFFSET_BITS + 1)
+    F = np.concatenate([np.empty((0, n, n))] + [p.F.reshape(-1, n, n) for p in parts])
+    G = np.concatenate([np.empty((0, n, l))] + [p.G.reshape(-1, n, l) for p in parts])
+    Qd = np.concatenate([np.empty((0, n, n))] + [p.Qd.reshape(-1, n, n) for p in parts])
+    grid_tau = np.array([switch_grid(h, g) for h in steps]).reshape(len(steps), g)
+    return F, G, Qd, grid_tau, levels
+
+
+_cached_tables = lru_cache(maxsize=8)(_tables)  # the kernel only reads them

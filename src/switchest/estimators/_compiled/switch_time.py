@@ -1,0 +1,750 @@
+"""The compiled Kalman filter with estimated switching times (Shankar et al. §III-§IV).
+
+``switch_time_run`` filters every trial over every sample inside compiled code, and so does one
+call per sample (the streaming ``step``): the kernel :func:`switch_time_filter` holds the one
+implementation of the filter, built on the equations of :mod:`.linalg` over blocks of trials
+laid across SIMD lanes.
+
+The mode at each sample is known. When it changes over an interval, from ``a`` to ``b``, the
+switching instant ``tau`` is estimated from the likelihood of the new measurement,
+``J_k(tau) = N(y; C x-(tau), C P-(tau) C' + R)`` (Shankar et al. §IV): the maximizer over the
+grid ``tau_i = i T / g - T / (2 g)`` (eq. (23)), optionally refined by a golden-section search
+over the grid cell around it, or the moment-matched merge of every grid hypothesis
+(``marginal``). The filter then predicts with the transition of the estimate (eqs (4)-(5),
+(6)-(7)) and updates (eqs (8)-(10), Joseph form).
+
+``J_k`` needs ``C F``, ``C G u`` and ``C Qd C'`` of a hypothesis, not its ``F`` and ``Qd``: the
+kernel pulls the output matrix back through the segments of the interval
+(:func:`pull_back`, O(m n^2) per segment) and takes the innovation of ``y`` against the state
+of the previous sample, ``x``, ``P``, through ``C F`` with the noise ``C Qd C' + R`` — the
+same Gaussian as the innovation of the prediction. Only the chosen hypothesis is predicted.
+
+Tables: one transition table ``F (M, n, n)``, ``G (M, n, l)``, ``Qd (M, n, n)`` holds, for each
+of the ``D`` distinct sampling steps ``d`` (``D`` entries of ``steps``) and modes ``i``, ``j``,
+in four sections:
+
+* ``d L + i``: mode ``i`` over the step, no switch (:func:`switchest.discretize.mode_steps`);
+* ``D L + ((d L + i) L + j) g + r``: switch from ``i`` to ``j`` at grid instant ``r``
+  (:func:`switchest.discretize.pairwise_grid`);
+* ``D L (1 + L g) + (d L + i) N1 + c``: mode ``i`` over ``c T / N1`` (refinement only);
+* ``D L (1 + L g + N1) + ((d L + i) L + j) (N0 + 1) + q``: a span ``T / N1`` switching from
+  ``i`` to ``j`` at ``q T / (N1 N0)`` (refinement only).
+
+The last two are the :class:`switchest.discretize.OffsetTable` of the step (``N1 = N0 =
+2^11``). A refinement probe at ``tau`` is quantized to ``(c N0 + q) T / (N1 N0)`` (2.4e-7 T,
+under 1/50 of the bracket 0.618^20 T / g that 20 golden-section steps leave for g <= 5) and
+composed from three flows of the table, ``i`` over ``c T / N1``, the span ``c`` switching at
+``q``, ``j`` over ``(N1 - 1 - c) T / N1``: no matrix exponential per probe.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from .arrays import check_gate, floats, indices
+from .bank import LANES
+from .linalg import (
+    ACCEPTED,
+    GATED,
+    NOT_POSITIVE_DEFINITE,
+    OK,
+    _moments,
+    correct,
+    gather_matrices,
+    gather_samples,
+    information_form,
+    innovation,
+    jit,
+    joseph_lost,
+    log_normalize,
+    observe,
+    predict,
+    repair,
+)
+
+__all__ = ["SwitchTimeOutput", "switch_time_run", "switch_time_filter", "pull_back"]
+
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+
+# The functions of a probe, inlined into their callers: a call passing a dozen arrays costs about
+# 100 ns (their reference counts), as much as the arithmetic of a probe on a few lanes.
+inline = njit(cache=True, error_model="numpy", inline="always")
+
+
+class SwitchTimeOutput(NamedTuple):
+    """What the filter reports after each sample, for every trial.
+
+    Attributes
+    ----------
+    x : ndarray, shape (N, K, n)
+    P : ndarray, shape (N, K, n, n)
+    loglik : ndarray, shape (N, K)
+        Log-likelihood of each measurement given the past (0 when nothing was observed or the
+        measurement was rejected); with ``marginal``, over an interval with a switch, the log
+        of the grid mean ``(1/g) sum_i p(y | tau_i)``.
+    offset : ndarray, shape (N, K)
+        Estimated switching instant from the start of the interval into each sample (NaN
+        without a switch): a grid instant, a refined (quantized) instant, or with ``marginal``
+        the posterior mean.
+    flag : ndarray of uint8, shape (N, K)
+        ``ACCEPTED`` (0) or ``GATED`` (1): the measurement was rejected, treated as missing.
+    status : int
+        ``OK`` or the failure code that stopped the kernel (outputs then incomplete).
+    repaired, smallest_eigenvalue
+        Covariances repaired to their rounding level and the smallest eigenvalue one had
+        (``inf`` if none was): see :class:`.imm.IMMOutput`.
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    loglik: np.ndarray
+    offset: np.ndarray
+    flag: np.ndarray
+    status: int
+    repaired: int = 0
+    smallest_eigenvalue: float = math.inf
+
+
+def switch_time_run(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, x0, P0, *,
+                    levels=(0, 0), predict_first: bool, marginal: bool, printed: bool,
+                    gate=math.inf, iterations: int = 0) -> SwitchTimeOutput:
+    """Switch-time Kalman filter of ``N`` trials over ``K`` samples (Shankar et al. §IV).
+
+    Parameters
+    ----------
+    y : array_like, shape (N, K, m)
+        Measurements; a NaN component is missing.
+    u : array_like, shape (N, K, l)
+        ``u[:, k]``: the input held over the interval into sample ``k``.
+    which : array_like of int, shape (K,)
+        The sampling step (an entry of ``steps``) of the interval into each sample; read only
+        where the kernel predicts (``k > 0``, or ``k = 0`` with ``predict_first``).
+    mode, prev : array_like of int, shape (N, K)
+        The mode at each sample and over the interval before the switch into it (``prev ==
+        mode``: no switch).
+    C, R : array_like, shapes (L, m, n), (L, m, m)
+    F, G, Qd : array_like, shapes (M, n, n), (M, n, l), (M, n, n)
+        The transition table, in the four sections of the module docstring.
+    steps : array_like, shape (D,)
+        The distinct sampling steps.
+    grid_tau : array_like, shape (D, g)
+        The grid instants of each step (eq. (23)).
+    x0, P0 : array_like, shapes (N, n), (N, n, n)
+        Each trial's state before the first sample.
+    levels : (int, int)
+        ``(N1, N0 + 1)``: the lengths of the refinement sections per mode and per mode pair
+        (``(0, 0)`` without).
+    predict_first : bool
+        Whether the first sample is predicted into (a streaming step) or only updated.
+    marginal : bool
+        Merge the grid hypotheses (moment matching, uniform prior) instead of keeping their
+        maximizer.
+    printed : bool
+        Maximize the paper's literal ``J_k(tau) = N(y; C x-(tau), R)`` (gated by the innovation
+        gate) instead of the innovation likelihood.
+    gate : float
+        Largest normalized innovation squared accepted (``inf``: no gate).
+    iterations : int
+        Golden-section steps of the refinement (0: no refinement; needs the last sections).
+    """
+    sizes: dict[str, int] = {}
+    y = floats(y, "y", "NKm", sizes)
+    u = floats(u, "u", "NKl", sizes)
+    C = floats(C, "C", "Lmn", sizes)
+    R = floats(R, "R", "Lmm", sizes)
+    mode = indices(mode, "mode", "NK", sizes, "L")
+    prev = indices(prev, "prev", "NK", sizes, "L")
+    F = floats(F, "F", "Mnn", sizes)
+    G = floats(G, "G", "Mnl", sizes)
+    Qd = floats(Qd, "Qd", "Mnn", sizes)
+    steps = floats(steps, "steps", "D", sizes)
+    grid_tau = floats(grid_tau, "grid_tau", "Dg", sizes)
+    x0 = floats(x0, "x0", "Nn", sizes)
+    P0 = floats(P0, "P0", "Nnn", sizes)
+    if sizes["D"]:
+        which = indices(which, "which", "K", sizes, "D")
+    else:  # no interval: nothing is predicted, the table is not read
+        which = np.zeros(sizes["K"], dtype=np.int64)
+    n_coarse, n_switch = (int(v) for v in levels)
+    iterations = int(iterations)
+    D, L, g = sizes["D"], sizes["L"], sizes["g"]
+    expected = D * L * (1 + L * g + n_coarse + L * n_switch)
+    if sizes["M"] != expected:
+        raise ValueError(f"F must hold D L (1 + L g + N1 + L (N0 + 1)) = {expected} transitions "
+                         f"(D = {D}, L = {L}, g = {g}, levels = {levels}), got {sizes['M']}")
+    if iterations < 0 or (iterations and (n_coarse < 1 or n_switch < 2)):
+        raise ValueError(f"iterations = {iterations} needs refinement levels, got {levels}")
+    predicting = slice(0 if predict_first else 1, None)
+    if not D and which[predicting].size:
+        raise ValueError("steps must hold the sampling step of every predicted sample, got none")
+    N, K, n = sizes["N"], sizes["K"], sizes["n"]
+    x, P = np.empty((N, K, n)), np.empty((N, K, n, n))
+    loglik, offset = np.empty((N, K)), np.empty((N, K))
+    flag, report = np.empty((N, K), dtype=np.uint8), np.empty(2)
+    status = switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau,
+                                n_coarse, n_switch, x0, P0, bool(predict_first), bool(marginal),
+                                bool(printed), check_gate(gate), iterations, LANES, x, P,
+                                loglik, offset, flag, report)
+    return SwitchTimeOutput(x, P, loglik, offset, flag, int(status), int(report[0]),
+                            float(report[1]))
+
+
+# ---------------------------------------------------------------- lanes
+@jit
+def _take_rows(src, lane, ns, dst):
+    """``dst[a, c] = src[a, lane[c]]``: the compacted lanes ``lane[:ns]`` of ``src (r, B)``."""
+    for a in range(src.shape[0]):
+        for c in range(ns):
+            dst[a, c] = src[a, lane[c]]
+
+
+@jit
+def _take_matrices(src, lane, ns, dst):
+    """``dst[a, e, c] = src[a, e, lane[c]]``: the compacted lanes of ``src (r, s, B)``."""
+    for a in range(src.shape[0]):
+        _take_rows(src[a], lane, ns, dst[a])
+
+
+@jit
+def _put_rows(src, lane, ns, dst):
+    """``dst[a, lane[c]] = src[a, c]``: compacted lanes back into their places."""
+    for a in range(src.shape[0]):
+        for c in range(ns):
+            dst[a, lane[c]] = src[a, c]
+
+
+@jit
+def _put_matrices(src, lane, ns, dst):
+    """``dst[a, e, lane[c]] = src[a, e, c]``: compacted lanes of ``(r, s, B)`` arrays back."""
+    for a in range(src.shape[0]):
+        _put_rows(src[a], lane, ns, dst[a])
+
+
+@jit
+def _gather_transition(F, G, Qd, index, nb, Fl, Gl, Ql):
+    """Each lane's transition ``(F, G, Qd)[index[b]]`` of the table, into ``Fl``, ``Gl``,
+    ``Ql``."""
+    gather_matrices(F, index, nb, Fl)
+    gather_matrices(G, index, nb, Gl)
+    gather_matrices(Qd, index, nb, Ql)
+
+
+# ---------------------------------------------------------------- the likelihood J_k(tau)
+@inline
+def pull_back(E, Go, Qo, F, G, Qd, rows, nb, EQ):
+    """Pull the output map ``E (r, n, B)`` back through each lane's segment ``rows[b]`` of the
+    table, ``x+ = Phi x + Gam u + w``, ``w ~ N(0, Qd)``, in place: ``Qo <- Qo + E Qd E'``,
+    ``Go <- Go + E Gam``, ``E <- E Phi``.
+
+    An interval of segments ``s = 1..S`` (in time order) has ``F = Phi_S ... Phi_1``,
+    ``G = sum_s Phi_S ... Phi_{s+1} Gam_s`` and ``Qd = sum_s (Phi_S ... Phi_{s+1}) Qd_s
+    (Phi_S ... Phi_{s+1})'`` (Shankar et al. eqs (4)-(5) with the exact process noise; the
+    composition of :mod:`switchest.discretize`). Pulled back through ``s = S..1`` from
+    ``E = C``, ``Go = 0``, ``Qo = 0``, the map ends as ``E = C F``, ``Go = C G``,
+    ``Qo = C Qd C'`` at O(r n^2) per segment; from ``E = I`` it ends as ``F``, ``G``, ``Qd``.
+    ``Qo`` comes back exactly symmetric (upper triangle computed, mirrored); ``EQ (r, n, B)``
+    is scratch.
+    """
+    r, n, n_in = E.shape[0], E.shape[1], G.shape[2]
+    for a in range(r):
+        for c in range(n_in):
+            for j in range(n):
+                for b in range(nb):
+                    Go[a, c, b] += E[a, j, b] * G[rows[b], j, c]
+        for j in range(n):
+            for b in range(nb):
+                EQ[a, j, b] = 0.0
+            for i in range(n):
+                for b in range(nb):
+                    EQ[a, j, b] += E[a, i, b] * Qd[rows[b], i, j]
+    for a in range(r):
+        for c in range(a, r):
+            for j in range(n):
+                for b in range(nb):
+                    Qo[a, c, b] += EQ[a, j, b] * E[c, j, b]
+            for b in range(nb):
+                Qo[c, a, b] = Qo[a, c, b]
+    for a in range(r):  # E <- E Phi, a row at a time through EQ
+        for j in range(n):
+            for b in range(nb):
+                EQ[a, j, b] = 0.0
+            for i in range(n):
+                for b in range(nb):
+                    EQ[a, j, b] += E[a, i, b] * F[rows[b], i, j]
+        for j in range(n):
+            for b in range(nb):
+                E[a, j, b] = EQ[a, j, b]
+
+
+@inline
+def _start(E, Go, Qo, C, nb):
+    """``E = C``, ``Go = 0``, ``Qo = 0``: the output map before :func:`pull_back`."""
+    for a in range(E.shape[0]):
+        for j in range(E.shape[1]):
+            for b in range(nb):
+                E[a, j, b] = C[a, j, b]
+        for c in range(Go.shape[1]):
+            for b in range(nb):
+                Go[a, c, b] = 0.0
+        for c in range(Qo.shape[1]):
+            for b in range(nb):
+                Qo[a, c, b] = 0.0
+
+
+@inline
+def _chain(F, G, Qd, seg, ns, start, E, Go, Qo, EQ):
+    """Pull ``start`` (``C`` or ``I`` per lane) back through each lane's segments
+    ``seg (S, B)`` of the table, the last one first (:func:`pull_back`)."""
+    _start(E, Go, Qo, start, ns)
+    for s in range(seg.shape[0]):
+        pull_back(E, Go, Qo, F, G, Qd, seg[s], ns, EQ)
+
+
+@inline
+def _innovate(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work, bad,
+              report):
+    """:func:`.linalg.innovation` with the bank's rule for a failed factorization: the failing
+    lanes' ``P`` is repaired (:func:`.linalg.repair`) and factored once more; returns the
+    status."""
+    status = innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik,
+                        work, bad)
+    if status == NOT_POSITIVE_DEFINITE:
+        for b in range(nb):
+            if bad[b] and not repair(P, b, False, report):
+                return status
+        status = innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis,
+                            loglik, work, bad)
+    return status
+
+
+@inline
+def _likelihood(x, P, y, u, obs, n_obs, R, E, Go, Qo, printed, gate, nb, ye, Re, zero, e, PCt,
+                chol, scale, z, nis, loglik, work, bad, J, report):
+    """``J_k`` of one hypothesis per lane (Shankar et al. §IV), ``-inf`` where it is rejected.
+
+    From the hypothesis' output map (``E = C F``, ``Go = C G``, ``Qo = C Qd C'``,
+    :func:`pull_back`): ``y - C x-(tau) = (y - Go u) - E x`` and ``C P-(tau) C' + R =
+    E P E' + (Qo + R)``, so ``J = log N(y - Go u; E x, E P E' + Qo + R)`` is the innovation of
+    ``y - Go u`` against ``x``, ``P`` through ``E`` (:func:`.linalg.innovation`), rejected
+    (``-inf``) where its normalized square exceeds ``gate`` or the likelihood is not finite.
+    ``printed``: the paper's literal ``J = N(y; C x-(tau), R)`` (``P-`` replaced by 0 in the
+    likelihood), rejected where its own normalized square is not finite or, with a finite
+    gate, where the innovation's fails the gate. ``ye (m, B)``, ``Re (m, m, B)`` are scratch,
+    ``zero (n, n, B)`` all zeros; the rest is the workspace of :func:`.linalg.innovation`.
+    """
+    m, n_in = y.shape[0], u.shape[0]
+    for a in range(m):
+        for b in range(nb):
+            ye[a, b] = y[a, b]
+        for c in range(n_in):
+            for b in range(nb):
+                ye[a, b] -= Go[a, c, b] * u[c, b]
+        for c in range(m):
+            for b in range(nb):
+                Re[a, c, b] = R[a, c, b] + Qo[a, c, b]
+    if not printed or gate < math.inf:
+        status = _innovate(x, P, ye, E, Re, obs, n_obs, nb, e, PCt, chol, scale, z, nis,
+                           loglik, work, bad, report)
+        if status != OK:
+            return status
+        for b in range(nb):
+            J[b] = loglik[b] if math.isfinite(loglik[b]) and nis[b] <= gate else -math.inf
+        if not printed:
+            return OK
+    status = _innovate(x, zero, ye, E, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik,
+                       work, bad, report)
+    if status != OK:
+        return status
+    for b in range(nb):
+        gated = gate < math.inf and J[b] == -math.inf
+        J[b] = loglik[b] if nis[b] < math.inf and not gated else -math.inf
+    return OK
+
+
+# ---------------------------------------------------------------- switching instant
+@inline
+def _offset_rows(qidx, row_a, row_b, pair, coarse, switch, n_coarse, n_switch, ns, seg):
+    """The table rows of the three flows of a switch at ``qidx[c] = j N0 + q`` steps of
+    ``dt / (N1 N0)`` into ``seg (3, B)``, the last flow first: ``b`` over
+    ``(N1 - 1 - j) dt / N1``, the span ``j`` switching at ``q``, ``a`` over ``j dt / N1``
+    (:class:`switchest.discretize.OffsetTable`; ``N1 = n_coarse``, ``N0 + 1 = n_switch``).
+    ``row_a``, ``row_b``, ``pair`` are each lane's ``d L + a``, ``d L + b`` and
+    ``(d L + a) L + b``; ``coarse``, ``switch`` the first rows of the table's last sections."""
+    N0 = n_switch - 1
+    for c in range(ns):
+        j, q = qidx[c] // N0, qidx[c] % N0
+        if j == n_coarse:  # at the end of the interval: the last span, switching at its end
+            j, q = n_coarse - 1, N0
+        seg[0, c] = coarse + row_b[c] * n_coarse + n_coarse - 1 - j
+        seg[1, c] = switch + pair[c] * n_switch + q
+        seg[2, c] = coarse + row_a[c] * n_coarse + j
+
+
+@jit
+def _grid_maximum(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws, lw, obsv, gs, report):
+    """Grid maximum of Shankar et al. eq. (23) for the compacted switched lanes; writes the
+    transition of the chosen instant into their lanes of ``Fl``, ``Gl``, ``Ql`` and the instant
+    into ``off``, and leaves in ``gs`` the grid index ``best`` and its ``J_k``, ``best_ll``
+    (``inf`` where uninformed). Returns the status.
+
+    ``J_k`` (:func:`_likelihood`) is evaluated at every grid instant through its exact
+    transition of the table; the first maximum wins. Where the measurement is missing or every
+    instant rejects it, it says nothing of the instant: the middle one, ``g // 2``, is taken.
+    """
+    x, P, y, u, obs, n_obs, Cs, Rs, _, _, pair = sw
+    F, G, Qd, grid_tau = tables[0], tables[1], tables[2], tables[4]
+    printed, gate = opts[0], opts[1]
+    e, PCt, chol, scale, z, nis, loglik, work, bad = ws
+    ye, Re, zero = lw
+    E, Go, Qo, EQ = obsv
+    best, best_ll, J, rows = gs[0], gs[1], gs[2], gs[3]
+    g = grid_tau.shape[1]
+    first = tables[5]  # the first row of the grid section
+    for r in range(g):
+        for c in range(ns):
+            rows[c] = first + pair[c] * g + r
+        _start(E, Go, Qo, Cs, ns)
+        pull_back(E, Go, Qo, F, G, Qd, rows, ns, EQ)
+        status = _likelihood(x, P, y, u, obs, n_obs, Rs, E, Go, Qo, printed, gate, ns, ye, Re,
+                             zero, e, PCt, chol, scale, z, nis, loglik, work, bad, J, report)
+        if status != OK:
+            return status
+        for c in range(ns):
+            if r == 0 or J[c] > best_ll[c]:
+                best[c], best_ll[c] = r, J[c]
+    for c in range(ns):
+        if n_obs[c] == 0.0 or best_ll[c] == -math.inf:  # uninformed: the middle instant,
+            best[c], best_ll[c] = g // 2, math.inf  # which no probe may replace
+        off[lane[c]] = grid_tau[d, best[c]]
+        rows[c] = first + pair[c] * g + best[c]
+    for i in range(Fl.shape[0]):
+        for j in range(Fl.shape[1]):
+            for c in range(ns):
+                Fl[i, j, lane[c]] = F[rows[c], i, j]
+                Ql[i, j, lane[c]] = Qd[rows[c], i, j]
+        for j in range(Gl.shape[1]):
+            for c in range(ns):
+                Gl[i, j, lane[c]] = G[rows[c], i, j]
+    return OK
+
+
+@jit
+def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws, lw, obsv, full, gs, gold, eye,
+            report):
+    """Golden-section search of ``J_k`` over the grid cell around the grid maximum (beyond
+    Shankar et al.): ``[tau - T/(2g), tau + T/(2g)]`` clipped to ``[0, T]``, ``2 + iterations``
+    probes, each step keeping ``[lo, pd]`` if ``J(pc) > J(pd)`` else ``[pc, hi]``. Each probe is
+    quantized to the offset table's resolution and its ``J_k`` (:func:`_likelihood`) taken
+    through its three flows (:func:`_offset_rows`, :func:`pull_back`). The grid instant is kept
+    unless a probe beats it; a winning probe's transition is composed exactly (pulled back
+    from ``I``) into the lane's ``Fl``, ``Gl``, ``Ql``, its instant written into ``off``.
+    Returns the status."""
+    x, P, y, u, obs, n_obs, Cs, Rs, row_a, row_b, pair = sw
+    F, G, Qd, steps, grid_tau = tables[0], tables[1], tables[2], tables[3], tables[4]
+    coarse, switch, n_coarse, n_switch = tables[6], tables[7], tables[8], tables[9]
+    printed, gate, iterations = opts
+    e, PCt, chol, scale, z, nis, loglik, work, bad = ws
+    ye, Re, zero = lw
+    E, Go, Qo, EQ = obsv
+    best, best_ll, qidx, seg, win = gs[0], gs[1], gs[3], gs[4], gs[5]
+    lo, hi, pc, pd, fc, fd, probe, f, left = gold
+    dt = steps[d]
+    g = grid_tau.shape[1]
+    total = n_coarse * (n_switch - 1)
+    half = dt / (2 * g)
+    for c in range(ns):
+        tau = grid_tau[d, best[c]]
+        lo[c], hi[c] = min(max(tau - half, 0.0), dt), min(max(tau + half, 0.0), dt)
+        pc[c] = hi[c] - _GOLDEN * (hi[c] - lo[c])
+        pd[c] = lo[c] + _GOLDEN * (hi[c] - lo[c])
+        win[c] = -1
+    for s in range(iterations + 2):
+        for c in range(ns):
+            if s == 0:
+                probe[c] = pc[c]
+            elif s == 1:
+                probe[c] = pd[c]
+            else:  # the maximum lies in [lo, pd] if J(pc) > J(pd), else in [pc, hi]
+                left[c] = fc[c] > fd[c]
+                if left[c]:
+                    hi[c] = pd[c]
+                    probe[c] = hi[c] - _GOLDEN * (hi[c] - lo[c])
+                else:
+                    lo[c] = pc[c]
+                    probe[c] = lo[c] + _GOLDEN * (hi[c] - lo[c])
+            qidx[c] = min(max(int(math.floor(probe[c] / dt * total + 0.5)), 0), total)
+        _offset_rows(qidx, row_a, row_b, pair, coarse, switch, n_coarse, n_switch, ns, seg)
+        _chain(F, G, Qd, seg, ns, Cs, E, Go, Qo, EQ)
+        status = _likelihood(x, P, y, u, obs, n_obs, Rs, E, Go, Qo, printed, gate, ns, ye, Re,
+                             zero, e, PCt, chol, scale, z, nis, loglik, work, bad, f, report)
+        if status != OK:
+            return status
+        for c in range(ns):
+            if f[c] > best_ll[c]:
+                best_ll[c], win[c] = f[c], qidx[c]
+            if s == 0:
+                fc[c] = f[c]
+            elif s == 1:
+                fd[c] = f[c]
+            elif left[c]:
+                pd[c], pc[c], fd[c], fc[c] = pc[c], probe[c], fc[c], f[c]
+            else:
+                pc[c], pd[c], fc[c], fd[c] = pd[c], probe[c], fd[c], f[c]
+    won = 0
+    for c in range(ns):  # compact the lanes a probe won, then compose their transitions
+        if win[c] >= 0:
+            off[lane[c]] = win[c] * (dt / total)
+            qidx[won], lane[won] = win[c], lane[c]
+            row_a[won], row_b[won], pair[won] = row_a[c], row_b[c], pair[c]
+            won += 1
+    if won:
+        _offset_rows(qidx, row_a, row_b, pair, coarse, switch, n_coarse, n_switch, won, seg)
+        _chain(F, G, Qd, seg, won, eye, full[0], full[1], full[2], full[3])
+        _put_matrices(full[0], lane, won, Fl)
+        _put_matrices(full[1], lane, won, Gl)
+        _put_matrices(full[2], lane, won, Ql)
+    return OK
+
+
+# ---------------------------------------------------------------- measurement update
+@jit
+def _update(x, P, y, C, R, obs, n_obs, gate, nb, ws, cs, use, report):
+    """Measurement update of every lane, as the bank does for one mode
+    (:func:`.bank.filter_bank`): innovation (:func:`_innovate`), the gate (``use``: the
+    normalized innovation squared within ``gate`` and a finite likelihood), the Joseph-form
+    correction of the lanes that use it (Shankar et al. eqs (8)-(10)), and the information form
+    where Joseph's loses its digits, a repair where neither resolves ``P``. ``ws`` is the
+    workspace of :func:`.linalg.innovation`, ``cs`` ``(gain, T, AP, prior, root, lost)``.
+    Returns the status."""
+    e, PCt, chol, scale, z, nis, loglik, work, bad = ws
+    gain, T, AP, prior, root, lost = cs
+    status = _innovate(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work,
+                       bad, report)
+    if status != OK:
+        return status
+    for b in range(nb):
+        use[b] = math.isfinite(loglik[b]) and nis[b] <= gate
+    correct(x, P, C, R, use, nb, PCt, chol, scale, z, gain, T, AP, prior)
+    if joseph_lost(P, prior, use, nb, root, lost):  # rare: lane by lane
+        for b in range(nb):
+            if lost[b] and n_obs[b] > 0.0 and not information_form(P, prior, C, R, obs, b):
+                repair(P, b, True, report)
+    return OK
+
+
+@jit
+def _merge(sw, tables, gate, ns, d, lane, x, P, lik, flg, off, ws, cs, hyp, flow, xs, report):
+    """The switching instant marginalized over the grid (beyond Shankar et al.), for the
+    compacted switched lanes: every grid instant ``tau_i`` is predicted (eqs (6)-(7)) and
+    updated (:func:`_update`), the hypotheses get the posterior weights
+    ``w_i = p(y | tau_i) / sum_k p(y | tau_k)`` of a uniform prior (log-sum-exp) and are merged
+    by moment matching (:func:`.linalg._moments`); the likelihood is the grid mean
+    ``(1/g) sum_i p(y | tau_i)`` and the instant the posterior mean ``sum_i w_i tau_i``. Where
+    every instant rejects the measurement, the predictions are weighed equally and the sample
+    is flagged ``GATED``. Writes the lanes' ``x``, ``P``, ``lik``, ``flg``, ``off``; returns the
+    status."""
+    xc, Pc, y, u, obs, n_obs, Cs, Rs, _, _, pair = sw
+    F, G, Qd, grid_tau, first = tables[0], tables[1], tables[2], tables[4], tables[5]
+    xh, Ph, llh, wh, total, xm, Pm, use, index = hyp
+    Phi, Gam, Q = flow
+    AP = cs[2]
+    loglik = ws[6]
+    g = grid_tau.shape[1]
+    for r in range(g):
+        for c in range(ns):
+            index[c] = first + pair[c] * g + r
+        _gather_transition(F, G, Qd, index, ns, Phi, Gam, Q)
+        for i in range(xc.shape[0]):
+            for c in range(ns):
+                xh[r, i, c] = xc[i, c]
+            for j in range(xc.shape[0]):
+                for c in range(ns):
+                    Ph[r, i, j, c] = Pc[i, j, c]
+        predict(xh[r], Ph[r], Phi, Gam, u, Q, ns, AP, xs)
+        status = _update(xh[r], Ph[r], y, Cs, Rs, obs, n_obs, gate, ns, ws, cs, use, report)
+        if status != OK:
+            return status
+        for c in range(ns):
+            llh[r, c] = loglik[c] if use[c] else -math.inf
+    for c in range(ns):
+        rejected = True
+        for r in range(g):
+            rejected &= llh[r, c] == -math.inf
+        if rejected:  # weigh the predictions equally
+            for r in range(g):
+                llh[r, c] = 0.0
+        flg[lane[c]] = GATED if rejected else ACCEPTED
+    log_normalize(llh, wh, total, ns)  # w_i = p(y | tau_i) / sum_k p(y | tau_k)
+    _moments(wh, xh, Ph, ns, xm, Pm)
+    _put_rows(xm, lane, ns, x)
+    _put_matrices(Pm, lane, ns, P)
+    log_g = math.log(g)
+    for c in range(ns):
+        tau = 0.0
+        for r in range(g):
+            tau += wh[r, c] * grid_tau[d, r]
+        off[lane[c]] = tau
+        lik[lane[c]] = total[c] - log_g if flg[lane[c]] == ACCEPTED else 0.0
+    return OK
+
+
+# ---------------------------------------------------------------- the kernel
+@jit
+def switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, n_coarse,
+                       n_switch, x_init, P_init, predict_first, marginal, printed, gate,
+                       iterations, lanes, x_out, P_out, loglik_out, offset_out, flag_out,
+                       report):
+    """Filter ``N`` trials over ``K`` samples, estimating the switching instant of every
+    interval whose mode changes (Shankar et al. §IV).
+
+    Parameters
+    ----------
+    y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau
+        As in :func:`switch_time_run` (the table's layout in the module docstring).
+    n_coarse, n_switch : int
+        ``N1`` and ``N0 + 1``: the refinement sections' lengths per mode and per mode pair (0
+        without).
+    x_init, P_init : (N, n), (N, n, n) float64
+        Each trial's state before the first sample.
+    predict_first : bool
+        Whether the first sample is predicted into (a streaming step) or only updated.
+    marginal, printed : bool
+    gate : float
+    iterations : int
+        Golden-section steps (0: no refinement).
+    lanes : int
+        Trials per block.
+    x_out, P_out, loglik_out, offset_out, flag_out
+        Written: the posterior ``(N, K, n)``, ``(N, K, n, n)``, the log-likelihood, the
+        estimated switching offset (NaN without a switch) and the flag ``(N, K)``.
+    report : (2,) float64
+        Written: repairs and the smallest eigenvalue before one (:func:`.linalg.repair`).
+
+    Returns
+    -------
+    status : int
+        ``OK`` or the failure code that stopped the kernel.
+
+    Notes
+    -----
+    At each sample the kernel compacts the lanes whose mode changed, estimates their switching
+    instant (:func:`_grid_maximum`, :func:`_refine`; every lane's transition is otherwise the
+    no-switch one of the mode before the interval), predicts every lane (eqs (6)-(7)) and
+    updates it (:func:`_update`); with ``marginal`` the switched lanes' posteriors are then
+    replaced by the merge of their grid hypotheses (:func:`_merge`). The predicted state of a
+    lane whose measurement is rejected is its posterior, as for a missing measurement.
+    """
+    N, K, m = y.shape
+    n, n_in, L = x_init.shape[1], u.shape[2], C.shape[0]
+    D, g = grid_tau.shape
+    B = lanes
+    coarse = D * L * (1 + L * g)
+    tables = (F, G, Qd, steps, grid_tau, D * L, coarse, coarse + D * L * n_coarse, n_coarse,
+              n_switch)  # with the first rows of the grid, coarse and switch sections
+    opts = (printed, gate, iterations)
+    x, P = np.empty((n, B)), np.empty((n, n, B))
+    yl, ul, obs, n_obs = np.empty((m, B)), np.empty((n_in, B)), np.empty((m, B)), np.empty(B)
+    Fl, Gl, Ql = np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((n, n, B))
+    Cl, Rl = np.empty((m, n, B)), np.empty((m, m, B))
+    index, use = np.empty(B, dtype=np.int64), np.empty(B, dtype=np.bool_)
+    lik, off, flg = np.empty(B), np.empty(B), np.empty(B, dtype=np.uint8)
+    ws = (np.empty((m, B)), np.empty((n, m, B)), np.empty((m, m, B)), np.empty((m, B)),
+          np.empty((m, B)), np.empty(B), np.empty(B), np.empty((3, B)),
+          np.zeros(B, dtype=np.bool_))
+    cs = (np.empty((n, m, B)), np.empty((n, m, B)), np.empty((n, n, B)), np.empty((n, n, B)),
+          np.empty((n, B)), np.empty(B, dtype=np.bool_))
+    xs = np.empty((n, B))
+    lane, mode_c = np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64)
+    sw = (np.empty((n, B)), np.empty((n, n, B)), np.empty((m, B)), np.empty((n_in, B)),
+          np.empty((m, B)), np.empty(B), np.empty((m, n, B)), np.empty((m, m, B)),
+          np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64))
+    lw = (np.empty((m, B)), np.empty((m, m, B)), np.zeros((n, n, B)))
+    obsv = (np.empty((m, n, B)), np.empty((m, n_in, B)), np.empty((m, m, B)), np.empty((m, n, B)))
+    full = (np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((n, n, B)), np.empty((n, n, B)))
+    flow = (np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((n, n, B)))
+    gs = (np.empty(B, dtype=np.int64), np.empty(B), np.empty(B), np.empty(B, dtype=np.int64),
+          np.empty((3, B), dtype=np.int64), np.empty(B, dtype=np.int64))
+    gold = (np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B),
+            np.empty(B), np.empty(B), np.empty(B, dtype=np.bool_))
+    eye = np.zeros((n, n, B))
+    for i in range(n):
+        eye[i, i, :] = 1.0
+    G_h = g if marginal else 0
+    hyp = (np.empty((G_h, n, B)), np.empty((G_h, n, n, B)), np.empty((G_h, B)),
+           np.empty((G_h, B)), np.empty(B), np.empty((n, B)), np.empty((n, n, B)),
+           np.empty(B, dtype=np.bool_), np.empty(B, dtype=np.int64))
+    report[0], report[1] = 0.0, math.inf
+    for i0 in range(0, N, B):
+        nb = min(B, N - i0)
+        for r in range(n):
+            for b in range(nb):
+                x[r, b] = x_init[i0 + b, r]
+            for c in range(n):
+                for b in range(nb):
+                    P[r, c, b] = P_init[i0 + b, r, c]
+        for k in range(K):
+            gather_samples(y, i0, nb, k, yl)
+            observe(yl, nb, obs, n_obs)
+            ns, d = 0, 0
+            for b in range(nb):
+                off[b] = math.nan
+            if k > 0 or predict_first:
+                d = which[k]
+                gather_samples(u, i0, nb, k, ul)
+                for b in range(nb):
+                    before, after = prev[i0 + b, k], mode[i0 + b, k]
+                    index[b] = d * L + before  # no switch: the mode before the interval
+                    if before != after:
+                        lane[ns], mode_c[ns] = b, after
+                        sw[8][ns], sw[9][ns] = d * L + before, d * L + after
+                        sw[10][ns] = (d * L + before) * L + after
+                        ns += 1
+                _gather_transition(F, G, Qd, index, nb, Fl, Gl, Ql)
+                if ns:
+                    _take_rows(x, lane, ns, sw[0])
+                    _take_matrices(P, lane, ns, sw[1])
+                    _take_rows(yl, lane, ns, sw[2])
+                    _take_rows(ul, lane, ns, sw[3])
+                    _take_rows(obs, lane, ns, sw[4])
+                    for c in range(ns):
+                        sw[5][c] = n_obs[lane[c]]
+                    gather_matrices(C, mode_c, ns, sw[6])
+                    gather_matrices(R, mode_c, ns, sw[7])
+                if ns and not marginal:
+                    status = _grid_maximum(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws,
+                                           lw, obsv, gs, report)
+                    if status == OK and iterations:
+                        status = _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws,
+                                         lw, obsv, full, gs, gold, eye, report)
+                    if status != OK:
+                        return status
+                predict(x, P, Fl, Gl, ul, Ql, nb, cs[2], xs)
+            for b in range(nb):
+                index[b] = mode[i0 + b, k]
+            gather_matrices(C, index, nb, Cl)
+            gather_matrices(R, index, nb, Rl)
+            status = _update(x, P, yl, Cl, Rl, obs, n_obs, gate, nb, ws, cs, use, report)
+            if status != OK:
+                return status
+            for b in range(nb):
+                lik[b] = ws[6][b] if use[b] else 0.0
+                flg[b] = ACCEPTED if use[b] else GATED
+            if ns and marginal:
+                status = _merge(sw, tables, gate, ns, d, lane, x, P, lik, flg, off, ws, cs,
+                                hyp, flow, xs, report)
+                if status != OK:
+                    return status
+            for b in range(nb):
+                i = i0 + b
+                loglik_out[i, k] = lik[b]
+                offset_out[i, k] = off[b]
+                flag_out[i, k] = flg[b]
+                for r in range(n):
+                    x_out[i, k, r] = x[r, b]
+                    for c in range(n):
+                        P_out[i, k, r, c] = P[r, c, b]
+    return OK
