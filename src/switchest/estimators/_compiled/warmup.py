@@ -127,3 +127,37 @@ def _dyadic() -> None:
     table = DyadicTable(1.0, 0, one, np.zeros((2, 1, 1, 1)), one, -np.ones((2, 1, 1)),
                         np.ones((2, 1, 1)), np.ones((2, 1, 1)))
     interval_transitions(table, np.array([[0, 1]]), np.array([[0.5]]))
+
+
+def _tiny_switched():
+    """A continuous one-state, two-mode system and a record of four samples with a switch."""
+    from ...system import SwitchedLinearSystem
+
+    system = SwitchedLinearSystem.continuous([[[-1.0]], [[-2.0]]], [[[1.0]], [[0.5]]],
+                                             [[[1.0]], [[1.0]]], Q=[[0.1]], R=[[0.1]])
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    return system, t, np.zeros((1, 4, 1)), np.array([[0, 0, 1, 1]])
+
+
+@register
+def _switch_time() -> None:
+    """:class:`~switchest.estimators.SwitchTimeKalmanFilter`'s kernel, over a record (grid
+    maximum, refined, marginal) and one step."""
+    from ..switch_time import SwitchTimeKalmanFilter
+
+    system, t, y, modes = _tiny_switched()
+    for options in ({}, {"refine": True}, {"switch_time": "marginal"}):
+        f = SwitchTimeKalmanFilter(system, np.zeros(1), np.eye(1), grid=2, **options)
+        f.run(y, np.zeros(1), t, modes=modes)
+    f.step(f.init((1,)), y[:, 1], np.zeros((1, 1)), dt=0.1, mode=[1], prev_mode=[0])
+
+
+@register
+def _imm_ev1() -> None:
+    """:class:`~switchest.estimators.IMMEV1Filter`'s kernel, over a record and one step."""
+    from ..imm_ev1 import IMMEV1Filter
+
+    system, t, y, _ = _tiny_switched()
+    f = IMMEV1Filter(system, x0=np.zeros(1), P0=np.eye(1), grid=2)
+    f.run(y, np.zeros(1), t)
+    f.step(f.init((1,)), y[:, 1], np.zeros((1, 1)), dt=0.1)
