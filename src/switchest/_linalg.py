@@ -13,15 +13,10 @@ import numpy as np
 __all__ = [
     "matvec",
     "mul",
-    "shared",
-    "congruence",
     "transpose",
     "symmetrize",
     "psd_sqrt",
     "pow2_scale",
-    "SPDFactor",
-    "spd_factor",
-    "spd_solve",
     "joseph_update",
     "mixture_moments",
     "log_normalize",
@@ -52,28 +47,6 @@ def mul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     if B.ndim == 2 and A.ndim > 2:
         return (A.reshape(-1, A.shape[-1]) @ B).reshape(*A.shape[:-1], B.shape[-1])
     return A @ B
-
-
-def shared(M: np.ndarray) -> np.ndarray:
-    """``M[0]`` when every matrix of a stack ``M (L, a, b)`` is the same, else ``M``.
-
-    Filters pass a matrix all modes share (an output matrix, the dynamics of modes
-    that differ only in their input) as one 2-D matrix, which :func:`mul`,
-    :func:`matvec` and :func:`congruence` apply to a whole stack at once.
-    """
-    return M[0] if M.ndim == 3 and np.all(M == M[:1]) else M
-
-
-def congruence(F: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """``F P F'`` for a stack of symmetric ``P`` (not re-symmetrized).
-
-    A 2-D ``F`` shared by the stack takes two shared-factor products,
-    ``(F P) F' = (P F')' F'`` (``P`` symmetric); otherwise ``F @ P @ F'``.
-    """
-    Ft = transpose(F)
-    if F.ndim == 2:
-        return mul(transpose(mul(P, Ft)), Ft)
-    return F @ P @ Ft
 
 
 def transpose(M: np.ndarray) -> np.ndarray:
@@ -111,144 +84,6 @@ def pow2_scale(v: np.ndarray) -> np.ndarray:
     """
     _, exponent = np.frexp(np.where(v > 0, v, 1.0))
     return np.ldexp(1.0, exponent // 2)
-
-
-@dataclass(frozen=True, eq=False)
-class SPDFactor:
-    """Cholesky factor of a stack of symmetric positive definite matrices, equilibrated.
-
-    ``S = D L L' D`` with ``D = diag(d)``, ``d_i`` a power of two near
-    ``sqrt(S_ii)`` (:func:`pow2_scale`), and ``L`` the lower Cholesky factor of
-    ``D^-1 S D^-1``, whose diagonal lies in ``[0.5, 2)``: entries of ``S`` of ``1e300`` or
-    ``1e-300`` neither overflow nor underflow in the factorization. Made by
-    :func:`spd_factor`. The stack is stored last (``L (m, m, N)``, ``d (m, N)``)
-    so that the loops over matrix entries operate on whole contiguous stacks.
-
-    Attributes
-    ----------
-    L : ndarray, shape (m, m, N)
-    d : ndarray, shape (m, N)
-    shape : tuple of int
-        The batch shape of the stack.
-    """
-
-    L: np.ndarray
-    d: np.ndarray
-    shape: tuple[int, ...]
-
-    def lower(self) -> np.ndarray:
-        """The lower-triangular factor ``D L`` of ``S = (D L)(D L)'``, shape ``(..., m, m)``."""
-        m = self.L.shape[0]
-        return self._unstack(self.d[:, None, :] * self.L, m)
-
-    @property
-    def logdet(self) -> np.ndarray:
-        """``log det S = 2 sum log L_ii + 2 sum log d_i``, shape ``shape``."""
-        m = self.L.shape[0]
-        diag = self.L[np.arange(m), np.arange(m)] * self.d  # about sqrt(S_ii): no overflow
-        return (2.0 * np.sum(np.log(diag), axis=0)).reshape(self.shape)
-
-    def whiten(self, B: np.ndarray) -> np.ndarray:
-        """``W = L^-1 D^-1 B`` for ``B (..., m, k)`` (forward substitution): ``W'W = B' S^-1 B``."""
-        return self._unstack(self._forward(self._stack(B)), B.shape[-1])
-
-    def solve(self, B: np.ndarray) -> np.ndarray:
-        """``X = S^-1 B`` for ``B (..., m, k)`` by forward and back substitution, no inverse."""
-        return self._unstack(self._back(self._forward(self._stack(B))), B.shape[-1])
-
-    def solve_quadratic(self, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``X = S^-1 B`` and the quadratic forms ``q_j = b_j' S^-1 b_j = |L^-1 D^-1 b_j|^2``
-        of the columns of ``B (..., m, k)``: ``q (..., k)`` is a sum of squares, never
-        negative however ill-conditioned ``S`` is (``inf`` where it overflows)."""
-        W = self._forward(self._stack(B))
-        q = np.einsum("ikn,ikn->nk", W, W).reshape(*self.shape, B.shape[-1])
-        return self._unstack(self._back(W), B.shape[-1]), q
-
-    def _stack(self, B: np.ndarray) -> np.ndarray:
-        m = self.L.shape[0]
-        return _stack_last(np.broadcast_to(B, (*self.shape, m, B.shape[-1]))).copy()
-
-    def _unstack(self, X: np.ndarray, k: int) -> np.ndarray:
-        m = self.L.shape[0]
-        return np.ascontiguousarray(np.moveaxis(X, -1, 0)).reshape(*self.shape, m, k)
-
-    def _forward(self, X: np.ndarray) -> np.ndarray:
-        """``L^-1 D^-1 X`` in place on a stack-last ``X (m, k, N)``."""
-        L = self.L
-        X /= self.d[:, None, :]
-        for i in range(L.shape[0]):
-            for p in range(i):
-                X[i] -= L[i, p] * X[p]
-            X[i] /= L[i, i]
-        return X
-
-    def _back(self, X: np.ndarray) -> np.ndarray:
-        """``D^-1 L'^-1 X`` in place on a stack-last ``X (m, k, N)``."""
-        L = self.L
-        m = L.shape[0]
-        for i in reversed(range(m)):
-            for p in range(i + 1, m):
-                X[i] -= L[p, i] * X[p]
-            X[i] /= L[i, i]
-        X /= self.d[:, None, :]
-        return X
-
-
-def spd_factor(S: np.ndarray) -> SPDFactor:
-    """Equilibrated Cholesky factorization of a stack of symmetric positive definite ``S``.
-
-    ``S (..., m, m)``; only its lower triangle and diagonal are read. The stack is
-    scaled by powers of two to unit diagonal (exact), then ``L`` is computed column
-    by column with every operation vectorized over the whole stack: for the small
-    ``m`` of measurement vectors that is several times faster than one LAPACK call
-    per matrix. See :class:`SPDFactor`.
-
-    Raises ``numpy.linalg.LinAlgError`` if a matrix is not positive definite or
-    holds a non-finite entry.
-    """
-    m = S.shape[-1]
-    shape = S.shape[:-2]
-    St = _stack_last(S)  # (m, m, N)
-    diag = St[np.arange(m), np.arange(m)]
-    if not np.all(diag > 0):
-        raise np.linalg.LinAlgError("Matrix is not positive definite")
-    d = pow2_scale(diag)
-    St = St / d[:, None, :] / d[None, :, :]  # exact: powers of two
-    L = np.zeros_like(St)
-    for j in range(m):
-        piv = St[j, j].copy()
-        for p in range(j):
-            piv -= L[j, p] ** 2
-        if not np.all(piv > 0):
-            raise np.linalg.LinAlgError("Matrix is not positive definite")
-        L[j, j] = np.sqrt(piv)
-        for i in range(j + 1, m):
-            L[i, j] = St[i, j]
-            for p in range(j):
-                L[i, j] -= L[i, p] * L[j, p]
-            L[i, j] /= L[j, j]
-    if not np.all(np.isfinite(L)):  # an infinite entry of S (a NaN one fails a pivot above)
-        raise np.linalg.LinAlgError("Matrix has non-finite entries")
-    return SPDFactor(L=L, d=d, shape=shape)
-
-
-def spd_solve(S: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Solve ``S X = B`` for a stack of symmetric positive definite ``S``; return ``X, log det S``.
-
-    ``S (..., m, m)`` (only its lower triangle is read), ``B (..., m, k)``;
-    leading axes broadcast. By the equilibrated Cholesky factorization of
-    :func:`spd_factor` and forward and back substitution — no inverse.
-    Raises ``numpy.linalg.LinAlgError`` if a matrix is not positive definite.
-    """
-    m = S.shape[-1]
-    shape = np.broadcast_shapes(S.shape[:-2], B.shape[:-2])
-    factor = spd_factor(np.broadcast_to(S, (*shape, m, m)))
-    return factor.solve(B), factor.logdet
-
-
-def _stack_last(M: np.ndarray) -> np.ndarray:
-    """A stack ``(..., a, b)`` as one contiguous array ``(a, b, N)`` with the stack last."""
-    return np.ascontiguousarray(np.moveaxis(M.reshape(-1, *M.shape[-2:]), 0, -1))
 
 
 def joseph_update(P: np.ndarray, K: np.ndarray, C: np.ndarray, R: np.ndarray) -> np.ndarray:

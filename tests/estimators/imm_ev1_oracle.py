@@ -16,12 +16,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy_kalman import kf_predict, kf_update
 
 from switchest._checks import check_probability_vector, check_row_stochastic, positive_scalar
 from switchest._linalg import log_normalize, mixture_moments
 from switchest.discretize import pairwise_grid, switch_grid
 from switchest.estimators.base import Estimate, Estimator
-from switchest.estimators.kalman import kf_predict, kf_update
 
 
 def printed_loglik(x_pred, y, C, R):

@@ -12,10 +12,10 @@ follow the same golden-section path.
 from __future__ import annotations
 
 import numpy as np
+from numpy_kalman import kf_predict, kf_update
 
 from switchest._linalg import log_normalize, mixture_moments
 from switchest.discretize import interval, mode_steps, pairwise_grid, switch_grid
-from switchest.estimators.kalman import kf_predict, kf_update
 
 _GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 

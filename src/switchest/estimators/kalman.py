@@ -1,22 +1,25 @@
-"""The batched Kalman core every filter in switchest is built from.
+"""The Kalman equations as functions over stacks, on the compiled engine.
 
-Pure functions over stacks: leading axes are batch axes (trials, modes,
-hypotheses, grid points), the last one or two are the vector or matrix.
+:func:`kf_predict` and :func:`kf_update` take any leading batch axes (trials, modes,
+hypotheses, grid points; the last one or two are the vector or matrix; shapes broadcast) and
+run one sample of the compiled Kalman kernel
+(:func:`switchest.estimators._compiled.kalman_step`) on the flattened stack: the one
+implementation of each equation that every filter runs. :func:`steady_state_gain` solves the
+Riccati equation of one mode (scipy).
 """
 
 from __future__ import annotations
 
-import warnings
+import math
 
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
-from .._linalg import congruence, joseph_update, matvec, mul, spd_factor, symmetrize, transpose
+from .._checks import check_cores, float_array, positive_scalar
+from .._linalg import symmetrize
+from ._compiled import GATED, kalman_step, raise_for_status, warn_for_repairs
 
 __all__ = ["kf_predict", "kf_update", "steady_state_gain"]
-
-_LOG_2PI = np.log(2.0 * np.pi)
-_EPS = np.finfo(float).eps
 
 
 def kf_predict(x, P, F, G, u, Qd, *, inflation: float = 0.0):
@@ -25,46 +28,50 @@ def kf_predict(x, P, F, G, u, Qd, *, inflation: float = 0.0):
     Shankar et al. eqs (6)-(7) with the process noise of the exact discretization
     added; ``inflation`` is the ``epsilon I`` of their Algorithm 1 (§IV). Shapes
     broadcast over leading axes (a 2-D ``F`` or ``Qd`` is shared by the whole
-    stack); ``u`` may have a zero-length last axis.
+    stack); ``u`` may have a zero-length last axis. The kernel runs the prediction
+    with a measurement that is never observed, so nothing is updated.
     """
-    x_pred = matvec(F, x)
-    if u.shape[-1]:
-        x_pred = x_pred + matvec(G, u)
-    P_pred = congruence(F, P) + Qd
+    arrays = _stack({"x": x, "P": P, "F": F, "G": G, "u": u, "Qd": Qd},
+                    {"x": "n", "P": "nn", "F": "nn", "G": "nl", "u": "l", "Qd": "nn"})
+    batch, N, flat = arrays.pop("batch"), arrays.pop("N"), arrays
+    n = flat["x"].shape[-1]
+    Qd = flat["Qd"]
+    inflation = positive_scalar(inflation, "inflation", allow_zero=True)
     if inflation:
-        P_pred = P_pred + inflation * np.eye(P.shape[-1])
-    return x_pred, symmetrize(P_pred)
+        Qd = Qd + inflation * np.eye(n)
+    out = kalman_step(flat["x"], flat["P"], np.full((N, 1), np.nan), flat["u"], flat["F"],
+                      flat["G"], Qd, np.zeros((N, 1, n)), np.ones((N, 1, 1)), predict_first=True)
+    raise_for_status(out.status)
+    return out.x.reshape(*batch, n), out.P.reshape(*batch, n, n)
 
 
 def kf_update(x, P, y, C, R, *, gate: float | None = None):
     """Measurement update with innovation log-likelihood; NaN entries of ``y`` are missing.
 
-    ``S = C P C' + R``, ``K = P C' S^-1`` by a Cholesky solve (no inverse),
-    ``x+ = x + K (y - C x)``, and the covariance in Joseph form
+    ``S = C P C' + R``, ``K = P C' S^-1`` by a Cholesky solve of the equilibrated ``S``
+    (no inverse), ``x+ = x + K (y - C x)``, and the covariance in Joseph form
     ``P+ = (I - K C) P (I - K C)' + K R K'`` (Shankar et al. eqs (8)-(10) in their
-    numerically stable form). The log-likelihood is
-    ``log N(y; C x, S) = -(e' S^-1 e + log det S + m log 2 pi) / 2``, with the
-    normalized innovation squared ``e' S^-1 e = |L^-1 D^-1 e|^2`` and ``log det S``
-    taken from the equilibrated factor ``S = D L L' D`` (:func:`~switchest._linalg.spd_factor`),
-    so that neither depends on the scale of the measurements.
+    numerically stable form); where Joseph's form loses its digits (a diffuse prior) the
+    information form. The log-likelihood is
+    ``log N(y; C x, S) = -(e' S^-1 e + log det S + m log 2 pi) / 2``.
 
-    A missing component (NaN) is removed exactly: its row of ``C`` is zeroed and
-    its noise decoupled, so the update uses the observed components only and the
-    log-likelihood is that of their marginal. An all-NaN ``y`` leaves ``x, P``
-    unchanged with log-likelihood 0. A 2-D ``C`` or ``R`` is shared by the whole stack.
+    A missing component (NaN) is removed exactly, so the update uses the observed
+    components only and the log-likelihood is that of their marginal. An all-NaN ``y``
+    leaves ``x, P`` unchanged with log-likelihood 0. A 2-D ``C`` or ``R`` is shared by the
+    whole stack.
 
-    A measurement is *rejected* when its normalized innovation squared is not
-    finite (a measurement so far off that it overflows, e.g. ``1e300``) or exceeds
-    ``gate``: ``x, P`` are left unchanged, as for a missing measurement, and the
-    log-likelihood is ``-inf`` (the likelihood truncated to zero outside the gate),
-    so that a caller tells a rejected measurement (``-inf``) from a missing one (0).
+    A measurement is *rejected* when its normalized innovation squared is not finite (a
+    measurement so far off that it overflows, e.g. ``1e300``) or exceeds ``gate``: ``x, P``
+    are left unchanged, as for a missing measurement, and the log-likelihood is ``-inf``
+    (the likelihood truncated to zero outside the gate), so that a caller tells a rejected
+    measurement (``-inf``) from a missing one (0).
 
     Parameters
     ----------
-    x, P : ndarray
+    x, P : array_like
         Prior mean ``(..., n)`` and covariance ``(..., n, n)``.
-    y : ndarray, shape (..., m)
-    C, R : ndarray
+    y : array_like, shape (..., m)
+    C, R : array_like
         ``(..., m, n)`` and ``(..., m, m)``.
     gate : float, optional
         Largest normalized innovation squared accepted (keyword-only); ``None``
@@ -82,150 +89,38 @@ def kf_update(x, P, y, C, R, *, gate: float | None = None):
 
     Notes
     -----
-    Where Joseph's form loses its digits (a diffuse prior) the posterior is taken in
-    information form (:func:`_posterior`). A state covariance can still lose positive
-    semidefiniteness to round-off when its condition number exceeds ``1/eps`` (a prior
-    of ``1e300`` on a state observed only through the dynamics, a mixture of
-    estimates ``1e50`` apart): its small variances are then below the rounding error
-    of the large ones. Such a covariance — a posterior found indefinite, or a prior
-    whose ``S`` fails its factorization — is repaired: its eigenvalues are raised to
-    at least its rounding level ``n eps max|eig P|``, as much as is known about the
-    small ones, with a ``RuntimeWarning`` (and the update is retried once).
+    A state covariance whose condition number exceeds ``1/eps`` can lose positive
+    semidefiniteness to round-off; such a covariance — a posterior found indefinite, or a
+    prior whose ``S`` fails its factorization — is repaired: its eigenvalues are raised to
+    its rounding level ``n eps max|eig P|``, with a ``RuntimeWarning`` (and the update is
+    retried once).
     """
-    try:
-        return _update(x, P, y, C, R, gate)
-    except np.linalg.LinAlgError as exc:
-        if not np.all(np.isfinite(P)):
-            raise np.linalg.LinAlgError(
-                "the state covariance P is not finite: it overflowed (a prior P0, a process noise "
-                "or dynamics too large for the floating-point range)"
-            ) from exc
-        P_fixed, repaired = _psd_repair(P)
-        if not repaired.any():
-            raise
-        _warn_repair(P)
-        return _update(x, P_fixed, y, C, R, gate)
+    arrays = _stack({"x": x, "P": P, "y": y, "C": C, "R": R},
+                    {"x": "n", "P": "nn", "y": "m", "C": "mn", "R": "mm"})
+    batch, N, flat = arrays.pop("batch"), arrays.pop("N"), arrays
+    n = flat["x"].shape[-1]
+    gate = math.inf if gate is None else positive_scalar(gate, "gate")
+    out = kalman_step(flat["x"], flat["P"], flat["y"], np.zeros((N, 0)), np.zeros((N, n, n)),
+                      np.zeros((N, n, 0)), np.zeros((N, n, n)), flat["C"], flat["R"],
+                      predict_first=False, gate=gate)
+    raise_for_status(out.status)
+    warn_for_repairs(out)
+    loglik = np.where(out.flag == GATED, -np.inf, out.loglik)
+    return out.x.reshape(*batch, n), out.P.reshape(*batch, n, n), loglik.reshape(batch)
 
 
-def _update(x, P, y, C, R, gate):
-    """:func:`kf_update` on a covariance taken as it is."""
-    missing = np.isnan(y)
-    m = y.shape[-1]
-    if missing.any():
-        C = np.broadcast_to(C, (*np.broadcast_shapes(C.shape[:-2], x.shape[:-1], y.shape[:-1]), *C.shape[-2:]))
-        R = np.broadcast_to(R, (*C.shape[:-2], m, m))
-        keep = ~missing
-        y = np.where(missing, 0.0, y)
-        C = C * keep[..., :, None]
-        pair = keep[..., :, None] & keep[..., None, :]
-        R = np.where(pair, R, 0.0) + np.where(missing, 1.0, 0.0)[..., None] * np.eye(m)
-    e = y - matvec(C, x)
-    PCt = mul(P, transpose(C))
-    CP = transpose(PCt)  # P symmetric
-    S = mul(CP, transpose(C)) + R  # the Cholesky factorization reads its lower triangle only
-    factor = _innovation_factor(S, CP, e)
-    # one factorization of S gives K' = S^-1 C P, S^-1 e and e' S^-1 e; an innovation that
-    # overflows is rejected below
-    with np.errstate(over="ignore", invalid="ignore"):
-        X, quad = factor.solve_quadratic(np.concatenate([CP, e[..., None]], axis=-1))
-    nis = quad[..., -1]
-    accepted = nis < np.inf if gate is None else nis <= gate  # False for inf and NaN
-    K, Sinv_e = transpose(X[..., :-1]), X[..., -1]
-    loglik = -0.5 * (nis + factor.logdet + m * _LOG_2PI)
-    if missing.any():
-        loglik = loglik + 0.5 * missing.sum(axis=-1) * _LOG_2PI  # the decoupled unit blocks
-    everything = accepted.all()
-    if not everything:
-        Sinv_e = np.where(accepted[..., None], Sinv_e, 0.0)  # x+ = x exactly
-        loglik = np.where(accepted, loglik, -np.inf)
-    x_new = x + matvec(PCt, Sinv_e)  # K e = P C' S^-1 e
-    P_new = _posterior(P, K, C, R)
-    if not everything:
-        P_new = np.where(accepted[..., None, None], P_new, P)
-    return x_new, P_new, loglik
-
-
-def _posterior(P, K, C, R):
-    """Posterior covariance for the optimal gain ``K``: Joseph form, or where that loses its digits
-    the information form.
-
-    Joseph's ``M = I - K C`` is accurate to ``eps |K C|`` only, so ``M P M'`` carries an error
-    of about ``eps^2 |K C|^2 P``. Where the update removes nearly all the prior variance of a
-    state (``P+_ii < eps P_ii``: a diffuse prior, a nearly noise-free measurement, ``K C ~ I``)
-    or the result is no longer a covariance (a correlation beyond ``1 + sqrt(eps)``), that
-    error has swamped ``P+``; there, if ``P`` and ``R`` are positive definite,
-    ``P+ = (P^-1 + C' R^-1 C)^-1 = L (I + L' C' R^-1 C L)^-1 L'`` (``P = L L'``) is taken
-    instead: a Gram matrix ``Z' Z``, accurate to the conditioning of ``C' R^-1 C``. Where
-    neither form resolves ``P+`` (its condition number is beyond ``1/eps``: a diffuse prior on
-    states the measurement does not see) an indefinite result is repaired (:func:`_psd_repair`).
-    """
-    P_new = joseph_update(P, K, C, R)
-    prior = np.diagonal(P, axis1=-2, axis2=-1)
-    post = np.diagonal(P_new, axis1=-2, axis2=-1)
-    root = np.sqrt(np.abs(post))
-    bound = (1.0 + np.sqrt(_EPS)) * root[..., :, None] * root[..., None, :]
-    kept = np.all(post >= _EPS * prior, axis=-1) & np.all(np.abs(P_new) <= bound, axis=(-2, -1))
-    if kept.all():
-        return P_new
-    n, m = P.shape[-1], R.shape[-1]
-    shape = kept.shape
-    P_new = np.array(np.broadcast_to(P_new, (*shape, n, n)))  # a writable copy
-    P_b, C_b, R_b = (np.broadcast_to(a, (*shape, *a.shape[-2:])) for a in (P, C, R))
-    repaired = []
-    for idx in zip(*np.nonzero(~kept)):  # rare: one small problem at a time
-        try:
-            L = spd_factor(P_b[idx]).lower()  # P = L L'
-            Cw = spd_factor(R_b[idx]).whiten(C_b[idx] @ L)  # R^-1/2 C L
-            Z = spd_factor(np.eye(n) + Cw.T @ Cw).whiten(L.T)  # (I + Cw'Cw)^-1/2 L'
-            P_new[idx] = symmetrize(Z.T @ Z)
-        except np.linalg.LinAlgError:  # P or R singular, or P+ beyond 1/eps: Joseph's, repaired
-            P_new[idx], changed = _psd_repair(P_new[idx], indefinite_only=True)
-            if changed:
-                repaired.append(P_new[idx])
-    if repaired:
-        _warn_repair(np.stack(repaired))
-    return P_new
-
-
-def _innovation_factor(S, CP, e):
-    """The equilibrated Cholesky factor of ``S``, broadcast with ``C P`` and ``e``; clear errors."""
-    shape = np.broadcast_shapes(S.shape[:-2], CP.shape[:-2], e.shape[:-1])
-    try:
-        return spd_factor(np.broadcast_to(S, (*shape, *S.shape[-2:])))
-    except np.linalg.LinAlgError as exc:
-        if not np.all(np.isfinite(S)):
-            raise np.linalg.LinAlgError(
-                "innovation covariance C P C' + R is not finite: it overflowed (C P C' or R beyond "
-                "the floating-point range)"
-            ) from exc
-        raise np.linalg.LinAlgError(
-            "innovation covariance C P C' + R is not positive definite: give the system a "
-            "measurement noise R or the filter a positive definite P0"
-        ) from exc
-
-
-def _psd_repair(P, *, indefinite_only=False):
-    """``(P', repaired)``: each covariance with an eigenvalue below its rounding level
-    ``n eps max|eig|`` (which cannot be told from zero; with ``indefinite_only``, below minus
-    that level: negative beyond rounding) gets its eigenvalues raised to that level, as much as
-    is known about them; the others are returned as they are. ``repaired (...)`` marks the
-    changed ones."""
-    P = symmetrize(P)
-    w, V = np.linalg.eigh(P)
-    level = P.shape[-1] * _EPS * np.max(np.abs(w), axis=-1, keepdims=True)
-    repaired = w[..., 0] < (-level if indefinite_only else level)[..., 0]
-    fixed = symmetrize((V * np.maximum(w, level)[..., None, :]) @ transpose(V))
-    return np.where(repaired[..., None, None], fixed, P), repaired
-
-
-def _warn_repair(P) -> None:
-    warnings.warn(
-        "the state covariance P is singular or indefinite to working precision (condition "
-        "number beyond 1/eps): its eigenvalues were raised to its rounding level (its smallest "
-        f"eigenvalue was {float(np.min(np.linalg.eigvalsh(symmetrize(P)))):.3g})",
-        RuntimeWarning,
-        stacklevel=2,
-    )
+def _stack(arrays: dict, cores: dict) -> dict:
+    """The arrays with their batch axes broadcast and flattened to one, ``(N, ...)``, with
+    ``"batch"`` (the broadcast shape) and ``"N"`` (shapes checked by
+    :func:`switchest._checks.check_cores`)."""
+    arrays = {k: float_array(v, k) for k, v in arrays.items()}
+    batch = check_cores(arrays, cores)
+    N = int(np.prod(batch, dtype=np.int64))
+    flat = {}
+    for name, arr in arrays.items():
+        core = arr.shape[arr.ndim - len(cores[name]):]
+        flat[name] = np.broadcast_to(arr, (*batch, *core)).reshape(N, *core)
+    return {**flat, "batch": batch, "N": N}
 
 
 def steady_state_gain(F, C, Qd, R):
