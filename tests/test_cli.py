@@ -1,5 +1,6 @@
 """The command line: the demo runs end to end and prints its comparison; estimate's options and errors."""
 
+import re
 import subprocess
 import sys
 from dataclasses import replace
@@ -11,6 +12,7 @@ import pytest
 
 from switchest import cli as cli_module
 from switchest.cli import main
+from switchest.estimators import METHOD_NAMES, get_method
 from switchest.modelfile import load_model, save_model
 from switchest.simulate import simulate
 from switchest.tabular import METHODS, estimate_table
@@ -54,9 +56,18 @@ def test_estimate_help_lists_every_method_and_the_integrated_output(capsys):
     assert all(flag in out for flag in ("--v-max", "--delta", "--Delta", "--switch-interval"))
 
 
-def test_the_parser_offers_the_methods_of_tabular():
-    """cli repeats tabular.METHODS for --method, so that building the parser imports no tabular."""
-    assert cli_module._METHODS == METHODS
+def test_the_parser_offers_the_registered_methods():
+    """cli repeats the registry's names for --method, so that building the parser imports no
+    estimators; tabular offers the registry's names too."""
+    assert cli_module._METHODS == METHOD_NAMES == METHODS
+
+
+def test_the_data_help_names_the_methods_that_need_the_mode_column(capsys):
+    with pytest.raises(SystemExit):
+        main(["estimate", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    named = re.search(r"needed by ([a-z0-9, -]+)\)", out).group(1).split(", ")
+    assert named == [m for m in METHOD_NAMES if get_method(m).needs_modes]
 
 
 # what no command's --help may import: each takes from a tenth of a second to over a second

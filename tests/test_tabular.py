@@ -1,5 +1,6 @@
 """Estimation from tables: CSV round trip through the CLI, missing samples, refused tables."""
 
+import inspect
 from dataclasses import replace
 from pathlib import Path
 
@@ -7,9 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from switchest import tabular
 from switchest.analysis import error_dynamics, impulsive_observer_search, second_moments
 from switchest.cli import main
-from switchest.estimators import ImpulsiveObserver, RSLSObserver
+from switchest.estimators import METHOD_NAMES, ImpulsiveObserver, RSLSObserver, get_method
 from switchest.modelfile import load_model
 from switchest.models.catalog import catalog
 from switchest.models.lee import LEE_SCENARIO
@@ -321,3 +323,20 @@ def test_impulsive_refuses_missing_modes_unknown_dwell_and_infeasible_lmis(etien
     with pytest.raises(ValueError, match=r"Theorem 8's LMIs give no observer for sampling in \[0.3, 3\] .* no "
                                          r"scalars on the grid gave feasible LMIs"):
         estimate_table(slow, df, method="impulsive")
+
+
+# ---------------------------------------------------------------------- the registry drives estimate_table
+def test_estimate_table_runs_every_registered_method_with_its_options():
+    """Every registered method has a runner, and every option the registry gives it is an
+    argument of estimate_table (the registry, not tabular, is the list of methods)."""
+    assert tabular.METHODS == METHOD_NAMES
+    assert tuple(tabular._RUNNERS) == METHOD_NAMES
+    params = inspect.signature(estimate_table).parameters
+    for name in METHOD_NAMES:
+        assert set(get_method(name).options) <= set(params), name
+
+
+def test_an_unregistered_method_is_refused_with_the_list(tmp_path):
+    spec, _, path, _ = boost_csv(tmp_path)
+    with pytest.raises(ValueError, match=r"method must be one of \('kalman', 'switch-time'"):
+        estimate_table(spec, path, method="kalman-filter")

@@ -45,8 +45,10 @@ DEMO_MAX_SAMPLES = 10**6
 _DEMO_BYTES_PER_SAMPLE = 300  # peak memory per trial and sample of the demo: 230-330 B measured
 _DEMO_SCORE_START = 10  # the demo scores the filters after their first 10 samples
 _METHODS = ("kalman", "switch-time", "imm", "imm-ev1", "min-distance", "rsls", "impulsive")
-"""``switchest.tabular.METHODS``, repeated so that building the parser does not import tabular
-(pandas, scipy, the estimators); tests/test_cli.py holds the two equal."""
+"""The registered method names (``switchest.estimators.registry.METHOD_NAMES``, which
+``switchest.tabular.METHODS`` is), repeated so that building the parser imports neither the
+registry nor tabular (numpy, scipy, pandas, numba, the estimators); tests/test_cli.py holds them
+equal, and the help texts of ``--method`` and ``--data`` true to the registry."""
 _COMPILING = "compiling the filter kernels (once after install; it can take a few minutes)…"
 
 

@@ -75,14 +75,10 @@ from .analysis import (
     subsystem_structure,
 )
 from .estimators import (
+    METHOD_NAMES,
     Estimate,
-    IMMEV1Filter,
-    IMMFilter,
-    ImpulsiveObserver,
-    MinimumDistanceDetector,
-    ModeKalmanFilter,
-    RSLSObserver,
-    SwitchTimeKalmanFilter,
+    Method,
+    get_method,
 )
 from .modelfile import ModelSpec
 from .signals import SwitchingSignal, schedule
@@ -97,9 +93,8 @@ __all__ = [
     "transition_for",
 ]
 
-METHODS = ("kalman", "switch-time", "imm", "imm-ev1", "min-distance", "rsls", "impulsive")
-_FILTERS = METHODS[:4]
-_OPTION_OF = {"v_max": "min-distance", "delta": "min-distance", "Delta": "min-distance", "switch_interval": "rsls"}
+METHODS = METHOD_NAMES
+"""The method names, :data:`switchest.estimators.registry.METHOD_NAMES`."""
 _LEE_SETTINGS = {  # option -> (what it is, CLI flag)
     "v_max": ("the noise bound |v(t)| <= v_max, Lee et al. eq. (2)", "--v-max"),
     "delta": ("the estimation window, Lee et al. condition (3)", "--delta"),
@@ -356,46 +351,42 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         where the method gives them ``mode`` (nullable integers, empty where
         undefined), ``p_mode0 ..``, ``switch_time`` (NaN where none).
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    options = {"v_max": v_max, "delta": delta, "Delta": Delta, "switch_interval": switch_interval}
-    for name, value in options.items():
-        if value is not None:
-            if _OPTION_OF[name] != method:
-                raise ValueError(f"{name} applies to method {_OPTION_OF[name]!r} only, got method {method!r}")
-            options[name] = positive_scalar(value, name)
+    entry = get_method(method)
+    options = {"grid": grid, "refine": refine, "stay": stay, "v_max": v_max, "delta": delta,
+               "Delta": Delta, "switch_interval": switch_interval}
+    for name in ("v_max", "delta", "Delta", "switch_interval"):  # no default: refused elsewhere
+        if options[name] is not None:
+            if name not in entry.options:
+                owners = " or ".join(repr(m) for m in METHODS if name in get_method(m).options)
+                raise ValueError(f"{name} applies to method {owners} only, got method {method!r}")
+            options[name] = positive_scalar(options[name], name)
     meas = read_measurements(data, spec)
-    if method in _FILTERS:
-        est = _filter(spec, meas, method, grid=grid, refine=refine, stay=stay)
-    elif method == "min-distance":
-        est = _min_distance(spec, meas, v_max=options["v_max"], delta=options["delta"], Delta=options["Delta"])
-    elif method == "rsls":
-        est = _rsls(spec, meas, options["switch_interval"])
-    else:
-        est = _impulsive(spec, meas)
-    return _table(meas["t"], est)
+    modes = _modes(meas, method) if entry.needs_modes else None
+    return _table(meas["t"], _RUNNERS[method](entry, spec, meas, options, modes))
 
 
 # ---------------------------------------------------------------------- one runner per method family
-def _filter(spec: ModelSpec, meas: dict, method: str, *, grid: int, refine: bool, stay) -> Estimate:
-    """The Kalman-type filters: mode-based, switch-time, IMM and IMM-EV1."""
+def _filter(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
+    """The Kalman-type filters, ``entry.estimator(system, [transition,] x0, P0, **options)``.
+
+    A required transition matrix comes from the switching model (:func:`transition_for`) or
+    ``stay``; an optional one (Shankar et al.'s Algorithm 1 uses none) only when ``stay`` is
+    given or the switching model is a Markov chain.
+    """
     t, y, u = meas["t"], meas["y"], meas["u"]
-    x0, P0 = _prior(spec)
-    sys = spec.system
-    if method == "kalman":
-        return ModeKalmanFilter(sys, x0, P0).run(y, u, t, modes=_modes(meas, method))
-    if method == "switch-time":
-        return SwitchTimeKalmanFilter(sys, x0, P0, grid=grid, refine=refine).run(y, u, t, modes=_modes(meas, method))
-    if method == "imm":
+    explicit = options["stay"] is not None or spec.switching.get("kind") == "markov"
+    args = []
+    if entry.transition == "required" or (entry.transition == "optional" and explicit):
         T = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-        return IMMFilter(sys, transition_for(spec, T, stay=stay), x0, P0).run(y, u, t)
-    # Shankar Algorithm 1 uses no transition prior; an explicit one is used when given
-    explicit = stay is not None or spec.switching.get("kind") == "markov"
-    transition = transition_for(spec, float(np.median(np.diff(t))), stay=stay) if explicit else None
-    return IMMEV1Filter(sys, transition, x0=x0, P0=P0, grid=grid).run(y, u, t)
+        args.append(transition_for(spec, T, stay=options["stay"]))
+    elif entry.transition == "optional":
+        args.append(None)
+    chosen = {name: options[name] for name in ("grid", "refine") if name in entry.options}
+    est = entry.estimator(spec.system, *args, *_prior(spec), **chosen)
+    return est.run(y, u, t, **({} if modes is None else {"modes": modes}))
 
 
-def _min_distance(spec: ModelSpec, meas: dict, *, v_max, delta, Delta) -> Estimate:
+def _min_distance(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
     """Lee, Ping & Shim's detector with the model's bounds and windows (options override ``[noise]``).
 
     ``u_max`` (used only by the detector's assumption check) and the observer
@@ -403,7 +394,7 @@ def _min_distance(spec: ModelSpec, meas: dict, *, v_max, delta, Delta) -> Estima
     otherwise the detector's default) come from ``[noise]`` alone.
     """
     noise = spec.noise
-    settings = {"v_max": v_max, "delta": delta, "Delta": Delta}
+    settings = {name: options[name] for name in entry.options}
     for name, value in settings.items():
         if value is None:
             if name not in noise:
@@ -413,19 +404,20 @@ def _min_distance(spec: ModelSpec, meas: dict, *, v_max, delta, Delta) -> Estima
             settings[name] = noise[name]
     decay = noise.get("observer_decay")
     gains = None if decay is None else decay_observer_gains(spec.system, decay)
-    detector = MinimumDistanceDetector(spec.system, **settings, u_max=noise.get("u_max", 0.0), observer_gains=gains)
+    detector = entry.estimator(spec.system, **settings, u_max=noise.get("u_max", 0.0),
+                               observer_gains=gains)
     return detector.run(meas["y"], meas["u"], meas["t"])  # refuses a non-uniform grid naming the sample
 
 
-def _rsls(spec: ModelSpec, meas: dict, switch_interval) -> Estimate:
+def _rsls(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
     """Wang et al.'s observer on the integrated output, along the ``mode`` column."""
-    modes = _modes(meas, "rsls")
-    T = switch_interval if switch_interval is not None else spec.sampling.get("period")
+    T = options["switch_interval"]
+    T = spec.sampling.get("period") if T is None else T
     if T is None:
         raise ValueError("method 'rsls' needs the switching interval T (Wang et al. Assumption 1): set "
                          "sampling.period in the model file or pass --switch-interval (switch_interval= in Python)")
-    x0, P0 = _prior(spec)
-    return RSLSObserver(spec.system, rsls_gains(spec, T), T, x0, P0).run(meas["y"], t=meas["t"], modes=modes)
+    observer = entry.estimator(spec.system, rsls_gains(spec, T), T, *_prior(spec))
+    return observer.run(meas["y"], t=meas["t"], modes=modes)
 
 
 def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
@@ -499,11 +491,10 @@ def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
     return best
 
 
-def _impulsive(spec: ModelSpec, meas: dict) -> Estimate:
+def _impulsive(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
     """Etienne et al.'s impulsive observer along the switching signal of the ``mode`` column."""
-    signal = mode_signal(meas["t"], _modes(meas, "impulsive"))
-    x0, P0 = _prior(spec)
-    observer = ImpulsiveObserver(spec.system, impulsive_gains(spec, meas["t"]), x0=x0, P0=P0)
+    signal = mode_signal(meas["t"], modes)
+    observer = entry.estimator(spec.system, impulsive_gains(spec, meas["t"]), *_prior(spec))
     return observer.run(meas["y"], meas["u"], meas["t"], signals=signal)
 
 
@@ -558,6 +549,11 @@ def impulsive_gains(spec: ModelSpec, t: np.ndarray) -> np.ndarray:
         raise ValueError(f"method 'impulsive': Theorem 8's LMIs give no observer for sampling in [{lo:g}, {hi:g}] "
                          f"and dwell time {dwell:g} (Etienne et al.): {best.note}")
     return best.G
+
+
+#: How estimate_table builds and runs each registered method (every name of METHODS).
+_RUNNERS = {"kalman": _filter, "switch-time": _filter, "imm": _filter, "imm-ev1": _filter,
+            "min-distance": _min_distance, "rsls": _rsls, "impulsive": _impulsive}
 
 
 # ---------------------------------------------------------------------- shared pieces

@@ -1,4 +1,8 @@
-"""Estimators, all on one protocol: ``init -> step -> run -> Estimate`` (DESIGN.md §4)."""
+"""Estimators, all on one protocol: ``init -> step -> run -> Estimate`` (DESIGN.md §4).
+
+:class:`Estimator` declares the protocol; :mod:`.registry` lists the methods a user selects
+by name (:data:`METHOD_NAMES`, :func:`get_method`).
+"""
 
 from .base import Estimate, Estimator
 from .imm import IMMFilter
@@ -24,6 +28,7 @@ from .min_distance import (
     window_estimate,
 )
 from .mode_kalman import ModeKalmanFilter
+from .registry import METHOD_NAMES, Method, get_method
 from .rsls import RSLSObserver, RSLSState
 from .switch_time import SwitchTimeKalmanFilter, switch_time_loglik
 
@@ -35,6 +40,7 @@ __all__ = [
     "Estimate",
     "Estimator",
     "exact_step",
+    "get_method",
     "IMMEV1Filter",
     "IMMFilter",
     "impulsive_update",
@@ -43,6 +49,8 @@ __all__ = [
     "kf_predict",
     "kf_update",
     "match_detections",
+    "Method",
+    "METHOD_NAMES",
     "MinDistanceState",
     "MinimumDistanceDetector",
     "ModeKalmanFilter",

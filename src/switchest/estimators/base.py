@@ -1,10 +1,12 @@
-"""The estimator protocol shared by every filter: ``init -> step -> run -> Estimate``.
+"""The estimator protocol shared by every estimator: ``init -> step -> run -> Estimate``.
 
 A filter is configured once; ``init(batch_shape)`` returns its prior state (a
 frozen dataclass of arrays), ``step(state, y, u, dt=..., ...)`` processes one
-sample and returns the new state, and ``run(y, u, t, ...)`` loops ``step`` over
-time and collects an :class:`Estimate`. ``step`` predicts over ``dt`` (skipped
+sample and returns the new state, and ``run(y, u, t, ...)`` processes a whole
+record and collects an :class:`Estimate`. ``step`` predicts over ``dt`` (skipped
 when ``dt is None``: the first sample) and then updates with ``y``.
+:class:`Estimator` declares the protocol and its conventions; the methods a user
+selects by name are listed in :mod:`switchest.estimators.registry`.
 
 ``run`` validates its arguments: NaN in ``y`` marks a missing measurement, and so
 does a masked entry of a numpy masked ``y`` (a masked ``u`` is an error); an
@@ -13,7 +15,9 @@ estimate that would not fit in memory is refused before the first step.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -58,10 +62,55 @@ class Estimate:
     outlier: np.ndarray | None = None
 
 
-class Estimator:
-    """Common configuration and the time loop; subclasses supply ``init`` and ``step``."""
+class Estimator(ABC):
+    """The protocol of every estimator (DESIGN.md §4), with the configuration and the time
+    loop they share.
+
+    Notes
+    -----
+    The conventions every estimator follows:
+
+    Constructor
+        ``Estimator(system, ..., x0, P0, *, options)``: the
+        :class:`~switchest.system.SwitchedLinearSystem` first, then the method's own
+        required configuration (a transition matrix, observer gains, a switching
+        interval), then the prior mean ``x0 (n,)`` and covariance ``P0 (n, n)`` of the
+        state at the first sample, then keyword-only options (``grid``, ``gate``, ...).
+        A method without a prior has no ``x0, P0`` (the minimum-distance detector
+        estimates the state from each window); a method with a default prior gives
+        ``x0, P0`` defaults (the impulsive observer: zero and the identity).
+    ``init(batch_shape=())``
+        The state before the first sample, a frozen dataclass of arrays whose leading
+        axes are ``batch_shape``.
+    ``step(state, y, u=None, *, dt=None, **per_sample)``
+        One sample ``y (*batch, m)``: predict over ``dt`` with the input ``u`` held over
+        the interval into the sample (skipped when ``dt`` is None: the first sample),
+        then update; NaN in ``y`` skips the update of that component. Returns the new
+        state and changes nothing else: an estimator keeps no state of its own.
+    ``run(y, u=None, t=None, **per_sample)``
+        A whole record ``y (..., K, m)`` at the sample times ``t (K,)`` (optional for a
+        discrete-time system) with the inputs ``u`` (``(l,)``, ``(K, l)`` or
+        ``(..., K, l)``, ``u[k]`` held on ``[t_k, t_{k+1})``) -> :class:`Estimate` with the
+        batch shape of ``y``. What the method knows of the switching is given by keyword:
+        per-sample arrays ``(K,)`` or ``(..., K)`` such as ``modes=`` (the true or
+        believed mode at each sample), or, for a method that follows a continuous-time
+        switching signal, ``signals=``. Two runs of one estimator are independent: the
+        result of a run depends only on its arguments and the configuration.
+    """
 
     system: SwitchedLinearSystem
+
+    @abstractmethod
+    def init(self, batch_shape: tuple[int, ...] = ()) -> Any:
+        """The state before the first sample, replicated over ``batch_shape``."""
+
+    @abstractmethod
+    def step(self, state: Any, y, u=None, *, dt: float | None = None, **per_sample) -> Any:
+        """Predict over ``dt`` (skipped when None) with ``u`` held, then update with ``y``."""
+
+    @abstractmethod
+    def run(self, y, u=None, t=None, **per_sample) -> Estimate:
+        """Estimate over the whole record ``y (..., K, m)`` sampled at ``t (K,)``."""
 
     def _set_prior(self, system, x0, P0) -> None:
         if not isinstance(system, SwitchedLinearSystem):
@@ -135,7 +184,8 @@ class Estimator:
             u = np.broadcast_to(u, (*batch, K, l))
         elif u.shape != (*batch, K, l):
             raise ValueError(
-                f"u must have shape (l,) = ({l},), (K, l) = ({K}, {l}) or {(*batch, K, l)}, got {u.shape}"
+                f"u must have shape (l,) = ({l},), (K, l) = ({K}, {l}) or {(*batch, K, l)}, "
+                f"got {u.shape}"
             )
         t = self._times(t, K)
         return y.reshape(N, K, -1), u.reshape(N, K, l), t, batch
@@ -162,7 +212,8 @@ class Estimator:
         if modes.shape == (K,):
             modes = np.broadcast_to(modes, (*batch, K))
         if modes.shape != (*batch, K):
-            raise ValueError(f"{name} must have shape (K,) = ({K},) or {(*batch, K)}, got {modes.shape}")
+            raise ValueError(f"{name} must have shape (K,) = ({K},) or {(*batch, K)}, "
+                             f"got {modes.shape}")
         L = self.system.n_modes
         if np.any((modes < 0) | (modes >= L)):
             raise ValueError(f"{name} must be in 0..{L - 1}, got {modes.min()}..{modes.max()}")

@@ -77,7 +77,7 @@ class IMMFilter(Estimator):
     x0, P0 : array_like
         Prior mean and covariance of the state at the first sample (every mode).
     mode_prob0 : array_like, shape (L,), optional
-        Prior mode probabilities at the first sample; uniform by default.
+        Prior mode probabilities at the first sample (keyword-only); uniform by default.
     gate : float, optional
         Largest normalized innovation squared ``e' S^-1 e`` a mode-matched filter
         accepts (keyword-only); e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None``
@@ -85,7 +85,7 @@ class IMMFilter(Estimator):
         rejects is treated as missing and flagged in ``Estimate.outlier``.
     """
 
-    def __init__(self, system, transition, x0, P0, mode_prob0=None, *, gate: float | None = None):
+    def __init__(self, system, transition, x0, P0, *, mode_prob0=None, gate: float | None = None):
         self._set_prior(system, x0, P0)
         self.gate = None if gate is None else positive_scalar(gate, "gate")
         L = system.n_modes

@@ -68,7 +68,9 @@ class IMMEV1Filter(Estimator):
         ``transition[i, j]`` = P(mode j at k+1 | mode i at k). When given, path
         weights are multiplied by it; the paper's Algorithm 1 uses none.
     x0, P0 : array_like
-        Prior mean and covariance at the first sample.
+        Prior mean and covariance at the first sample (required: they have defaults only so
+        that ``transition`` can be left out positionally, ``IMMEV1Filter(system, x0=..,
+        P0=..)``).
     grid : int
         Number g of candidate switching instants per interval (eq. (23)).
     epsilon : float
@@ -105,9 +107,13 @@ class IMMEV1Filter(Estimator):
     normalized weights.
     """
 
-    def __init__(self, system, transition=None, *, x0, P0, grid: int = 5, epsilon: float = 1e-9,
-                 mode_prob0=None, predecessor: str = "path", likelihood: str = "innovation",
-                 switch_time: str = "max", gate: float | None = None):
+    def __init__(self, system, transition=None, x0=None, P0=None, *, grid: int = 5,
+                 epsilon: float = 1e-9, mode_prob0=None, predecessor: str = "path",
+                 likelihood: str = "innovation", switch_time: str = "max",
+                 gate: float | None = None):
+        if x0 is None or P0 is None:  # optional only so that `transition` may be left out
+            raise TypeError("IMMEV1Filter needs the prior x0 and P0: IMMEV1Filter(system, "
+                            "transition=None, x0, P0, ...) or x0=..., P0=... by keyword")
         self._set_prior(system, x0, P0)
         if not system.is_continuous:
             raise ValueError("IMMEV1Filter needs a continuous-time system "

@@ -193,16 +193,16 @@ class ImpulsiveObserver(Estimator):
         Continuous-time system (the observer is continuous-discrete).
     gains : array_like, shape (L, n, m)
         Observer gains ``G_i``, e.g. ``impulsive_observer_synthesis(...).G``.
-    mode_estimate : {"synchronous"} or float or callable, optional
-        How the observer's switching signal ``sigma_hat`` follows the true one
-        given to :meth:`run`: ``"synchronous"`` (``sigma_hat = sigma``, eq. (3)); a
-        delay ``d >= 0`` (every switch detected ``d`` late, the extreme case of
-        Assumption 5 with ``delta = d``); or a function ``sigma -> sigma_hat``
-        (e.g. random delays through :func:`delayed_replica`, or any mode estimator).
     x0 : array_like, shape (n,), optional
         Initial estimate (default zero).
     P0 : array_like, shape (n, n), optional
         Covariance of the initial error ``e(0) = x(0) - x0`` (default identity).
+    mode_estimate : {"synchronous"} or float or callable, optional
+        (Keyword-only.) How the observer's switching signal ``sigma_hat`` follows the true one
+        given to :meth:`run`: ``"synchronous"`` (``sigma_hat = sigma``, eq. (3)); a
+        delay ``d >= 0`` (every switch detected ``d`` late, the extreme case of
+        Assumption 5 with ``delta = d``); or a function ``sigma -> sigma_hat``
+        (e.g. random delays through :func:`delayed_replica`, or any mode estimator).
 
     Notes
     -----
@@ -217,7 +217,7 @@ class ImpulsiveObserver(Estimator):
     """
 
     def __init__(
-        self, system, gains, *, mode_estimate: ModeEstimate = "synchronous", x0=None, P0=None
+        self, system, gains, x0=None, P0=None, *, mode_estimate: ModeEstimate = "synchronous"
     ):
         system = _check_system(system)
         n = system.n_states

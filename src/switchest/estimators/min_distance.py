@@ -281,19 +281,25 @@ class MinimumDistanceDetector(Estimator):
         (21)-(24); with 0, round-off alone would trigger them). Include the
         interpolation error of the grid (module docstring).
     u_max : float
-        Bound on ``|u(t)|``; the algorithm does not use it, :meth:`assumptions` does.
+        Bound on ``|u(t)|`` (keyword-only); the algorithm does not use it,
+        :meth:`assumptions` does.
     observer_gains : array_like, shape (L, n, m), optional
-        ``L_i`` of (19); default :func:`switchest.analysis.lee.default_observer_gains`.
+        ``L_i`` of (19) (keyword-only); default
+        :func:`switchest.analysis.lee.default_observer_gains`.
 
     Notes
     -----
+    The detector takes no prior ``x0, P0`` (the one exception to the constructor
+    convention of :class:`~switchest.estimators.base.Estimator`): each window estimates
+    the state from the output alone, eq. (14).
+
     ``run(y, u, t)`` takes the output on a uniform grid ``t`` and returns an
     :class:`Estimate` with ``x`` (observer (19)), ``mode`` (``sigma_hat``) and
     ``switch_time`` (the grid instant at which each switch is declared, NaN
     elsewhere); see the module docstring for what is reported inside windows.
     """
 
-    def __init__(self, system, *, delta: float, Delta: float, v_max: float, u_max: float = 0.0,
+    def __init__(self, system, delta: float, Delta: float, v_max: float, *, u_max: float = 0.0,
                  observer_gains=None):
         if not isinstance(system, SwitchedLinearSystem):
             raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
