@@ -259,6 +259,58 @@ def test_kalman_step_equals_run():
         np.testing.assert_array_equal(step.flag, run.flag[:, k])
 
 
+def alone(p, i):
+    """The arguments of trial ``i`` alone (``N = 1``)."""
+    return dict(p, **{key: p[key][i:i + 1] for key in ("y", "u", "trans", "mode")})
+
+
+def test_trials_that_part_ways_get_the_numbers_of_their_own_filter():
+    # every trial follows the same transitions and output matrices, so a block starts as one
+    # group sharing its covariance equations; missing components, the gate and an outlier split
+    # it. Each trial must get the numbers of its filter run alone, and the same again when each
+    # trial indexes its own copies of the tables (equal by value, so its group holds): the same
+    # operations on the same numbers, hence exact equality.
+    p = problem(31, 3, 2, 1, 2, 3, N=9, missing=False)
+    N, K, _ = p["y"].shape
+    p["trans"][:], p["mode"][:] = p["trans"][0], p["mode"][0]
+    p["y"][2, 5:, 0] = np.nan  # one component from sample 5 on
+    p["y"][4, 10] = np.nan  # a whole sample
+    p["y"][6, 12, 1] = 1e300  # an outlier, gated whatever the gate
+    p["y"][7, np.random.default_rng(31).random(K) < 0.3, 1] = np.nan  # scattered holes
+    out = kalman_run(*kalman_args(p), gate=6.0)
+    assert out.status == OK and out.flag[6, 12] == GATED
+    assert 1 < np.count_nonzero(out.flag == GATED) < out.flag.size // 2  # the gate splits groups
+    x, P, loglik, flag = oracle_kalman_run(*kalman_args(p), gate=6.0)
+    assert_close(out.x, x)
+    assert_close(out.P, P)
+    assert_close(out.loglik, loglik)
+    np.testing.assert_array_equal(out.flag, flag)
+    M, L = p["F"].shape[0], p["C"].shape[0]
+    copies = dict(p, F=np.tile(p["F"], (N, 1, 1)), G=np.tile(p["G"], (N, 1, 1)),
+                  Qd=np.tile(p["Qd"], (N, 1, 1)), trans=p["trans"] + M * np.arange(N)[:, None],
+                  C=np.tile(p["C"], (N, 1, 1)), R=np.tile(p["R"], (N, 1, 1)),
+                  mode=p["mode"] + L * np.arange(N)[:, None])
+    runs = [kalman_run(*kalman_args(copies), gate=6.0)]
+    runs += [kalman_run(*kalman_args(alone(p, i)), gate=6.0) for i in range(N)]
+    for name in ("x", "P", "loglik", "flag"):
+        np.testing.assert_array_equal(getattr(runs[0], name), getattr(out, name))
+        np.testing.assert_array_equal(np.concatenate([getattr(r, name) for r in runs[1:]]),
+                                      getattr(out, name))
+
+
+def test_a_repair_of_a_shared_covariance_is_reported_once_per_trial():
+    # P0 = 1e300 I with m < n: the covariance is repaired (see the IMM test below) once per
+    # sample for the group of all trials, and reported as the trials run alone report it
+    p = problem(43, 3, 1, 1, 1, 1, N=4, missing=False)
+    p["P0"] = 1e300 * np.eye(3)
+    out = kalman_run(*kalman_args(p))
+    runs = [kalman_run(*kalman_args(alone(p, i))) for i in range(4)]
+    assert out.status == OK and out.repaired > 4
+    assert out.repaired == sum(r.repaired for r in runs)
+    assert out.smallest_eigenvalue == min(r.smallest_eigenvalue for r in runs)  # same numbers
+    np.testing.assert_array_equal(out.P, np.concatenate([r.P for r in runs]))
+
+
 @pytest.mark.parametrize("gate", [np.inf, 2.0])
 def test_steady_state_run_and_step_match_the_oracle(gate):
     p = problem(14, 3, 2, 1, 2, 3)

@@ -2,10 +2,12 @@
 
 One implementation of each equation: the functions of :mod:`.linalg` (Kalman prediction,
 equilibrated-Cholesky innovation, Joseph-form correction, IMM interaction and output) over
-blocks of trials laid across SIMD lanes, called by one compiled kernel (:mod:`.bank`: a bank
-of mode-matched Kalman filters with IMM interaction, the Kalman filter being its one-mode
-case) that loops over trials and samples. ``run`` calls it on a whole record,
-``step`` (the streaming API) on one sample. Kernels return a status code instead of raising;
+blocks of trials laid across SIMD lanes, called by the kernels that loop over trials and
+samples: :mod:`.kalman_kernel` (the Kalman filter, one covariance recursion per group of
+trials that share it), :mod:`.bank` (mode-matched filters with IMM interaction),
+:mod:`.switch_time` (switching-time grid and refinement) and :mod:`.imm_ev1` (Shankar et al.'s
+Algorithm 1). ``run`` calls a kernel on a whole record, ``step`` (the streaming API) on one
+sample. Kernels return a status code instead of raising;
 :func:`raise_for_status` raises the package's error for it, and :func:`warn_for_repairs` the
 package's ``RuntimeWarning`` for covariances repaired to their rounding level.
 """

@@ -3,9 +3,11 @@
 :func:`filter_bank` runs, for every trial and every sample, ``L`` Kalman filters (one per
 mode) with the interaction of the IMM between them (Blom & Bar-Shalom, 1988; Bar-Shalom,
 Li & Kirubarajan §11.6.6). With one mode the interaction and the combination reduce to
-copies and it is the Kalman filter (Shankar et al. eqs (6)-(10)): :mod:`.kalman` and
-:mod:`.imm` call this one kernel, for a whole record (``run``) or for one sample
-(``step``, the streaming API), so each equation has one implementation.
+copies and it is the Kalman filter (Shankar et al. eqs (6)-(10)). :mod:`.imm` calls this
+kernel for a whole record (``run``) or for one sample (``step``, the streaming API); the
+Kalman filter has a kernel of its own (:mod:`.kalman_kernel`: trials that share their
+covariance run its equations once) on the same equations of :mod:`.linalg`, so each
+equation has one implementation.
 
 Trials are processed in blocks of ``lanes`` laid across SIMD lanes (:mod:`.linalg`); the
 results do not depend on the block size.

@@ -2,8 +2,9 @@
 
 ``kalman_run`` filters every trial over every sample inside compiled code; ``kalman_step``
 processes one sample of every trial (the streaming API). Both call the kernel of
-:mod:`.bank` with one mode, so they run the one implementation of each equation
-(:mod:`.linalg`). ``kalman_steady_run`` and ``kalman_steady_step`` apply fixed gains.
+:mod:`.kalman_kernel`, which runs the equations of :mod:`.linalg` (the one implementation of
+each) once per group of trials that share their covariance. ``kalman_steady_run`` and
+``kalman_steady_step`` apply fixed gains.
 
 Transitions come as a table ``F (M, n, n)``, ``G (M, n, l)``, ``Qd (M, n, n)`` with an index
 ``trans (N, K)``: entry ``k`` is the transition predicting into sample ``k`` (entry 0 is not
@@ -22,7 +23,7 @@ import numpy as np
 
 from ..._checks import positive_int
 from .arrays import check_gate, floats, indices
-from .bank import LANES, filter_bank
+from .kalman_kernel import CHUNK, LANES, kalman_filter, lane_entries, write_out
 from .linalg import (
     ACCEPTED,
     GATED,
@@ -92,7 +93,8 @@ def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, *, gate=math.inf,
         Largest normalized innovation squared ``e' S^-1 e`` accepted (``inf``: no gate);
         a measurement beyond it, or with a non-finite likelihood, is treated as missing.
     lanes : int
-        Trials per SIMD block (the results do not depend on it).
+        Trials per block: the trials of a block that share their covariance run its equations
+        once (:mod:`.kalman_kernel`; the results do not depend on it).
     """
     sizes: dict[str, int] = {}
     y = floats(y, "y", "NKm", sizes)
@@ -138,17 +140,14 @@ def kalman_step(x, P, y, u, F, G, Qd, C, R, *, predict_first: bool,
 
 
 def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, gate, lanes):
-    """The bank kernel with one mode: a Kalman filter of every trial from ``x_init (N, n)``,
-    ``P_init (N, n, n)``."""
+    """:func:`.kalman_kernel.kalman_filter` of every trial from ``x_init (N, n)``,
+    ``P_init (N, n, n)``, into new output arrays."""
     N, K, _ = y.shape
     n = x_init.shape[1]
     x, P, loglik = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K))
     flag, report = np.empty((N, K), dtype=np.uint8), np.empty(2)
-    status = filter_bank(y, u, F, G, Qd, trans[:, :, None], C, R, mode[:, :, None],
-                         np.ones((1, 1)), np.zeros((1, 1)), x_init[:, None], P_init[:, None],
-                         np.zeros((N, 1)), predict_first, gate, lanes, x, P, np.empty((N, K, 1)),
-                         np.empty((N, K), dtype=np.int64), loglik, flag, np.empty((N, 1, n)),
-                         np.empty((N, 1, n, n)), np.empty((N, 1)), report)
+    status = kalman_filter(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, gate,
+                           min(lanes, N), x, P, loglik, flag, report)
     return KalmanOutput(x, P, loglik, flag, int(status), int(report[0]), float(report[1]))
 
 
@@ -181,12 +180,12 @@ def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten,
     whiten = floats(whiten, "whiten", "Lmm", sizes)
     x0 = floats(x0, "x0", "n", sizes)
     N, K, n = sizes["N"], sizes["K"], sizes["n"]
-    x, P = np.empty((N, K, n)), np.empty((N, K, n, n))
+    x, P, loglik = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K))
     flag = np.empty((N, K), dtype=np.uint8)
     _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten,
-                   np.tile(x0, (N, 1)), False, check_gate(gate), positive_int(lanes, "lanes"),
-                   x, P, flag)
-    return KalmanOutput(x, P, np.full((N, K), np.nan), flag, OK)
+                   np.tile(x0, (N, 1)), False, check_gate(gate),
+                   min(positive_int(lanes, "lanes"), N), x, P, loglik, flag)
+    return KalmanOutput(x, P, loglik, flag, OK)
 
 
 def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, whiten, *,
@@ -207,76 +206,94 @@ def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, whiten, *,
     whiten = floats(whiten, "whiten", "Nmm", sizes)
     N, n = sizes["N"], sizes["n"]
     own = np.arange(N)[:, None]
-    x_out, P_out = np.empty((N, 1, n)), np.empty((N, 1, n, n))
+    x_out, P_out, loglik = np.empty((N, 1, n)), np.empty((N, 1, n, n)), np.empty((N, 1))
     flag = np.empty((N, 1), dtype=np.uint8)
     _steady_filter(y[:, None], u[:, None], F, G, own, C, own, gain, P_prior, P_post, whiten, x,
-                   bool(predict_first), check_gate(gate), LANES, x_out, P_out, flag)
-    return KalmanOutput(x_out[:, 0], P_out[:, 0], np.full(N, np.nan), flag[:, 0], OK)
+                   bool(predict_first), check_gate(gate), min(LANES, N), x_out, P_out, loglik,
+                   flag)
+    return KalmanOutput(x_out[:, 0], P_out[:, 0], loglik[:, 0], flag[:, 0], OK)
 
 
 @jit
 def _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x_init,
-                   predict_first, gate, lanes, x_out, P_out, flag_out):
+                   predict_first, gate, lanes, x_out, P_out, loglik_out, flag_out):
     """Fixed-gain filter of every trial from ``x_init[i]``, in blocks of ``lanes`` trials:
     ``x <- F x + G u`` (:func:`.linalg.predict_mean`), then ``x <- x + K (y - C x)`` in the
     lanes where every component of ``y`` is observed and its normalized innovation squared
-    ``|W e|^2`` passes ``gate`` (Zhang & Natarajan eq. (6)); ``P`` is copied from the
-    tables."""
+    ``|W e|^2`` passes ``gate`` (Zhang & Natarajan eq. (6)); ``P`` is copied from the tables,
+    ``loglik`` is NaN. A lane's matrices are gathered when its entry changes; the outputs are
+    buffered and written trial by trial (:func:`.kalman_kernel.write_out`)."""
     N, K, m = y.shape
-    n, n_in, B = x_init.shape[1], u.shape[2], lanes
+    n, n_in, B, L = x_init.shape[1], u.shape[2], lanes, P_prior.shape[0]
     x, xs, yl, ul = np.empty((n, B)), np.empty((n, B)), np.empty((m, B)), np.empty((n_in, B))
-    Fl, Gl = np.empty((n, n, B)), np.empty((n, n_in, B))
+    Fl, Gl, held = np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((2, B), dtype=np.int64)
     Cl, Kl, Wl, e = np.empty((m, n, B)), np.empty((n, m, B)), np.empty((m, m, B)), np.empty((m, B))
-    obs, n_obs, idx = np.empty((m, B)), np.empty(B), np.empty(B, dtype=np.int64)
+    obs, n_obs, v = np.empty((m, B)), np.empty(B), np.empty(B)
     nis, use = np.empty(B), np.empty(B, dtype=np.bool_)
+    # the buffers of write_out; its covariances are the tables (prior, then posterior)
+    x_buf, entry_buf = np.empty((B, CHUNK, n)), np.empty((B, CHUNK), dtype=np.int64)
+    P_buf, loglik_buf = np.empty((2 * L, CHUNK, n * n)), np.full((B, CHUNK), np.nan)
+    flag_buf = np.empty((B, CHUNK), dtype=np.uint8)
+    for i in range(L):
+        for t in range(CHUNK):
+            for r in range(n):
+                for c in range(n):
+                    P_buf[i, t, r * n + c] = P_prior[i, r, c]
+                    P_buf[L + i, t, r * n + c] = P_post[i, r, c]
+    P_rows = P_out.reshape((N, K, n * n))
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
         for r in range(n):
             for b in range(nb):
                 x[r, b] = x_init[i0 + b, r]
+        for b in range(nb):
+            held[0, b] = -1
+            held[1, b] = -1
         for k in range(K):
             if k > 0 or predict_first:
-                for b in range(nb):
-                    idx[b] = trans[i0 + b, k]
-                gather_matrices(F, idx, nb, Fl)
-                gather_matrices(G, idx, nb, Gl)
+                if lane_entries(trans, i0, nb, k, held[0]):
+                    gather_matrices(F, held[0], nb, Fl)
+                    gather_matrices(G, held[0], nb, Gl)
                 gather_samples(u, i0, nb, max(k - 1, 0), ul)
                 predict_mean(x, Fl, Gl, ul, nb, xs)
-            for b in range(nb):
-                idx[b] = mode[i0 + b, k]
-            gather_matrices(C, idx, nb, Cl)
-            gather_matrices(gain, idx, nb, Kl)
-            gather_matrices(whiten, idx, nb, Wl)
+            if lane_entries(mode, i0, nb, k, held[1]):
+                gather_matrices(C, held[1], nb, Cl)
+                gather_matrices(gain, held[1], nb, Kl)
+                gather_matrices(whiten, held[1], nb, Wl)
             gather_samples(y, i0, nb, k, yl)
             observe(yl, nb, obs, n_obs)
             residual(x, yl, Cl, nb, e)
-            _whitened_norm(e, Wl, nb, nis)
+            _whitened_norm(e, Wl, nb, v, nis)
+            t = k % CHUNK
             for b in range(nb):
                 seen = n_obs[b] == m
                 use[b] = seen and math.isfinite(nis[b]) and nis[b] <= gate
-                flag_out[i0 + b, k] = GATED if seen and not use[b] else ACCEPTED
+                flag_buf[b, t] = GATED if seen and not use[b] else ACCEPTED
+                entry_buf[b, t] = held[1, b] + (L if use[b] else 0)
             _steady_correct(x, e, Kl, use, nb)
             for b in range(nb):
-                table = P_post if use[b] else P_prior
                 for r in range(n):
-                    x_out[i0 + b, k, r] = x[r, b]
-                    for c in range(n):
-                        P_out[i0 + b, k, r, c] = table[idx[b], r, c]
+                    x_buf[b, t, r] = x[r, b]
+            if t == CHUNK - 1 or k == K - 1:
+                write_out(x_buf, P_buf, entry_buf, loglik_buf, flag_buf, i0, nb, k - t, t + 1,
+                          x_out, P_rows, loglik_out, flag_out)
 
 
 @jit
-def _whitened_norm(e, W, nb, nis):
+def _whitened_norm(e, W, nb, v, nis):
     """``nis[b] = |W e|^2`` (= ``e' S^-1 e`` for ``S^-1 = W' W``) in every lane; NaN where a
-    component of ``e`` is missing."""
+    component of ``e`` is missing. ``v (B,)`` is scratch."""
     m = e.shape[0]
     for b in range(nb):
         nis[b] = 0.0
     for a in range(m):
         for b in range(nb):
-            v = 0.0
-            for c in range(a + 1):  # W is lower triangular
-                v += W[a, c, b] * e[c, b]
-            nis[b] += v * v
+            v[b] = 0.0
+        for c in range(a + 1):  # W is lower triangular
+            for b in range(nb):
+                v[b] += W[a, c, b] * e[c, b]
+        for b in range(nb):
+            nis[b] += v[b] * v[b]
 
 
 @jit

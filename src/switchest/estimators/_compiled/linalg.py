@@ -17,7 +17,9 @@ its noise are replaced by a unit innovation that is never observed (``e_a = 0``,
 no correlation), so each lane updates with its observed components only and its likelihood is
 their marginal. The measurement update is split in two so that a filter decides on gating
 before it changes anything: :func:`innovation`, then :func:`correct` for the lanes that use
-the measurement.
+the measurement. Where trials share their covariance (:mod:`.kalman_kernel`), those two run once
+for the shared covariance and :func:`innovation_mean`, :func:`correct_mean` (their per-lane
+halves, the same operations) finish each trial's mean.
 """
 
 from __future__ import annotations
@@ -42,7 +44,9 @@ __all__ = [
     "predict_mean",
     "predict",
     "innovation",
+    "innovation_mean",
     "correct",
+    "correct_mean",
     "joseph_lost",
     "information_form",
     "repair",
@@ -257,6 +261,40 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
 
 
 @jit
+def innovation_mean(x, y, C, obs, n_obs, chol, scale, log_det, nb, e, z, nis, loglik):
+    """The per-lane half of :func:`innovation`, from a factorization of ``S`` computed elsewhere.
+
+    Where lanes share their covariance (the same ``P``, ``C``, ``R`` and observed components:
+    the same ``S``), :func:`innovation` factors ``S`` once and this function finishes each
+    lane: ``e = y - C x`` (Shankar et al. eq. (8)) with the unobserved components zeroed,
+    ``z = L^-1 D^-1/2 e``, ``nis = |z|^2 = e' S^-1 e`` and
+    ``loglik = -(e' S^-1 e + log det S + m_o log 2 pi) / 2``. ``chol``, ``scale`` are the
+    factorization :func:`innovation` leaves, and ``log_det (2, B)`` its ``log det S`` in two
+    terms, ``sum log D`` and ``log prod L_aa^2`` (``work[0]`` and the logarithm of
+    ``work[1]`` there), each lane's copy of its covariance's. The operations are those of
+    :func:`innovation`, in its order: a lane gets the same bits either way.
+    """
+    m = y.shape[0]
+    residual(x, y, C, nb, e)
+    for a in range(m):
+        for b in range(nb):
+            e[a, b] = e[a, b] if obs[a, b] > 0.0 else 0.0
+    for b in range(nb):
+        nis[b] = 0.0
+    for a in range(m):  # z = L^-1 D^-1/2 e, forward substitution
+        for b in range(nb):
+            z[a, b] = scale[a, b] * e[a, b]
+        for c in range(a):
+            for b in range(nb):
+                z[a, b] -= chol[a, c, b] * z[c, b]
+        for b in range(nb):
+            z[a, b] /= chol[a, a, b]
+            nis[b] += z[a, b] * z[a, b]
+    for b in range(nb):
+        loglik[b] = -0.5 * (nis[b] + log_det[0, b] + log_det[1, b] + n_obs[b] * _LOG_2PI)
+
+
+@jit
 def _solve(chol, scale, v, nb):
     """``v <- S^-1 v`` per lane, with ``S = D^1/2 L L' D^1/2`` as :func:`innovation` left it."""
     m = v.shape[0]
@@ -344,6 +382,29 @@ def correct(x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP, prior):
                     P[i, j, b] += T[i, a, b] * K[j, a, b]
             for b in range(nb):
                 P[j, i, b] = P[i, j, b]
+
+
+@jit
+def correct_mean(x, z, PCt, chol, scale, use, nb):
+    """The per-lane half of :func:`correct`: ``x <- x + P C' S^-1 e`` in the lanes where
+    ``use`` is true (Shankar et al. eq. (9)), from ``z`` as :func:`innovation_mean` left it and
+    a factorization of ``S`` with its ``P C'`` computed elsewhere (each lane's copy of its
+    covariance's); ``z`` is overwritten with ``S^-1 e``. The operations are those of
+    :func:`correct` on ``x``, in its order."""
+    n, m = x.shape[0], z.shape[0]
+    for a in range(m - 1, -1, -1):  # S^-1 e = D^-1/2 L'^-1 z
+        for c in range(a + 1, m):
+            for b in range(nb):
+                z[a, b] -= chol[c, a, b] * z[c, b]
+        for b in range(nb):
+            z[a, b] /= chol[a, a, b]
+    for a in range(m):
+        for b in range(nb):
+            z[a, b] *= scale[a, b]
+    for i in range(n):
+        for a in range(m):
+            for b in range(nb):
+                x[i, b] += PCt[i, a, b] * z[a, b] if use[b] else 0.0
 
 
 @jit
