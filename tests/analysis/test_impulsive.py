@@ -13,6 +13,7 @@ from threadpoolctl import threadpool_limits
 from switchest import SwitchedLinearSystem
 from switchest import signals as sg
 from switchest.analysis.impulsive import (
+    ClosedLoopLMIs,
     impulsive_closed_loop_analysis,
     impulsive_observer_search,
     impulsive_observer_synthesis,
@@ -304,6 +305,60 @@ def test_printed_eq26_is_feasible_at_the_paper_scalars_but_does_not_bound_the_ju
     assert worst > 0
 
 
+def assert_theorem10_inequalities(cert, points=201):
+    """(24)-(27) at the certificate's own scalars on a fine grid of the clock theta, for the
+    paper's controller and the observer gains G_THEOREM8 (two modes)."""
+    k = cert.scalars
+    Acl, J = closed_loop_matrices(etienne_academic(), S.K, G_THEOREM8)
+    theta = np.linspace(0, k["tau_max"], points)
+    tau = np.linspace(k["tau_min"], k["tau_max"], points)
+    Q, Qtau = cert.Q(theta), cert.Q(tau)
+    assert np.all(np.linalg.eigvalsh(Q)[..., 0] > 0)
+    for i in range(2):  # estimated mode
+        assert np.all(np.linalg.eigvalsh(k["mu_s"] * Q[:, 1 - i] - Q[:, i])[..., 0] > 0)
+        for j in range(2):  # true mode
+            rate, mu = (k["alpha"], k["mu_c"]) if i == j else (-k["alpha_bar"], k["mu_c_bar"])
+            A = Acl[j, i]
+            flow = Q[:, i] @ A + A.T @ Q[:, i] + cert.Q1[i] + rate * Q[:, i]
+            assert np.all(np.linalg.eigvalsh(flow)[..., -1] < 0)
+            jump = J[j, i].T @ cert.Q0[i] @ J[j, i] - mu * Qtau[:, i]
+            assert np.all(np.linalg.eigvalsh(jump)[..., -1] < 0)
+
+
+def test_theorem10_lmis_compiled_once_decide_every_point_as_a_fresh_problem():
+    """One compiled problem re-solved with new scalars (cvxpy parameters) gives each point the
+    verdict of a problem built for it alone, whatever was solved before: feasible, infeasible,
+    LMIs feasible with a failing rate, and the first point again; each certificate it returns
+    satisfies the inequalities at its own scalars."""
+    k = THEOREM10_SMALL_DELAY
+    small = (k["delta"], k["alpha"], k["alpha_bar"], k["mu_s"], k["mu_c"], k["mu_c_bar"])
+    points = [
+        small,
+        (S.delta, S.alpha, S.alpha_bar, S.mu_s, S.mu_c, S.mu_c_bar),  # the paper's: infeasible
+        (0.0, 0.25, 5.0, 5.5, 1.0, 1.0),
+        (0.0, 0.6, 5.0, 5.5, 1.0, 1.0),  # alpha too large: infeasible
+        (0.1, 0.0, 3.0, 5.0, 0.98, 5.0),  # LMIs hold, rate (28) fails
+        small,
+    ]
+    sys = etienne_academic()
+    lmis = ClosedLoopLMIs(sys, S.K, G_THEOREM8, S.tau_min, S.tau_max, S.dwell)
+    verdicts = []
+    for point in points:
+        reused = lmis.analyze(*point)
+        fresh = impulsive_closed_loop_analysis(
+            sys, S.K, G_THEOREM8, S.tau_min, S.tau_max, S.dwell, *point
+        )
+        assert (reused.lmi_feasible, reused.feasible) == (fresh.lmi_feasible, fresh.feasible)
+        assert reused.beta == pytest.approx(fresh.beta, rel=1e-12)
+        assert reused.scalars == pytest.approx(fresh.scalars, rel=1e-12)
+        if reused.lmi_feasible:
+            assert_theorem10_inequalities(reused)
+        verdicts.append((reused.lmi_feasible, reused.feasible))
+    assert verdicts == [(True, True), (False, False), (True, True), (False, False),
+                        (True, False), (True, True)]
+    assert lmis.n_solves == len(points)
+
+
 def test_theorem10_certifies_a_small_delay_and_the_closed_loop_obeys_the_bound():
     sys, k = etienne_academic(), THEOREM10_SMALL_DELAY
     cert = impulsive_closed_loop_analysis(
@@ -334,19 +389,7 @@ def test_theorem10_certifies_a_small_delay_and_the_closed_loop_obeys_the_bound()
             k["delta"],
         )
     )
-    Acl, J = closed_loop_matrices(sys, S.K, G_THEOREM8)
-    theta, tau = np.linspace(0, S.tau_max, 201), np.linspace(S.tau_min, S.tau_max, 201)
-    Q, Qtau = cert.Q(theta), cert.Q(tau)
-    assert np.all(np.linalg.eigvalsh(Q)[..., 0] > 0)
-    for i in range(2):  # estimated mode
-        assert np.all(np.linalg.eigvalsh(k["mu_s"] * Q[:, 1 - i] - Q[:, i])[..., 0] > 0)
-        for j in range(2):  # true mode
-            rate, mu = (k["alpha"], k["mu_c"]) if i == j else (-k["alpha_bar"], k["mu_c_bar"])
-            A = Acl[j, i]
-            flow = Q[:, i] @ A + A.T @ Q[:, i] + cert.Q1[i] + rate * Q[:, i]
-            assert np.all(np.linalg.eigvalsh(flow)[..., -1] < 0)
-            jump = J[j, i].T @ cert.Q0[i] @ J[j, i] - mu * Qtau[:, i]
-            assert np.all(np.linalg.eigvalsh(jump)[..., -1] < 0)
+    assert_theorem10_inequalities(cert)
     t = sg.aperiodic(S.tau_min, S.tau_max, 40.0, rng=3)
     x0 = np.random.default_rng(4).normal(size=(100, 2))
     out = simulate_observer_control(

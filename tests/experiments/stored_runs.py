@@ -52,15 +52,15 @@ def wait_until_stored(proc, store, n, timeout=120.0) -> int:
 def assert_same_results(a, b):
     """Equal task lists: the same configurations, and results equal to rounding.
 
-    The run time (``elapsed``) is dropped. The same code on the same machine gives the
-    same numbers, so any tolerance well below the statistics' own spread would do;
-    rtol = 1e-12 leaves room only for a reordered floating-point sum.
+    Run times (``elapsed``, at any depth: a task times each of its variants) are dropped.
+    The same code on the same machine gives the same numbers, so any tolerance well below
+    the statistics' own spread would do; rtol = 1e-12 leaves room only for a reordered
+    floating-point sum.
     """
     assert [cfg for cfg, _ in a] == [cfg for cfg, _ in b]
     xs, ys = [], []
     for (cfg, x), (_, y) in zip(a, b, strict=True):
-        _numbers({k: v for k, v in x.items() if k != "elapsed"},
-                 {k: v for k, v in y.items() if k != "elapsed"}, str(cfg), xs, ys)
+        _numbers(x, y, str(cfg), xs, ys)
     assert xs, "no numbers to compare"
     np.testing.assert_allclose(np.array(ys, dtype=float), np.array(xs, dtype=float),
                                rtol=1e-12, atol=0)
@@ -70,7 +70,7 @@ def _numbers(x, y, where, xs, ys):
     """Check that ``x`` and ``y`` have one structure and equal non-numbers; collect the numbers."""
     if isinstance(x, dict):
         assert isinstance(y, dict) and x.keys() == y.keys(), where
-        for k in x:
+        for k in x.keys() - {"elapsed"}:
             _numbers(x[k], y[k], f"{where}[{k!r}]", xs, ys)
     elif isinstance(x, list):
         assert isinstance(y, list) and len(x) == len(y), where

@@ -5,7 +5,7 @@ import pytest
 
 from switchest.experiments import Store, get, run_experiment
 from switchest.experiments.bakeoff import METHODS, cases, min_distance_inapplicable
-from switchest.experiments.scoring import combine
+from switchest.experiments.scoring import combine, split_variants
 
 DETECTOR = "min-distance detector (Lee)"
 
@@ -16,7 +16,7 @@ def quick(tmp_path_factory):
     exp = get("bakeoff")
     params = exp.params(quick=True, trials=4)
     results = run_experiment(exp, params, store=Store(tmp / "b.sqlite"))
-    return params, results, exp.summarize(params, results, tmp)
+    return params, split_variants(results), exp.summarize(params, results, tmp)
 
 
 def test_bakeoff_quick(quick):

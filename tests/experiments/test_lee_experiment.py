@@ -81,7 +81,7 @@ def test_beyond_the_bound_failures_are_counted(run):
 
 
 def test_blocks_share_their_data_across_noise_levels(run):
-    """Tasks of one block see the same states and signals whatever their noise level."""
+    """The levels of one block see the same states and signals whatever their noise level."""
     _, results, _ = run
     by_block = {}
     for cfg, r in results:

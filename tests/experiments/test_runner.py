@@ -1,4 +1,4 @@
-"""The runner and store: worker-independent results, skipping what is stored, claims,
+"""The runner and store: worker-independent results, skipping what is stored, task layouts, claims,
 validation of seeds, parameters, workers, store paths and scheduler addresses.
 
 Interruption, SIGKILL and concurrent runs: test_runner_resilience.py.
@@ -16,15 +16,14 @@ import time
 from contextlib import closing
 from pathlib import Path
 
-import numpy as np
 import pytest
 from stored_runs import assert_same_results, query
 
-from switchest.experiments import Store, get, run_experiment, stored_results, write_report
+from switchest.experiments import Store, get, names, run_experiment, stored_results, write_report
 from switchest.experiments import store as store_module
 from switchest.experiments.registry import MAX_BLOCKS, Row
 from switchest.experiments.runner import MAX_WORKERS, _plan, execute_task
-from switchest.experiments.store import Claimant
+from switchest.experiments.store import Claimant, task_key
 
 
 def test_results_do_not_depend_on_the_workers(tmp_path):
@@ -41,7 +40,7 @@ def test_results_do_not_depend_on_the_workers(tmp_path):
     assert_same_results(one, dask)
 
 
-def test_stored_tasks_are_skipped_and_blocks_share_data(tmp_path):
+def test_stored_tasks_are_skipped(tmp_path):
     exp = get("shankar-vehicle")
     params = exp.params(quick=True, trials=8, block_size=4)
     store = Store(tmp_path / "s.sqlite")
@@ -53,13 +52,71 @@ def test_stored_tasks_are_skipped_and_blocks_share_data(tmp_path):
     run_experiment(exp, params, store=store, on_done=lambda d, t: again.append((d, t)))
     assert again == [(len(first), len(first))]  # nothing recomputed
     assert {t.key: t.finished for t in store.tasks(exp.name)} == first
-    # every method of one block saw the same trajectories: the same true-state examples (the same
-    # draws through the same code: equal to rounding)
-    examples = [r["example_truth"] for c, r in stored_results(exp, params, store)[0]
-                if c["block"] == 0]
-    assert len(examples) > 1
-    for e in examples:
-        np.testing.assert_allclose(e, examples[0], rtol=1e-12, atol=0)
+
+
+# small sizes of the experiments whose tasks run several variants on one simulated block
+VARIANT_RUNS = {
+    "shankar-table1": {"duration": 0.05},
+    "shankar-vehicle": {},
+    "bakeoff": {},
+    "lee-detection": {"duration": 3.0, "noise_levels": [0.1], "over_bound": [0.3]},
+    "wang-examples": {"horizon": 10},
+    "wang-ieee5bus": {},
+    "zhang-example1": {},
+    "zhang-smartgrid": {},
+    "etienne-sync": {},
+    "etienne-async": {},
+}
+
+
+@pytest.mark.parametrize("name", sorted(VARIANT_RUNS))
+def test_a_variant_gives_the_same_result_alone_as_beside_the_others(name):
+    """A task simulates its block once and runs its variants on it: what it stores for a
+    variant does not depend on the other variants (none draws from the block's generator
+    or leaves state to the next), so a task of one variant on that block agrees."""
+    exp = get(name)
+    params = exp.params(quick=True, trials=2, block_size=2, **VARIANT_RUNS[name])
+    cfg = next(c for c in exp.tasks(params) if "variants" in c)
+    seed = [0, cfg["block"]]
+    together, _ = execute_task(name, cfg, seed)
+    for i in (0, len(cfg["variants"]) - 1):  # the first runs on a fresh block, the last after all
+        alone, _ = execute_task(name, {**cfg, "variants": [cfg["variants"][i]]}, seed)
+        assert_same_results([(cfg["variants"][i], alone["variants"][0])],
+                            [(cfg["variants"][i], together["variants"][i])])
+
+
+@pytest.mark.parametrize("name", [n for n in names() if "block_size" in get(n).defaults])
+def test_every_configuration_runs_on_every_trial_once(name):
+    """Blocks cover the trials, the last one the remainder (7 = 3 + 3 + 1; the bake-off once
+    dropped it), and every configuration (variant) of an experiment runs on each block."""
+    exp = get(name)
+    trials = {}
+    for task in exp.tasks(exp.params(trials=7, block_size=3)):
+        if "trials" not in task:  # not a Monte Carlo task (a certificate, a search)
+            continue
+        for variant in task.get("variants", [{}]):
+            # less the block's own entries: its index, size, variants and whether it is drawn
+            cfg = {k: v for k, v in {**task, **variant}.items()
+                   if k not in ("block", "trials", "variants", "example")}
+            trials.setdefault(json.dumps(cfg, sort_keys=True), []).append(
+                (task["block"], task["trials"]))
+    assert trials and all(sorted(v) == [(0, 3), (1, 3), (2, 1)] for v in trials.values())
+
+
+def test_tasks_of_an_earlier_layout_are_not_mixed_in(tmp_path):
+    """A store written when every (method, block) was a task of its own holds keys that no task
+    of the present layout (a block, all methods) has: a run recomputes, a summary ignores them."""
+    exp = get("shankar-vehicle")
+    params = exp.params(quick=True)
+    store = Store(tmp_path / "s.sqlite")
+    (cfg,) = [c for c in exp.tasks(params) if c["block"] == 0]
+    common = {k: v for k, v in cfg.items() if k != "variants"}
+    for variant in cfg["variants"]:
+        old = {**common, **variant}  # the former task's configuration
+        store.put(task_key(exp.name, old, [0, 0]), exp.name, old, [0, 0], {"sse": [0.0]}, 0.1)
+    assert stored_results(exp, params, store) == ([], len(exp.tasks(params)))
+    results = run_experiment(exp, params, store=store)
+    assert all("variants" in res for _, res in results)
 
 
 def test_report_shows_paper_and_measured_values(tmp_path):

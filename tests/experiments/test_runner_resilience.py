@@ -17,6 +17,7 @@ from switchest.experiments import RunInterrupted, Store, get, run_experiment, ru
 
 LINUX = sys.platform.startswith("linux")
 CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+VEHICLE_RUN = {"trials": 8000, "block_size": 1000}  # shankar-vehicle: 8 tasks of about 0.3 s
 
 
 def claims(store_path):
@@ -84,7 +85,7 @@ def test_sigint_to_the_process_group_stops_a_pool_run_at_once(tmp_path):
     store = tmp_path / "s.sqlite"
     # 8 tasks of about 4 s on 2 workers: a runner that waited for its running tasks would take
     # seconds longer to stop than the bound below
-    proc = start_child(store, "wang-ieee5bus", {"trials": 800, "block_size": 200}, workers=2)
+    proc = start_child(store, "wang-ieee5bus", {"trials": 3200, "block_size": 400}, workers=2)
     wait_until_stored(proc, store, 1)
     workers = children(proc.pid)
     assert len(workers) >= 2
@@ -104,10 +105,10 @@ def test_sigint_to_the_process_group_stops_a_pool_run_at_once(tmp_path):
 
 @pytest.fixture(scope="module")
 def killed(tmp_path_factory):
-    """A pool run of shankar-vehicle (24 tasks of about 0.1 s) killed with SIGKILL midway:
+    """A pool run of shankar-vehicle (8 tasks of about 0.3 s) killed with SIGKILL midway:
     ``(store path, pids of its workers where /proc shows them, tasks stored)``."""
     store = tmp_path_factory.mktemp("killed") / "s.sqlite"
-    proc = start_child(store, "shankar-vehicle", {"trials": 80}, workers=2)
+    proc = start_child(store, "shankar-vehicle", VEHICLE_RUN, workers=2)
     wait_until_stored(proc, store, 4)
     workers = children(proc.pid) if LINUX and CORES >= 2 else []
     os.kill(proc.pid, signal.SIGKILL)
@@ -128,29 +129,28 @@ def test_pool_workers_die_with_their_killed_parent(killed):
 def test_resuming_a_killed_run_equals_an_uninterrupted_run(killed, tmp_path):
     store_path, _, stored = killed
     exp = get("shankar-vehicle")
-    params = exp.params(quick=True, trials=80)
+    params = exp.params(quick=True, **VEHICLE_RUN)
     store = Store(store_path)
     before = {t.key: t.finished for t in store.tasks(exp.name)}
-    assert 4 <= stored == len(before) < 24
+    assert 4 <= stored == len(before) < 8
     start = time.monotonic()
     resumed = run_experiment(exp, params, store=store, workers=2)
     # the dead run's claims were taken over at once, not waited on for store.LEASE = 60 s
     assert time.monotonic() - start < 30
     after = {t.key: t.finished for t in store.tasks(exp.name)}
     assert all(after[k] == v for k, v in before.items())  # committed tasks were not recomputed
-    assert len(after) == 24 and claims(store_path) == 0  # every task once, no claim left
+    assert len(after) == 8 and claims(store_path) == 0  # every task once, no claim left
     clean = run_experiment(exp, params, store=Store(tmp_path / "clean.sqlite"), workers=2)
     assert_same_results(resumed, clean)
 
 
 def test_two_runs_on_one_store_share_the_work(tmp_path):
     exp = get("shankar-vehicle")
-    overrides = {"trials": 80}  # 24 tasks of about 0.1 s
-    params = exp.params(quick=True, **overrides)
+    params = exp.params(quick=True, **VEHICLE_RUN)
     store_path, go = tmp_path / "shared.sqlite", tmp_path / "go"
     Store(store_path)  # created before the runs start, as a shared store would be
     logs = [tmp_path / f"computed{i}" for i in range(2)]
-    procs = [start_child(store_path, exp.name, overrides, workers=1, log=str(log),
+    procs = [start_child(store_path, exp.name, VEHICLE_RUN, workers=1, log=str(log),
                          ready=str(tmp_path / f"ready{i}"), go=str(go))
              for i, log in enumerate(logs)]
     deadline = time.monotonic() + 120
@@ -164,7 +164,7 @@ def test_two_runs_on_one_store_share_the_work(tmp_path):
     keys = {t.key for t in Store(store_path).tasks(exp.name)}
     assert all(computed)  # both worked ...
     assert sorted(computed[0] + computed[1]) == sorted(keys)  # ... on different tasks, each once
-    assert len(keys) == 24 and claims(store_path) == 0
+    assert len(keys) == 8 and claims(store_path) == 0
     assert query(store_path, "PRAGMA integrity_check") == [("ok",)]
     by_owner = dict(query(store_path, "SELECT owner, COUNT(*) FROM tasks GROUP BY owner"))
     assert sorted(by_owner.values()) == sorted(len(c) for c in computed)

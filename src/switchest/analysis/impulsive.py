@@ -98,6 +98,7 @@ from ._lmi import cp, max_eigenvalue, min_eigenvalue, solve_sdp, symmetric_block
 
 __all__ = [
     "ClosedLoopCertificate",
+    "ClosedLoopLMIs",
     "ImpulsiveObserverCertificate",
     "ImpulsiveObserverSearch",
     "impulsive_closed_loop_analysis",
@@ -179,7 +180,8 @@ class ImpulsiveObserverCertificate:
         if not self.feasible:
             raise ValueError("no overshoot bound: the certificate is not feasible")
         N0 = positive_scalar(N0, "N0", allow_zero=True)
-        return _overshoot(self.P0, self.P(np.array([0.0, self.tau_max])), N0 * math.log(self.mu_s), self.mu_c)
+        ends = self.P(np.array([0.0, self.tau_max]))
+        return _overshoot(self.P0, ends, N0 * math.log(self.mu_s), self.mu_c)
 
 
 @dataclass(frozen=True)
@@ -285,8 +287,9 @@ def _clock_affine(M0: np.ndarray, M1: np.ndarray, theta) -> np.ndarray:
 
 
 def _overshoot(M0: np.ndarray, M_ends: np.ndarray, log_switch_cost: float, mu_c: float) -> float:
-    """``sqrt(exp(cost) theta_max / (min(mu_c, 1) theta_min))``: ``theta_max`` the largest eigenvalue
-    of the ``M0^i``, ``theta_min`` the smallest of ``M^i(theta)`` at the clock's two ends."""
+    """``sqrt(exp(cost) theta_max / (min(mu_c, 1) theta_min))``: ``theta_max`` the largest
+    eigenvalue of the ``M0^i``, ``theta_min`` the smallest of ``M^i(theta)`` at the clock's
+    two ends."""
     top = float(np.max(max_eigenvalue(M0)))
     low = float(np.min(min_eigenvalue(M_ends)))
     return math.sqrt(math.exp(log_switch_cost) * top / (min(mu_c, 1.0) * low))
@@ -581,7 +584,8 @@ def impulsive_closed_loop_analysis(
     ``G``, solves the LMIs (24)-(27) in ``Q0^i, Q1^i`` on the extended system
     (21)-(23) (jump sign and (26) corrected, module notes) and evaluates the
     corrected rate condition (28) (:func:`theorem10_rate`). Posed and verified as
-    in :func:`impulsive_observer_synthesis`.
+    in :func:`impulsive_observer_synthesis`. For many scalars with one ``K`` and
+    ``G`` (a sweep, a bisection), :class:`ClosedLoopLMIs` compiles the LMIs once.
 
     Parameters
     ----------
@@ -605,49 +609,110 @@ def impulsive_closed_loop_analysis(
     -------
     ClosedLoopCertificate
     """
-    system = _check_system(system)
-    Acl, J = closed_loop_matrices(system, K, G)
-    beta = theorem10_rate(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta)
-    alpha, mu_s, mu_c, tau_min, tau_max, dwell = _scalars8(
-        alpha, mu_s, mu_c, tau_min, tau_max, dwell
-    )
-    alpha_bar, mu_c_bar, delta = float(alpha_bar), float(mu_c_bar), float(delta)
-    margin = positive_scalar(margin, "margin")
-    printed = _printed_theorem10_rate(
-        alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta
-    )
-    scalars = {
-        "alpha": alpha,
-        "alpha_bar": alpha_bar,
-        "mu_s": mu_s,
-        "mu_c": mu_c,
-        "mu_c_bar": mu_c_bar,
-        "delta": delta,
-        "tau_min": tau_min,
-        "tau_max": tau_max,
-        "dwell": dwell,
-    }
-    Lm = system.n_modes
-    lmi = _ClockLMI(Lm, 2 * system.n_states, tau_min, tau_max, margin)
-    # i: estimated mode (indexes Q), j: true mode;
-    # (30): (alpha, mu_c) if i == j else (-alpha_bar, mu_c_bar)
-    for i in range(Lm):
-        for j in range(Lm):
-            lmi.add_flow(i, Acl[j, i], alpha if i == j else -alpha_bar)
-            lmi.add_jump(i, lmi.P0[i] @ J[j, i], mu_c if i == j else mu_c_bar)
-    status, Q0, Q1, slack = lmi.solve(mu_s)
-    common = {"beta": beta, "printed_beta": printed, "scalars": scalars, "solver_status": status}
-    if Q0 is None:
-        note = _unsolved("(24)-(27)", status, slack, margin) + "; stability is not certified"
-        return ClosedLoopCertificate(False, False, None, None, margin=math.nan, **common, note=note)
-    if beta <= 0:
-        note = (
-            f"LMIs (24)-(27) hold but the rate condition (28) fails: beta = {beta:.4g} <= 0 "
-            f"(printed (31): {printed:.4g}); stability is not certified"
+    lmis = ClosedLoopLMIs(system, K, G, tau_min, tau_max, dwell, margin=margin)
+    return lmis.analyze(delta, alpha, alpha_bar, mu_s, mu_c, mu_c_bar)
+
+
+class ClosedLoopLMIs:
+    """The LMIs (24)-(27) of Theorem 10 for one plant, controller and observer, compiled once.
+
+    The scalars ``alpha, alpha_bar, mu_s, mu_c, mu_c_bar`` enter the LMIs as cvxpy
+    parameters (the problem is DPP), so every :meth:`analyze` re-solves one compiled
+    problem: a search over the scalars costs a solve per point, not a model build and
+    compilation (``delta`` enters only the rate (28), not the LMIs).
+
+    Parameters
+    ----------
+    system, K, G, tau_min, tau_max, dwell
+        As in :func:`impulsive_closed_loop_analysis`.
+    margin : float, optional
+        As in :func:`impulsive_closed_loop_analysis` (keyword-only).
+
+    Attributes
+    ----------
+    n_solves : int
+        SDPs solved so far.
+    """
+
+    def __init__(self, system, K, G, tau_min, tau_max, dwell, *, margin: float = 1e-3):
+        system = _check_system(system)
+        Acl, J = closed_loop_matrices(system, K, G)
+        _, _, _, self.tau_min, self.tau_max, self.dwell = _scalars8(
+            0.0, 1.0, 1.0, tau_min, tau_max, dwell
         )
-        return ClosedLoopCertificate(False, True, Q0, Q1, margin=slack, **common, note=note)
-    note = f"z = [x; e] decays at least as exp(-{beta:.4g} t) (Theorem 10, verified)"
-    return ClosedLoopCertificate(True, True, Q0, Q1, margin=slack, **common, note=note)
+        self.margin = positive_scalar(margin, "margin")
+        self._alpha, self._alpha_bar = cp.Parameter(), cp.Parameter()
+        self._mu_c, self._mu_c_bar = cp.Parameter(pos=True), cp.Parameter(pos=True)
+        Lm = system.n_modes
+        self._lmi = _ClockLMI(Lm, 2 * system.n_states, self.tau_min, self.tau_max, self.margin)
+        # i: estimated mode (indexes Q), j: true mode;
+        # (30): (alpha, mu_c) if i == j else (-alpha_bar, mu_c_bar)
+        for i in range(Lm):
+            for j in range(Lm):
+                self._lmi.add_flow(i, Acl[j, i], self._alpha if i == j else -self._alpha_bar)
+                self._lmi.add_jump(
+                    i, self._lmi.P0[i] @ J[j, i], self._mu_c if i == j else self._mu_c_bar
+                )
+
+    @property
+    def n_solves(self) -> int:
+        return self._lmi.n_solves
+
+    def analyze(
+        self,
+        delta: float,
+        alpha: float,
+        alpha_bar: float,
+        mu_s: float,
+        mu_c: float,
+        mu_c_bar: float,
+    ) -> ClosedLoopCertificate:
+        """Theorem 10 at these scalars (arguments as in :func:`impulsive_closed_loop_analysis`).
+
+        Returns
+        -------
+        ClosedLoopCertificate
+        """
+        tau_min, tau_max, dwell = self.tau_min, self.tau_max, self.dwell
+        beta = theorem10_rate(
+            alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta
+        )
+        alpha, mu_s, mu_c = float(alpha), float(mu_s), float(mu_c)
+        alpha_bar, mu_c_bar, delta = float(alpha_bar), float(mu_c_bar), float(delta)
+        printed = _printed_theorem10_rate(
+            alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta
+        )
+        scalars = {
+            "alpha": alpha,
+            "alpha_bar": alpha_bar,
+            "mu_s": mu_s,
+            "mu_c": mu_c,
+            "mu_c_bar": mu_c_bar,
+            "delta": delta,
+            "tau_min": tau_min,
+            "tau_max": tau_max,
+            "dwell": dwell,
+        }
+        self._alpha.value, self._alpha_bar.value = alpha, alpha_bar
+        self._mu_c.value, self._mu_c_bar.value = mu_c, mu_c_bar
+        status, Q0, Q1, slack = self._lmi.solve(mu_s)
+        common = {
+            "beta": beta, "printed_beta": printed, "scalars": scalars, "solver_status": status
+        }
+        if Q0 is None:
+            unsolved = _unsolved("(24)-(27)", status, slack, self.margin)
+            note = f"{unsolved}; stability is not certified"
+            return ClosedLoopCertificate(
+                False, False, None, None, margin=math.nan, **common, note=note
+            )
+        if beta <= 0:
+            note = (
+                f"LMIs (24)-(27) hold but the rate condition (28) fails: beta = {beta:.4g} <= 0 "
+                f"(printed (31): {printed:.4g}); stability is not certified"
+            )
+            return ClosedLoopCertificate(False, True, Q0, Q1, margin=slack, **common, note=note)
+        note = f"z = [x; e] decays at least as exp(-{beta:.4g} t) (Theorem 10, verified)"
+        return ClosedLoopCertificate(True, True, Q0, Q1, margin=slack, **common, note=note)
 
 
 # ---------------------------------------------------------------------- shared LMI pieces

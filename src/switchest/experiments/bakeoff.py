@@ -5,9 +5,9 @@ jump system whose switches fall anywhere between samples, a system with an
 unobservable mode, and the FSK phasor of :mod:`switchest.models.lee` with
 Gaussian noise — and for each the methods that apply to it, compared on state
 RMSE, mode accuracy, switching-time error and run time, all on the same trials
-(tasks of one block share their seed). Lee et al.'s minimum-distance detector
-applies only where their Assumption 1 (joint observability of every mode pair)
-holds: of these cases, only the FSK phasor.
+(a task simulates one block of a case once and runs every method on it). Lee
+et al.'s minimum-distance detector applies only where their Assumption 1 (joint
+observability of every mode pair) holds: of these cases, only the FSK phasor.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from ..simulate import simulate
 from ..system import SwitchedLinearSystem
 from ..tabular import transition_for
 from .registry import Experiment, Row, Summary, register
-from .scoring import combine, score
+from .scoring import blocks, combine, score, split_variants
 
 METHODS = ("clairvoyant", "kalman-at-samples", "switch-time", "switch-time-refined", "switch-time-marginal",
            "imm", "imm-ev1", "min-distance")
@@ -107,13 +107,16 @@ def min_distance_inapplicable(spec: ModelSpec) -> str | None:
 
 
 def _tasks(p: dict) -> list[dict]:
+    """One task per (trial block, case): the block is simulated once and every method that
+    applies to the case runs on it."""
     out = []
     all_cases = cases()
-    for case in p["cases"]:
-        methods = [m for m in METHODS if m != "min-distance" or min_distance_inapplicable(all_cases[case][0]) is None]
-        for b in range(p["trials"] // p["block_size"]):
-            out += [{"case": case, "block": b, "trials": p["block_size"], "duration": p["durations"][case],
-                     "method": m} for m in methods]
+    for b, n in blocks(p["trials"], p["block_size"]):
+        for case in p["cases"]:
+            applies = min_distance_inapplicable(all_cases[case][0]) is None
+            methods = [{"method": m} for m in METHODS if m != "min-distance" or applies]
+            out.append({"case": case, "block": b, "trials": n, "duration": p["durations"][case],
+                        "variants": methods})
     return out
 
 
@@ -130,33 +133,43 @@ def _detector(system: SwitchedLinearSystem) -> MinimumDistanceDetector:
 
 def _run(cfg: dict, rng: np.random.Generator) -> dict:
     spec, u = cases()[cfg["case"]]
-    sys = spec.system
     t = spec.sample_times(min(cfg["duration"], spec.sampling["duration"]))
-    traj = simulate(sys, lambda r: spec.signal(r, t), t, spec.initial, u=u, trials=cfg["trials"], rng=rng)
+    traj = simulate(spec.system, lambda r: spec.signal(r, t), t, spec.initial, u=u,
+                    trials=cfg["trials"], rng=rng)
+    return {"variants": [_method(m["method"], spec, traj, u) for m in cfg["variants"]]}
+
+
+def _method(m: str, spec: ModelSpec, traj, u: np.ndarray) -> dict:
+    """Method ``m`` on a block's trajectories: its scores, and its run time (``elapsed``, s)."""
+    sys, t = spec.system, traj.t
     x0, P0 = spec.initial
-    m = cfg["method"]
     start = time.perf_counter()
     if m == "clairvoyant":
-        est = ModeKalmanFilter(sys, x0, P0).run(traj.y, u, t, modes=traj.mode, segments=traj.segments())
+        est = ModeKalmanFilter(sys, x0, P0).run(traj.y, u, t, modes=traj.mode,
+                                                segments=traj.segments())
     elif m == "kalman-at-samples":
         est = ModeKalmanFilter(sys, x0, P0).run(traj.y, u, t, modes=traj.mode)
     elif m.startswith("switch-time"):
         refined = m.endswith("refined")
-        est = SwitchTimeKalmanFilter(sys, x0, P0, grid=2 if refined else 5, refine=refined,
-                                     switch_time="marginal" if m.endswith("marginal") else "max").run(
-            traj.y, u, t, modes=traj.mode)
+        est = SwitchTimeKalmanFilter(
+            sys, x0, P0, grid=2 if refined else 5, refine=refined,
+            switch_time="marginal" if m.endswith("marginal") else "max",
+        ).run(traj.y, u, t, modes=traj.mode)
     elif m == "imm":
-        est = IMMFilter(sys, transition_for(spec, t[1] - t[0], stay=_stay(spec, t)), x0, P0).run(traj.y, u, t)
+        transition = transition_for(spec, t[1] - t[0], stay=_stay(spec, t))
+        est = IMMFilter(sys, transition, x0, P0).run(traj.y, u, t)
     elif m == "imm-ev1":
         est = IMMEV1Filter(sys, x0=x0, P0=P0, grid=5).run(traj.y, u, t)
     else:
         detector = _detector(sys)
         est = detector.run(traj.y, u, t)
     elapsed = time.perf_counter() - start
+    first = max(1, t.size // 20)
     if m != "min-distance":
-        out = score(est, traj, start=max(1, t.size // 20))
-    else:  # no estimate before its first window ends, nor from a declaration to the end of the next window
-        out = score(replace(est, switch_time=None), traj, start=max(1, t.size // 20), defined=est.mode >= 0)
+        out = score(est, traj, start=first)
+    else:
+        # no estimate before its first window ends, nor from a declaration to the end of the next
+        out = score(replace(est, switch_time=None), traj, start=first, defined=est.mode >= 0)
         out.update(_detections(est, traj, detector.Delta))
     out.pop("sse_per_step")
     return {**out, "elapsed": elapsed}
@@ -180,7 +193,7 @@ def _stay(spec: ModelSpec, t: np.ndarray) -> float | None:
 
 def _summary(p: dict, results, out: Path) -> Summary:
     grouped: dict[tuple[str, str], list] = {}
-    for cfg, res in results:
+    for cfg, res in split_variants(results):
         grouped.setdefault((cfg["case"], cfg["method"]), []).append(res)
     totals = {key: combine(v) for key, v in grouped.items()}
     all_cases = cases()
@@ -252,10 +265,12 @@ register(Experiment(
     name="bakeoff",
     paper="beyond the papers",
     title="Every applicable estimator on five systems: RMSE, mode accuracy, switch times, run time",
-    defaults=dict(trials=40, block_size=10, cases=list(cases()),
+    # A task is one case's block through every method: tasks are short and a fixed ~0.2 s each,
+    # so blocks of 20 (10 tasks, 5 per worker on 2 cores; --quick: one block, 5 tasks).
+    defaults=dict(trials=40, block_size=20, cases=list(cases()),
                   durations={"boost converter": 0.1, "vehicle": 10.0, "Markov jump": 20.0,
                              "unobservable mode": 30.0, "FSK phasor": 10.0}),
-    quick=dict(trials=8, block_size=4,
+    quick=dict(trials=8, block_size=8,
                durations={"boost converter": 0.03, "vehicle": 10.0, "Markov jump": 8.0,
                           "unobservable mode": 10.0, "FSK phasor": 10.0}),
     tasks=_tasks,

@@ -12,10 +12,11 @@ every switch ``delta`` late; Theorem 10's verdict at the paper's scalars (as pri
 and corrected), the largest delay that the corrected Theorem 10 certifies over a
 grid of scalars, and the closed loop simulated for a sweep of delays.
 
-Tasks of one trial block share their seed: every configuration of a block (gain
-set, delay) sees the same sampling sequence, switching signals and initial states.
-The SDPs are deterministic; a task that needs Theorem 8's gains solves for them once
-per process (cached).
+A task draws one trial block — sampling sequence, switching signals, initial
+states — and runs every configuration (gain set, delay) on it. The SDPs are
+deterministic; a task that needs Theorem 8's gains solves for them once per process
+(cached), and a task that solves Theorem 10 compiles its LMIs once and re-solves
+them at every point (:class:`~switchest.analysis.impulsive.ClosedLoopLMIs`).
 """
 
 from __future__ import annotations
@@ -27,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.impulsive import (
+    ClosedLoopLMIs,
     ImpulsiveObserverCertificate,
-    impulsive_closed_loop_analysis,
     impulsive_observer_search,
     impulsive_observer_synthesis,
     theorem8_rate,
@@ -39,7 +40,7 @@ from ..plotting import curves
 from ..signals import aperiodic, dwell_time
 from ..simulate import simulate
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks
+from .scoring import blocks, split_variants
 
 S = ETIENNE_SCENARIO
 GRID_STEP = 0.05  # time grid (s) on which the per-block envelopes are held and combined
@@ -110,9 +111,9 @@ def _merge(results: list[dict]) -> dict:
 
 
 def _group(results, key: str) -> dict:
-    """``config[key]`` -> merged results of its blocks."""
+    """``config[key]`` -> merged results of its blocks (variants split)."""
     groups: dict = {}
-    for cfg, res in results:
+    for cfg, res in split_variants(results):
         groups.setdefault(cfg[key], []).append(res)
     return {k: _merge(v) for k, v in groups.items()}
 
@@ -169,10 +170,12 @@ def _gains_text(G) -> str:
 
 # ------------------------------------------------------------------ Fig. 1: synchronous observer
 def _sync_tasks(p: dict) -> list[dict]:
+    """One task per trial block: the block is simulated once and both gain sets observe it."""
     common = {"horizon": p["horizon"], "max_dwell": p["max_dwell"], "N0": p["N0"]}
-    search = {"mu_s": list(p["search_mu_s"]), "mu_c": list(p["search_mu_c"]), "alpha_tol": p["alpha_tol"]}
-    return [{"block": b, "trials": n, **common, "gains": gains, **(search if gains == "search" else {})}
-            for b, n in blocks(p["trials"], p["block_size"]) for gains in ("paper", "search")]
+    search = {"gains": "search", "mu_s": list(p["search_mu_s"]), "mu_c": list(p["search_mu_c"]),
+              "alpha_tol": p["alpha_tol"]}
+    return [{"block": b, "trials": n, **common, "variants": [{"gains": "paper"}, search]}
+            for b, n in blocks(p["trials"], p["block_size"])]
 
 
 def _sync_certificate(cfg: dict) -> tuple[ImpulsiveObserverCertificate, dict]:
@@ -186,13 +189,21 @@ def _sync_certificate(cfg: dict) -> tuple[ImpulsiveObserverCertificate, dict]:
 
 def _sync_run(cfg: dict, rng: np.random.Generator) -> dict:
     system = etienne_academic()
-    cert, extra = _sync_certificate(cfg)
-    if not cert.feasible:
-        raise RuntimeError(f"Theorem 8 gave no certificate for the {cfg['gains']} scalars: {cert.note}")
     t = aperiodic(S.tau_min, S.tau_max, cfg["horizon"], rng=rng)
     traj = simulate(system, _signal_source(cfg["horizon"], cfg["max_dwell"]), t,
                     (np.zeros(2), np.eye(2)), trials=cfg["trials"], rng=rng)
-    est = ImpulsiveObserver(system, cert.G).run(traj.y, None, t, signals=traj.signals)  # x_hat(0) = 0
+    return {"variants": [_sync_observe({**cfg, **v}, traj) for v in cfg["variants"]]}
+
+
+def _sync_observe(cfg: dict, traj) -> dict:
+    """The observer with one gain set's gains on the block's trajectories ``traj``."""
+    cert, extra = _sync_certificate(cfg)
+    if not cert.feasible:
+        raise RuntimeError(f"Theorem 8 gave no certificate for the {cfg['gains']} scalars: "
+                           f"{cert.note}")
+    t = traj.t
+    est = ImpulsiveObserver(etienne_academic(), cert.G).run(traj.y, None, t,
+                                                            signals=traj.signals)  # x_hat(0) = 0
     err = traj.x - est.x  # after each jump
     e_norm, x_norm = np.linalg.norm(err, axis=-1), np.linalg.norm(traj.x, axis=-1)
     out = {**_decay_stats(e_norm, t),
@@ -202,8 +213,8 @@ def _sync_run(cfg: dict, rng: np.random.Generator) -> dict:
            "certificate": {"beta": cert.beta, "M": cert.overshoot(cfg["N0"]), "alpha": cert.alpha,
                            "mu_s": cert.mu_s, "mu_c": cert.mu_c, "G": cert.G.tolist(),
                            "margin": cert.margin, **extra}}
-    if cfg["block"] == 0:
-        out["example"] = _example(t, traj.x, err, traj.x[:, 0], traj.mode, traj.signals)  # e(0) = x(0) - 0
+    if cfg["block"] == 0:  # e(0) = x(0) - 0
+        out["example"] = _example(t, traj.x, err, traj.x[:, 0], traj.mode, traj.signals)
     return out
 
 
@@ -289,7 +300,11 @@ register(Experiment(
     name="etienne-sync",
     paper="Etienne",
     title="Fig. 1: impulsive observer with synchronous mode knowledge, guaranteed vs measured decay",
-    defaults={"trials": 1000, "block_size": 200, "horizon": SYNC_HORIZON, "max_dwell": 14.0, "N0": 1.0,
+    # A task is a block observed with both gain sets, a fraction of a second (the first task of a
+    # worker also runs the scalar search, ~2 s): 4 tasks of 250, 2 per worker on 2 cores;
+    # --quick: 2 of 100, one per worker.
+    defaults={"trials": 1000, "block_size": 250, "horizon": SYNC_HORIZON, "max_dwell": 14.0,
+              "N0": 1.0,
               "search_mu_s": [2.0, 5.0, 10.0, 20.0, 40.0], "search_mu_c": [0.5, 0.675, 0.85, 0.98, 1.0],
               "alpha_tol": 1e-3},
     quick={"trials": 200, "block_size": 100, "search_mu_s": [5.0, 20.0],
@@ -328,10 +343,11 @@ def _largest_delay(alpha: float, alpha_bar: float, mu_s: float, mu_c: float, mu_
         q += 1
 
 
-def _closed_loop(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, delta):
-    """Theorem 10 for the paper's controller and Theorem 8's gains at the paper's scalars."""
-    return impulsive_closed_loop_analysis(etienne_academic(), S.K, _paper_observer().G, S.tau_min,
-                                          S.tau_max, S.dwell, delta, alpha, alpha_bar, mu_s, mu_c, mu_c_bar)
+def _theorem10() -> ClosedLoopLMIs:
+    """Theorem 10's LMIs for the paper's controller and Theorem 8's gains at the paper's scalars,
+    compiled once per task and re-solved at every point of its verdicts or search."""
+    return ClosedLoopLMIs(etienne_academic(), S.K, _paper_observer().G, S.tau_min, S.tau_max,
+                          S.dwell)
 
 
 def _async_tasks(p: dict) -> list[dict]:
@@ -339,19 +355,25 @@ def _async_tasks(p: dict) -> list[dict]:
     tasks += [{"kind": "search", "mu_s": ms, "mu_c": mc, "alpha_bar": list(p["search_alpha_bar"]),
                "alpha_tol": p["alpha_tol"], "delays": list(p["delays"]), "N0": p["N0"]}
               for ms in p["search_mu_s"] for mc in p["search_mu_c"]]
-    common = {"horizon": p["horizon"], "max_dwell": p["max_dwell"], "example_delay": p["example_delay"]}
-    tasks += [{"kind": "simulate", "block": b, "trials": n, "delay": d, **common}
-              for b, n in blocks(p["trials"], p["block_size"]) for d in p["delays"]]
+    common = {"horizon": p["horizon"], "max_dwell": p["max_dwell"],
+              "example_delay": p["example_delay"]}
+    # one task per trial block: the block's random draws are made once and the closed loop is
+    # simulated on them at every delay
+    tasks += [{"kind": "simulate", "block": b, "trials": n, **common,
+               "variants": [{"delay": d} for d in p["delays"]]}
+              for b, n in blocks(p["trials"], p["block_size"])]
     return tasks
 
 
 def _verdict_run() -> dict:
     """Theorem 10 at §4's scalars, and with one scalar relaxed at a time."""
-    paper = {"alpha": S.alpha, "alpha_bar": S.alpha_bar, "mu_s": S.mu_s, "mu_c": S.mu_c, "mu_c_bar": S.mu_c_bar}
-    cert = _closed_loop(**paper, delta=S.delta)
+    lmis = _theorem10()
+    paper = {"alpha": S.alpha, "alpha_bar": S.alpha_bar, "mu_s": S.mu_s, "mu_c": S.mu_c,
+             "mu_c_bar": S.mu_c_bar}
+    cert = lmis.analyze(delta=S.delta, **paper)
     relaxed = {}
     for name, change in RELAXATIONS.items():
-        c = _closed_loop(**{**paper, **change}, delta=S.delta)
+        c = lmis.analyze(delta=S.delta, **{**paper, **change})
         relaxed[name] = {"lmi_feasible": c.lmi_feasible, "beta": c.beta}
     return {"feasible": cert.feasible, "lmi_feasible": cert.lmi_feasible, "beta": cert.beta,
             "printed_beta": cert.printed_beta, "note": cert.note, "relaxed": relaxed,
@@ -366,17 +388,17 @@ def _search_run(cfg: dict) -> dict:
     grows with ``alpha``: the largest feasible ``alpha`` is bracketed upward from
     where the rate vanishes at ``delta = 0`` and bisected. It does not decrease as
     ``alpha_bar`` grows, so it starts the next bracket. At the best point,
-    certificates for the simulated delays below the largest one.
+    certificates for the simulated delays below the largest one. One compiled
+    problem serves every solve.
     """
     mu_s, mu_c, tol = cfg["mu_s"], cfg["mu_c"], cfg["alpha_tol"]
-    solves = 0
+    lmis = _theorem10()
 
     def feasible(alpha, alpha_bar) -> bool:
-        nonlocal solves
-        solves += 1
-        return _closed_loop(alpha, alpha_bar, mu_s, mu_c, mu_c, 0.0).lmi_feasible
+        return lmis.analyze(0.0, alpha, alpha_bar, mu_s, mu_c, mu_c).lmi_feasible
 
-    floor = -2 * theorem8_rate(0.0, mu_s, mu_c, S.tau_min, S.tau_max, S.dwell) + tol  # rate > 0 at delta = 0
+    # rate > 0 at delta = 0 from here
+    floor = -2 * theorem8_rate(0.0, mu_s, mu_c, S.tau_min, S.tau_max, S.dwell) + tol
     points = []
     for alpha_bar in sorted(cfg["alpha_bar"]):
         if not feasible(floor, alpha_bar):
@@ -394,32 +416,46 @@ def _search_run(cfg: dict) -> dict:
         floor = lo
         points.append({"alpha_bar": alpha_bar, "alpha": lo,
                        "delta": _largest_delay(lo, alpha_bar, mu_s, mu_c, mu_c)})
-    out = {"mu_s": mu_s, "mu_c": mu_c, "points": points, "n_solves": solves, "certificates": {}}
+    out = {"mu_s": mu_s, "mu_c": mu_c, "points": points, "n_solves": lmis.n_solves,
+           "certificates": {}}
     found = [pt for pt in points if pt["delta"] is not None]
     if found:
         best = out["best"] = max(found, key=lambda pt: pt["delta"])
         for d in cfg["delays"]:
             if d < best["delta"]:
-                c = _closed_loop(best["alpha"], best["alpha_bar"], mu_s, mu_c, mu_c, d)
+                c = lmis.analyze(d, best["alpha"], best["alpha_bar"], mu_s, mu_c, mu_c)
                 out["certificates"][str(d)] = {"feasible": c.feasible, "beta": c.beta,
                                                "M": c.overshoot(cfg["N0"]) if c.feasible else None}
     return out
 
 
 def _simulate_run(cfg: dict, rng: np.random.Generator) -> dict:
+    """The closed loop at every delay of ``cfg["variants"]``, on one draw of the sample
+    times, initial states and switching signals."""
     t = aperiodic(S.tau_min, S.tau_max, cfg["horizon"], rng=rng)
     x0, x_hat0 = rng.standard_normal((2, cfg["trials"], 2))
-    loop = simulate_observer_control(etienne_academic(), S.K, _paper_observer().G,
-                                     _signal_source(cfg["horizon"], cfg["max_dwell"]), t, x0, x_hat0,
-                                     mode_estimate=cfg["delay"], rng=rng)
-    z = np.linalg.norm(np.concatenate([loop.x, loop.error], axis=-1), axis=-1)  # ||[x; e]|| after each jump
+    source = _signal_source(cfg["horizon"], cfg["max_dwell"])
+    # one per trial, drawn as simulate_observer_control draws them
+    signals = [source(child) for child in rng.spawn(cfg["trials"])]
+    return {"variants": [_closed_loop({**cfg, **v}, t, x0, x_hat0, signals)
+                         for v in cfg["variants"]]}
+
+
+def _closed_loop(cfg: dict, t: np.ndarray, x0: np.ndarray, x_hat0: np.ndarray, signals) -> dict:
+    """Decay, overshoot and mismatch-window statistics of the closed loop at ``cfg["delay"]``."""
+    delay = cfg["delay"]
+    loop = simulate_observer_control(etienne_academic(), S.K, _paper_observer().G, signals, t,
+                                     x0, x_hat0, mode_estimate=delay)
+    # ||[x; e]|| after each jump
+    z = np.linalg.norm(np.concatenate([loop.x, loop.error], axis=-1), axis=-1)
     # samples in [s_j, s_j + delta): corrected with the wrong mode
-    counts = np.concatenate([np.searchsorted(t, s.times + cfg["delay"]) - np.searchsorted(t, s.times)
+    counts = np.concatenate([np.searchsorted(t, s.times + delay) - np.searchsorted(t, s.times)
                              for s in loop.signals])
     out = {**_decay_stats(z, t), "overshoot_max": float(np.max(z / z[:, :1])),
-           "wrong_samples": int(np.sum(loop.mode != loop.mode_hat)), "window_samples": int(counts.sum()),
-           "window_max": int(counts.max(initial=0)), "switches": int(counts.size)}
-    if cfg["block"] == 0 and cfg["delay"] == cfg["example_delay"]:
+           "wrong_samples": int(np.sum(loop.mode != loop.mode_hat)),
+           "window_samples": int(counts.sum()), "window_max": int(counts.max(initial=0)),
+           "switches": int(counts.size)}
+    if cfg["block"] == 0 and delay == cfg["example_delay"]:
         out["example"] = _example(t, loop.x, loop.error, x0 - x_hat0, loop.mode, loop.signals)
     return out
 
@@ -520,6 +556,7 @@ def _async_figures(p: dict, winner: dict | None, sims: dict, out: Path) -> list[
 
 
 def _async_summary(p: dict, results, out: Path) -> Summary:
+    results = split_variants(results)
     verdict = next(r for c, r in results if c["kind"] == "verdict")
     searches = [r for c, r in results if c["kind"] == "search"]
     sims = _group([(c, r) for c, r in results if c["kind"] == "simulate"], "delay")
@@ -565,6 +602,8 @@ register(Experiment(
     name="etienne-async",
     paper="Etienne",
     title="Fig. 2: observer-based control with a delayed mode estimate; Theorem 10 verdict, largest δ",
+    # The verdict, a task per (mu_s, mu_c) of the search (1-2 s each) and a task per block at every
+    # delay (~1 s for 100 trials): 21 tasks of similar size, 10 per worker on 2 cores; --quick: 4.
     defaults={"trials": 500, "block_size": 100, "horizon": 40.0, "max_dwell": 14.0, "N0": 1.0,
               "delays": [0.0, 0.05, 0.15, 0.5, 1.0, 2.0, 3.0], "example_delay": S.delta,
               "search_mu_s": [4.0, 5.0, 5.5, 6.0, 8.0], "search_mu_c": [0.95, 1.0, 1.05],

@@ -69,9 +69,13 @@ class Experiment:
     tasks : callable
         ``tasks(params) -> list[dict]``: independent task configurations. Tasks
         sharing a ``"block"`` value get the same seed, so every configuration sees
-        the same simulated data for a block of trials.
+        the same simulated data for a block of trials. Configurations that differ
+        only in what they run on that data (methods, gains, noise levels) are best
+        one task that simulates the block once: it lists them under ``"variants"``
+        (:func:`~switchest.experiments.scoring.split_variants`).
     run_task : callable
-        ``run_task(config, rng) -> dict``: JSON-able results of one task.
+        ``run_task(config, rng) -> dict``: JSON-able results of one task; with
+        ``"variants"``, ``{"variants": [...]}``, one result per variant.
     summarize : callable
         ``summarize(params, results, out_dir) -> Summary``, ``results`` being the
         list of ``(config, result)`` pairs; figures are written under ``out_dir``.

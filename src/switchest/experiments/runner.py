@@ -32,8 +32,8 @@ from collections.abc import Callable, Hashable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
-from .._threads import one_blas_thread
 from ..estimators._compiled.warmup import warm_up
 from .registry import Experiment, get
 from .store import Claimant, Store, process_token, task_key
@@ -88,7 +88,9 @@ def execute_task(name: str, config: dict, seed: list[int]) -> tuple[dict, float]
     experiment = get(name)
     rng = np.random.default_rng(np.random.SeedSequence(seed[0], spawn_key=tuple(seed[1:])))
     start = time.perf_counter()
-    with one_blas_thread():
+    # threadpoolctl's own context, not one_blas_thread's cached controller: under Dask's
+    # threaded workers the latter held back the results until every task had finished
+    with threadpool_limits(1):
         result = experiment.run_task(config, rng)
     return result, time.perf_counter() - start
 

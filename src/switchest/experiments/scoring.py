@@ -1,4 +1,5 @@
-"""Additive error statistics of an estimate, so trial blocks combine by summation."""
+"""Trial blocks, the variants a task runs on its block, and additive error statistics of an
+estimate, so that trial blocks combine by summation."""
 
 from __future__ import annotations
 
@@ -6,13 +7,35 @@ import numpy as np
 
 from ..metrics import switch_time_error
 
-__all__ = ["blocks", "score", "combine"]
+__all__ = ["blocks", "split_variants", "score", "combine"]
 
 
 def blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
-    """``(block index, trials in it)`` covering ``trials`` in blocks of ``block_size``."""
-    sizes = [block_size] * (trials // block_size) + ([trials % block_size] if trials % block_size else [])
-    return list(enumerate(sizes))
+    """``(block index, trials in it)`` covering ``trials`` in blocks of ``block_size``; the last
+    block holds the remainder when ``block_size`` does not divide ``trials``."""
+    full, rest = divmod(trials, block_size)
+    return list(enumerate([block_size] * full + ([rest] if rest else [])))
+
+
+def split_variants(results: list[tuple[dict, dict]]) -> list[tuple[dict, dict]]:
+    """One ``(config, result)`` pair per variant of the tasks that ran several on one block.
+
+    A task that simulates its trial block once and runs several variants on it
+    (methods, gains, noise levels) lists their settings under ``"variants"`` in its
+    configuration and returns ``{"variants": [...]}``, one result per variant in
+    that order. Each of its pairs here is the task's configuration without
+    ``"variants"``, updated with the variant's settings, and the variant's result;
+    tasks without variants pass through unchanged.
+    """
+    out = []
+    for cfg, res in results:
+        if "variants" not in cfg:
+            out.append((cfg, res))
+            continue
+        common = {k: v for k, v in cfg.items() if k != "variants"}
+        out += [({**common, **variant}, r)
+                for variant, r in zip(cfg["variants"], res["variants"], strict=True)]
+    return out
 
 
 def score(est, traj, start: int, defined: np.ndarray | None = None) -> dict:
@@ -25,7 +48,8 @@ def score(est, traj, start: int, defined: np.ndarray | None = None) -> dict:
     between its windows): the sums and ``count`` then run over those only, and
     ``samples`` counts all of them.
     """
-    mask = np.ones(traj.x.shape[:2], dtype=bool) if defined is None else np.asarray(defined, dtype=bool)
+    mask = (np.ones(traj.x.shape[:2], dtype=bool) if defined is None
+            else np.asarray(defined, dtype=bool))
     err = np.where(mask[..., None], est.x - traj.x, 0.0)
     kept = mask[:, start:, None]
     out = {"sse": np.sum(err[:, start:] ** 2, axis=(0, 1)).tolist(), "count": int(kept.sum()),
@@ -40,7 +64,8 @@ def score(est, traj, start: int, defined: np.ndarray | None = None) -> dict:
         gap = switch_time_error(est.switch_time, truth)
         period = np.r_[np.nan, np.diff(traj.t)]  # the length of the interval each instant falls in
         out["switch_abs_err"] = float(gap.sum())
-        out["switch_rel_err"] = float(switch_time_error(est.switch_time / period, truth / period).sum())
+        relative = switch_time_error(est.switch_time / period, truth / period)
+        out["switch_rel_err"] = float(relative.sum())
         out["switch_pairs"] = int(gap.size)
     return out
 

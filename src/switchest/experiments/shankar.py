@@ -1,8 +1,8 @@
 """Reproductions of Shankar, Yang & Hespanha (seed 000): Table I, Figs 3-4, Lemma 2.
 
-Every configuration of an experiment sees the same simulated trials (tasks of
-one trial block share their seed), so differences between methods are not
-sampling noise between data sets.
+Every method of an experiment sees the same simulated trials (a task simulates
+one block of trials once and runs every method on it), so differences between
+methods are not sampling noise between data sets.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from ..signals import periodic
 from ..simulate import simulate
 from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, combine, score
+from .scoring import blocks, combine, score, split_variants
 
 # Shankar et al. Table I (100 trials, T = 0.5 ms): RMSE for g = 1..5
 TABLE1_PAPER = {
@@ -46,37 +46,46 @@ VEHICLE_TRANSITION = np.array([[0.9, 0.05, 0.05], [0.05, 0.9, 0.05], [0.05, 0.05
 
 # ------------------------------------------------------------------ Table I
 def _table1_tasks(p: dict) -> list[dict]:
+    """One task per trial block: the block is simulated once and every method runs on it."""
     methods = [{"method": "grid", "g": g} for g in p["grids"]]
     methods += [{"method": "refine", "g": g} for g in p["refine_grids"]]
     methods += [{"method": "marginal", "g": g} for g in p["marginal_grids"]]
     methods += [{"method": "clairvoyant"}, {"method": "imm"}]
     methods += [{"method": "imm-ev1", "g": g} for g in p["ev1_grids"]]
-    return [{"block": b, "trials": n, "duration": p["duration"], "process_noise": p["process_noise"],
-             "start": p["start"], **m} for b, n in blocks(p["trials"], p["block_size"]) for m in methods]
+    common = {"duration": p["duration"], "process_noise": p["process_noise"], "start": p["start"]}
+    return [{"block": b, "trials": n, **common, "variants": methods}
+            for b, n in blocks(p["trials"], p["block_size"])]
 
 
 def _table1_run(cfg: dict, rng: np.random.Generator) -> dict:
     system = boost_converter(process_noise=cfg["process_noise"])
     t = periodic(BOOST_SAMPLE_PERIOD, cfg["duration"])
     u = np.array([BOOST_INPUT_VOLTAGE])
-    traj = simulate(system, lambda r: boost_switching(r, t_end=cfg["duration"]), t, (BOOST_X0, BOOST_P0),
-                    u=u, trials=cfg["trials"], rng=rng)
-    start = time.perf_counter()
-    method = cfg["method"]
+    traj = simulate(system, lambda r: boost_switching(r, t_end=cfg["duration"]), t,
+                    (BOOST_X0, BOOST_P0), u=u, trials=cfg["trials"], rng=rng)
+    return {"variants": [_table1_method(m, system, traj, u, cfg["start"])
+                         for m in cfg["variants"]]}
+
+
+def _table1_method(m: dict, system, traj, u: np.ndarray, start: int) -> dict:
+    """One method on the block's trajectories: its scores and its run time (``elapsed``, s)."""
+    begin = time.perf_counter()
+    method, t = m["method"], traj.t
     if method == "clairvoyant":
         est = ModeKalmanFilter(system, BOOST_X0, BOOST_P0).run(traj.y, u, t, modes=traj.mode,
                                                                segments=traj.segments())
     elif method in ("grid", "refine", "marginal"):
-        est = SwitchTimeKalmanFilter(system, BOOST_X0, BOOST_P0, grid=cfg["g"], refine=method == "refine",
-                                     switch_time="marginal" if method == "marginal" else "max").run(
-            traj.y, u, t, modes=traj.mode)
+        est = SwitchTimeKalmanFilter(
+            system, BOOST_X0, BOOST_P0, grid=m["g"], refine=method == "refine",
+            switch_time="marginal" if method == "marginal" else "max",
+        ).run(traj.y, u, t, modes=traj.mode)
     elif method == "imm":
         est = IMMFilter(system, BOOST_TRANSITION, BOOST_X0, BOOST_P0).run(traj.y, u, t)
     else:
-        est = IMMEV1Filter(system, x0=BOOST_X0, P0=BOOST_P0, grid=cfg["g"]).run(traj.y, u, t)
-    out = score(est, traj, cfg["start"])
+        est = IMMEV1Filter(system, x0=BOOST_X0, P0=BOOST_P0, grid=m["g"]).run(traj.y, u, t)
+    out = score(est, traj, start)
     out.pop("sse_per_step")
-    return {**out, "elapsed": time.perf_counter() - start}
+    return {**out, "elapsed": time.perf_counter() - begin}
 
 
 def _label(cfg: dict) -> str:
@@ -88,9 +97,10 @@ def _label(cfg: dict) -> str:
 
 
 def _by_method(results: list[tuple[dict, dict]]) -> dict[str, tuple[dict, dict]]:
+    """Method label -> (a configuration of it, its statistics summed over the blocks)."""
     groups: dict[str, list] = {}
     first: dict[str, dict] = {}
-    for cfg, res in results:
+    for cfg, res in split_variants(results):
         key = _label(cfg)
         groups.setdefault(key, []).append(res)
         first.setdefault(key, cfg)
@@ -150,6 +160,9 @@ register(Experiment(
     name="shankar-table1",
     paper="Shankar",
     title="Table I: Kalman filter RMSE vs switching-time grid (boost converter)",
+    # A task simulates a block (20000 samples a trial, most of its ~20 CPU-s) and runs the 16
+    # methods on it: blocks of 10 make 10 tasks, 5 per worker on 2 cores. --quick: 2 tasks, one
+    # per worker; single trials would spend most of a task in per-call overhead.
     defaults=dict(trials=100, duration=10.0, grids=[1, 2, 3, 4, 5], refine_grids=[1, 2],
                   marginal_grids=[1, 2, 3, 4, 5],
                   ev1_grids=[1, 5], process_noise=1.0, block_size=10, start=20),
@@ -162,29 +175,35 @@ register(Experiment(
 
 # ------------------------------------------------------------------ vehicle, Figs 3-4
 def _vehicle_tasks(p: dict) -> list[dict]:
+    """One task per trial block: the block is simulated once and every method runs on it."""
     methods = [{"method": "clairvoyant"}, {"method": "imm"}]
     methods += [{"method": "imm-ev1", "g": g} for g in p["grids"]]
-    return [{"block": b, "trials": n, **m} for b, n in blocks(p["trials"], p["block_size"]) for m in methods]
+    return [{"block": b, "trials": n, "variants": methods}
+            for b, n in blocks(p["trials"], p["block_size"])]
 
 
 def _vehicle_run(cfg: dict, rng: np.random.Generator) -> dict:
     man = vehicle_maneuver()
     system = vehicle_2d()
-    traj = simulate(system, man.signal, man.t, np.zeros(4), u=man.u, trials=cfg["trials"], rng=rng)
-    start = time.perf_counter()
+    traj = simulate(system, man.signal, man.t, np.zeros(4), u=man.u, trials=cfg["trials"],
+                    rng=rng)
     x0 = np.zeros(4)
-    if cfg["method"] == "clairvoyant":
-        est = ModeKalmanFilter(system, x0, VEHICLE_P0).run(traj.y, man.u, man.t, modes=traj.mode,
-                                                           segments=traj.segments())
-    elif cfg["method"] == "imm":
-        est = IMMFilter(system, VEHICLE_TRANSITION, x0, VEHICLE_P0).run(traj.y, man.u, man.t)
-    else:
-        est = IMMEV1Filter(system, x0=x0, P0=VEHICLE_P0, grid=cfg["g"]).run(traj.y, man.u, man.t)
-    out = score(est, traj, 0)
-    if cfg["block"] == 0:
-        out["example_truth"] = traj.x[0].tolist()
-        out["example_estimate"] = est.x[0].tolist()
-    return {**out, "elapsed": time.perf_counter() - start}
+    results = []
+    for m in cfg["variants"]:
+        start = time.perf_counter()
+        if m["method"] == "clairvoyant":
+            est = ModeKalmanFilter(system, x0, VEHICLE_P0).run(
+                traj.y, man.u, man.t, modes=traj.mode, segments=traj.segments())
+        elif m["method"] == "imm":
+            est = IMMFilter(system, VEHICLE_TRANSITION, x0, VEHICLE_P0).run(traj.y, man.u, man.t)
+        else:
+            est = IMMEV1Filter(system, x0=x0, P0=VEHICLE_P0, grid=m["g"]).run(traj.y, man.u, man.t)
+        out = score(est, traj, 0)
+        if cfg["block"] == 0:
+            out["example_truth"] = traj.x[0].tolist()
+            out["example_estimate"] = est.x[0].tolist()
+        results.append({**out, "elapsed": time.perf_counter() - start})
+    return {"variants": results}
 
 
 def _vehicle_summary(p: dict, results, out: Path) -> Summary:
@@ -201,7 +220,7 @@ def _vehicle_summary(p: dict, results, out: Path) -> Summary:
         rows.append(Row(f"RMSE position, {label}", float(np.sqrt((rmse[0] ** 2 + rmse[2] ** 2) / 2)), None, "m",
                         "; ".join(extra)))
         rows.append(Row(f"RMSE velocity, {label}", float(np.sqrt((rmse[1] ** 2 + rmse[3] ** 2) / 2)), None, "m/s"))
-    for cfg, res in results:
+    for cfg, res in split_variants(results):
         if "example_estimate" in res:
             examples[_label(cfg)] = np.asarray(res["example_estimate"])
             truth = np.asarray(res["example_truth"])
@@ -235,7 +254,9 @@ register(Experiment(
     name="shankar-vehicle",
     paper="Shankar",
     title="Figs 3-4: IMM-EV1 on the vehicle maneuver, RMSE vs g",
-    defaults=dict(trials=500, grids=[1, 2, 5, 10], block_size=100),
+    # 21 samples a trial: the whole run is a second of CPU, so the blocks are as large as 2 tasks
+    # per worker on 2 cores allow (4 of 125; --quick: 2 of 20, one per worker).
+    defaults=dict(trials=500, grids=[1, 2, 5, 10], block_size=125),
     quick=dict(trials=40, block_size=20),
     tasks=_vehicle_tasks,
     run_task=_vehicle_run,
@@ -310,6 +331,7 @@ register(Experiment(
     name="shankar-lemma2",
     paper="Shankar",
     title="Lemma 2: switching-time error bounds vs actual errors",
+    # 11 tasks of about a second (the boost converter's the shortest); --quick: 3 of a tenth
     defaults=dict(blocks=10, cases_per_block=1000),
     quick=dict(blocks=2, cases_per_block=100),
     tasks=_lemma2_tasks,

@@ -9,9 +9,9 @@ the error dynamics (Theorem 1) do not depend on ``x``, and a growing ``x`` would
 only cost floating-point digits. The Monte Carlo mean squared error is compared
 with the exact second-moment recursion and the steady state of eq. (21)
 (:func:`~switchest.analysis.ms_design.second_moments`,
-:func:`~switchest.analysis.ms_design.steady_state`). Tasks of one trial block
-share their seed, so every gain of a block sees the same simulated data and two
-gains can be compared pairwise.
+:func:`~switchest.analysis.ms_design.steady_state`). A task simulates one trial
+block of a model once and runs every gain on it, so that two gains can be
+compared pairwise.
 
 The squared errors of Examples 1-4 are heavy-tailed (open-loop runs multiply the
 error by ``e^{a_1 T}`` each step; its fourth moment grows without bound), so a
@@ -64,7 +64,7 @@ from ..plotting import curves
 from ..signals import iid_at_samples
 from ..simulate import simulate
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks
+from .scoring import blocks, split_variants
 
 # Wang et al. §4.1-§5.2 (Examples 1-4); components 1-based as printed
 EXAMPLES_PAPER = {
@@ -380,19 +380,29 @@ def _examples_tasks(p: dict) -> list[dict]:
         {"figure": "6", "example": "example4",
          "gains": [[L_star, DESIGN_GAINS[1]], [EXAMPLES_PAPER["optimum"][0], DESIGN_GAINS[1]]]},
     ]
+    # figures on the same model (examples 1 and 4 are one) and horizon share their data: one task
+    # per block simulates it once and runs each figure's gains on it
+    shared: dict[tuple, list[dict]] = {}
+    for f in figures:
+        horizon = p["horizon_large_T"] if f["figure"] == "3" else p["horizon"]
+        shared.setdefault((WANG_EXAMPLES[f["example"]], horizon), []).append(f)
     common = {"substeps": p["substeps"], "e0": p["e0"]}
-    tasks = []
-    for b, n in blocks(p["trials"], p["block_size"]):
-        for f in figures:
-            horizon = p["horizon_large_T"] if f["figure"] == "3" else p["horizon"]
-            tasks.append({"block": b, "trials": n, "horizon": horizon, "window": horizon // 2, **common, **f})
-    return tasks
+    return [{"block": b, "trials": n, "horizon": horizon, "window": horizon // 2, **common,
+             "variants": figs}
+            for b, n in blocks(p["trials"], p["block_size"])
+            for (_, horizon), figs in shared.items()]
 
 
 def _examples_run(cfg: dict, rng: np.random.Generator) -> dict:
-    ex = WANG_EXAMPLES[cfg["example"]]
-    system, prob = ex.system(), ex.probabilities()
-    traj, t = _simulate(system, prob, ex.T, cfg["horizon"], cfg["substeps"], cfg["trials"], rng)
+    ex = WANG_EXAMPLES[cfg["variants"][0]["example"]]  # the same model for every variant
+    traj, t = _simulate(ex.system(), ex.probabilities(), ex.T, cfg["horizon"], cfg["substeps"],
+                        cfg["trials"], rng)
+    return {"variants": [_examples_figure({**cfg, **f}, ex, traj, t) for f in cfg["variants"]]}
+
+
+def _examples_figure(cfg: dict, ex, traj, t: np.ndarray) -> dict:
+    """The moments of one figure's gains on the block's trajectories ``traj``."""
+    system = ex.system()
     e0 = np.asarray(cfg["e0"], float)
     stats: dict = {"trials": cfg["trials"]}
     windows = []
@@ -666,6 +676,7 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
 
 
 def _examples_summary(p: dict, results, out: Path) -> Summary:
+    results = split_variants(results)
     c = _Context(p, results, out)
     ex = c.ex
     _example1_section(c)
@@ -741,7 +752,10 @@ register(Experiment(
     name="wang-examples",
     paper="Wang",
     title="Examples 1-4, Figs 1-6: Kalman–Bucy divergence, T_max, gain bounds, MS error vs (21), L1 trade-off",
-    defaults={"trials": 1000, "block_size": 250, "horizon": 150, "horizon_large_T": 40, "substeps": 20,
+    # Per block, one task for Figs 1, 2, 4, 6 (one model: ~3 s fixed, 24 ms a trial) and one for
+    # Fig. 3: blocks of 250 make 4 of each, 2 large per worker on 2 cores (--quick: 2 and 2).
+    defaults={"trials": 1000, "block_size": 250, "horizon": 150, "horizon_large_T": 40,
+              "substeps": 20,
               "e0": [2.0, 2.0], "fig4_gains": [30.0, 60.0, 100.0, 200.0], "path_gain": 60.0},
     quick={"trials": 200, "block_size": 100},
     tasks=_examples_tasks,
@@ -764,27 +778,36 @@ def _bus_gains(design: str, *, printed_eigenvalues: bool = False) -> np.ndarray:
 
 
 def _bus_tasks(p: dict) -> list[dict]:
-    return [{"block": b, "trials": n, "design": d, "intervals": p["intervals"], "substeps": p["substeps"],
-             "window": p["window"]} for b, n in blocks(p["trials"], p["block_size"]) for d in BUS_POLES]
+    """One task per trial block: the block is simulated once and both designs run on it."""
+    return [{"block": b, "trials": n, "intervals": p["intervals"], "substeps": p["substeps"],
+             "window": p["window"], "variants": [{"design": d} for d in BUS_POLES]}
+            for b, n in blocks(p["trials"], p["block_size"])]
 
 
 def _bus_run(cfg: dict, rng: np.random.Generator) -> dict:
     system, prob, T = ieee_5bus(), ieee_5bus_mode_probabilities(), IEEE_5BUS_SAMPLE_PERIOD
     traj, t = _simulate(system, prob, T, cfg["intervals"], cfg["substeps"], cfg["trials"], rng)
-    gains = _bus_gains(cfg["design"])
+    return {"variants": [_bus_design_run(v["design"], traj, t, cfg["window"])
+                         for v in cfg["variants"]]}
+
+
+def _bus_design_run(design: str, traj, t: np.ndarray, window: int) -> dict:
+    """The moments of one pole-placement design's observer on the block's trajectories."""
+    system, T = ieee_5bus(), IEEE_5BUS_SAMPLE_PERIOD
+    gains = _bus_gains(design)
     err = _errors(system, gains, T, IEEE_5BUS_INITIAL_ERROR, traj, t)
     sq = err**2
     total = sq.sum(axis=-1, keepdims=True)
     modes = traj.mode[:, :-1]  # the mode of each interval [kT, (k+1)T)
     clear = ~np.any(modes == 3, axis=1)  # runs without a blind interval (both packets lost)
     return {"stats": {
-        "trials": cfg["trials"],
-        "component": _moment_stats(sq, cfg["window"]),
-        "total": _moment_stats(total, cfg["window"]),
-        "clear": {**_moment_stats(total[clear], cfg["window"]), "trials": int(clear.sum())},
+        "trials": traj.n_trials,
+        "component": _moment_stats(sq, window),
+        "total": _moment_stats(total, window),
+        "clear": {**_moment_stats(total[clear], window), "trials": int(clear.sum())},
         "mode_counts": np.bincount(modes.ravel(), minlength=4).tolist(),
-        "given_modes": _given_modes(system, gains, T, np.asarray(IEEE_5BUS_INITIAL_ERROR, float), modes, err,
-                                    cfg["window"], np.ones((1, 4))),
+        "given_modes": _given_modes(system, gains, T, np.asarray(IEEE_5BUS_INITIAL_ERROR, float),
+                                    modes, err, window, np.ones((1, 4))),
     }}
 
 
@@ -863,6 +886,7 @@ def _bus_monte_carlo(design: str, exact: dict, results, out: Path):
 
 
 def _bus_summary(p: dict, results, out: Path) -> Summary:
+    results = split_variants(results)
     system, prob, T = ieee_5bus(), ieee_5bus_mode_probabilities(), IEEE_5BUS_SAMPLE_PERIOD
     paper = BUS_PAPER
     e0 = np.asarray(IEEE_5BUS_INITIAL_ERROR, float)
@@ -959,6 +983,8 @@ register(Experiment(
     name="wang-ieee5bus",
     paper="Wang",
     title="IEEE 5-bus, Figs 8-9: T_max, two pole-placement designs, Σ p_i Λ'Λ eigenvalues, 400-run MS error",
+    # A task is a block through both designs (~0.7 s fixed, 8 ms a trial): 4 tasks of 100, 2 per
+    # worker on 2 cores; --quick: 2, one per worker.
     defaults={"trials": 400, "block_size": 100, "intervals": 30, "substeps": 80, "window": 5},
     quick={"trials": 200},
     tasks=_bus_tasks,

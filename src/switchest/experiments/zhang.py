@@ -8,9 +8,9 @@ Theta_t, Xi_t of §3), and :class:`~switchest.estimators.ModeKalmanFilter` predi
 and updates with it (``prev_mode = mode = i_k``). Two filters see the same data and
 the same believed modes: eq. (6)'s steady-state gains, under which the mean error
 is eq. (9) exactly, and Algorithm 1's time-varying gains (the paper's filter), for
-which eq. (9) is an approximation. Tasks of one trial block share their seed and
-draw every random number before the loop, so every configuration of a block sees
-the same noise and the same uniforms behind its believed modes.
+which eq. (9) is an approximation. A task draws every random number of its trial
+block once, before any loop, and runs every configuration on them, so that they
+all see the same noise and the same uniforms behind their believed modes.
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ from ..models import SMART_GRID_TAU, smart_grid, zhang_two_mode
 from ..plotting import curves
 from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
+from .scoring import blocks, split_variants
 
 # Zhang & Natarajan §5.1 (printed "A_i" is Lambda_i; 1-based modes as printed)
 EXAMPLE1_PAPER = {
@@ -70,12 +71,6 @@ FILTERS = ("steady", "alg1")
 
 
 # ------------------------------------------------------------------ shared Monte Carlo
-def _blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
-    """(block index, trials in it) covering ``trials``."""
-    sizes = [block_size] * (trials // block_size) + ([trials % block_size] if trials % block_size else [])
-    return list(enumerate(sizes))
-
-
 def _periodic_modes(horizon: int, dwell: int, n_modes: int) -> np.ndarray:
     """True modes ``q_1..q_K`` (0-based): mode 1, 2, ... each for ``dwell`` steps, cyclically."""
     return (np.arange(horizon) // dwell) % n_modes
@@ -91,33 +86,47 @@ def _lam_from(entries: dict[str, float], n_modes: int) -> np.ndarray:
     return lam
 
 
+def _draws(system: SwitchedLinearSystem, horizon: int, trials: int,
+           rng: np.random.Generator) -> dict:
+    """Every random number of a trial block, drawn before any loop: standard normals behind
+    ``x_0`` ``(trials, n)``, the process and measurement noise ``(K, trials, .)`` and the
+    uniforms ``(K, trials)`` behind the believed modes. Every configuration of the block runs
+    on them (:func:`_monte_carlo`)."""
+    return {"x0": rng.standard_normal((trials, system.n_states)),
+            "w": rng.standard_normal((horizon, trials, system.n_states)),
+            "v": rng.standard_normal((horizon, trials, system.n_outputs)),
+            "uniform": rng.random((horizon, trials))}
+
+
 def _monte_carlo(system: SwitchedLinearSystem, modes: np.ndarray, lam: np.ndarray, m0: np.ndarray,
-                 trials: int, rng: np.random.Generator) -> dict:
-    """Additive moments of ``x_hat_k - x_k`` for both filters along ``modes``, believed modes from ``lam``.
+                 draws: dict) -> dict:
+    """Additive moments of ``x_hat_k - x_k`` for both filters along ``modes``, believed modes
+    from ``lam``, on the block's ``draws`` (:func:`_draws`).
 
     Returns JSON-able sums over the trials, shape (K, n) each: ``<f>_sum``, ``<f>_sq``
     for f in :data:`FILTERS`, and ``pair_sum``, ``pair_sq`` of the per-trial
     difference alg1 - steady (whose mean is Algorithm 1's bias minus eq. (9)).
     """
     K, n = modes.size, system.n_states
+    trials = draws["x0"].shape[0]
     sq_q, sq_r = psd_sqrt(system.Q), psd_sqrt(system.R)
-    x = m0 + rng.standard_normal((trials, n)) @ psd_sqrt(SIGMA0).T
-    w = rng.standard_normal((K, trials, n))
-    v = rng.standard_normal((K, trials, system.n_outputs))
-    uniform = rng.random((K, trials))
+    x = m0 + draws["x0"] @ psd_sqrt(SIGMA0).T
+    w, v, uniform = draws["w"], draws["v"], draws["uniform"]
     cdf = np.cumsum(lam, axis=0)
     cdf[-1] = 1.0  # columns sum to one up to rounding
     filters = {"steady": ModeKalmanFilter(system, m0, SIGMA0, steady_state=True),
                "alg1": ModeKalmanFilter(system, m0, SIGMA0, steady_state=False)}
     states = {name: f.init((trials,)) for name, f in filters.items()}
-    acc = {f"{name}_{kind}": np.zeros((K, n)) for name in (*FILTERS, "pair") for kind in ("sum", "sq")}
+    acc = {f"{name}_{kind}": np.zeros((K, n))
+           for name in (*FILTERS, "pair") for kind in ("sum", "sq")}
     for k, q in enumerate(modes):
         x = x @ system.A[q].T + w[k] @ sq_q[q].T  # eq. (1): x_k = A_q x_{k-1} + B_q w_k
         y = x @ system.C[q].T + v[k] @ sq_r[q].T  # y_k = C_q x_k + v_k
         believed = np.argmax(uniform[k][:, None] < cdf[:, q], axis=1)  # i_k ~ lam[:, q_k]
         err = {}
         for name, f in filters.items():
-            states[name] = f.step(states[name], y, dt=system.dt, mode=believed, prev_mode=believed)
+            states[name] = f.step(states[name], y, dt=system.dt, mode=believed,
+                                  prev_mode=believed)
             err[name] = states[name].x - x
         err["pair"] = err["alg1"] - err["steady"]
         for name, e in err.items():
@@ -127,10 +136,12 @@ def _monte_carlo(system: SwitchedLinearSystem, modes: np.ndarray, lam: np.ndarra
 
 
 def _group(results: list[tuple[dict, dict]]) -> dict[str, tuple[dict, dict]]:
-    """Configurations (less block and trial count) -> (config, summed results over blocks)."""
+    """Configurations (less block and trial count, variants split) -> (config, summed results
+    over blocks)."""
     groups: dict[str, tuple[dict, dict]] = {}
-    for cfg, res in results:
-        key = json.dumps({k: v for k, v in cfg.items() if k not in ("block", "trials")}, sort_keys=True)
+    for cfg, res in split_variants(results):
+        key = json.dumps({k: v for k, v in cfg.items() if k not in ("block", "trials")},
+                         sort_keys=True)
         if key not in groups:
             groups[key] = (cfg, {k: np.asarray(v, float) for k, v in res.items()})
         else:
@@ -222,8 +233,8 @@ def _example1_tasks(p: dict) -> list[dict]:
         configs.append({"figure": "6", "signal": signal, "bound": EXAMPLE1_PAPER["fig6_bound"],
                         "eta_sup_input": EXAMPLE1_PAPER["eta_sup_input"]})
     common = {"horizon": p["horizon"], "dwell": p["dwells"], "mean_x0": p["mean_x0"]}
-    return [{"block": b, "trials": n, **common, **c} for b, n in _blocks(p["trials"], p["block_size"])
-            for c in configs]
+    return [{"block": b, "trials": n, **common, "variants": configs}
+            for b, n in blocks(p["trials"], p["block_size"])]
 
 
 def _example1_modes(cfg: dict) -> np.ndarray:
@@ -231,8 +242,11 @@ def _example1_modes(cfg: dict) -> np.ndarray:
 
 
 def _example1_run(cfg: dict, rng: np.random.Generator) -> dict:
-    return _monte_carlo(zhang_two_mode(), _example1_modes(cfg), _example1_lam(cfg), _example1_x0(cfg),
-                        cfg["trials"], rng)
+    system = zhang_two_mode()
+    draws = _draws(system, cfg["horizon"], cfg["trials"], rng)
+    return {"variants": [
+        _monte_carlo(system, _example1_modes(c), _example1_lam(c), _example1_x0(c), draws)
+        for c in ({**cfg, **v} for v in cfg["variants"])]}
 
 
 def _example1_summary(p: dict, results, out: Path) -> Summary:
@@ -382,7 +396,10 @@ register(Experiment(
     name="zhang-example1",
     paper="Zhang",
     title="Figs 3-6: mismatch bias, eq. (9) vs Monte Carlo; Theorem 4 bound vs P; the B = 0.3 design",
-    defaults={"trials": 5000, "block_size": 1000, "horizon": 40, "dwells": [10, 1], "mean_x0": [5.0, 5.0],
+    # A task is a block through all 26 configurations (~0.4 s fixed, 0.7 ms a trial): 4 tasks of
+    # 1250, 2 per worker on 2 cores; --quick: 2 of 500, one per worker.
+    defaults={"trials": 5000, "block_size": 1250, "horizon": 40, "dwells": [10, 1],
+              "mean_x0": [5.0, 5.0],
               "lambdas": [[0.1, 0.3], [0.3, 0.1]],
               "fig5_P": [0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5]},
     quick={"trials": 1000, "block_size": 500, "fig5_P": [0.1, 0.2, 0.3, 0.4, 0.5]},
@@ -395,15 +412,21 @@ register(Experiment(
 # ------------------------------------------------------------------ smart grid, Fig. 7
 def _grid_tasks(p: dict) -> list[dict]:
     settings = {"I": SMART_GRID_PAPER["setting_I"], "II": SMART_GRID_PAPER["setting_II"]}
-    return [{"block": b, "trials": n, "setting": name, "lam": _lam_from(entries, 3).tolist(),
-             "horizon": p["horizon"], "dwell": p["dwell"], "mean_x0": p["mean_x0"], "tau": p["tau"]}
-            for b, n in _blocks(p["trials"], p["block_size"]) for name, entries in settings.items()]
+    variants = [{"setting": name, "lam": _lam_from(entries, 3).tolist()}
+                for name, entries in settings.items()]
+    common = {"horizon": p["horizon"], "dwell": p["dwell"], "mean_x0": p["mean_x0"],
+              "tau": p["tau"]}
+    return [{"block": b, "trials": n, **common, "variants": variants}
+            for b, n in blocks(p["trials"], p["block_size"])]
 
 
 def _grid_run(cfg: dict, rng: np.random.Generator) -> dict:
+    system = smart_grid(cfg["tau"])
     modes = _periodic_modes(cfg["horizon"], cfg["dwell"], 3)
-    return _monte_carlo(smart_grid(cfg["tau"]), modes, np.asarray(cfg["lam"]), np.asarray(cfg["mean_x0"], float),
-                        cfg["trials"], rng)
+    draws = _draws(system, cfg["horizon"], cfg["trials"], rng)
+    m0 = np.asarray(cfg["mean_x0"], float)
+    return {"variants": [_monte_carlo(system, modes, np.asarray(v["lam"]), m0, draws)
+                         for v in cfg["variants"]]}
 
 
 def _set_text(mask: np.ndarray) -> str:
@@ -520,7 +543,10 @@ register(Experiment(
     name="zhang-smartgrid",
     paper="Zhang",
     title="Fig. 7: smart-grid bias inside (Setting I) and outside (Setting II) Algorithm 2's stable region",
-    defaults={"trials": 5000, "block_size": 1000, "horizon": 100, "dwell": 10, "mean_x0": [1.0, 1.0],
+    # A task is a block in both settings, a fraction of a second: 4 tasks of 1250, 2 per worker on
+    # 2 cores; --quick: 2 of 500, one per worker.
+    defaults={"trials": 5000, "block_size": 1250, "horizon": 100, "dwell": 10,
+              "mean_x0": [1.0, 1.0],
               "tau": SMART_GRID_TAU},
     quick={"trials": 1000, "block_size": 500},
     tasks=_grid_tasks,
