@@ -214,8 +214,8 @@ def test_sigint_stops_a_real_run_and_prints_the_resume_command(tmp_path):
     The child starts with SIGINT at its default (Python then turns it into KeyboardInterrupt)
     even when this process ignores it, as background jobs of a non-interactive shell do."""
     out = tmp_path / "out"
-    # 32 tasks of about 0.3 s: SIGINT comes after the first is stored, long before the last
-    argv = ["run", "zhang-example1", "--quick", "--workers", "1", "--out", str(out)]
+    # 11 tasks of about a second: SIGINT comes after the first is stored, long before the last
+    argv = ["run", "shankar-lemma2", "--workers", "1", "--out", str(out)]
     # exec resets a handled signal to its default, but keeps an ignored one ignored
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
@@ -232,7 +232,7 @@ def test_sigint_stops_a_real_run_and_prints_the_resume_command(tmp_path):
     assert proc.returncode == 130 and time.monotonic() - sent < 10, err  # not the 90 s of issue 19
     lines = err.splitlines()
     assert lines[0].startswith("interrupted: ")
-    assert "of 32 tasks of zhang-example1 are stored" in lines[0]
+    assert "of 11 tasks of shankar-lemma2 are stored" in lines[0]
     stored = int(lines[0].split()[1])
     assert stored == _stored(store) >= 1
     assert lines[1] == "resume with: switchest " + " ".join(argv) and "Traceback" not in err
