@@ -9,7 +9,7 @@ after each benchmark, NumPy / SciPy and peer library versions, BLAS libraries an
 their threads) next to the markdown tables of every benchmark.
 
 Run: ``python benchmarks/run_all.py [--quick]`` (several minutes in full on two
-cores; ``--quick`` is a smoke run of about a minute).
+cores; ``--quick`` is a smoke run of about three minutes).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ import bench_engine
 import bench_imm
 import bench_imm_ev1
 import bench_mode_kalman
+import bench_reproduce
 import bench_simulate
 import bench_switch_time
 from harness import (
@@ -46,6 +47,7 @@ BENCHMARKS = [
     ("Switching-time estimation: refine vs grid", bench_switch_time),
     ("IMM-EV1 scaling", bench_imm_ev1),
     ("Simulation", bench_simulate),
+    ("Paper reproductions at full size", bench_reproduce),
 ]
 
 

@@ -1,0 +1,69 @@
+"""Time of every paper reproduction at full size, as a user runs it.
+
+Each experiment runs as ``switchest run NAME --workers 2 --out DIR`` in a child process with a
+fresh results store (nothing is reused), one after another. Reported per experiment: its tasks,
+the wall time, and the CPU time of the child and its worker processes
+(``resource.getrusage(RUSAGE_CHILDREN)``, user + system), with the load average before and
+after; the issue's targets are ``shankar-table1`` within 120 CPU-s and the whole set within 10
+minutes of wall time on two cores. The numba kernels are compiled before the first experiment
+(their one-time cost is not a reproduction's).
+
+Run: ``python benchmarks/bench_reproduce.py [--quick]`` (``--quick``: the ``--quick`` sizes).
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from harness import Section, format_seconds, markdown_table, print_sections, quick_flag
+
+from switchest.estimators._compiled.warmup import warm_up
+from switchest.experiments import get, names
+
+WORKERS = 2
+
+
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _load() -> str:
+    return ", ".join(f"{v:.2f}" for v in os.getloadavg()[:1])
+
+
+def run(*, quick: bool = False) -> list[Section]:
+    warm_up()
+    rows, total_wall, total_cpu = [], 0.0, 0.0
+    with tempfile.TemporaryDirectory() as tmp:
+        for exp in map(get, names()):
+            params = exp.params(quick=quick)
+            argv = [sys.executable, "-m", "switchest", "run", exp.name, "--workers", str(WORKERS),
+                    "--out", str(Path(tmp) / exp.name), *(["--quick"] if quick else [])]
+            before, cpu0, start = _load(), _children_cpu(), time.perf_counter()
+            subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            wall, cpu = time.perf_counter() - start, _children_cpu() - cpu0
+            total_wall, total_cpu = total_wall + wall, total_cpu + cpu
+            rows.append((exp.name, len(exp.tasks(params)), format_seconds(wall),
+                         format_seconds(cpu), before, _load()))
+    rows.append(("**all**", "", format_seconds(total_wall), format_seconds(total_cpu), "", ""))
+    table = markdown_table(["experiment", "tasks", "wall", "CPU (all processes)",
+                            "load before", "load after"], rows)
+    size = "--quick sizes" if quick else "full size"
+    notes = (f"each experiment run alone, {WORKERS} workers, a fresh store; {size}.",
+             "targets (full size): shankar-table1 <= 120 CPU-s; all <= 10 min wall on 2 cores.")
+    return [Section(f"Reproductions: `switchest run NAME` at {size}", table, notes)]
+
+
+def main(argv=None) -> None:
+    print_sections(run(quick=quick_flag(__doc__.splitlines()[0], argv)))
+
+
+if __name__ == "__main__":
+    main()
