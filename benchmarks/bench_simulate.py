@@ -99,7 +99,8 @@ def run(*, quick: bool = False) -> list[Section]:
     notes = (
         f"output arrays of the fixed-schedule run (x, y, u, mode): {out_bytes / 2**20:.0f} MiB.",
         ("every switch falls inside a sample interval: those intervals use exact two-segment "
-         "transitions (Van Loan), the others the cached per-mode step."),
+         "transitions composed from the dyadic table (switchest.dyadic), the others the cached "
+         "per-mode step."),
     )
     return [Section(f"Simulation: vehicle, T = {T} s, {SAMPLES} samples", table, notes)]
 
