@@ -335,19 +335,8 @@ def correct(x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP, prior):
         for j in range(n):
             for b in range(nb):
                 prior[i, j, b] = P[i, j, b]
-    for a in range(m - 1, -1, -1):  # S^-1 e = D^-1/2 L'^-1 z
-        for c in range(a + 1, m):
-            for b in range(nb):
-                z[a, b] -= chol[c, a, b] * z[c, b]
-        for b in range(nb):
-            z[a, b] /= chol[a, a, b]
-    for a in range(m):
-        for b in range(nb):
-            z[a, b] *= scale[a, b]
+    correct_mean(x, z, PCt, chol, scale, use, nb)  # x <- x + P C' S^-1 e, eq. (9)
     for i in range(n):
-        for a in range(m):
-            for b in range(nb):
-                x[i, b] += PCt[i, a, b] * z[a, b] if use[b] else 0.0
         Ki = K[i]
         for a in range(m):
             for b in range(nb):
@@ -389,8 +378,8 @@ def correct_mean(x, z, PCt, chol, scale, use, nb):
     """The per-lane half of :func:`correct`: ``x <- x + P C' S^-1 e`` in the lanes where
     ``use`` is true (Shankar et al. eq. (9)), from ``z`` as :func:`innovation_mean` left it and
     a factorization of ``S`` with its ``P C'`` computed elsewhere (each lane's copy of its
-    covariance's); ``z`` is overwritten with ``S^-1 e``. The operations are those of
-    :func:`correct` on ``x``, in its order."""
+    covariance's); ``z`` is overwritten with ``S^-1 e``. :func:`correct` updates ``x`` with it
+    too, so a lane gets the same bits either way."""
     n, m = x.shape[0], z.shape[0]
     for a in range(m - 1, -1, -1):  # S^-1 e = D^-1/2 L'^-1 z
         for c in range(a + 1, m):
