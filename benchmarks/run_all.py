@@ -29,6 +29,7 @@ import bench_imm_ev1
 import bench_mode_kalman
 import bench_reproduce
 import bench_simulate
+import bench_startup
 import bench_switch_time
 from harness import (
     Section,
@@ -48,6 +49,7 @@ BENCHMARKS = [
     ("IMM-EV1 scaling", bench_imm_ev1),
     ("Simulation", bench_simulate),
     ("Paper reproductions at full size", bench_reproduce),
+    ("Start-up from the on-disk cache", bench_startup),
 ]
 
 
