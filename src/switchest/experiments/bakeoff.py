@@ -13,14 +13,14 @@ observability of every mode pair) holds: of these cases, only the FSK phasor.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..analysis import joint_observability, lee_assumptions
-from ..estimators import IMMEV1Filter, IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
 from ..estimators.min_distance import MinimumDistanceDetector, match_detections
+from ..estimators.registry import Method, get_method
 from ..modelfile import ModelSpec
 from ..models.catalog import catalog
 from ..models.lee import LEE_SCENARIO
@@ -31,18 +31,40 @@ from ..tabular import transition_for
 from .registry import Experiment, Row, Summary, register
 from .scoring import blocks, combine, score, split_variants
 
-METHODS = ("clairvoyant", "kalman-at-samples", "switch-time", "switch-time-refined", "switch-time-marginal",
-           "imm", "imm-ev1", "min-distance")
-_LABELS = {
-    "clairvoyant": "mode KF, true switch times",
-    "kalman-at-samples": "mode KF, switches at samples",
-    "switch-time": "switch-time KF (g = 5)",
-    "switch-time-refined": "switch-time KF refined (g = 2)",
-    "switch-time-marginal": "switch-time KF marginalized (g = 5)",
-    "imm": "IMM",
-    "imm-ev1": "IMM-EV1 (g = 5)",
-    "min-distance": "min-distance detector (Lee)",
-}
+@dataclass(frozen=True)
+class Contender:
+    """One bake-off row: a registered method (:func:`~switchest.estimators.get_method`) with
+    the options it runs with here.
+
+    ``options`` go to the estimator's constructor; ``true_instants`` also gives ``run`` the
+    true switching instants (the clairvoyant floor)."""
+
+    key: str
+    method: str
+    label: str
+    options: tuple[tuple[str, object], ...] = ()
+    true_instants: bool = False
+
+    def __post_init__(self) -> None:
+        get_method(self.method)  # a registered method, or a ValueError naming them
+
+
+_CONTENDERS = (
+    Contender("clairvoyant", "kalman", "mode KF, true switch times", true_instants=True),
+    Contender("kalman-at-samples", "kalman", "mode KF, switches at samples"),
+    Contender("switch-time", "switch-time", "switch-time KF (g = 5)", (("grid", 5),)),
+    Contender("switch-time-refined", "switch-time", "switch-time KF refined (g = 2)",
+              (("grid", 2), ("refine", True))),
+    Contender("switch-time-marginal", "switch-time", "switch-time KF marginalized (g = 5)",
+              (("grid", 5), ("switch_time", "marginal"))),
+    Contender("imm", "imm", "IMM"),
+    Contender("imm-ev1", "imm-ev1", "IMM-EV1 (g = 5)", (("grid", 5),)),
+    Contender("min-distance", "min-distance", "min-distance detector (Lee)"),
+)
+CONTENDERS = {c.key: c for c in _CONTENDERS}
+"""The bake-off's rows by key, in the order they are shown."""
+METHODS = tuple(CONTENDERS)
+_LABELS = {c.key: c.label for c in _CONTENDERS}
 FSK_NOISE_STD = 0.03  # measurement noise of the FSK case, per component
 FSK_V_MAX = 3 * FSK_NOISE_STD  # the noise bound the detector is told
 
@@ -141,28 +163,18 @@ def _run(cfg: dict, rng: np.random.Generator) -> dict:
 
 def _method(m: str, spec: ModelSpec, traj, u: np.ndarray) -> dict:
     """Method ``m`` on a block's trajectories: its scores, and its run time (``elapsed``, s)."""
-    sys, t = spec.system, traj.t
-    x0, P0 = spec.initial
+    contender, t = CONTENDERS[m], traj.t
+    entry = get_method(contender.method)
     start = time.perf_counter()
-    if m == "clairvoyant":
-        est = ModeKalmanFilter(sys, x0, P0).run(traj.y, u, t, modes=traj.mode,
-                                                segments=traj.segments())
-    elif m == "kalman-at-samples":
-        est = ModeKalmanFilter(sys, x0, P0).run(traj.y, u, t, modes=traj.mode)
-    elif m.startswith("switch-time"):
-        refined = m.endswith("refined")
-        est = SwitchTimeKalmanFilter(
-            sys, x0, P0, grid=2 if refined else 5, refine=refined,
-            switch_time="marginal" if m.endswith("marginal") else "max",
-        ).run(traj.y, u, t, modes=traj.mode)
-    elif m == "imm":
-        transition = transition_for(spec, t[1] - t[0], stay=_stay(spec, t))
-        est = IMMFilter(sys, transition, x0, P0).run(traj.y, u, t)
-    elif m == "imm-ev1":
-        est = IMMEV1Filter(sys, x0=x0, P0=P0, grid=5).run(traj.y, u, t)
-    else:
-        detector = _detector(sys)
-        est = detector.run(traj.y, u, t)
+    estimator = _estimator(entry, contender, spec, t)
+    switching = {}
+    if entry.switching == "modes":
+        switching["modes"] = traj.mode
+        if contender.true_instants:
+            switching["segments"] = traj.segments()
+    elif entry.switching == "signals":
+        switching["signals"] = traj.signals
+    est = estimator.run(traj.y, u, t, **switching)
     elapsed = time.perf_counter() - start
     first = max(1, t.size // 20)
     if m != "min-distance":
@@ -170,9 +182,22 @@ def _method(m: str, spec: ModelSpec, traj, u: np.ndarray) -> dict:
     else:
         # no estimate before its first window ends, nor from a declaration to the end of the next
         out = score(replace(est, switch_time=None), traj, start=first, defined=est.mode >= 0)
-        out.update(_detections(est, traj, detector.Delta))
+        out.update(_detections(est, traj, estimator.Delta))
     out.pop("sse_per_step")
     return {**out, "elapsed": elapsed}
+
+
+def _estimator(entry: Method, contender: Contender, spec: ModelSpec, t: np.ndarray):
+    """The contender's estimator: ``entry.estimator(system, [transition,] x0, P0, **options)``
+    by the registry's constructor convention; Lee et al.'s detector by its own design."""
+    if entry.name == "min-distance":
+        return _detector(spec.system)
+    args = []
+    if entry.transition == "required":
+        args.append(transition_for(spec, t[1] - t[0], stay=_stay(spec, t)))
+    elif entry.transition == "optional":
+        args.append(None)  # IMM-EV1's own default: switches are rare
+    return entry.estimator(spec.system, *args, *spec.initial, **dict(contender.options))
 
 
 def _detections(est, traj, Delta: float) -> dict:
