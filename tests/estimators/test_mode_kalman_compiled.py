@@ -16,8 +16,8 @@ from switchest.discretize import interval, mode_steps
 from switchest.estimators import ModeKalmanFilter
 from switchest.estimators._compiled import GATED
 from switchest.estimators.mode_kalman import _steady_gains
-from switchest.models import boost_converter, boost_switching
-from switchest.signals import markov_continuous, periodic
+from switchest.models import boost_converter, boost_switching, vehicle_2d
+from switchest.signals import markov_continuous, periodic, schedule
 from switchest.simulate import simulate
 from switchest.system import SwitchedLinearSystem
 
@@ -136,3 +136,34 @@ def test_steady_state_run_matches_the_oracle(gate):
     np.testing.assert_array_equal(est.outlier, flag == GATED)
     if gate is not None:
         assert est.outlier.any()
+
+
+def test_run_after_the_covariance_reaches_its_fixed_point_matches_the_oracle():
+    """A long record in one mode, whose covariance settles to a fixed point (after about 120
+    samples here: the kernel then skips the repeated covariance equations), broken after it
+    settles by a missing component of one trial, an outlier every trial's gate rejects and a
+    change of believed mode: the same filter as the oracle's."""
+    system = vehicle_2d(measurement_variance=0.05, process_noise=1e-3)
+    T, K, N = 0.5, 480, 3
+    t = T * np.arange(K)
+    traj = simulate(system, schedule([], [1]), t, (np.zeros(4), np.eye(4)), u=np.ones(1),
+                    trials=N, rng=np.random.default_rng(11))
+    y = traj.y.copy()
+    y[0, 160, 0] = np.nan  # one trial parts from the others' covariance
+    y[:, 320] += 1e3  # every trial gates it: the settled covariances are not updated
+    modes = np.where(np.arange(K) < 400, 1, 0)  # and then another (mismatched) mode
+    est = ModeKalmanFilter(system, np.zeros(4), np.eye(4), gate=25.0).run(
+        y, np.ones(1), t, modes=modes)
+    for k in (159, 319, 399):  # settled before each event
+        assert_close(est.P[:, k], est.P[:, k - 1], rtol=1e-12)
+    steps = mode_steps(system, T)
+    trans = np.broadcast_to(np.concatenate([[1], modes[:-1]]), (N, K))
+    x, P, loglik, flag = oracle_kalman_run(y, np.ones((N, K, 1)), steps.F, steps.G, steps.Qd,
+                                           trans, system.C, system.R,
+                                           np.broadcast_to(modes, (N, K)), np.zeros(4),
+                                           np.eye(4), 25.0)
+    assert_close(est.x, x)
+    assert_close(est.P, P)
+    assert_close(est.loglik, loglik)
+    np.testing.assert_array_equal(est.outlier, flag == GATED)
+    assert est.outlier[:, 320].all() and not est.outlier[:, :320].any()

@@ -15,6 +15,7 @@ estimate that would not fit in memory is refused before the first step.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
@@ -168,7 +169,7 @@ class Estimator(ABC):
             raise ValueError("y must hold at least one sample, got K = 0")
         if 0 in batch:
             raise ValueError(f"y must hold at least one trial, got batch shape {batch}")
-        N = int(np.prod(batch, dtype=np.int64))
+        N = math.prod(batch)
         n, L = sys.n_states, sys.n_modes
         check_memory(  # the Estimate: x, P, mode probabilities and per-sample scalars
             8 * N * K * (n * n + n + L + 4),
@@ -176,17 +177,18 @@ class Estimator(ABC):
             f"for the estimate, n = {n}, L = {L})",
         )
         l = sys.n_inputs
-        if u is None:
-            u = np.zeros((*batch, K, l))
-        u = float_array(u, "u")
-        check_finite(u, "u")
-        if u.shape == (l,) or u.shape == (K, l):
-            u = np.broadcast_to(u, (*batch, K, l))
-        elif u.shape != (*batch, K, l):
-            raise ValueError(
-                f"u must have shape (l,) = ({l},), (K, l) = ({K}, {l}) or {(*batch, K, l)}, "
-                f"got {u.shape}"
-            )
+        if u is None:  # no input: zeros, nothing to check
+            u = np.zeros((N, K, l))
+        else:
+            u = float_array(u, "u")
+            check_finite(u, "u")
+            if u.shape == (l,) or u.shape == (K, l):
+                u = np.broadcast_to(u, (*batch, K, l))
+            elif u.shape != (*batch, K, l):
+                raise ValueError(
+                    f"u must have shape (l,) = ({l},), (K, l) = ({K}, {l}) or {(*batch, K, l)}, "
+                    f"got {u.shape}"
+                )
         t = self._times(t, K)
         return y.reshape(N, K, -1), u.reshape(N, K, l), t, batch
 
@@ -200,24 +202,26 @@ class Estimator(ABC):
         check_finite(t, "t")
         if t.shape != (K,):
             raise ValueError(f"t must have shape (K,) = ({K},), got {t.shape}")
-        if np.any(np.diff(t) <= 0):
+        step = np.diff(t)
+        if np.any(step <= 0):
             raise ValueError("t must be strictly increasing")
-        if not sys.is_continuous and np.any(np.abs(np.diff(t) - sys.dt) > 1e-9 * sys.dt):
+        if not sys.is_continuous and np.any(np.abs(step - sys.dt) > 1e-9 * sys.dt):
             raise ValueError(f"t must be spaced by the discrete system's dt = {sys.dt:g}")
         return t
 
     def _modes(self, modes, batch, K, name="modes") -> np.ndarray:
-        """Per-sample modes ``(K,)`` or ``(*batch, K)`` -> ``(N, K)``, validated."""
+        """Per-sample modes ``(K,)`` or ``(*batch, K)`` -> ``(N, K)``, validated, C-contiguous."""
         modes = int_array(modes, name)
-        if modes.shape == (K,):
-            modes = np.broadcast_to(modes, (*batch, K))
-        if modes.shape != (*batch, K):
+        if modes.shape != (K,) and modes.shape != (*batch, K):
             raise ValueError(f"{name} must have shape (K,) = ({K},) or {(*batch, K)}, "
                              f"got {modes.shape}")
         L = self.system.n_modes
-        if np.any((modes < 0) | (modes >= L)):
-            raise ValueError(f"{name} must be in 0..{L - 1}, got {modes.min()}..{modes.max()}")
-        return modes.reshape(-1, K)
+        lo, hi = modes.min(), modes.max()  # on the array given, before broadcasting
+        if lo < 0 or hi >= L:
+            raise ValueError(f"{name} must be in 0..{L - 1}, got {lo}..{hi}")
+        if modes.shape == (K,):
+            modes = np.broadcast_to(modes, (*batch, K))
+        return np.ascontiguousarray(modes.reshape(-1, K))
 
     @staticmethod
     def _unflatten(est: Estimate, batch) -> Estimate:

@@ -196,9 +196,13 @@ class ModeKalmanFilter(Estimator):
         """
         sys = self.system
         L, (N, K) = sys.n_modes, modes.shape
-        steps, which = np.unique(np.diff(t), return_inverse=True)
-        if steps.size == 0:  # one sample: update only, the table is not read
-            steps = np.ones(1)
+        length = np.diff(t)
+        if length.size == 0:  # one sample: update only, the table is not read
+            steps, which = np.ones(1), length.astype(np.intp)
+        elif np.all(length == length[0]):  # periodic sampling: one step, nothing to sort
+            steps, which = length[:1], np.zeros(length.size, dtype=np.intp)
+        else:
+            steps, which = np.unique(length, return_inverse=True)
         table = [mode_steps(sys, h) for h in steps]
         F = [np.concatenate([s.F for s in table])]
         G = [np.concatenate([s.G for s in table])]

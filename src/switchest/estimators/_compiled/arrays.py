@@ -23,20 +23,27 @@ def floats(value, name: str, axes: str, sizes: dict[str, int]) -> np.ndarray:
     ``axes`` names each axis by one letter (``"NKm"``); ``sizes`` maps the letters bound so far
     to their sizes and is extended with the new ones, so arrays that share a letter must agree.
     """
-    arr = np.require(float_array(value, name), requirements=["C_CONTIGUOUS", "WRITEABLE"])
+    arr = _ready(value, np.float64)
+    if arr is None:
+        arr = np.require(float_array(value, name), requirements=["C_CONTIGUOUS", "WRITEABLE"])
     return _bind(arr, name, axes, sizes)
 
 
 def indices(value, name: str, axes: str, sizes: dict[str, int], bound: str) -> np.ndarray:
     """``value`` as a C-contiguous int64 array of shape ``axes``, each entry in
     ``0..sizes[bound] - 1`` (an index into a table of that many entries)."""
-    arr = np.require(int_array(value, name), requirements=["C_CONTIGUOUS", "WRITEABLE"])
+    arr = _ready(value, np.int64)
+    if arr is None:
+        arr = np.require(int_array(value, name), requirements=["C_CONTIGUOUS", "WRITEABLE"])
     arr = _bind(arr, name, axes, sizes)
-    if arr.size and (arr.min() < 0 or arr.max() >= sizes[bound]):
-        raise ValueError(
-            f"{name} must index 0..{sizes[bound] - 1} ({bound} = {sizes[bound]} entries), "
-            f"got {arr.min()}..{arr.max()}"
-        )
+    if arr.size:
+        lo, hi = arr.min(), arr.max()
+        if lo < 0 or hi >= sizes[bound]:
+            int_array(arr, name)  # beyond +-2**62: its message, as for any other array
+            raise ValueError(
+                f"{name} must index 0..{sizes[bound] - 1} ({bound} = {sizes[bound]} entries), "
+                f"got {lo}..{hi}"
+            )
     return arr
 
 
@@ -47,6 +54,15 @@ def check_gate(gate) -> float:
     if math.isnan(gate) or gate <= 0:
         raise ValueError(f"gate must be a positive number or inf, got {gate}")
     return float(gate)
+
+
+def _ready(value, dtype) -> np.ndarray | None:
+    """``value`` itself if it is already of the kernels' type (a plain, C-contiguous,
+    writeable ndarray of ``dtype``: nothing to convert or check but its shape), else None."""
+    if (type(value) is np.ndarray and value.dtype == dtype and value.flags.c_contiguous
+            and value.flags.writeable):
+        return value
+    return None
 
 
 def _bind(arr: np.ndarray, name: str, axes: str, sizes: dict[str, int]) -> np.ndarray:

@@ -109,8 +109,9 @@ def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, *, gate=math.inf,
     x0 = floats(x0, "x0", "n", sizes)
     P0 = floats(P0, "P0", "nn", sizes)
     N = sizes["N"]
-    return _one_mode(y, u, F, G, Qd, trans, C, R, mode, np.tile(x0, (N, 1)),
-                     np.tile(P0, (N, 1, 1)), False, check_gate(gate), positive_int(lanes, "lanes"))
+    return _one_mode(y, u, F, G, Qd, trans, C, R, mode, np.repeat(x0[None], N, axis=0),
+                     np.repeat(P0[None], N, axis=0), False, check_gate(gate),
+                     positive_int(lanes, "lanes"))
 
 
 def kalman_step(x, P, y, u, F, G, Qd, C, R, *, predict_first: bool,
@@ -183,7 +184,7 @@ def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten,
     x, P, loglik = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K))
     flag = np.empty((N, K), dtype=np.uint8)
     _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten,
-                   np.tile(x0, (N, 1)), False, check_gate(gate),
+                   np.repeat(x0[None], N, axis=0), False, check_gate(gate),
                    min(positive_int(lanes, "lanes"), N), x, P, loglik, flag)
     return KalmanOutput(x, P, loglik, flag, OK)
 

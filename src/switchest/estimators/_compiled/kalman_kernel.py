@@ -23,6 +23,15 @@ transitions, scattered missing components) there is one group per trial, the equ
 :mod:`.bank` lane by lane. Either way each trial gets exactly the numbers its own filter would
 compute: a group runs the same operations on the same operands.
 
+A covariance recursion with a fixed sample (the same transition, output matrices, observed
+components and use of the measurement at every step) reaches a fixed point to the last bit
+within some tens of samples: ``P = f(P)`` in floating point. From the sample after the block's
+covariances reached it under an unchanged sample, the covariance equations of the next sample
+with that sample would repeat the last ones operand for operand, so the kernel skips them and
+keeps their results (``P`` and the factorization of ``S``): the same bits, at the cost of the
+means alone. Any change (another entry, other observed components, a gated measurement, a new
+group, a repair) runs the equations again.
+
 The outputs ``(N, K, ...)`` are written through buffers of ``CHUNK`` samples, trial by trial,
 so that each store continues a run of contiguous memory (:func:`write_out`): stored sample by
 sample, a block's trials write to ``lanes`` places ``K`` samples apart, and the kernel ran
@@ -136,6 +145,8 @@ def kalman_filter(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_fir
     work, log_det_g, bad = np.empty((3, B)), np.empty((2, B)), np.zeros(B, dtype=np.bool_)
     gain, T, FP = np.empty((n, m, B)), np.empty((n, m, B)), np.empty((n, n, B))
     prior, root, lost = np.empty((n, n, B)), np.empty((n, B)), np.empty(B, dtype=np.bool_)
+    # the groups' posterior covariances and use of the measurement at the previous sample
+    P_last, use_last = np.empty((n, n, B)), np.empty(B, dtype=np.bool_)
     PCt_rows, PCt_g_rows = PCt.reshape((n * m, B)), PCt_g.reshape((n * m, B))
     chol_rows, chol_g_rows = chol.reshape((m * m, B)), chol_g.reshape((m * m, B))
     # the last samples of the block, written out by trial (long runs of contiguous memory)
@@ -153,28 +164,35 @@ def kalman_filter(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_fir
             held[0, b] = -1
             held[1, b] = -1
         n_groups = _group_equal(P_init, i0, nb, group, slot, P)
+        fixed = False  # the groups' covariances are at a fixed point of the last sample's map
         for k in range(K):
             gather_samples(y, i0, nb, k, yl)
             observe(yl, nb, obs, n_obs)
             predicting = k > 0 or predict_first
+            before, repairs = n_groups, report[0]
             n_groups = _split_samples(trans, mode, F, Qd, C, R, obs, i0, nb, k, predicting, group,
                                       n_groups, slot, P)
-            _gather_groups(trans, mode, F, Qd, C, R, obs, n_obs, i0, k, predicting, n_groups, slot,
-                           Fg, Qg, Cg, Rg, obs_g, n_obs_g)
+            changed = _gather_groups(trans, mode, F, Qd, C, R, obs, n_obs, i0, k, predicting,
+                                     n_groups, slot, Fg, Qg, Cg, Rg, obs_g, n_obs_g)
+            # the same covariances through the same equations: the last sample's results, kept
+            # in P, prior, PCt_g, chol_g, scale_g and log_det_g, to the last bit
+            repeat = fixed and predicting and n_groups == before and not changed
             if predicting:  # Shankar et al. eqs (6)-(7)
                 if lane_entries(trans, i0, nb, k, held[0]):
                     gather_matrices(F, held[0], nb, Fl)
                     gather_matrices(G, held[0], nb, Gl)
                 gather_samples(u, i0, nb, max(k - 1, 0), ul)
                 predict_mean(x, Fl, Gl, ul, nb, xs)
-                predict(xg, P, Fg, Gg, ug, Qg, n_groups, FP, xs)
+                if not repeat:
+                    predict(xg, P, Fg, Gg, ug, Qg, n_groups, FP, xs)
             if lane_entries(mode, i0, nb, k, held[1]):
                 gather_matrices(C, held[1], nb, Cl)
-            status = _factor(xg, P, yg, Cg, Rg, obs_g, n_obs_g, n_groups, eg, PCt_g, chol_g,
-                             scale_g, zg, nis_g, loglik_g, work, bad, log_det_g, group, nb,
-                             report)  # eq. (8)
-            if status != OK:
-                return status
+            if not repeat:
+                status = _factor(xg, P, yg, Cg, Rg, obs_g, n_obs_g, n_groups, eg, PCt_g, chol_g,
+                                 scale_g, zg, nis_g, loglik_g, work, bad, log_det_g, group, nb,
+                                 report)  # eq. (8)
+                if status != OK:
+                    return status
             _spread(PCt_g_rows, group, nb, n_groups, PCt_rows)
             _spread(chol_g_rows, group, nb, n_groups, chol_rows)
             _spread(scale_g, group, nb, n_groups, scale)
@@ -185,15 +203,26 @@ def kalman_filter(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_fir
             for b in range(nb):  # the gate, then the update (eqs (9)-(10)) where it passed
                 use[b] = math.isfinite(loglik[b]) and nis[b] <= gate
                 use_g[group[b]] |= use[b]
-            correct(xg, P, Cg, Rg, use_g, n_groups, PCt_g, chol_g, scale_g, zg, gain, T, FP,
-                    prior)
+            lost_any = False
+            if not (repeat and _same_flags(use_g, use_last, n_groups)):
+                if repeat:  # the prediction skipped above: the prior, as the last sample's
+                    _copy_lanes(prior, n_groups, P)
+                correct(xg, P, Cg, Rg, use_g, n_groups, PCt_g, chol_g, scale_g, zg, gain, T, FP,
+                        prior)
+                lost_any = joseph_lost(P, prior, use_g, n_groups, root, lost)
+                if lost_any:  # rare
+                    for j in range(n_groups):
+                        if lost[j] and n_obs_g[j] > 0.0 and not information_form(
+                                P, prior, Cg, Rg, obs_g, j):
+                            _repair(P, j, True, _users(group, use, nb, j), report)
             correct_mean(x, z, PCt, chol, scale, use, nb)
-            if joseph_lost(P, prior, use_g, n_groups, root, lost):  # rare
-                for j in range(n_groups):
-                    if lost[j] and n_obs_g[j] > 0.0 and not information_form(
-                            P, prior, Cg, Rg, obs_g, j):
-                        _repair(P, j, True, _users(group, use, nb, j), report)
+            for j in range(n_groups):
+                use_last[j] = use_g[j]
             n_groups = _split_gated(use, use_g, group, nb, n_groups, slot, P, prior)
+            # P = f(P) for this sample's map f: the next sample, with the same map, repeats it
+            fixed = (k > 0 and predicting and n_groups == before and not lost_any
+                     and report[0] == repairs and _same_lanes(P, P_last, n_groups))
+            _copy_lanes(P, n_groups, P_last)
             _record(x, P, group, use, n_obs, loglik, nb, n_groups, k % CHUNK, x_buf, P_buf,
                     group_buf, loglik_buf, flag_buf)
             if k % CHUNK == CHUNK - 1 or k == K - 1:
@@ -318,21 +347,57 @@ def _copy_entry(table, i, out, j):
 def _gather_groups(trans, mode, F, Qd, C, R, obs, n_obs, i0, k, predicting, n_groups, slot, Fg,
                    Qg, Cg, Rg, obs_g, n_obs_g):
     """Each group's sample from its member trial: the observed components, and the matrices of
-    the entries whose index changed."""
+    the entries whose index changed. Returns whether any group's sample differs from the one
+    its lane held (other observed components or entries)."""
+    changed = False
     for j in range(n_groups):
         b = slot[_MEMBER, j]
         i = i0 + b
         for a in range(obs.shape[0]):
+            changed |= obs_g[a, j] != obs[a, b]
             obs_g[a, j] = obs[a, b]
         n_obs_g[j] = n_obs[b]
         if predicting and trans[i, k] != slot[_TRANS, j]:
+            changed = True
             slot[_TRANS, j] = trans[i, k]
             _copy_entry(F, trans[i, k], Fg, j)
             _copy_entry(Qd, trans[i, k], Qg, j)
         if mode[i, k] != slot[_MODE, j]:
+            changed = True
             slot[_MODE, j] = mode[i, k]
             _copy_entry(C, mode[i, k], Cg, j)
             _copy_entry(R, mode[i, k], Rg, j)
+    return changed
+
+
+@jit
+def _same_lanes(P, Q, n_groups):
+    """Whether ``P[:, :, j]`` equals ``Q[:, :, j]`` bit for bit in every group's lane (NaN is
+    not equal to itself: a covariance with a NaN is never at a fixed point)."""
+    for r in range(P.shape[0]):
+        for c in range(P.shape[1]):
+            for j in range(n_groups):
+                if P[r, c, j] != Q[r, c, j]:
+                    return False
+    return True
+
+
+@jit
+def _copy_lanes(source, n_groups, out):
+    """``out[:, :, j] = source[:, :, j]`` in every group's lane."""
+    for r in range(source.shape[0]):
+        for c in range(source.shape[1]):
+            for j in range(n_groups):
+                out[r, c, j] = source[r, c, j]
+
+
+@jit
+def _same_flags(a, b, n_groups):
+    """Whether ``a[j] == b[j]`` in every group's lane."""
+    for j in range(n_groups):
+        if a[j] != b[j]:
+            return False
+    return True
 
 
 @jit
