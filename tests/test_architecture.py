@@ -13,6 +13,7 @@ LAYERS = [
     {"_linalg"},
     {"system"},
     {"signals"},
+    {"switching"},
     {"discretize", "dyadic"},
     {"simulate"},
     {"modelfile"},

@@ -14,6 +14,7 @@ from switchest.cli import main
 from switchest.modelfile import ModelSpec
 from switchest.models.catalog import catalog
 from switchest.models.lee import LEE_SCENARIO
+from switchest.switching import IID, Dwell, MarkovContinuous, Schedule
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "models"
 
@@ -135,11 +136,11 @@ def test_cli_check_reports_lee_on_the_lee_model(capsys, monkeypatch):
 
 
 @pytest.mark.parametrize("switching, verdict, note", [
-    ({"kind": "schedule", "times": [2.0, 4.0], "modes": [0, 1, 0]}, True, "dwell 2 s > delta + Delta = 1.25 s"),
-    ({"kind": "dwell", "min_dwell": 1.2, "max_dwell": 2.0}, False, "dwell 1.2 s <= delta + Delta = 1.25 s"),
-    ({"kind": "iid", "p": [0.5, 0.5]}, False, "dwell 0.0025 s <= delta + Delta"),  # one sampling interval
-    ({"kind": "markov-continuous", "rates": [[-1.0, 1.0], [1.0, -1.0]]}, False, "no minimum dwell time"),
-    ({}, True, "Assumption 3: not checked"),
+    (Schedule([2.0, 4.0], [0, 1, 0]), True, "dwell 2 s > delta + Delta = 1.25 s"),
+    (Dwell(2, 1.2, 2.0), False, "dwell 1.2 s <= delta + Delta = 1.25 s"),
+    (IID([0.5, 0.5]), False, "dwell 0.0025 s <= delta + Delta"),  # one sampling interval
+    (MarkovContinuous([[-1.0, 1.0], [1.0, -1.0]]), False, "no minimum dwell time"),
+    (None, True, "Assumption 3: not checked"),
 ])
 def test_lee_check_reads_assumption_3_from_the_switching_model(switching, verdict, note):
     spec = catalog()["lee-fsk"]
@@ -159,7 +160,7 @@ def random_stable_spec(n, *, continuous, rng, switching=None, **sampling):
         A *= 0.9 / np.max(np.abs(np.linalg.eigvals(A)), axis=1)[:, None, None]
         system = SwitchedLinearSystem.discrete(A, C=C, Q=np.eye(n), R=np.eye(2), dt=0.1)
     return ModelSpec(system=system, sampling={"duration": 1.0, **sampling},
-                     switching=switching or {"kind": "iid", "p": [0.5, 0.5]})
+                     switching=switching or IID([0.5, 0.5]))
 
 
 def test_certify_finishes_on_a_200_state_model_and_says_what_it_skipped():
@@ -185,14 +186,14 @@ def test_large_continuous_models_skip_the_critical_interval_and_the_impulsive_lm
     assert re.search(r"skipped: the critical interval of an n = 200 model .* needs ~\d+ GiB; "
                      r"limit 1 GiB", check.detail)
     dwell = random_stable_spec(200, continuous=True, rng=rng, tau_min=0.05, tau_max=0.1,
-                               switching={"kind": "dwell", "min_dwell": 1.0, "max_dwell": 2.0})
+                               switching=Dwell(2, 1.0, 2.0))
     check = _impulsive(dwell)
     assert check.verdict is None and "skipped: an n = 200 impulsive-observer LMI" in check.detail
 
 
 def test_a_period_equal_to_the_critical_interval_is_not_decided_by_rounding():
     spec = catalog()["wang-example1"]
-    threshold = critical_interval(spec.system, spec.switching["p"]).fast_observer
+    threshold = critical_interval(spec.system, spec.switching.p).fast_observer
     at = _wang_critical_interval(replace(spec, sampling={**spec.sampling, "period": threshold}))
     assert at.verdict is None and "equals the exact MS threshold" in at.detail
     below = _wang_critical_interval(

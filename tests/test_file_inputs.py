@@ -253,7 +253,7 @@ def test_a_fast_switching_model_loads(tmp_path):
     path = tmp_path / "m.toml"
     path.write_text(MODEL_HEAD + "[[modes]]\nA = [[-3.0, 0.0], [0.0, -4.0]]\n[switching]\n"
                     'kind = "dwell"\nmin_dwell = 1e-6\nmax_dwell = 2e-6\n')
-    assert load_model(path).switching["min_dwell"] == 1e-6
+    assert load_model(path).switching.min_dwell == 1e-6
 
 
 # -------------------------------------------------------------- one test per class: CSV files

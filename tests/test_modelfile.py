@@ -5,10 +5,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from switchest import SwitchedLinearSystem
 from switchest._toml import ModelFileError
-from switchest.modelfile import ModelSpec, load_model, save_model
+from switchest.modelfile import (
+    ModelSpec,
+    load_model,
+    load_system,
+    save_model,
+    save_system,
+    system_from_dict,
+    system_to_dict,
+)
 from switchest.models.catalog import catalog
+from switchest.switching import IID, Dwell
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "models"
 
@@ -27,8 +35,9 @@ def same(a: ModelSpec, b: ModelSpec, *, ulps: int = 0) -> bool:
     arrays = all(equal(getattr(sa, k), getattr(sb, k)) for k in "ABCQR")
     init = (a.initial is None) == (b.initial is None) and (
         a.initial is None or all(equal(x, y) for x, y in zip(a.initial, b.initial)))
-    switching = a.switching.keys() == b.switching.keys() and all(
-        equal(a.switching[k], b.switching[k]) for k in a.switching)
+    da, db = (s.switching.to_dict() if s.switching else {} for s in (a, b))
+    switching = type(a.switching) is type(b.switching) and da.keys() == db.keys() and all(
+        equal(da[k], db[k]) for k in da)
     return (arrays and sa.domain == sb.domain and sa.dt == sb.dt and init and switching
             and a.sampling == b.sampling and a.noise == b.noise and a.description == b.description)
 
@@ -75,7 +84,7 @@ def test_a_hand_written_file_reads(tmp_path):
     spec = load_model(path)
     assert spec.system.n_modes == 2 and spec.system.n_outputs == 1
     np.testing.assert_array_equal(spec.system.R[1], [[0.5]])
-    assert SwitchedLinearSystem.from_file(path).n_states == 2
+    assert load_system(path).n_states == 2
 
 
 MALFORMED = [
@@ -120,10 +129,62 @@ def test_missing_file():
         load_model("/nonexistent/model.toml")
 
 
-@pytest.mark.parametrize("reader", [load_model, SwitchedLinearSystem.from_file])
+@pytest.mark.parametrize("reader", [load_model, load_system])
 def test_undecodable_file_names_the_file(reader, tmp_path):
     path = tmp_path / "latin1.toml"
     path.write_bytes(b'domain = "continuous"\n# caf\xe9\n[[modes]]\nA = [[-1.0]]\n')
     with pytest.raises(ModelFileError, match="not a UTF-8 text file") as exc:
         reader(path)
     assert str(path) in str(exc.value)
+
+
+@pytest.mark.parametrize("name", sorted(catalog()))
+def test_a_system_alone_round_trips_exactly(name, tmp_path):
+    system = catalog()[name].system
+    back = load_system(save_system(system, tmp_path / "system.toml"))
+    assert back.domain == system.domain and back.dt == system.dt
+    for key in "ABCQR":
+        np.testing.assert_array_equal(getattr(back, key), getattr(system, key))
+    assert system_to_dict(back).keys() == system_to_dict(system).keys()
+
+
+def test_a_system_file_ignores_the_other_tables(tmp_path):
+    path = tmp_path / "good.toml"
+    path.write_text(GOOD)
+    assert load_system(path).n_modes == 2
+
+
+def test_system_from_dict_refuses_a_non_dict():
+    with pytest.raises(TypeError, match=r"doc must be a dict .* got list"):
+        system_from_dict([1, 2])
+
+
+def test_save_system_refuses_a_model(tmp_path):
+    with pytest.raises(TypeError, match="system must be a SwitchedLinearSystem, got ModelSpec"):
+        save_system(catalog()["zhang-two-mode"], tmp_path / "x.toml")
+
+
+def test_the_switching_table_reads_as_a_model(tmp_path):
+    path = tmp_path / "good.toml"
+    path.write_text(GOOD)
+    sw = load_model(path).switching
+    assert sw.kind == "markov" and sw.at_samples
+    np.testing.assert_allclose(sw.transition, [[0.9, 0.1], [0.2, 0.8]])
+
+
+def test_a_file_without_switching_has_none(tmp_path):
+    path = tmp_path / "plain.toml"
+    path.write_text('domain = "continuous"\n[[modes]]\nA = [[-1.0]]\n')
+    spec = load_model(path)
+    assert spec.switching is None
+    with pytest.raises(ValueError, match=r"no \[switching\] table"):
+        spec.signal(0, np.arange(3.0))
+
+
+def test_model_spec_checks_its_switching_model():
+    system = catalog()["zhang-two-mode"].system
+    with pytest.raises(TypeError, match=r"switching must be a SwitchingModel .* got dict"):
+        ModelSpec(system, switching={"kind": "iid", "p": [0.5, 0.5]})
+    with pytest.raises(ValueError, match="switching switches among 3 modes, the system has 2"):
+        ModelSpec(system, switching=IID([0.2, 0.3, 0.5]))
+    assert ModelSpec(system, switching=Dwell(2, 1.0, 2.0)).switching.min_dwell == 1.0

@@ -7,6 +7,7 @@ from switchest import SwitchedLinearSystem
 from switchest import signals as sg
 from switchest.discretize import interval
 from switchest.simulate import simulate
+from switchest.switching import Dwell, MarkovAtSamples
 
 
 def system(Q=None, R=None):
@@ -73,6 +74,39 @@ def test_reproducible_from_rng_and_trials_differ():
     assert not np.allclose(a.x[0], a.x[1])
 
 
+@pytest.mark.parametrize("output", ["sampled", "integrated"])
+def test_a_switching_model_draws_one_signal_per_trial_as_its_sample_does(output):
+    sys = system(Q=0.1 * np.eye(2), R=[[0.1]])
+    t = sg.periodic(0.1, 2.0)
+    model = Dwell(2, 0.15, 0.4, initial_mode=1)
+    a = simulate(sys, model, t, np.zeros(2), trials=4, rng=5, output=output)
+    b = simulate(sys, lambda r: model.sample(r, t), t, np.zeros(2), trials=4, rng=5, output=output)
+    assert len({id(s) for s in a.signals}) == 4
+    for sa, sb in zip(a.signals, b.signals):
+        np.testing.assert_allclose(sa.times, sb.times, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(sa.modes, sb.modes)
+    np.testing.assert_allclose(a.x, b.x, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(a.y, b.y, rtol=1e-12, atol=1e-12)
+
+
+class _Sampler:  # any object with sample(rng, t), not a SwitchingModel
+    def sample(self, rng, t):
+        return sg.schedule([t[1]], [0, 1])
+
+
+def test_anything_with_sample_is_a_switching_model():
+    t = sg.periodic(0.1, 0.5)
+    traj = simulate(system(), _Sampler(), t, np.zeros(2), trials=2, rng=0)
+    np.testing.assert_array_equal(traj.mode, [[0, 1, 1, 1, 1, 1]] * 2)
+
+
+def test_a_sample_that_is_not_a_signal_is_refused():
+    bad = type("Bad", (), {"sample": lambda self, rng, t: "abc"})()
+    with pytest.raises(TypeError, match=r"signal\.sample\(rng, t\) must return a SwitchingSignal, "
+                                        r"got str for trial 0"):
+        simulate(system(), bad, sg.periodic(0.1, 0.5), np.zeros(2))
+
+
 def test_fine_grid_contains_the_samples_and_is_exact():
     sys = system()
     sig = sg.schedule([0.37], [0, 1])
@@ -127,6 +161,7 @@ def test_input_shapes():
         (dict(signal=sg.schedule([0.1], [0, 2])), ValueError, "signal uses mode 2"),
         (dict(signal=lambda r: 3), TypeError, "must return a SwitchingSignal"),
         (dict(signal="abc"), TypeError, "signal must be a SwitchingSignal"),
+        (dict(signal=MarkovAtSamples(np.full((3, 3), 1 / 3))), ValueError, "signal uses mode 2"),
         (dict(fine_dt=-1.0), ValueError, "fine_dt must be a finite positive"),
     ],
 )

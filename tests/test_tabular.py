@@ -17,6 +17,7 @@ from switchest.models.catalog import catalog
 from switchest.models.lee import LEE_SCENARIO
 from switchest.signals import schedule
 from switchest.simulate import simulate
+from switchest.switching import IID
 from switchest.tabular import (
     estimate_table,
     mode_signal,
@@ -236,7 +237,7 @@ def test_rsls_default_gains_converge_in_mean_square(wang_data):
     12.3, the median was 0.48. This run (seed 0) gives 0.79.
     """
     spec, df, _, traj = wang_data
-    T, p = spec.sampling["period"], spec.switching["p"]
+    T, p = spec.sampling["period"], spec.switching.p
     dyn = error_dynamics(spec.system, rsls_gains(spec, T), T)
     e0 = dyn.structure.F @ WANG_X0
     V = second_moments(dyn, p, np.outer(e0, e0), WANG_INTERVALS)
@@ -279,7 +280,7 @@ def etienne_data(tmp_path_factory):
     path = tmp_path_factory.mktemp("etienne") / "etienne.csv"
     df.to_csv(path, index=False)
     api = estimate_table(spec, df, method="impulsive")
-    cert = impulsive_observer_search(spec.system, 0.3, 0.4, spec.switching["tau_a"]).best
+    cert = impulsive_observer_search(spec.system, 0.3, 0.4, spec.switching.tau_a).best
     return spec, df, path, traj, signal, api, cert
 
 
@@ -299,7 +300,7 @@ def test_impulsive_error_decays_within_the_theorem8_bound(etienne_data):
     ||e(0+)|| = 0.60), so the last error is also required below 1e-3 of the first; the run gives 7e-9."""
     spec, _, _, traj, _, est, cert = etienne_data
     err = np.linalg.norm(est[["x0", "x1"]].to_numpy() - traj.x[0], axis=1)
-    bound = cert.overshoot(spec.switching["N0"]) * np.exp(-cert.beta * (traj.t - traj.t[0])) * err[0]
+    bound = cert.overshoot(spec.switching.N0) * np.exp(-cert.beta * (traj.t - traj.t[0])) * err[0]
     assert np.all(err <= bound) and err[-1] < 1e-3 * err[0]
 
 
@@ -315,7 +316,7 @@ def test_impulsive_refuses_missing_modes_unknown_dwell_and_infeasible_lmis(etien
         estimate_table(spec, df.drop(columns="mode"), method="impulsive")
     with pytest.raises(ValueError, match=r"needs a dwell time .* kind 'average-dwell' \(tau_a\) or 'dwell' "
                                          r"\(min_dwell\), got 'iid'"):
-        estimate_table(replace(spec, switching={"kind": "iid", "p": [0.5, 0.5]}), df, method="impulsive")
+        estimate_table(replace(spec, switching=IID([0.5, 0.5])), df, method="impulsive")
     with pytest.raises(ValueError, match=r"data row \d+ is 0.\d+ after the previous row, outside the model's "
                                          r"sampling bounds \[0.3, 0.31\]"):
         estimate_table(replace(spec, sampling={"tau_min": 0.3, "tau_max": 0.31}), df, method="impulsive")

@@ -41,7 +41,7 @@ from .analysis._lmi import lmi_nbytes
 from .analysis.ms_design import critical_interval_nbytes
 from .discretize import mode_steps
 from .modelfile import ModelSpec
-from .signals import schedule
+from .switching import IID, AverageDwell, Dwell, Schedule
 
 __all__ = ["Check", "certify", "CHECKS"]
 
@@ -188,17 +188,16 @@ def _lee_dwell(spec: ModelSpec) -> tuple[dict, bool | None, str]:
     and average-dwell models have no minimum dwell, so Assumption 3 fails.
     """
     sw = spec.switching
-    kind = sw.get("kind")
-    if kind == "dwell":
-        return {"min_dwell": sw["min_dwell"]}, None, ""
-    if kind == "schedule":
-        return {"signal": schedule(sw["times"], sw["modes"])}, None, ""
+    if isinstance(sw, Dwell):
+        return {"min_dwell": sw.min_dwell}, None, ""
+    if isinstance(sw, Schedule):
+        return {"signal": sw.signal}, None, ""
     shortest = spec.sampling.get("period", spec.sampling.get("tau_min"))
-    if kind in ("iid", "markov") and shortest is not None:
+    if sw is not None and sw.at_samples and shortest is not None:
         return {"min_dwell": shortest}, None, ""
-    if kind is None:
+    if sw is None:
         return {}, None, "not checked (no switching model)"
-    return {}, False, f"fails ({kind} switching has no minimum dwell time)"
+    return {}, False, f"fails ({sw.kind} switching has no minimum dwell time)"
 
 
 def _combined(spec: ModelSpec) -> Check:
@@ -242,10 +241,8 @@ def _jsr(spec: ModelSpec) -> Check:
 
 
 def _lemma1(spec: ModelSpec) -> Check:
-    sw = spec.switching
     T = spec.sampling.get("period")
-    tau_d = sw.get("min_dwell") if sw.get("kind") == "dwell" else (
-        float(np.min(np.diff(sw["times"]))) if sw.get("kind") == "schedule" and len(sw["times"]) > 1 else None)
+    tau_d = None if spec.switching is None else spec.switching.dwell_time
     if not spec.system.is_continuous or T is None or tau_d is None or not spec.system.has_measurement_noise:
         return Check("uniform observability under a dwell time", "Shankar Lemma 1", None,
                      "needs periodic sampling, a dwell-time switching model and measurement noise R")
@@ -258,10 +255,10 @@ def _lemma1(spec: ModelSpec) -> Check:
 
 def _ms_iid(spec: ModelSpec) -> Check:
     F = _sampled_modes(spec)
-    if spec.switching.get("kind") != "iid" or F is None:
+    if not isinstance(spec.switching, IID) or F is None:
         return Check("mean-square stability under i.i.d. modes", "Wang §2 / eq. (16)", None,
                      "applies to i.i.d. switching at the samples")
-    r = ms_stable_iid(F, spec.switching["p"])
+    r = ms_stable_iid(F, spec.switching.p)
     return Check("mean-square stability under i.i.d. modes (open loop)", "Wang §2", bool(r.stable),
                  f"spectral radius of E[F kron F] = {r.radius:.4g}", 1 - r.radius)
 
@@ -301,7 +298,8 @@ def _impulsive(spec: ModelSpec) -> Check:
     if not spec.system.is_continuous or "tau_min" not in smp and "period" not in smp:
         return Check("impulsive observer under aperiodic sampling", "Etienne Theorem 8", None,
                      "needs a continuous-time system and sampling bounds")
-    dwell = sw.get("tau_a") if sw.get("kind") == "average-dwell" else sw.get("min_dwell")
+    dwell = (sw.tau_a if isinstance(sw, AverageDwell)
+             else sw.min_dwell if isinstance(sw, Dwell) else None)
     if dwell is None:
         return Check("impulsive observer under aperiodic sampling", "Etienne Theorem 8", None,
                      "needs an (average) dwell-time switching model")
@@ -333,7 +331,7 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
     """
     name, paper = "critical switching interval T_max (i.i.d. modes)", "Wang Theorem 3, eq. (20); Example 2"
     system, switching = spec.system, spec.switching
-    if not system.is_continuous or switching.get("kind") != "iid":
+    if not system.is_continuous or not isinstance(switching, IID):
         return Check(name, paper, None, "applies to continuous-time systems with i.i.d. modes at the switching instants")
     if system.n_inputs or np.any(system.Q != 0):
         return Check(name, paper, None, "applies to Wang et al.'s model (1): no input and no process noise")
@@ -343,7 +341,7 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
     if skipped:
         return Check(name, paper, None, skipped)
     try:
-        ci = critical_interval(system, switching["p"])
+        ci = critical_interval(system, switching.p)
     except ValueError as exc:  # e.g. Assumption 2(b): the modes' observable subspaces do not span the state
         return Check(name, paper, None, f"not applicable: {exc}")
     truncated = np.floor(ci.theorem3 * 1e4) / 1e4

@@ -1,15 +1,14 @@
 """Model files: a switched system with its sampling, switching model and initial state.
 
-A TOML file holds the system (read by :meth:`SwitchedLinearSystem.from_dict`)
-and, optionally::
+A TOML file holds the system (read by :func:`system_from_dict`) and, optionally::
 
     description = "free text"
     [sampling]              # period = T, or tau_min / tau_max for aperiodic sampling;
     period = 0.0005         # duration = default length of a simulation (s)
     duration = 10.0
-    [switching]             # kind = dwell | average-dwell | markov | markov-continuous | iid | schedule
-    kind = "dwell"
-    min_dwell = 0.0009
+    [switching]             # a switching model (switchest.switching): kind = dwell |
+    kind = "dwell"          # average-dwell | markov | markov-continuous | iid | schedule,
+    min_dwell = 0.0009      # and its parameters
     max_dwell = 0.0012
     [initial]               # Gaussian initial state
     mean = [0.0, 100.0]
@@ -23,6 +22,10 @@ The bounds ``v_max``, ``u_max``, ``x_min`` are finite and non-negative; ``delta`
 ``Delta`` and ``observer_decay`` finite and positive. Every error names the file,
 the table and the key; an unknown key, at any level, is an error that suggests
 the closest valid one.
+
+:func:`load_model` / :func:`save_model` read and write a whole file as a :class:`ModelSpec`;
+:func:`load_system` / :func:`save_system` (and :func:`system_from_dict` /
+:func:`system_to_dict`) its system alone.
 """
 
 from __future__ import annotations
@@ -35,33 +38,27 @@ import numpy as np
 
 from . import _toml
 from ._checks import as_rng, check_symmetric_psd
-from .signals import (
-    SwitchingSignal,
-    aperiodic,
-    average_dwell_time,
-    dwell_time,
-    iid_at_samples,
-    markov_at_samples,
-    markov_continuous,
-    periodic,
-    schedule,
-)
+from .signals import SwitchingSignal, aperiodic, periodic
+from .switching import KINDS, SwitchingModel
 from .system import SwitchedLinearSystem
 
-__all__ = ["ModelSpec", "load_model", "save_model"]
+__all__ = [
+    "ModelSpec",
+    "load_model",
+    "load_system",
+    "save_model",
+    "save_system",
+    "system_from_dict",
+    "system_to_dict",
+]
 
-_SWITCHING_KEYS = {
-    "dwell": {"min_dwell", "max_dwell", "initial_mode"},
-    "average-dwell": {"tau_a", "N0", "rate", "initial_mode"},
-    "markov": {"transition", "initial"},
-    "markov-continuous": {"rates", "initial_mode"},
-    "iid": {"p"},
-    "schedule": {"times", "modes"},
-}
+_SWITCHING_KEYS = {kind: model.parameters() for kind, model in KINDS.items()}
 _SAMPLING_KEYS = {"period", "tau_min", "tau_max", "duration"}
 _INITIAL_KEYS = {"mean", "cov"}
 _NOISE_BOUNDS = {"v_max", "u_max", "x_min"}  # bounds on |v|, |u|, |x|: zero is meaningful
 _NOISE_DESIGN = {"delta", "Delta", "observer_decay"}  # windows (s) and a decay rate (1/s)
+_TOP_KEYS = {"domain", "dt", "shared", "modes", "sampling", "switching", "initial", "noise",
+             "description"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,8 +70,8 @@ class ModelSpec:
     system : SwitchedLinearSystem
     sampling : dict
         ``{"period": T}`` or ``{"tau_min": a, "tau_max": b}``, plus ``"duration"``.
-    switching : dict
-        ``{"kind": ..., <parameters>}`` (see the module docstring), or empty.
+    switching : SwitchingModel or None
+        The switching model (:mod:`switchest.switching`), or None when the file has none.
     initial : tuple of arrays or None
         ``(mean (n,), cov (n, n))``.
     noise : dict
@@ -85,10 +82,19 @@ class ModelSpec:
 
     system: SwitchedLinearSystem
     sampling: dict = field(default_factory=dict)
-    switching: dict = field(default_factory=dict)
+    switching: SwitchingModel | None = None
     initial: tuple[np.ndarray, np.ndarray] | None = None
     noise: dict = field(default_factory=dict)
     description: str = ""
+
+    def __post_init__(self) -> None:
+        sw = self.switching
+        if sw is not None and not isinstance(sw, SwitchingModel):
+            raise TypeError(f"switching must be a SwitchingModel (switchest.switching) or None, "
+                            f"got {type(sw).__name__}")
+        L = self.system.n_modes
+        if sw is not None and sw.n_modes not in (None, L):
+            raise ValueError(f"switching switches among {sw.n_modes} modes, the system has {L}")
 
     def sample_times(self, t_end: float | None = None, *, rng=None) -> np.ndarray:
         """Sample times on ``[0, t_end]`` (default: the file's duration)."""
@@ -96,16 +102,17 @@ class ModelSpec:
         if "period" in self.sampling:
             return periodic(self.sampling["period"], t_end)
         if "tau_min" in self.sampling:
-            return aperiodic(self.sampling["tau_min"], self.sampling["tau_max"], t_end, rng=as_rng(rng))
+            return aperiodic(self.sampling["tau_min"], self.sampling["tau_max"], t_end,
+                             rng=as_rng(rng))
         if not self.system.is_continuous:
             return periodic(self.system.dt, t_end)
         raise ValueError("the model has no [sampling] table: give period or tau_min/tau_max")
 
     def signal(self, rng, t: np.ndarray) -> SwitchingSignal:
-        """Draw one switching signal for the sample times ``t`` from the switching model."""
-        if not self.switching:
+        """Draw one switching signal for the sample times ``t``: ``switching.sample(rng, t)``."""
+        if self.switching is None:
             raise ValueError("the model has no [switching] table: give kind and its parameters")
-        return _draw_signal(self.switching, self.system.n_modes, rng, np.asarray(t, dtype=float))
+        return self.switching.sample(rng, t)
 
     def _duration(self, t_end) -> float:
         if t_end is not None:
@@ -119,32 +126,18 @@ class ModelSpec:
         doc = {}
         if self.description:
             doc["description"] = self.description
-        doc.update(self.system.to_dict())
-        for name, table in (("sampling", self.sampling), ("switching", self.switching), ("noise", self.noise)):
+        doc.update(system_to_dict(self.system))
+        switching = {} if self.switching is None else self.switching.to_dict()
+        for name, table in (("sampling", self.sampling), ("switching", switching),
+                            ("noise", self.noise)):
             if table:
-                doc[name] = {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in table.items()}
+                doc[name] = {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v)
+                             for k, v in table.items()}
         if self.initial is not None:
             doc["initial"] = {"mean": self.initial[0], "cov": self.initial[1]}
         modes = doc.pop("modes")
         doc["modes"] = modes  # arrays of tables last
         return doc
-
-
-def _draw_signal(sw: dict, L: int, rng, t: np.ndarray) -> SwitchingSignal:
-    kind = sw["kind"]
-    t_end = float(t[-1]) + (float(t[-1] - t[-2]) if t.size > 1 else 1.0)
-    if kind == "dwell":
-        return dwell_time(L, t_end, sw["min_dwell"], sw["max_dwell"], rng=rng, initial_mode=sw.get("initial_mode", 0))
-    if kind == "average-dwell":
-        return average_dwell_time(L, t_end, sw["tau_a"], sw["N0"], rng=rng, rate=sw.get("rate"),
-                                  initial_mode=sw.get("initial_mode", 0))
-    if kind == "markov":
-        return markov_at_samples(sw["transition"], t, rng=rng, initial=sw.get("initial"))
-    if kind == "markov-continuous":
-        return markov_continuous(sw["rates"], t_end, rng=rng, initial_mode=sw.get("initial_mode", 0))
-    if kind == "iid":
-        return iid_at_samples(sw["p"], t, rng=rng)
-    return schedule(sw["times"], sw["modes"])
 
 
 def save_model(spec: ModelSpec, path: str | Path) -> Path:
@@ -167,7 +160,7 @@ def load_model(path: str | Path) -> ModelSpec:
     """
     source = str(path)
     doc = _toml.read(path)
-    system = SwitchedLinearSystem.from_dict(doc, source=source)
+    system = system_from_dict(doc, source=source)
     description = doc.get("description", "")
     if not isinstance(description, str):
         raise _toml.ModelFileError(_toml.where(source, "description: expected a string"))
@@ -181,6 +174,165 @@ def load_model(path: str | Path) -> ModelSpec:
     )
 
 
+def load_system(path: str | Path) -> SwitchedLinearSystem:
+    """Read the system of a TOML model file (layout: :func:`system_from_dict`).
+
+    The file's other tables (sampling, switching, initial state) are read by
+    :func:`load_model`; here they are allowed and ignored.
+    """
+    return system_from_dict(_toml.read(path), source=str(path))
+
+
+def save_system(system: SwitchedLinearSystem, path: str | Path) -> Path:
+    """Write ``system`` as a TOML model file that :func:`load_system` reads back exactly."""
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    path = Path(path)
+    path.write_text(_toml.dumps(system_to_dict(system)), encoding="utf-8")
+    return path
+
+
+def system_to_dict(system: SwitchedLinearSystem) -> dict:
+    """The layout :func:`system_from_dict` reads; matrices equal in all modes go to ``[shared]``."""
+    doc: dict = {"domain": system.domain}
+    if system.dt is not None:
+        doc["dt"] = system.dt
+    shared, per_mode = {}, [{} for _ in range(system.n_modes)]
+    for key in "ABCQR":
+        arr = getattr(system, key)
+        if arr.size == 0 or (key in "QR" and not np.any(arr)):
+            continue  # no input / no noise: the defaults say so
+        if system.n_modes > 1 and np.all(arr == arr[:1]):
+            shared[key] = arr[0]
+        else:
+            for i in range(system.n_modes):
+                per_mode[i][key] = arr[i]
+    if shared:
+        doc["shared"] = shared
+    doc["modes"] = per_mode
+    return doc
+
+
+def system_from_dict(doc: dict, *, source: str = "<model>") -> SwitchedLinearSystem:
+    """Build the system of a parsed model file.
+
+    Layout::
+
+        domain = "continuous"        # or "discrete", with dt = <step>
+        [shared]                     # matrices common to every mode (optional)
+        C = [[0.0, 1.0]]
+        R = [[5.0]]
+        [[modes]]                    # one table per mode, in mode order
+        A = [[-4000.0, 0.0], [0.0, -42.55]]
+        B = [[2000.0], [0.0]]
+
+    Each of A, B, C, Q, R is given either once in ``[shared]`` or in every mode;
+    B, C, Q, R default as in :meth:`SwitchedLinearSystem.continuous`. The other tables
+    of a model file are allowed (and not read). Errors name the file, the table and the
+    key (``"m.toml: modes[2].A: expected 4x4, got 4x3"``).
+    """
+    if not isinstance(doc, dict):
+        raise TypeError(f"doc must be a dict (a parsed model file), got {type(doc).__name__}")
+    for key in doc:
+        if key not in _TOP_KEYS:
+            raise _toml.unknown_key(source, "", key, _TOP_KEYS)
+    domain, dt = _time_base(doc, source)
+    values, shared = _matrix_entries(doc, source)
+    arrays = _matrices(values, shared, source)
+    build = SwitchedLinearSystem.continuous if domain == "continuous" else (
+        lambda *a: SwitchedLinearSystem.discrete(*a, dt=dt))
+    try:
+        return build(*(arrays.get(k) for k in "ABCQR"))
+    except (TypeError, ValueError) as exc:
+        raise _toml.ModelFileError(f"{source}: {exc}") from None
+
+
+def _fail(source: str, text: str) -> _toml.ModelFileError:
+    return _toml.ModelFileError(_toml.where(source, text))
+
+
+def _time_base(doc: dict, source: str) -> tuple[str, float | None]:
+    """``domain`` and ``dt`` (None for a continuous-time system)."""
+    domain = doc.get("domain")
+    if domain not in ("continuous", "discrete"):
+        raise _fail(source, f"domain: expected \"continuous\" or \"discrete\", got {domain!r}")
+    if domain == "continuous":
+        if "dt" in doc:
+            raise _fail(source, "dt: only a discrete-time system has a step")
+        return domain, None
+    if "dt" not in doc:
+        raise _fail(source, "dt: required for a discrete-time system")
+    return domain, _toml.number(doc["dt"], _toml.where(source, "dt"), positive=True)
+
+
+def _matrix_entries(doc: dict, source: str) -> tuple[dict, dict]:
+    """Where each of A, B, C, Q, R is given: ``{key: [(location, value), ...] or None}``.
+
+    One entry when the matrix is in ``[shared]``, one per mode otherwise; also returns the
+    ``[shared]`` table.
+    """
+    modes = doc.get("modes")
+    if not isinstance(modes, list) or not modes or not all(isinstance(m, dict) for m in modes):
+        raise _fail(source, "modes: at least one [[modes]] table is required")
+    shared = doc.get("shared", {})
+    if not isinstance(shared, dict):
+        raise _fail(source, "shared: expected a table")
+    tables = [("shared", shared)] + [(f"modes[{i}]", m) for i, m in enumerate(modes)]
+    for table, entries in tables:
+        for key in entries:
+            if key not in ("A", "B", "C", "Q", "R"):
+                raise _toml.unknown_key(source, table, key, "ABCQR")
+    values = {}
+    for key in "ABCQR":
+        given = [i for i, m in enumerate(modes) if key in m]
+        if key in shared and given:
+            raise _fail(source, f"modes[{given[0]}].{key}: also given in [shared]; give it once")
+        if given and len(given) != len(modes):
+            missing = next(i for i in range(len(modes)) if i not in given)
+            raise _fail(source, f"modes[{missing}].{key}: missing (given for other modes; give "
+                                "it per mode or in [shared])")
+        values[key] = ([("shared." + key, shared[key])] if key in shared
+                       else [(f"modes[{i}].{key}", m[key]) for i, m in enumerate(modes)]
+                       if given else None)
+    if values["A"] is None:
+        raise _fail(source, "modes[0].A: missing (A is required, per mode or in [shared])")
+    return values, shared
+
+
+def _matrices(values: dict, shared: dict, source: str) -> dict[str, np.ndarray]:
+    """The given matrices, shapes checked across modes; Q, R symmetric PSD (R definite)."""
+    n = _toml.matrix(values["A"][0][1], _toml.where(source, values["A"][0][0])).shape[0]
+    m = None
+    shapes = {"A": (n, n), "B": (n, None), "C": (None, n), "Q": (n, n)}
+    arrays = {}
+    for key in "ABCQR":
+        if values[key] is None:
+            continue
+        want = shapes.get(key, (m, m))
+        mats = [_toml.matrix(v, _toml.where(source, at), shape=want) for at, v in values[key]]
+        for (at, _), mat in zip(values[key][1:], mats[1:]):
+            if mat.shape != mats[0].shape:
+                raise _fail(source, f"{at}: expected {_dims(mats[0].shape)} like "
+                                    f"{values[key][0][0]}, got {_dims(mat.shape)}")
+        if key in "QR":
+            for (at, _), mat in zip(values[key], mats):
+                try:
+                    check_symmetric_psd(mat, at, definite=key == "R")
+                except ValueError as exc:
+                    raise _fail(source, str(exc)) from None
+        if key == "C":
+            m = mats[0].shape[0]
+        arrays[key] = mats[0] if key in shared else np.stack(mats)
+    if "R" in arrays and m is None and arrays["R"].shape[-1] != n:  # C defaults to the identity
+        raise _fail(source, f"R: expected {n}x{n} (C is the identity), got "
+                            f"{_dims(arrays['R'].shape[-2:])}")
+    return arrays
+
+
+def _dims(shape: tuple[int, ...]) -> str:
+    return "x".join(map(str, shape))
+
+
 def _table(value, source: str, name: str) -> dict:
     if not isinstance(value, dict):
         raise _toml.ModelFileError(_toml.where(source, f"{name}: expected a table"))
@@ -192,86 +344,73 @@ def _sampling(table, source: str) -> dict:
     for key in table:
         if key not in _SAMPLING_KEYS:
             raise _toml.unknown_key(source, "sampling", key, _SAMPLING_KEYS)
-    out = {k: _toml.number(v, _toml.where(source, f"sampling.{k}"), positive=True) for k, v in table.items()}
+    out = {k: _toml.number(v, _toml.where(source, f"sampling.{k}"), positive=True)
+           for k, v in table.items()}
     if "period" in out and ("tau_min" in out or "tau_max" in out):
-        raise _toml.ModelFileError(_toml.where(source, "sampling.period: give either period or tau_min/tau_max"))
+        raise _fail(source, "sampling.period: give either period or tau_min/tau_max")
     if ("tau_min" in out) != ("tau_max" in out):
-        raise _toml.ModelFileError(_toml.where(source, "sampling.tau_max: tau_min and tau_max come together"))
+        raise _fail(source, "sampling.tau_max: tau_min and tau_max come together")
     if "tau_min" in out and out["tau_max"] < out["tau_min"]:
-        raise _toml.ModelFileError(_toml.where(source, f"sampling.tau_max: must be >= tau_min = {out['tau_min']}"))
+        raise _fail(source, f"sampling.tau_max: must be >= tau_min = {out['tau_min']}")
     return out
 
 
-def _switching(table, source: str, L: int) -> dict:
+def _switching(table, source: str, L: int) -> SwitchingModel | None:
+    """The ``[switching]`` table's model: keys and values checked here, naming the file and key;
+    the model's own validation (stochastic rows, dwell bounds, ...) at its construction."""
     table = _table(table, source, "switching")
     if not table:
-        return {}
+        return None
     kind = table.get("kind")
     if not isinstance(kind, str) or kind not in _SWITCHING_KEYS:
         close = (difflib.get_close_matches(kind, _SWITCHING_KEYS, n=1)
                  if isinstance(kind, str) else [])
         hint = f"did you mean {close[0]!r}? " if close else ""
-        raise _toml.ModelFileError(_toml.where(source, f"switching.kind: {hint}expected one of "
-                                                       f"{sorted(_SWITCHING_KEYS)}, got {kind!r}"))
+        raise _fail(source, f"switching.kind: {hint}expected one of {sorted(_SWITCHING_KEYS)}, "
+                            f"got {kind!r}")
+    keys = _SWITCHING_KEYS[kind]
     for key in table:
-        if key != "kind" and key not in _SWITCHING_KEYS[kind]:
-            owners = sorted(k for k, keys in _SWITCHING_KEYS.items() if key in keys)
+        if key != "kind" and key not in keys:
+            owners = sorted(k for k, params in _SWITCHING_KEYS.items() if key in params)
             if not owners:
-                raise _toml.unknown_key(source, "switching", key, _SWITCHING_KEYS[kind] | {"kind"})
-            takes = ", ".join(sorted(_SWITCHING_KEYS[kind]))
-            raise _toml.ModelFileError(_toml.where(
-                source, f"switching.{key}: not a parameter of kind {kind!r} (it is one of kind "
-                        f"{owners[0]!r}); kind {kind!r} takes {takes}"))
-    out = {"kind": kind}
-    at = lambda k: _toml.where(source, f"switching.{k}")
+                raise _toml.unknown_key(source, "switching", key, {*keys, "kind"})
+            raise _fail(source, f"switching.{key}: not a parameter of kind {kind!r} (it is one "
+                                f"of kind {owners[0]!r}); kind {kind!r} takes "
+                                f"{', '.join(sorted(keys))}")
     try:
-        for key, value in table.items():
-            if key in ("kind",):
-                continue
-            if key in ("min_dwell", "max_dwell", "tau_a", "N0", "rate"):
-                out[key] = _toml.number(value, at(key), positive=True)
-            elif key == "initial_mode" or (key == "initial" and not isinstance(value, list)):
-                if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < L:
-                    raise _toml.ModelFileError(f"{at(key)}: expected a mode index in 0..{L - 1}, "
-                                               f"got {value!r}")
-                out[key] = value
-            elif key in ("transition", "rates"):
-                out[key] = _toml.matrix(value, at(key), shape=(L, L))
-            elif key in ("p", "initial"):  # probabilities (initial: or a mode index, above)
-                out[key] = _toml.matrix(value, at(key), shape=(L,), ndim=1)
-            elif key == "times":
-                out[key] = _toml.matrix(value, at(key), ndim=1)
-            elif key == "modes":
-                indices = isinstance(value, list) and all(
-                    isinstance(v, int) and not isinstance(v, bool) and 0 <= v < L for v in value)
-                if not indices:
-                    raise _toml.ModelFileError(f"{at(key)}: expected a list of mode indices in "
-                                               f"0..{L - 1}, got {value!r}")
-                out[key] = np.asarray(value, dtype=np.int64)
-        missing = {"dwell": ["min_dwell", "max_dwell"], "average-dwell": ["tau_a", "N0"], "markov": ["transition"],
-                   "markov-continuous": ["rates"], "iid": ["p"], "schedule": ["times", "modes"]}[kind]
-        for key in missing:
-            if key not in out:
-                raise _toml.ModelFileError(f"{at(key)}: required for kind {kind!r}")
-        # the generators validate the parameters (stochastic rows, dwell bounds, ...):
-        # draw a signal over a few of its switches
-        _draw_signal(out, L, np.random.default_rng(0), np.arange(3.0) * _time_scale(out))
+        out = {"kind": kind}
+        out.update((k, _switching_value(k, v, _toml.where(source, f"switching.{k}"), L))
+                   for k, v in table.items() if k != "kind")
+        for key, required in keys.items():
+            if required and key not in out:
+                raise _fail(source, f"switching.{key}: required for kind {kind!r}")
+        return SwitchingModel.from_dict(out, n_modes=L)
     except _toml.ModelFileError:
         raise
     except (TypeError, ValueError) as exc:
-        raise _toml.ModelFileError(_toml.where(source, f"switching: {exc}")) from None
-    return out
+        raise _fail(source, f"switching: {exc}") from None
 
 
-def _time_scale(sw: dict) -> float:
-    """A time over which the switching model makes a few switches (probing its parameters)."""
-    if "min_dwell" in sw:
-        return sw["min_dwell"]
-    if "tau_a" in sw:
-        return min(sw["tau_a"], 1.0 / sw["rate"]) if "rate" in sw else sw["tau_a"]
-    if "rates" in sw:
-        return 1.0 / max(float(np.max(np.abs(sw["rates"]))), 1.0)
-    return 1.0
+def _switching_value(key: str, value, at: str, L: int):
+    """One parameter of a ``[switching]`` table, of the type and shape its key takes."""
+    if key in ("min_dwell", "max_dwell", "tau_a", "N0", "rate"):
+        return _toml.number(value, at, positive=True)
+    if key == "initial_mode" or (key == "initial" and not isinstance(value, list)):
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < L:
+            raise _toml.ModelFileError(f"{at}: expected a mode index in 0..{L - 1}, got {value!r}")
+        return value
+    if key in ("transition", "rates"):
+        return _toml.matrix(value, at, shape=(L, L))
+    if key in ("p", "initial"):  # probabilities (initial: or a mode index, above)
+        return _toml.matrix(value, at, shape=(L,), ndim=1)
+    if key == "times":
+        return _toml.matrix(value, at, ndim=1)
+    indices = isinstance(value, list) and all(  # key == "modes"
+        isinstance(v, int) and not isinstance(v, bool) and 0 <= v < L for v in value)
+    if not indices:
+        raise _toml.ModelFileError(f"{at}: expected a list of mode indices in 0..{L - 1}, "
+                                   f"got {value!r}")
+    return np.asarray(value, dtype=np.int64)
 
 
 def _initial(table, source: str, n: int):
@@ -285,8 +424,8 @@ def _initial(table, source: str, n: int):
         raise _toml.ModelFileError(_toml.where(source, "initial.mean: required (cov defaults to "
                                                        "zero)"))
     mean = _toml.matrix(table["mean"], _toml.where(source, "initial.mean"), shape=(n,), ndim=1)
-    cov = _toml.matrix(table.get("cov", np.zeros((n, n)).tolist()), _toml.where(source, "initial.cov"),
-                       shape=(n, n))
+    cov = _toml.matrix(table.get("cov", np.zeros((n, n)).tolist()),
+                       _toml.where(source, "initial.cov"), shape=(n, n))
     try:
         cov = check_symmetric_psd(cov, "initial.cov")
     except ValueError as exc:

@@ -181,10 +181,7 @@ def dwell_time(
     dwell-time condition tau_d of Shankar et al. §II.
     """
     n_modes = _check_n_modes(n_modes)
-    lo = positive_scalar(min_dwell, "min_dwell")
-    hi = positive_scalar(max_dwell, "max_dwell")
-    if hi < lo:
-        raise ValueError(f"max_dwell must be >= min_dwell = {lo:g}, got {hi:g}")
+    lo, hi = _check_dwell_bounds(min_dwell, max_dwell)
     t_end = _check_span(t_start, t_end)
     first = check_mode(initial_mode, n_modes, "initial_mode")
     span = t_end - float(t_start)
@@ -194,6 +191,15 @@ def dwell_time(
     times = _uniform_increments(float(t_start), t_end, lo, hi, rng)
     times = times[times < t_end]
     return SwitchingSignal(times, _next_modes(first, times.size, n_modes, rng))
+
+
+def _check_dwell_bounds(min_dwell, max_dwell) -> tuple[float, float]:
+    """``(min_dwell, max_dwell)`` as floats, both positive and ``max_dwell >= min_dwell``."""
+    lo = positive_scalar(min_dwell, "min_dwell")
+    hi = positive_scalar(max_dwell, "max_dwell")
+    if hi < lo:
+        raise ValueError(f"max_dwell must be >= min_dwell = {lo:g}, got {hi:g}")
+    return lo, hi
 
 
 def _uniform_increments(t_start: float, t_end: float, lo: float, hi: float, rng) -> np.ndarray:
@@ -236,11 +242,8 @@ def average_dwell_time(
     :func:`satisfies_average_dwell_time` before it is returned.
     """
     n_modes = _check_n_modes(n_modes)
-    tau_a = positive_scalar(tau_a, "tau_a")
-    N0 = positive_scalar(N0, "N0")
-    if N0 < 1:
-        raise ValueError(f"N0 must be >= 1 (one switch must be possible), got {N0:g}")
-    rate = 2.0 / tau_a if rate is None else positive_scalar(rate, "rate")
+    tau_a, N0, rate = _check_average_dwell(tau_a, N0, rate)
+    rate = 2.0 / tau_a if rate is None else rate
     t_end = _check_span(t_start, t_end)
     first = check_mode(initial_mode, n_modes, "initial_mode")
     _check_events(rate * (t_end - float(t_start)), "switch attempts", "rate * (t_end - t_start)")
@@ -260,6 +263,15 @@ def average_dwell_time(
     if not satisfies_average_dwell_time(signal, tau_a, N0):
         raise RuntimeError("internal error: generated signal violates the average dwell time")
     return signal
+
+
+def _check_average_dwell(tau_a, N0, rate) -> tuple[float, float, float | None]:
+    """``(tau_a, N0, rate)`` as floats: positive, ``N0 >= 1``; ``rate`` may be None."""
+    tau_a = positive_scalar(tau_a, "tau_a")
+    N0 = positive_scalar(N0, "N0")
+    if N0 < 1:
+        raise ValueError(f"N0 must be >= 1 (one switch must be possible), got {N0:g}")
+    return tau_a, N0, None if rate is None else positive_scalar(rate, "rate")
 
 
 def satisfies_average_dwell_time(signal: SwitchingSignal, tau_a: float, N0: float) -> bool:
@@ -303,16 +315,9 @@ def markov_continuous(
     of the cumulative jump probabilities), unit exponentials divided by the
     outflow rates give the holding times.
     """
-    Q = float_array(rates, "rates", ndim=2)
+    Q = _check_rates(rates)
     n_modes = Q.shape[0]
-    if Q.shape != (n_modes, n_modes):
-        raise ValueError(f"rates must be square, got shape {Q.shape}")
-    check_finite(Q, "rates")
     off = Q - np.diag(np.diag(Q))
-    if np.any(off < 0):
-        raise ValueError("rates must have non-negative off-diagonal entries")
-    if np.any(np.abs(Q.sum(axis=1)) > 1e-9 * max(1.0, np.abs(Q).max())):
-        raise ValueError(f"rates rows must sum to zero (generator matrix), got {Q.sum(axis=1)}")
     t_end = _check_span(t_start, t_end)
     mode = check_mode(initial_mode, n_modes, "initial_mode")
     out = -np.diag(Q)
@@ -345,6 +350,19 @@ def markov_continuous(
     return SwitchingSignal(np.concatenate(times) if times else np.zeros(0), np.concatenate(modes))
 
 
+def _check_rates(rates) -> np.ndarray:
+    """A generator matrix: square, finite, off-diagonal entries >= 0, rows summing to zero."""
+    Q = float_array(rates, "rates", ndim=2)
+    if Q.shape != (Q.shape[0], Q.shape[0]):
+        raise ValueError(f"rates must be square, got shape {Q.shape}")
+    check_finite(Q, "rates")
+    if np.any(Q - np.diag(np.diag(Q)) < 0):
+        raise ValueError("rates must have non-negative off-diagonal entries")
+    if np.any(np.abs(Q.sum(axis=1)) > 1e-9 * max(1.0, np.abs(Q).max(initial=0.0))):
+        raise ValueError(f"rates rows must sum to zero (generator matrix), got {Q.sum(axis=1)}")
+    return Q
+
+
 def _at_samples(t, modes: np.ndarray) -> SwitchingSignal:
     """A signal holding ``modes[k]`` on ``[t[k], t[k+1])``."""
     change = modes[1:] != modes[:-1]
@@ -370,12 +388,12 @@ def markov_at_samples(transition, t, *, rng, initial=None) -> SwitchingSignal:
     n_modes = P.shape[0]
     t = _sample_times(t)
     rng = as_rng(rng)
-    if initial is None or not np.isscalar(initial):
-        p0 = np.full(n_modes, 1.0 / n_modes) if initial is None else initial
-        p0 = check_probability_vector(p0, "initial", n=n_modes)
-        first = int(rng.choice(n_modes, p=p0))
+    initial = _check_initial(initial, n_modes)
+    if isinstance(initial, int):
+        first = initial
     else:
-        first = check_mode(initial, n_modes, "initial")
+        p0 = np.full(n_modes, 1.0 / n_modes) if initial is None else initial
+        first = int(rng.choice(n_modes, p=p0))
     cum = np.cumsum(P, axis=1)
     draws = rng.random(t.size - 1)
     modes = np.empty(t.size, dtype=np.int64)
@@ -383,6 +401,15 @@ def markov_at_samples(transition, t, *, rng, initial=None) -> SwitchingSignal:
     for k in range(1, t.size):  # sequential by nature: a chain
         modes[k] = min(int(np.searchsorted(cum[modes[k - 1]], draws[k - 1], side="right")), n_modes - 1)
     return _at_samples(t, modes)
+
+
+def _check_initial(initial, n_modes: int) -> int | np.ndarray | None:
+    """A Markov chain's first mode: None (uniform), a mode index, or a probability vector."""
+    if initial is None:
+        return None
+    if np.isscalar(initial):
+        return check_mode(initial, n_modes, "initial")
+    return check_probability_vector(initial, "initial", n=n_modes)
 
 
 def iid_at_samples(p, t, *, rng) -> SwitchingSignal:

@@ -26,6 +26,7 @@ from ._checks import (
 from ._linalg import psd_sqrt
 from ._threads import one_blas_thread
 from .signals import SwitchingSignal, sample_segments
+from .switching import SwitchingModel
 from .system import SwitchedLinearSystem
 
 __all__ = ["Trajectory", "simulate", "integrated_output_system"]
@@ -97,7 +98,7 @@ class Trajectory:
         return out
 
 
-SignalSource = SwitchingSignal | Callable[[np.random.Generator], SwitchingSignal]
+SignalSource = SwitchingSignal | SwitchingModel | Callable[[np.random.Generator], SwitchingSignal]
 
 
 @one_blas_thread()
@@ -118,9 +119,12 @@ def simulate(
     Parameters
     ----------
     system : SwitchedLinearSystem
-    signal : SwitchingSignal or callable
-        One signal shared by all trials, or a generator ``f(rng) -> SwitchingSignal``
-        called once per trial with that trial's own generator (spawned from ``rng``).
+    signal : SwitchingSignal, SwitchingModel or callable
+        One signal shared by all trials; or a switching model (anything with a method
+        ``sample(rng, t) -> SwitchingSignal``, such as :class:`switchest.switching.Dwell`),
+        or a generator ``f(rng) -> SwitchingSignal``, drawn once per trial with that
+        trial's own generator (spawned from ``rng``): ``model`` draws as
+        ``lambda rng: model.sample(rng, t)`` does.
     t : array_like, shape (K,)
         Strictly increasing sample times (periodic or aperiodic). For a
         discrete-time system they must be spaced by ``system.dt``.
@@ -182,7 +186,7 @@ def simulate(
             raise ValueError("output='integrated' applies to continuous-time systems only")
         return _simulate_integrated(system, signal, t, x0, u, trials=trials, rng=rng, fine_dt=fine_dt)
     _check_size(system, trials, t.size, parts)
-    signals = _signals(signal, trials, rng, system.n_modes)
+    signals = _signals(signal, trials, rng, system.n_modes, t)
     u = _inputs(u, system.n_inputs, t.size, trials)
     x = _initial_states(x0, system.n_states, trials, rng)
 
@@ -321,21 +325,28 @@ def _stacked_step(F, G, Q_sqrt) -> np.ndarray:
     return np.concatenate([np.swapaxes(a, -1, -2) for a in (F, G, Q_sqrt)], axis=-2)
 
 
-def _signals(signal, trials, rng, n_modes) -> list[SwitchingSignal]:
+def _signals(signal, trials, rng, n_modes, t) -> list[SwitchingSignal]:
     if isinstance(signal, SwitchingSignal):
-        signals = [signal] * trials
+        return _check_modes([signal] * trials, n_modes)
+    if callable(getattr(signal, "sample", None)):
+        draw, call = (lambda r: signal.sample(r, t)), "signal.sample(rng, t)"
     elif callable(signal):
-        signals = [signal(child) for child in rng.spawn(trials)]
-        for i, s in enumerate(signals):
-            if not isinstance(s, SwitchingSignal):
-                raise TypeError(
-                    f"signal(rng) must return a SwitchingSignal, got {type(s).__name__} for trial {i}"
-                )
+        draw, call = signal, "signal(rng)"
     else:
         raise TypeError(
-            f"signal must be a SwitchingSignal or a callable rng -> SwitchingSignal, "
-            f"got {type(signal).__name__}"
+            f"signal must be a SwitchingSignal, a switching model (with sample(rng, t)) or a "
+            f"callable rng -> SwitchingSignal, got {type(signal).__name__}"
         )
+    signals = [draw(child) for child in rng.spawn(trials)]
+    for i, s in enumerate(signals):
+        if not isinstance(s, SwitchingSignal):
+            raise TypeError(
+                f"{call} must return a SwitchingSignal, got {type(s).__name__} for trial {i}"
+            )
+    return _check_modes(signals, n_modes)
+
+
+def _check_modes(signals: list[SwitchingSignal], n_modes: int) -> list[SwitchingSignal]:
     top = max(int(s.modes.max()) for s in signals)
     if top >= n_modes:
         raise ValueError(f"signal uses mode {top}, but the system has modes 0..{n_modes - 1}")

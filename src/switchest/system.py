@@ -19,12 +19,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
-from . import _toml
 from ._checks import check_finite, check_symmetric_psd, float_array, positive_scalar
 
 __all__ = ["SwitchedLinearSystem"]
@@ -59,7 +57,9 @@ class SwitchedLinearSystem:
     Build instances with :meth:`continuous`, :meth:`discrete` or
     :meth:`from_statespace`; they validate every argument. Equality is identity:
     two systems with equal matrices are different objects (this keeps them
-    hashable for the discretization cache).
+    hashable for the discretization cache). Model files are read and written by
+    :func:`switchest.modelfile.load_system` and :func:`~switchest.modelfile.save_system`
+    (a layer above this module).
     """
 
     A: np.ndarray
@@ -144,139 +144,6 @@ class SwitchedLinearSystem:
         if dts[0] == 0.0:
             return cls.continuous(A, B, C, Q, R)
         return cls.discrete(A, B, C, Q, R, dt=dts[0])
-
-    @classmethod
-    def from_file(cls, path: str | Path) -> SwitchedLinearSystem:
-        """Read the system of a TOML model file (see :meth:`from_dict` for the layout).
-
-        Other tables of the file (sampling, switching, initial state) are read by
-        :func:`switchest.modelfile.load_model`.
-        """
-        return cls.from_dict(_toml.read(path), source=str(path))
-
-    def to_file(self, path: str | Path) -> Path:
-        """Write the system as a TOML model file that :meth:`from_file` reads back exactly."""
-        path = Path(path)
-        path.write_text(_toml.dumps(self.to_dict()), encoding="utf-8")
-        return path
-
-    def to_dict(self) -> dict:
-        """The TOML layout of :meth:`from_dict`; matrices equal in every mode go to ``[shared]``."""
-        doc: dict = {"domain": self.domain}
-        if self.dt is not None:
-            doc["dt"] = self.dt
-        shared, per_mode = {}, [{} for _ in range(self.n_modes)]
-        for key in "ABCQR":
-            arr = getattr(self, key)
-            if arr.size == 0 or (key in "QR" and not np.any(arr)):
-                continue  # no input / no noise: the defaults say so
-            if self.n_modes > 1 and np.all(arr == arr[:1]):
-                shared[key] = arr[0]
-            else:
-                for i in range(self.n_modes):
-                    per_mode[i][key] = arr[i]
-        if shared:
-            doc["shared"] = shared
-        doc["modes"] = per_mode
-        return doc
-
-    @classmethod
-    def from_dict(cls, doc: dict, *, source: str = "<model>") -> SwitchedLinearSystem:
-        """Build from a parsed model file.
-
-        Layout::
-
-            domain = "continuous"        # or "discrete", with dt = <step>
-            [shared]                     # matrices common to every mode (optional)
-            C = [[0.0, 1.0]]
-            R = [[5.0]]
-            [[modes]]                    # one table per mode, in mode order
-            A = [[-4000.0, 0.0], [0.0, -42.55]]
-            B = [[2000.0], [0.0]]
-
-        Each of A, B, C, Q, R is given either once in ``[shared]`` or in every mode;
-        B, C, Q, R default as in :meth:`continuous`. Errors name the file, the table
-        and the key (``"m.toml: modes[2].A: expected 4x4, got 4x3"``).
-        """
-        if not isinstance(doc, dict):
-            raise TypeError(f"doc must be a dict (a parsed model file), got {type(doc).__name__}")
-        allowed_top = {"domain", "dt", "shared", "modes", "sampling", "switching", "initial", "noise",
-                       "description"}
-        for key in doc:
-            if key not in allowed_top:
-                raise _toml.unknown_key(source, "", key, allowed_top)
-        domain = doc.get("domain")
-        if domain not in ("continuous", "discrete"):
-            raise _toml.ModelFileError(_toml.where(source, f"domain: expected \"continuous\" or \"discrete\", "
-                                                           f"got {domain!r}"))
-        dt = None
-        if domain == "discrete":
-            if "dt" not in doc:
-                raise _toml.ModelFileError(_toml.where(source, "dt: required for a discrete-time system"))
-            dt = _toml.number(doc["dt"], _toml.where(source, "dt"), positive=True)
-        elif "dt" in doc:
-            raise _toml.ModelFileError(_toml.where(source, "dt: only a discrete-time system has a step"))
-        modes = doc.get("modes")
-        if not isinstance(modes, list) or not modes or not all(isinstance(m, dict) for m in modes):
-            raise _toml.ModelFileError(_toml.where(source, "modes: at least one [[modes]] table is required"))
-        shared = doc.get("shared", {})
-        if not isinstance(shared, dict):
-            raise _toml.ModelFileError(_toml.where(source, "shared: expected a table"))
-        for table, entries in [("shared", shared)] + [(f"modes[{i}]", m) for i, m in enumerate(modes)]:
-            for key in entries:
-                if key not in ("A", "B", "C", "Q", "R"):
-                    raise _toml.unknown_key(source, table, key, "ABCQR")
-        values = {}
-        for key in "ABCQR":
-            given = [i for i, m in enumerate(modes) if key in m]
-            if key in shared and given:
-                raise _toml.ModelFileError(_toml.where(source, f"modes[{given[0]}].{key}: also given in "
-                                                               f"[shared]; give it once"))
-            if given and len(given) != len(modes):
-                missing = next(i for i in range(len(modes)) if i not in given)
-                raise _toml.ModelFileError(_toml.where(source, f"modes[{missing}].{key}: missing (given for "
-                                                               f"other modes; give it per mode or in [shared])"))
-            values[key] = ([("shared." + key, shared[key])] if key in shared
-                           else [(f"modes[{i}].{key}", m[key]) for i, m in enumerate(modes)] if given else None)
-        if values["A"] is None:
-            raise _toml.ModelFileError(_toml.where(source, "modes[0].A: missing (A is required, per mode or "
-                                                           "in [shared])"))
-        first = _toml.matrix(values["A"][0][1], _toml.where(source, values["A"][0][0]))
-        n = first.shape[0]
-        m = None
-        shapes = {"A": (n, n), "B": (n, None), "C": (None, n), "Q": (n, n)}
-        arrays = {}
-        for key in "ABCQR":
-            if values[key] is None:
-                continue
-            want = shapes.get(key, (m, m))
-            mats = [_toml.matrix(v, _toml.where(source, at), shape=want) for at, v in values[key]]
-            for (at, _), mat in zip(values[key][1:], mats[1:]):
-                if mat.shape != mats[0].shape:
-                    raise _toml.ModelFileError(_toml.where(source, f"{at}: expected "
-                                                                   f"{'x'.join(map(str, mats[0].shape))} like "
-                                                                   f"{values[key][0][0]}, got "
-                                                                   f"{'x'.join(map(str, mat.shape))}"))
-            if key in "QR":
-                for (at, _), mat in zip(values[key], mats):
-                    try:
-                        check_symmetric_psd(mat, at, definite=key == "R")
-                    except ValueError as exc:
-                        raise _toml.ModelFileError(_toml.where(source, str(exc))) from None
-            if key == "C":
-                m = mats[0].shape[0]
-            arrays[key] = mats[0] if key in shared else np.stack(mats)
-        if "R" in arrays and m is None:
-            m = n  # C defaults to the identity
-            if arrays["R"].shape[-1] != n:
-                raise _toml.ModelFileError(_toml.where(source, f"R: expected {n}x{n} (C is the identity), got "
-                                                               f"{'x'.join(map(str, arrays['R'].shape[-2:]))}"))
-        build = cls.continuous if domain == "continuous" else (
-            lambda *a: cls.discrete(*a, dt=dt))
-        try:
-            return build(*(arrays.get(k) for k in "ABCQR"))
-        except (TypeError, ValueError) as exc:
-            raise _toml.ModelFileError(f"{source}: {exc}") from None
 
     @classmethod
     def _build(cls, A, B, C, Q, R, *, domain: Domain, dt: float | None) -> SwitchedLinearSystem:

@@ -82,6 +82,7 @@ from .estimators import (
 )
 from .modelfile import ModelSpec
 from .signals import SwitchingSignal, schedule
+from .switching import IID, AverageDwell, Dwell, MarkovAtSamples, MarkovContinuous
 
 __all__ = [
     "METHODS",
@@ -302,17 +303,17 @@ def transition_for(spec: ModelSpec, T: float, *, stay: float | None = None) -> n
         P = np.full((L, L), (1 - stay) / max(L - 1, 1))
         np.fill_diagonal(P, stay)
         return P
-    kind = sw.get("kind")
-    if kind == "markov":
-        return check_row_stochastic(sw["transition"])
-    if kind == "iid":
-        return np.tile(np.asarray(sw["p"], dtype=float), (L, 1))
-    if kind == "markov-continuous":
-        P = expm(np.asarray(sw["rates"]) * T)
+    if isinstance(sw, MarkovAtSamples):
+        return check_row_stochastic(sw.transition)
+    if isinstance(sw, IID):
+        return np.tile(sw.p, (L, 1))
+    if isinstance(sw, MarkovContinuous):
+        P = expm(sw.rates * T)
         return P / P.sum(axis=1, keepdims=True)
-    if kind in ("dwell", "average-dwell"):
-        mean_dwell = 0.5 * (sw["min_dwell"] + sw["max_dwell"]) if kind == "dwell" else sw["tau_a"]
+    if isinstance(sw, (Dwell, AverageDwell)):
+        mean_dwell = 0.5 * (sw.min_dwell + sw.max_dwell) if isinstance(sw, Dwell) else sw.tau_a
         return transition_for(spec, T, stay=max(1e-6, 1.0 - T / mean_dwell))
+    kind = None if sw is None else sw.kind
     raise ValueError(f"the model's switching model ({kind!r}) implies no transition matrix: give stay")
 
 
@@ -374,7 +375,7 @@ def _filter(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) ->
     given or the switching model is a Markov chain.
     """
     t, y, u = meas["t"], meas["y"], meas["u"]
-    explicit = options["stay"] is not None or spec.switching.get("kind") == "markov"
+    explicit = options["stay"] is not None or isinstance(spec.switching, MarkovAtSamples)
     args = []
     if entry.transition == "required" or (entry.transition == "optional" and explicit):
         T = float(np.median(np.diff(t))) if t.size > 1 else 1.0
@@ -469,9 +470,9 @@ def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
         return place_gains(structure, [-scale * r * (1.0 + 0.25 * np.arange(A22.shape[0])) if A22.size else None
                                        for r, A22 in zip(rates, structure.A22)])
 
-    if spec.switching.get("kind") != "iid":
+    if not isinstance(spec.switching, IID):
         return design(1.0)
-    p = spec.switching["p"]
+    p = spec.switching.p
     best, best_mu, radius = None, np.inf, np.inf
     for scale in _POLE_SCALES:
         gains = design(scale)
@@ -533,10 +534,12 @@ def impulsive_gains(spec: ModelSpec, t: np.ndarray) -> np.ndarray:
     if lo is None:
         raise ValueError("method 'impulsive' needs the sampling bounds (Etienne et al. Assumption 2): set "
                          "sampling.tau_min and sampling.tau_max (or sampling.period) in the model file")
-    dwell = {"average-dwell": sw.get("tau_a"), "dwell": sw.get("min_dwell")}.get(sw.get("kind"))
+    dwell = (sw.tau_a if isinstance(sw, AverageDwell)
+             else sw.min_dwell if isinstance(sw, Dwell) else None)
     if dwell is None:
         raise ValueError("method 'impulsive' needs a dwell time (Etienne et al. Assumption 1): a [switching] "
-                         f"table of kind 'average-dwell' (tau_a) or 'dwell' (min_dwell), got {sw.get('kind')!r}")
+                         f"table of kind 'average-dwell' (tau_a) or 'dwell' (min_dwell), "
+                         f"got {getattr(sw, 'kind', None)!r}")
     steps = np.diff(np.asarray(t, dtype=float))
     outside = (steps < lo * (1 - 1e-9)) | (steps > hi * (1 + 1e-9))
     if outside.any():

@@ -613,7 +613,7 @@ def test_large_gains_keep_the_noise_injection_psd_and_the_steady_state_growing()
     # noise integral) must stay PSD and the steady-state error must grow with the gain (more output noise
     # injected, same MS contraction); the Van Loan exponential alone gave W eigenvalues of -7e6 at 2.83
     spec = catalog()["wang-ieee5bus"]
-    system, T, p = spec.system, spec.sampling["period"], spec.switching["p"]
+    system, T, p = spec.system, spec.sampling["period"], spec.switching.p
     structure = subsystem_structure(system)
     rates = [max(float(np.max(np.abs(np.linalg.eigvals(A22)), initial=0.0)), 1.0 / T) for A22 in structure.A22]
     mu = []

@@ -26,6 +26,7 @@ from ..models.catalog import catalog
 from ..models.lee import LEE_SCENARIO
 from ..plotting import bars
 from ..simulate import simulate
+from ..switching import Dwell, MarkovContinuous, Schedule
 from ..system import SwitchedLinearSystem
 from ..tabular import transition_for
 from .registry import Experiment, Row, Summary, register
@@ -77,7 +78,7 @@ def _markov_jump() -> ModelSpec:
     sys = SwitchedLinearSystem.continuous(A, B, [[1.0, 0.0]], Q=0.01 * np.eye(2), R=[[0.01]])
     rates = np.array([[-1.25, 0.75, 0.5], [0.5, -1.25, 0.75], [0.75, 0.5, -1.25]])
     return ModelSpec(sys, sampling={"period": 0.2, "duration": 20.0},
-                     switching={"kind": "markov-continuous", "rates": rates},
+                     switching=MarkovContinuous(rates),
                      initial=(np.zeros(2), np.eye(2)), noise={"u_max": 1.0})
 
 
@@ -89,7 +90,7 @@ def _unobservable_mode() -> ModelSpec:
     sys = SwitchedLinearSystem.continuous(np.stack([A, A]), np.array([[0.0], [1.0]]), C,
                                           Q=0.02 * np.eye(2), R=[[0.01]])
     return ModelSpec(sys, sampling={"period": 0.25, "duration": 30.0},
-                     switching={"kind": "dwell", "min_dwell": 1.0, "max_dwell": 2.0},
+                     switching=Dwell(sys.n_modes, 1.0, 2.0),
                      initial=(np.zeros(2), np.eye(2)), noise={"u_max": 1.0})
 
 
@@ -213,7 +214,7 @@ def _detections(est, traj, Delta: float) -> dict:
 
 def _stay(spec: ModelSpec, t: np.ndarray) -> float | None:
     """A schedule implies no transition matrix; for the vehicle use its long dwell (0.9 per sample)."""
-    return 0.9 if spec.switching.get("kind") == "schedule" else None
+    return 0.9 if isinstance(spec.switching, Schedule) else None
 
 
 def _summary(p: dict, results, out: Path) -> Summary:
@@ -277,7 +278,7 @@ def _fsk_notes(p: dict) -> list[str]:
     s = LEE_SCENARIO
     spec = cases()["FSK phasor"][0]
     a = lee_assumptions(spec.system, u_max=s.u_max, v_max=FSK_V_MAX, x_min=spec.noise["x_min"], delta=s.delta,
-                        Delta=s.Delta, observer_gains=s.observer_gains, min_dwell=spec.switching["min_dwell"])
+                        Delta=s.Delta, observer_gains=s.observer_gains, min_dwell=spec.switching.min_dwell)
     return [(f"FSK phasor: Lee et al.'s Assumptions 1-3 {'hold' if a.holds else 'fail'} for |v| ≤ {FSK_V_MAX:g} "
             f"(noise bound allowed {a.v_max_allowed:.4g}), but the Gaussian noise exceeds 3σ at about "
             f"{np.exp(-4.5):.1%} of the samples, the process noise Q is outside their model and the linear "

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..modelfile import ModelSpec
+from ..switching import IID, AverageDwell, Dwell, Schedule
 from .etienne import ETIENNE_SCENARIO, etienne_academic
 from .lee import LEE_SCENARIO
 from .shankar import BOOST_SAMPLE_PERIOD, boost_converter, vehicle_2d
@@ -29,53 +30,54 @@ def catalog() -> dict[str, ModelSpec]:
     ex1 = WANG_EXAMPLES["example1"]
     grid = smart_grid()
     lee = LEE_SCENARIO
+    boost, academic, phasor = boost_converter(), etienne_academic(), lee.system()
     return {
         "shankar-boost": ModelSpec(
-            boost_converter(), sampling={"period": BOOST_SAMPLE_PERIOD, "duration": 0.1},
-            switching={"kind": "dwell", "min_dwell": 0.9e-3, "max_dwell": 1.2e-3, "initial_mode": 0},
+            boost, sampling={"period": BOOST_SAMPLE_PERIOD, "duration": 0.1},
+            switching=Dwell(boost.n_modes, 0.9e-3, 1.2e-3, initial_mode=0),
             initial=(np.array([0.0, 100.0]), np.diag([25.0, 25.0])), noise={"u_max": 100.0},
             description="Boost converter, Shankar et al. §V.A; input v_in = 100 V. The paper switches every "
                         "1.2 ms until 0.02 s and then randomly in [0.9, 1.2] ms; a file holds one switching "
                         "model, the random dwell. Process noise unstated in the paper (chosen: I)."),
         "shankar-vehicle": ModelSpec(
             vehicle_2d(), sampling={"period": 0.5, "duration": 10.0},
-            switching={"kind": "schedule", "times": [1.65, 2.75, 3.9], "modes": [0, 1, 2, 0]},
+            switching=Schedule([1.65, 2.75, 3.9], [0, 1, 2, 0]),
             initial=(np.zeros(4), 0.01 * np.eye(4)), noise={"u_max": 1.0},
             description="Vehicle maneuver, Shankar et al. §V.B; input u = 1. Process noise unstated in the "
                         "paper (chosen: 1e-3 I)."),
         "zhang-two-mode": ModelSpec(
             zhang_two_mode(), sampling={"duration": 30.0},
-            switching={"kind": "iid", "p": [0.5, 0.5]}, initial=(np.array([10.0, -10.0]), np.eye(2)),
+            switching=IID([0.5, 0.5]), initial=(np.array([10.0, -10.0]), np.eye(2)),
             description="Zhang & Natarajan §5.1, Example 1 (discrete time). The switching model is a choice "
                         "(the paper fixes mode sequences per figure)."),
         "zhang-smart-grid": ModelSpec(
             grid, sampling={"duration": 6.0},
-            switching={"kind": "iid", "p": [1 / 3, 1 / 3, 1 / 3]},
+            switching=IID([1 / 3, 1 / 3, 1 / 3]),
             initial=(np.ones(grid.n_states), np.eye(grid.n_states)),
             description="Zhang & Natarajan §2.2 / Table 1 smart grid, tau = 0.1 s (the value that reproduces "
                         "the printed norms). The switching model is a choice."),
         "wang-example1": ModelSpec(
             ex1.system(), sampling={"period": ex1.T, "duration": 3.0},
-            switching={"kind": "iid", "p": ex1.probabilities().tolist()},
+            switching=IID(ex1.probabilities()),
             initial=(np.zeros(2), np.eye(2)),
             description="Wang et al. Example 1: two scalar systems, each mode observes one; i.i.d. modes at "
                         "t = kT. R holds the output-noise intensity Xi Xi'."),
         "wang-ieee5bus": ModelSpec(
             ieee_5bus(), sampling={"period": IEEE_5BUS_SAMPLE_PERIOD, "duration": 30.0},
-            switching={"kind": "iid", "p": ieee_5bus_mode_probabilities().tolist()},
+            switching=IID(ieee_5bus_mode_probabilities()),
             initial=(np.zeros(4), np.eye(4)),
             description="Wang et al. §6: IEEE 5-bus, printed linearized A, sensor modes of Table 3 with "
                         "packet-loss probabilities; T = 0.6997."),
         "etienne-academic": ModelSpec(
-            etienne_academic(),
+            academic,
             sampling={"tau_min": ETIENNE_SCENARIO.tau_min, "tau_max": ETIENNE_SCENARIO.tau_max, "duration": 40.0},
-            switching={"kind": "average-dwell", "tau_a": ETIENNE_SCENARIO.dwell, "N0": 1.0, "initial_mode": 0},
+            switching=AverageDwell(academic.n_modes, ETIENNE_SCENARIO.dwell, 1.0, initial_mode=0),
             initial=(np.zeros(2), np.eye(2)),
             description="Etienne et al. §4 academic example: aperiodic sampling in [0.3, 0.4], average dwell "
                         "time 7 (chatter bound N0 = 1, unstated in the paper); no noise."),
         "lee-fsk": ModelSpec(
-            lee.system(), sampling={"period": 0.0025, "duration": lee.horizon},  # lee-detection's grid
-            switching={"kind": "dwell", "min_dwell": lee.min_dwell, "max_dwell": lee.max_dwell, "initial_mode": 0},
+            phasor, sampling={"period": 0.0025, "duration": lee.horizon},  # lee-detection's grid
+            switching=Dwell(phasor.n_modes, lee.min_dwell, lee.max_dwell, initial_mode=0),
             initial=(np.array(lee.x0), np.zeros((2, 2))),
             noise={"v_max": lee.v_max, "u_max": lee.u_max, "x_min": lee.x_min(), "delta": lee.delta,
                    "Delta": lee.Delta, "observer_decay": lee.observer_decay},
