@@ -11,7 +11,7 @@ interval. Contenders, all on the same data:
 
 * ``grid`` — ``SwitchTimeKalmanFilter(grid=g)``: modes at the samples known, the switching
   instant the grid maximizer of the likelihood (eq. (23));
-* ``refine`` — the same with ``refine=True``: a golden-section search of the exact
+* ``refine`` — the same with ``refine=True``: Brent's search of the exact
   likelihood inside the winning grid cell (issue 13's target: at most 3x ``grid``);
 * ``marginal`` — ``switch_time="marginal"``: every grid instant updated and merged with its
   posterior weight;

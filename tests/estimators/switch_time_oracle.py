@@ -3,32 +3,36 @@
 A copy of the numpy implementation: each step predicts and updates the whole batch of trials
 with :func:`switchest.estimators.kalman.kf_predict` and ``kf_update``, the grid transitions come
 from :func:`switchest.discretize.pairwise_grid` and every refinement probe from its own
-:func:`switchest.discretize.interval` (a block matrix exponential). One addition:
+:func:`switchest.discretize.interval` (a block matrix exponential), the search of the cell
+written here from Brent's ``fmin`` (:func:`brent_maximize`), a lane at a time. One addition:
 ``resolution``, the number of steps per interval to which a probe's instant is rounded before its
-transition is taken (``None``: exact, as before); given the compiled filter's resolution, the two
-follow the same golden-section path.
+transition is taken (``None``: exact); given the compiled filter's resolution, the two follow
+the same search path. ``tolerance`` (units of the interval) is the compiled filter's ``REFINE_TOLERANCE`` unless
+given.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy_kalman import kf_predict, kf_update
 
 from switchest._linalg import log_normalize, mixture_moments
 from switchest.discretize import interval, mode_steps, pairwise_grid, switch_grid
-
-_GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+from switchest.estimators._compiled.switch_time import REFINE_TOLERANCE
 
 
 class SwitchTimeOracle:
     """The numpy switch-time Kalman filter; options as in ``SwitchTimeKalmanFilter``."""
 
     def __init__(self, system, x0, P0, *, grid=5, refine=False, likelihood="innovation",
-                 refine_iterations=20, switch_time="max", gate=None, resolution=None):
+                 refine_iterations=20, switch_time="max", gate=None, resolution=None,
+                 tolerance=REFINE_TOLERANCE):
         self.system, self.x0, self.P0 = system, np.asarray(x0, float), np.asarray(P0, float)
         self.grid, self.refine, self.likelihood = grid, refine, likelihood
         self.refine_iterations, self.switch_time, self.gate = refine_iterations, switch_time, gate
-        self.resolution = resolution
+        self.resolution, self.tolerance = resolution, tolerance
 
     def run(self, y, u, t, modes):
         """Filter ``y (N, K, m)`` with inputs ``u (N, K, l)`` along ``modes (N, K)``; returns a
@@ -121,30 +125,87 @@ class SwitchTimeOracle:
         return ll
 
     def _golden(self, x, P, y, u, prev, mode, dt, lo, hi, best_tau, best_ll, best_tr):
+        """Brent's search of each lane's cell, one lane at a time (:func:`brent_maximize`),
+        started from the grid instant; a probe replaces the grid instant only where its
+        likelihood is higher."""
         best_F, best_G, best_Q = (a.copy() for a in best_tr)
         best_tau, best_ll = best_tau.copy(), best_ll.copy()
-        pair = np.stack([prev, mode], axis=1)
+        for i in np.flatnonzero(np.isfinite(best_ll)):  # an uninformed lane is not searched
+            sl = slice(i, i + 1)
 
-        def probe(tau):
-            if self.resolution is not None:
-                steps = np.clip(np.floor(tau / dt * self.resolution + 0.5), 0, self.resolution)
-                tau = steps * (dt / self.resolution)
-            tr = interval(self.system, dt, pair, tau[:, None])
-            ll = self._loglik(x, P, tr.F, tr.G, u, tr.Qd, y, mode)
-            better = ll > best_ll
-            best_tau[better], best_ll[better] = tau[better], ll[better]
-            best_F[better], best_G[better] = tr.F[better], tr.G[better]
-            best_Q[better] = tr.Qd[better]
-            return ll
+            def probe(tau, i=i, sl=sl):
+                if self.resolution is not None:
+                    steps = min(max(np.floor(tau / dt * self.resolution + 0.5), 0),
+                                self.resolution)
+                    tau = steps * (dt / self.resolution)
+                tr = interval(self.system, dt, [prev[i], mode[i]], [tau])
+                ll = float(self._loglik(x[sl], P[sl], tr.F[None], tr.G[None], u[sl],
+                                        tr.Qd[None], y[sl], mode[sl])[0])
+                if ll > best_ll[i]:
+                    best_tau[i], best_ll[i] = tau, ll
+                    best_F[i], best_G[i], best_Q[i] = tr.F, tr.G, tr.Qd
+                return ll
 
-        a, b = lo.copy(), hi.copy()
-        c, d = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
-        fc, fd = probe(c), probe(d)
-        for _ in range(self.refine_iterations):
-            left = fc > fd
-            a, b = np.where(left, a, c), np.where(left, d, b)
-            c_new, d_new = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
-            f_new = probe(np.where(left, c_new, d_new))
-            c, d = np.where(left, c_new, d), np.where(left, c, d_new)
-            fc, fd = np.where(left, f_new, fd), np.where(left, fc, f_new)
+            brent_maximize(probe, float(lo[i]), float(hi[i]), float(best_tau[i]),
+                           float(best_ll[i]), self.tolerance * dt, self.refine_iterations)
         return best_tau, (best_F, best_G, best_Q)
+
+
+def brent_maximize(f, a, b, x, fx, tol, max_probes):
+    """Brent's method for a maximum of ``f`` on ``[a, b]`` from ``x`` with ``f(x) = fx``
+    (Brent 1973, ch. 5; Forsythe, Malcolm & Moler's ``fmin`` on ``-f``), at most
+    ``max_probes`` evaluations; returns how many were made.
+
+    Straight from ``fmin``: stop when ``|x - (a + b)/2| <= 2 tol1 - (b - a)/2`` with
+    ``tol1 = sqrt(eps) |x| + tol / 3``; else a parabola through ``x``, ``w``, ``v`` if it falls
+    inside ``(a, b)`` and moves less than half the step before last, else a golden-section
+    step ``c e`` (``c = (3 - sqrt 5) / 2``) into the larger part; never nearer than ``tol1``.
+    """
+    c = 0.5 * (3.0 - math.sqrt(5.0))
+    eps = math.sqrt(np.finfo(float).eps)
+    fx = -fx
+    v = w = x
+    fv = fw = fx
+    d = e = 0.0
+    for count in range(max_probes):
+        xm = 0.5 * (a + b)
+        tol1 = eps * abs(x) + tol / 3.0
+        tol2 = 2.0 * tol1
+        if abs(x - xm) <= tol2 - 0.5 * (b - a):
+            return count
+        parabola = False
+        if abs(e) > tol1:
+            r = (x - w) * (fx - fv)
+            q = (x - v) * (fx - fw)
+            p = (x - v) * q - (x - w) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            q = abs(q)
+            r, e = e, d
+            if abs(p) < abs(0.5 * q * r) and q * (a - x) < p < q * (b - x):
+                parabola = True
+                d = p / q
+                if (x + d) - a < tol2 or b - (x + d) < tol2:
+                    d = tol1 if xm - x >= 0.0 else -tol1
+        if not parabola:
+            e = (a - x) if x >= xm else (b - x)
+            d = c * e
+        u = x + d if abs(d) >= tol1 else x + (tol1 if d >= 0.0 else -tol1)
+        fu = -f(u)
+        if fu <= fx:
+            if u >= x:
+                a = x
+            else:
+                b = x
+            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
+        else:
+            if u < x:
+                a = u
+            else:
+                b = u
+            if fu <= fw or w == x:
+                v, fv, w, fw = w, fw, u, fu
+            elif fu <= fv or v == x or v == w:
+                v, fv = u, fu
+    return max_probes

@@ -8,7 +8,7 @@ another order, so the outputs agree to rounding. Tolerance: 1e-9 of each array's
 (observed agreement ~1e-14 over these <= 60 steps); switch offsets to 1e-9 of the interval.
 
 A refinement probe is quantized to T / 2^22. With the oracle's probes quantized the same way
-(``resolution``), the two follow the same golden-section path and agree to rounding as well.
+(``resolution``), the two follow the same path of Brent's search and agree to rounding as well.
 Against the exact oracle a search may part ways where two probes' likelihoods differ by less
 than the quantization changes them (the maximum within a quantum of a bracket's middle); both
 still end within the final bracket of the maximum, which is what is compared there.
@@ -28,10 +28,14 @@ from switchest.discretize import (
 )
 from switchest.estimators import SwitchTimeKalmanFilter
 from switchest.estimators import switch_time as switch_time_module
-from switchest.estimators._compiled.switch_time import switch_time_run
+from switchest.estimators._compiled.switch_time import REFINE_TOLERANCE, switch_time_run
 from switchest.estimators.switch_time import SwitchTimeState, switch_time_loglik
-from switchest.models import BOOST_INPUT_VOLTAGE, BOOST_SAMPLE_PERIOD, boost_converter
-from switchest.models import boost_switching
+from switchest.models import (
+    BOOST_INPUT_VOLTAGE,
+    BOOST_SAMPLE_PERIOD,
+    boost_converter,
+    boost_switching,
+)
 from switchest.simulate import simulate
 from switchest.system import SwitchedLinearSystem
 
@@ -169,11 +173,21 @@ def test_an_uninformed_switch_takes_the_middle_instant_or_the_grid_mean():
         assert not est.outlier[:, k].any()
 
 
+def switched_loglik(system, T, x, P, y, u, prev, mode, offset):
+    """``J_k`` of each lane at its switching ``offset`` into an interval ``T``, through the
+    exact transition of :func:`interval` (a matrix exponential) and the innovation likelihood."""
+    tr = interval(system, T, np.stack([prev, mode], axis=1), np.clip(offset, 0, T)[:, None])
+    xp = np.einsum("nij,nj->ni", tr.F, x) + np.einsum("nij,nj->ni", tr.G, u)
+    Pp = tr.F @ P @ np.swapaxes(tr.F, 1, 2) + tr.Qd
+    return switch_time_loglik(xp, Pp, y, system.C[mode], system.R[mode])
+
+
 @pytest.mark.parametrize("g", [1, 2, 5])
 def test_refinement_reaches_the_exact_searchs_likelihood(g):
-    # one step from the same priors, against the oracle's exact probes: both searches end within
-    # the final bracket w = 0.618^20 T / g of the maximum, so the instant reached differs by at
-    # most 2 w and its likelihood is lower by at most J's drop over 2 w around the oracle's
+    # one step from the same priors, against the oracle's search with exact (unquantized)
+    # probes: both stop once the maximizer is bracketed to about 2 tol (tol = REFINE_TOLERANCE
+    # T), so the instants reached differ by at most w = 4 tol and the compiled one's likelihood
+    # is lower than the exact search's by at most J's drop over w around it
     system, T = boost_converter(), T_BOOST
     rng = np.random.default_rng(5)
     N = 200
@@ -189,20 +203,40 @@ def test_refinement_reaches_the_exact_searchs_likelihood(g):
     tau_exact = oracle.step(x, P, y, u, dt=T, mode=mode, prev_mode=prev)[3]
 
     def J(offset):
-        tr = interval(system, T, np.stack([prev, mode], axis=1), np.clip(offset, 0, T)[:, None])
-        xp = np.einsum("nij,nj->ni", tr.F, x) + tr.G[..., 0] * BOOST_INPUT_VOLTAGE
-        Pp = tr.F @ P @ np.swapaxes(tr.F, 1, 2) + tr.Qd
-        return switch_time_loglik(xp, Pp, y, system.C[mode], system.R[mode])
+        return switched_loglik(system, T, x, P, y, u, prev, mode, offset)
 
-    w = (np.sqrt(5.0) - 1.0) ** 20 / 2.0**20 * T / g
+    w = 4 * REFINE_TOLERANCE * T
     J_exact = J(tau_exact)
-    drop = np.maximum(J_exact - J(tau_exact - 2 * w), J_exact - J(tau_exact + 2 * w))
-    assert np.all(np.abs(tau - tau_exact) <= 2 * w)
+    drop = np.maximum(J_exact - J(tau_exact - w), J_exact - J(tau_exact + w))
+    assert np.all(np.abs(tau - tau_exact) <= w)
     assert np.all(J(tau) >= J_exact - np.maximum(drop, 0.0) - 1e-12 * np.abs(J_exact))
     quantum = T / RESOLUTION
     probed = np.all(np.abs(tau[:, None] - switch_grid(T, g)) > quantum / 4, axis=1)
     assert probed.sum() > N // 2  # where a probe beat the grid instant, it is a table instant
     assert np.all(np.abs(tau[probed] / quantum - np.round(tau[probed] / quantum)) < 1e-6)
+
+
+@pytest.mark.parametrize("g", [1, 3, 5])
+def test_the_refined_instant_is_at_least_as_likely_as_the_grid_maximum(g):
+    # every switched step of a run: from the prior the refined filter had there (its posterior
+    # at the sample before), J_k at the instant it chose, recomputed through an exact matrix
+    # exponential, is at least J_k's largest value on the grid (up to rounding)
+    system, t, y, u, modes, (x0, P0) = boost_case(trials=6)
+    est = SwitchTimeKalmanFilter(system, x0, P0, grid=g, refine=True).run(y, u, t, modes=modes)
+    n_switched = 0
+    for k in range(1, t.size):
+        sw = np.flatnonzero(modes[:, k] != modes[:, k - 1])
+        if not sw.size:
+            continue
+        T = t[k] - t[k - 1]
+        args = (system, T, est.x[sw, k - 1], est.P[sw, k - 1], y[sw, k], u[sw, k - 1],
+                modes[sw, k - 1], modes[sw, k])
+        grid_best = np.max([switched_loglik(*args, np.full(sw.size, tau))
+                            for tau in switch_grid(T, g)], axis=0)
+        refined = switched_loglik(*args, est.switch_time[sw, k] - t[k - 1])
+        assert np.all(refined >= grid_best - 1e-9 * np.abs(grid_best))
+        n_switched += sw.size
+    assert n_switched > 100
 
 
 @pytest.mark.parametrize("make", [boost_converter, three_mode_system])
@@ -282,6 +316,8 @@ def test_the_kernel_refuses_inconsistent_tables():
         switch_time_run(*args, levels=(1, 2), **common)
     with pytest.raises(ValueError, match="iterations = 3 needs refinement levels"):
         switch_time_run(*args, iterations=3, **common)
+    with pytest.raises(ValueError, match="tolerance must be a finite number >= 0, got -1.0"):
+        switch_time_run(*args, tolerance=-1.0, **common)
     with pytest.raises(ValueError, match="which must index 0..0"):
         switch_time_run(*args[:2], [0, 1, 0], *args[3:], **common)
     with pytest.raises(ValueError, match=r"x0 must have shape \(N, n\)"):

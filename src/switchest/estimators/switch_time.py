@@ -40,7 +40,7 @@ from ..discretize import (
     switch_grid,
 )
 from ._compiled import GATED, raise_for_status, warn_for_repairs
-from ._compiled.switch_time import switch_time_run
+from ._compiled.switch_time import coarse_outputs, switch_time_run
 from .base import Estimate, Estimator
 from .kalman import kf_update
 
@@ -134,18 +134,22 @@ class SwitchTimeKalmanFilter(Estimator):
         Number g of candidate switching instants per interval,
         ``tau_i = i T / g - T / (2 g)`` (eq. (23)).
     refine : bool
-        Beyond the paper: polish the grid maximum by a golden-section search of
-        the exact likelihood over the grid cell around it, ``[tau - T/(2g),
-        tau + T/(2g)]`` (``refine_iterations`` steps shrink the cell by 0.618
-        each); the grid instant is kept unless a probe beats it. Each probe is
-        quantized to ``T / 2^22`` (2.4e-7 T, below the bracket of 6.6e-5 T / g that
-        20 steps leave) and its transition composed exactly from three flows of a
-        table (:func:`switchest.discretize.offset_table`), without a matrix exponential.
+        Beyond the paper: polish the grid maximum by Brent's method (golden section
+        and parabolic interpolation, Brent 1973 ch. 5) on the exact likelihood over
+        the grid cell around it, ``[tau - T/(2g), tau + T/(2g)]``, started from the
+        grid instant; the search stops once the maximizer is bracketed to within
+        about ``2e-4 T`` (tolerance ``1e-4 T``,
+        :data:`~switchest.estimators._compiled.switch_time.REFINE_TOLERANCE`) or after
+        ``refine_iterations`` probes. The grid instant is kept unless a probe beats
+        it. Each probe is quantized to ``T / 2^22`` (2.4e-7 T) and its likelihood is
+        exact there: its transition is composed from three flows of a table
+        (:func:`switchest.discretize.offset_table`), without a matrix exponential.
     likelihood : {"innovation", "printed"}
         Which ``J_k`` to maximize, see :func:`switch_time_loglik`.
     refine_iterations : int
-        Golden-section steps when ``refine=True`` (beyond about 30 the bracket is below the
-        quantum ``T / 2^22`` and further steps repeat probes).
+        The most probes of the search when ``refine=True`` (a cap: on the boost converter
+        of Shankar et al. a search stops at its tolerance after 7-12 probes, about 20 where
+        the maximum lies at an end of the cell).
     switch_time : {"max", "marginal"}
         ``"max"``: the grid maximizer of eq. (23) (the paper). ``"marginal"``
         (beyond the paper): every grid instant is predicted and updated, and the
@@ -285,13 +289,15 @@ class SwitchTimeKalmanFilter(Estimator):
         and warns of repaired covariances."""
         key = (self.system, tuple(steps.tolist()), self.grid, self.refine)
         size = steps.size * offset_table_nbytes(self.system) if self.refine else 0
-        F, G, Qd, grid_tau, levels = (_cached_tables if size <= _CACHED_BYTES else _tables)(*key)
+        F, G, Qd, grid_tau, levels, outputs = (_cached_tables if size <= _CACHED_BYTES
+                                               else _tables)(*key)
         out = switch_time_run(y, u, which, mode, prev, self.system.C, self.system.R, F, G, Qd,
                               steps, grid_tau, x, P, levels=levels, predict_first=predict_first,
                               marginal=self.switch_time == "marginal",
                               printed=self.likelihood == "printed",
                               gate=np.inf if self.gate is None else self.gate,
-                              iterations=self.refine_iterations if self.refine else 0)
+                              iterations=self.refine_iterations if self.refine else 0,
+                              outputs=outputs)
         raise_for_status(out.status)
         warn_for_repairs(out)
         return out
@@ -328,7 +334,8 @@ def _tables(system, steps: tuple, g: int, refine: bool):
     G = np.concatenate([np.empty((0, n, l))] + [p.G.reshape(-1, n, l) for p in parts])
     Qd = np.concatenate([np.empty((0, n, n))] + [p.Qd.reshape(-1, n, n) for p in parts])
     grid_tau = np.array([switch_grid(h, g) for h in steps]).reshape(len(steps), g)
-    return F, G, Qd, grid_tau, levels
+    outputs = coarse_outputs(system.C, F, G, Qd, len(steps), g, levels[0])
+    return F, G, Qd, grid_tau, levels, outputs
 
 
 _cached_tables = lru_cache(maxsize=8)(_tables)  # the kernel only reads them

@@ -8,8 +8,8 @@ laid across SIMD lanes.
 The mode at each sample is known. When it changes over an interval, from ``a`` to ``b``, the
 switching instant ``tau`` is estimated from the likelihood of the new measurement,
 ``J_k(tau) = N(y; C x-(tau), C P-(tau) C' + R)`` (Shankar et al. §IV): the maximizer over the
-grid ``tau_i = i T / g - T / (2 g)`` (eq. (23)), optionally refined by a golden-section search
-over the grid cell around it, or the moment-matched merge of every grid hypothesis
+grid ``tau_i = i T / g - T / (2 g)`` (eq. (23)), optionally refined by Brent's search over the
+grid cell around it (:func:`_refine`), or the moment-matched merge of every grid hypothesis
 (``marginal``). The filter then predicts with the transition of the estimate (eqs (4)-(5),
 (6)-(7)) and updates (eqs (8)-(10), Joseph form).
 
@@ -32,9 +32,11 @@ in four sections:
 
 The last two are the :class:`switchest.discretize.OffsetTable` of the step (``N1 = N0 =
 2^11``). A refinement probe at ``tau`` is quantized to ``(c N0 + q) T / (N1 N0)`` (2.4e-7 T,
-under 1/50 of the bracket 0.618^20 T / g that 20 golden-section steps leave for g <= 5) and
-composed from three flows of the table, ``i`` over ``c T / N1``, the span ``c`` switching at
-``q``, ``j`` over ``(N1 - 1 - c) T / N1``: no matrix exponential per probe.
+under 1/400 of the search's tolerance :data:`REFINE_TOLERANCE` ``T``) and composed from three
+flows of the table, ``i`` over ``c T / N1``, the span ``c`` switching at ``q``, ``j`` over
+``(N1 - 1 - c) T / N1``: no matrix exponential per probe. The last flow's ``C_j F``, ``C_j G``,
+``C_j Qd C_j'`` are computed once per table (:func:`coarse_outputs`), so that a probe pulls the
+output map back through two flows only.
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ from .bank import LANES
 from .linalg import (
     ACCEPTED,
     GATED,
+    NOT_FINITE,
     NOT_POSITIVE_DEFINITE,
     OK,
     _moments,
@@ -66,9 +69,19 @@ from .linalg import (
     repair,
 )
 
-__all__ = ["SwitchTimeOutput", "switch_time_run", "switch_time_filter", "pull_back"]
+__all__ = [
+    "SwitchTimeOutput",
+    "switch_time_run",
+    "switch_time_filter",
+    "pull_back",
+    "coarse_outputs",
+    "REFINE_TOLERANCE",
+]
 
-_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+_GOLDEN_STEP = (3.0 - math.sqrt(5.0)) / 2.0  # 1 - 0.618...: Brent's golden-section step
+_SQRT_EPS = math.sqrt(np.finfo(np.float64).eps)  # Brent's relative tolerance on the instant
+_LOG_2PI = math.log(2.0 * math.pi)
+REFINE_TOLERANCE = 1e-4  # Brent's tolerance on the refined instant (tol = 1e-4 T, _refine)
 
 # The functions of a probe, inlined into their callers: a call passing a dozen arrays costs about
 # 100 ns (their reference counts), as much as the arithmetic of a probe on a few lanes.
@@ -111,7 +124,8 @@ class SwitchTimeOutput(NamedTuple):
 
 def switch_time_run(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, x0, P0, *,
                     levels=(0, 0), predict_first: bool, marginal: bool, printed: bool,
-                    gate=math.inf, iterations: int = 0) -> SwitchTimeOutput:
+                    gate=math.inf, iterations: int = 0, tolerance: float = REFINE_TOLERANCE,
+                    outputs=None) -> SwitchTimeOutput:
     """Switch-time Kalman filter of ``N`` trials over ``K`` samples (Shankar et al. §IV).
 
     Parameters
@@ -149,7 +163,14 @@ def switch_time_run(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, x0
     gate : float
         Largest normalized innovation squared accepted (``inf``: no gate).
     iterations : int
-        Golden-section steps of the refinement (0: no refinement; needs the last sections).
+        Most probes of the refinement's search (0: no refinement; needs the last sections).
+    tolerance : float
+        The refinement's tolerance on the switching instant, in units of the sampling step
+        (Brent's ``tol``, :func:`_refine`).
+    outputs : tuple of array_like, optional
+        ``(C F, C G, C Qd C')`` of the coarse section with each row's own mode's ``C``, shapes
+        ``(D L N1, m, n)``, ``(D L N1, m, l)``, ``(D L N1, m, m)`` (:func:`coarse_outputs`;
+        computed here when not given).
     """
     sizes: dict[str, int] = {}
     y = floats(y, "y", "NKm", sizes)
@@ -178,6 +199,14 @@ def switch_time_run(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, x0
                          f"(D = {D}, L = {L}, g = {g}, levels = {levels}), got {sizes['M']}")
     if iterations < 0 or (iterations and (n_coarse < 1 or n_switch < 2)):
         raise ValueError(f"iterations = {iterations} needs refinement levels, got {levels}")
+    tolerance = float(tolerance)
+    if not (math.isfinite(tolerance) and tolerance >= 0.0):
+        raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance}")
+    if outputs is None:
+        outputs = coarse_outputs(C, F, G, Qd, D, g, n_coarse)
+    sizes["H"] = D * L * n_coarse
+    outputs = tuple(floats(arr, f"outputs[{i}]", axes, sizes)
+                    for i, (arr, axes) in enumerate(zip(outputs, ("Hmn", "Hml", "Hmm"))))
     predicting = slice(0 if predict_first else 1, None)
     if not D and which[predicting].size:
         raise ValueError("steps must hold the sampling step of every predicted sample, got none")
@@ -187,10 +216,28 @@ def switch_time_run(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, x0
     flag, report = np.empty((N, K), dtype=np.uint8), np.empty(2)
     status = switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau,
                                 n_coarse, n_switch, x0, P0, bool(predict_first), bool(marginal),
-                                bool(printed), check_gate(gate), iterations, LANES, x, P,
-                                loglik, offset, flag, report)
+                                bool(printed), check_gate(gate), iterations, tolerance,
+                                outputs, LANES, x, P, loglik, offset, flag, report)
     return SwitchTimeOutput(x, P, loglik, offset, flag, int(status), int(report[0]),
                             float(report[1]))
+
+
+def coarse_outputs(C, F, G, Qd, D: int, g: int, n_coarse: int):
+    """The output map pulled back through each flow of the coarse section of the table:
+    ``C_i F``, ``C_i G`` and ``C_i Qd C_i'`` of row ``(d L + i) N1 + c`` (mode ``i`` over
+    ``c T / N1``, Shankar et al. eqs (4)-(5) with the exact process noise), with ``C_i`` the
+    output matrix of that mode; the last flow of every refinement probe starts from them
+    (:func:`_refine`). Shapes ``(D L N1, m, n)``, ``(D L N1, m, l)``, ``(D L N1, m, m)``; the
+    last exactly symmetric."""
+    C, F, G, Qd = (np.asarray(a, dtype=float) for a in (C, F, G, Qd))
+    L, m = C.shape[0], C.shape[1]
+    first = D * L * (1 + L * g)
+    rows = slice(first, first + D * L * n_coarse)
+    Ci = np.broadcast_to(C[None, :, None], (D, L, n_coarse, m, C.shape[2]))
+    Ci = Ci.reshape(-1, m, C.shape[2])
+    CF, CG = Ci @ F[rows], Ci @ G[rows]
+    CQC = Ci @ Qd[rows] @ np.swapaxes(Ci, -1, -2)
+    return CF, CG, 0.5 * (CQC + np.swapaxes(CQC, -1, -2))
 
 
 # ---------------------------------------------------------------- lanes
@@ -296,15 +343,6 @@ def _start(E, Go, Qo, C, nb):
 
 
 @inline
-def _chain(F, G, Qd, seg, ns, start, E, Go, Qo, EQ):
-    """Pull ``start`` (``C`` or ``I`` per lane) back through each lane's segments
-    ``seg (S, B)`` of the table, the last one first (:func:`pull_back`)."""
-    _start(E, Go, Qo, start, ns)
-    for s in range(seg.shape[0]):
-        pull_back(E, Go, Qo, F, G, Qd, seg[s], ns, EQ)
-
-
-@inline
 def _innovate(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work, bad,
               report):
     """:func:`.linalg.innovation` with the bank's rule for a failed factorization: the failing
@@ -366,24 +404,6 @@ def _likelihood(x, P, y, u, obs, n_obs, R, E, Go, Qo, printed, gate, nb, ye, Re,
 
 
 # ---------------------------------------------------------------- switching instant
-@inline
-def _offset_rows(qidx, row_a, row_b, pair, coarse, switch, n_coarse, n_switch, ns, seg):
-    """The table rows of the three flows of a switch at ``qidx[c] = j N0 + q`` steps of
-    ``dt / (N1 N0)`` into ``seg (3, B)``, the last flow first: ``b`` over
-    ``(N1 - 1 - j) dt / N1``, the span ``j`` switching at ``q``, ``a`` over ``j dt / N1``
-    (:class:`switchest.discretize.OffsetTable`; ``N1 = n_coarse``, ``N0 + 1 = n_switch``).
-    ``row_a``, ``row_b``, ``pair`` are each lane's ``d L + a``, ``d L + b`` and
-    ``(d L + a) L + b``; ``coarse``, ``switch`` the first rows of the table's last sections."""
-    N0 = n_switch - 1
-    for c in range(ns):
-        j, q = qidx[c] // N0, qidx[c] % N0
-        if j == n_coarse:  # at the end of the interval: the last span, switching at its end
-            j, q = n_coarse - 1, N0
-        seg[0, c] = coarse + row_b[c] * n_coarse + n_coarse - 1 - j
-        seg[1, c] = switch + pair[c] * n_switch + q
-        seg[2, c] = coarse + row_a[c] * n_coarse + j
-
-
 @jit
 def _grid_maximum(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws, lw, obsv, gs, report):
     """Grid maximum of Shankar et al. eq. (23) for the compacted switched lanes; writes the
@@ -433,80 +453,264 @@ def _grid_maximum(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws, lw, obsv, 
 
 
 @jit
-def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws, lw, obsv, full, gs, gold, eye,
-            report):
-    """Golden-section search of ``J_k`` over the grid cell around the grid maximum (beyond
-    Shankar et al.): ``[tau - T/(2g), tau + T/(2g)]`` clipped to ``[0, T]``, ``2 + iterations``
-    probes, each step keeping ``[lo, pd]`` if ``J(pc) > J(pd)`` else ``[pc, hi]``. Each probe is
-    quantized to the offset table's resolution and its ``J_k`` (:func:`_likelihood`) taken
-    through its three flows (:func:`_offset_rows`, :func:`pull_back`). The grid instant is kept
-    unless a probe beats it; a winning probe's transition is composed exactly (pulled back
-    from ``I``) into the lane's ``Fl``, ``Gl``, ``Ql``, its instant written into ``off``.
-    Returns the status."""
-    x, P, y, u, obs, n_obs, Cs, Rs, row_a, row_b, pair = sw
+def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs, pk, report):
+    """Brent's search of ``J_k`` over the grid cell around the grid maximum (beyond Shankar et
+    al.), for each compacted switched lane: ``[tau - T/(2g), tau + T/(2g)]`` clipped to
+    ``[0, T]``, started from the grid instant ``tau`` and its ``J_k``. Returns the status.
+
+    The search is Brent's method (Brent, *Algorithms for Minimization without Derivatives*,
+    1973, ch. 5; ``fmin`` of Forsythe, Malcolm & Moler, 1977) on ``-J_k``: a parabola through
+    the three best points where it falls inside the bracket and moves less than half the step
+    before last, else a golden-section step into the larger part; no probe nearer than
+    ``tol1 = sqrt(eps) |tau| + tol / 3`` to the best point, with ``tol = opts[3] T``. It
+    stops when the best point lies within ``2 tol1 - w / 2`` of the middle of the bracket
+    (width ``w``), i.e. the maximizer is bracketed to within about ``2 tol``, or after
+    ``iterations`` probes. An uninformed lane (``J_k`` of its grid maximum ``inf``) is not
+    searched.
+
+    A probe at ``tau`` is quantized to ``k dt / (N1 N0)``, ``k = j N0 + q``, and its ``J_k``
+    is exact there: the output map of ``b`` over ``(N1 - 1 - j) dt / N1`` (``C_b F``, ``C_b G``,
+    ``C_b Qd C_b'`` of :func:`coarse_outputs`) is pulled back through the span ``j`` switching
+    at ``q`` and ``a`` over ``j dt / N1`` (Shankar et al. eqs (4)-(5) composed as in
+    :func:`pull_back`), then
+    ``J = log N(y - Go u; E x, E P E' + Qo + R)`` (or the paper's literal ``N(y; C x-(tau),
+    R)``) as in :func:`_likelihood`, a lane at a time: the equations of :func:`pull_back` and
+    :func:`.linalg.innovation` (equilibrated Cholesky factor, eq. (8)) written out here, in
+    one body, because passing arrays to a helper per probe costs more (their reference
+    counts) than the arithmetic of a small system. A lane whose factorization fails has its
+    ``P`` repaired (:func:`.linalg.repair`) and is factored once more.
+
+    The grid instant is kept unless a probe beats it; a winning probe's transition is composed
+    exactly (pulled back from ``I``) into the lane's ``Fl``, ``Gl``, ``Ql``, its instant
+    written into ``off``.
+    """
+    x, P, y, u, obs, n_obs, _, Rs, row_a, row_b, pair = sw
     F, G, Qd, steps, grid_tau = tables[0], tables[1], tables[2], tables[3], tables[4]
     coarse, switch, n_coarse, n_switch = tables[6], tables[7], tables[8], tables[9]
-    printed, gate, iterations = opts
-    e, PCt, chol, scale, z, nis, loglik, work, bad = ws
-    ye, Re, zero = lw
-    E, Go, Qo, EQ = obsv
-    best, best_ll, qidx, seg, win = gs[0], gs[1], gs[3], gs[4], gs[5]
-    lo, hi, pc, pd, fc, fd, probe, f, left = gold
+    printed, gate, iterations, tolerance = opts
+    best, best_ll, win = gs[0], gs[1], gs[4]
+    CF, CG, CQC = tables[10], tables[11], tables[12]
+    E, EQ, EF, Go, Qo, PCt, chol, scale, e, T1, T2, Gt = pk
+    m, n, n_in = E.shape[0], E.shape[1], Go.shape[1]
     dt = steps[d]
     g = grid_tau.shape[1]
-    total = n_coarse * (n_switch - 1)
+    N0 = n_switch - 1
+    total = n_coarse * N0
     half = dt / (2 * g)
+    tol = tolerance * dt
+    first = 0 if not printed or gate < math.inf else 1  # 0: the innovation's J, 1: printed
     for c in range(ns):
-        tau = grid_tau[d, best[c]]
-        lo[c], hi[c] = min(max(tau - half, 0.0), dt), min(max(tau + half, 0.0), dt)
-        pc[c] = hi[c] - _GOLDEN * (hi[c] - lo[c])
-        pd[c] = lo[c] + _GOLDEN * (hi[c] - lo[c])
         win[c] = -1
-    for s in range(iterations + 2):
-        for c in range(ns):
-            if s == 0:
-                probe[c] = pc[c]
-            elif s == 1:
-                probe[c] = pd[c]
-            else:  # the maximum lies in [lo, pd] if J(pc) > J(pd), else in [pc, hi]
-                left[c] = fc[c] > fd[c]
-                if left[c]:
-                    hi[c] = pd[c]
-                    probe[c] = hi[c] - _GOLDEN * (hi[c] - lo[c])
-                else:
-                    lo[c] = pc[c]
-                    probe[c] = lo[c] + _GOLDEN * (hi[c] - lo[c])
-            qidx[c] = min(max(int(math.floor(probe[c] / dt * total + 0.5)), 0), total)
-        _offset_rows(qidx, row_a, row_b, pair, coarse, switch, n_coarse, n_switch, ns, seg)
-        _chain(F, G, Qd, seg, ns, Cs, E, Go, Qo, EQ)
-        status = _likelihood(x, P, y, u, obs, n_obs, Rs, E, Go, Qo, printed, gate, ns, ye, Re,
-                             zero, e, PCt, chol, scale, z, nis, loglik, work, bad, f, report)
-        if status != OK:
-            return status
-        for c in range(ns):
-            if f[c] > best_ll[c]:
-                best_ll[c], win[c] = f[c], qidx[c]
-            if s == 0:
-                fc[c] = f[c]
-            elif s == 1:
-                fd[c] = f[c]
-            elif left[c]:
-                pd[c], pc[c], fd[c], fc[c] = pc[c], probe[c], fc[c], f[c]
+        if best_ll[c] == math.inf:  # uninformed: no probe may replace the middle instant
+            continue
+        top = best_ll[c]
+        tau = grid_tau[d, best[c]]
+        lo, hi = min(max(tau - half, 0.0), dt), min(max(tau + half, 0.0), dt)
+        x_b = w = v = tau  # minimize f = -J: x_b the best point, w the second, v the last w
+        fx = fw = fv = -top
+        e_old = step = 0.0  # the step before last, the last step
+        for _ in range(iterations):
+            xm = 0.5 * (lo + hi)
+            tol1 = _SQRT_EPS * abs(x_b) + tol / 3.0
+            tol2 = 2.0 * tol1
+            if abs(x_b - xm) <= tol2 - 0.5 * (hi - lo):
+                break
+            golden = True
+            if abs(e_old) > tol1:  # a parabola through x_b, w, v
+                r = (x_b - w) * (fx - fv)
+                q = (x_b - v) * (fx - fw)
+                p = (x_b - v) * q - (x_b - w) * r
+                q = 2.0 * (q - r)
+                if q > 0.0:
+                    p = -p
+                q = abs(q)
+                r = e_old
+                e_old = step
+                if abs(p) < abs(0.5 * q * r) and p > q * (lo - x_b) and p < q * (hi - x_b):
+                    golden = False
+                    step = p / q
+                    if (x_b + step) - lo < tol2 or hi - (x_b + step) < tol2:
+                        step = tol1 if xm - x_b >= 0.0 else -tol1
+            if golden:  # into the larger part of the bracket
+                e_old = lo - x_b if x_b >= xm else hi - x_b
+                step = _GOLDEN_STEP * e_old
+            if abs(step) >= tol1:
+                at = x_b + step
             else:
-                pc[c], pd[c], fc[c], fd[c] = pd[c], probe[c], fd[c], f[c]
-    won = 0
-    for c in range(ns):  # compact the lanes a probe won, then compose their transitions
-        if win[c] >= 0:
-            off[lane[c]] = win[c] * (dt / total)
-            qidx[won], lane[won] = win[c], lane[c]
-            row_a[won], row_b[won], pair[won] = row_a[c], row_b[c], pair[c]
-            won += 1
-    if won:
-        _offset_rows(qidx, row_a, row_b, pair, coarse, switch, n_coarse, n_switch, won, seg)
-        _chain(F, G, Qd, seg, won, eye, full[0], full[1], full[2], full[3])
-        _put_matrices(full[0], lane, won, Fl)
-        _put_matrices(full[1], lane, won, Gl)
-        _put_matrices(full[2], lane, won, Ql)
+                at = x_b + (tol1 if step >= 0.0 else -tol1)
+            # ---- the probe: J_k at the table instant k (Shankar et al. §IV)
+            k = min(max(int(math.floor(at / dt * total + 0.5)), 0), total)
+            j, s = k // N0, k % N0
+            if j == n_coarse:  # at the end of the interval: the last span, switching at its end
+                j, s = n_coarse - 1, N0
+            ra = coarse + row_a[c] * n_coarse + j
+            rb = row_b[c] * n_coarse + n_coarse - 1 - j
+            for a in range(m):  # C b over (N1 - 1 - j) dt / N1: E, Go, Qo from the table
+                for i in range(n):
+                    E[a, i] = CF[rb, a, i]
+                for i in range(n_in):
+                    Go[a, i] = CG[rb, a, i]
+                for i in range(m):
+                    Qo[a, i] = CQC[rb, a, i]
+            for flow in range(2):  # pulled back through the span, then a (see pull_back)
+                row = switch + pair[c] * n_switch + s if flow == 0 else ra
+                for a in range(m):  # Go <- Go + E Gam; EQ = E Qd, EF = E Phi
+                    for i in range(n_in):
+                        acc = Go[a, i]
+                        for h in range(n):
+                            acc += E[a, h] * G[row, h, i]
+                        Go[a, i] = acc
+                    for i in range(n):
+                        acc, acc_f = 0.0, 0.0
+                        for h in range(n):
+                            acc += E[a, h] * Qd[row, h, i]
+                            acc_f += E[a, h] * F[row, h, i]
+                        EQ[a, i] = acc
+                        EF[a, i] = acc_f
+                for a in range(m):  # Qo <- Qo + E Qd E', symmetric
+                    for i in range(a, m):
+                        acc = Qo[a, i]
+                        for h in range(n):
+                            acc += EQ[a, h] * E[i, h]
+                        Qo[a, i] = acc
+                        Qo[i, a] = acc
+                for a in range(m):  # E <- E Phi
+                    for i in range(n):
+                        E[a, i] = EF[a, i]
+            J = -math.inf
+            kind, repaired = first, False
+            while kind < 2:  # the innovation of y - Go u through E (kind 0: with P; 1: without)
+                for a in range(m):  # e = y - Go u - E x, P E' over the observed components
+                    acc = y[a, c]
+                    for i in range(n_in):
+                        acc -= Go[a, i] * u[i, c]
+                    for h in range(n):
+                        acc -= E[a, h] * x[h, c]
+                    e[a] = acc if obs[a, c] > 0.0 else 0.0
+                    for i in range(n):
+                        acc = 0.0
+                        if kind == 0:
+                            for h in range(n):
+                                acc += P[i, h, c] * E[a, h]
+                        PCt[i, a] = acc * obs[a, c]
+                finite, positive = True, True
+                log_det, det = 0.0, 1.0
+                for a in range(m):  # S = E P E' + Qo + R (kind 1: R), lower triangle; D
+                    for i in range(a + 1):
+                        acc = (Rs[a, i, c] + Qo[a, i] if kind == 0 else Rs[a, i, c]) * obs[i, c]
+                        for h in range(n):
+                            acc += E[a, h] * PCt[h, i]
+                        unit = 1.0 if a == i else 0.0
+                        chol[a, i] = acc * obs[a, c] + unit * (1.0 - obs[a, c])
+                    diag = chol[a, a]
+                    finite &= math.isfinite(diag)
+                    positive &= diag > 0.0
+                    scale[a] = 1.0 / math.sqrt(diag)
+                    log_det += math.log(diag)
+                if not finite:
+                    return NOT_FINITE
+                for h in range(m):  # D^-1/2 S D^-1/2 = L L', column by column
+                    pivot = chol[h, h] * scale[h] * scale[h]
+                    for i in range(h):
+                        pivot -= chol[h, i] * chol[h, i]
+                    positive &= pivot > 0.0
+                    chol[h, h] = math.sqrt(pivot)
+                    det *= pivot
+                    for a in range(h + 1, m):
+                        acc = chol[a, h] * scale[a] * scale[h]
+                        for i in range(h):
+                            acc -= chol[a, i] * chol[h, i]
+                        chol[a, h] = acc / chol[h, h]
+                if not positive:
+                    if kind == 0 and not repaired and repair(P, c, False, report):
+                        repaired = True
+                        continue
+                    return NOT_POSITIVE_DEFINITE
+                nis = 0.0
+                for a in range(m):  # z = L^-1 D^-1/2 e (into e), nis = |z|^2
+                    acc = scale[a] * e[a]
+                    for i in range(a):
+                        acc -= chol[a, i] * e[i]
+                    acc /= chol[a, a]
+                    e[a] = acc
+                    nis += acc * acc
+                loglik = -0.5 * (nis + log_det + math.log(det) + n_obs[c] * _LOG_2PI)
+                if kind == 0:  # rejected beyond the gate or where not finite
+                    J = loglik if math.isfinite(loglik) and nis <= gate else -math.inf
+                    if not printed:
+                        break
+                else:  # printed: rejected where its own nis is not finite, or gated
+                    gated = gate < math.inf and J == -math.inf
+                    J = loglik if nis < math.inf and not gated else -math.inf
+                kind += 1
+            # ---- Brent's bookkeeping
+            if J > top:
+                top, win[c] = J, k
+            fu = -J
+            if fu <= fx:
+                if at >= x_b:
+                    lo = x_b
+                else:
+                    hi = x_b
+                v, fv, w, fw, x_b, fx = w, fw, x_b, fx, at, fu
+            else:
+                if at < x_b:
+                    lo = at
+                else:
+                    hi = at
+                if fu <= fw or w == x_b:
+                    v, fv, w, fw = w, fw, at, fu
+                elif fu <= fv or v == x_b or v == w:
+                    v, fv = at, fu
+        if win[c] < 0:
+            continue
+        # ---- a probe won: its instant, and its transition composed in time order
+        b = lane[c]
+        off[b] = win[c] * (dt / total)
+        j, s = win[c] // N0, win[c] % N0
+        if j == n_coarse:
+            j, s = n_coarse - 1, N0
+        for flow in range(3):  # a over j dt / N1, the span, b over the rest
+            if flow == 0:
+                row = coarse + row_a[c] * n_coarse + j
+            elif flow == 1:
+                row = switch + pair[c] * n_switch + s
+            else:
+                row = coarse + row_b[c] * n_coarse + n_coarse - 1 - j
+            if flow == 0:
+                for h in range(n):
+                    for i in range(n):
+                        Fl[h, i, b] = F[row, h, i]
+                        Ql[h, i, b] = Qd[row, h, i]
+                    for i in range(n_in):
+                        Gl[h, i, b] = G[row, h, i]
+                continue
+            for h in range(n):  # T1 = Phi F, T2 = Phi Qd, Gt = Phi G + Gam
+                for i in range(n):
+                    acc, acc_q = 0.0, 0.0
+                    for k2 in range(n):
+                        acc += F[row, h, k2] * Fl[k2, i, b]
+                        acc_q += F[row, h, k2] * Ql[k2, i, b]
+                    T1[h, i] = acc
+                    T2[h, i] = acc_q
+                for i in range(n_in):
+                    acc = G[row, h, i]
+                    for k2 in range(n):
+                        acc += F[row, h, k2] * Gl[k2, i, b]
+                    Gt[h, i] = acc
+            for h in range(n):  # F <- Phi F, G <- Phi G + Gam, Qd <- Phi Qd Phi' + Qd_s
+                for i in range(n):
+                    Fl[h, i, b] = T1[h, i]
+                for i in range(n_in):
+                    Gl[h, i, b] = Gt[h, i]
+                for i in range(h, n):
+                    acc = Qd[row, h, i]
+                    for k2 in range(n):
+                        acc += T2[h, k2] * F[row, i, k2]
+                    Ql[h, i, b] = acc
+            for h in range(n):
+                for i in range(h):
+                    Ql[h, i, b] = Ql[i, h, b]
     return OK
 
 
@@ -596,8 +800,8 @@ def _merge(sw, tables, gate, ns, d, lane, x, P, lik, flg, off, ws, cs, hyp, flow
 @jit
 def switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, n_coarse,
                        n_switch, x_init, P_init, predict_first, marginal, printed, gate,
-                       iterations, lanes, x_out, P_out, loglik_out, offset_out, flag_out,
-                       report):
+                       iterations, tolerance, outputs, lanes, x_out, P_out, loglik_out,
+                       offset_out, flag_out, report):
     """Filter ``N`` trials over ``K`` samples, estimating the switching instant of every
     interval whose mode changes (Shankar et al. §IV).
 
@@ -615,7 +819,7 @@ def switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau,
     marginal, printed : bool
     gate : float
     iterations : int
-        Golden-section steps (0: no refinement).
+        The most probes of the refinement's search per switched lane (0: no refinement).
     lanes : int
         Trials per block.
     x_out, P_out, loglik_out, offset_out, flag_out
@@ -644,8 +848,9 @@ def switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau,
     B = lanes
     coarse = D * L * (1 + L * g)
     tables = (F, G, Qd, steps, grid_tau, D * L, coarse, coarse + D * L * n_coarse, n_coarse,
-              n_switch)  # with the first rows of the grid, coarse and switch sections
-    opts = (printed, gate, iterations)
+              n_switch, outputs[0], outputs[1], outputs[2])  # with the first rows of the grid,
+    # coarse and switch sections, and the output map pulled back through the coarse section
+    opts = (printed, gate, iterations, tolerance)
     x, P = np.empty((n, B)), np.empty((n, n, B))
     yl, ul, obs, n_obs = np.empty((m, B)), np.empty((n_in, B)), np.empty((m, B)), np.empty(B)
     Fl, Gl, Ql = np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((n, n, B))
@@ -664,15 +869,12 @@ def switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau,
           np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64))
     lw = (np.empty((m, B)), np.empty((m, m, B)), np.zeros((n, n, B)))
     obsv = (np.empty((m, n, B)), np.empty((m, n_in, B)), np.empty((m, m, B)), np.empty((m, n, B)))
-    full = (np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((n, n, B)), np.empty((n, n, B)))
     flow = (np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((n, n, B)))
     gs = (np.empty(B, dtype=np.int64), np.empty(B), np.empty(B), np.empty(B, dtype=np.int64),
-          np.empty((3, B), dtype=np.int64), np.empty(B, dtype=np.int64))
-    gold = (np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B),
-            np.empty(B), np.empty(B), np.empty(B, dtype=np.bool_))
-    eye = np.zeros((n, n, B))
-    for i in range(n):
-        eye[i, i, :] = 1.0
+          np.empty(B, dtype=np.int64))
+    pk = (np.empty((m, n)), np.empty((m, n)), np.empty((m, n)), np.empty((m, n_in)),
+          np.empty((m, m)), np.empty((n, m)), np.empty((m, m)), np.empty(m), np.empty(m),
+          np.empty((n, n)), np.empty((n, n)), np.empty((n, n_in)))
     G_h = g if marginal else 0
     hyp = (np.empty((G_h, n, B)), np.empty((G_h, n, n, B)), np.empty((G_h, B)),
            np.empty((G_h, B)), np.empty(B), np.empty((n, B)), np.empty((n, n, B)),
@@ -718,8 +920,8 @@ def switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau,
                     status = _grid_maximum(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws,
                                            lw, obsv, gs, report)
                     if status == OK and iterations:
-                        status = _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws,
-                                         lw, obsv, full, gs, gold, eye, report)
+                        status = _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs,
+                                         pk, report)
                     if status != OK:
                         return status
                 predict(x, P, Fl, Gl, ul, Ql, nb, cs[2], xs)
