@@ -15,7 +15,7 @@ import sys
 
 import numpy as np
 
-from switchest.analysis.ms_design import (
+from switchest.analysis.subsystem_observers import (
     critical_interval,
     error_dynamics,
     ms_convergence,

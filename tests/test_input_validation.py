@@ -11,8 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from switchest import SwitchedLinearSystem, metrics
-from switchest import _checks
+from switchest import SwitchedLinearSystem, _checks, metrics
 from switchest import signals as sg
 from switchest.analysis import is_observable
 from switchest.discretize import interval, pairwise_grid, segment_transitions

@@ -1,16 +1,13 @@
 """Shared batched kernels against their dense definitions."""
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from switchest._linalg import (
     joseph_update,
     log_normalize,
-    matvec,
     mixture_moments,
-    mul,
     psd_sqrt,
     symmetrize,
 )

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from switchest import SwitchedLinearSystem, metrics
 from switchest import signals as sg
-from switchest.analysis import estimation_error_bounds, kalman_decomposition, lemma2_bounds
+from switchest.analysis import estimation_error_bounds, kalman_decomposition, switch_matrix_bounds
 from switchest.discretize import interval, mode_steps, pairwise_grid, segment_transitions
 from switchest.estimators import (
     IMMFilter,
@@ -360,7 +360,7 @@ def test_analysis_on_matrices(arg, how, i):
         kwargs = dict(A_i=A[0], A_j=A[1], B_i=B, B_j=B, T=np.array([0.5, 0.4]),
                       t_bar=np.array([0.1, 0.2]), t_hat=np.array([0.3, 0.2]))
         kwargs[arg] = MUTATIONS[how](kwargs[arg], i)
-        clear_or_valid(lambda: lemma2_bounds(**kwargs), arg, how, related=tuple(kwargs),
+        clear_or_valid(lambda: switch_matrix_bounds(**kwargs), arg, how, related=tuple(kwargs),
                        check=lambda b: np.all(np.isfinite(b.F)) and np.all(np.isfinite(b.G)))
     else:
         kwargs = dict(K=np.array([[0.5], [0.1]]), H=C, R=R)

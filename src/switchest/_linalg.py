@@ -6,8 +6,6 @@ axes are the vector or matrix.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 __all__ = [

@@ -38,7 +38,7 @@ from .analysis import (
     stable_mismatch_region,
 )
 from .analysis._lmi import lmi_nbytes
-from .analysis.ms_design import critical_interval_nbytes
+from .analysis.subsystem_observers import critical_interval_nbytes
 from .discretize import mode_steps
 from .modelfile import ModelSpec
 from .switching import IID, AverageDwell, Dwell, Schedule
@@ -131,8 +131,8 @@ def _lee(spec: ModelSpec) -> Check:
     (needed when the system has inputs) and the detector design where given: the
     windows ``delta``, ``Delta`` (otherwise the smallest multiples of the sampling
     period satisfying (3) and (4), :func:`~switchest.analysis.lee_windows`) and
-    ``observer_decay`` (gains of :func:`~switchest.analysis.lee.decay_observer_gains`; otherwise
-    :func:`~switchest.analysis.lee.default_observer_gains`). Assumption 3 is checked
+    ``observer_decay`` (gains of :func:`~switchest.analysis.min_distance_design.decay_observer_gains`; otherwise
+    :func:`~switchest.analysis.min_distance_design.default_observer_gains`). Assumption 3 is checked
     against the switching model's dwell time (:func:`_lee_dwell`). The margin is
     ``v_max_allowed - v_max``: positive exactly when (3) and (4) hold.
     """
@@ -158,7 +158,7 @@ def _lee(spec: ModelSpec) -> Check:
     else:
         t_max = dwell.get("min_dwell", 10.0)
         w = lee_windows(system, **bounds, observer_gains=gains, t_max=t_max, step=spec.sampling.get("period"))
-        if not w.found:
+        if not w.holds:
             failing = "(3)" if w.delta is None else f"(4) (with delta = {w.delta:g} s)"
             return Check(name, paper, False, f"no window up to {t_max:g} s satisfies {failing} at v_max = "
                                              f"{bounds['v_max']:g}, x_min = {bounds['x_min']:g}")
@@ -212,10 +212,10 @@ def _cqlf(spec: ModelSpec) -> Check:
     if skipped:
         return Check(name, "Zhang eq. (13) / Lemma 3", None, skipped)
     r = cqlf(spec.system.A, domain=spec.system.domain)
-    detail = ("common quadratic Lyapunov function found: stable under arbitrary switching" if r.feasible
+    detail = ("common quadratic Lyapunov function found: stable under arbitrary switching" if r.holds
               else f"no CQLF ({r.solver_status}); not a proof of instability, see the JSR bounds")
-    return Check(name, "Zhang eq. (13) / Lemma 3", bool(r.feasible), detail,
-                 r.margin if r.feasible else None)
+    return Check(name, "Zhang eq. (13) / Lemma 3", bool(r.holds), detail,
+                 r.margin if r.holds else None)
 
 
 def _jsr(spec: ModelSpec) -> Check:
@@ -248,9 +248,9 @@ def _lemma1(spec: ModelSpec) -> Check:
                      "needs periodic sampling, a dwell-time switching model and measurement noise R")
     r = dwell_time_observability(spec.system, T, tau_d)
     detail = (f"tau_d = {tau_d:g} s vs h_bar T; printed lemma: {r.holds} (h = {r.h}, rho = {r.rho:.3g}); "
-              f"corrected lemma: {r.holds_corrected} (h = {r.h_corrected}, rho = {r.rho_corrected:.3g})")
+              f"corrected lemma: {r.holds} (h = {r.h_corrected}, rho = {r.rho_corrected:.3g})")
     return Check("uniform observability under a dwell time", "Shankar Lemma 1 (corrected)",
-                 bool(r.holds_corrected), detail)
+                 bool(r.holds), detail)
 
 
 def _ms_iid(spec: ModelSpec) -> Check:
@@ -259,7 +259,7 @@ def _ms_iid(spec: ModelSpec) -> Check:
         return Check("mean-square stability under i.i.d. modes", "Wang §2 / eq. (16)", None,
                      "applies to i.i.d. switching at the samples")
     r = ms_stable_iid(F, spec.switching.p)
-    return Check("mean-square stability under i.i.d. modes (open loop)", "Wang §2", bool(r.stable),
+    return Check("mean-square stability under i.i.d. modes (open loop)", "Wang §2", bool(r.holds),
                  f"spectral radius of E[F kron F] = {r.radius:.4g}", 1 - r.radius)
 
 
@@ -273,10 +273,10 @@ def _filter_cqlf(spec: ModelSpec) -> Check:
         return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2",
                      None, skipped)
     r = cqlf(mismatch_dynamics(sys).Lambda, domain="discrete")
-    detail = ("the mode-based Kalman filter's bias is stable under any matched mode sequence" if r.feasible
+    detail = ("the mode-based Kalman filter's bias is stable under any matched mode sequence" if r.holds
               else f"no CQLF for the Lambda_i ({r.solver_status})")
-    return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2", bool(r.feasible),
-                 detail, r.margin if r.feasible else None)
+    return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2", bool(r.holds),
+                 detail, r.margin if r.holds else None)
 
 
 def _mismatch(spec: ModelSpec) -> Check:
@@ -313,10 +313,10 @@ def _impulsive(spec: ModelSpec) -> Check:
     r = impulsive_observer_search(spec.system, lo, hi, dwell)
     best = r.best
     detail = (f"gains found with guaranteed decay rate beta = {best.beta:.4g} for sampling in [{lo:g}, {hi:g}], "
-              f"dwell {dwell:g} (corrected LMIs; scalars searched)" if best.feasible
+              f"dwell {dwell:g} (corrected LMIs; scalars searched)" if best.holds
               else "no certificate with a positive rate (the LMIs are sufficient conditions only)")
     return Check("impulsive observer under aperiodic sampling", "Etienne Theorem 8 (corrected)",
-                 bool(best.feasible), detail, best.beta if best.feasible else None)
+                 bool(best.holds), detail, best.beta if best.holds else None)
 
 
 def _wang_critical_interval(spec: ModelSpec) -> Check:

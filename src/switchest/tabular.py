@@ -391,7 +391,7 @@ def _min_distance(entry: Method, spec: ModelSpec, meas: dict, options: dict, mod
     """Lee, Ping & Shim's detector with the model's bounds and windows (options override ``[noise]``).
 
     ``u_max`` (used only by the detector's assumption check) and the observer
-    gains (``observer_decay``, :func:`~switchest.analysis.lee.decay_observer_gains`;
+    gains (``observer_decay``, :func:`~switchest.analysis.min_distance_design.decay_observer_gains`;
     otherwise the detector's default) come from ``[noise]`` alone.
     """
     noise = spec.noise
@@ -437,7 +437,7 @@ def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
     this one-parameter family. Other switching models (outside Wang et al.'s
     i.i.d. assumption) get ``s = 1``, unchecked.
 
-    Why this design rather than the others of :mod:`switchest.analysis.ms_design`:
+    Why this design rather than the others of :mod:`switchest.analysis.subsystem_observers`:
     the Kalman-Bucy gains (§4.1) need no choice but ignore the random switching —
     the paper's Example 1 shows them diverging (exact MS spectral radius 1.079 on
     ``wang-example1``) and on ``wang-ieee5bus`` (an eigenvalue 0, no process noise)
@@ -479,7 +479,7 @@ def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
         dyn = error_dynamics(system, gains, T, structure=structure)
         ms = ms_convergence(dyn, p)
         radius = min(radius, ms.radius)
-        mu = steady_state(dyn, p).mu_x if ms.stable else np.inf
+        mu = steady_state(dyn, p).mu_x if ms.holds else np.inf
         if 0.0 < mu < best_mu:
             best, best_mu = gains, mu
     if best is None:
@@ -548,7 +548,7 @@ def impulsive_gains(spec: ModelSpec, t: np.ndarray) -> np.ndarray:
                          f"outside the model's sampling bounds [{lo:g}, {hi:g}] the gains are designed for "
                          "(Etienne et al. Assumption 2); widen sampling.tau_min / tau_max")
     best = impulsive_observer_search(spec.system, lo, hi, dwell).best
-    if not best.feasible:
+    if not best.holds:
         raise ValueError(f"method 'impulsive': Theorem 8's LMIs give no observer for sampling in [{lo:g}, {hi:g}] "
                          f"and dwell time {dwell:g} (Etienne et al.): {best.note}")
     return best.G

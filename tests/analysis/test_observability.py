@@ -295,7 +295,7 @@ def test_uniform_observability_double_integrator_by_hand():
     # F = e^{AT} = [[1, T], [0, 1]] with T = 1; h = 1: H'H + F'H'HF = [[2, 1], [1, 1]]
     A = np.array([[0.0, 1.0], [0.0, 0.0]])
     res = uniform_observability(A, np.array([[1.0, 0.0]]), 1.0)
-    assert res.observable and res.h == 1
+    assert res.holds and res.h == 1
     assert res.rho == pytest.approx((3 - np.sqrt(5)) / 2, rel=1e-12)
     # R scales the Gramian by R^{-1}
     res2 = uniform_observability(A, np.array([[1.0, 0.0]]), 1.0, R=[[4.0]])
@@ -306,7 +306,7 @@ def test_uniform_observability_needs_longer_windows_for_chains():
     # triple integrator seen through its first state: rank needs H, HF, HF^2 -> h = 2
     A = np.diag([1.0, 1.0], k=1)
     res = uniform_observability(A, np.array([[1.0, 0.0, 0.0]]), 0.5)
-    assert res.observable and res.h == 2
+    assert res.holds and res.h == 2
     F = expm(A * 0.5)
     H = np.array([[1.0, 0.0, 0.0]])
     gram = sum(
@@ -322,7 +322,7 @@ def test_sampling_can_destroy_observability():
     H = np.array([[1.0, 0.0]])
     assert is_observable(A, H)
     res = uniform_observability(A, H, np.pi / w)
-    assert not res.observable and res.h is None and res.rho == 0.0
+    assert not res.holds and res.h is None and res.rho == 0.0
 
 
 def test_dwell_time_lemma1_constants():
@@ -335,11 +335,11 @@ def test_dwell_time_lemma1_constants():
     assert h_bar == 1 and res.h_modes == (1, 1)
     assert res.h == 2 * h_bar - 1 and res.h_corrected == 2 * h_bar
     assert res.rho == pytest.approx(min(p.rho for p in per))
-    assert res.holds and res.holds_corrected  # tau_d = 1.0 >= (h_bar + 1) T = 1.0
+    assert res.holds and res.printed_lemma_holds  # tau_d = 1.0 >= (h_bar + 1) T = 1.0
     nu = min(np.linalg.eigvalsh(0.5 * (a + a.T))[0] for a in A)
     assert res.rho_corrected == pytest.approx(res.rho * min(1.0, np.exp(2 * nu * h_bar * T)))
     tight = dwell_time_observability(sys, T, tau_d=h_bar * T)  # tau_d = h_bar T: not >
-    assert not tight.holds and not tight.holds_corrected
+    assert not tight.holds and not tight.printed_lemma_holds
 
 
 def _window_gramian(A, H, T, h, switch_times, modes, k=0):
@@ -383,7 +383,7 @@ def test_lemma1_printed_constants_fail_and_corrected_ones_hold():
     A, H, T = np.array(ex["A"]), np.array(ex["H"]), ex["T"]
     sys = SwitchedLinearSystem.continuous(A, C=H)
     res = dwell_time_observability(sys, T, tau_d=2.0)
-    assert res.h_modes == (1, 1) and res.h == 1 and res.holds and res.holds_corrected
+    assert res.h_modes == (1, 1) and res.h == 1 and res.holds and res.printed_lemma_holds
     Hs = np.stack([H, H])
     # printed: window of h + 1 = 2 samples, one switch inside it (allowed by tau_d > T)
     worst = min(

@@ -62,7 +62,7 @@ def test_cqlf_feasible_for_zhang_example1():
     ref = REFERENCE["zhang_example1_A"]
     A = np.array(ref["value"])
     cert = cqlf(A)
-    assert cert.feasible and cert.solver_status == "optimal"
+    assert cert.holds and cert.solver_status == "optimal"
     # independent re-check of the certificate
     P = cert.P
     np.testing.assert_allclose(P, P.T)
@@ -77,7 +77,7 @@ def test_schur_pair_with_unstable_product_is_infeasible():
     assert np.all(spectral_radius(A) < 1)
     assert spectral_radius(A[0] @ A[1]) > 1  # so the JSR exceeds 1: no CQLF exists
     cert = cqlf(A)
-    assert not cert.feasible
+    assert not cert.holds
     assert cert.P is None and np.isnan(cert.margin)
     assert "not a proof of instability" in cert.note
 
@@ -86,14 +86,14 @@ def test_continuous_cqlf_feasible_and_infeasible():
     # two Hurwitz matrices sharing V = x'x (both have negative definite symmetric parts)
     ok = np.array([[[-1.0, 0.5], [-0.5, -2.0]], [[-3.0, 1.0], [0.0, -1.0]]])
     cert = cqlf(ok, "continuous")
-    assert cert.feasible
+    assert cert.holds
     assert decrease_margin(ok, cert.P, domain="continuous") == pytest.approx(cert.margin)
     # Hurwitz pair whose average [[-1, 5], [5, -1]] has eigenvalue 4: a CQLF of the
     # pair would be one of every convex combination, so none exists
     bad = np.array([[[-1.0, 10.0], [0.0, -1.0]], [[-1.0, 0.0], [10.0, -1.0]]])
     assert np.all(np.linalg.eigvals(bad).real < 0)
     assert max(np.linalg.eigvals(bad.mean(axis=0)).real) > 0
-    assert not cqlf(bad, "continuous").feasible
+    assert not cqlf(bad, "continuous").holds
 
 
 def test_a_solver_claim_is_not_trusted_without_the_numpy_check(monkeypatch):
@@ -106,7 +106,7 @@ def test_a_solver_claim_is_not_trusted_without_the_numpy_check(monkeypatch):
 
     monkeypatch.setattr(stability, "solve_sdp", fake_solve)
     cert = cqlf(SCHUR_PAIR_UNSTABLE_PRODUCT)
-    assert not cert.feasible
+    assert not cert.holds
     assert cert.solver_status == "optimal"
     assert "failed the numpy check" in cert.note
 
@@ -114,7 +114,7 @@ def test_a_solver_claim_is_not_trusted_without_the_numpy_check(monkeypatch):
 def test_single_matrix_family_and_margin_scaling():
     A = np.array([[0.5, 0.1], [0.0, 0.2]])
     cert = cqlf(A, margin=1e-3)
-    assert cert.feasible and cert.margin >= 0.5e-3
+    assert cert.holds and cert.margin >= 0.5e-3
 
 
 @pytest.mark.parametrize(
@@ -246,12 +246,12 @@ def test_ms_stability_verdicts():
     # scalar: E[x^2] multiplies by sum p_i a_i^2
     A = np.array([[[1.2]], [[0.1]]])
     res = ms_stable_iid(A, [0.5, 0.5])
-    assert res.radius == pytest.approx(0.5 * 1.44 + 0.5 * 0.01) and res.stable
+    assert res.radius == pytest.approx(0.5 * 1.44 + 0.5 * 0.01) and res.holds
     res = ms_stable_iid(A, [0.8, 0.2])
-    assert res.radius == pytest.approx(0.8 * 1.44 + 0.2 * 0.01) and not res.stable
+    assert res.radius == pytest.approx(0.8 * 1.44 + 0.2 * 0.01) and not res.holds
     # each mode Schur, yet mean-square unstable under i.i.d. switching
     res = ms_stable_iid(SCHUR_PAIR_UNSTABLE_PRODUCT, [0.5, 0.5])
-    assert not res.stable
+    assert not res.holds
 
 
 def test_ms_rejects_bad_probabilities():
@@ -273,9 +273,9 @@ def test_cqlf_accepts_a_margin_only_beyond_its_rounding(monkeypatch):
     monkeypatch.setattr(stability, "solve_sdp", fake_solve)
     just = np.sqrt(1 - 0.5e-6 - 1e-16) * np.eye(2)  # margin 5e-7 + 1e-16: within rounding
     cert = cqlf(just[None], margin=1e-6)
-    assert not cert.feasible and "rounding allowance" in cert.note
+    assert not cert.holds and "rounding allowance" in cert.note
     clear = np.sqrt(1 - 0.5e-6 - 1e-12) * np.eye(2)  # 1e-12 above: beyond any rounding here
-    assert cqlf(clear[None], margin=1e-6).feasible
+    assert cqlf(clear[None], margin=1e-6).holds
 
 
 def test_decrease_margin_refuses_a_non_finite_P():
@@ -320,7 +320,7 @@ def test_ms_stability_of_orthogonal_modes_is_not_decided_by_the_last_bits():
     rng = np.random.default_rng(6)
     A = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(2)])
     res = ms_stable_iid(A, [0.3, 0.7])
-    assert res.radius == pytest.approx(1.0, rel=1e-13) and not res.stable
+    assert res.radius == pytest.approx(1.0, rel=1e-13) and not res.holds
 
 
 def test_ms_stability_matrix_free_beyond_n_32_equals_the_dense_radius():
@@ -334,4 +334,4 @@ def test_ms_stability_matrix_free_beyond_n_32_equals_the_dense_radius():
     size = float(p @ np.sum(A * A, axis=(1, 2)))
     tol = 1e-12 * dense + 2 * 2 * (n * n + 2) * EPS * size
     assert res.radius == pytest.approx(dense, rel=0, abs=tol)
-    assert res.stable == (dense < 1)
+    assert res.holds == (dense < 1)

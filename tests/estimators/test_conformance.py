@@ -17,6 +17,7 @@ import pytest
 
 from switchest import SwitchedLinearSystem
 from switchest import signals as sg
+from switchest.analysis import steady_state_gain
 from switchest.discretize import mode_steps
 from switchest.estimators import (
     METHOD_NAMES,
@@ -31,7 +32,6 @@ from switchest.estimators import (
     SwitchTimeKalmanFilter,
     get_method,
 )
-from switchest.estimators.kalman import steady_state_gain
 from switchest.models.wang import wang_scalar_pair
 from switchest.simulate import simulate
 

@@ -13,9 +13,9 @@ from threadpoolctl import threadpool_limits
 
 from switchest import SwitchedLinearSystem
 from switchest import signals as sg
+from switchest.analysis.impulsive_lmis import closed_loop_matrices
 from switchest.estimators.impulsive import (
     ImpulsiveObserver,
-    closed_loop_matrices,
     delayed_replica,
     impulsive_update,
     simulate_observer_control,
@@ -295,6 +295,15 @@ def test_closed_loop_matrices_are_the_plant_and_observer_equations():
             printed[2:, :2] = G_THEOREM8[i] @ (C2[j] - C2[i])  # (22b) as printed
             if i != j:
                 assert not np.allclose(printed @ z, J[j, i] @ z)
+
+
+def test_closed_loop_matrices_stay_importable_from_the_estimators():
+    """The design moved to the analysis (the lower layer); its old addresses give the same
+    function."""
+    from switchest import estimators
+    from switchest.estimators import impulsive
+
+    assert impulsive.closed_loop_matrices is estimators.closed_loop_matrices is closed_loop_matrices
 
 
 @settings(max_examples=40, deadline=None)

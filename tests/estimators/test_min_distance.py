@@ -5,7 +5,7 @@ grid interval) for the exact step, for (7) and for the literal replay (15)-(16)
 of the paper; composite Simpson with ``scipy.linalg.expm`` for the noise term of
 (10); the paper's Theorems 1 and 2 on the demonstration scenario
 (:data:`switchest.models.lee.LEE_SCENARIO`), whose assumptions hold
-(tests/analysis/test_lee.py). The only approximation is the first-order hold of
+(tests/analysis/test_min_distance_design.py). The only approximation is the first-order hold of
 the output between grid points: the smooth output departs from it by at most
 ``EPS = h^2/8 max|y''|``, which enters every estimate like noise of that size
 (Theorem 1: ``|X* - x - w| <= M_max EPS``).
@@ -17,7 +17,7 @@ from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
 from switchest import SwitchedLinearSystem
-from switchest.analysis.lee import default_observer_gains, lee_assumptions
+from switchest.analysis.min_distance_design import default_observer_gains, lee_assumptions
 from switchest.discretize import mode_steps
 from switchest.estimators.min_distance import (
     MinimumDistanceDetector,

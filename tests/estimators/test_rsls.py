@@ -1,6 +1,6 @@
 """RSLSObserver (Wang et al., seed 003 §3): the subsystem observer fed the integrated Ito output.
 
-Oracles: the exact sampled error system of Theorem 1 (switchest.analysis.ms_design) for
+Oracles: the exact sampled error system of Theorem 1 (switchest.analysis.subsystem_observers) for
 noise-free runs, the exact second-moment recursion and its steady state (§5.1) for Monte
 Carlo runs (tolerances from the trial count), and the sample covariance for the reported P.
 """
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from switchest import SwitchedLinearSystem
-from switchest.analysis.ms_design import (
+from switchest.analysis.subsystem_observers import (
     error_dynamics,
     kalman_bucy_gains,
     place_gains,

@@ -7,14 +7,13 @@ import math
 import numpy as np
 import pytest
 from scipy.linalg import expm
+from summary_rows import find_row
 
 import switchest.experiments.etienne  # noqa: F401  (registers the Etienne experiments)
-from switchest.analysis.impulsive import theorem10_rate
+from switchest.analysis.impulsive_lmis import impulsive_closed_loop_decay_rate
 from switchest.experiments import get
 from switchest.models import ETIENNE_SCENARIO as S
 from switchest.models import etienne_academic
-
-from summary_rows import find_row
 
 PAPER = {
     "provenance": (
@@ -119,7 +118,7 @@ def test_async_theorem10_verdict_printed_vs_corrected(runs):
     printed = find_row(summary, "(28) as printed")
     assert printed.measured == pytest.approx(-two_beta, rel=1e-12) and printed.measured > 0
     corrected = find_row(summary, "corrected rate β").measured
-    assert corrected == pytest.approx(theorem10_rate(S.alpha, S.alpha_bar, S.mu_s, S.mu_c, S.mu_c_bar,
+    assert corrected == pytest.approx(impulsive_closed_loop_decay_rate(S.alpha, S.alpha_bar, S.mu_s, S.mu_c, S.mu_c_bar,
                                                      S.tau_min, S.tau_max, S.dwell, S.delta))
     assert corrected < two_beta / 2 < 0
 
@@ -134,7 +133,7 @@ def test_async_largest_certified_delay(runs):
     assert best["delta"] == row.measured
 
     def rate(delta):
-        return theorem10_rate(best["alpha"], best["alpha_bar"], search["mu_s"], search["mu_c"], search["mu_c"],
+        return impulsive_closed_loop_decay_rate(best["alpha"], best["alpha_bar"], search["mu_s"], search["mu_c"], search["mu_c"],
                               S.tau_min, S.tau_max, S.dwell, delta)
 
     assert rate(best["delta"] * (1 - 1e-6)) > 0 >= rate(best["delta"] * (1 + 1e-6))  # where (28) turns

@@ -10,13 +10,12 @@ failures, so the counting can fail.
 
 import numpy as np
 import pytest
+from summary_rows import find_row
 
 import switchest.experiments.lee as lee_exp  # registers lee-detection
-from switchest.analysis.lee import lee_assumptions
+from switchest.analysis.min_distance_design import lee_assumptions
 from switchest.models.lee import LEE_SCENARIO as S
 from switchest.simulate import simulate
-
-from summary_rows import find_row
 
 NAME = "lee-detection"
 NAMES = (NAME,)  # run by the `runs` fixture of conftest.py

@@ -14,7 +14,6 @@ from stored_runs import assert_same_results, count_tasks, query, start_child, wa
 
 from switchest.experiments import RunInterrupted, Store, get, run_experiment, runner, stored_results
 
-
 LINUX = sys.platform.startswith("linux")
 CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
 VEHICLE_RUN = {"trials": 8000, "block_size": 1000}  # shankar-vehicle: 8 tasks of about 0.3 s

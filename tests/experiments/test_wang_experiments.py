@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
+from summary_rows import close_at_printed, find_row
 
-from switchest.analysis.ms_design import error_dynamics, second_moments
+from switchest.analysis.subsystem_observers import error_dynamics, second_moments
 from switchest.experiments import (
     get,
     wang,  # registers wang-examples and wang-ieee5bus
@@ -29,8 +30,6 @@ from switchest.models import (
     ieee_5bus,
     ieee_5bus_mode_probabilities,
 )
-
-from summary_rows import close_at_printed, find_row
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 EX = json.loads((DATA / "wang_examples.json").read_text())["cases"]

@@ -11,13 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from summary_rows import close_at_printed, find_row
 
 import switchest.experiments.zhang  # noqa: F401  (registers the Zhang experiments)
-from switchest.analysis.bias import bias_recursion, mean_state, mismatch_dynamics
+from switchest.analysis.mode_mismatch import bias_recursion, mean_state, mismatch_dynamics
 from switchest.experiments import get
 from switchest.models.zhang import smart_grid, zhang_two_mode
-
-from summary_rows import close_at_printed, find_row
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 EX1 = json.loads((DATA / "zhang_example1.json").read_text())

@@ -1,188 +1,92 @@
-"""Certificates and design: observability, Lyapunov/LMI stability, JSR bounds,
-mode-mismatch bias (Zhang & Natarajan) and switching-time error bounds (Shankar et al.).
+"""Certificates and designs: functions of a system and of gains, below the estimators.
 
-Each function returns a small frozen result carrying the numbers and a verdict.
+Each function returns a small frozen result carrying the numbers and a verdict, ``holds``
+(the statement it proves or checks). One module per family, named for what it certifies or
+designs:
+
+* :mod:`.observability` and :mod:`.stability` (Lyapunov/LMI, JSR bounds, mean square);
+* :mod:`.steady_state_kalman`: the steady-state Kalman gain of a mode;
+* :mod:`.mode_mismatch`: the bias of the mode-based Kalman filter under mode mismatch
+  (Zhang & Natarajan, paper 001);
+* :mod:`.switch_time_bounds`: error bounds from a switching-time error (Shankar et al., 000);
+* :mod:`.min_distance_design`: the minimum-distance detector's constants and windows
+  (Lee, paper 002);
+* :mod:`.subsystem_observers`: mean-square design of subsystem observers (Wang, paper 003);
+* :mod:`.impulsive_lmis`: the impulsive observer's LMIs and rates (Etienne et al., 004).
+
+Names that carried a theorem number remain importable as deprecated aliases
+(:data:`DEPRECATED_NAMES`, old name -> new name). Each name is imported from its module at
+its first use (PEP 562 ``__getattr__``): importing one design does not load cvxpy or
+scipy.optimize for the others.
 """
 
-from .bias import (
-    AutonomousBiasStability,
-    MismatchDynamics,
-    ToleranceCheck,
-    TransformedSystem,
-    UnstableComponents,
-    autonomous_stability,
-    bias_recursion,
-    bibo_gain,
-    lemma3_hypotheses,
-    max_mismatch_probability,
-    mean_state,
-    mismatch_dynamics,
-    riccati_gains,
-    stable_mismatch_region,
-    steady_state_gains,
-    theorem4_bound,
-    tolerance_region,
-    transformed_system,
-    unstable_components,
-)
-from .bounds import EstimationErrorBounds, SwitchMatrixBounds, estimation_error_bounds, lemma2_bounds
-from .impulsive import (
-    ClosedLoopCertificate,
-    ImpulsiveObserverCertificate,
-    ImpulsiveObserverSearch,
-    impulsive_closed_loop_analysis,
-    impulsive_observer_search,
-    impulsive_observer_synthesis,
-    theorem8_rate,
-    theorem10_rate,
-)
-from .lee import (
-    LeeAssumptions,
-    LeeCondition,
-    LeeConstants,
-    LeeWindows,
-    decay_observer_gains,
-    default_observer_gains,
-    lee_assumptions,
-    lee_constants,
-    lee_windows,
-    observability_gramians,
-)
-from .ms_design import (
-    CriticalInterval,
-    ErrorDynamics,
-    GainBounds,
-    MSConvergence,
-    OptimalGains,
-    SteadyState,
-    SubsystemStructure,
-    critical_interval,
-    decoupled_gain_bounds,
-    error_dynamics,
-    kalman_bucy_gains,
-    ms_convergence,
-    optimal_gains,
-    place_gains,
-    pole_placement_gain,
-    second_moments,
-    steady_state,
-    substate_gains,
-    subsystem_structure,
-)
-from .observability import (
-    CombinedObservability,
-    DwellTimeObservability,
-    JointObservability,
-    KalmanDecomposition,
-    ModeObservability,
-    UniformObservability,
-    combined_observability,
-    dwell_time_observability,
-    is_observable,
-    joint_gramian,
-    joint_observability,
-    kalman_decomposition,
-    mode_decompositions,
-    mode_observability,
-    observability_matrix,
-    omega_min,
-    uniform_observability,
-)
-from .stability import (
-    JSRBounds,
-    LyapunovCertificate,
-    MeanSquareStability,
-    cqlf,
-    decrease_margin,
-    jsr_bounds,
-    ms_stable_iid,
-    spectral_radius,
-)
+import warnings
+from importlib import import_module
 
-__all__ = [
-    "autonomous_stability",
-    "AutonomousBiasStability",
-    "bias_recursion",
-    "bibo_gain",
-    "ClosedLoopCertificate",
-    "combined_observability",
-    "CombinedObservability",
-    "cqlf",
-    "critical_interval",
-    "CriticalInterval",
-    "decoupled_gain_bounds",
-    "decrease_margin",
-    "decay_observer_gains",
-    "default_observer_gains",
-    "dwell_time_observability",
-    "DwellTimeObservability",
-    "error_dynamics",
-    "ErrorDynamics",
-    "estimation_error_bounds",
-    "EstimationErrorBounds",
-    "GainBounds",
-    "impulsive_closed_loop_analysis",
-    "impulsive_observer_search",
-    "impulsive_observer_synthesis",
-    "ImpulsiveObserverCertificate",
-    "ImpulsiveObserverSearch",
-    "is_observable",
-    "joint_gramian",
-    "joint_observability",
-    "JointObservability",
-    "jsr_bounds",
-    "JSRBounds",
-    "kalman_bucy_gains",
-    "kalman_decomposition",
-    "KalmanDecomposition",
-    "lee_assumptions",
-    "lee_constants",
-    "lee_windows",
-    "LeeAssumptions",
-    "LeeCondition",
-    "LeeConstants",
-    "LeeWindows",
-    "lemma2_bounds",
-    "lemma3_hypotheses",
-    "LyapunovCertificate",
-    "max_mismatch_probability",
-    "mean_state",
-    "MeanSquareStability",
-    "mismatch_dynamics",
-    "MismatchDynamics",
-    "mode_decompositions",
-    "mode_observability",
-    "ModeObservability",
-    "ms_convergence",
-    "ms_stable_iid",
-    "MSConvergence",
-    "observability_gramians",
-    "observability_matrix",
-    "omega_min",
-    "optimal_gains",
-    "OptimalGains",
-    "place_gains",
-    "pole_placement_gain",
-    "riccati_gains",
-    "second_moments",
-    "spectral_radius",
-    "stable_mismatch_region",
-    "steady_state",
-    "steady_state_gains",
-    "SteadyState",
-    "substate_gains",
-    "subsystem_structure",
-    "SubsystemStructure",
-    "SwitchMatrixBounds",
-    "theorem10_rate",
-    "theorem4_bound",
-    "theorem8_rate",
-    "tolerance_region",
-    "ToleranceCheck",
-    "transformed_system",
-    "TransformedSystem",
-    "uniform_observability",
-    "UniformObservability",
-    "unstable_components",
-    "UnstableComponents",
-]
+# module -> the names it defines that the package exports
+_EXPORTS = {
+    "impulsive_lmis": ("ClosedLoopCertificate", "ImpulsiveObserverCertificate",
+                       "ImpulsiveObserverSearch", "closed_loop_matrices",
+                       "impulsive_closed_loop_analysis", "impulsive_closed_loop_decay_rate",
+                       "impulsive_observer_decay_rate", "impulsive_observer_search",
+                       "impulsive_observer_synthesis"),
+    "min_distance_design": ("LeeAssumptions", "LeeCondition", "LeeConstants", "LeeWindows",
+                            "decay_observer_gains", "default_observer_gains", "lee_assumptions",
+                            "lee_constants", "lee_windows", "observability_gramians"),
+    "mode_mismatch": ("AutonomousBiasStability", "MismatchDynamics", "ToleranceCheck",
+                      "TransformedSystem", "UnstableComponents", "autonomous_stability",
+                      "bias_recursion", "bibo_gain", "filter_stability_hypotheses",
+                      "max_mismatch_probability", "mean_state", "mismatch_bias_bound",
+                      "mismatch_dynamics", "riccati_gains", "stable_mismatch_region",
+                      "steady_state_gains", "tolerance_region", "transformed_system",
+                      "unstable_components"),
+    "observability": ("CombinedObservability", "DwellTimeObservability", "JointObservability",
+                      "KalmanDecomposition", "ModeObservability", "UniformObservability",
+                      "combined_observability", "dwell_time_observability", "is_observable",
+                      "joint_gramian", "joint_observability", "kalman_decomposition",
+                      "mode_decompositions", "mode_observability", "observability_matrix",
+                      "omega_min", "uniform_observability"),
+    "stability": ("JSRBounds", "LyapunovCertificate", "MeanSquareStability", "cqlf",
+                  "decrease_margin", "jsr_bounds", "ms_stable_iid", "spectral_radius"),
+    "steady_state_kalman": ("steady_state_gain",),
+    "subsystem_observers": ("CriticalInterval", "ErrorDynamics", "GainBounds", "MSConvergence",
+                            "OptimalGains", "SteadyState", "SubsystemStructure",
+                            "critical_interval", "decoupled_gain_bounds", "error_dynamics",
+                            "kalman_bucy_gains", "ms_convergence", "optimal_gains", "place_gains",
+                            "pole_placement_gain", "second_moments", "steady_state",
+                            "substate_gains", "subsystem_structure"),
+    "switch_time_bounds": ("EstimationErrorBounds", "SwitchMatrixBounds",
+                           "estimation_error_bounds", "switch_matrix_bounds"),
+}
+_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
+
+#: Old (theorem-numbered) name -> the name of the same object now.
+DEPRECATED_NAMES = {
+    "lemma2_bounds": "switch_matrix_bounds",
+    "lemma3_hypotheses": "filter_stability_hypotheses",
+    "theorem4_bound": "mismatch_bias_bound",
+    "theorem8_rate": "impulsive_observer_decay_rate",
+    "theorem10_rate": "impulsive_closed_loop_decay_rate",
+}
+
+__all__ = sorted([*_MODULE_OF, "DEPRECATED_NAMES"], key=str.lower)
+
+
+def __getattr__(name: str) -> object:
+    """An exported name, imported from its module at its first use and kept; an old name
+    warns ``DeprecationWarning`` and gives the object it was renamed to."""
+    if name in DEPRECATED_NAMES:
+        new = DEPRECATED_NAMES[name]
+        warnings.warn(f"switchest.analysis.{name} is deprecated; use switchest.analysis.{new}",
+                      DeprecationWarning, stacklevel=2)
+        return __getattr__(new)
+    if name not in _MODULE_OF:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(f".{_MODULE_OF[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """The package's names, the deferred ones included."""
+    return sorted({*globals(), *__all__})

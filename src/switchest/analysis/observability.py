@@ -40,6 +40,7 @@ from .._checks import (
 from .._linalg import symmetrize
 from ..discretize import interval
 from ..system import SwitchedLinearSystem
+from ._deprecation import renamed_field
 
 __all__ = [
     "CombinedObservability",
@@ -198,8 +199,8 @@ class UniformObservability:
 
     Attributes
     ----------
-    observable : bool
-        ``(e^{AT}, H)`` is observable.
+    holds : bool
+        ``(e^{AT}, H)`` is observable (uniformly, with the window ``h``).
     h : int or None
         Smallest ``h >= 1`` with the window Gramian of Shankar et al. Definition 1
         positive definite; ``None`` when not observable.
@@ -208,9 +209,11 @@ class UniformObservability:
         observable.
     """
 
-    observable: bool
+    holds: bool
     h: int | None
     rho: float
+
+    observable = renamed_field("observable")
 
 
 @dataclass(frozen=True)
@@ -220,20 +223,24 @@ class DwellTimeObservability:
     Attributes
     ----------
     holds : bool
-        Lemma 1's hypotheses as printed: every sampled mode uniformly observable
-        and ``tau_d > h_bar T``.
-    h : int or None
-        ``2 h_bar - 1``, the window claimed by Lemma 1.
-    rho : float
-        ``min_i rho_1^i``, the constant claimed by Lemma 1. NOT a valid bound in
-        general (see :func:`dwell_time_observability`).
-    holds_corrected : bool
-        Every sampled mode uniformly observable and ``tau_d >= (h_bar + 1) T``.
+        The proven (corrected) lemma applies: every sampled mode is uniformly observable
+        and ``tau_d >= (h_bar + 1) T``, so every window of ``h_corrected`` samples has a
+        Gramian of at least ``rho_corrected``.
     h_corrected : int or None
-        ``2 h_bar``: a window length that provably works under ``holds_corrected``.
+        ``2 h_bar``: a window length that provably works under ``holds``.
     rho_corrected : float
         ``min_i rho_1^i * min(1, e^{2 nu h_bar T})``, ``nu = min_i lambda_min((A_i + A_i')/2)``:
-        a proven lower bound on the window Gramian under ``holds_corrected``.
+        a proven lower bound on the window Gramian under ``holds``.
+    printed_lemma_holds : bool
+        The hypotheses of Lemma 1 *as printed*: every sampled mode uniformly observable
+        and ``tau_d > h_bar T``. The printed lemma is false in general: its window ``h``
+        and constant ``rho`` are not valid bounds (counter-example in
+        :func:`dwell_time_observability`), so this is not a certificate.
+    h : int or None
+        ``2 h_bar - 1``, the window claimed by the printed Lemma 1.
+    rho : float
+        ``min_i rho_1^i``, the constant claimed by the printed Lemma 1. NOT a valid bound
+        in general.
     h_modes : tuple of (int or None)
         ``h_i`` per mode.
     rho_modes : ndarray, shape (L,)
@@ -241,13 +248,15 @@ class DwellTimeObservability:
     """
 
     holds: bool
-    h: int | None
-    rho: float
-    holds_corrected: bool
     h_corrected: int | None
     rho_corrected: float
+    printed_lemma_holds: bool
+    h: int | None
+    rho: float
     h_modes: tuple[int | None, ...]
     rho_modes: np.ndarray
+
+    holds_corrected = renamed_field("holds_corrected")
 
 
 # ---------------------------------------------------------------------- pairs (A, C)
@@ -540,7 +549,7 @@ def uniform_observability(A, H, T: float, *, R=None, rtol: float = _RTOL) -> Uni
     F = interval(SwitchedLinearSystem.continuous(A), T, np.zeros(1, dtype=np.int64)).F
     Hw = np.linalg.solve(np.linalg.cholesky(R), H)  # R^{-1/2} H: Hw' Hw = H' R^{-1} H
     if not is_observable(F, Hw, rtol=rtol):
-        return UniformObservability(observable=False, h=None, rho=0.0)
+        return UniformObservability(holds=False, h=None, rho=0.0)
     gram = Hw.T @ Hw
     power = np.eye(n)
     h_max = max(n - 1, 1)
@@ -549,7 +558,7 @@ def uniform_observability(A, H, T: float, *, R=None, rtol: float = _RTOL) -> Uni
         gram = gram + power.T @ Hw.T @ Hw @ power
         lam = np.linalg.eigvalsh(symmetrize(gram))
         if lam[0] > rtol * lam[-1] or h == h_max:
-            return UniformObservability(observable=True, h=h, rho=float(max(lam[0], 0.0)))
+            return UniformObservability(holds=True, h=h, rho=float(max(lam[0], 0.0)))
     raise AssertionError("unreachable: the loop returns at h = h_max")  # pragma: no cover
 
 
@@ -563,7 +572,7 @@ def dwell_time_observability(
     ``h_bar = max h_i``, Lemma 1 states that every window Gramian
     ``sum_{i=k}^{k+h} Phi_{i,k}' H' R^{-1} H Phi_{i,k}`` of the switched sampled
     system is ``>= rho_1 I`` with ``h = 2 h_bar - 1`` and ``rho_1 = min rho_1^i``.
-    Those printed constants are returned as ``h``, ``rho``, ``holds``.
+    Those printed constants are returned as ``h``, ``rho``, ``printed_lemma_holds``.
 
     They are not valid in general (tests/analysis/test_observability.py shows a
     window Gramian with min eigenvalue 4.6e-6 against a claimed 0.289): the
@@ -583,6 +592,8 @@ def dwell_time_observability(
       ``x' G x >= rho_j ||Phi_{s,k} x||^2``, and
       ``sigma_min(e^{A t}) >= e^{nu t}`` with ``nu = lambda_min((A + A')/2)``
       over every mode, so ``G >= min_j rho_j min(1, e^{2 nu h_bar T}) I``.
+
+    That statement is returned as ``holds``, ``h_corrected``, ``rho_corrected``.
 
     Parameters
     ----------
@@ -610,26 +621,26 @@ def dwell_time_observability(
         per_mode.append(uniform_observability(system.A[i], system.C[i], T, R=R, rtol=rtol))
     h_modes = tuple(u.h for u in per_mode)
     rho_modes = np.array([u.rho for u in per_mode])
-    if not all(u.observable for u in per_mode):
+    if not all(u.holds for u in per_mode):
         return DwellTimeObservability(
             holds=False,
-            h=None,
-            rho=0.0,
-            holds_corrected=False,
             h_corrected=None,
             rho_corrected=0.0,
+            printed_lemma_holds=False,
+            h=None,
+            rho=0.0,
             h_modes=h_modes,
             rho_modes=rho_modes,
         )
     h_bar = max(h_modes)
     nu = float(np.min(np.linalg.eigvalsh(symmetrize(system.A))))
     return DwellTimeObservability(
-        holds=tau_d > h_bar * T,
-        h=2 * h_bar - 1,
-        rho=float(rho_modes.min()),
-        holds_corrected=tau_d >= (h_bar + 1) * T,
+        holds=tau_d >= (h_bar + 1) * T,
         h_corrected=2 * h_bar,
         rho_corrected=float(rho_modes.min() * min(1.0, np.exp(2 * nu * h_bar * T))),
+        printed_lemma_holds=tau_d > h_bar * T,
+        h=2 * h_bar - 1,
+        rho=float(rho_modes.min()),
         h_modes=h_modes,
         rho_modes=rho_modes,
     )

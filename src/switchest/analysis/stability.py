@@ -19,8 +19,15 @@ from typing import Literal
 import numpy as np
 from scipy.sparse.linalg import ArpackError, LinearOperator, eigs
 
-from .._checks import check_finite, check_probability_vector, float_array, positive_int, positive_scalar
+from .._checks import (
+    check_finite,
+    check_probability_vector,
+    float_array,
+    positive_int,
+    positive_scalar,
+)
 from .._threads import one_blas_thread
+from ._deprecation import renamed_field
 from ._lmi import (
     cp,
     max_eigenvalue,
@@ -61,9 +68,9 @@ class LyapunovCertificate:
 
     Attributes
     ----------
-    feasible : bool
-        True only when the returned ``P`` passed the numpy re-verification, with
-        the rounding of that check allowed for.
+    holds : bool
+        A common quadratic Lyapunov function exists: True only when the returned ``P``
+        passed the numpy re-verification, with the rounding of that check allowed for.
     P : ndarray, shape (n, n), or None
         The certificate, scaled so that its smallest eigenvalue is 1 (``P >= I``);
         ``None`` when not feasible.
@@ -79,12 +86,14 @@ class LyapunovCertificate:
         What the verdict means; an infeasible verdict is not a proof of instability.
     """
 
-    feasible: bool
+    holds: bool
     P: np.ndarray | None
     margin: float
     solver_status: str
     domain: str
     note: str
+
+    feasible = renamed_field("feasible")
 
 
 @dataclass(frozen=True)
@@ -130,13 +139,15 @@ class MeanSquareStability:
     ----------
     radius : float
         Spectral radius of ``sum_i p_i (A_i kron A_i)``.
-    stable : bool
+    holds : bool
         ``radius < 1`` by more than the rounding allowance of ``radius``: the second
         moment ``E[x_k x_k']`` converges to zero.
     """
 
     radius: float
-    stable: bool
+    holds: bool
+
+    stable = renamed_field("stable")
 
 
 def spectral_radius(A) -> np.ndarray:
@@ -162,7 +173,7 @@ def cqlf(matrices, domain: Domain = "discrete", *, margin: float = 1e-6) -> Lyap
     ``A_i' P + P A_i <= -margin I``. The strict inequalities of the papers are
     posed with the explicit margin; the homogeneous problem loses nothing by the
     normalization ``P >= I``. The solver's ``P`` is then re-checked with numpy
-    eigenvalues after rescaling it to ``min eig(P) = 1``; ``feasible`` is True only
+    eigenvalues after rescaling it to ``min eig(P) = 1``; ``holds`` is True only
     if the verified decrease margin, less the rounding allowance of its computation
     (:func:`~switchest.analysis._lmi.rounding_allowance`: forming ``A_i' P A_i - P``
     and its eigenvalues, ``2 (3n + 1) eps`` times the size of the terms), is at least
@@ -229,7 +240,7 @@ def cqlf(matrices, domain: Domain = "discrete", *, margin: float = 1e-6) -> Lyap
             + _INFEASIBLE_NOTE,
         )
     return LyapunovCertificate(
-        feasible=True,
+        holds=True,
         P=Pv,
         margin=verified,
         solver_status=outcome.status,
@@ -428,7 +439,7 @@ def ms_stable_iid(A, p) -> MeanSquareStability:
     else:
         radius = _operator_radius(A, p)
         allowance = allowance + _ARPACK_TOL * radius
-    return MeanSquareStability(radius=radius, stable=bool(radius + allowance < 1.0))
+    return MeanSquareStability(radius=radius, holds=bool(radius + allowance < 1.0))
 
 
 _ARPACK_TOL = 1e-12
@@ -486,7 +497,7 @@ def _verified_decrease(A: np.ndarray, P: np.ndarray, domain: str) -> tuple[np.nd
 
 def _infeasible(status: str, domain: str, note: str) -> LyapunovCertificate:
     return LyapunovCertificate(
-        feasible=False, P=None, margin=float("nan"), solver_status=status, domain=domain, note=note
+        holds=False, P=None, margin=float("nan"), solver_status=status, domain=domain, note=note
     )
 
 
@@ -504,13 +515,13 @@ def _ellipsoid_bound(A: np.ndarray, rtol: float) -> tuple[float, np.ndarray]:
         return 0.0, np.eye(A.shape[-1])
     lo = rho
     best = cqlf(A / hi)
-    P = best.P if best.feasible else np.eye(A.shape[-1])
+    P = best.P if best.holds else np.eye(A.shape[-1])
     for _ in range(_MAX_BISECTIONS):
         if hi - lo <= rtol * hi:
             break
         mid = 0.5 * (lo + hi)
         cert = cqlf(A / mid)
-        if cert.feasible:
+        if cert.holds:
             hi, P = mid, cert.P
         else:
             lo = mid

@@ -15,8 +15,8 @@ interval included.
 
 :func:`simulate_observer_control` simulates the observer-based feedback
 ``u = K_{sigma_hat} x_hat`` of §3.2 exactly, as the extended system (21)-(23);
-:func:`closed_loop_matrices` builds its matrices (with the sign of the jump block
-(22b) corrected, see there).
+its matrices come from :func:`switchest.analysis.impulsive_lmis.closed_loop_matrices` (with
+the sign of the jump block (22b) corrected, see there), which stays importable from here.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ __all__ = [
     "ImpulsiveObserver",
     "ImpulsiveState",
     "ObserverControlTrajectory",
-    "closed_loop_matrices",
+    "closed_loop_matrices",  # noqa: F822 - see __getattr__
     "delayed_replica",
     "impulsive_update",
     "simulate_observer_control",
@@ -121,56 +121,6 @@ def delayed_replica(signal: SwitchingSignal, delay) -> SwitchingSignal:
             "delay reorders the switches: the delayed switch times must stay strictly increasing"
         )
     return SwitchingSignal(times, signal.modes)
-
-
-def closed_loop_matrices(system: SwitchedLinearSystem, K, G) -> tuple[np.ndarray, np.ndarray]:
-    """Flow and jump matrices of the observer-based closed loop (Etienne et al. eqs (21)-(23)).
-
-    With ``u = K_{sigma_hat} x_hat`` and ``z = [x; e]``, ``e = x - x_hat``, the plant
-    (1) and the observer (2) give ``dz/dt = Acl[sigma, sigma_hat] z`` between
-    samples and ``z(t_k+) = J[sigma, sigma_hat] z(t_k)`` at the samples, with (eq. (22a))::
-
-        Acl[j, i] = [[A_j + B_j K_i,      -B_j K_i      ],
-                     [A_ji + B_ji K_i,    A_i - B_ji K_i]]
-        J[j, i]   = [[I,                  0             ],
-                     [-G_i C_ji,          I - G_i C_i   ]]
-
-    ``A_ji = A_j - A_i``, ``B_ji = B_j - B_i``, ``C_ji = C_j - C_i`` (eq. (23)), ``j`` the
-    true and ``i`` the estimated mode (the paper's ``A_{sigma sigma_hat}``).
-
-    Discrepancy: the printed eq. (22b) has ``+G C_ji`` in the lower-left block.
-    From (1)-(2), ``e+ = x - x_hat - G_i (C_j x - C_i x_hat) = -G_i C_ji x + (I - G_i C_i) e``:
-    the sign is minus. It matters only when the output matrices differ between
-    modes (in §4, ``C_1 = C_2`` and the block vanishes).
-
-    Parameters
-    ----------
-    system : SwitchedLinearSystem
-        Continuous time, with ``L`` modes, ``n`` states, ``l`` inputs, ``m`` outputs.
-    K : array_like, shape (L, l, n)
-        State-feedback gains, applied as ``u = K_i x_hat`` (no minus sign).
-    G : array_like, shape (L, n, m)
-        Observer gains.
-
-    Returns
-    -------
-    Acl, J : ndarray, shape (L, L, 2n, 2n)
-        Indexed ``[true mode, estimated mode]``.
-    """
-    system = _check_system(system)
-    K = _gain_stack(K, "K", (system.n_modes, system.n_inputs, system.n_states), "(L, l, n)")
-    G = _gain_stack(G, "G", (system.n_modes, system.n_states, system.n_outputs), "(L, n, m)")
-    A, B, C = system.A, system.B, system.C
-    n = system.n_states
-    Aj, Ai = A[:, None], A[None, :]  # [j, i]: true mode j, estimated mode i
-    Bj, Bi = B[:, None], B[None, :]
-    BK = Bj @ K[None, :]  # B_j K_i
-    dBK = (Bj - Bi) @ K[None, :]  # B_ji K_i
-    Acl = np.block([[Aj + BK, -BK], [Aj - Ai + dBK, Ai - dBK]])
-    GdC = G[None, :] @ (C[:, None] - C[None, :])  # G_i C_ji
-    eye = np.broadcast_to(np.eye(n), GdC.shape)
-    J = np.block([[eye, np.zeros_like(GdC)], [-GdC, eye - np.broadcast_to(G @ C, GdC.shape)]])
-    return Acl, J
 
 
 # ---------------------------------------------------------------------- the observer
@@ -371,7 +321,8 @@ def simulate_observer_control(
     The plant (1), the impulsive observer (2) and the continuous feedback
     ``u(t) = K_{sigma_hat(t)} x_hat(t)`` form the extended system (21) in
     ``z = [x; x - x_hat]``: it is linear between events, with the matrix
-    ``Acl[sigma, sigma_hat]`` of :func:`closed_loop_matrices`. It is propagated
+    ``Acl[sigma, sigma_hat]`` of
+    :func:`~switchest.analysis.impulsive_lmis.closed_loop_matrices`. It is propagated
     exactly as a switched system over the L*L mode pairs (switches of ``sigma``
     and of ``sigma_hat`` anywhere inside a sample interval), and jumps by
     ``J[sigma(t_k), sigma_hat(t_k)]`` at every sample, ``t_0`` included.
@@ -405,6 +356,8 @@ def simulate_observer_control(
     -------
     ObserverControlTrajectory
     """
+    from ..analysis.impulsive_lmis import closed_loop_matrices  # the analysis: ~1 s to import
+
     system = _check_system(system)
     rng = as_rng(rng)
     Acl, J = closed_loop_matrices(system, K, G)
@@ -553,3 +506,13 @@ def _trial_count(trials, signals, *states) -> int:
             f"trials, signals, x0 and x_hat0 disagree on the number of trials: {sorted(sizes)}"
         )
     return sizes.pop() if sizes else 1
+
+
+def __getattr__(name: str) -> object:
+    """``closed_loop_matrices``, imported from :mod:`switchest.analysis.impulsive_lmis` at its
+    first use (PEP 562), so that running the observer does not import the analysis."""
+    if name != "closed_loop_matrices":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from ..analysis.impulsive_lmis import closed_loop_matrices
+
+    return closed_loop_matrices

@@ -4,8 +4,11 @@
 hypotheses, grid points; the last one or two are the vector or matrix; shapes broadcast) and
 run one sample of the compiled Kalman kernel
 (:func:`switchest.estimators._compiled.kalman_step`) on the flattened stack: the one
-implementation of each equation that every filter runs. :func:`steady_state_gain` solves the
-Riccati equation of one mode (scipy).
+implementation of each equation that every filter runs.
+
+``steady_state_gain`` (the Riccati equation of one mode) is a design and lives in
+:mod:`switchest.analysis.steady_state_kalman`; it stays importable from here, loaded at its
+first use so that filtering does not import the analysis.
 """
 
 from __future__ import annotations
@@ -13,13 +16,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import solve_discrete_are
 
 from .._checks import check_cores, float_array, positive_scalar
-from .._linalg import symmetrize
 from ._compiled import GATED, kalman_step, raise_for_status, warn_for_repairs
 
-__all__ = ["kf_predict", "kf_update", "steady_state_gain"]
+__all__ = ["kf_predict", "kf_update", "steady_state_gain"]  # noqa: F822 - see __getattr__
 
 
 def kf_predict(x, P, F, G, u, Qd, *, inflation: float = 0.0):
@@ -123,18 +124,11 @@ def _stack(arrays: dict, cores: dict) -> dict:
     return {**flat, "batch": batch, "N": N}
 
 
-def steady_state_gain(F, C, Qd, R):
-    """Steady-state filter gain and covariances of ``x+ = F x + w``, ``y = C x + v``.
+def __getattr__(name: str) -> object:
+    """``steady_state_gain``, imported from :mod:`switchest.analysis.steady_state_kalman` at its
+    first use (PEP 562)."""
+    if name != "steady_state_gain":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from ..analysis.steady_state_kalman import steady_state_gain
 
-    Solves the discrete algebraic Riccati equation for the a-priori covariance
-    ``P = F P F' - F P C'(C P C' + R)^-1 C P F' + Qd`` and returns
-    ``K = P C' (C P C' + R)^-1`` (the filter-form gain of Zhang & Natarajan eq. (6),
-    ``x_k|k = x_k|k-1 + K (y_k - C x_k|k-1)``), ``P`` and the a-posteriori
-    ``(I - K C) P``. Works on one mode; loop over modes outside (L is small and
-    the Riccati solver is not batched).
-    """
-    P = solve_discrete_are(F.T, C.T, Qd, R)
-    S = C @ P @ C.T + R
-    K = np.linalg.solve(S, C @ P).T  # S symmetric: K' = S^-1 C P
-    P_post = symmetrize((np.eye(F.shape[0]) - K @ C) @ P)
-    return K, symmetrize(P), P_post
+    return steady_state_gain

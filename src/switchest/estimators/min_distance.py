@@ -68,7 +68,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._checks import check_finite, check_memory, float_array, positive_scalar
-from ..analysis.lee import LeeAssumptions, LeeConstants, lee_assumptions, lee_constants
+from ..analysis.min_distance_design import (
+    LeeAssumptions,
+    LeeConstants,
+    lee_assumptions,
+    lee_constants,
+)
 from ..discretize import mode_steps
 from ..signals import SwitchingSignal
 from ..system import SwitchedLinearSystem
@@ -285,7 +290,7 @@ class MinimumDistanceDetector(Estimator):
         :meth:`assumptions` does.
     observer_gains : array_like, shape (L, n, m), optional
         ``L_i`` of (19) (keyword-only); default
-        :func:`switchest.analysis.lee.default_observer_gains`.
+        :func:`switchest.analysis.min_distance_design.default_observer_gains`.
 
     Notes
     -----
@@ -322,8 +327,8 @@ class MinimumDistanceDetector(Estimator):
     def assumptions(self, x_min: float, *, signal=None, min_dwell: float | None = None) -> LeeAssumptions:
         """Lee et al. Assumptions 1-3 for this detector's windows, bounds and gains.
 
-        See :func:`switchest.analysis.lee.lee_assumptions`; ``x_min`` bounds ``|x(t)|``
-        from below, ``signal`` / ``min_dwell`` check Assumption 3.
+        See :func:`switchest.analysis.min_distance_design.lee_assumptions`; ``x_min`` bounds
+        ``|x(t)|`` from below, ``signal`` / ``min_dwell`` check Assumption 3.
         """
         return lee_assumptions(self.system, u_max=self.u_max, v_max=self.v_max, x_min=x_min,
                                delta=self.delta, Delta=self.Delta, observer_gains=self.observer_gains,

@@ -37,7 +37,6 @@ from ._compiled import (
     warn_for_repairs,
 )
 from .base import Estimate, Estimator
-from .kalman import steady_state_gain
 
 __all__ = ["KalmanState", "ModeKalmanFilter"]
 
@@ -260,6 +259,10 @@ def _steady_gains(system, period: float) -> tuple[np.ndarray, ...]:
     steady innovation covariance ``S_i = C_i P_i C_i' + R_i = L_i L_i'`` (for the gate's
     ``e' S_i^-1 e = |W_i e|^2``); a function of its arguments only, so a filter keeps no state
     between runs."""
+    # the design (scipy's Riccati solver); imported here so that filtering with given gains
+    # does not import the analysis
+    from ..analysis.steady_state_kalman import steady_state_gain
+
     steps = mode_steps(system, period)
     out = [steady_state_gain(steps.F[i], system.C[i], steps.Qd[i], system.R[i])
            for i in range(system.n_modes)]

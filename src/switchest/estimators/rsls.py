@@ -40,7 +40,7 @@ import numpy as np
 
 from .._checks import check_bool, float_array, positive_scalar
 from .._linalg import symmetrize
-from ..analysis.ms_design import substate_gains, subsystem_structure
+from ..analysis.subsystem_observers import substate_gains, subsystem_structure
 from ..discretize import mode_steps
 from ..system import SwitchedLinearSystem
 from .base import Estimate, Estimator
@@ -91,14 +91,14 @@ class RSLSObserver(Estimator):
         intensity ``Xi Xi'``.
     gains : array_like, shape (L, n, m)
         Sub-observer gains in state coordinates (columns in each mode's
-        observable subspace), e.g. from :func:`switchest.analysis.ms_design.place_gains`.
+        observable subspace), e.g. from :func:`switchest.analysis.subsystem_observers.place_gains`.
     T : float
         Switching interval: modes change only at ``t[0] + kT`` (Assumption 1).
     x0, P0 : array_like
         Initial estimate ``x_hat(t[0])`` ``(n,)`` and the covariance of its error ``(n, n)``.
     shared : bool
         Modes with equal observable subspaces share one sub-observer (default;
-        see :func:`switchest.analysis.ms_design.subsystem_structure`).
+        see :func:`switchest.analysis.subsystem_observers.subsystem_structure`).
 
     Notes
     -----

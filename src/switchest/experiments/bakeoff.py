@@ -32,6 +32,7 @@ from ..tabular import transition_for
 from .registry import Experiment, Row, Summary, register
 from .scoring import blocks, combine, score, split_variants
 
+
 @dataclass(frozen=True)
 class Contender:
     """One bake-off row: a registered method (:func:`~switchest.estimators.get_method`) with

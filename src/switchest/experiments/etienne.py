@@ -16,7 +16,7 @@ A task draws one trial block — sampling sequence, switching signals, initial
 states — and runs every configuration (gain set, delay) on it. The SDPs are
 deterministic; a task that needs Theorem 8's gains solves for them once per process
 (cached), and a task that solves Theorem 10 compiles its LMIs once and re-solves
-them at every point (:class:`~switchest.analysis.impulsive.ClosedLoopLMIs`).
+them at every point (:class:`~switchest.analysis.impulsive_lmis.ClosedLoopLMIs`).
 """
 
 from __future__ import annotations
@@ -27,12 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.impulsive import (
+from ..analysis.impulsive_lmis import (
     ClosedLoopLMIs,
     ImpulsiveObserverCertificate,
+    impulsive_observer_decay_rate,
     impulsive_observer_search,
     impulsive_observer_synthesis,
-    theorem8_rate,
 )
 from ..estimators.impulsive import ImpulsiveObserver, simulate_observer_control
 from ..models import ETIENNE_SCENARIO, etienne_academic
@@ -198,7 +198,7 @@ def _sync_run(cfg: dict, rng: np.random.Generator) -> dict:
 def _sync_observe(cfg: dict, traj) -> dict:
     """The observer with one gain set's gains on the block's trajectories ``traj``."""
     cert, extra = _sync_certificate(cfg)
-    if not cert.feasible:
+    if not cert.holds:
         raise RuntimeError(f"Theorem 8 gave no certificate for the {cfg['gains']} scalars: "
                            f"{cert.note}")
     t = traj.t
@@ -285,7 +285,7 @@ def _sync_summary(p: dict, results, out: Path) -> Summary:
         ("LMI (7) is printed [[μc P(θ), P0 − L C_j], [*, P0]]: its Schur complement bounds (P0 − LC) P0⁻¹ "
          "(P0 − LC)ᵀ, not the jump (I − GC)ᵀ P0 (I − GC) the proof needs, so the off-diagonal block is transposed "
          "(and C_j is C_i); (6) is printed with α/μc where the proof uses α. Both corrected "
-         "(switchest.analysis.impulsive); the paper's scalars stay feasible."),
+         "(switchest.analysis.impulsive_lmis); the paper's scalars stay feasible."),
         ("Rate (11) assumes ln μc ≤ 0 (it counts at least t/τ̄ − 1 samples); for μc > 1 the search counts t/τ_min. "
          "β is a guaranteed lower bound: the measured rates are far larger, because the LMIs bound every "
          "interval by its worst case and the scalars are fixed by hand (Remark 12)."),
@@ -319,14 +319,14 @@ register(Experiment(
 def _largest_delay(alpha: float, alpha_bar: float, mu_s: float, mu_c: float, mu_c_bar: float) -> float:
     """Supremum of the delays ``delta`` at which the corrected rate (28) is positive, at these scalars.
 
-    :func:`~switchest.analysis.impulsive.theorem10_rate` is
+    :func:`~switchest.analysis.impulsive_lmis.impulsive_closed_loop_decay_rate` is
     ``(b - (delta (alpha + alpha_bar)^+ + q c) / s) / 2`` with
-    ``b = alpha - ln(mu_c)/tau_c - ln(mu_s)/s`` (``= 2 theorem8_rate``),
+    ``b = alpha - ln(mu_c)/tau_c - ln(mu_s)/s`` (``= 2 impulsive_observer_decay_rate``),
     ``c = ln(mu_c_bar/mu_c)^+`` and ``q = ceil(delta/tau_min)``: affine in ``delta``
     on each ``((q-1) tau_min, q tau_min]``. NaN when even ``delta = 0`` fails,
     ``inf`` when no delay does.
     """
-    budget = S.dwell * 2 * theorem8_rate(alpha, mu_s, mu_c, S.tau_min, S.tau_max, S.dwell)  # s b
+    budget = S.dwell * 2 * impulsive_observer_decay_rate(alpha, mu_s, mu_c, S.tau_min, S.tau_max, S.dwell)  # s b
     if budget <= 0:
         return math.nan
     slope, per_sample = max(alpha + alpha_bar, 0.0), max(math.log(mu_c_bar / mu_c), 0.0)
@@ -375,7 +375,7 @@ def _verdict_run() -> dict:
     for name, change in RELAXATIONS.items():
         c = lmis.analyze(delta=S.delta, **{**paper, **change})
         relaxed[name] = {"lmi_feasible": c.lmi_feasible, "beta": c.beta}
-    return {"feasible": cert.feasible, "lmi_feasible": cert.lmi_feasible, "beta": cert.beta,
+    return {"feasible": cert.holds, "lmi_feasible": cert.lmi_feasible, "beta": cert.beta,
             "printed_beta": cert.printed_beta, "note": cert.note, "relaxed": relaxed,
             "G": _paper_observer().G.tolist()}
 
@@ -398,7 +398,7 @@ def _search_run(cfg: dict) -> dict:
         return lmis.analyze(0.0, alpha, alpha_bar, mu_s, mu_c, mu_c).lmi_feasible
 
     # rate > 0 at delta = 0 from here
-    floor = -2 * theorem8_rate(0.0, mu_s, mu_c, S.tau_min, S.tau_max, S.dwell) + tol
+    floor = -2 * impulsive_observer_decay_rate(0.0, mu_s, mu_c, S.tau_min, S.tau_max, S.dwell) + tol
     points = []
     for alpha_bar in sorted(cfg["alpha_bar"]):
         if not feasible(floor, alpha_bar):
@@ -424,8 +424,8 @@ def _search_run(cfg: dict) -> dict:
         for d in cfg["delays"]:
             if d < best["delta"]:
                 c = lmis.analyze(d, best["alpha"], best["alpha_bar"], mu_s, mu_c, mu_c)
-                out["certificates"][str(d)] = {"feasible": c.feasible, "beta": c.beta,
-                                               "M": c.overshoot(cfg["N0"]) if c.feasible else None}
+                out["certificates"][str(d)] = {"feasible": c.holds, "beta": c.beta,
+                                               "M": c.overshoot(cfg["N0"]) if c.holds else None}
     return out
 
 
@@ -569,7 +569,7 @@ def _async_summary(p: dict, results, out: Path) -> Summary:
         f"Sampling intervals uniform in [{S.tau_min:g}, {S.tau_max:g}], switches uniform [{S.dwell:g}, "
         f"{p['max_dwell']:g}] s apart, x(0), x̂(0) ~ N(0, I) independent, horizon {p['horizon']:g} s, "
         f"{p['trials']} trials per delay, delays {p['delays']} s. Theorem 10 with the corrected LMIs and rate "
-        "(switchest.analysis.impulsive)."
+        "(switchest.analysis.impulsive_lmis)."
     )
     notes = [
         ("§4 reports Theorem 10's conditions verified at the paper's scalars. The printed scalar condition (28) "

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.lee import LeeAssumptions, lee_assumptions
+from ..analysis.min_distance_design import LeeAssumptions, lee_assumptions
 from ..estimators.min_distance import MinimumDistanceDetector, match_detections
 from ..models.lee import LEE_SCENARIO, LeeScenario
 from ..plotting import curves

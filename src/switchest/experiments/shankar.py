@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.bounds import lemma2_bounds
+from ..analysis.switch_time_bounds import switch_matrix_bounds
 from ..discretize import interval
 from ..estimators import IMMEV1Filter, IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
 from ..models import (
@@ -283,7 +283,7 @@ def _lemma2_run(cfg: dict, rng: np.random.Generator) -> dict:
         est = interval(sys, T, np.broadcast_to([0, 1], (41, 2)), t_hat[:, None])
         actual_F = np.linalg.norm(est.F - true.F, ord=2, axis=(-2, -1))
         actual_G = np.linalg.norm(est.G - true.G, ord=2, axis=(-2, -1))
-        b = lemma2_bounds(A_i, A_j, B, B, T=T, t_bar=np.full(41, t_bar), t_hat=t_hat)
+        b = switch_matrix_bounds(A_i, A_j, B, B, T=T, t_bar=np.full(41, t_bar), t_hat=t_hat)
         return {"t_tilde": (t_hat - t_bar).tolist(), "actual_F": actual_F.tolist(), "bound_F": b.F.tolist(),
                 "actual_G": actual_G.tolist(), "bound_G": b.G.tolist()}
     n, N = 3, cfg["cases"]
@@ -296,7 +296,7 @@ def _lemma2_run(cfg: dict, rng: np.random.Generator) -> dict:
         sys = SwitchedLinearSystem.continuous(A[k], B[k])
         true = interval(sys, T[k], [0, 1], [t_bar[k]])
         est = interval(sys, T[k], [0, 1], [t_hat[k]])
-        b = lemma2_bounds(A[k, 0], A[k, 1], B[k, 0], B[k, 1], T=T[k], t_bar=t_bar[k], t_hat=t_hat[k])
+        b = switch_matrix_bounds(A[k, 0], A[k, 1], B[k, 0], B[k, 1], T=T[k], t_bar=t_bar[k], t_hat=t_hat[k])
         worst_F = max(worst_F, float(np.linalg.norm(est.F - true.F, 2) / b.F))
         worst_G = max(worst_G, float(np.linalg.norm(est.G - true.G, 2) / b.G))
     return {"worst_F": worst_F, "worst_G": worst_G, "cases": N}
@@ -323,7 +323,7 @@ def _lemma2_summary(p: dict, results, out: Path) -> Summary:
     setup = ("Random 3-state two-mode systems (standard normal A, B), T in [0.05, 1], t_bar and t_hat uniform in "
              "[0, T]; exact F, G by Van Loan; and the boost converter with t_bar = T/2.")
     notes = ["The printed bounds (11)-(12) held in every case we drew; the proof has typos that do not reach the "
-             "statement (see switchest.analysis.bounds)."]
+             "statement (see switchest.analysis.switch_time_bounds)."]
     return Summary("shankar-lemma2", "Shankar et al. Lemma 2 — bound vs actual matrix error", setup, rows, notes, [fig])
 
 

@@ -8,8 +8,8 @@ a fine grid (``simulate(..., output="integrated")``) — and run
 the error dynamics (Theorem 1) do not depend on ``x``, and a growing ``x`` would
 only cost floating-point digits. The Monte Carlo mean squared error is compared
 with the exact second-moment recursion and the steady state of eq. (21)
-(:func:`~switchest.analysis.ms_design.second_moments`,
-:func:`~switchest.analysis.ms_design.steady_state`). A task simulates one trial
+(:func:`~switchest.analysis.subsystem_observers.second_moments`,
+:func:`~switchest.analysis.subsystem_observers.steady_state`). A task simulates one trial
 block of a model once and runs every gain on it, so that two gains can be
 compared pairwise.
 
@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from ..analysis.ms_design import (
+from ..analysis.subsystem_observers import (
     critical_interval,
     decoupled_gain_bounds,
     error_dynamics,
@@ -163,7 +163,7 @@ def _exact(system, gains, T: float, p, e0, steps: int):
     V = second_moments(dyn, p, np.outer(z0, z0), steps)
     diag = np.einsum("ia,kab,ib->ki", Phi, V, Phi)  # diag(Phi V_k Phi')
     ms = ms_convergence(dyn, p)
-    return diag, (np.diag(steady_state(dyn, p).V_x) if ms.stable else None), ms
+    return diag, (np.diag(steady_state(dyn, p).V_x) if ms.holds else None), ms
 
 
 def _given_modes(system, gains, T: float, e0, modes: np.ndarray, err: np.ndarray, start: int,

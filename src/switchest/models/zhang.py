@@ -82,7 +82,7 @@ def smart_grid(tau: float = SMART_GRID_TAU) -> SwitchedLinearSystem:
         ``tests/data/zhang_smart_grid.json``). The printed ``||Lambda_1|| = 0.9817``
         is not a steady-state value at any tau that also gives the other two: it is
         the Algorithm 1 gain after about 100 steps (see
-        :func:`switchest.analysis.bias.riccati_gains`).
+        :func:`switchest.analysis.mode_mismatch.riccati_gains`).
 
     Returns
     -------

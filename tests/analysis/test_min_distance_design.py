@@ -16,7 +16,7 @@ from scipy.integrate import quad
 from scipy.linalg import expm
 
 from switchest import SwitchedLinearSystem
-from switchest.analysis.lee import (
+from switchest.analysis.min_distance_design import (
     decay_observer_gains,
     default_observer_gains,
     lee_assumptions,
@@ -184,7 +184,7 @@ def test_the_papers_pathological_example_can_never_satisfy_condition_3():
                             observer_gains=[[[1.0]], [[1.0]]])
         assert a.assumption1.holds and not a.condition3.holds and not a.condition4.holds
     w = lee_windows(sys, u_max=1.0, v_max=0.0, x_min=1.0, observer_gains=[[[1.0]], [[1.0]]], t_max=5.0, step=0.05)
-    assert not w.found and w.delta is None
+    assert not w.holds and w.delta is None
 
 
 def test_modes_that_cannot_be_told_apart_fail_assumption_1():
@@ -217,7 +217,7 @@ def test_smallest_windows_are_the_first_that_satisfy_3_and_4(demo):
     step = 0.01
     kw = {"u_max": S.u_max, "v_max": S.v_max, "x_min": S.x_min(), "observer_gains": S.observer_gains}
     w = lee_windows(sys, t_max=3.0, step=step, **kw)
-    assert w.found and w.assumptions.holds
+    assert w.holds and w.assumptions.holds
     assert w.delta / step == pytest.approx(round(w.delta / step)) and w.delta <= S.delta
     assert w.Delta / step == pytest.approx(round(w.Delta / step)) and w.Delta <= S.Delta
     before = lee_assumptions(sys, delta=w.delta - step, Delta=w.Delta, **kw)
@@ -231,7 +231,7 @@ def test_no_window_when_the_noise_is_too_large(demo):
     sys, _ = demo
     w = lee_windows(sys, u_max=S.u_max, v_max=1.0, x_min=S.x_min(), observer_gains=S.observer_gains,
                     t_max=2.0, step=0.01)
-    assert not w.found and w.Delta is None and w.assumptions is None
+    assert not w.holds and w.Delta is None and w.assumptions is None
 
 
 # ---------------------------------------------------------------------- bad input

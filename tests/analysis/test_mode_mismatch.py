@@ -12,19 +12,19 @@ from hypothesis import strategies as st
 from scipy.linalg import solve_discrete_are
 from scipy.optimize import brentq
 
-from switchest.analysis.bias import (
+from switchest.analysis.mode_mismatch import (
     MismatchDynamics,
     autonomous_stability,
     bias_recursion,
     bibo_gain,
-    lemma3_hypotheses,
+    filter_stability_hypotheses,
     max_mismatch_probability,
     mean_state,
+    mismatch_bias_bound,
     mismatch_dynamics,
     riccati_gains,
     stable_mismatch_region,
     steady_state_gains,
-    theorem4_bound,
     tolerance_region,
     transformed_system,
     unstable_components,
@@ -136,7 +136,7 @@ def test_example1_cqlf_for_lambdas_and_for_the_original_modes():
     stab = autonomous_stability(example1())
     assert stab.holds and stab.lemma3
     uc = unstable_components(zhang_two_mode())
-    assert uc.certificate.feasible and uc.conclusive and not uc.components.any()
+    assert uc.certificate.holds and uc.holds is True and not uc.components.any()
     assert stable_mismatch_region(zhang_two_mode()).all()
 
 
@@ -158,7 +158,7 @@ def test_fig6_max_mismatch_needs_eta_times_sup_input_1_04():
     for lam12, inside in [(case["value"] - 1e-6, True), (case["value"] + 1e-5, False)]:
         lam = np.array([[1 - lam12, lam12], [lam12, 1 - lam12]])
         check = tolerance_region(d, lam, bound=0.3, eta=c, sup_input=1.0)
-        assert check.inside is inside
+        assert check.holds is inside
 
 
 def test_theorem4_bound_is_the_minimum_over_the_simplex():
@@ -174,10 +174,10 @@ def test_theorem4_bound_is_the_minimum_over_the_simplex():
         for o in [[i for i in range(3) if i != q]]
     ]
     expected = eta * sup_u * max(per_q)
-    assert theorem4_bound(d, P, eta=eta, sup_input=sup_u) == pytest.approx(expected, rel=1e-12)
-    assert theorem4_bound(d, 0.0, eta=eta, sup_input=sup_u) == 0.0
+    assert mismatch_bias_bound(d, P, eta=eta, sup_input=sup_u) == pytest.approx(expected, rel=1e-12)
+    assert mismatch_bias_bound(d, 0.0, eta=eta, sup_input=sup_u) == 0.0
     # and max_mismatch_probability inverts it
-    B = theorem4_bound(d, P, eta=eta, sup_input=sup_u)
+    B = mismatch_bias_bound(d, P, eta=eta, sup_input=sup_u)
     assert max_mismatch_probability(d, bound=B, eta=eta, sup_input=sup_u) == pytest.approx(P)
 
 
@@ -192,7 +192,7 @@ def test_tolerance_region_values():
         lam[0, 2] * norms[0, 2] + lam[1, 2] * norms[1, 2],
     ]
     np.testing.assert_allclose(chk.value, expected, rtol=1e-14)
-    assert chk.threshold == 1.0 and chk.inside is bool(max(expected) <= 1.0)
+    assert chk.threshold == 1.0 and chk.holds is bool(max(expected) <= 1.0)
     # eq. (18) is a sufficient condition for (17): ||G_q|| <= value[q]
     G = transformed_system(d, lam).G
     assert np.all(_norms(G) <= chk.value + 1e-12)
@@ -328,8 +328,8 @@ def test_lemma3_spectral_radius_identity():
 
 def test_lemma3_hypotheses():
     # §5.1 and §5.2: every mode controllable and observable.
-    assert lemma3_hypotheses(zhang_two_mode()).all()
-    assert lemma3_hypotheses(smart_grid()).all()
+    assert filter_stability_hypotheses(zhang_two_mode()).all()
+    assert filter_stability_hypotheses(smart_grid()).all()
     # noise on the second state only, and it does not reach the first: not controllable;
     # C sees only the first state of a decoupled A: not observable.
     A = np.diag([0.5, 0.8])
@@ -339,7 +339,7 @@ def test_lemma3_hypotheses():
         Q=np.stack([np.diag([0.0, 1.0]), np.eye(2)]),
         R=[[1.0]],
     )
-    np.testing.assert_array_equal(lemma3_hypotheses(s), [False, False])
+    np.testing.assert_array_equal(filter_stability_hypotheses(s), [False, False])
 
 
 def test_lemma4_one_nonzero_per_column():
@@ -445,7 +445,7 @@ def test_smart_grid_cqlf_and_unstable_components():
     # §5.2: Lambda_1..3 share a CQLF; A_1..3 do not; I = {1} (0-based {0}).
     assert autonomous_stability(grid()).holds
     uc = unstable_components(smart_grid())
-    assert not uc.certificate.feasible and uc.conclusive
+    assert not uc.certificate.holds and uc.holds is False
     expected = np.zeros(2, dtype=bool)
     expected[np.array(GRID["cases"]["unstable_components"]["value"]) - 1] = True
     np.testing.assert_array_equal(uc.components, expected)
@@ -497,12 +497,12 @@ def test_algorithm2_finds_switching_instability_of_schur_modes():
     A2 = np.array([[0.5, 0.0, 0.0], [2.0, 0.5, 0.0], [0.0, 0.0, 0.5]])
     s = SwitchedLinearSystem.discrete(np.stack([A1, A2]), Q=np.eye(3), R=np.eye(3))
     uc = unstable_components(s, max_length=2)
-    assert not uc.certificate.feasible and uc.conclusive
+    assert not uc.certificate.holds and uc.holds is False
     np.testing.assert_array_equal(uc.components, [True, True, False])
     assert (0, 1) in uc.words and (0,) not in uc.words
     # length 1 cannot decide: every component is marked, conservatively
     short = unstable_components(s, max_length=1)
-    assert not short.conclusive and short.components.all()
+    assert short.holds is None and short.components.all()
     # the region: a mismatch is allowed only if T_{i,q} vanishes on columns 0 and 1
     mask = stable_mismatch_region(s)
     S = mismatch_dynamics(s).S
@@ -592,9 +592,9 @@ def test_bad_bound_arguments_are_refused():
     with pytest.raises(
         ValueError, match=r"probability must be a probability in \[0, 1\], got 1\.5"
     ):
-        theorem4_bound(d, 1.5, eta=1.0, sup_input=1.0)
+        mismatch_bias_bound(d, 1.5, eta=1.0, sup_input=1.0)
     with pytest.raises(ValueError, match=r"eta must be a finite positive number, got -1\.0"):
-        theorem4_bound(d, 0.1, eta=-1.0, sup_input=1.0)
+        mismatch_bias_bound(d, 0.1, eta=-1.0, sup_input=1.0)
     with pytest.raises(TypeError, match=r"sup_input must be a real scalar, got str"):
         max_mismatch_probability(d, bound=0.3, eta=1.0, sup_input="1")
     with pytest.raises(ValueError, match=r"bound must be a finite positive number, got 0"):
@@ -603,4 +603,4 @@ def test_bad_bound_arguments_are_refused():
         SwitchedLinearSystem.discrete([[0.5]], C=[[1.0]], Q=[[1.0]], R=[[1.0]])
     )
     with pytest.raises(ValueError, match=r"dynamics must have at least two modes .*got 1"):
-        theorem4_bound(one_mode, 0.1, eta=1.0, sup_input=1.0)
+        mismatch_bias_bound(one_mode, 0.1, eta=1.0, sup_input=1.0)

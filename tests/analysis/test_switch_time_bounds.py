@@ -4,7 +4,7 @@ exact matrix exponentials before being trusted."""
 import numpy as np
 import pytest
 
-from switchest.analysis.bounds import estimation_error_bounds, lemma2_bounds
+from switchest.analysis.switch_time_bounds import estimation_error_bounds, switch_matrix_bounds
 
 N_CASES = 10_000
 
@@ -67,7 +67,7 @@ def _violations(form, exact_F_in_G):
     counts = {"F": 0, "F_uniform": 0, "G": 0}
     ratio = {"F": 0.0, "G": 0.0}
     for c in CASES:
-        b = lemma2_bounds(
+        b = switch_matrix_bounds(
             c["Ai"],
             c["Aj"],
             c["Bi"],
@@ -111,7 +111,7 @@ def test_bound_built_on_the_printed_Y_would_fail():
     dF = np.linalg.norm((Fh - F)[0], 2)
     wrong_Y_norm = np.linalg.norm(-Aj - Ai, 2) * abs(t_hat - t_bar)[0]
     assert wrong_Y_norm == 0.0 and dF > 0.1
-    b = lemma2_bounds(Ai, Aj, B, B, T=T[0], t_bar=t_bar[0], t_hat=t_hat[0])
+    b = switch_matrix_bounds(Ai, Aj, B, B, T=T[0], t_bar=t_bar[0], t_hat=t_hat[0])
     assert dF <= b.F  # the printed (11), with ||A(j) - A(i)||, holds
 
 
@@ -126,7 +126,8 @@ def test_first_term_of_12_misses_a_time_factor():
     first_true = dF * t_hat * 1.0
     first_printed = dF * np.exp(0.0 * T) * 1.0
     assert first_true > 4 * first_printed
-    b = lemma2_bounds(Ai, Aj, Bi, np.zeros((1, 1)), T=T, t_bar=t_bar, t_hat=t_hat, F_error=dF)
+    b = switch_matrix_bounds(Ai, Aj, Bi, np.zeros((1, 1)), T=T, t_bar=t_bar, t_hat=t_hat,
+                             F_error=dF)
     G, Gh = (
         _exact_FG(Ai[None], Aj[None], Bi[None], np.zeros((1, 1, 1)), np.array([T]), np.array([t]))[
             1
@@ -138,10 +139,10 @@ def test_first_term_of_12_misses_a_time_factor():
 
 def test_lemma2_batches_and_broadcasts():
     c = CASES[1]
-    b = lemma2_bounds(
+    b = switch_matrix_bounds(
         c["Ai"], c["Aj"], c["Bi"], c["Bj"], T=c["T"], t_bar=c["t_bar"], t_hat=c["t_hat"]
     )
-    one = lemma2_bounds(
+    one = switch_matrix_bounds(
         c["Ai"][7],
         c["Aj"][7],
         c["Bi"][7],
@@ -152,7 +153,7 @@ def test_lemma2_batches_and_broadcasts():
     )
     assert b.F.shape == (N_CASES // 4,) and one.F.shape == ()
     assert one.F == pytest.approx(b.F[7]) and one.G == pytest.approx(b.G[7])
-    zero = lemma2_bounds(
+    zero = switch_matrix_bounds(
         c["Ai"][0], c["Aj"][0], c["Bi"][0], c["Bj"][0], T=1.0, t_bar=0.4, t_hat=0.4
     )
     assert zero.F == 0.0 and zero.G == 0.0  # no switching-time error, no matrix error
@@ -181,7 +182,7 @@ def test_lemma2_rejects_bad_input(kwargs, match):
     }
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
-        lemma2_bounds(**args)
+        switch_matrix_bounds(**args)
 
 
 # ------------------------------------------------------------------ Remark 1

@@ -12,19 +12,16 @@ from threadpoolctl import threadpool_limits
 
 from switchest import SwitchedLinearSystem
 from switchest import signals as sg
-from switchest.analysis.impulsive import (
+from switchest.analysis.impulsive_lmis import (
     ClosedLoopLMIs,
+    closed_loop_matrices,
     impulsive_closed_loop_analysis,
+    impulsive_closed_loop_decay_rate,
+    impulsive_observer_decay_rate,
     impulsive_observer_search,
     impulsive_observer_synthesis,
-    theorem8_rate,
-    theorem10_rate,
 )
-from switchest.estimators.impulsive import (
-    ImpulsiveObserver,
-    closed_loop_matrices,
-    simulate_observer_control,
-)
+from switchest.estimators.impulsive import ImpulsiveObserver, simulate_observer_control
 from switchest.models import ETIENNE_SCENARIO, etienne_academic
 from switchest.simulate import simulate
 
@@ -109,7 +106,7 @@ def assert_true_inequalities(cert, system, points=401):
 # ------------------------------------------------------------------ Theorem 8
 def test_theorem8_is_feasible_for_the_academic_example(paper_certificate):
     cert, sys = paper_certificate, etienne_academic()
-    assert cert.feasible and cert.lmi_feasible, cert.note
+    assert cert.holds and cert.lmi_feasible, cert.note
     assert cert.beta == pytest.approx(PAPER["theorem8_beta_eq11"], abs=PAPER["tolerance"])
     assert cert.P0.shape == cert.P1.shape == (2, 2, 2) and cert.L.shape == cert.G.shape == (2, 2, 1)
     np.testing.assert_allclose(cert.G, np.linalg.solve(cert.P0, cert.L))  # G_i = (P0^i)^-1 L_i
@@ -148,7 +145,7 @@ def test_simulated_error_decays_at_least_at_the_guaranteed_rate(which, paper_cer
 
 def test_search_beats_the_paper_scalars(search, paper_certificate):
     best = search.best
-    assert best.feasible and best.beta > paper_certificate.beta
+    assert best.holds and best.beta > paper_certificate.beta
     assert best.beta == pytest.approx(np.nanmax(search.beta))
     assert search.alpha.shape == search.beta.shape == (2, 2)
     # feasibility only grows with mu_s and mu_c, so the largest alpha does too (to the tolerance);
@@ -158,9 +155,8 @@ def test_search_beats_the_paper_scalars(search, paper_certificate):
     for r, ms in enumerate(search.mu_s):
         for c, mc in enumerate(search.mu_c):
             if np.isfinite(search.alpha[r, c]):
-                assert search.beta[r, c] == pytest.approx(
-                    theorem8_rate(search.alpha[r, c], ms, mc, S.tau_min, S.tau_max, S.dwell)
-                )
+                assert search.beta[r, c] == pytest.approx(impulsive_observer_decay_rate(
+                    search.alpha[r, c], ms, mc, S.tau_min, S.tau_max, S.dwell))
     assert_true_inequalities(best, etienne_academic())
     # no larger alpha is feasible at the best scalars
     above = impulsive_observer_synthesis(
@@ -176,7 +172,7 @@ def test_undetectable_mode_is_reported_infeasible():
     cert = impulsive_observer_synthesis(
         blind, S.tau_min, S.tau_max, S.dwell, S.alpha, S.mu_s, S.mu_c
     )
-    assert not cert.feasible and not cert.lmi_feasible
+    assert not cert.holds and not cert.lmi_feasible
     assert cert.G is None and cert.P0 is None and math.isnan(cert.margin)
     assert "no solution" in cert.note
     with pytest.raises(ValueError, match="not feasible"):
@@ -184,7 +180,7 @@ def test_undetectable_mode_is_reported_infeasible():
     found = impulsive_observer_search(
         blind, S.tau_min, S.tau_max, S.dwell, mu_s=(5.0, 50.0), mu_c=(0.5, 1.0)
     )
-    assert not found.best.feasible and np.all(np.isnan(found.beta))
+    assert not found.best.holds and np.all(np.isnan(found.beta))
 
 
 def test_failed_rate_condition_is_not_feasible():
@@ -192,7 +188,7 @@ def test_failed_rate_condition_is_not_feasible():
     cert = impulsive_observer_synthesis(
         etienne_academic(), S.tau_min, S.tau_max, S.dwell, 0.1, S.mu_s, S.mu_c
     )
-    assert cert.lmi_feasible and not cert.feasible
+    assert cert.lmi_feasible and not cert.holds
     assert cert.beta == pytest.approx(0.5 * (0.1 - math.log(5) / 7 - math.log(0.98) / 0.4))
     assert cert.beta < 0 and "(9) fails" in cert.note
 
@@ -218,16 +214,17 @@ def test_printed_flow_condition_with_alpha_over_mu_c_fails_for_negative_alpha():
 
 
 def test_theorem8_rate_with_mu_c_above_one_counts_the_most_samples():
-    assert theorem8_rate(S.alpha, S.mu_s, S.mu_c, S.tau_min, S.tau_max, S.dwell) == pytest.approx(
+    beta = impulsive_observer_decay_rate(S.alpha, S.mu_s, S.mu_c, S.tau_min, S.tau_max, S.dwell)
+    assert beta == pytest.approx(
         PAPER["theorem8_beta_eq11"], abs=PAPER["tolerance"]
     )
     # mu_c > 1: every sample may grow V, and up to t/tau_min of them occur
-    assert theorem8_rate(1.0, 1.0, 1.2, 0.3, 0.4, 7.0) == pytest.approx(
+    assert impulsive_observer_decay_rate(1.0, 1.0, 1.2, 0.3, 0.4, 7.0) == pytest.approx(
         0.5 * (1.0 - math.log(1.2) / 0.3)
     )
     t = 0.3 * np.arange(1, 101)  # the worst sampling for mu_c > 1: every interval tau_min
     growth = len(t) * math.log(1.2) - 1.0 * t[-1]  # ln of mu_c^N_c exp(-alpha t)
-    assert growth <= -2 * theorem8_rate(1.0, 1.0, 1.2, 0.3, 0.4, 7.0) * t[-1] + 1e-9
+    assert growth <= -2 * impulsive_observer_decay_rate(1.0, 1.0, 1.2, 0.3, 0.4, 7.0) * t[-1] + 1e-9
     assert growth > -2 * 0.5 * (1.0 - math.log(1.2) / 0.4) * t[-1]  # the printed tau_max form fails
 
 
@@ -259,7 +256,7 @@ def test_theorem10_verdict_for_the_paper_controller_and_delay():
         / S.dwell
     )
     assert cert.beta == pytest.approx(expected) and cert.beta < cert.printed_beta < 0
-    assert not cert.feasible and not cert.lmi_feasible and cert.Q0 is None
+    assert not cert.holds and not cert.lmi_feasible and cert.Q0 is None
     assert "not certified" in cert.note
 
 
@@ -348,12 +345,12 @@ def test_theorem10_lmis_compiled_once_decide_every_point_as_a_fresh_problem():
         fresh = impulsive_closed_loop_analysis(
             sys, S.K, G_THEOREM8, S.tau_min, S.tau_max, S.dwell, *point
         )
-        assert (reused.lmi_feasible, reused.feasible) == (fresh.lmi_feasible, fresh.feasible)
+        assert (reused.lmi_feasible, reused.holds) == (fresh.lmi_feasible, fresh.holds)
         assert reused.beta == pytest.approx(fresh.beta, rel=1e-12)
         assert reused.scalars == pytest.approx(fresh.scalars, rel=1e-12)
         if reused.lmi_feasible:
             assert_theorem10_inequalities(reused)
-        verdicts.append((reused.lmi_feasible, reused.feasible))
+        verdicts.append((reused.lmi_feasible, reused.holds))
     assert verdicts == [(True, True), (False, False), (True, True), (False, False),
                         (True, False), (True, True)]
     assert lmis.n_solves == len(points)
@@ -375,9 +372,9 @@ def test_theorem10_certifies_a_small_delay_and_the_closed_loop_obeys_the_bound()
         k["mu_c"],
         k["mu_c_bar"],
     )
-    assert cert.feasible and cert.beta > 0, cert.note
+    assert cert.holds and cert.beta > 0, cert.note
     assert cert.beta == pytest.approx(
-        theorem10_rate(
+        impulsive_closed_loop_decay_rate(
             k["alpha"],
             k["alpha_bar"],
             k["mu_s"],
@@ -420,12 +417,13 @@ def test_mismatch_windows_can_hold_more_samples_than_eq28_counts():
     assert wrong > S.delta / S.tau_min * sigma.n_switches
     assert (
         wrong <= math.ceil(S.delta / S.tau_min) * sigma.n_switches
-    )  # the count theorem10_rate uses
+    )  # the count impulsive_closed_loop_decay_rate uses
 
 
 def test_theorem10_rate_without_delay_is_theorem8s():
-    a = theorem10_rate(0.2, 3.0, 5.0, 0.98, 5.0, 0.3, 0.4, 7.0, 0.0)
-    assert a == pytest.approx(theorem8_rate(0.2, 5.0, 0.98, 0.3, 0.4, 7.0))  # Remark 11
+    a = impulsive_closed_loop_decay_rate(0.2, 3.0, 5.0, 0.98, 5.0, 0.3, 0.4, 7.0, 0.0)
+    # Remark 11: with no delay, Theorem 10's rate is Theorem 8's
+    assert a == pytest.approx(impulsive_observer_decay_rate(0.2, 5.0, 0.98, 0.3, 0.4, 7.0))
 
 
 # ------------------------------------------------------------------ validation
@@ -468,4 +466,4 @@ def test_arguments_are_validated():
             sys, S.K, G_THEOREM8, 0.3, 0.4, 7.0, -0.1, 0.2, 3.0, 5.0, 0.98, 5.0
         )
     with pytest.raises(ValueError, match="mu_c_bar must be a finite positive number"):
-        theorem10_rate(0.2, 3.0, 5.0, 0.98, -1.0, 0.3, 0.4, 7.0, 0.1)
+        impulsive_closed_loop_decay_rate(0.2, 3.0, 5.0, 0.98, -1.0, 0.3, 0.4, 7.0, 0.1)

@@ -10,7 +10,7 @@ encodes. ``switchest.simulate`` is not used: it applies the mode of sample k to 
 transition out of k, one step off Zhang's convention.
 
 * Steady-state gains (eq. (6)): the Monte Carlo mean of ``x_hat_k - x_k`` agrees with
-  :func:`~switchest.analysis.bias.bias_recursion` within ``Z_MAX`` standard errors at
+  :func:`~switchest.analysis.mode_mismatch.bias_recursion` within ``Z_MAX`` standard errors at
   every step and component; the bias is many standard errors from zero, and (9) with
   ``lam_{i,q}`` and ``lam_{q,i}`` swapped is rejected.
 * Time-varying gains (Algorithm 1 as printed): the gain ``K_{i,k}`` depends on
@@ -29,7 +29,12 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from switchest.analysis.bias import bias_recursion, mean_state, mismatch_dynamics, riccati_gains
+from switchest.analysis.mode_mismatch import (
+    bias_recursion,
+    mean_state,
+    mismatch_dynamics,
+    riccati_gains,
+)
 from switchest.estimators.mode_kalman import ModeKalmanFilter
 from switchest.models.zhang import smart_grid, zhang_two_mode
 from switchest.system import SwitchedLinearSystem
@@ -37,7 +42,7 @@ from switchest.system import SwitchedLinearSystem
 N_TRIALS = 20_000
 Z_MAX = 5.0  # per step and component; P(|z| > 5) ~ 6e-7 under the null
 # Algorithm 1's M_{0|0} = Sigma_0: unstated in the paper; I is the value with which the
-# printed smart-grid numbers are reproduced (tests/analysis/test_bias.py).
+# printed smart-grid numbers are reproduced (tests/analysis/test_mode_mismatch.py).
 SIGMA0 = np.eye(2)
 RICCATI_TOL = 1e-3  # held-mode Algorithm 1 gains count as converged below this
 

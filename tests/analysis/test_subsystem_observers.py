@@ -18,7 +18,7 @@ from scipy.optimize import least_squares, minimize_scalar
 from scipy.signal import place_poles
 
 from switchest import SwitchedLinearSystem
-from switchest.analysis.ms_design import (
+from switchest.analysis.subsystem_observers import (
     critical_interval,
     decoupled_gain_bounds,
     error_dynamics,
@@ -155,7 +155,7 @@ def test_example1_kalman_bucy_gains_diverge_in_mean_square():
         (1 - P) * np.exp(-2 * A2 * T) + P * np.exp(2 * A2 * T),
     ]
     np.testing.assert_allclose(ms.moment_eigenvalues, oracle, rtol=1e-12)
-    assert ms.radius == pytest.approx(oracle[0], rel=1e-12) and not ms.stable
+    assert ms.radius == pytest.approx(oracle[0], rel=1e-12) and not ms.holds
 
 
 # ---------------------------------------------------------------- Example 2: thresholds, bounds, gamma
@@ -201,7 +201,7 @@ def test_example2_gamma_is_the_moment_bound_not_theorem2():
     ms = ms_convergence(error_dynamics(SYS, scalar_gains(40.0, 15.0), T), PROB)
     case = EX["gamma_L40_L15"]
     at_printed_precision(ms.moment_eigenvalues, case["value"], case["decimals"])
-    assert ms.moment_holds and ms.stable and ms.radius == pytest.approx(ms.moment_bound)
+    assert ms.moment_holds and ms.holds and ms.radius == pytest.approx(ms.moment_bound)
     # Theorem 2's gamma = E||Lambda_k||^2 is above 1: the theorem cannot certify this design
     assert ms.gamma == pytest.approx(
         P * np.exp(2 * A2 * T) + (1 - P) * np.exp(2 * A1 * T), rel=1e-12
@@ -287,7 +287,7 @@ def test_example4_correct_optimum_from_the_library():
     """optimal_gains (the general steady state, Nelder-Mead over both gains) = the scalar closed form."""
     L_star, sigma1 = _optimum("e2", "exact")  # 26.640, 0.4243
     res = optimal_gains(SYS, PROB, T, scalar_gains(40.0, 15.0))
-    assert res.success and res.radius < 1
+    assert res.holds and res.radius < 1
     assert res.gains[0, 0, 0] == pytest.approx(L_star, rel=1e-5)
     f2 = lambda L: sigma_component(A2, L, 1 - P, T, ZETA, gamma_reading="e2", q_reading="exact")
     r2 = minimize_scalar(f2, bounds=(5.2, 200.0), method="bounded", options={"xatol": 1e-10})
@@ -300,7 +300,7 @@ def test_a_radius_margin_trades_steady_state_error_for_convergence_rate():
     # 0.93 must give a design on that boundary with a larger (never smaller) steady-state error
     free = optimal_gains(SYS, PROB, T, scalar_gains(40.0, 15.0))
     fast = optimal_gains(SYS, PROB, T, scalar_gains(40.0, 15.0), max_radius=0.93)
-    assert free.radius > 0.93 and fast.success
+    assert free.radius > 0.93 and fast.holds
     assert fast.radius < 0.93 and fast.radius == pytest.approx(0.93, abs=1e-6)
     assert fast.mu > free.mu
     with pytest.raises(ValueError, match="max_radius must be at most 1"):
@@ -439,7 +439,7 @@ def test_5bus_moment_eigenvalues(design):
     s = subsystem_structure(bus)
     gains = place_gains(s, [poles] * 3 + [None])
     ours = ms_convergence(error_dynamics(bus, gains, IEEE_5BUS_SAMPLE_PERIOD), p)
-    assert ours.stable  # exact MS test: radius ~ p_4 e^{2 lambda_max T} = 0.075
+    assert ours.holds  # exact MS test: radius ~ p_4 e^{2 lambda_max T} = 0.075
     # scipy's gain for the two-output mode (non-unique) gives other eigenvalues than MATLAB's
     assert np.max(np.abs(ours.moment_eigenvalues - case["value"])) > 1e-3
     if design == "first":
@@ -457,7 +457,7 @@ def test_5bus_moment_eigenvalues(design):
     gains[0] = L1
     theirs = ms_convergence(error_dynamics(bus, gains, IEEE_5BUS_SAMPLE_PERIOD), p)
     at_printed_precision(theirs.moment_eigenvalues, case["value"], case["decimals"])
-    assert theirs.stable and theirs.moment_holds
+    assert theirs.holds and theirs.moment_holds
 
 
 def test_5bus_stacked_observer_diverges_at_the_papers_T():

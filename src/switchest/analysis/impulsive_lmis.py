@@ -1,0 +1,967 @@
+"""Impulsive observers under aperiodic sampling: LMI synthesis and closed-loop analysis.
+
+Etienne, Motchon, Duviella & Guelton (seed 004), Theorems 8 and 10. Both rest on a
+clock-dependent quadratic Lyapunov function ``V = e' P^{sigma}(theta) e`` with
+``theta = t - t_k`` the time since the last sample and (eqs (10), (29))::
+
+    P^i(theta) = P0^i + theta P1^i,   theta in [0, tau_max]
+
+``P1`` is the slope, not an end value. Every condition is affine in ``theta``, so
+it is imposed at the two ends of its interval and holds on all of it.
+
+Theorem 8 (synchronous mode knowledge), as derived from its proof:
+
+* (5)  ``P^i(theta) > 0``, theta in {0, tau_max};
+* (6)  ``He(P^i(theta) A_i) + P1^i + alpha P^i(theta) < 0``, theta in {0, tau_max}
+  (flow: ``dV/dt <= -alpha V``);
+* (7)  ``[[mu_c P^i(theta), (P0^i - L_i C_i)'], [P0^i - L_i C_i, P0^i]] > 0``,
+  theta in {tau_min, tau_max} (jump: by Schur,
+  ``(I - G_i C_i)' P0^i (I - G_i C_i) < mu_c P^i(theta)`` with ``G_i = (P0^i)^-1 L_i``);
+* (8)  ``P^i(theta) < mu_s P^j(theta)``, i != j, theta in {0, tau_max} (switches);
+* (9)  ``beta > 0`` with the rate (11)
+  ``beta = (alpha - ln(mu_s)/s - ln(mu_c)/tau_c) / 2``, ``tau_c = tau_max`` when
+  ``mu_c <= 1`` and ``tau_min`` when ``mu_c > 1``;
+
+then ``||e(t)|| <= M exp(-beta t) ||e(0+)||``.
+
+Discrepancies with the printed Theorem 8, each checked against the proof:
+
+* (7) is printed ``[[mu_c P(theta), P0 - L C_j], [*, P0]]``: its Schur complement is
+  ``mu_c P - (P0 - L C) P0^-1 (P0 - L C)'``, not the bound
+  ``(P0 - L C)' P0^-1 (P0 - L C) < mu_c P`` the proof needs; the off-diagonal block
+  must be transposed. ``C_j`` must be ``C_i`` (no ``j`` is quantified; a sample
+  never coincides with a switch), and the range "]tau_min, tau_max}" means the
+  ends {tau_min, tau_max}.
+* (6) is printed with ``alpha / mu_c``; the proof uses ``Gamma < -alpha P``. With
+  ``alpha > 0`` and ``mu_c < 1`` the printed form is only more conservative, with
+  ``alpha < 0`` it does not imply the proof's step. Implemented with ``alpha``.
+* (8) is printed for all i, j; for i = j and ``mu_s = 1`` it reads ``P < P``
+  (infeasible), and the proof only uses i != j.
+* (9)/(11) use ``N_c(0, t) >= t/tau_max - 1`` (Remark 3), a lower bound on the
+  number of samples, which bounds ``mu_c^{N_c}`` only when ``ln(mu_c) <= 0``.
+  For ``mu_c > 1`` the bound needs ``N_c(0, t) <= t/tau_min``: ``tau_min``
+  replaces ``tau_max``. (The theorem states ``mu_c <= 1``; the search here may
+  use either.)
+
+Theorem 10 (mode estimate delayed by at most ``delta``, observer-based control
+``u = K_{sigma_hat} x_hat``): the same structure on the extended state
+``z = [x; e]`` (eqs (21)-(23), :func:`closed_loop_matrices`),
+with ``Q^i`` indexed by the estimated mode ``i`` and the true mode ``j``:
+
+* (24) ``Q^i(theta) > 0``;
+* (25) ``He(Q^i(theta) Acl[j, i]) + Q1^i + alpha_ij Q^i(theta) < 0``,
+  ``alpha_ii = alpha``, ``alpha_ij = -alpha_bar`` (i != j);
+* (26) ``[[mu_ij Q^i(theta), J[j, i]' Q0^i], [Q0^i J[j, i], Q0^i]] > 0``, theta in
+  {tau_min, tau_max}, ``mu_ii = mu_c``, ``mu_ij = mu_c_bar``;
+* (27) ``Q^i(theta) < mu_s Q^j(theta)``, i != j;
+* (28) ``beta > 0`` with the rate of :func:`impulsive_closed_loop_decay_rate`.
+
+Discrepancies with the printed Theorem 10: (26) is transposed like (7); (22b)
+has the wrong sign (see ``closed_loop_matrices``); and the rate (28)/(31)
+counts the samples that fall while the mode estimate is wrong as
+``delta/tau_min`` per switch and the correct ones as ``(t - M_miss)/tau_max``.
+A mismatch window of length ``delta`` can hold ``ceil(delta/tau_min)`` samples
+(one, not one half, for ``delta = 0.15``, ``tau_min = 0.3``), and a correct-mode
+stretch of length ``l`` may hold only ``floor(l/tau_max)`` samples, so neither
+count is a valid bound. :func:`impulsive_closed_loop_decay_rate` uses
+``N_miss <= q N_s``, ``q = ceil(delta/tau_min)``, and ``N_match = N_c - N_miss``,
+which gives::
+
+    2 beta = alpha - ln(mu_c)/tau_c
+             - (ln(mu_s) + delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+) / s
+
+(``x^+ = max(x, 0)``; with ``delta = 0`` it is Theorem 8's rate, as Remark 11
+says). This form needs none of the printed restrictions ``mu_c <= 1 <= mu_c_bar``
+(any positive values are accepted; ``mu_s >= 1`` is required). The printed
+value is kept in the result as ``printed_beta`` for comparison.
+
+With the §4 scalars the printed (28) is already violated (``-2 beta = +0.16403``)
+although §4 reports the conditions verified. With the block of (26) as printed
+the LMIs (24)-(27) are feasible there (for the observer gains of Theorem 8), but
+the ``Q`` they return violates ``J' Q0 J < mu Q(tau)``; the corrected LMIs are
+infeasible (tests/analysis/test_impulsive_lmis.py).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._checks import check_finite, float_array, positive_scalar
+from .._linalg import symmetrize
+from ..system import SwitchedLinearSystem
+from ._deprecation import renamed_field
+from ._lmi import cp, max_eigenvalue, min_eigenvalue, solve_sdp, symmetric_block
+
+__all__ = [
+    "ClosedLoopCertificate",
+    "ClosedLoopLMIs",
+    "ImpulsiveObserverCertificate",
+    "ImpulsiveObserverSearch",
+    "closed_loop_matrices",
+    "impulsive_closed_loop_analysis",
+    "impulsive_observer_search",
+    "impulsive_observer_synthesis",
+    "impulsive_observer_decay_rate",
+    "impulsive_closed_loop_decay_rate",
+]
+
+_DEFAULT_MU_S = (2.0, 5.0, 10.0, 16.0, 25.0, 40.0)
+_DEFAULT_MU_C = (0.3, 0.5, 0.7, 0.85, 0.95, 1.0)
+
+
+# ---------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class ImpulsiveObserverCertificate:
+    """Outcome of :func:`impulsive_observer_synthesis` (Etienne et al. Theorem 8).
+
+    Attributes
+    ----------
+    holds : bool
+        Theorem 8's conclusion is proven: the LMIs (5)-(8) were solved, their solution
+        passed the numpy re-check, and the rate condition (9) holds (``beta > 0``).
+    lmi_feasible : bool
+        The LMIs alone (verified); ``holds`` also needs ``beta > 0``.
+    P0, P1 : ndarray, shape (L, n, n), or None
+        ``P^i(theta) = P0[i] + theta P1[i]`` (eq. (10)); ``P1`` is the slope.
+        Normalized so that ``P^i(theta) >= I`` at theta in {0, tau_max}.
+    L : ndarray, shape (L, n, m), or None
+        The LMI variables ``L_i = P0^i G_i``.
+    G : ndarray, shape (L, n, m), or None
+        Observer gains ``G_i = (P0^i)^-1 L_i``.
+    beta : float
+        Decay rate of ``||e||`` that the scalars give (eq. (11), corrected for
+        ``mu_c > 1``); guaranteed only when ``holds``.
+    alpha, mu_s, mu_c : float
+        The fixed scalars.
+    tau_min, tau_max, dwell : float
+        Sampling range (Assumption 2) and average dwell time (Assumption 1).
+    margin : float
+        Smallest verified slack of the strict LMIs (NaN when not solved).
+    solver_status : str
+    note : str
+    """
+
+    holds: bool
+    lmi_feasible: bool
+    P0: np.ndarray | None
+    P1: np.ndarray | None
+    L: np.ndarray | None
+    G: np.ndarray | None
+    beta: float
+    alpha: float
+    mu_s: float
+    mu_c: float
+    tau_min: float
+    tau_max: float
+    dwell: float
+    margin: float
+    solver_status: str
+    note: str
+
+    feasible = renamed_field("feasible")
+
+    def P(self, theta) -> np.ndarray:
+        """``P^i(theta) = P0^i + theta P1^i`` for ``theta (...)``, shape ``(..., L, n, n)``."""
+        if self.P0 is None:
+            raise ValueError("the certificate holds no P: the LMIs were not feasible")
+        return _clock_affine(self.P0, self.P1, theta)
+
+    def overshoot(self, N0: float = 1.0) -> float:
+        """``M`` in ``||e(t)|| <= M exp(-beta t) ||e(0+)||`` (proof of Theorem 8, eqs (19)-(20)).
+
+        ``M^2 = mu_s^N0 theta_max / (mu_c' theta_min)`` with ``theta_max`` the largest
+        eigenvalue of the ``P0^i``, ``theta_min`` the smallest of the ``P^i(theta)``
+        over ``[0, tau_max]`` (attained at an end: the smallest eigenvalue is concave),
+        ``mu_c' = mu_c`` when ``mu_c <= 1`` and 1 otherwise. ``e(0+)`` is the error
+        just after the correction at ``t_0`` (the clock starts there), and ``N0``
+        the chatter bound of Assumption 1.
+        """
+        if not self.holds:
+            raise ValueError("no overshoot bound: the certificate is not feasible")
+        N0 = positive_scalar(N0, "N0", allow_zero=True)
+        ends = self.P(np.array([0.0, self.tau_max]))
+        return _overshoot(self.P0, ends, N0 * math.log(self.mu_s), self.mu_c)
+
+
+@dataclass(frozen=True)
+class ImpulsiveObserverSearch:
+    """Outcome of :func:`impulsive_observer_search`.
+
+    Attributes
+    ----------
+    best : ImpulsiveObserverCertificate
+        The certificate with the largest ``beta`` found (``holds=False`` if none).
+    mu_s, mu_c : ndarray, shapes (a,), (b,)
+        The grids searched.
+    alpha : ndarray, shape (a, b)
+        Largest ``alpha`` (to ``alpha_tol``) with feasible LMIs for each
+        ``(mu_s, mu_c)``, searched above the value where ``beta = 0``; NaN where
+        the LMIs are infeasible there (no positive rate).
+    beta : ndarray, shape (a, b)
+        Rate (11) at ``alpha``; NaN where ``alpha`` is.
+    n_solves : int
+        Number of SDPs solved.
+    """
+
+    best: ImpulsiveObserverCertificate
+    mu_s: np.ndarray
+    mu_c: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    n_solves: int
+
+    @property
+    def holds(self) -> bool:
+        """The best certificate proves Theorem 8's conclusion (``best.holds``)."""
+        return self.best.holds
+
+
+@dataclass(frozen=True)
+class ClosedLoopCertificate:
+    """Outcome of :func:`impulsive_closed_loop_analysis` (Etienne et al. Theorem 10).
+
+    Attributes
+    ----------
+    holds : bool
+        Theorem 10's conclusion (corrected) is proven: LMIs (24)-(27) solved and verified
+        with numpy, and ``beta > 0``.
+    lmi_feasible : bool
+        The LMIs alone.
+    Q0, Q1 : ndarray, shape (L, 2n, 2n), or None
+        ``Q^i(theta) = Q0[i] + theta Q1[i]`` (eq. (29)), normalized ``>= I`` at the ends.
+    beta : float
+        Rate of :func:`impulsive_closed_loop_decay_rate` (the corrected (31)); reported
+        whatever the LMIs, so ``holds`` is the verdict.
+    printed_beta : float
+        Eq. (31) as printed (``-printed_beta`` is the left side of (28)).
+    scalars : dict
+        ``alpha, alpha_bar, mu_s, mu_c, mu_c_bar, delta, tau_min, tau_max, dwell``.
+    margin : float
+        Smallest verified slack of the strict LMIs (NaN when not solved).
+    solver_status : str
+    note : str
+    """
+
+    holds: bool
+    lmi_feasible: bool
+    Q0: np.ndarray | None
+    Q1: np.ndarray | None
+    beta: float
+    printed_beta: float
+    scalars: dict
+    margin: float
+    solver_status: str
+    note: str
+
+    feasible = renamed_field("feasible")
+
+    def Q(self, theta) -> np.ndarray:
+        """``Q^i(theta) = Q0^i + theta Q1^i`` for ``theta (...)``, shape ``(..., L, 2n, 2n)``."""
+        if self.Q0 is None:
+            raise ValueError("the certificate holds no Q: the LMIs were not feasible")
+        return _clock_affine(self.Q0, self.Q1, theta)
+
+    def overshoot(self, N0: float = 1.0) -> float:
+        """``M`` in ``||z(t)|| <= M exp(-beta t) ||z(0+)||`` (proof of Theorem 10, corrected).
+
+        ``M^2 = exp(N0 c) theta_max / (mu_c' theta_min)`` with
+        ``c = ln(mu_s) + delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+`` the
+        per-switch cost of :func:`impulsive_closed_loop_decay_rate`, ``theta_max``,
+        ``theta_min`` and ``mu_c'`` as in :meth:`ImpulsiveObserverCertificate.overshoot`,
+        ``z(0+)`` the state just after the jump at ``t_0`` and ``N0`` the chatter bound. (The
+        printed constant ``M~`` carries the printed, invalid sample counts.)
+        """
+        if not self.holds:
+            raise ValueError("no overshoot bound: the certificate is not feasible")
+        N0 = positive_scalar(N0, "N0", allow_zero=True)
+        k = self.scalars
+        cost = _switch_cost(
+            k["alpha"],
+            k["alpha_bar"],
+            k["mu_s"],
+            k["mu_c"],
+            k["mu_c_bar"],
+            k["tau_min"],
+            k["delta"],
+        )
+        return _overshoot(self.Q0, self.Q(np.array([0.0, k["tau_max"]])), N0 * cost, k["mu_c"])
+
+
+def _clock_affine(M0: np.ndarray, M1: np.ndarray, theta) -> np.ndarray:
+    """``M0^i + theta M1^i`` for ``theta (...)``: shape ``(..., L, k, k)`` (eq. (10))."""
+    theta = float_array(theta, "theta")
+    return M0 + theta[..., None, None, None] * M1
+
+
+def _overshoot(M0: np.ndarray, M_ends: np.ndarray, log_switch_cost: float, mu_c: float) -> float:
+    """``sqrt(exp(cost) theta_max / (min(mu_c, 1) theta_min))``: ``theta_max`` the largest
+    eigenvalue of the ``M0^i``, ``theta_min`` the smallest of ``M^i(theta)`` at the clock's
+    two ends."""
+    top = float(np.max(max_eigenvalue(M0)))
+    low = float(np.min(min_eigenvalue(M_ends)))
+    return math.sqrt(math.exp(log_switch_cost) * top / (min(mu_c, 1.0) * low))
+
+
+# ---------------------------------------------------------------------- closed loop
+def closed_loop_matrices(system: SwitchedLinearSystem, K, G) -> tuple[np.ndarray, np.ndarray]:
+    """Flow and jump matrices of the observer-based closed loop (Etienne et al. eqs (21)-(23)).
+
+    With ``u = K_{sigma_hat} x_hat`` and ``z = [x; e]``, ``e = x - x_hat``, the plant
+    (1) and the observer (2) give ``dz/dt = Acl[sigma, sigma_hat] z`` between
+    samples and ``z(t_k+) = J[sigma, sigma_hat] z(t_k)`` at the samples, with (eq. (22a))::
+
+        Acl[j, i] = [[A_j + B_j K_i,      -B_j K_i      ],
+                     [A_ji + B_ji K_i,    A_i - B_ji K_i]]
+        J[j, i]   = [[I,                  0             ],
+                     [-G_i C_ji,          I - G_i C_i   ]]
+
+    ``A_ji = A_j - A_i``, ``B_ji = B_j - B_i``, ``C_ji = C_j - C_i`` (eq. (23)), ``j`` the
+    true and ``i`` the estimated mode (the paper's ``A_{sigma sigma_hat}``).
+
+    Discrepancy: the printed eq. (22b) has ``+G C_ji`` in the lower-left block.
+    From (1)-(2), ``e+ = x - x_hat - G_i (C_j x - C_i x_hat) = -G_i C_ji x + (I - G_i C_i) e``:
+    the sign is minus. It matters only when the output matrices differ between
+    modes (in §4, ``C_1 = C_2`` and the block vanishes).
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous time, with ``L`` modes, ``n`` states, ``l`` inputs, ``m`` outputs.
+    K : array_like, shape (L, l, n)
+        State-feedback gains, applied as ``u = K_i x_hat`` (no minus sign).
+    G : array_like, shape (L, n, m)
+        Observer gains.
+
+    Returns
+    -------
+    Acl, J : ndarray, shape (L, L, 2n, 2n)
+        Indexed ``[true mode, estimated mode]``.
+    """
+    system = _check_system(system)
+    L, n, m, n_in = system.n_modes, system.n_states, system.n_outputs, system.n_inputs
+    K = _gain_stack(K, "K", (L, n_in, n), "(L, l, n)")
+    G = _gain_stack(G, "G", (L, n, m), "(L, n, m)")
+    A, B, C = system.A, system.B, system.C
+    Aj, Ai = A[:, None], A[None, :]  # [j, i]: true mode j, estimated mode i
+    Bj, Bi = B[:, None], B[None, :]
+    BK = Bj @ K[None, :]  # B_j K_i
+    dBK = (Bj - Bi) @ K[None, :]  # B_ji K_i
+    Acl = np.block([[Aj + BK, -BK], [Aj - Ai + dBK, Ai - dBK]])
+    GdC = G[None, :] @ (C[:, None] - C[None, :])  # G_i C_ji
+    eye = np.broadcast_to(np.eye(n), GdC.shape)
+    J = np.block([[eye, np.zeros_like(GdC)], [-GdC, eye - np.broadcast_to(G @ C, GdC.shape)]])
+    return Acl, J
+
+
+# ---------------------------------------------------------------------- rates
+def impulsive_observer_decay_rate(
+    alpha: float, mu_s: float, mu_c: float, tau_min: float, tau_max: float, dwell: float
+) -> float:
+    """Decay rate of the observer error, Etienne et al. Theorem 8 (synchronous mode knowledge).
+
+    Eq. (11): ``beta = (alpha - ln(mu_s)/s - ln(mu_c)/tau_c) / 2``.
+
+    ``tau_c = tau_max`` for ``mu_c <= 1`` (as printed) and ``tau_min`` for
+    ``mu_c > 1`` (the printed form assumes ``ln(mu_c) <= 0``; see the module notes).
+    Condition (9) is ``beta > 0``.
+    """
+    alpha, mu_s, mu_c, tau_min, tau_max, dwell = _scalars8(
+        alpha, mu_s, mu_c, tau_min, tau_max, dwell
+    )
+    return 0.5 * (alpha - math.log(mu_s) / dwell - _sample_rate(mu_c, tau_min, tau_max))
+
+
+def impulsive_closed_loop_decay_rate(
+    alpha: float,
+    alpha_bar: float,
+    mu_s: float,
+    mu_c: float,
+    mu_c_bar: float,
+    tau_min: float,
+    tau_max: float,
+    dwell: float,
+    delta: float,
+) -> float:
+    """Decay rate of the closed loop ``||z||``, Etienne et al. Theorem 10 (delayed mode estimate).
+
+    The mode estimate lags the true switches by at most ``delta``.
+
+    Re-derived from the proof of Etienne et al. Theorem 10 (eqs (32)-(40)) with
+    valid sample counts::
+
+        2 beta = alpha - ln(mu_c)/tau_c
+                 - (ln(mu_s) + delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+) / s
+
+    with ``q = ceil(delta/tau_min)`` (the most samples a mismatch window of length
+    ``delta`` holds), ``tau_c`` as in :func:`impulsive_observer_decay_rate`, ``x^+ = max(x, 0)``.
+    Condition (28) is ``beta > 0``. The printed (31) differs; see the module notes.
+    """
+    alpha, mu_s, mu_c, tau_min, tau_max, dwell = _scalars8(
+        alpha, mu_s, mu_c, tau_min, tau_max, dwell
+    )
+    alpha_bar = _real(alpha_bar, "alpha_bar")
+    mu_c_bar = positive_scalar(mu_c_bar, "mu_c_bar")
+    delta = positive_scalar(delta, "delta", allow_zero=True)
+    per_switch = _switch_cost(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, delta)
+    return 0.5 * (alpha - _sample_rate(mu_c, tau_min, tau_max) - per_switch / dwell)
+
+
+def _switch_cost(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, delta) -> float:
+    """Growth of ``ln V`` charged to one switch: the jump ``mu_s``, at most ``delta`` of
+    wrong-mode flow, at most ``q = ceil(delta/tau_min)`` wrong-mode samples."""
+    q = math.ceil(delta / tau_min - 1e-12) if delta > 0 else 0
+    return (
+        math.log(mu_s)
+        + delta * max(alpha + alpha_bar, 0.0)
+        + q * max(math.log(mu_c_bar / mu_c), 0.0)
+    )
+
+
+def _printed_theorem10_rate(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta):
+    """Eq. (31) exactly as printed (for comparison only)."""
+    r = delta / dwell
+    return 0.5 * (
+        alpha * (1 - r)
+        - alpha_bar * r
+        - math.log(mu_s) / dwell
+        - math.log(mu_c) / tau_max * (1 - r)
+        - delta * math.log(mu_c_bar) / (tau_min * dwell)
+    )
+
+
+# ---------------------------------------------------------------------- Theorem 8
+def impulsive_observer_synthesis(
+    system: SwitchedLinearSystem,
+    tau_min: float,
+    tau_max: float,
+    dwell: float,
+    alpha: float,
+    mu_s: float,
+    mu_c: float,
+    *,
+    margin: float = 1e-3,
+) -> ImpulsiveObserverCertificate:
+    """Impulsive observer gains for synchronous mode knowledge (Etienne et al. Theorem 8).
+
+    Solves the LMIs (5)-(8) in ``P0^i, P1^i, L_i`` for fixed ``(alpha, mu_s, mu_c)``
+    in their corrected forms (module notes): strict inequalities posed with the
+    explicit ``margin`` after the normalization ``P^i(theta) >= I`` (the LMIs are
+    homogeneous), as a feasibility problem. The solution is re-checked with numpy eigenvalues
+    (slack at least ``margin / 2``) before ``holds=True``.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous time, L modes.
+    tau_min, tau_max : float
+        Sampling intervals lie in ``[tau_min, tau_max]`` (Assumption 2).
+    dwell : float
+        Average dwell time ``s`` (Assumption 1).
+    alpha : float
+        Flow decay rate ``alpha`` (underlined alpha; any real).
+    mu_s : float
+        Switching growth bound, ``>= 1``.
+    mu_c : float
+        Jump bound (underlined mu_c), positive (the paper takes ``(0, 1]``).
+    margin : float, optional
+        Slack posed on the strict LMIs (keyword-only).
+
+    Returns
+    -------
+    ImpulsiveObserverCertificate
+        With ``G_i = (P0^i)^-1 L_i`` and the rate ``beta`` of (11).
+    """
+    system = _check_system(system)
+    _scalars8(alpha, mu_s, mu_c, tau_min, tau_max, dwell)
+    return _Theorem8(system, tau_min, tau_max, dwell, positive_scalar(margin, "margin")).solve(
+        alpha, mu_s, mu_c
+    )
+
+
+def impulsive_observer_search(
+    system: SwitchedLinearSystem,
+    tau_min: float,
+    tau_max: float,
+    dwell: float,
+    *,
+    mu_s: Sequence[float] | None = None,
+    mu_c: Sequence[float] | None = None,
+    alpha_tol: float = 1e-3,
+    margin: float = 1e-3,
+) -> ImpulsiveObserverSearch:
+    """Search the scalars of Theorem 8 for the largest guaranteed rate ``beta``.
+
+    The paper fixes ``(alpha, mu_s, mu_c)`` by hand (Remark 12). For fixed
+    ``(mu_s, mu_c)`` the LMIs stay feasible when ``alpha`` decreases (it multiplies
+    ``P > 0`` in (6)), so the largest feasible ``alpha`` is found by bisection,
+    starting where ``beta = 0`` (below it no positive rate is possible) and
+    doubling the step upward until infeasible; ``beta`` of (11) is then evaluated
+    over the ``(mu_s, mu_c)`` grid, and the best certificate returned. One
+    parametrized SDP is compiled once and re-solved.
+
+    Parameters
+    ----------
+    system, tau_min, tau_max, dwell
+        As in :func:`impulsive_observer_synthesis`.
+    mu_s : sequence of float, optional
+        Grid of ``mu_s >= 1`` (default ``(2, 5, 10, 16, 25, 40)``; ``(1,)`` for one mode).
+    mu_c : sequence of float, optional
+        Grid of ``mu_c > 0`` (default ``(0.3, 0.5, 0.7, 0.85, 0.95, 1)``).
+    alpha_tol : float, optional
+        Bisection tolerance on ``alpha``.
+    margin : float, optional
+        As in :func:`impulsive_observer_synthesis`.
+
+    Returns
+    -------
+    ImpulsiveObserverSearch
+    """
+    system = _check_system(system)
+    alpha_tol = positive_scalar(alpha_tol, "alpha_tol")
+    default_mu_s = (1.0,) if system.n_modes == 1 else _DEFAULT_MU_S
+    grid_s = _grid(default_mu_s if mu_s is None else mu_s, "mu_s")
+    grid_c = _grid(_DEFAULT_MU_C if mu_c is None else mu_c, "mu_c")
+    _scalars8(0.0, 1.0, 1.0, tau_min, tau_max, dwell)
+    problem = _Theorem8(system, tau_min, tau_max, dwell, positive_scalar(margin, "margin"))
+    alphas = np.full((grid_s.size, grid_c.size), np.nan)
+    betas = np.full_like(alphas, np.nan)
+    best = None
+    for r, ms in enumerate(grid_s):
+        for c, mc in enumerate(grid_c):
+            lo = (
+                -2 * impulsive_observer_decay_rate(0.0, ms, mc, tau_min, tau_max, dwell) + alpha_tol
+            )  # beta > 0 from here
+            cert = problem.solve(lo, ms, mc)
+            if not cert.lmi_feasible:
+                continue
+            step, hi = 1.0, None
+            for _ in range(12):  # bracket: double the step until the LMIs fail
+                trial = problem.solve(lo + step, ms, mc)
+                if not trial.lmi_feasible:
+                    hi = lo + step
+                    break
+                lo, cert, step = lo + step, trial, 2 * step
+            while hi is not None and hi - lo > alpha_tol:
+                mid = 0.5 * (lo + hi)
+                trial = problem.solve(mid, ms, mc)
+                if trial.lmi_feasible:
+                    lo, cert = mid, trial
+                else:
+                    hi = mid
+            alphas[r, c], betas[r, c] = lo, cert.beta
+            if cert.holds and (best is None or cert.beta > best.beta):
+                best = cert
+    if best is None:
+        best = _failed8(
+            "searched",
+            "no scalars on the grid gave feasible LMIs with beta > 0",
+            {
+                "beta": math.nan,
+                "alpha": math.nan,
+                "mu_s": math.nan,
+                "mu_c": math.nan,
+                "tau_min": float(tau_min),
+                "tau_max": float(tau_max),
+                "dwell": float(dwell),
+            },
+        )
+    return ImpulsiveObserverSearch(
+        best=best, mu_s=grid_s, mu_c=grid_c, alpha=alphas, beta=betas, n_solves=problem.n_solves
+    )
+
+
+class _Theorem8:
+    """The LMIs (5)-(8) in ``P0, P1, L`` with the scalars as cvxpy parameters (compiled once)."""
+
+    def __init__(self, system, tau_min, tau_max, dwell, margin):
+        self.system, self.dwell, self.margin = system, float(dwell), margin
+        Lm, n, m = system.n_modes, system.n_states, system.n_outputs
+        self.lmi = _ClockLMI(Lm, n, tau_min, tau_max, margin)
+        self.alpha, self.mu_c = cp.Parameter(), cp.Parameter(pos=True)
+        self.L = [cp.Variable((n, m)) for _ in range(Lm)]
+        for i in range(Lm):
+            self.lmi.add_flow(i, system.A[i], self.alpha)
+            self.lmi.add_jump(
+                i, self.lmi.P0[i] - self.L[i] @ system.C[i], self.mu_c
+            )  # P0 (I - G C)
+
+    @property
+    def n_solves(self) -> int:
+        return self.lmi.n_solves
+
+    def solve(self, alpha, mu_s, mu_c) -> ImpulsiveObserverCertificate:
+        alpha, mu_s, mu_c, tau_min, tau_max, dwell = _scalars8(
+            alpha, mu_s, mu_c, self.lmi.tau_min, self.lmi.tau_max, self.dwell
+        )
+        beta = impulsive_observer_decay_rate(alpha, mu_s, mu_c, tau_min, tau_max, dwell)
+        common = {
+            "beta": beta,
+            "alpha": alpha,
+            "mu_s": mu_s,
+            "mu_c": mu_c,
+            "tau_min": tau_min,
+            "tau_max": tau_max,
+            "dwell": dwell,
+        }
+        self.alpha.value, self.mu_c.value = alpha, mu_c
+        status, P0, P1, slack = self.lmi.solve(mu_s)
+        if P0 is None:
+            return _failed8(status, _unsolved("(5)-(8)", status, slack, self.margin), common)
+        L = np.stack([v.value for v in self.L])
+        G = np.linalg.solve(P0, L)  # G_i = (P0^i)^-1 L_i
+        if beta <= 0:
+            note = (
+                f"LMIs (5)-(8) hold but the rate condition (9) fails: beta = {beta:.4g} <= 0; "
+                "no convergence is certified"
+            )
+            return ImpulsiveObserverCertificate(
+                False, True, P0, P1, L, G, **common, margin=slack, solver_status=status, note=note
+            )
+        note = f"the observation error decays at least as exp(-{beta:.4g} t) (Theorem 8, verified)"
+        return ImpulsiveObserverCertificate(
+            True, True, P0, P1, L, G, **common, margin=slack, solver_status=status, note=note
+        )
+
+
+# ---------------------------------------------------------------------- Theorem 10
+def impulsive_closed_loop_analysis(
+    system: SwitchedLinearSystem,
+    K,
+    G,
+    tau_min: float,
+    tau_max: float,
+    dwell: float,
+    delta: float,
+    alpha: float,
+    alpha_bar: float,
+    mu_s: float,
+    mu_c: float,
+    mu_c_bar: float,
+    *,
+    margin: float = 1e-3,
+) -> ClosedLoopCertificate:
+    """Observer-based control with a delayed mode estimate (Etienne et al. Theorem 10).
+
+    For given controller gains ``K`` (``u = K_{sigma_hat} x_hat``) and observer gains
+    ``G``, solves the LMIs (24)-(27) in ``Q0^i, Q1^i`` on the extended system
+    (21)-(23) (jump sign and (26) corrected, module notes) and evaluates the
+    corrected rate condition (28) (:func:`impulsive_closed_loop_decay_rate`). Posed and verified as
+    in :func:`impulsive_observer_synthesis`. For many scalars with one ``K`` and
+    ``G`` (a sweep, a bisection), :class:`ClosedLoopLMIs` compiles the LMIs once.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    K : array_like, shape (L, l, n)
+    G : array_like, shape (L, n, m)
+    tau_min, tau_max, dwell : float
+        As in Theorem 8.
+    delta : float
+        Largest delay of the mode estimate (Assumption 5), ``>= 0``.
+    alpha, alpha_bar : float
+        Flow rates with the right (``dV/dt <= -alpha V``) and the wrong
+        (``dV/dt <= alpha_bar V``) mode estimate.
+    mu_s : float
+        ``>= 1``.
+    mu_c, mu_c_bar : float
+        Jump bounds with the right and the wrong mode estimate, positive.
+    margin : float, optional
+
+    Returns
+    -------
+    ClosedLoopCertificate
+    """
+    lmis = ClosedLoopLMIs(system, K, G, tau_min, tau_max, dwell, margin=margin)
+    return lmis.analyze(delta, alpha, alpha_bar, mu_s, mu_c, mu_c_bar)
+
+
+class ClosedLoopLMIs:
+    """The LMIs (24)-(27) of Theorem 10 for one plant, controller and observer, compiled once.
+
+    The scalars ``alpha, alpha_bar, mu_s, mu_c, mu_c_bar`` enter the LMIs as cvxpy
+    parameters (the problem is DPP), so every :meth:`analyze` re-solves one compiled
+    problem: a search over the scalars costs a solve per point, not a model build and
+    compilation (``delta`` enters only the rate (28), not the LMIs).
+
+    Parameters
+    ----------
+    system, K, G, tau_min, tau_max, dwell
+        As in :func:`impulsive_closed_loop_analysis`.
+    margin : float, optional
+        As in :func:`impulsive_closed_loop_analysis` (keyword-only).
+
+    Attributes
+    ----------
+    n_solves : int
+        SDPs solved so far.
+    """
+
+    def __init__(self, system, K, G, tau_min, tau_max, dwell, *, margin: float = 1e-3):
+        system = _check_system(system)
+        Acl, J = closed_loop_matrices(system, K, G)
+        _, _, _, self.tau_min, self.tau_max, self.dwell = _scalars8(
+            0.0, 1.0, 1.0, tau_min, tau_max, dwell
+        )
+        self.margin = positive_scalar(margin, "margin")
+        self._alpha, self._alpha_bar = cp.Parameter(), cp.Parameter()
+        self._mu_c, self._mu_c_bar = cp.Parameter(pos=True), cp.Parameter(pos=True)
+        Lm = system.n_modes
+        self._lmi = _ClockLMI(Lm, 2 * system.n_states, self.tau_min, self.tau_max, self.margin)
+        # i: estimated mode (indexes Q), j: true mode;
+        # (30): (alpha, mu_c) if i == j else (-alpha_bar, mu_c_bar)
+        for i in range(Lm):
+            for j in range(Lm):
+                self._lmi.add_flow(i, Acl[j, i], self._alpha if i == j else -self._alpha_bar)
+                self._lmi.add_jump(
+                    i, self._lmi.P0[i] @ J[j, i], self._mu_c if i == j else self._mu_c_bar
+                )
+
+    @property
+    def n_solves(self) -> int:
+        return self._lmi.n_solves
+
+    def analyze(
+        self,
+        delta: float,
+        alpha: float,
+        alpha_bar: float,
+        mu_s: float,
+        mu_c: float,
+        mu_c_bar: float,
+    ) -> ClosedLoopCertificate:
+        """Theorem 10 at these scalars (arguments as in :func:`impulsive_closed_loop_analysis`).
+
+        Returns
+        -------
+        ClosedLoopCertificate
+        """
+        tau_min, tau_max, dwell = self.tau_min, self.tau_max, self.dwell
+        beta = impulsive_closed_loop_decay_rate(
+            alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta
+        )
+        alpha, mu_s, mu_c = float(alpha), float(mu_s), float(mu_c)
+        alpha_bar, mu_c_bar, delta = float(alpha_bar), float(mu_c_bar), float(delta)
+        printed = _printed_theorem10_rate(
+            alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta
+        )
+        scalars = {
+            "alpha": alpha,
+            "alpha_bar": alpha_bar,
+            "mu_s": mu_s,
+            "mu_c": mu_c,
+            "mu_c_bar": mu_c_bar,
+            "delta": delta,
+            "tau_min": tau_min,
+            "tau_max": tau_max,
+            "dwell": dwell,
+        }
+        self._alpha.value, self._alpha_bar.value = alpha, alpha_bar
+        self._mu_c.value, self._mu_c_bar.value = mu_c, mu_c_bar
+        status, Q0, Q1, slack = self._lmi.solve(mu_s)
+        common = {
+            "beta": beta, "printed_beta": printed, "scalars": scalars, "solver_status": status
+        }
+        if Q0 is None:
+            unsolved = _unsolved("(24)-(27)", status, slack, self.margin)
+            note = f"{unsolved}; stability is not certified"
+            return ClosedLoopCertificate(
+                False, False, None, None, margin=math.nan, **common, note=note
+            )
+        if beta <= 0:
+            note = (
+                f"LMIs (24)-(27) hold but the rate condition (28) fails: beta = {beta:.4g} <= 0 "
+                f"(printed (31): {printed:.4g}); stability is not certified"
+            )
+            return ClosedLoopCertificate(False, True, Q0, Q1, margin=slack, **common, note=note)
+        note = f"z = [x; e] decays at least as exp(-{beta:.4g} t) (Theorem 10, verified)"
+        return ClosedLoopCertificate(True, True, Q0, Q1, margin=slack, **common, note=note)
+
+
+# ---------------------------------------------------------------------- shared LMI pieces
+class _ClockLMI:
+    """LMIs on ``P^i(theta) = P0^i + theta P1^i`` shared by Theorems 8 and 10.
+
+    * ``P^i(theta) >= I`` at theta in {0, tau_max} ((5)/(24), normalized: homogeneous LMIs);
+    * ``P^i(theta) <= mu_s P^j(theta) - margin I``, i != j ((8)/(27));
+    * :meth:`add_flow`: ``He(P^i(theta) A) + P1^i + rate P^i(theta) <= -margin I`` ((6)/(25));
+    * :meth:`add_jump`: ``[[mu P^i(theta), Omega'], [Omega, P0^i]] >= margin I`` at theta in
+      {tau_min, tau_max}, ``Omega = P0^i M`` for the jump ``e+ = M e`` ((7)/(26), corrected).
+
+    ``rate``, ``mu`` and ``mu_s`` may be cvxpy parameters, so one compiled problem is re-solved.
+    """
+
+    def __init__(self, n_modes, size, tau_min, tau_max, margin):
+        self.tau_min, self.tau_max, self.margin = float(tau_min), float(tau_max), margin
+        self.P0 = [cp.Variable((size, size), symmetric=True) for _ in range(n_modes)]
+        self.P1 = [cp.Variable((size, size), symmetric=True) for _ in range(n_modes)]
+        self.mu_s = cp.Parameter(pos=True)
+        self.flows, self.jumps, self.constraints = [], [], []
+        self.n_solves = 0
+        self._problem = None
+        eye = np.eye(size)
+        for theta in (0.0, self.tau_max):
+            P = [self._at(i, theta) for i in range(n_modes)]
+            self.constraints += [symmetric_block([[Pi - eye]]) >> 0 for Pi in P]
+            self.constraints += [
+                symmetric_block([[self.mu_s * P[j] - P[i] - margin * eye]]) >> 0
+                for i in range(n_modes)
+                for j in range(n_modes)
+                if i != j
+            ]
+
+    def _at(self, i, theta):
+        return self.P0[i] + theta * self.P1[i]
+
+    def add_flow(self, i, A, rate) -> None:
+        eye = np.eye(A.shape[0])
+        for theta in (0.0, self.tau_max):
+            P = self._at(i, theta)
+            self.constraints.append(
+                symmetric_block([[P @ A + A.T @ P + self.P1[i] + rate * P + self.margin * eye]])
+                << 0
+            )
+        self.flows.append((i, A, rate))
+
+    def add_jump(self, i, omega, mu) -> None:
+        eye = np.eye(2 * omega.shape[0])
+        for theta in (self.tau_min, self.tau_max):
+            block = symmetric_block([[mu * self._at(i, theta), omega.T], [None, self.P0[i]]])
+            self.constraints.append(block - self.margin * eye >> 0)
+        self.jumps.append((i, omega, mu))
+
+    def solve(self, mu_s):
+        """Solve for the current parameter values: ``(status, P0, P1, slack)``.
+
+        ``P0, P1`` are None unless the solution passed the numpy re-check (slack at
+        least ``margin / 2``). The solver status is never the verdict: an
+        ``optimal_inaccurate`` answer is accepted only through that re-check, and
+        CVXOPT is tried when CLARABEL gives no verified solution without deciding.
+        """
+        if self._problem is None:
+            self._problem = cp.Problem(cp.Minimize(0), self.constraints)
+        self.mu_s.value = mu_s
+        self.n_solves += 1
+        status, slack = "solver_error", math.nan
+        for solver in ("CLARABEL", "CVXOPT"):
+            outcome = solve_sdp(self._problem, solvers=(solver,))
+            status = outcome.status
+            if status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) and self.P0[0].value is not None:
+                P0 = symmetrize(np.stack([v.value for v in self.P0]))
+                P1 = symmetrize(np.stack([v.value for v in self.P1]))
+                slack = self._slack(P0, P1, mu_s)
+                if slack >= 0.5 * self.margin:
+                    return status, P0, P1, slack
+            if outcome.decided:
+                break
+        return status, None, None, slack
+
+    def _slack(self, P0, P1, mu_s) -> float:
+        """Smallest slack of the strict LMIs recomputed with numpy from the solver's matrices
+        (``P(theta) >= I`` checked as ``P(theta) > 0``)."""
+        slacks = []
+        for theta in (0.0, self.tau_max):
+            P = P0 + theta * P1
+            slacks.append(min_eigenvalue(P))
+            slacks += [
+                min_eigenvalue(mu_s * P[j] - P[i])
+                for i in range(len(P))
+                for j in range(len(P))
+                if i != j
+            ]
+            for i, A, rate in self.flows:
+                r = _value(rate)
+                slacks.append(-max_eigenvalue(P[i] @ A + A.T @ P[i] + P1[i] + r * P[i]))
+        for theta in (self.tau_min, self.tau_max):
+            for i, omega, mu in self.jumps:
+                W = np.asarray(omega.value)
+                block = np.block([[_value(mu) * (P0[i] + theta * P1[i]), W.T], [W, P0[i]]])
+                slacks.append(min_eigenvalue(block))
+        return float(np.min(np.hstack([np.ravel(s) for s in slacks])))
+
+
+# ---------------------------------------------------------------------- helpers
+def _unsolved(which: str, status: str, slack: float, margin: float) -> str:
+    if math.isnan(slack):
+        return f"the LMIs {which} have no solution (solver status {status!r})"
+    return (
+        f"the solver's solution of the LMIs {which} failed the numpy re-check (slack {slack:.3g} "
+        f"< {0.5 * margin:.3g}, solver status {status!r})"
+    )
+
+
+def _failed8(status: str, note: str, common: dict) -> ImpulsiveObserverCertificate:
+    return ImpulsiveObserverCertificate(
+        False,
+        False,
+        None,
+        None,
+        None,
+        None,
+        **common,
+        margin=math.nan,
+        solver_status=status,
+        note=note,
+    )
+
+
+def _sample_rate(mu_c: float, tau_min: float, tau_max: float) -> float:
+    """``ln(mu_c)`` per unit time from the samples: over ``tau_max`` when ``mu_c <= 1``
+    (fewest samples), over ``tau_min`` when ``mu_c > 1`` (most samples)."""
+    return math.log(mu_c) / (tau_max if mu_c <= 1 else tau_min)
+
+
+def _scalars8(alpha, mu_s, mu_c, tau_min, tau_max, dwell):
+    alpha = _real(alpha, "alpha")
+    mu_s = positive_scalar(mu_s, "mu_s")
+    if mu_s < 1:
+        raise ValueError(f"mu_s must be >= 1 (switching cannot shrink every P^i), got {mu_s:g}")
+    mu_c = positive_scalar(mu_c, "mu_c")
+    tau_min = positive_scalar(tau_min, "tau_min")
+    tau_max = positive_scalar(tau_max, "tau_max")
+    if tau_max < tau_min:
+        raise ValueError(f"tau_max must be >= tau_min = {tau_min:g}, got {tau_max:g}")
+    dwell = positive_scalar(dwell, "dwell")
+    return alpha, mu_s, mu_c, tau_min, tau_max, dwell
+
+
+def _real(value, name: str) -> float:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (int, float, np.integer, np.floating)
+    ):
+        raise TypeError(f"{name} must be a real scalar, got {type(value).__name__}")
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return float(value)
+
+
+def _grid(values, name: str) -> np.ndarray:
+    arr = float_array(values, name, ndim=1)
+    if arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{name} must be a non-empty grid of positive numbers, got {arr.tolist()}")
+    if name == "mu_s" and np.any(arr < 1):
+        raise ValueError(f"mu_s must be >= 1, got {arr.min():g}")
+    return arr
+
+
+def _value(x) -> float:
+    return float(x.value) if isinstance(x, cp.Expression) else float(x)
+
+
+def _check_system(system) -> SwitchedLinearSystem:
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    if not system.is_continuous:
+        raise ValueError(f"system must be continuous-time, got domain {system.domain!r}")
+    return system
+
+
+def _gain_stack(value, name: str, shape: tuple[int, int, int], text: str) -> np.ndarray:
+    arr = float_array(value, name, ndim=3)
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {text} = {shape}, got {arr.shape}")
+    check_finite(arr, name)
+    return arr

@@ -1,0 +1,750 @@
+"""Lee, Ping & Shim (002): the constants of §II, Assumptions 1-3, the smallest windows.
+
+Lee et al. estimate the mode of a continuous-time switched system from the
+output on a window of length ``delta`` and detect each switch within ``Delta``
+after it happened, provided (Assumption 2, conditions (3) and (4)), for all t::
+
+    omega_min(delta) |x(t)|^2 > (u_max sqrt(N_u(delta)) + 2 v_max sqrt(delta))^2          (3)
+    omega_min(Delta) |x(t)|^2 > 1/2 (u_max sqrt(N_u(Delta)) + 2 v_max sqrt(Delta)
+                                     + 2 v_max C_max (mu_c e^{lam_c Delta} + 1)^2 E_hat(delta) sqrt(Delta))^2   (4)
+
+with ``||e^{A_i t}|| <= mu_c e^{lam_c t}`` (``mu_c >= 1``, ``lam_c >= 0``; the paper's
+check accents), ``||e^{(A_i - L_i C_i) t}|| <= mu_h e^{-lam_h t}`` (hat accents),
+``L_max = max ||L_i||``, ``C_max = max ||C_i||``, ``h_i(t) = C_i e^{A_i t} B_i``,
+``phi_i(t) = C_i e^{A_i t}``, ``U_i(t) = int_0^t phi_i' phi_i``::
+
+    N_u(t)    = max_{i != j} int_0^t (int_0^tau ||h_i(s) - h_j(s)|| ds)^2 dtau
+    M_i(t)    = int_0^t ||U_i(t)^{-1} phi_i(tau)'|| dtau,   M_max = max_i M_i
+    E_hat(d)  = mu_h max(M_max(d), L_max / lam_h)
+    S_Delta   = v_max^2 (1 + C_max (mu_c e^{lam_c Delta} + 2) E_hat(delta))^2 Delta     (§IV)
+
+All norms are spectral norms; ``|x(t)|`` is bounded below by the caller's ``x_min``.
+
+How each constant is obtained
+-----------------------------
+* ``mu_c, lam_c`` and ``mu_h, lam_h``: Lyapunov bounds. For a shift ``r`` above the
+  spectral abscissa of ``A``, ``P`` solves ``(A - rI)'P + P(A - rI) = -I``; then
+  ``V = x'Px`` obeys ``dV/dt <= (2r - 1/lambda_max(P)) V`` and
+  ``||e^{At}|| <= sqrt(cond P) e^{(r - 1/(2 lambda_max(P))) t}``. As ``r -> inf``
+  this tends to ``mu = 1`` with the logarithmic norm ``lambda_max((A + A')/2)`` as
+  rate, which is also a candidate. One shift is shared by all modes (mu = max over
+  modes, rate = max over modes) and chosen on a log-spaced grid of shifts to
+  minimize what the conditions use: ``mu_c e^{lam_c Delta}`` for ``A_i``, and
+  ``E_hat(delta)`` for ``A_i - L_i C_i``. Both bounds are re-checked on a time grid
+  (``bound_ratio_*`` <= 1).
+* ``U_i(t)`` and ``omega_min(t)``: exact, by Van Loan's block exponential
+  (:func:`switchest.analysis.observability.joint_gramian`).
+* ``N_u`` and ``M_i``: the norms inside the integrals are not linear, so these are
+  composite trapezoid sums on a uniform grid of ``n_grid`` points with
+  ``e^{A_i tau}`` exact at every node (relative error ~ ``(t / n_grid)^2``).
+* Observer gains (when not given): :func:`default_observer_gains`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+
+from .._checks import check_finite, check_memory, float_array, positive_int, positive_scalar
+from .._linalg import symmetrize
+from ..discretize import interval, mode_steps
+from ..signals import SwitchingSignal
+from ..system import SwitchedLinearSystem
+from ._deprecation import renamed_field
+from .observability import is_observable, joint_observability, omega_min
+
+__all__ = [
+    "LeeAssumptions",
+    "LeeCondition",
+    "LeeConstants",
+    "LeeWindows",
+    "decay_observer_gains",
+    "default_observer_gains",
+    "lee_assumptions",
+    "lee_constants",
+    "lee_windows",
+    "observability_gramians",
+]
+
+_N_SHIFTS = 161
+_BOUND_TOL = 1e-8
+_MAX_EXPONENT = 700.0  # e^700 ~ 1e304: the largest growth factor a float64 holds
+
+
+# ---------------------------------------------------------------------- results
+@dataclass(frozen=True, eq=False)
+class LeeConstants:
+    """The constants of Lee et al. §II-§IV for given windows (:func:`lee_constants`).
+
+    Attributes
+    ----------
+    delta, Delta : float
+        Estimation window and detection delay.
+    mu_check, lambda_check : float
+        ``||e^{A_i t}|| <= mu_check e^{lambda_check t}`` for all t >= 0 and modes.
+    mu_hat, lambda_hat : float
+        ``||e^{(A_i - L_i C_i) t}|| <= mu_hat e^{-lambda_hat t}``.
+    observer_gains : ndarray, shape (L, n, m)
+        The ``L_i`` used.
+    L_max, C_max : float
+        ``max_i ||L_i||``, ``max_i ||C_i||``.
+    U : ndarray, shape (L, n, n)
+        ``U_i(delta)``, the observability Gramians of the modes.
+    M : ndarray, shape (L,)
+        ``M_i(delta)``; ``M_max = M.max()``.
+    M_max : float
+    N_u_delta, N_u_Delta : float
+        ``N_u(delta)``, ``N_u(Delta)`` (zero without inputs).
+    omega_min_delta, omega_min_Delta : float
+        ``omega_min(delta)``, ``omega_min(Delta)``.
+    E_hat : float
+        ``E_hat(delta)``.
+    growth : float
+        ``mu_check e^{lambda_check Delta}``.
+    reset_factor : float
+        ``(growth + 1) E_hat``: the threshold of (21) and (23) is ``v_max`` times it.
+    s_factor : float
+        ``(1 + C_max (growth + 2) E_hat)^2 Delta``: ``S_Delta = v_max^2 s_factor``.
+    bound_ratio_check, bound_ratio_hat : float
+        ``max ||e^{M t}|| / (mu e^{rate t})`` over ``t`` in ``[0, bound_horizon]``
+        (501 points) for the two bounds; at most 1 (checked).
+    bound_horizon : float
+    """
+
+    delta: float
+    Delta: float
+    mu_check: float
+    lambda_check: float
+    mu_hat: float
+    lambda_hat: float
+    observer_gains: np.ndarray
+    L_max: float
+    C_max: float
+    U: np.ndarray
+    M: np.ndarray
+    M_max: float
+    N_u_delta: float
+    N_u_Delta: float
+    omega_min_delta: float
+    omega_min_Delta: float
+    E_hat: float
+    growth: float
+    reset_factor: float
+    s_factor: float
+    bound_ratio_check: float
+    bound_ratio_hat: float
+    bound_horizon: float
+
+    def S_Delta(self, v_max: float) -> float:
+        """``S_Delta = v_max^2 (1 + C_max (mu e^{lambda Delta} + 2) E_hat(delta))^2 Delta`` (§IV)."""
+        v_max = positive_scalar(v_max, "v_max", allow_zero=True)
+        return v_max * v_max * self.s_factor  # a product: inf, not OverflowError, for a huge v_max
+
+    def reset_threshold(self, v_max: float) -> float:
+        """``v_max (mu e^{lambda Delta} + 1) E_hat(delta)``, the threshold of (21) and (23)."""
+        return positive_scalar(v_max, "v_max", allow_zero=True) * self.reset_factor
+
+
+@dataclass(frozen=True)
+class LeeCondition:
+    """One hypothesis of Lee et al.: verdict, margin and the two sides compared.
+
+    Attributes
+    ----------
+    holds : bool
+    margin : float
+        ``lhs - rhs`` (Assumption 1: the smallest PBH margin over mode pairs;
+        Assumption 3: the slack of the tighter of its two requirements); the
+        condition holds exactly when ``margin > 0`` (a dwell exactly equal to
+        ``delta + Delta`` counts as failing).
+    lhs, rhs : float
+        The two sides (Assumption 1: ``omega_min(delta)`` and 0).
+    """
+
+    holds: bool
+    margin: float
+    lhs: float
+    rhs: float
+
+
+@dataclass(frozen=True, eq=False)
+class LeeAssumptions:
+    """Lee et al. Assumptions 1-3 for given windows (:func:`lee_assumptions`).
+
+    Attributes
+    ----------
+    holds : bool
+        Assumption 1, (3), (4) and — when a signal or ``min_dwell`` was given —
+        Assumption 3 all hold.
+    assumption1, condition3, condition4 : LeeCondition
+    assumption3 : LeeCondition or None
+        ``None`` when neither ``signal`` nor ``min_dwell`` was given: the dwell time
+        ``required_dwell`` is then a requirement on the signal left to the caller.
+    required_dwell : float
+        ``delta + Delta`` (Assumption 3).
+    v_max_allowed : float
+        The largest noise bound for which (3) and (4) hold with the given
+        ``u_max``, ``x_min``, ``delta``, ``Delta`` (strictly below it; negative when
+        the input alone breaks them).
+    constants : LeeConstants
+    """
+
+    holds: bool
+    assumption1: LeeCondition
+    condition3: LeeCondition
+    condition4: LeeCondition
+    assumption3: LeeCondition | None
+    required_dwell: float
+    v_max_allowed: float
+    constants: LeeConstants
+
+
+@dataclass(frozen=True, eq=False)
+class LeeWindows:
+    """Smallest windows satisfying (3) and (4) (:func:`lee_windows`).
+
+    Attributes
+    ----------
+    holds : bool
+        Windows satisfying (3) and (4) exist on the grid up to ``t_max`` (found).
+    delta : float or None
+        Smallest multiple of ``step`` in ``(0, t_max]`` for which (3) holds.
+    Delta : float or None
+        Smallest multiple of ``step`` in ``(0, t_max]`` for which (4) holds with
+        that ``delta``.
+    step : float
+    assumptions : LeeAssumptions or None
+        :func:`lee_assumptions` re-evaluated at ``(delta, Delta)``.
+    """
+
+    holds: bool
+    delta: float | None
+    Delta: float | None
+    step: float
+    assumptions: LeeAssumptions | None
+
+    found = renamed_field("found")
+
+
+# ---------------------------------------------------------------------- public
+def default_observer_gains(system: SwitchedLinearSystem) -> np.ndarray:
+    """Observer gains ``L_i`` with ``A_i - L_i C_i`` Hurwitz, by pole placement.
+
+    For mode i the poles are ``-rho_i (1, 1.25, 1.5, ...)`` with
+    ``rho_i = max(1, 2 max|eig(A_i)|)``: twice as fast as the mode's own dynamics.
+    Distinct real poles are placed by ``scipy.signal.place_poles`` on the dual pair
+    ``(A_i', C_i')`` (its robust method makes the closed-loop eigenvectors as
+    orthogonal as it can, which keeps ``mu_hat`` small).
+
+    Returns
+    -------
+    ndarray, shape (L, n, m)
+    """
+    from scipy.signal import place_poles  # scipy.signal: most of a second to import
+    _check_system(system)
+    gains = []
+    for i in range(system.n_modes):
+        A, C = system.A[i], system.C[i]
+        if not is_observable(A, C):
+            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), (A_{i}, C_{i}) is not")
+        rho = max(1.0, 2.0 * float(np.max(np.abs(np.linalg.eigvals(A)))))
+        poles = -rho * (1.0 + 0.25 * np.arange(system.n_states))
+        gains.append(place_poles(A.T, C.T, poles).gain_matrix.T)
+    return np.array(gains)
+
+
+def decay_observer_gains(system: SwitchedLinearSystem, decay: float) -> np.ndarray:
+    """Observer gains placing the poles of ``A_i - L_i C_i`` at ``-a``, ``-1.25 a``, ... for ``a = decay``.
+
+    Each pole is repeated ``rank C_i`` times (the multiplicity
+    ``scipy.signal.place_poles`` allows), so with ``C_i = I`` every pole is ``-a``:
+    ``L_i = A_i + a I`` and ``A_i - L_i C_i = -a I``, the gains of the lee-detection
+    experiment (:attr:`switchest.models.lee.LeeScenario.observer_gains`).
+
+    Returns
+    -------
+    ndarray, shape (L, n, m)
+    """
+    from scipy.signal import place_poles  # scipy.signal: most of a second to import
+    _check_system(system)
+    a = positive_scalar(decay, "decay")
+    gains = []
+    for i in range(system.n_modes):
+        A, C = system.A[i], system.C[i]
+        if not is_observable(A, C):
+            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), (A_{i}, C_{i}) is not")
+        poles = -a * (1.0 + 0.25 * (np.arange(system.n_states) // np.linalg.matrix_rank(C)))
+        gains.append(place_poles(A.T, C.T, poles).gain_matrix.T)
+    return np.array(gains)
+
+
+def observability_gramians(system: SwitchedLinearSystem, t) -> np.ndarray:
+    """``U_i(t) = int_0^t e^{A_i' s} C_i' C_i e^{A_i s} ds`` for every mode (Lee et al. §II).
+
+    Exact: the process-noise integral of the dual system ``(A_i', C_i'C_i)`` from
+    :func:`switchest.discretize.interval` (Van Loan).
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous-time.
+    t : float or array_like, shape (K,)
+        Positive horizon(s).
+
+    Returns
+    -------
+    ndarray, shape (L, n, n) or (K, L, n, n)
+    """
+    _check_system(system)
+    t = float_array(t, "t", ndim=(0, 1))
+    check_finite(t, "t")
+    if np.any(t <= 0):
+        raise ValueError(f"t must be positive, got minimum {t.min():.3g}")
+    L = system.n_modes
+    modes = np.arange(L)[:, None] if t.ndim == 0 else np.arange(L)[None, :, None]
+    T = t if t.ndim == 0 else t[:, None]
+    return interval(_dual(system), T, modes).Qd
+
+
+def lee_constants(
+    system: SwitchedLinearSystem, delta: float, Delta: float, observer_gains=None, *, n_grid: int = 2001
+) -> LeeConstants:
+    """The constants of Lee et al. §II (and ``S_Delta`` of §IV) for windows ``delta``, ``Delta``.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous-time, every mode observable.
+    delta, Delta : float
+        Estimation window and detection delay (positive).
+    observer_gains : array_like, shape (L, n, m) or (n, m), optional
+        ``L_i`` with ``A_i - L_i C_i`` Hurwitz; default :func:`default_observer_gains`.
+    n_grid : int
+        Quadrature nodes for ``N_u`` and ``M_i`` (keyword-only).
+
+    Returns
+    -------
+    LeeConstants
+        See the module docstring for how each number is obtained.
+    """
+    _check_system(system)
+    delta = positive_scalar(delta, "delta")
+    Delta = positive_scalar(Delta, "Delta")
+    n_grid = positive_int(n_grid, "n_grid")
+    if n_grid < 3:
+        raise ValueError(f"n_grid must be at least 3, got {n_grid}")
+    _check_grid(system, n_grid, f"lee_constants with n_grid = {n_grid} quadrature nodes")
+    _check_horizon(system, delta, "delta")
+    _check_horizon(system, Delta, "Delta")
+    gains = _gains(system, observer_gains)
+    closed = system.A - gains @ system.C
+    L_max = float(np.max(np.linalg.norm(gains, ord=2, axis=(1, 2))))
+    C_max = float(np.max(np.linalg.norm(system.C, ord=2, axis=(1, 2))))
+    U, M = _gramian_terms(system, delta, n_grid)
+    M_max = float(M.max())
+    growth_table = _shift_table(system.A)
+    mu_c, lam_c = _best_growth(growth_table, np.array([Delta]))
+    mu_c, lam_c = float(mu_c[0]), float(lam_c[0])
+    mu_h, lam_h = _best_decay(_shift_table(closed), M_max, L_max)
+    E_hat = mu_h * max(M_max, L_max / lam_h)
+    growth = mu_c * np.exp(lam_c * Delta)
+    horizon = 4.0 * max(delta, Delta, 1.0 / lam_h)
+    ratio_c = _bound_ratio(system.A, mu_c, lam_c, horizon)
+    ratio_h = _bound_ratio(closed, mu_h, -lam_h, horizon)
+    if max(ratio_c, ratio_h) > 1.0 + _BOUND_TOL:
+        raise RuntimeError(
+            f"the Lyapunov bounds failed their numerical check (ratios {ratio_c:.6g}, {ratio_h:.6g} > 1): "
+            "the system is too ill-conditioned for them"
+        )
+    return LeeConstants(
+        delta=delta,
+        Delta=Delta,
+        mu_check=mu_c,
+        lambda_check=lam_c,
+        mu_hat=mu_h,
+        lambda_hat=lam_h,
+        observer_gains=gains,
+        L_max=L_max,
+        C_max=C_max,
+        U=U,
+        M=M,
+        M_max=M_max,
+        N_u_delta=_n_u(system, delta, n_grid),
+        N_u_Delta=_n_u(system, Delta, n_grid),
+        omega_min_delta=_omega_min(system, delta),
+        omega_min_Delta=_omega_min(system, Delta),
+        E_hat=float(E_hat),
+        growth=float(growth),
+        reset_factor=float((growth + 1.0) * E_hat),
+        s_factor=float((1.0 + C_max * (growth + 2.0) * E_hat) ** 2 * Delta),
+        bound_ratio_check=ratio_c,
+        bound_ratio_hat=ratio_h,
+        bound_horizon=horizon,
+    )
+
+
+def lee_assumptions(
+    system: SwitchedLinearSystem,
+    *,
+    u_max: float,
+    v_max: float,
+    x_min: float,
+    delta: float,
+    Delta: float,
+    observer_gains=None,
+    signal: SwitchingSignal | Sequence[SwitchingSignal] | None = None,
+    min_dwell: float | None = None,
+) -> LeeAssumptions:
+    """Check Lee et al. Assumption 1, conditions (3) and (4), and Assumption 3.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous-time.
+    u_max, v_max : float
+        Bounds on ``|u(t)|`` and ``|v(t)|`` (eq. (2)); zero allowed.
+    x_min : float
+        A lower bound on ``|x(t)|`` over the time considered; (3) and (4) are
+        required "for all t", so they are checked at ``|x(t)| = x_min``.
+    delta, Delta : float
+        Estimation window and detection delay.
+    observer_gains : array_like, optional
+        ``L_i``; default :func:`default_observer_gains`.
+    signal : SwitchingSignal or sequence of them, optional
+        Switching signal(s) to check Assumption 3 on: no switch in ``[0, delta]``
+        and every dwell at least ``delta + Delta``.
+    min_dwell : float, optional
+        Instead of ``signal``: a dwell-time bound of the signal class, also
+        bounding the first switch instant from below.
+
+    Returns
+    -------
+    LeeAssumptions
+        Margins are ``lhs - rhs`` of each inequality; ``v_max_allowed`` is the
+        noise bound at which (3) or (4) becomes an equality.
+    """
+    _check_system(system)
+    u_max = positive_scalar(u_max, "u_max", allow_zero=True)
+    v_max = positive_scalar(v_max, "v_max", allow_zero=True)
+    x_min = positive_scalar(x_min, "x_min", allow_zero=True)
+    if signal is not None and min_dwell is not None:
+        raise ValueError("pass either signal or min_dwell for Assumption 3, got both")
+    k = lee_constants(system, delta, Delta, observer_gains)
+    joint = joint_observability(system)
+    off = joint.margin[~np.eye(system.n_modes, dtype=bool)]
+    pbh = float(off.min()) if off.size else float("inf")
+    a1 = LeeCondition(holds=bool(joint.holds), margin=pbh, lhs=k.omega_min_delta, rhs=0.0)
+    lhs3 = k.omega_min_delta * x_min * x_min  # products, not **: inf rather than OverflowError
+    rhs3 = (u_max * np.sqrt(k.N_u_delta) + 2 * v_max * np.sqrt(k.delta)) ** 2
+    lhs4 = k.omega_min_Delta * x_min * x_min
+    rhs4 = 0.5 * (u_max * np.sqrt(k.N_u_Delta) + v_max * _noise_gain4(k)) ** 2
+    c3 = LeeCondition(holds=bool(lhs3 > rhs3), margin=float(lhs3 - rhs3), lhs=float(lhs3), rhs=float(rhs3))
+    c4 = LeeCondition(holds=bool(lhs4 > rhs4), margin=float(lhs4 - rhs4), lhs=float(lhs4), rhs=float(rhs4))
+    a3 = _assumption3(signal, min_dwell, k.delta, k.Delta)
+    v3 = (np.sqrt(k.omega_min_delta) * x_min - u_max * np.sqrt(k.N_u_delta)) / (2 * np.sqrt(k.delta))
+    v4 = (np.sqrt(2 * k.omega_min_Delta) * x_min - u_max * np.sqrt(k.N_u_Delta)) / _noise_gain4(k)
+    holds = a1.holds and c3.holds and c4.holds and (a3 is None or a3.holds)
+    return LeeAssumptions(
+        holds=bool(holds),
+        assumption1=a1,
+        condition3=c3,
+        condition4=c4,
+        assumption3=a3,
+        required_dwell=k.delta + k.Delta,
+        v_max_allowed=float(min(v3, v4)),
+        constants=k,
+    )
+
+
+def lee_windows(
+    system: SwitchedLinearSystem,
+    *,
+    u_max: float,
+    v_max: float,
+    x_min: float,
+    observer_gains=None,
+    t_max: float = 10.0,
+    step: float | None = None,
+) -> LeeWindows:
+    """The smallest ``delta`` satisfying (3), then the smallest ``Delta`` satisfying (4).
+
+    Both are searched among the multiples of ``step`` in ``(0, t_max]`` (so they
+    can be used as they are on a detector grid of that step): ``delta`` is the
+    first at which (3) holds, ``Delta`` the first at which (4) holds with
+    ``E_hat(delta)`` of that ``delta``. Neither condition is monotone in its window
+    in general, so "smallest" means the first on the scan. The pair is then
+    re-checked with :func:`lee_assumptions`.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    u_max, v_max, x_min : float
+        As in :func:`lee_assumptions`.
+    observer_gains : array_like, optional
+    t_max : float
+        Longest window considered.
+    step : float, optional
+        Scan step; default ``t_max / 2000``.
+
+    Returns
+    -------
+    LeeWindows
+        ``holds=False`` when no window up to ``t_max`` works (``delta`` is still
+        given when only (4) failed). The scan integrates ``N_u`` on the scan grid;
+        ``assumptions`` re-evaluates the pair with :func:`lee_constants`'
+        quadrature, so read its ``holds`` for the verdict.
+    """
+    _check_system(system)
+    u_max = positive_scalar(u_max, "u_max", allow_zero=True)
+    v_max = positive_scalar(v_max, "v_max", allow_zero=True)
+    x_min = positive_scalar(x_min, "x_min", allow_zero=True)
+    t_max = positive_scalar(t_max, "t_max")
+    step = t_max / 2000 if step is None else positive_scalar(step, "step")
+    if step > t_max:
+        raise ValueError(f"step must not exceed t_max = {t_max:g}, got {step:g}")
+    gains = _gains(system, observer_gains)
+    K = int(np.floor(t_max / step * (1 + 1e-12)))
+    _check_grid(system, K, f"lee_windows with t_max / step = {K} scan points")
+    _check_horizon(system, t_max, "t_max")
+    t = step * np.arange(1, K + 1)
+    omega = _omega_min(system, t)
+    N_u = _n_u_cumulative(system, t)
+    ok3 = omega * (x_min * x_min) > (u_max * np.sqrt(N_u) + 2 * v_max * np.sqrt(t)) ** 2
+    if not ok3.any():
+        return LeeWindows(holds=False, delta=None, Delta=None, step=step, assumptions=None)
+    delta = float(t[np.argmax(ok3)])
+    closed = system.A - gains @ system.C
+    L_max = float(np.max(np.linalg.norm(gains, ord=2, axis=(1, 2))))
+    C_max = float(np.max(np.linalg.norm(system.C, ord=2, axis=(1, 2))))
+    M_max = float(_gramian_terms(system, delta, 2001)[1].max())
+    mu_h, lam_h = _best_decay(_shift_table(closed), M_max, L_max)
+    E_hat = mu_h * max(M_max, L_max / lam_h)
+    mu_c, lam_c = _best_growth(_shift_table(system.A), t)
+    growth = mu_c * np.exp(lam_c * t)
+    gain = 2 * np.sqrt(t) * (1 + C_max * (growth + 1) ** 2 * E_hat)
+    ok4 = omega * (x_min * x_min) > 0.5 * (u_max * np.sqrt(N_u) + v_max * gain) ** 2
+    if not ok4.any():
+        return LeeWindows(holds=False, delta=delta, Delta=None, step=step, assumptions=None)
+    Delta = float(t[np.argmax(ok4)])
+    check = lee_assumptions(system, u_max=u_max, v_max=v_max, x_min=x_min, delta=delta, Delta=Delta,
+                            observer_gains=gains)
+    return LeeWindows(holds=True, delta=delta, Delta=Delta, step=step, assumptions=check)
+
+
+# ---------------------------------------------------------------------- pieces
+def _check_system(system) -> None:
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    if not system.is_continuous:
+        raise ValueError(f"system must be continuous-time (Lee et al. eq. (1)), got {system.domain!r}")
+
+
+def _gains(system: SwitchedLinearSystem, observer_gains) -> np.ndarray:
+    """Validated ``L_i (L, n, m)`` with every ``A_i - L_i C_i`` Hurwitz."""
+    if observer_gains is None:
+        return default_observer_gains(system)
+    L, n, m = system.n_modes, system.n_states, system.n_outputs
+    gains = float_array(observer_gains, "observer_gains", ndim=(2, 3))
+    check_finite(gains, "observer_gains")
+    if gains.ndim == 2:
+        gains = np.broadcast_to(gains, (L, *gains.shape))
+    if gains.shape != (L, n, m):
+        raise ValueError(f"observer_gains must have shape (L, n, m) = ({L}, {n}, {m}), got {gains.shape}")
+    abscissa = np.linalg.eigvals(system.A - gains @ system.C).real.max(axis=1)
+    if np.any(abscissa >= 0):
+        i = int(np.argmax(abscissa))
+        raise ValueError(
+            f"observer_gains must make every A_i - L_i C_i Hurwitz, got eigenvalue real part "
+            f"{abscissa[i]:.3g} in mode {i}"
+        )
+    return np.array(gains)
+
+
+def _check_grid(system: SwitchedLinearSystem, count: int, what: str) -> None:
+    """Refuse a time grid whose per-node matrices would not fit in memory.
+
+    Per node: the exponentials of every mode and the Van Loan blocks of every mode
+    pair's Gramian, ``8 L^2 (4n)^2`` floats with the copies ``expm`` makes.
+    """
+    L, n = system.n_modes, system.n_states
+    check_memory(8 * count * 8 * L * L * (4 * n) ** 2, f"{what} (8 L^2 (4n)^2 floats per node)")
+
+
+def _check_horizon(system: SwitchedLinearSystem, value: float, name: str) -> None:
+    """Refuse a window over which ``e^{A_i t}`` may overflow: ``max_i ||A_i|| t <= 700``."""
+    exponent = float(np.max(np.linalg.norm(system.A, ord=2, axis=(1, 2)))) * value
+    if exponent > _MAX_EXPONENT:
+        raise ValueError(
+            f"{name} = {value:g} is too long for this system: max ||A_i|| {name} = {exponent:.3g} "
+            f"> {_MAX_EXPONENT:g}, and the exponentials e^(A_i t) of the bounds overflow"
+        )
+
+
+def _dual(system: SwitchedLinearSystem) -> SwitchedLinearSystem:
+    """``(A_i', C_i'C_i)``: its process-noise integral is the observability Gramian."""
+    At = np.swapaxes(system.A, 1, 2)
+    return SwitchedLinearSystem.continuous(At, Q=np.swapaxes(system.C, 1, 2) @ system.C)
+
+
+def _omega_min(system: SwitchedLinearSystem, t):
+    """``omega_min(t) = min_{i != j} lambda_min(W_ij(t))`` (Lee et al. §II), scalar or array."""
+    pairs = list(combinations(range(system.n_modes), 2))
+    if not pairs:
+        return np.full(np.shape(t), np.inf) if np.ndim(t) else float("inf")
+    values = [omega_min(system, i, j, t) for i, j in pairs]
+    return np.min(values, axis=0) if np.ndim(t) else float(min(values))
+
+
+def _exponentials(system: SwitchedLinearSystem, tau: np.ndarray) -> np.ndarray:
+    """``e^{A_i tau_k}`` on a uniform grid ``tau = k h`` (k = 0..K-1), shape (K, L, n, n).
+
+    One exact step ``e^{A_i h}`` (:func:`switchest.discretize.mode_steps`) and its
+    powers: no exponential of a long horizon, which could overflow.
+    """
+    L, n = system.n_modes, system.n_states
+    out = np.empty((tau.size, L, n, n))
+    out[0] = np.eye(n)
+    if tau.size > 1:
+        step = mode_steps(SwitchedLinearSystem.continuous(system.A), float(tau[1] - tau[0])).F
+        for k in range(1, tau.size):
+            out[k] = step @ out[k - 1]
+    return out
+
+
+def _gramian_terms(system: SwitchedLinearSystem, t: float, n_grid: int):
+    """``U_i(t)`` (exact) and ``M_i(t) = int_0^t ||U_i(t)^{-1} phi_i(tau)'|| dtau`` (trapezoid)."""
+    U = observability_gramians(system, t)
+    tau = np.linspace(0.0, t, n_grid)
+    phi_t = np.swapaxes(system.C @ _exponentials(system, tau), -1, -2)  # phi_i(tau)' (K, L, n, m)
+    integrand = np.linalg.norm(np.linalg.solve(U, phi_t), ord=2, axis=(-2, -1))
+    return U, np.trapezoid(integrand, tau, axis=0)
+
+
+def _input_kernel_gaps(system: SwitchedLinearSystem, tau: np.ndarray) -> np.ndarray:
+    """``||h_i(tau) - h_j(tau)||`` for every pair i < j, shape (pairs, K)."""
+    h = system.C @ _exponentials(system, tau) @ system.B  # (K, L, m, l)
+    pairs = list(combinations(range(system.n_modes), 2))
+    return np.array([np.linalg.norm(h[:, i] - h[:, j], ord=2, axis=(-2, -1)) for i, j in pairs])
+
+
+def _n_u(system: SwitchedLinearSystem, t: float, n_grid: int) -> float:
+    """``N_u(t)`` by two nested composite trapezoid sums (Lee et al. §II)."""
+    if system.n_inputs == 0 or system.n_modes < 2:
+        return 0.0
+    tau = np.linspace(0.0, t, n_grid)
+    inner = _cumtrapz(_input_kernel_gaps(system, tau), tau)
+    return float(np.max(np.trapezoid(inner**2, tau, axis=-1)))
+
+
+def _n_u_cumulative(system: SwitchedLinearSystem, t: np.ndarray) -> np.ndarray:
+    """``N_u`` at every node of the uniform grid ``t = step * (1..K)`` (trapezoid from 0)."""
+    if system.n_inputs == 0 or system.n_modes < 2:
+        return np.zeros_like(t)
+    tau = np.concatenate([[0.0], t])
+    inner = _cumtrapz(_input_kernel_gaps(system, tau), tau)
+    return np.max(_cumtrapz(inner**2, tau), axis=0)[1:]
+
+
+def _cumtrapz(f: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Cumulative trapezoid along the last axis, starting at 0."""
+    parts = 0.5 * (f[..., 1:] + f[..., :-1]) * np.diff(x)
+    return np.concatenate([np.zeros((*f.shape[:-1], 1)), np.cumsum(parts, axis=-1)], axis=-1)
+
+
+@dataclass(frozen=True)
+class _ShiftTable:
+    """Candidate bounds ``||e^{At}|| <= mu e^{rate t}`` shared by all modes (one per row)."""
+
+    mu: np.ndarray
+    rate: np.ndarray
+
+
+def _shift_table(A: np.ndarray) -> _ShiftTable:
+    """Lyapunov bounds for a log-spaced grid of shifts plus the logarithmic-norm bound.
+
+    For shift ``r`` above every mode's spectral abscissa, ``P_i`` solves
+    ``(A_i - rI)'P + P(A_i - rI) = -I``; mode i gives ``mu_i = sqrt(cond P_i)`` and
+    ``rate_i = r - 1/(2 lambda_max(P_i))``; the row is ``(max_i mu_i, max_i rate_i)``.
+    The equations of all shifts and modes are solved at once in Kronecker form.
+    """
+    n = A.shape[-1]
+    abscissa = float(np.linalg.eigvals(A).real.max())
+    scale = max(1.0, float(np.max(np.linalg.norm(A, ord=2, axis=(1, 2)))))
+    shifts = abscissa + scale * np.logspace(-4, 3, _N_SHIFTS)
+    M = np.swapaxes(A, 1, 2)[None] - shifts[:, None, None, None] * np.eye(n)  # (A_i - rI)', (S, L, n, n)
+    eye = np.eye(n)
+    # M P + P M' = -I  <=>  (I kron M + M kron I) vec(P) = -vec(I)   (P symmetric)
+    K = np.einsum("ac,slbd->slabcd", eye, M) + np.einsum("slac,bd->slabcd", M, eye)
+    rhs = np.broadcast_to(-eye.reshape(n * n, 1), (*K.shape[:2], n * n, 1))
+    P = np.linalg.solve(K.reshape(*K.shape[:2], n * n, n * n), rhs)
+    lam = np.linalg.eigvalsh(symmetrize(P.reshape(*K.shape[:2], n, n)))  # (S, L, n)
+    certified = np.all(lam[..., 0] > 0, axis=1)  # round-off at extreme shifts can break P > 0
+    lam = lam[certified]
+    mu = np.sqrt(lam[..., -1] / lam[..., 0]).max(axis=1)
+    rate = (shifts[certified, None] - 0.5 / lam[..., -1]).max(axis=1)
+    log_norm = float(np.linalg.eigvalsh(symmetrize(A))[:, -1].max())
+    return _ShiftTable(mu=np.concatenate([[1.0], mu]), rate=np.concatenate([[log_norm], rate]))
+
+
+def _best_growth(table: _ShiftTable, Delta: np.ndarray):
+    """``(mu_check, lambda_check)`` minimizing ``mu e^{max(rate, 0) Delta}``, for each Delta."""
+    lam = np.maximum(table.rate, 0.0)  # the paper asks lambda_check >= 0
+    cost = np.log(table.mu)[None, :] + lam[None, :] * Delta[:, None]
+    best = np.argmin(cost, axis=1)
+    return table.mu[best], lam[best]
+
+
+def _best_decay(table: _ShiftTable, M_max: float, L_max: float):
+    """``(mu_hat, lambda_hat)`` minimizing ``E_hat = mu max(M_max, L_max / lambda)``."""
+    decaying = table.rate < 0
+    if not decaying.any():  # cannot happen for a Hurwitz matrix: the shifts reach below 0
+        raise RuntimeError("no decaying Lyapunov bound found for A_i - L_i C_i")
+    mu, lam = table.mu[decaying], -table.rate[decaying]
+    best = int(np.argmin(mu * np.maximum(M_max, L_max / lam)))
+    return float(mu[best]), float(lam[best])
+
+
+def _bound_ratio(A: np.ndarray, mu: float, rate: float, horizon: float) -> float:
+    """``max_t ||e^{A_i t}|| / (mu e^{rate t})`` over 501 points of ``[0, horizon]`` and all modes.
+
+    Compared in logarithms, at the points where ``||e^{A_i t}|| > 1e-250`` (beyond,
+    the computed norm has lost its relative precision to underflow).
+    """
+    tau = np.linspace(0.0, horizon, 501)
+    E = _exponentials(SwitchedLinearSystem.continuous(A), tau)
+    norms = np.linalg.norm(E, ord=2, axis=(-2, -1))  # (K, L)
+    resolved = norms > 1e-250  # where the powers of e^{Ah} have not reached underflow
+    with np.errstate(divide="ignore"):
+        log_ratio = np.log(norms) - (np.log(mu) + rate * tau)[:, None]
+    return float(np.exp(np.max(log_ratio[resolved])))
+
+
+def _noise_gain4(k: LeeConstants) -> float:
+    """The factor of ``v_max`` inside (4): ``2 sqrt(Delta) (1 + C_max (growth + 1)^2 E_hat)``."""
+    return 2 * np.sqrt(k.Delta) * (1 + k.C_max * (k.growth + 1) ** 2 * k.E_hat)
+
+
+def _assumption3(signal, min_dwell, delta: float, Delta: float) -> LeeCondition | None:
+    """No switch on ``[0, delta]`` and dwell time ``delta + Delta`` (Lee et al. Assumption 3)."""
+    need = delta + Delta
+    if min_dwell is not None:
+        d = positive_scalar(min_dwell, "min_dwell")
+        return LeeCondition(holds=d > need, margin=d - need, lhs=d, rhs=need)
+    if signal is None:
+        return None
+    if not isinstance(signal, (SwitchingSignal, Sequence)) or isinstance(signal, str):
+        got = type(signal).__name__
+        raise TypeError(f"signal must be a SwitchingSignal or a sequence of them, got {got}")
+    signals = [signal] if isinstance(signal, SwitchingSignal) else list(signal)
+    for i, s in enumerate(signals):
+        if not isinstance(s, SwitchingSignal):
+            raise TypeError(f"signal must be a SwitchingSignal or a sequence of them, got {type(s).__name__} at {i}")
+    gaps = [np.diff(s.times) for s in signals]
+    dwell = min((float(g.min()) for g in gaps if g.size), default=np.inf)
+    first = min((float(s.times[0]) for s in signals if s.times.size), default=np.inf)
+    margin = min(dwell - need, first - delta)
+    return LeeCondition(holds=bool(margin > 0), margin=float(margin), lhs=dwell, rhs=need)
+
