@@ -161,6 +161,33 @@ def residual(x, y, C, nb, e):
 
 
 @jit
+def observed_residual(x, y, C, obs, nb, e):
+    """``e = y - C x`` (Shankar et al. eq. (8)) with each lane's unobserved components zeroed."""
+    residual(x, y, C, nb, e)
+    for a in range(y.shape[0]):
+        for b in range(nb):
+            e[a, b] = e[a, b] if obs[a, b] > 0.0 else 0.0
+
+
+@jit
+def whiten(e, chol, scale, nb, z, nis):
+    """``z = L^-1 D^-1/2 e`` by forward substitution and ``nis = |z|^2 = e' S^-1 e``, per lane,
+    for ``S = D^1/2 L L' D^1/2`` as :func:`innovation` factors it."""
+    m = e.shape[0]
+    for b in range(nb):
+        nis[b] = 0.0
+    for a in range(m):
+        for b in range(nb):
+            z[a, b] = scale[a, b] * e[a, b]
+        for c in range(a):
+            for b in range(nb):
+                z[a, b] -= chol[a, c, b] * z[c, b]
+        for b in range(nb):
+            z[a, b] /= chol[a, a, b]
+            nis[b] += z[a, b] * z[a, b]
+
+
+@jit
 def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work, bad):
     """Innovation of ``y`` against ``(x, P)`` over each lane's observed components.
 
@@ -185,10 +212,8 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
     """
     n, m = x.shape[0], y.shape[0]
     log_det, det, pivot = work[0], work[1], work[2]
-    residual(x, y, C, nb, e)
+    observed_residual(x, y, C, obs, nb, e)
     for a in range(m):
-        for b in range(nb):
-            e[a, b] = e[a, b] if obs[a, b] > 0.0 else 0.0
         for i in range(n):
             for b in range(nb):
                 PCt[i, a, b] = 0.0
@@ -240,17 +265,7 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
                     chol[i, j, b] -= chol[i, p, b] * chol[j, p, b]
             for b in range(nb):
                 chol[i, j, b] /= chol[j, j, b]
-    for b in range(nb):
-        nis[b] = 0.0
-    for a in range(m):  # z = L^-1 D^-1/2 e, forward substitution
-        for b in range(nb):
-            z[a, b] = scale[a, b] * e[a, b]
-        for c in range(a):
-            for b in range(nb):
-                z[a, b] -= chol[a, c, b] * z[c, b]
-        for b in range(nb):
-            z[a, b] /= chol[a, a, b]
-            nis[b] += z[a, b] * z[a, b]
+    whiten(e, chol, scale, nb, z, nis)
     for b in range(nb):
         loglik[b] = -0.5 * (nis[b] + log_det[b] + math.log(det[b]) + n_obs[b] * _LOG_2PI)
     if positive:
@@ -274,22 +289,8 @@ def innovation_mean(x, y, C, obs, n_obs, chol, scale, log_det, nb, e, z, nis, lo
     ``work[1]`` there), each lane's copy of its covariance's. The operations are those of
     :func:`innovation`, in its order: a lane gets the same bits either way.
     """
-    m = y.shape[0]
-    residual(x, y, C, nb, e)
-    for a in range(m):
-        for b in range(nb):
-            e[a, b] = e[a, b] if obs[a, b] > 0.0 else 0.0
-    for b in range(nb):
-        nis[b] = 0.0
-    for a in range(m):  # z = L^-1 D^-1/2 e, forward substitution
-        for b in range(nb):
-            z[a, b] = scale[a, b] * e[a, b]
-        for c in range(a):
-            for b in range(nb):
-                z[a, b] -= chol[a, c, b] * z[c, b]
-        for b in range(nb):
-            z[a, b] /= chol[a, a, b]
-            nis[b] += z[a, b] * z[a, b]
+    observed_residual(x, y, C, obs, nb, e)
+    whiten(e, chol, scale, nb, z, nis)
     for b in range(nb):
         loglik[b] = -0.5 * (nis[b] + log_det[0, b] + log_det[1, b] + n_obs[b] * _LOG_2PI)
 
