@@ -90,3 +90,20 @@ def test_the_checker_keeps_the_analysis_below_the_estimators(tmp_path):
     filt.write_text("from ..analysis.steady_state_kalman import steady_state_gain\n")
     assert upward_imports(design, tmp_path) == ["estimators"] * 3
     assert upward_imports(filt, tmp_path) == []
+
+
+def test_the_readme_layout_names_every_module_in_layer_order():
+    """README's Layout section lists every top-level module and package of src/switchest, in
+    an order the layers allow (a module's layer is never below an earlier one's)."""
+    readme = (SRC.parents[1] / "README.md").read_text()
+    layout = readme.split("## Layout", 1)[1].split("```")[1]
+    names = {p.stem if p.is_file() else p.name for p in SRC.iterdir()
+             if (p.suffix == ".py" or (p.is_dir() and (p / "__init__.py").exists()))
+             and p.name not in ("__init__.py", "__main__.py")}
+    position = {}
+    for name in names:
+        mark = f"{name}.py" if (SRC / f"{name}.py").exists() else f"{name}/"
+        assert mark in layout, f"README's Layout section does not name {mark}"
+        position[name] = layout.index(mark)
+    ranked = sorted(names, key=position.get)
+    assert [RANK[n] for n in ranked] == sorted(RANK[n] for n in ranked), ranked
