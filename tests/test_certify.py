@@ -43,8 +43,10 @@ def test_zhang_example1_conditions():
 
 def test_zhang_smart_grid_tolerates_only_the_2_3_mismatches():
     checks = {c.name: c for c in certify(catalog()["zhang-smart-grid"])}
-    assert checks["CQLF of the mode matrices (discrete)"].verdict is False  # the paper's unstable A_q
-    assert "[(1, 2), (2, 1)]" in checks["tolerable mode mismatches"].detail  # paper's 2 <-> 3, 1-based
+    # the paper's unstable A_q
+    assert checks["CQLF of the mode matrices (discrete)"].verdict is False
+    # the paper's 2 <-> 3, 1-based
+    assert "[(1, 2), (2, 1)]" in checks["tolerable mode mismatches"].detail
 
 
 def test_wang_models_have_unobservable_modes_but_combined_observability():
@@ -73,12 +75,15 @@ def test_cli_check_prints_the_table(capsys, monkeypatch):
 
 
 def test_etienne_theorem_8_certifies_at_least_the_paper_rate():
-    check = {c.name: c for c in certify(catalog()["etienne-academic"])}["impulsive observer under aperiodic sampling"]
-    assert check.verdict is True and check.margin >= 0.010294  # the paper's beta at its fixed scalars
+    checks = {c.name: c for c in certify(catalog()["etienne-academic"])}
+    check = checks["impulsive observer under aperiodic sampling"]
+    # the paper's beta at its fixed scalars
+    assert check.verdict is True and check.margin >= 0.010294
 
 
 def test_ieee_5bus_critical_interval_is_the_printed_0_7365():
-    check = {c.name: c for c in certify(catalog()["wang-ieee5bus"])}["critical switching interval T_max (i.i.d. modes)"]
+    checks = {c.name: c for c in certify(catalog()["wang-ieee5bus"])}
+    check = checks["critical switching interval T_max (i.i.d. modes)"]
     assert "T_max = 0.7365" in check.detail and check.verdict is True
 
 
@@ -93,24 +98,27 @@ def lee_check(drop=(), **noise):
 
 
 def test_lee_check_gives_the_lee_detection_analysis(all_checks):
-    # the lee-detection experiment's quantities: x_min = |x0| - ||b|| u_max horizon, L_i = A_i + 40 I
+    # the lee-detection experiment's quantities: x_min = |x0| - ||b|| u_max horizon,
+    # L_i = A_i + 40 I
     s = LEE_SCENARIO
-    ref = lee_assumptions(s.system(), u_max=s.u_max, v_max=s.v_max, x_min=s.x_min(), delta=s.delta, Delta=s.Delta,
-                          observer_gains=s.observer_gains, min_dwell=s.min_dwell)
+    ref = lee_assumptions(s.system(), u_max=s.u_max, v_max=s.v_max, x_min=s.x_min(), delta=s.delta,
+                          Delta=s.Delta, observer_gains=s.observer_gains, min_dwell=s.min_dwell)
     check = {c.name: c for c in all_checks["lee-fsk"]}[LEE_CHECK]
     assert ref.holds is True and check.verdict is True
     assert check.margin == pytest.approx(ref.v_max_allowed - s.v_max, rel=1e-9) and check.margin > 0
-    assert f"allowed {ref.v_max_allowed:.4g}" in check.detail and "delta = 0.25 s, Delta = 1 s given" in check.detail
+    assert f"allowed {ref.v_max_allowed:.4g}" in check.detail
+    assert "delta = 0.25 s, Delta = 1 s given" in check.detail
 
 
 @pytest.mark.parametrize("v_max, failing", [(10.0, "(3), (4)"), (0.11, "(4)")])
 def test_lee_check_fails_above_the_allowed_noise_bound(v_max, failing):
     check = lee_check(v_max=v_max)
-    assert check.verdict is False and check.margin < 0 and f"fail: {failing} at v_max = {v_max:g}" in check.detail
+    assert check.verdict is False and check.margin < 0
+    assert f"fail: {failing} at v_max = {v_max:g}" in check.detail
 
 
 def test_lee_check_with_default_gains_allows_less_noise():
-    # pole placement at twice the mode frequencies (lambda_hat = 4 pi) gives E_hat 2.7 instead of 1.05
+    # pole placement at twice the mode frequencies (lambda_hat = 4 pi) gives E_hat 2.7, not 1.05
     checks = [lee_check(drop=("observer_decay",), v_max=v) for v in (0.1, 0.02)]
     assert [c.verdict for c in checks] == [False, True]
     assert checks[0].margin == pytest.approx(checks[1].margin - 0.08, abs=1e-12)

@@ -58,7 +58,8 @@ def test_shipped_example_files_match_the_catalog(name):
     # and 4x4 blocks); their last bits differ between CPUs and BLAS builds, by a few ulps of the
     # largest entry for such well-conditioned matrices (1 ulp measured): 32 ulps.
     assert same(catalog()[name], load_model(EXAMPLES / f"{name}.toml"), ulps=32), (
-        f"examples/models/{name}.toml is stale: regenerate it with save_model(catalog()[{name!r}], ...)")
+        f"examples/models/{name}.toml is stale: regenerate it with "
+        f"save_model(catalog()[{name!r}], ...)")
 
 
 GOOD = """
@@ -88,24 +89,30 @@ def test_a_hand_written_file_reads(tmp_path):
 
 
 MALFORMED = [
-    ('domain = "continuous"\n[[modes]]\nA = [[1.0, 0.0], [0.0, 1.0]]\n[[modes]]\nA = [[1.0, 0.0], [0.0]]\n',
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0, 0.0], [0.0, 1.0]]\n[[modes]]\n'
+     'A = [[1.0, 0.0], [0.0]]\n',
      r"modes\[1\]\.A: expected a matrix of numbers"),
-    ('domain = "continuous"\n[[modes]]\nA = [[1.0, 0.0], [0.0, 1.0]]\n[[modes]]\nA = [[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]\n',
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0, 0.0], [0.0, 1.0]]\n[[modes]]\n'
+     'A = [[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]\n',
      r"modes\[1\]\.A: expected 2x2, got 2x3"),
-    ('domain = "hybrid"\n[[modes]]\nA = [[1.0]]\n', r"domain: expected \"continuous\" or \"discrete\""),
+    ('domain = "hybrid"\n[[modes]]\nA = [[1.0]]\n',
+     r"domain: expected \"continuous\" or \"discrete\""),
     ('domain = "discrete"\n[[modes]]\nA = [[1.0]]\n', r"dt: required for a discrete-time system"),
     ('domain = "continuous"\n', r"modes: at least one \[\[modes\]\] table is required"),
     ('domain = "continuous"\n[shared]\nC = [[1.0]]\n[[modes]]\nA = [[1.0]]\nC = [[2.0]]\n',
      r"modes\[0\]\.C: also given in \[shared\]"),
-    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\nR = [[-1.0]]\n', r"modes\[0\]\.R must be symmetric positive definite"),
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\nR = [[-1.0]]\n',
+     r"modes\[0\]\.R must be symmetric positive definite"),
     ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\nZ = 3\n', r"modes\[0\]\.Z: unknown key"),
-    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[[modes]]\nA = [[2.0]]\n[switching]\nkind = "markov"\n'
-     'transition = [[0.5, 0.6], [0.5, 0.5]]\n', r"switching: transition rows must sum to 1"),
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[[modes]]\nA = [[2.0]]\n[switching]\n'
+     'kind = "markov"\ntransition = [[0.5, 0.6], [0.5, 0.5]]\n',
+     r"switching: transition rows must sum to 1"),
     ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[sampling]\nperiod = -0.1\n',
      r"sampling\.period: expected a finite positive number"),
     ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[initial]\nmean = [0.0, 1.0]\n',
      r"initial\.mean: expected 1, got 2"),
-    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[switching]\nkind = "dwell"\nmin_dwell = 1.0\n',
+    ('domain = "continuous"\n[[modes]]\nA = [[1.0]]\n[switching]\nkind = "dwell"\n'
+     'min_dwell = 1.0\n',
      r"switching\.max_dwell: required for kind 'dwell'"),
     ('domain = "continuous"\n[[modes\nA = 1\n', r"not valid TOML"),
     ('domain = "continuous"\n[[modes]]\nA = [["-1.0", 0.0], [0.0, -2.0]]\n',

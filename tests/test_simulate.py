@@ -60,7 +60,8 @@ def test_per_trial_signals_match_a_looped_noise_free_oracle():
             tr = interval(sys, t[k] - t[k - 1], modes, times - t[k - 1])
             x = tr.F @ x + tr.G @ [0.5]
             np.testing.assert_allclose(traj.x[n, k], x, rtol=1e-10, atol=1e-12)
-        np.testing.assert_allclose(traj.y[n, :, 0], np.einsum("kj,kj->k", sys.C[traj.mode[n], 0], traj.x[n]))
+        np.testing.assert_allclose(traj.y[n, :, 0],
+                                   np.einsum("kj,kj->k", sys.C[traj.mode[n], 0], traj.x[n]))
 
 
 def test_reproducible_from_rng_and_trials_differ():
@@ -155,7 +156,8 @@ def test_input_shapes():
         (dict(u=np.zeros((6, 2))), ValueError, r"u must have shape"),
         (dict(u=[np.nan]), ValueError, "u must be finite"),
         (dict(x0=np.zeros(3)), ValueError, r"x0 must have shape \(n,\)"),
-        (dict(x0=(np.zeros(2), -np.eye(2))), ValueError, "x0 cov must be symmetric positive semidefinite"),
+        (dict(x0=(np.zeros(2), -np.eye(2))), ValueError,
+         "x0 cov must be symmetric positive semidefinite"),
         (dict(trials=0), ValueError, "trials must be a positive int"),
         (dict(t=[0.0, 0.2, 0.1]), ValueError, "strictly increasing"),
         (dict(signal=sg.schedule([0.1], [0, 2])), ValueError, "signal uses mode 2"),
@@ -166,7 +168,8 @@ def test_input_shapes():
     ],
 )
 def test_bad_input(kwargs, err, match):
-    args = dict(system=system(), signal=sg.schedule([], [0]), t=sg.periodic(0.1, 0.5), x0=np.zeros(2))
+    args = dict(system=system(), signal=sg.schedule([], [0]), t=sg.periodic(0.1, 0.5),
+                x0=np.zeros(2))
     args.update(kwargs)
     with pytest.raises(err, match=match):
         simulate(**args)

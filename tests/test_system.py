@@ -14,7 +14,8 @@ def two_modes():
 
 
 def test_shared_matrices_broadcast_to_every_mode():
-    sys = SwitchedLinearSystem.continuous(two_modes(), B=[[0.0], [1.0]], C=[[1.0, 0.0]], Q=np.eye(2), R=[[0.5]])
+    sys = SwitchedLinearSystem.continuous(two_modes(), B=[[0.0], [1.0]], C=[[1.0, 0.0]],
+                                          Q=np.eye(2), R=[[0.5]])
     assert (sys.n_modes, sys.n_states, sys.n_inputs, sys.n_outputs) == (2, 2, 1, 1)
     assert sys.B.shape == (2, 2, 1) and sys.C.shape == (2, 1, 2)
     np.testing.assert_array_equal(sys.R[1], [[0.5]])
@@ -75,10 +76,12 @@ def test_bad_types_and_steps():
     with pytest.raises(ValueError, match="dt must be a finite positive"):
         SwitchedLinearSystem.discrete(two_modes(), dt=0.0)
     with pytest.raises(ValueError, match=r"D must be zero"):
-        SwitchedLinearSystem.from_statespace([SimpleNamespace(A=np.eye(1), B=np.eye(1), C=np.eye(1), D=np.eye(1))])
+        SwitchedLinearSystem.from_statespace(
+            [SimpleNamespace(A=np.eye(1), B=np.eye(1), C=np.eye(1), D=np.eye(1))])
     with pytest.raises(ValueError, match="share one time base"):
         SwitchedLinearSystem.from_statespace(
             [SimpleNamespace(A=np.eye(1), B=np.eye(1), C=np.eye(1), D=0, dt=dt) for dt in (0, 0.1)]
         )
     with pytest.raises(TypeError, match="missing D"):
-        SwitchedLinearSystem.from_statespace([SimpleNamespace(A=np.eye(1), B=np.eye(1), C=np.eye(1))])
+        SwitchedLinearSystem.from_statespace(
+            [SimpleNamespace(A=np.eye(1), B=np.eye(1), C=np.eye(1))])

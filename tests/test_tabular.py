@@ -47,13 +47,14 @@ def test_cli_reproduces_the_python_api_exactly(method, tmp_path):
     spec, df, path, _ = boost_csv(tmp_path)
     out = tmp_path / "est.csv"
     code = main(["estimate", "--model", str(EXAMPLES / "shankar-boost.toml"), "--data", str(path),
-                 "--method", method, "--grid", "3", "--out", str(out), "--plot", str(tmp_path / "e.png")])
+                 "--method", method, "--grid", "3", "--out", str(out),
+                 "--plot", str(tmp_path / "e.png")])
     assert code == 0 and (tmp_path / "e.png").exists()
     api = estimate_table(load_model(EXAMPLES / "shankar-boost.toml"), df, method=method, grid=3)
     cli = pd.read_csv(out)
     assert list(cli.columns) == list(api.columns)
-    np.testing.assert_allclose(cli.to_numpy(dtype=float), api.to_numpy(dtype=float), rtol=1e-15, atol=0,
-                               equal_nan=True)
+    np.testing.assert_allclose(cli.to_numpy(dtype=float), api.to_numpy(dtype=float), rtol=1e-15,
+                               atol=0, equal_nan=True)
 
 
 def test_missing_samples_are_skipped_not_propagated(tmp_path):
@@ -68,9 +69,12 @@ def test_missing_samples_are_skipped_not_propagated(tmp_path):
 @pytest.mark.parametrize(
     "edit, match",
     [
-        (lambda d: d.assign(t=d["t"].iloc[::-1].to_numpy()), r"row 1: time .* is before the previous row's"),
-        (lambda d: d.assign(t=np.r_[d["t"].iloc[:3], d["t"].iloc[2:-1]]), r"row 3: time .* repeats"),
-        (lambda d: d.assign(y=d["y"].astype(object).where(d.index != 4, "12,5")), r"row 4, column 'y': not a number"),
+        (lambda d: d.assign(t=d["t"].iloc[::-1].to_numpy()),
+         r"row 1: time .* is before the previous row's"),
+        (lambda d: d.assign(t=np.r_[d["t"].iloc[:3], d["t"].iloc[2:-1]]),
+         r"row 3: time .* repeats"),
+        (lambda d: d.assign(y=d["y"].astype(object).where(d.index != 4, "12,5")),
+         r"row 4, column 'y': not a number"),
         (lambda d: d.drop(columns="u"), r"missing column\(s\) \['u'\]"),
         (lambda d: d.assign(u=d["u"].where(d.index != 2)), r"row 2, column 'u': empty"),
         (lambda d: d.assign(mode=d["mode"] + 5), r"'mode' must hold mode indices 0..1"),
@@ -88,7 +92,8 @@ def test_methods_needing_modes_say_so_and_cli_reports_errors(tmp_path, capsys):
         estimate_table(spec, df.drop(columns="mode"), method="switch-time")
     df.drop(columns="mode").to_csv(tmp_path / "nomode.csv", index=False)
     code = main(["estimate", "--model", str(EXAMPLES / "shankar-boost.toml"), "--data",
-                 str(tmp_path / "nomode.csv"), "--method", "kalman", "--out", str(tmp_path / "o.csv")])
+                 str(tmp_path / "nomode.csv"), "--method", "kalman",
+                 "--out", str(tmp_path / "o.csv")])
     assert code == 2 and "needs the known modes" in capsys.readouterr().err
 
 
@@ -101,14 +106,15 @@ def test_transition_from_the_switching_model():
     np.testing.assert_allclose(P_iid[0], P_iid[3])
 
 
-# ---------------------------------------------------------------------- min-distance (Lee, Ping & Shim)
+# ------------------------------------------------------------------ min-distance (Lee, Ping & Shim)
 LEE_DURATION = 5.0  # s: 2001 rows on the 2.5 ms grid of lee-fsk, two switches (dwell 1.3-2.5 s)
-LEE_NOISE = 0.05  # drawn noise bound, half the file's v_max = 0.1 (room for the grid's interpolation error)
+# drawn noise bound, half the file's v_max = 0.1 (room for the grid's interpolation error)
+LEE_NOISE = 0.05
 
 
 @pytest.fixture(scope="module")
 def lee_data(tmp_path_factory):
-    """A lee-fsk run: input and bounded noise of the lee-detection experiment (LeeScenario), as a CSV."""
+    """A lee-fsk run as a CSV: input and bounded noise of the lee-detection experiment."""
     spec = load_model(EXAMPLES / "lee-fsk.toml")
     t = spec.sample_times(LEE_DURATION)
     rng = np.random.default_rng(1)
@@ -123,8 +129,8 @@ def lee_data(tmp_path_factory):
 
 def cli_equals_api(model: Path, path: Path, df: pd.DataFrame, method: str, tmp_path, api=None,
                    **options) -> pd.DataFrame:
-    """Run ``switchest estimate`` on the CSV and check it reproduces the Python API's table (computed here
-    unless given) exactly; returns that table."""
+    """Run ``switchest estimate`` on the CSV and check it reproduces the Python API's table
+    (computed here unless given) exactly; returns that table."""
     out, png = tmp_path / "est.csv", tmp_path / "est.png"
     flags = [x for k, v in options.items() for x in (f"--{k.replace('_', '-')}", str(v))]
     code = main(["estimate", "--model", str(model), "--data", str(path), "--method", method, *flags,
@@ -133,26 +139,30 @@ def cli_equals_api(model: Path, path: Path, df: pd.DataFrame, method: str, tmp_p
     api = estimate_table(load_model(model), df, method=method, **options) if api is None else api
     cli = pd.read_csv(out)
     assert list(cli.columns) == list(api.columns)
-    np.testing.assert_array_equal(cli.to_numpy(dtype=float), api.to_numpy(dtype=float, na_value=np.nan))
+    np.testing.assert_array_equal(cli.to_numpy(dtype=float),
+                                  api.to_numpy(dtype=float, na_value=np.nan))
     return api
 
 
 def test_min_distance_cli_reproduces_the_api_with_empty_rows_kept(lee_data, tmp_path):
     spec, df, path, _ = lee_data
     api = cli_equals_api(EXAMPLES / "lee-fsk.toml", path, df, "min-distance", tmp_path)
-    assert list(api.columns) == ["t", "x0", "x1", "mode", "switch_time"]  # no covariance: no std columns
+    # no covariance: no std columns
+    assert list(api.columns) == ["t", "x0", "x1", "mode", "switch_time"]
     assert len(api) == len(df)
-    first_window = round(spec.noise["delta"] / spec.sampling["period"])  # 100 rows before the first estimate
-    assert api.iloc[:first_window, 1:4].isna().all().all() and api.iloc[first_window, 1:4].notna().all()
+    # 100 rows before the first estimate
+    first_window = round(spec.noise["delta"] / spec.sampling["period"])
+    assert api.iloc[:first_window, 1:4].isna().all().all()
+    assert api.iloc[first_window, 1:4].notna().all()
 
 
 def test_min_distance_estimates_the_modes_and_declares_the_switches(lee_data):
-    """Lee et al. Theorem 1 (each window without a switch gives the true mode) and Theorem 2 (each switch
-    declared within Delta, none falsely) on a run whose noise stays inside the file's v_max.
+    """Lee et al. Theorem 1 (each window without a switch gives the true mode) and Theorem 2 (each
+    switch declared within Delta, none falsely) on a run whose noise stays inside the file's v_max.
 
-    Mode accuracy over the rows with an estimate: wrong only between a switch and its declaration. This run
-    (seed 1) declares its two switches 0.096 s and 0.094 s late, and 0.956 of the 4.25 s with an estimate
-    are correct; 0.9 allows delays up to about 0.2 s each.
+    Mode accuracy over the rows with an estimate: wrong only between a switch and its declaration.
+    This run (seed 1) declares its two switches 0.096 s and 0.094 s late, and 0.956 of the 4.25 s
+    with an estimate are correct; 0.9 allows delays up to about 0.2 s each.
     """
     spec, df, _, traj = lee_data
     est = estimate_table(spec, df, method="min-distance")
@@ -174,7 +184,8 @@ def test_min_distance_holds_the_last_sample_over_a_missing_one(lee_data):
     held = df.copy()
     held.loc[700, ["y0", "y1"]] = df.loc[699, ["y0", "y1"]].to_numpy()
     pd.testing.assert_frame_equal(estimate_table(spec, gap, method="min-distance"),
-                                  estimate_table(spec, held, method="min-distance"), check_exact=True)
+                                  estimate_table(spec, held, method="min-distance"),
+                                  check_exact=True)
     first = df.copy()
     first.loc[0, "y1"] = np.nan
     with pytest.raises(ValueError, match=r"y must be finite at the first sample"):
@@ -184,15 +195,17 @@ def test_min_distance_holds_the_last_sample_over_a_missing_one(lee_data):
 def test_min_distance_refuses_what_it_cannot_use(lee_data):
     spec, df, _, _ = lee_data
     no_bound = replace(spec, noise={k: v for k, v in spec.noise.items() if k != "v_max"})
-    with pytest.raises(ValueError, match=r"needs v_max, the noise bound .* add v_max to the model file's \[noise\] "
-                                         r"table or pass --v-max"):
+    with pytest.raises(ValueError, match=r"needs v_max, the noise bound .* add v_max to the "
+                                         r"model file's \[noise\] table or pass --v-max"):
         estimate_table(no_bound, df, method="min-distance")
-    short = estimate_table(no_bound, df.iloc[:150], method="min-distance", v_max=0.1)  # the option suffices
+    # the option suffices
+    short = estimate_table(no_bound, df.iloc[:150], method="min-distance", v_max=0.1)
     assert short["x0"].notna().sum() == 50  # estimates after the first 0.25 s window (100 rows)
-    with pytest.raises(ValueError, match=r"uniform grid: sample 500 is 0.005 after the previous one, the first "
-                                         r"step is 0.0025"):
+    with pytest.raises(ValueError, match=r"uniform grid: sample 500 is 0.005 after the previous "
+                                         r"one, the first step is 0.0025"):
         estimate_table(spec, df.drop(index=500), method="min-distance")
-    with pytest.raises(ValueError, match="v_max applies to method 'min-distance' only, got method 'kalman'"):
+    with pytest.raises(ValueError, match="v_max applies to method 'min-distance' only, "
+                                         "got method 'kalman'"):
         estimate_table(spec, df, method="kalman", v_max=0.1)
     with pytest.raises(ValueError, match=r"delta must be a finite positive number, got -0.25"):
         estimate_table(spec, df, method="min-distance", delta=-0.25)
@@ -205,12 +218,12 @@ WANG_X0 = np.array([20.0, -20.0])  # true x(0); the observer starts from the fil
 
 @pytest.fixture(scope="module")
 def wang_data(tmp_path_factory):
-    """Integrated output of wang-example1 (Wang et al. eq. (1)) on the fine grid, modes i.i.d. at kT."""
+    """Integrated output of wang-example1 (Wang et al. eq. (1)), fine grid, modes i.i.d. at kT."""
     spec = load_model(EXAMPLES / "wang-example1.toml")
     T = spec.sampling["period"]
     t = T * np.arange(WANG_INTERVALS + 1)
-    traj = simulate(spec.system, lambda r: spec.signal(r, t), t, WANG_X0, rng=0, fine_dt=T / WANG_SUBSTEPS,
-                    output="integrated")
+    traj = simulate(spec.system, lambda r: spec.signal(r, t), t, WANG_X0, rng=0,
+                    fine_dt=T / WANG_SUBSTEPS, output="integrated")
     df = pd.DataFrame({"t": traj.t_fine, "y": traj.y_fine[0, :, 0], "mode": traj.mode_fine[0]})
     path = tmp_path_factory.mktemp("wang") / "wang.csv"
     df.to_csv(path, index=False)
@@ -231,19 +244,21 @@ def test_rsls_default_gains_converge_in_mean_square(wang_data):
     """The squared error falls from |x(0)|^2 = 800 below its exact expectation over the second half.
 
     The oracle is the exact second-moment recursion of Wang et al. Theorem 1 from ``e_0 = -x(0)``
-    (:func:`~switchest.analysis.second_moments`): E[mean of |e_k|^2, k = 50..100] = 12.3 for the default
-    gains (steady state ``tr V_x`` = 0.602). The squared error is heavy-tailed (open-loop intervals grow
-    it), so its mean exceeds its median by far: in 200 runs (seed 0) 2.5 % of the window means were above
-    12.3, the median was 0.48. This run (seed 0) gives 0.79.
+    (:func:`~switchest.analysis.second_moments`): E[mean of |e_k|^2, k = 50..100] = 12.3 for the
+    default gains (steady state ``tr V_x`` = 0.602). The squared error is heavy-tailed (open-loop
+    intervals grow it), so its mean exceeds its median by far: in 200 runs (seed 0) 2.5 % of the
+    window means were above 12.3, the median was 0.48. This run (seed 0) gives 0.79.
     """
     spec, df, _, traj = wang_data
     T, p = spec.sampling["period"], spec.switching.p
     dyn = error_dynamics(spec.system, rsls_gains(spec, T), T)
     e0 = dyn.structure.F @ WANG_X0
     V = second_moments(dyn, p, np.outer(e0, e0), WANG_INTERVALS)
-    expected = np.einsum("ij,kjl,il->k", dyn.structure.Phi, V, dyn.structure.Phi)  # E|e_k|^2 = tr Phi V_k Phi'
+    # E|e_k|^2 = tr Phi V_k Phi'
+    expected = np.einsum("ij,kjl,il->k", dyn.structure.Phi, V, dyn.structure.Phi)
     est = estimate_table(spec, df, method="rsls")
-    err2 = np.sum((est[["x0", "x1"]].to_numpy() - traj.x_fine[0]) ** 2, axis=1)[::WANG_SUBSTEPS]  # at kT
+    err_fine = est[["x0", "x1"]].to_numpy() - traj.x_fine[0]
+    err2 = np.sum(err_fine ** 2, axis=1)[::WANG_SUBSTEPS]  # at kT
     assert err2[0] == pytest.approx(800.0) and expected[0] == pytest.approx(800.0)
     half = slice(WANG_INTERVALS // 2, None)
     assert np.mean(err2[half]) < np.mean(expected[half]) < 0.05 * err2[0]
@@ -251,26 +266,28 @@ def test_rsls_default_gains_converge_in_mean_square(wang_data):
 
 def test_rsls_needs_the_modes_and_a_convergent_design(wang_data):
     spec, df, _, _ = wang_data
-    with pytest.raises(ValueError, match="method 'rsls' needs the known modes: add a 'mode' column"):
+    with pytest.raises(ValueError, match="method 'rsls' needs the known modes: add a 'mode' "
+                                         "column"):
         estimate_table(spec, df.drop(columns="mode"), method="rsls")
-    with pytest.raises(ValueError, match=r"needs the switching interval T .* set sampling.period .* "
-                                         r"--switch-interval"):
+    with pytest.raises(ValueError, match=r"needs the switching interval T .* set "
+                                         r"sampling.period .* --switch-interval"):
         estimate_table(replace(spec, sampling={}), df, method="rsls")
     # Wang et al. Example 2: above T_max = 0.0558 no gain converges for wang-example1
-    with pytest.raises(ValueError, match=r"no default sub-observer design is mean-square convergent at T = 0.1 "
-                                         r".* only for T < 0.05579"):
+    with pytest.raises(ValueError, match=r"no default sub-observer design is mean-square "
+                                         r"convergent at T = 0.1 .* only for T < 0.05579"):
         estimate_table(spec, df, method="rsls", switch_interval=0.1)
 
 
 # ---------------------------------------------------------------------- impulsive (Etienne et al.)
 ETIENNE_DURATION = 20.0
-ETIENNE_SWITCH_SAMPLES = (15, 40)  # switches on these samples: the mode column is then the exact signal
+# switches on these samples: the mode column is then the exact signal
+ETIENNE_SWITCH_SAMPLES = (15, 40)
 
 
 @pytest.fixture(scope="module")
 def etienne_data(tmp_path_factory):
-    """etienne-academic sampled aperiodically in [0.3, 0.4] s, its API estimate and Theorem 8's certificate
-    (each LMI search, about 0.8 s, runs once per module)."""
+    """etienne-academic sampled aperiodically in [0.3, 0.4] s, its API estimate and Theorem 8's
+    certificate (each LMI search, about 0.8 s, runs once per module)."""
     spec = load_model(EXAMPLES / "etienne-academic.toml")
     t = spec.sample_times(ETIENNE_DURATION, rng=3)
     signal = schedule(t[list(ETIENNE_SWITCH_SAMPLES)], [0, 1, 0])
@@ -295,9 +312,10 @@ def test_impulsive_cli_reproduces_the_api_and_the_synchronous_observer(etienne_d
 
 
 def test_impulsive_error_decays_within_the_theorem8_bound(etienne_data):
-    """||e(t_k)|| <= M exp(-beta t_k) ||e(0+)|| (Etienne et al. Theorem 8, proof eqs (19)-(20)) with the
-    certificate the table's gains come from (M = 79, beta = 0.089). The bound is loose (8.1 at 20 s, above
-    ||e(0+)|| = 0.60), so the last error is also required below 1e-3 of the first; the run gives 7e-9."""
+    """||e(t_k)|| <= M exp(-beta t_k) ||e(0+)|| (Etienne et al. Theorem 8, proof eqs (19)-(20)) with
+    the certificate the table's gains come from (M = 79, beta = 0.089). The bound is loose (8.1 at
+    20 s, above ||e(0+)|| = 0.60), so the last error is also required below 1e-3 of the first; the
+    run gives 7e-9."""
     spec, _, _, traj, _, est, cert = etienne_data
     err = np.linalg.norm(est[["x0", "x1"]].to_numpy() - traj.x[0], axis=1)
     bound = cert.overshoot(spec.switching.N0) * np.exp(-cert.beta * (traj.t - traj.t[0])) * err[0]
@@ -312,21 +330,24 @@ def test_mode_signal_switches_at_the_sample_where_the_column_changes():
 
 def test_impulsive_refuses_missing_modes_unknown_dwell_and_infeasible_lmis(etienne_data):
     spec, df, *_ = etienne_data
-    with pytest.raises(ValueError, match="method 'impulsive' needs the known modes: add a 'mode' column"):
+    with pytest.raises(ValueError, match="method 'impulsive' needs the known modes: add a 'mode' "
+                                         "column"):
         estimate_table(spec, df.drop(columns="mode"), method="impulsive")
-    with pytest.raises(ValueError, match=r"needs a dwell time .* kind 'average-dwell' \(tau_a\) or 'dwell' "
-                                         r"\(min_dwell\), got 'iid'"):
+    with pytest.raises(ValueError, match=r"needs a dwell time .* kind 'average-dwell' \(tau_a\) "
+                                         r"or 'dwell' \(min_dwell\), got 'iid'"):
         estimate_table(replace(spec, switching=IID([0.5, 0.5])), df, method="impulsive")
-    with pytest.raises(ValueError, match=r"data row \d+ is 0.\d+ after the previous row, outside the model's "
-                                         r"sampling bounds \[0.3, 0.31\]"):
-        estimate_table(replace(spec, sampling={"tau_min": 0.3, "tau_max": 0.31}), df, method="impulsive")
-    slow = replace(spec, sampling={"tau_min": 0.3, "tau_max": 3.0})  # sampling too slow for Theorem 8
-    with pytest.raises(ValueError, match=r"Theorem 8's LMIs give no observer for sampling in \[0.3, 3\] .* no "
-                                         r"scalars on the grid gave feasible LMIs"):
+    with pytest.raises(ValueError, match=r"data row \d+ is 0.\d+ after the previous row, outside "
+                                         r"the model's sampling bounds \[0.3, 0.31\]"):
+        estimate_table(replace(spec, sampling={"tau_min": 0.3, "tau_max": 0.31}), df,
+                       method="impulsive")
+    slow = replace(spec, sampling={"tau_min": 0.3, "tau_max": 3.0})  # too slow for Theorem 8
+    with pytest.raises(ValueError, match=r"Theorem 8's LMIs give no observer for sampling in "
+                                         r"\[0.3, 3\] .* no scalars on the grid gave feasible "
+                                         r"LMIs"):
         estimate_table(slow, df, method="impulsive")
 
 
-# ---------------------------------------------------------------------- the registry drives estimate_table
+# ------------------------------------------------------------ the registry drives estimate_table
 def test_estimate_table_runs_every_registered_method_with_its_options():
     """Every registered method has a runner, and every option the registry gives it is an
     argument of estimate_table (the registry, not tabular, is the list of methods)."""

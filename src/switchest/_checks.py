@@ -263,7 +263,8 @@ def positive_scalar(value, name: str, *, allow_zero: bool = False) -> float:
     """Return ``value`` (a real number or a 0-d real array) as a finite positive float."""
     if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
         value = value[()]
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (Real, np.floating, np.integer)):
+    if (isinstance(value, (bool, np.bool_))
+            or not isinstance(value, (Real, np.floating, np.integer))):
         raise TypeError(f"{name} must be a real scalar, got {type(value).__name__}")
     v = float(value)
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):

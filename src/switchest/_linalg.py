@@ -114,7 +114,9 @@ def joseph_update(P: np.ndarray, K: np.ndarray, C: np.ndarray, R: np.ndarray) ->
 
 
 def mixture_moments(w: np.ndarray, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Moments of Gaussian mixtures: ``m_j = sum_i w_ij x_i``, ``S_j = sum_i w_ij (P_i + d_ij d_ij')``.
+    """Moments of Gaussian mixtures.
+
+    ``m_j = sum_i w_ij x_i`` and ``S_j = sum_i w_ij (P_i + d_ij d_ij')``.
 
     ``w (..., I, J)`` are weights over components i for each mixture j (columns sum
     to one), ``x (..., I, n)``, ``P (..., I, n, n)``; ``d_ij = x_i - m_j`` are the

@@ -51,10 +51,13 @@ def unknown_key(source: str, table: str, key, valid) -> ModelFileError:
              or difflib.get_close_matches(key, valid, n=1))
     hint = f"did you mean {close[0]!r}? " if close else ""
     at = f"{table}.{key}" if table else key
-    return ModelFileError(where(source, f"{at}: unknown key; {hint}expected one of {', '.join(valid)}"))
+    expected = ", ".join(valid)
+    return ModelFileError(where(source, f"{at}: unknown key; {hint}expected one of {expected}"))
 
 
-def matrix(value, at: str, *, shape: tuple[int | None, int | None] | None = None, ndim: int = 2) -> np.ndarray:
+def matrix(
+    value, at: str, *, shape: tuple[int | None, int | None] | None = None, ndim: int = 2
+) -> np.ndarray:
     """A finite numeric array from a TOML value, with the expected shape (None = any).
 
     Only TOML integers and floats are numbers: strings and booleans (which numpy
@@ -82,7 +85,7 @@ def matrix(value, at: str, *, shape: tuple[int | None, int | None] | None = None
 
 
 def _non_number(value):
-    """The first entry of a nested list that is not an int or float (a bool counts as not), or None."""
+    """The first entry of a nested list that is not an int or float (a bool is not), or None."""
     if isinstance(value, (list, tuple)):
         for item in value:
             bad = _non_number(item)
@@ -97,7 +100,8 @@ def number(value, at: str, *, positive: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ModelFileError(f"{at}: expected a number, got {value!r}")
     if not np.isfinite(value) or (positive and value <= 0):
-        raise ModelFileError(f"{at}: expected a finite {'positive ' if positive else ''}number, got {value!r}")
+        raise ModelFileError(f"{at}: expected a finite {'positive ' if positive else ''}number, "
+                             f"got {value!r}")
     return float(value)
 
 
@@ -118,7 +122,7 @@ def _value(v) -> str:
 
 
 def dumps(doc: dict, *, comment: str = "") -> str:
-    """TOML text of ``doc``: top-level values, then tables, then arrays of tables (lists of dicts)."""
+    """TOML text of ``doc``: top-level values, tables, then arrays of tables (lists of dicts)."""
     lines = [f"# {line}" for line in comment.splitlines()]
     plain = {k: v for k, v in doc.items() if not isinstance(v, dict) and not _is_table_list(v)}
     lines += [f"{k} = {_value(v)}" for k, v in plain.items()]

@@ -110,8 +110,8 @@ def _modes_observable(spec: ModelSpec) -> Check:
     bad = [i for i, ok in enumerate(r.observable) if not ok]
     detail = "every mode observable" if r.holds else (
         f"mode(s) {bad} unobservable (observable dimensions {list(map(int, r.n_observable))})")
-    return Check("each mode observable", "Lee §II; Shankar Assumption 1; Wang §3.1", bool(r.holds), detail,
-                 float(np.min(r.margin)))
+    return Check("each mode observable", "Lee §II; Shankar Assumption 1; Wang §3.1", bool(r.holds),
+                 detail, float(np.min(r.margin)))
 
 
 def _joint(spec: ModelSpec) -> Check:
@@ -119,36 +119,40 @@ def _joint(spec: ModelSpec) -> Check:
         return Check("joint observability of mode pairs", "Lee Assumption 1", None,
                      "applies to continuous-time systems with two or more modes")
     r = joint_observability(spec.system)
-    detail = "rank [O_i O_j] = 2n for every pair" if r.holds else f"fails for pairs {list(r.failing_pairs)}"
+    detail = ("rank [O_i O_j] = 2n for every pair" if r.holds
+              else f"fails for pairs {list(r.failing_pairs)}")
     return Check("joint observability of mode pairs", "Lee Assumption 1", bool(r.holds), detail)
 
 
 def _lee(spec: ModelSpec) -> Check:
-    """Lee, Ping & Shim Assumption 1, conditions (3)-(4) and Assumption 3 for the ``[noise]`` bounds.
+    """Lee, Ping & Shim Assumption 1, conditions (3)-(4), Assumption 3 for the ``[noise]`` bounds.
 
     Reads from the noise table ``v_max`` (eq. (2); without it the check does not apply),
     ``x_min`` (a lower bound on ``|x(t)|``, at which (3)-(4) are evaluated), ``u_max``
     (needed when the system has inputs) and the detector design where given: the
     windows ``delta``, ``Delta`` (otherwise the smallest multiples of the sampling
     period satisfying (3) and (4), :func:`~switchest.analysis.lee_windows`) and
-    ``observer_decay`` (gains of :func:`~switchest.analysis.min_distance_design.decay_observer_gains`; otherwise
-    :func:`~switchest.analysis.min_distance_design.default_observer_gains`). Assumption 3 is checked
-    against the switching model's dwell time (:func:`_lee_dwell`). The margin is
+    ``observer_decay`` (gains of
+    :func:`~switchest.analysis.min_distance_design.decay_observer_gains`; otherwise
+    :func:`~switchest.analysis.min_distance_design.default_observer_gains`). Assumption 3 is
+    checked against the switching model's dwell time (:func:`_lee_dwell`). The margin is
     ``v_max_allowed - v_max``: positive exactly when (3) and (4) hold.
     """
-    name, paper = "Lee's assumptions for the given noise bounds", "Lee Assumptions 1-3, conditions (3)-(4)"
+    name = "Lee's assumptions for the given noise bounds"
+    paper = "Lee Assumptions 1-3, conditions (3)-(4)"
     system, noise = spec.system, spec.noise
     if not system.is_continuous or system.n_modes < 2 or "v_max" not in noise:
-        return Check(name, paper, None, "applies to continuous-time systems with two or more modes and a noise "
-                                        "bound noise.v_max")
+        return Check(name, paper, None, "applies to continuous-time systems with two or more modes "
+                                        "and a noise bound noise.v_max")
     needed = ["x_min"] + (["u_max"] if system.n_inputs else [])
     missing = [k for k in needed if k not in noise]
     if missing:
         return Check(name, paper, None, f"needs noise.{missing[0]} besides noise.v_max")
     modes = mode_observability(system)
     if not modes.holds:
-        return Check(name, paper, False, f"mode(s) {[i for i, ok in enumerate(modes.observable) if not ok]} "
-                                         "unobservable: Lee §II needs every mode observable")
+        unobservable = [i for i, ok in enumerate(modes.observable) if not ok]
+        return Check(name, paper, False, f"mode(s) {unobservable} unobservable: Lee §II needs "
+                                         "every mode observable")
     bounds = {"u_max": noise.get("u_max", 0.0), "v_max": noise["v_max"], "x_min": noise["x_min"]}
     decay = noise.get("observer_decay")
     gains = None if decay is None else decay_observer_gains(system, decay)
@@ -157,11 +161,13 @@ def _lee(spec: ModelSpec) -> Check:
         delta, Delta, windows = noise["delta"], noise["Delta"], "given"
     else:
         t_max = dwell.get("min_dwell", 10.0)
-        w = lee_windows(system, **bounds, observer_gains=gains, t_max=t_max, step=spec.sampling.get("period"))
+        w = lee_windows(system, **bounds, observer_gains=gains, t_max=t_max,
+                        step=spec.sampling.get("period"))
         if not w.holds:
             failing = "(3)" if w.delta is None else f"(4) (with delta = {w.delta:g} s)"
-            return Check(name, paper, False, f"no window up to {t_max:g} s satisfies {failing} at v_max = "
-                                             f"{bounds['v_max']:g}, x_min = {bounds['x_min']:g}")
+            return Check(name, paper, False, f"no window up to {t_max:g} s satisfies {failing} at "
+                                             f"v_max = {bounds['v_max']:g}, "
+                                             f"x_min = {bounds['x_min']:g}")
         delta, Delta, windows = w.delta, w.Delta, "the smallest satisfying (3)-(4)"
     a = lee_assumptions(system, **bounds, delta=delta, Delta=Delta, observer_gains=gains, **dwell)
     k = a.constants
@@ -170,18 +176,25 @@ def _lee(spec: ModelSpec) -> Check:
         dwell_verdict = a3.holds
         dwell_note = f"dwell {a3.lhs:g} s {'>' if a3.holds else '<='} delta + Delta = {a3.rhs:g} s"
     conditions = "hold" if a.condition3.holds and a.condition4.holds else (
-        "fail: " + ", ".join(c for c, r in (("(3)", a.condition3), ("(4)", a.condition4)) if not r.holds))
-    detail = (f"Assumption 1 {'holds' if a.assumption1.holds else 'FAILS'} (PBH margin {a.assumption1.margin:.3g}); "
-              f"(3)-(4) {conditions} at v_max = {bounds['v_max']:g}, noise bound allowed {a.v_max_allowed:.4g} "
-              f"(u_max = {bounds['u_max']:g}, x_min = {bounds['x_min']:g}; delta = {delta:g} s, Delta = {Delta:g} s "
+        "fail: " + ", ".join(c for c, r in (("(3)", a.condition3), ("(4)", a.condition4))
+                             if not r.holds))
+    detail = (f"Assumption 1 {'holds' if a.assumption1.holds else 'FAILS'} "
+              f"(PBH margin {a.assumption1.margin:.3g}); "
+              f"(3)-(4) {conditions} at v_max = {bounds['v_max']:g}, "
+              f"noise bound allowed {a.v_max_allowed:.4g} "
+              f"(u_max = {bounds['u_max']:g}, x_min = {bounds['x_min']:g}; "
+              f"delta = {delta:g} s, Delta = {Delta:g} s "
               f"{windows}; observer decay {k.lambda_hat:.4g}, E_hat(delta) = {k.E_hat:.4g}); "
               f"Assumption 3: {dwell_note}")
-    verdict = a.assumption1.holds and a.condition3.holds and a.condition4.holds and dwell_verdict is not False
+    verdict = (a.assumption1.holds and a.condition3.holds and a.condition4.holds
+               and dwell_verdict is not False)
     return Check(name, paper, bool(verdict), detail, a.v_max_allowed - bounds["v_max"])
 
 
 def _lee_dwell(spec: ModelSpec) -> tuple[dict, bool | None, str]:
-    """What bounds the dwell time for Lee Assumption 3: keywords for ``lee_assumptions``, verdict, note.
+    """What bounds the dwell time for Lee Assumption 3.
+
+    Returns keywords for ``lee_assumptions``, the verdict and a note.
 
     A dwell model gives ``min_dwell``, a schedule its signal; switching at the samples
     (``iid``, ``markov``) dwells at least one sampling interval; continuous-time Markov
@@ -212,14 +225,15 @@ def _cqlf(spec: ModelSpec) -> Check:
     if skipped:
         return Check(name, "Zhang eq. (13) / Lemma 3", None, skipped)
     r = cqlf(spec.system.A, domain=spec.system.domain)
-    detail = ("common quadratic Lyapunov function found: stable under arbitrary switching" if r.holds
+    detail = ("common quadratic Lyapunov function found: stable under arbitrary switching"
+              if r.holds
               else f"no CQLF ({r.solver_status}); not a proof of instability, see the JSR bounds")
     return Check(name, "Zhang eq. (13) / Lemma 3", bool(r.holds), detail,
                  r.margin if r.holds else None)
 
 
 def _jsr(spec: ModelSpec) -> Check:
-    """JSR bounds; for a large model in the spectral norm (no CQLF bisection) with fewer products.
+    """JSR bounds; for a large model in the spectral norm (no CQLF bisection), fewer products.
 
     The bounds are rounded outward (:func:`~switchest.analysis.jsr_bounds`), so comparing
     them with 1 is robust to rounding.
@@ -233,8 +247,8 @@ def _jsr(spec: ModelSpec) -> Check:
     budget = int(min(20000, max(L, _JSR_FLOPS / (25.0 * n**3))))
     r = jsr_bounds(F, quadratic=quadratic, max_products=budget)
     verdict = True if r.upper < 1 else (False if r.lower >= 1 else None)
-    how = "" if quadratic else (f"; spectral norm, {r.n_products} products: the CQLF bisection of "
-                                f"an n = {n} model is beyond the LMI budget")
+    how = "" if quadratic else (f"; spectral norm, {r.n_products} products: the CQLF bisection "
+                                f"of an n = {n} model is beyond the LMI budget")
     return Check("joint spectral radius of the sampled modes", "beyond the papers", verdict,
                  f"JSR in [{r.lower:.4g}, {r.upper:.4g}] (switching at the samples{how})",
                  1 - r.upper)
@@ -243,11 +257,14 @@ def _jsr(spec: ModelSpec) -> Check:
 def _lemma1(spec: ModelSpec) -> Check:
     T = spec.sampling.get("period")
     tau_d = None if spec.switching is None else spec.switching.dwell_time
-    if not spec.system.is_continuous or T is None or tau_d is None or not spec.system.has_measurement_noise:
+    if (not spec.system.is_continuous or T is None or tau_d is None
+            or not spec.system.has_measurement_noise):
         return Check("uniform observability under a dwell time", "Shankar Lemma 1", None,
-                     "needs periodic sampling, a dwell-time switching model and measurement noise R")
+                     "needs periodic sampling, a dwell-time switching model and measurement "
+                     "noise R")
     r = dwell_time_observability(spec.system, T, tau_d)
-    detail = (f"tau_d = {tau_d:g} s vs h_bar T; printed lemma: {r.holds} (h = {r.h}, rho = {r.rho:.3g}); "
+    detail = (f"tau_d = {tau_d:g} s vs h_bar T; "
+              f"printed lemma: {r.holds} (h = {r.h}, rho = {r.rho:.3g}); "
               f"corrected lemma: {r.holds} (h = {r.h_corrected}, rho = {r.rho_corrected:.3g})")
     return Check("uniform observability under a dwell time", "Shankar Lemma 1 (corrected)",
                  bool(r.holds), detail)
@@ -266,31 +283,33 @@ def _ms_iid(spec: ModelSpec) -> Check:
 def _filter_cqlf(spec: ModelSpec) -> Check:
     sys = spec.system
     if sys.is_continuous or not sys.has_measurement_noise:
-        return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2", None,
-                     "applies to discrete-time systems with measurement noise")
+        return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2",
+                     None, "applies to discrete-time systems with measurement noise")
     skipped = _cqlf_skip(spec, "CQLF of the Lambda_i")
     if skipped:
         return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2",
                      None, skipped)
     r = cqlf(mismatch_dynamics(sys).Lambda, domain="discrete")
-    detail = ("the mode-based Kalman filter's bias is stable under any matched mode sequence" if r.holds
-              else f"no CQLF for the Lambda_i ({r.solver_status})")
-    return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2", bool(r.holds),
-                 detail, r.margin if r.holds else None)
+    detail = ("the mode-based Kalman filter's bias is stable under any matched mode sequence"
+              if r.holds else f"no CQLF for the Lambda_i ({r.solver_status})")
+    return Check("CQLF of the filter error matrices Lambda_i", "Zhang Lemma 3 / Theorem 2",
+                 bool(r.holds), detail, r.margin if r.holds else None)
 
 
 def _mismatch(spec: ModelSpec) -> Check:
     sys = spec.system
     if sys.is_continuous or not sys.has_measurement_noise or sys.n_modes < 2:
         return Check("tolerable mode mismatches", "Zhang Algorithm 2", None,
-                     "applies to discrete-time systems with measurement noise and two or more modes")
+                     "applies to discrete-time systems with measurement noise and two or more "
+                     "modes")
     skipped = _cqlf_skip(spec, "CQLF of the A_i (Algorithm 2, step 1)")
     if skipped:
         return Check("tolerable mode mismatches", "Zhang Algorithm 2", None, skipped)
     mask = stable_mismatch_region(sys)
     allowed = [(int(i), int(q)) for i, q in zip(*np.nonzero(mask)) if i != q]
     return Check("tolerable mode mismatches", "Zhang Algorithm 2", True,
-                 f"filter mode i may be used in true mode q for (i, q) in {allowed or 'none'} (0-based)")
+                 f"filter mode i may be used in true mode q for (i, q) in {allowed or 'none'} "
+                 "(0-based)")
 
 
 def _impulsive(spec: ModelSpec) -> Check:
@@ -312,7 +331,8 @@ def _impulsive(spec: ModelSpec) -> Check:
                      skipped)
     r = impulsive_observer_search(spec.system, lo, hi, dwell)
     best = r.best
-    detail = (f"gains found with guaranteed decay rate beta = {best.beta:.4g} for sampling in [{lo:g}, {hi:g}], "
+    detail = (f"gains found with guaranteed decay rate beta = {best.beta:.4g} "
+              f"for sampling in [{lo:g}, {hi:g}], "
               f"dwell {dwell:g} (corrected LMIs; scalars searched)" if best.holds
               else "no certificate with a positive rate (the LMIs are sufficient conditions only)")
     return Check("impulsive observer under aperiodic sampling", "Etienne Theorem 8 (corrected)",
@@ -320,7 +340,7 @@ def _impulsive(spec: ModelSpec) -> Check:
 
 
 def _wang_critical_interval(spec: ModelSpec) -> Check:
-    """Critical switching interval of Wang et al. Theorem 3 for i.i.d. modes, and the sampling period against it.
+    """Critical switching interval (Wang et al. Theorem 3, i.i.d. modes) vs the sampling period.
 
     Reports eq. (20) as the paper computes it (``q_max h(T) = 1``; §6's ``T_max = 0.7365``,
     printed truncated, hence shown truncated to four decimals with the full value beside it),
@@ -329,12 +349,15 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
     threshold: eq. (20) is not a proven bound (for Example 1 it gives 0.0279, below the
     paper's own T = 0.03, which is MS convergent); the detail compares it with both.
     """
-    name, paper = "critical switching interval T_max (i.i.d. modes)", "Wang Theorem 3, eq. (20); Example 2"
+    name = "critical switching interval T_max (i.i.d. modes)"
+    paper = "Wang Theorem 3, eq. (20); Example 2"
     system, switching = spec.system, spec.switching
     if not system.is_continuous or not isinstance(switching, IID):
-        return Check(name, paper, None, "applies to continuous-time systems with i.i.d. modes at the switching instants")
+        return Check(name, paper, None, "applies to continuous-time systems with i.i.d. modes at "
+                                        "the switching instants")
     if system.n_inputs or np.any(system.Q != 0):
-        return Check(name, paper, None, "applies to Wang et al.'s model (1): no input and no process noise")
+        return Check(name, paper, None, "applies to Wang et al.'s model (1): no input and no "
+                                        "process noise")
     skipped = _skip(critical_interval_nbytes(system),
                     f"the critical interval of an n = {system.n_states} model (its n^2 x n^2 "
                     "second-moment matrices on a grid of T)")
@@ -342,12 +365,14 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
         return Check(name, paper, None, skipped)
     try:
         ci = critical_interval(system, switching.p)
-    except ValueError as exc:  # e.g. Assumption 2(b): the modes' observable subspaces do not span the state
+    except ValueError as exc:
+        # e.g. Assumption 2(b): the modes' observable subspaces do not span the state
         return Check(name, paper, None, f"not applicable: {exc}")
     truncated = np.floor(ci.theorem3 * 1e4) / 1e4
     eq20 = f"eq. (20) T_max = {truncated:.4f} ({ci.theorem3:.6f}, q_max = {ci.q_max:.4g})"
     exact = f"exact MS threshold {ci.fast_observer:.4f}"
-    per = "" if ci.per_block.size < 2 else "; per sub-state " + ", ".join(f"{v:.4f}" for v in ci.per_block)
+    per = ("" if ci.per_block.size < 2
+           else "; per sub-state " + ", ".join(f"{v:.4f}" for v in ci.per_block))
     T = spec.sampling.get("period")
     if T is None:
         return Check(name, paper, None, f"{eq20}; {exact}{per}; no sampling period to compare")
@@ -356,14 +381,15 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
                      f"T = {T:g} equals the {exact} to its accuracy; {eq20}{per}",
                      float(1.0 - T / ci.fast_observer))
     verdict = bool(T < ci.fast_observer)
-    detail = (f"T = {T:g} {'<' if T < ci.theorem3 else '>='} {eq20}; T {'<' if verdict else '>='} {exact} "
+    detail = (f"T = {T:g} {'<' if T < ci.theorem3 else '>='} {eq20}; "
+              f"T {'<' if verdict else '>='} {exact} "
               f"(fast sub-observers are MS convergent below it){per}")
     return Check(name, paper, verdict, detail, float(1.0 - T / ci.fast_observer))
 
 
 CHECKS: list[Callable[[ModelSpec], Check]] = [
-    _modes_observable, _joint, _lee, _combined, _cqlf, _jsr, _lemma1, _ms_iid, _filter_cqlf, _mismatch, _impulsive,
-    _wang_critical_interval,
+    _modes_observable, _joint, _lee, _combined, _cqlf, _jsr, _lemma1, _ms_iid, _filter_cqlf,
+    _mismatch, _impulsive, _wang_critical_interval,
 ]
 
 

@@ -116,9 +116,11 @@ def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition
         raise ValueError(f"T must be positive, got {T.min():g}")
     modes = int_array(modes, "modes")
     if modes.ndim == 0:
-        raise ValueError("modes must have a last axis of length S+1 (one mode per segment), got a scalar")
+        raise ValueError("modes must have a last axis of length S+1 (one mode per segment), "
+                         "got a scalar")
     if np.any((modes < 0) | (modes >= system.n_modes)):
-        raise ValueError(f"modes must be in 0..{system.n_modes - 1}, got {modes.min()}..{modes.max()}")
+        raise ValueError(f"modes must be in 0..{system.n_modes - 1}, "
+                         f"got {modes.min()}..{modes.max()}")
     if offsets is None:
         offsets = np.zeros((*modes.shape[:-1], 0))
     offsets = float_array(offsets, "offsets")
@@ -235,7 +237,8 @@ def segment_transitions(system: SwitchedLinearSystem, T: float, modes, offsets) 
     offsets = float_array(offsets, "offsets", ndim=2)
     if offsets.shape != (modes.shape[0], modes.shape[1] - 1):
         raise ValueError(
-            f"offsets must have shape (N, S) = ({modes.shape[0]}, {modes.shape[1] - 1}), got {offsets.shape}"
+            f"offsets must have shape (N, S) = ({modes.shape[0]}, {modes.shape[1] - 1}), "
+            f"got {offsets.shape}"
         )
     check_finite(offsets, "offsets")  # every row, also those without a switch
     _check_offsets(offsets, T)
@@ -365,7 +368,8 @@ def _discrete_passthrough(system, T, modes, offsets) -> Transition:
             f"got shape {offsets.shape}"
         )
     if np.any(np.abs(T - system.dt) > 1e-9 * system.dt):
-        raise ValueError(f"T must equal the discrete system's dt = {system.dt:g}, got {T.ravel()[0]:g}")
+        raise ValueError(f"T must equal the discrete system's dt = {system.dt:g}, "
+                         f"got {T.ravel()[0]:g}")
     m = np.broadcast_to(modes[..., 0], np.broadcast_shapes(T.shape, modes.shape[:-1]))
     return Transition(system.A[m], system.B[m], system.Q[m])
 

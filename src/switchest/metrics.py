@@ -42,7 +42,8 @@ def rmse(estimate, truth, *, start: int = 0) -> RMSE:
     est = float_array(estimate, "estimate")
     ref = float_array(truth, "truth")
     if est.shape != ref.shape or est.ndim not in (2, 3):
-        raise ValueError(f"estimate and truth must share a shape (N, K, n) or (K, n), got {est.shape} and {ref.shape}")
+        raise ValueError(f"estimate and truth must share a shape (N, K, n) or (K, n), "
+                         f"got {est.shape} and {ref.shape}")
     if est.ndim == 2:
         est, ref = est[None], ref[None]
     start = _check_start(start, est.shape[1])
@@ -58,7 +59,8 @@ def mode_accuracy(estimated, true, *, start: int = 0) -> float:
     est = int_array(estimated, "estimated")
     ref = int_array(true, "true")
     if est.shape != ref.shape or est.ndim < 1:
-        raise ValueError(f"estimated and true must share a shape (..., K), got {est.shape} and {ref.shape}")
+        raise ValueError(f"estimated and true must share a shape (..., K), "
+                         f"got {est.shape} and {ref.shape}")
     start = _check_start(start, est.shape[-1])
     return float(np.mean(est[..., start:] == ref[..., start:]))
 

@@ -98,15 +98,18 @@ def bars(
     width = 0.8 / max(k, 1)
     x = np.arange(len(groups))
     with plt.rc_context(_STYLE):
-        fig, ax = plt.subplots(figsize=(max(6.0, 1.6 * len(groups) + 2), 3.6 + 0.2 * ((k + 3) // 4)))
+        size = (max(6.0, 1.6 * len(groups) + 2), 3.6 + 0.2 * ((k + 3) // 4))
+        fig, ax = plt.subplots(figsize=size)
         for j, (label, values) in enumerate(series.items()):
-            ax.bar(x + (j - (k - 1) / 2) * width, np.asarray(values, dtype=float), width, label=label)
+            ax.bar(x + (j - (k - 1) / 2) * width, np.asarray(values, dtype=float), width,
+                   label=label)
         ax.set_xticks(x, groups)
         ax.set_ylabel(ylabel)
         if logy:
             ax.set_yscale("log")
         # below the axes, so the legend never covers a bar however many series there are
-        ax.legend(fontsize=7, frameon=False, ncol=min(k, 4), loc="upper center", bbox_to_anchor=(0.5, -0.12))
+        ax.legend(fontsize=7, frameon=False, ncol=min(k, 4), loc="upper center",
+                  bbox_to_anchor=(0.5, -0.12))
         if title:
             ax.set_title(title)
         return _save(fig, path)

@@ -399,7 +399,8 @@ def markov_at_samples(transition, t, *, rng, initial=None) -> SwitchingSignal:
     modes = np.empty(t.size, dtype=np.int64)
     modes[0] = first
     for k in range(1, t.size):  # sequential by nature: a chain
-        modes[k] = min(int(np.searchsorted(cum[modes[k - 1]], draws[k - 1], side="right")), n_modes - 1)
+        drawn = int(np.searchsorted(cum[modes[k - 1]], draws[k - 1], side="right"))
+        modes[k] = min(drawn, n_modes - 1)
     return _at_samples(t, modes)
 
 
@@ -435,7 +436,9 @@ def periodic(T: float, t_end: float, *, t_start: float = 0.0) -> np.ndarray:
     return t_start + T * np.arange(count)
 
 
-def aperiodic(tau_min: float, tau_max: float, t_end: float, *, rng, t_start: float = 0.0) -> np.ndarray:
+def aperiodic(
+    tau_min: float, tau_max: float, t_end: float, *, rng, t_start: float = 0.0
+) -> np.ndarray:
     """Sample times with gaps drawn uniformly in ``[tau_min, tau_max]``, up to ``t_end``.
 
     The aperiodic sampling of Etienne et al. §2 (t_{k+1} - t_k in [tau_min, tau_max]).
@@ -477,14 +480,16 @@ def sample_segments(signals, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     t = _sample_times(t)
     if isinstance(signals, SwitchingSignal):
-        raise TypeError("signals must be a sequence of SwitchingSignal (one per trial), got one signal")
+        raise TypeError("signals must be a sequence of SwitchingSignal (one per trial), "
+                        "got one signal")
     if not isinstance(signals, Sequence):
         got = type(signals).__name__
         raise TypeError(f"signals must be a sequence of SwitchingSignal, got {got}")
     signals = list(signals)
     if not signals or not all(isinstance(s, SwitchingSignal) for s in signals):
         raise TypeError("signals must be a non-empty sequence of SwitchingSignal objects")
-    if len(signals) > 1 and all(s is signals[0] for s in signals[1:]):  # one shared signal: compute once, broadcast
+    # one shared signal: compute once, broadcast
+    if len(signals) > 1 and all(s is signals[0] for s in signals[1:]):
         one = sample_segments(signals[:1], t)
         return tuple(np.broadcast_to(a, (len(signals), *a.shape[1:])) for a in one)
     N, K = len(signals), t.size
@@ -544,5 +549,6 @@ def _check_span(t_start, t_end) -> float:
     t_start = float_array(t_start, "t_start", ndim=0)
     t_end = float_array(t_end, "t_end", ndim=0)
     if not (np.isfinite(t_start) and np.isfinite(t_end)) or t_end <= t_start:
-        raise ValueError(f"t_end must be finite and greater than t_start = {float(t_start):g}, got {float(t_end):g}")
+        raise ValueError(f"t_end must be finite and greater than t_start = {float(t_start):g}, "
+                         f"got {float(t_end):g}")
     return float(t_end)

@@ -166,7 +166,8 @@ def simulate(
     """
     if not isinstance(system, SwitchedLinearSystem):
         raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
-    if isinstance(trials, (bool, np.bool_)) or not isinstance(trials, (int, np.integer)) or trials < 1:
+    if (isinstance(trials, (bool, np.bool_)) or not isinstance(trials, (int, np.integer))
+            or trials < 1):
         raise ValueError(f"trials must be a positive int, got {trials!r}")
     rng = as_rng(rng)
     t = float_array(t, "t", ndim=1)
@@ -184,7 +185,8 @@ def simulate(
     if output == "integrated":
         if not system.is_continuous:
             raise ValueError("output='integrated' applies to continuous-time systems only")
-        return _simulate_integrated(system, signal, t, x0, u, trials=trials, rng=rng, fine_dt=fine_dt)
+        return _simulate_integrated(system, signal, t, x0, u, trials=trials, rng=rng,
+                                    fine_dt=fine_dt)
     _check_size(system, trials, t.size, parts)
     signals = _signals(signal, trials, rng, system.n_modes, t)
     u = _inputs(u, system.n_inputs, t.size, trials)
@@ -233,7 +235,8 @@ def _simulate_integrated(system, signal, t, x0, u, *, trials, rng, fine_dt) -> T
     aug = integrated_output_system(system)
     mean, cov = _initial_moments(x0, n)
     z0 = np.zeros(m)  # the integrated output starts at 0
-    x0_aug = (np.concatenate([mean, z0]), np.pad(cov, (0, m))) if isinstance(x0, tuple) else np.concatenate([mean, z0])
+    x0_aug = ((np.concatenate([mean, z0]), np.pad(cov, (0, m))) if isinstance(x0, tuple)
+              else np.concatenate([mean, z0]))
     traj = simulate(aug, signal, t, x0_aug, u, trials=trials, rng=rng, fine_dt=fine_dt)
     fine = {}
     if fine_dt is not None:
@@ -307,7 +310,8 @@ def _switched_steps(system, modes, offsets, grid) -> dict[int, tuple[np.ndarray,
 def _measure(system, x, mode, rng) -> np.ndarray:
     """``y_k = C[m] x_k + R[m]^(1/2) v_k`` for every trial and sample, one sample at a time."""
     N, K, _ = x.shape
-    stacked = np.concatenate([np.swapaxes(system.C, 1, 2), np.swapaxes(psd_sqrt(system.R), 1, 2)], axis=1)
+    stacked = np.concatenate([np.swapaxes(system.C, 1, 2), np.swapaxes(psd_sqrt(system.R), 1, 2)],
+                             axis=1)
     y = np.empty((N, K, system.n_outputs))
     for k in range(K):
         xv = np.concatenate([x[:, k], rng.standard_normal((N, system.n_outputs))], axis=1)

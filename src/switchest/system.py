@@ -139,7 +139,8 @@ class SwitchedLinearSystem:
         shapes = {k: {m.shape for m in v} for k, v in mats.items() if k != "D"}
         for k, s in shapes.items():
             if len(s) != 1:
-                raise ValueError(f"systems[*].{k} must have one shape across modes, got {sorted(s)}")
+                raise ValueError(f"systems[*].{k} must have one shape across modes, "
+                                 f"got {sorted(s)}")
         A, B, C = (np.stack(mats[k]) for k in "ABC")
         if dts[0] == 0.0:
             return cls.continuous(A, B, C, Q, R)
@@ -163,10 +164,11 @@ class SwitchedLinearSystem:
         if n == 0:
             raise ValueError("A must have at least one state, got n = 0")
         B = _stack(arrays["B"], n_modes) if B is not None else np.zeros((n_modes, n, 0))
-        C = _stack(arrays["C"], n_modes) if C is not None else np.broadcast_to(np.eye(n), (n_modes, n, n))
+        C = (_stack(arrays["C"], n_modes) if C is not None
+             else np.broadcast_to(np.eye(n), (n_modes, n, n)))
         m = C.shape[-2]
-        _expect(B, "B", (n, B.shape[-1]), "(n, l) with n = %d" % n)
-        _expect(C, "C", (m, n), "(m, n) with n = %d" % n)
+        _expect(B, "B", (n, B.shape[-1]), f"(n, l) with n = {n}")
+        _expect(C, "C", (m, n), f"(m, n) with n = {n}")
         if m == 0:  # nothing to estimate from: every estimator and analysis needs an output
             raise ValueError(
                 f"C must have at least one row (m >= 1 outputs), got shape {C.shape[1:]}"
@@ -175,7 +177,7 @@ class SwitchedLinearSystem:
             Q = np.zeros((n_modes, n, n))
         else:
             Q = _stack(arrays["Q"], n_modes)
-            _expect(Q, "Q", (n, n), "(n, n) with n = %d" % n)
+            _expect(Q, "Q", (n, n), f"(n, n) with n = {n}")
             Q = check_symmetric_psd(Q, "Q")
         if R is None:
             R = np.zeros((n_modes, m, m))

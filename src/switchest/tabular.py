@@ -152,7 +152,8 @@ def read_measurements(data: pd.DataFrame | str | Path, spec: ModelSpec) -> dict[
         raise TypeError(f"data must be a DataFrame or the path of a CSV file, got "
                         f"{type(data).__name__}")
     sys = spec.system
-    y_cols, u_cols = _columns("y", sys.n_outputs), _columns("u", sys.n_inputs) if sys.n_inputs else []
+    y_cols = _columns("y", sys.n_outputs)
+    u_cols = _columns("u", sys.n_inputs) if sys.n_inputs else []
     need = ["t", *u_cols, *y_cols]
     names = [str(c) for c in table.frame.columns]
     _check_header(table.name, names, need)
@@ -314,7 +315,8 @@ def transition_for(spec: ModelSpec, T: float, *, stay: float | None = None) -> n
         mean_dwell = 0.5 * (sw.min_dwell + sw.max_dwell) if isinstance(sw, Dwell) else sw.tau_a
         return transition_for(spec, T, stay=max(1e-6, 1.0 - T / mean_dwell))
     kind = None if sw is None else sw.kind
-    raise ValueError(f"the model's switching model ({kind!r}) implies no transition matrix: give stay")
+    raise ValueError(f"the model's switching model ({kind!r}) implies no transition matrix: "
+                     "give stay")
 
 
 def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: str, grid: int = 5,
@@ -366,7 +368,7 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     return _table(meas["t"], _RUNNERS[method](entry, spec, meas, options, modes))
 
 
-# ---------------------------------------------------------------------- one runner per method family
+# ------------------------------------------------------------------ one runner per method family
 def _filter(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
     """The Kalman-type filters, ``entry.estimator(system, [transition,] x0, P0, **options)``.
 
@@ -388,11 +390,12 @@ def _filter(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) ->
 
 
 def _min_distance(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
-    """Lee, Ping & Shim's detector with the model's bounds and windows (options override ``[noise]``).
+    """Lee, Ping & Shim's detector with the model's bounds and windows.
 
-    ``u_max`` (used only by the detector's assumption check) and the observer
-    gains (``observer_decay``, :func:`~switchest.analysis.min_distance_design.decay_observer_gains`;
-    otherwise the detector's default) come from ``[noise]`` alone.
+    Options override ``[noise]``. ``u_max`` (used only by the detector's assumption check) and the
+    observer gains (``observer_decay``,
+    :func:`~switchest.analysis.min_distance_design.decay_observer_gains`; otherwise the detector's
+    default) come from ``[noise]`` alone.
     """
     noise = spec.noise
     settings = {name: options[name] for name in entry.options}
@@ -400,14 +403,15 @@ def _min_distance(entry: Method, spec: ModelSpec, meas: dict, options: dict, mod
         if value is None:
             if name not in noise:
                 what, flag = _LEE_SETTINGS[name]
-                raise ValueError(f"method 'min-distance' needs {name}, {what}: add {name} to the model file's "
-                                 f"[noise] table or pass {flag} ({name}= in Python)")
+                raise ValueError(f"method 'min-distance' needs {name}, {what}: add {name} to the "
+                                 f"model file's [noise] table or pass {flag} ({name}= in Python)")
             settings[name] = noise[name]
     decay = noise.get("observer_decay")
     gains = None if decay is None else decay_observer_gains(spec.system, decay)
     detector = entry.estimator(spec.system, **settings, u_max=noise.get("u_max", 0.0),
                                observer_gains=gains)
-    return detector.run(meas["y"], meas["u"], meas["t"])  # refuses a non-uniform grid naming the sample
+    # refuses a non-uniform grid naming the sample
+    return detector.run(meas["y"], meas["u"], meas["t"])
 
 
 def _rsls(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
@@ -415,8 +419,9 @@ def _rsls(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> E
     T = options["switch_interval"]
     T = spec.sampling.get("period") if T is None else T
     if T is None:
-        raise ValueError("method 'rsls' needs the switching interval T (Wang et al. Assumption 1): set "
-                         "sampling.period in the model file or pass --switch-interval (switch_interval= in Python)")
+        raise ValueError("method 'rsls' needs the switching interval T (Wang et al. Assumption 1): "
+                         "set sampling.period in the model file or pass --switch-interval "
+                         "(switch_interval= in Python)")
     observer = entry.estimator(spec.system, rsls_gains(spec, T), T, *_prior(spec))
     return observer.run(meas["y"], t=meas["t"], modes=modes)
 
@@ -464,10 +469,12 @@ def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
     system = spec.system
     T = positive_scalar(T, "T")
     structure = subsystem_structure(system)
-    rates = [max(float(np.max(np.abs(np.linalg.eigvals(A22)), initial=0.0)), 1.0 / T) for A22 in structure.A22]
+    rates = [max(float(np.max(np.abs(np.linalg.eigvals(A22)), initial=0.0)), 1.0 / T)
+             for A22 in structure.A22]
 
     def design(scale: float) -> np.ndarray:
-        return place_gains(structure, [-scale * r * (1.0 + 0.25 * np.arange(A22.shape[0])) if A22.size else None
+        return place_gains(structure, [-scale * r * (1.0 + 0.25 * np.arange(A22.shape[0]))
+                                       if A22.size else None
                                        for r, A22 in zip(rates, structure.A22)])
 
     if not isinstance(spec.switching, IID):
@@ -485,10 +492,10 @@ def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
     if best is None:
         limit = critical_interval(system, p, structure=structure).fast_observer
         raise ValueError(
-            f"method 'rsls': no default sub-observer design is mean-square convergent at T = {T:g} (smallest "
-            f"spectral radius {radius:.4g} >= 1, Wang et al. Theorem 1); fast enough sub-observers converge "
-            f"only for T < {limit:.4g} (critical interval): design gains with switchest.analysis.place_gains "
-            "and run switchest.estimators.RSLSObserver")
+            f"method 'rsls': no default sub-observer design is mean-square convergent at T = {T:g} "
+            f"(smallest spectral radius {radius:.4g} >= 1, Wang et al. Theorem 1); fast enough "
+            f"sub-observers converge only for T < {limit:.4g} (critical interval): design gains "
+            "with switchest.analysis.place_gains and run switchest.estimators.RSLSObserver")
     return best
 
 
@@ -532,25 +539,27 @@ def impulsive_gains(spec: ModelSpec, t: np.ndarray) -> np.ndarray:
     smp, sw = spec.sampling, spec.switching
     lo, hi = smp.get("tau_min", smp.get("period")), smp.get("tau_max", smp.get("period"))
     if lo is None:
-        raise ValueError("method 'impulsive' needs the sampling bounds (Etienne et al. Assumption 2): set "
-                         "sampling.tau_min and sampling.tau_max (or sampling.period) in the model file")
+        raise ValueError("method 'impulsive' needs the sampling bounds (Etienne et al. "
+                         "Assumption 2): set sampling.tau_min and sampling.tau_max (or "
+                         "sampling.period) in the model file")
     dwell = (sw.tau_a if isinstance(sw, AverageDwell)
              else sw.min_dwell if isinstance(sw, Dwell) else None)
     if dwell is None:
-        raise ValueError("method 'impulsive' needs a dwell time (Etienne et al. Assumption 1): a [switching] "
-                         f"table of kind 'average-dwell' (tau_a) or 'dwell' (min_dwell), "
-                         f"got {getattr(sw, 'kind', None)!r}")
+        raise ValueError("method 'impulsive' needs a dwell time (Etienne et al. Assumption 1): a "
+                         "[switching] table of kind 'average-dwell' (tau_a) or 'dwell' "
+                         f"(min_dwell), got {getattr(sw, 'kind', None)!r}")
     steps = np.diff(np.asarray(t, dtype=float))
     outside = (steps < lo * (1 - 1e-9)) | (steps > hi * (1 + 1e-9))
     if outside.any():
         row = int(np.flatnonzero(outside)[0]) + 1
-        raise ValueError(f"method 'impulsive': data row {row} is {steps[row - 1]:.6g} after the previous row, "
-                         f"outside the model's sampling bounds [{lo:g}, {hi:g}] the gains are designed for "
-                         "(Etienne et al. Assumption 2); widen sampling.tau_min / tau_max")
+        raise ValueError(f"method 'impulsive': data row {row} is {steps[row - 1]:.6g} after the "
+                         f"previous row, outside the model's sampling bounds [{lo:g}, {hi:g}] the "
+                         "gains are designed for (Etienne et al. Assumption 2); widen "
+                         "sampling.tau_min / tau_max")
     best = impulsive_observer_search(spec.system, lo, hi, dwell).best
     if not best.holds:
-        raise ValueError(f"method 'impulsive': Theorem 8's LMIs give no observer for sampling in [{lo:g}, {hi:g}] "
-                         f"and dwell time {dwell:g} (Etienne et al.): {best.note}")
+        raise ValueError(f"method 'impulsive': Theorem 8's LMIs give no observer for sampling in "
+                         f"[{lo:g}, {hi:g}] and dwell time {dwell:g} (Etienne et al.): {best.note}")
     return best.G
 
 
@@ -562,7 +571,8 @@ _RUNNERS = {"kalman": _filter, "switch-time": _filter, "imm": _filter, "imm-ev1"
 # ---------------------------------------------------------------------- shared pieces
 def _modes(meas: dict, method: str) -> np.ndarray:
     if "mode" not in meas:
-        raise ValueError(f"method {method!r} needs the known modes: add a 'mode' column to the data")
+        raise ValueError(f"method {method!r} needs the known modes: add a 'mode' column to the "
+                         "data")
     return meas["mode"]
 
 

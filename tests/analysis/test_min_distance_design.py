@@ -41,7 +41,10 @@ def omega_min_closed(t):
 def n_u_closed(t, b=S.input_gain):
     """``N_u(t)`` for ``||h_1 - h_2|| = 2 b |sin(dw s / 2)|``, valid while ``dw t <= 2 pi``."""
     c = 4 * b / DW
-    inner = lambda tau: c * (1 - np.cos(DW * tau / 2))
+
+    def inner(tau):
+        return c * (1 - np.cos(DW * tau / 2))
+
     return quad(lambda tau: inner(tau) ** 2, 0, t, epsabs=1e-14)[0]
 
 
@@ -54,11 +57,14 @@ def demo():
 # ---------------------------------------------------------------------- constants
 def test_demo_constants_equal_their_closed_forms(demo):
     _, k = demo
-    assert k.mu_check == pytest.approx(1.0, abs=1e-9) and k.lambda_check == pytest.approx(0.0, abs=1e-9)
-    assert k.mu_hat == pytest.approx(1.0, abs=1e-9) and k.lambda_hat == pytest.approx(A_OBS, rel=1e-9)
+    assert k.mu_check == pytest.approx(1.0, abs=1e-9)
+    assert k.lambda_check == pytest.approx(0.0, abs=1e-9)
+    assert k.mu_hat == pytest.approx(1.0, abs=1e-9)
+    assert k.lambda_hat == pytest.approx(A_OBS, rel=1e-9)
     assert k.L_max == pytest.approx(np.hypot(A_OBS, W2), rel=1e-12)
     assert k.C_max == pytest.approx(1.0, rel=1e-12)
-    np.testing.assert_allclose(k.U, S.delta * np.broadcast_to(np.eye(2), (2, 2, 2)), rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(k.U, S.delta * np.broadcast_to(np.eye(2), (2, 2, 2)), rtol=1e-10,
+                               atol=1e-13)
     np.testing.assert_allclose(k.M, 1.0, rtol=1e-9)  # U^{-1} phi' = e^{A' tau} / delta
     assert k.E_hat == pytest.approx(np.hypot(1.0, W2 / A_OBS), rel=1e-9)
     assert k.omega_min_delta == pytest.approx(omega_min_closed(S.delta), rel=1e-9)
@@ -83,7 +89,8 @@ def test_gramians_are_the_integrals_of_phi_prime_phi():
             def entry(s, a, b, i=i):
                 return (expm(sys.A[i].T * s) @ sys.C[i].T @ sys.C[i] @ expm(sys.A[i] * s))[a, b]
 
-            ref = np.array([[quad(entry, 0, t, args=(a, b), epsabs=1e-13)[0] for b in range(2)] for a in range(2)])
+            ref = np.array([[quad(entry, 0, t, args=(a, b), epsabs=1e-13)[0] for b in range(2)]
+                            for a in range(2)])
             np.testing.assert_allclose(U[k, i], ref, rtol=1e-9, atol=1e-12)
 
 
@@ -117,10 +124,18 @@ def test_quadratures_of_M_and_N_u_match_adaptive_quadrature():
     k = lee_constants(sys, t, t, n_grid=4001)
     U = observability_gramians(sys, t)
     for i in range(2):
-        f = lambda s, i=i: np.linalg.norm(np.linalg.solve(U[i], (sys.C[i] @ expm(sys.A[i] * s)).T), 2)
+        def f(s, i=i):
+            return np.linalg.norm(np.linalg.solve(U[i], (sys.C[i] @ expm(sys.A[i] * s)).T), 2)
+
         assert k.M[i] == pytest.approx(quad(f, 0, t, epsabs=1e-12, limit=200)[0], rel=1e-6)
-    gap = lambda s: np.linalg.norm(sys.C[0] @ (expm(sys.A[0] * s) @ sys.B[0] - expm(sys.A[1] * s) @ sys.B[1]), 2)
-    inner = lambda tau: quad(gap, 0, tau, epsabs=1e-13, limit=200)[0]
+
+    def gap(s):
+        h = expm(sys.A[0] * s) @ sys.B[0] - expm(sys.A[1] * s) @ sys.B[1]
+        return np.linalg.norm(sys.C[0] @ h, 2)
+
+    def inner(tau):
+        return quad(gap, 0, tau, epsabs=1e-13, limit=200)[0]
+
     N_u = quad(lambda tau: inner(tau) ** 2, 0, t, epsabs=1e-13, limit=200)[0]
     assert k.N_u_delta == pytest.approx(N_u, rel=1e-5)
 
@@ -137,9 +152,10 @@ def test_default_observer_gains_place_the_documented_poles():
 # ---------------------------------------------------------------------- assumptions
 def test_demo_scenario_satisfies_every_assumption(demo):
     sys, k = demo
-    a = lee_assumptions(sys, u_max=S.u_max, v_max=S.v_max, x_min=S.x_min(), delta=S.delta, Delta=S.Delta,
-                        observer_gains=S.observer_gains, min_dwell=S.min_dwell)
-    assert a.holds and a.assumption1.holds and a.condition3.holds and a.condition4.holds and a.assumption3.holds
+    a = lee_assumptions(sys, u_max=S.u_max, v_max=S.v_max, x_min=S.x_min(), delta=S.delta,
+                        Delta=S.Delta, observer_gains=S.observer_gains, min_dwell=S.min_dwell)
+    assert a.holds and a.assumption1.holds and a.condition3.holds and a.condition4.holds
+    assert a.assumption3.holds
     x = S.x_min()
     rhs3 = (S.u_max * np.sqrt(k.N_u_delta) + 2 * S.v_max * np.sqrt(S.delta)) ** 2
     rhs4 = 0.5 * (S.u_max * np.sqrt(k.N_u_Delta) + 2 * S.v_max * np.sqrt(S.Delta)
@@ -183,13 +199,15 @@ def test_the_papers_pathological_example_can_never_satisfy_condition_3():
         a = lee_assumptions(sys, u_max=1.0, v_max=0.0, x_min=1.0, delta=delta, Delta=delta,
                             observer_gains=[[[1.0]], [[1.0]]])
         assert a.assumption1.holds and not a.condition3.holds and not a.condition4.holds
-    w = lee_windows(sys, u_max=1.0, v_max=0.0, x_min=1.0, observer_gains=[[[1.0]], [[1.0]]], t_max=5.0, step=0.05)
+    w = lee_windows(sys, u_max=1.0, v_max=0.0, x_min=1.0, observer_gains=[[[1.0]], [[1.0]]],
+                    t_max=5.0, step=0.05)
     assert not w.holds and w.delta is None
 
 
 def test_modes_that_cannot_be_told_apart_fail_assumption_1():
     A = np.array([[0.0, 1.0], [-1.0, 0.0]])
-    sys = SwitchedLinearSystem.continuous(np.stack([A, A]), np.array([[[0.0], [1.0]], [[1.0], [0.0]]]), [[1.0, 0.0]])
+    B = np.array([[[0.0], [1.0]], [[1.0], [0.0]]])
+    sys = SwitchedLinearSystem.continuous(np.stack([A, A]), B, [[1.0, 0.0]])
     a = lee_assumptions(sys, u_max=0.0, v_max=0.0, x_min=1.0, delta=1.0, Delta=1.0,
                         observer_gains=[[2.0], [1.0]])
     assert not a.assumption1.holds and a.assumption1.margin == 0
@@ -204,7 +222,8 @@ def test_assumption_3_on_signals(demo):
     good = schedule([0.5, 2.0, 3.5], [0, 1, 0, 1])
     assert lee_assumptions(sys, signal=good, **kw).assumption3.holds
     short = lee_assumptions(sys, signal=[good, schedule([0.5, 1.6], [0, 1, 0])], **kw).assumption3
-    assert not short.holds and short.margin == pytest.approx(1.1 - 1.25) and short.lhs == pytest.approx(1.1)
+    assert not short.holds and short.margin == pytest.approx(1.1 - 1.25)
+    assert short.lhs == pytest.approx(1.1)
     early = lee_assumptions(sys, signal=schedule([0.2, 3.0], [1, 0, 1]), **kw)
     assert not early.assumption3.holds and early.assumption3.margin == pytest.approx(0.2 - S.delta)
     assert not early.holds
@@ -215,7 +234,8 @@ def test_assumption_3_on_signals(demo):
 def test_smallest_windows_are_the_first_that_satisfy_3_and_4(demo):
     sys, _ = demo
     step = 0.01
-    kw = {"u_max": S.u_max, "v_max": S.v_max, "x_min": S.x_min(), "observer_gains": S.observer_gains}
+    kw = {"u_max": S.u_max, "v_max": S.v_max, "x_min": S.x_min(),
+          "observer_gains": S.observer_gains}
     w = lee_windows(sys, t_max=3.0, step=step, **kw)
     assert w.holds and w.assumptions.holds
     assert w.delta / step == pytest.approx(round(w.delta / step)) and w.delta <= S.delta
@@ -245,7 +265,8 @@ def test_bad_input_is_refused_with_a_message(demo):
         lee_constants(disc, 0.25, 1.0)
     with pytest.raises(ValueError, match="delta must be a finite positive number"):
         lee_constants(sys, -1.0, 1.0)
-    with pytest.raises(ValueError, match=r"observer_gains must have shape \(L, n, m\) = \(2, 2, 2\)"):
+    with pytest.raises(ValueError,
+                       match=r"observer_gains must have shape \(L, n, m\) = \(2, 2, 2\)"):
         lee_constants(sys, 0.25, 1.0, np.zeros((2, 2, 3)))
     with pytest.raises(ValueError, match="observer_gains must make every A_i - L_i C_i Hurwitz"):
         lee_constants(sys, 0.25, 1.0, np.zeros((2, 2)))
@@ -257,8 +278,8 @@ def test_bad_input_is_refused_with_a_message(demo):
         lee_assumptions(sys, signal=[1.0], **kw)
     with pytest.raises(ValueError, match="step must not exceed t_max"):
         lee_windows(sys, u_max=0.0, v_max=0.1, x_min=1.0, t_max=1.0, step=2.0)
-    unobservable = SwitchedLinearSystem.continuous([[[0.0, 0.0], [0.0, 0.0]], [[0.0, 1.0], [0.0, 0.0]]],
-                                                   C=[[1.0, 0.0]])
+    unobservable = SwitchedLinearSystem.continuous(
+        [[[0.0, 0.0], [0.0, 0.0]], [[0.0, 1.0], [0.0, 0.0]]], C=[[1.0, 0.0]])
     with pytest.raises(ValueError, match="system mode 0 must be observable"):
         default_observer_gains(unobservable)
     with pytest.raises(ValueError, match="t must be positive"):
@@ -278,9 +299,10 @@ def test_demo_model_shape_and_bad_frequencies():
 
 
 def test_decay_observer_gains_are_the_lee_detection_gains():
-    # with C_i = I every pole sits at -a: L_i = A_i + a I, A_i - L_i C = -a I (the experiment's design)
+    # C_i = I puts every pole at -a: L_i = A_i + a I, A_i - L_i C = -a I (the experiment's design)
     s = LEE_SCENARIO
     gains = decay_observer_gains(s.system(), s.observer_decay)
     np.testing.assert_allclose(gains, s.observer_gains, rtol=0, atol=1e-12)
     closed = s.system().A - gains @ s.system().C
-    np.testing.assert_allclose(closed, np.broadcast_to(-s.observer_decay * np.eye(2), closed.shape), atol=1e-12)
+    expected = np.broadcast_to(-s.observer_decay * np.eye(2), closed.shape)
+    np.testing.assert_allclose(closed, expected, atol=1e-12)

@@ -44,7 +44,7 @@ def _pair(key):
 
 
 def _assert_printed(computed, case):
-    """Computed equals the printed value at the printed precision (half a unit of the last digit)."""
+    """Computed equals the printed value at its precision (half a unit of the last digit)."""
     tol = 0.5 * 10.0 ** -case["provenance"]["decimals"] + 1e-12
     np.testing.assert_array_less(np.abs(np.asarray(computed) - np.asarray(case["value"])), tol)
 
@@ -150,7 +150,10 @@ def test_fig6_max_mismatch_needs_eta_times_sup_input_1_04():
     assert max_mismatch_probability(d, bound=0.3, eta=0.52, sup_input=2.0) == pytest.approx(lam_max)
     # The product that reproduces the printed digits is pinned to ~1e-5 around 1.04
     # (solve lam_max(c) = printed +- half a unit in the 6th decimal).
-    f = lambda c, target: max_mismatch_probability(d, bound=0.3, eta=c, sup_input=1.0) - target
+
+    def f(c, target):
+        return max_mismatch_probability(d, bound=0.3, eta=c, sup_input=1.0) - target
+
     lo = brentq(f, 0.5, 2.0, args=(case["value"] + 5e-7,))
     hi = brentq(f, 0.5, 2.0, args=(case["value"] - 5e-7,))
     assert lo < c < hi and hi - lo < 1e-5

@@ -114,7 +114,8 @@ def _update(x, P, y, C, R, gate):
     missing = np.isnan(y)
     m = y.shape[-1]
     if missing.any():
-        C = np.broadcast_to(C, (*np.broadcast_shapes(C.shape[:-2], x.shape[:-1], y.shape[:-1]), *C.shape[-2:]))
+        batch = np.broadcast_shapes(C.shape[:-2], x.shape[:-1], y.shape[:-1])
+        C = np.broadcast_to(C, (*batch, *C.shape[-2:]))
         R = np.broadcast_to(R, (*C.shape[:-2], m, m))
         keep = ~missing
         y = np.where(missing, 0.0, y)
@@ -169,7 +170,7 @@ def _posterior(P, K, C, R):
     kept = np.all(post >= _EPS * prior, axis=-1) & np.all(np.abs(P_new) <= bound, axis=(-2, -1))
     if kept.all():
         return P_new
-    n, m = P.shape[-1], R.shape[-1]
+    n = P.shape[-1]
     shape = kept.shape
     P_new = np.array(np.broadcast_to(P_new, (*shape, n, n)))  # a writable copy
     P_b, C_b, R_b = (np.broadcast_to(a, (*shape, *a.shape[-2:])) for a in (P, C, R))

@@ -7,8 +7,8 @@ from :func:`switchest.discretize.pairwise_grid` and every refinement probe from 
 written here from Brent's ``fmin`` (:func:`brent_maximize`), a lane at a time. One addition:
 ``resolution``, the number of steps per interval to which a probe's instant is rounded before its
 transition is taken (``None``: exact); given the compiled filter's resolution, the two follow
-the same search path. ``tolerance`` (units of the interval) is the compiled filter's ``REFINE_TOLERANCE`` unless
-given.
+the same search path. ``tolerance`` (units of the interval) is the compiled filter's
+``REFINE_TOLERANCE`` unless given.
 """
 
 from __future__ import annotations

@@ -60,7 +60,8 @@ def boost_data():
 def test_clairvoyant_filter_is_the_best_on_the_boost_converter(boost_data):
     system, t, traj = boost_data
     x0, P0, u = np.array([0.0, 100.0]), np.diag([100.0, 100.0]), [100.0]
-    clair = ModeKalmanFilter(system, x0, P0).run(traj.y, u, t, modes=traj.mode, segments=traj.segments())
+    clair = ModeKalmanFilter(system, x0, P0).run(traj.y, u, t, modes=traj.mode,
+                                                 segments=traj.segments())
     grid5 = SwitchTimeKalmanFilter(system, x0, P0, grid=5).run(traj.y, u, t, modes=traj.mode)
     at_samples = ModeKalmanFilter(system, x0, P0).run(traj.y, u, t, modes=traj.mode)
     r = [rmse(e.x, traj.x, start=10).overall for e in (clair, grid5, at_samples)]
@@ -80,7 +81,8 @@ def test_grid_switch_time_and_refinement_on_low_noise_data():
     assert err_grid.size > 40
     # on clean data the right cell is found almost always: the error is then at most half a cell
     assert np.median(err_grid) <= 0.5e-3 / (2 * 5) + 1e-12
-    refined = SwitchTimeKalmanFilter(system, x0, P0, grid=5, refine=True).run(traj.y, [100.0], t, modes=traj.mode)
+    refined = SwitchTimeKalmanFilter(system, x0, P0, grid=5, refine=True).run(traj.y, [100.0], t,
+                                                                              modes=traj.mode)
     err_ref = switch_time_error(refined.switch_time, true_switch)
     assert np.median(err_ref) < 0.2 * np.median(err_grid)
 
@@ -110,8 +112,9 @@ def test_refinement_never_lowers_the_likelihood_of_the_chosen_time():
 
 
 def test_marginal_switch_time_step_is_the_moment_matched_posterior_mixture():
-    # oracle: one textbook Kalman prediction and update per grid instant, weights p(y | tau_i) / sum,
-    # merged by their definition (mean, covariance of the mixture), likelihood the grid mean
+    # oracle: one textbook Kalman prediction and update per grid instant, weights
+    # p(y | tau_i) / sum, merged by their definition (mean, covariance of the mixture), likelihood
+    # the grid mean
     system = boost_converter()
     T, g, u0 = 0.5e-3, 4, 100.0
     rng = np.random.default_rng(8)
@@ -119,7 +122,8 @@ def test_marginal_switch_time_step_is_the_moment_matched_posterior_mixture():
     y = np.array([113.0])
     f = SwitchTimeKalmanFilter(system, np.zeros(2), np.eye(2), grid=g, switch_time="marginal")
     prior = SwitchTimeState(x[None], P[None], np.zeros(1), np.full(1, np.nan), np.zeros(1, bool))
-    state = f.step(prior, y[None], np.array([[u0]]), dt=T, mode=np.array([1]), prev_mode=np.array([0]))
+    state = f.step(prior, y[None], np.array([[u0]]), dt=T, mode=np.array([1]),
+                   prev_mode=np.array([0]))
     tau = switch_grid(T, g)
     C, R = system.C[1], system.R[1]
     means, covs, lik = [], [], []
@@ -144,7 +148,8 @@ def test_marginal_switch_time_step_is_the_moment_matched_posterior_mixture():
 def test_marginal_switch_time_equals_the_grid_maximum_with_one_instant(boost_data):
     system, t, traj = boost_data
     x0, P0, u = np.array([0.0, 100.0]), np.diag([100.0, 100.0]), [100.0]
-    runs = [SwitchTimeKalmanFilter(system, x0, P0, grid=1, switch_time=how).run(traj.y, u, t, modes=traj.mode)
+    runs = [SwitchTimeKalmanFilter(system, x0, P0, grid=1, switch_time=how).run(traj.y, u, t,
+                                                                                modes=traj.mode)
             for how in ("max", "marginal")]
     np.testing.assert_allclose(runs[1].x, runs[0].x, rtol=1e-12, atol=1e-9)
     np.testing.assert_allclose(runs[1].P, runs[0].P, rtol=1e-10, atol=1e-10)
@@ -152,14 +157,15 @@ def test_marginal_switch_time_equals_the_grid_maximum_with_one_instant(boost_dat
 
 
 def test_marginal_switch_time_beats_the_grid_maximum_on_the_boost_converter(boost_data):
-    # Table I's setting (R = 5 V^2): one sample weighs the candidate instants better than it picks one.
-    # Paired per-trial comparison of the mean squared error of v_0 at g = 5 over 12 trials: the mean
-    # improvement must exceed 3 standard errors of the paired differences.
+    # Table I's setting (R = 5 V^2): one sample weighs the candidate instants better than it picks
+    # one. Paired per-trial comparison of the mean squared error of v_0 at g = 5 over 12 trials:
+    # the mean improvement must exceed 3 standard errors of the paired differences.
     system, t, traj = boost_data
     x0, P0, u = np.array([0.0, 100.0]), np.diag([100.0, 100.0]), [100.0]
     mse = []
     for how in ("max", "marginal"):
-        est = SwitchTimeKalmanFilter(system, x0, P0, grid=5, switch_time=how).run(traj.y, u, t, modes=traj.mode)
+        filt = SwitchTimeKalmanFilter(system, x0, P0, grid=5, switch_time=how)
+        est = filt.run(traj.y, u, t, modes=traj.mode)
         mse.append(np.mean((est.x[:, 10:, 1] - traj.x[:, 10:, 1]) ** 2, axis=1))
     gain = mse[0] - mse[1]
     assert gain.mean() > 3 * gain.std(ddof=1) / np.sqrt(gain.size)
@@ -175,7 +181,7 @@ def test_marginal_switch_time_refuses_refine_and_the_printed_likelihood():
 
 
 def test_imm_ev1_first_step_is_the_brute_force_best_path():
-    """After one prediction, destination i holds max over (j, tau) of p0_j L_0(j) L_1(i | j, tau)."""
+    """After one prediction, destination i holds max_{j, tau} p0_j L_0(j) L_1(i | j, tau)."""
     system = vehicle_2d(measurement_variance=1e-2, process_noise=1e-2)
     rng = np.random.default_rng(4)
     y = rng.normal(0.0, 0.3, (2, 2))
@@ -190,7 +196,8 @@ def test_imm_ev1_first_step_is_the_brute_force_best_path():
             x0, P0, ll0 = kf_update(np.zeros(4), np.eye(4), y[0], system.C[j], system.R[j])
             taus = [None] if i == j else switch_grid(T, g)
             for tau in taus:
-                tr = interval(system, T, [j] if tau is None else [j, i], [] if tau is None else [tau])
+                tr = interval(system, T, [j] if tau is None else [j, i],
+                              [] if tau is None else [tau])
                 xp = tr.F @ x0 + tr.G @ u
                 Pp = tr.F @ P0 @ tr.F.T + tr.Qd + 1e-3 * np.eye(4)
                 x1, P1, ll1 = kf_update(xp, Pp, y[1], system.C[i], system.R[i])

@@ -16,7 +16,9 @@ def random_case(rng, n=3, m=2, batch=(4,)):
     P = W @ np.swapaxes(W, -1, -2) + 0.1 * np.eye(n)
     V = rng.standard_normal((*batch, m, m))
     R = V @ np.swapaxes(V, -1, -2) + 0.1 * np.eye(m)
-    return rng.standard_normal((*batch, n)), P, rng.standard_normal((*batch, m)), rng.standard_normal((*batch, m, n)), R
+    x, y, C = (rng.standard_normal((*batch, n)), rng.standard_normal((*batch, m)),
+               rng.standard_normal((*batch, m, n)))
+    return x, P, y, C, R
 
 
 def test_update_matches_the_conditional_gaussian():
@@ -28,7 +30,8 @@ def test_update_matches_the_conditional_gaussian():
         K = P[b] @ C[b].T @ np.linalg.inv(S)
         np.testing.assert_allclose(xn[b], x[b] + K @ (y[b] - C[b] @ x[b]), rtol=1e-10)
         np.testing.assert_allclose(Pn[b], P[b] - K @ S @ K.T, rtol=1e-9, atol=1e-12)
-        np.testing.assert_allclose(ll[b], multivariate_normal(C[b] @ x[b], S).logpdf(y[b]), rtol=1e-11)
+        np.testing.assert_allclose(ll[b], multivariate_normal(C[b] @ x[b], S).logpdf(y[b]),
+                                   rtol=1e-11)
 
 
 def test_missing_component_uses_the_observed_marginal_exactly():
@@ -79,7 +82,8 @@ def test_predict_and_inflation():
 
 def test_singular_innovation_is_reported():
     with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
-        kf_update(np.zeros(2), np.zeros((2, 2)), np.zeros(1), np.array([[1.0, 0.0]]), np.zeros((1, 1)))
+        kf_update(np.zeros(2), np.zeros((2, 2)), np.zeros(1), np.array([[1.0, 0.0]]),
+                  np.zeros((1, 1)))
 
 
 def test_steady_state_gain_is_the_riccati_fixed_point():

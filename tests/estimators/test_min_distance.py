@@ -34,7 +34,8 @@ H = 0.0025  # grid step: delta = 100 H, Delta = 400 H
 N_DELTA = round(S.delta / H)
 W_MAX = max(S.omega)
 X_MAX = np.hypot(*S.x0) + S.input_gain * S.u_max * S.horizon  # |x(t)| <= |x0| + ||b|| u_max t
-EPS = H**2 / 8 * (W_MAX**2 * X_MAX + W_MAX * S.input_gain * S.u_max)  # |y - FOH(y)|, y'' = A(Ax + bu)
+# |y - FOH(y)|, y'' = A(Ax + bu)
+EPS = H**2 / 8 * (W_MAX**2 * X_MAX + W_MAX * S.input_gain * S.u_max)
 
 # a general system (non-normal, one output) for the kernels
 A_GEN = np.array([[[-0.4, 1.0], [-1.0, -0.3]], [[-0.1, 0.0], [0.5, -1.2]]])
@@ -43,8 +44,9 @@ GEN = SwitchedLinearSystem.continuous(A_GEN, B_GEN, [[1.0, 0.2]])
 
 
 def detector(v_max=S.v_max, system=None, **kw):
-    return MinimumDistanceDetector(S.system() if system is None else system, delta=S.delta, Delta=S.Delta,
-                                   v_max=v_max, u_max=S.u_max, observer_gains=S.observer_gains, **kw)
+    return MinimumDistanceDetector(S.system() if system is None else system, delta=S.delta,
+                                   Delta=S.Delta, v_max=v_max, u_max=S.u_max,
+                                   observer_gains=S.observer_gains, **kw)
 
 
 def scenario(trials, seed, *, signal=None, horizon=S.horizon, noise=S.v_max - EPS):
@@ -53,7 +55,8 @@ def scenario(trials, seed, *, signal=None, horizon=S.horizon, noise=S.v_max - EP
     t = H * np.arange(round(horizon / H) + 1)
     rng = np.random.default_rng(seed)
     u = S.input(t, trials, rng)
-    traj = simulate(sys, S.signal if signal is None else signal, t, np.array(S.x0), u, trials=trials, rng=rng)
+    traj = simulate(sys, S.signal if signal is None else signal, t, np.array(S.x0), u,
+                    trials=trials, rng=rng)
     v = S.noise(t, trials, rng, v_max=noise)
     return t, u, traj, v
 
@@ -74,11 +77,14 @@ def piecewise_ode(rhs, z0, t, y, u):
 
 
 def noise_term(v, t0_index, A):
-    """Oracle for (10): ``U^{-1} int phi' v`` with ``C = I``, ``U = delta I`` (Simpson, scipy expm)."""
+    """Oracle for (10): ``U^{-1} int phi' v``, ``C = I``, ``U = delta I`` (Simpson, scipy expm)."""
     s = H * np.arange(N_DELTA + 1)
     mid = s[:-1] + H / 2
     seg = v[t0_index : t0_index + N_DELTA + 1]
-    f = lambda tau, val: np.einsum("kij,kj->ki", expm(np.swapaxes(A * tau[:, None, None], 1, 2)), val)
+
+    def f(tau, val):
+        return np.einsum("kij,kj->ki", expm(np.swapaxes(A * tau[:, None, None], 1, 2)), val)
+
     ends, middle = f(s, seg), f(mid, 0.5 * (seg[:-1] + seg[1:]))
     integral = (H / 6) * (ends[:-1] + 4 * middle + ends[1:]).sum(axis=0)
     return integral / S.delta
@@ -89,7 +95,8 @@ def test_exact_step_integrates_12_13_19_and_16_exactly():
     gains = default_observer_gains(GEN)
     h = 0.3
     rng = np.random.default_rng(0)
-    core, u, y0, y1 = rng.normal(size=(2, 6)), rng.normal(size=1), rng.normal(size=1), rng.normal(size=1)
+    core, u = rng.normal(size=(2, 6)), rng.normal(size=1)
+    y0, y1 = rng.normal(size=1), rng.normal(size=1)
     tr = mode_steps(augmented_system(GEN, gains), h)
     out, energy = exact_step(core, u, y0, y1, h, tr.F, tr.Qd)
     for i in range(2):
@@ -98,9 +105,11 @@ def test_exact_step_integrates_12_13_19_and_16_exactly():
         def rhs(s, w, y, u_k, A=A, B=B, C=C, L=L):
             xt, z, xh = w[:2], w[2:4], w[4:6]
             r = y - C @ xt
-            return np.concatenate([A @ xt + B @ u_k, -A.T @ z + C.T @ r, (A - L @ C) @ xh + B @ u_k + L @ y, [r @ r]])
+            return np.concatenate([A @ xt + B @ u_k, -A.T @ z + C.T @ r,
+                                   (A - L @ C) @ xh + B @ u_k + L @ y, [r @ r]])
 
-        ref = piecewise_ode(rhs, np.concatenate([core[i], [0.0]]), np.array([0.0, h]), np.stack([y0, y1]), [u])
+        ref = piecewise_ode(rhs, np.concatenate([core[i], [0.0]]), np.array([0.0, h]),
+                            np.stack([y0, y1]), [u])
         np.testing.assert_allclose(out[i], ref[:6], rtol=1e-10, atol=1e-12)
         assert energy[i] == pytest.approx(ref[6], rel=1e-10)
 
@@ -117,13 +126,15 @@ def test_window_estimate_is_formula_7_and_its_cost_is_the_replay_15_16():
     for i in range(2):
         A, B, C = GEN.A[i], GEN.B[i], GEN.C[i]
 
-        def rhs7(s, z, y_s, u_k, A=A, B=B, C=C):  # [x_forced; Phi; int Phi'C'C Phi; int Phi'C'(y - C x_forced)]
+        # [x_forced; Phi; int Phi'C'C Phi; int Phi'C'(y - C x_forced)]
+        def rhs7(s, z, y_s, u_k, A=A, B=B, C=C):
             xf, Phi = z[:2], z[2:6].reshape(2, 2)
             r = y_s - C @ xf
-            return np.concatenate([A @ xf + B @ u_k, (A @ Phi).ravel(), (Phi.T @ C.T @ C @ Phi).ravel(),
-                                   Phi.T @ C.T @ r])
+            return np.concatenate([A @ xf + B @ u_k, (A @ Phi).ravel(),
+                                   (Phi.T @ C.T @ C @ Phi).ravel(), Phi.T @ C.T @ r])
 
-        z = piecewise_ode(rhs7, np.concatenate([np.zeros(2), np.eye(2).ravel(), np.zeros(6)]), t, y, u)
+        z0 = np.concatenate([np.zeros(2), np.eye(2).ravel(), np.zeros(6)])
+        z = piecewise_ode(rhs7, z0, t, y, u)
         X_ref = np.linalg.solve(z[6:10].reshape(2, 2), z[10:12])  # eq. (7)
         np.testing.assert_allclose(w.X[i], X_ref, rtol=1e-8, atol=1e-10)
 
@@ -140,7 +151,8 @@ def test_window_estimate_is_formula_7_and_its_cost_is_the_replay_15_16():
 @pytest.mark.parametrize("noisy", [False, True])
 def test_theorem_1_mode_exact_and_state_error_is_formula_10(noisy):
     trials = 8
-    t, u, traj, v = scenario(trials, 2, horizon=3.0, signal=lambda rng: schedule([], [int(rng.integers(2))]))
+    t, u, traj, v = scenario(trials, 2, horizon=3.0,
+                             signal=lambda rng: schedule([], [int(rng.integers(2))]))
     v = v if noisy else np.zeros_like(v)
     det = detector()
     M_max = det.constants.M_max
@@ -151,7 +163,8 @@ def test_theorem_1_mode_exact_and_state_error_is_formula_10(noisy):
         np.testing.assert_array_equal(w.mode, truth)  # eq. (9)
         X_hat = w.X[np.arange(trials), w.mode]  # eq. (8)
         for n in range(trials):
-            expected = traj.x[n, start] + noise_term(v[n], start, S.system().A[truth[n]])  # eq. (10)
+            # eq. (10)
+            expected = traj.x[n, start] + noise_term(v[n], start, S.system().A[truth[n]])
             assert np.linalg.norm(X_hat[n] - expected) <= M_max * EPS
             if noisy:  # the noise term is far above the tolerance: the test sees it
                 assert np.linalg.norm(expected - traj.x[n, start]) > 10 * M_max * EPS
@@ -178,10 +191,14 @@ def test_theorem_1_in_the_whole_algorithm_and_the_catch_up_of_18_19():
             if k1 >= t.size:
                 continue
             m = traj.mode[n, k0]
-            assert est.mode[n, k1] == m and np.all(est.mode[n, k0:k1] == -1)  # (9); no estimate inside
+            # (9); no estimate inside
+            assert est.mode[n, k1] == m and np.all(est.mode[n, k0:k1] == -1)
             x0 = traj.x[n, k0] + noise_term(v[n, :], k0, A[m])  # formula (10)
             sl = slice(k0, k1 + 1)
-            rhs = lambda s, x, y_s, u_k, m=m: (A[m] - L[m]) @ x + B[m] @ u_k + L[m] @ y_s
+
+            def rhs(s, x, y_s, u_k, m=m):
+                return (A[m] - L[m]) @ x + B[m] @ u_k + L[m] @ y_s
+
             ref = piecewise_ode(rhs, x0, t[sl], y[n, sl], u[n, sl])
             # same data, initial states apart by |X* - x - w| <= M EPS, contracted by e^{-a delta}
             assert np.linalg.norm(est.x[n, k1] - ref) <= tol
@@ -312,8 +329,8 @@ def test_random_noise_above_the_configured_bound_breaks_the_no_false_alarm_guara
     t, u, traj, v = scenario(10, 5, horizon=5.0, noise=3 * S.v_max)
     est = detector().run(traj.x + v, u, t)
     m = match_detections(est.switch_time, traj.signals, Delta=S.Delta, t_end=t[-1])
-    a = lee_assumptions(S.system(), u_max=S.u_max, v_max=3 * S.v_max, x_min=S.x_min(), delta=S.delta,
-                        Delta=S.Delta, observer_gains=S.observer_gains)
+    a = lee_assumptions(S.system(), u_max=S.u_max, v_max=3 * S.v_max, x_min=S.x_min(),
+                        delta=S.delta, Delta=S.Delta, observer_gains=S.observer_gains)
     assert not a.holds and not a.condition4.holds
     assert m.false > 0
 
@@ -350,7 +367,8 @@ def test_missing_samples_hold_the_last_output():
     a, b = det.run(holed, u, t), det.run(held, u, t)
     np.testing.assert_array_equal(a.x, b.x)
     np.testing.assert_array_equal(a.mode, b.mode)
-    assert np.all(np.isfinite(a.x[:, N_DELTA : round(S.min_dwell / H)]))  # no NaN leaks before any switch
+    # no NaN leaks before any switch
+    assert np.all(np.isfinite(a.x[:, N_DELTA : round(S.min_dwell / H)]))
     holed[:, 0] = np.nan
     with pytest.raises(ValueError, match="y must be finite at the first sample"):
         det.run(holed, u, t)
@@ -363,11 +381,13 @@ def test_bad_input_is_refused_with_a_message():
         MinimumDistanceDetector("sys", delta=0.25, Delta=1.0, v_max=0.1)
     with pytest.raises(ValueError, match="v_max must be a finite positive number"):
         detector(v_max=0.0)
-    with pytest.raises(ValueError, match=r"delta must be a positive multiple of the grid step 0.003"):
+    with pytest.raises(ValueError,
+                       match=r"delta must be a positive multiple of the grid step 0.003"):
         detector().run(y, u[0], t * 1.2)
     bent = t.copy()
     bent[5:] += 1e-4
-    with pytest.raises(ValueError, match=r"t must be a uniform grid: sample 5 is 0.0026 after the previous one"):
+    with pytest.raises(ValueError, match=r"t must be a uniform grid: sample 5 is 0.0026 after "
+                                         r"the previous one"):
         detector().run(y, u[0], bent)
     d = detector()
     state = d.step(d.step(d.init(()), y[0], dt=None), y[1], u[0, 0], dt=t[1] - t[0])

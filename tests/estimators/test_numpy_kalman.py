@@ -22,7 +22,8 @@ def test_spd_solve_matches_lapack_and_refuses_indefinite(seed, m, k):
     S = random_psd(rng, (5,), m) + 0.1 * np.eye(m)
     B = rng.standard_normal((5, m, k))
     X, logdet = spd_solve(S, B)
-    np.testing.assert_allclose(S @ X, B, atol=1e-9 * (1 + np.abs(B).max()) * np.linalg.cond(S).max())
+    np.testing.assert_allclose(S @ X, B,
+                               atol=1e-9 * (1 + np.abs(B).max()) * np.linalg.cond(S).max())
     np.testing.assert_allclose(logdet, np.linalg.slogdet(S)[1], rtol=1e-10, atol=1e-10)
     bad = S.copy()
     bad[2] = -np.eye(m)
@@ -49,8 +50,10 @@ def test_shared_factor_products_equal_the_stacked_ones():
     P = random_psd(rng, (6, 3), 5)
     F = rng.standard_normal((5, 5))
     np.testing.assert_allclose(mul(A, B), A @ np.broadcast_to(B, (3, 2, 5)), rtol=1e-12)
-    np.testing.assert_allclose(matvec(M, v), (np.broadcast_to(M, (3, 4, 5)) @ v[..., None])[..., 0], rtol=1e-12)
-    np.testing.assert_allclose(congruence(F, P), congruence(np.broadcast_to(F, (3, 5, 5)), P), rtol=1e-11)
+    np.testing.assert_allclose(matvec(M, v), (np.broadcast_to(M, (3, 4, 5)) @ v[..., None])[..., 0],
+                               rtol=1e-12)
+    np.testing.assert_allclose(congruence(F, P), congruence(np.broadcast_to(F, (3, 5, 5)), P),
+                               rtol=1e-11)
     np.testing.assert_allclose(congruence(F, P), F @ P @ F.T, rtol=1e-11)
 
 

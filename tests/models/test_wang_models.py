@@ -17,7 +17,8 @@ from switchest.models.wang import (
 )
 
 PAPER = {
-    "provenance": "Wang, Yin, Lin, Polis, Chen — Example 1 (§4.1), Example 2 (§4.3), §6 (Example 5)",
+    "provenance": ("Wang, Yin, Lin, Polis, Chen — Example 1 (§4.1), Example 2 (§4.3), "
+                   "§6 (Example 5)"),
     # Example 1: Kalman-Bucy subsystem filters, a1 = 2, a2 = 4, T = 0.03, p = 0.2
     "gamma_bar": {"values": (1.0794, 0.8836), "decimals": 4},
     # Example 2: T_max^1 = ln(1/(1-p))/(2 a1), T_max^2 = ln(1/p)/(2 a2)

@@ -6,7 +6,8 @@ after it happened, provided (Assumption 2, conditions (3) and (4)), for all t::
 
     omega_min(delta) |x(t)|^2 > (u_max sqrt(N_u(delta)) + 2 v_max sqrt(delta))^2          (3)
     omega_min(Delta) |x(t)|^2 > 1/2 (u_max sqrt(N_u(Delta)) + 2 v_max sqrt(Delta)
-                                     + 2 v_max C_max (mu_c e^{lam_c Delta} + 1)^2 E_hat(delta) sqrt(Delta))^2   (4)
+                                     + 2 v_max C_max (mu_c e^{lam_c Delta} + 1)^2
+                                       E_hat(delta) sqrt(Delta))^2                        (4)
 
 with ``||e^{A_i t}|| <= mu_c e^{lam_c t}`` (``mu_c >= 1``, ``lam_c >= 0``; the paper's
 check accents), ``||e^{(A_i - L_i C_i) t}|| <= mu_h e^{-lam_h t}`` (hat accents),
@@ -139,7 +140,10 @@ class LeeConstants:
     bound_horizon: float
 
     def S_Delta(self, v_max: float) -> float:
-        """``S_Delta = v_max^2 (1 + C_max (mu e^{lambda Delta} + 2) E_hat(delta))^2 Delta`` (§IV)."""
+        """The bound ``S_Delta`` of §IV.
+
+        ``S_Delta = v_max^2 (1 + C_max (mu e^{lambda Delta} + 2) E_hat(delta))^2 Delta``
+        """
         v_max = positive_scalar(v_max, "v_max", allow_zero=True)
         return v_max * v_max * self.s_factor  # a product: inf, not OverflowError, for a huge v_max
 
@@ -249,7 +253,8 @@ def default_observer_gains(system: SwitchedLinearSystem) -> np.ndarray:
     for i in range(system.n_modes):
         A, C = system.A[i], system.C[i]
         if not is_observable(A, C):
-            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), (A_{i}, C_{i}) is not")
+            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), "
+                             f"(A_{i}, C_{i}) is not")
         rho = max(1.0, 2.0 * float(np.max(np.abs(np.linalg.eigvals(A)))))
         poles = -rho * (1.0 + 0.25 * np.arange(system.n_states))
         gains.append(place_poles(A.T, C.T, poles).gain_matrix.T)
@@ -257,7 +262,7 @@ def default_observer_gains(system: SwitchedLinearSystem) -> np.ndarray:
 
 
 def decay_observer_gains(system: SwitchedLinearSystem, decay: float) -> np.ndarray:
-    """Observer gains placing the poles of ``A_i - L_i C_i`` at ``-a``, ``-1.25 a``, ... for ``a = decay``.
+    """Observer gains: poles of ``A_i - L_i C_i`` at ``-a``, ``-1.25 a``, ... for ``a = decay``.
 
     Each pole is repeated ``rank C_i`` times (the multiplicity
     ``scipy.signal.place_poles`` allows), so with ``C_i = I`` every pole is ``-a``:
@@ -275,7 +280,8 @@ def decay_observer_gains(system: SwitchedLinearSystem, decay: float) -> np.ndarr
     for i in range(system.n_modes):
         A, C = system.A[i], system.C[i]
         if not is_observable(A, C):
-            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), (A_{i}, C_{i}) is not")
+            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), "
+                             f"(A_{i}, C_{i}) is not")
         poles = -a * (1.0 + 0.25 * (np.arange(system.n_states) // np.linalg.matrix_rank(C)))
         gains.append(place_poles(A.T, C.T, poles).gain_matrix.T)
     return np.array(gains)
@@ -310,7 +316,8 @@ def observability_gramians(system: SwitchedLinearSystem, t) -> np.ndarray:
 
 
 def lee_constants(
-    system: SwitchedLinearSystem, delta: float, Delta: float, observer_gains=None, *, n_grid: int = 2001
+    system: SwitchedLinearSystem, delta: float, Delta: float, observer_gains=None, *,
+    n_grid: int = 2001,
 ) -> LeeConstants:
     """The constants of Lee et al. §II (and ``S_Delta`` of §IV) for windows ``delta``, ``Delta``.
 
@@ -356,8 +363,8 @@ def lee_constants(
     ratio_h = _bound_ratio(closed, mu_h, -lam_h, horizon)
     if max(ratio_c, ratio_h) > 1.0 + _BOUND_TOL:
         raise RuntimeError(
-            f"the Lyapunov bounds failed their numerical check (ratios {ratio_c:.6g}, {ratio_h:.6g} > 1): "
-            "the system is too ill-conditioned for them"
+            f"the Lyapunov bounds failed their numerical check (ratios {ratio_c:.6g}, "
+            f"{ratio_h:.6g} > 1): the system is too ill-conditioned for them"
         )
     return LeeConstants(
         delta=delta,
@@ -441,10 +448,13 @@ def lee_assumptions(
     rhs3 = (u_max * np.sqrt(k.N_u_delta) + 2 * v_max * np.sqrt(k.delta)) ** 2
     lhs4 = k.omega_min_Delta * x_min * x_min
     rhs4 = 0.5 * (u_max * np.sqrt(k.N_u_Delta) + v_max * _noise_gain4(k)) ** 2
-    c3 = LeeCondition(holds=bool(lhs3 > rhs3), margin=float(lhs3 - rhs3), lhs=float(lhs3), rhs=float(rhs3))
-    c4 = LeeCondition(holds=bool(lhs4 > rhs4), margin=float(lhs4 - rhs4), lhs=float(lhs4), rhs=float(rhs4))
+    c3 = LeeCondition(holds=bool(lhs3 > rhs3), margin=float(lhs3 - rhs3), lhs=float(lhs3),
+                      rhs=float(rhs3))
+    c4 = LeeCondition(holds=bool(lhs4 > rhs4), margin=float(lhs4 - rhs4), lhs=float(lhs4),
+                      rhs=float(rhs4))
     a3 = _assumption3(signal, min_dwell, k.delta, k.Delta)
-    v3 = (np.sqrt(k.omega_min_delta) * x_min - u_max * np.sqrt(k.N_u_delta)) / (2 * np.sqrt(k.delta))
+    v3 = ((np.sqrt(k.omega_min_delta) * x_min - u_max * np.sqrt(k.N_u_delta))
+          / (2 * np.sqrt(k.delta)))
     v4 = (np.sqrt(2 * k.omega_min_Delta) * x_min - u_max * np.sqrt(k.N_u_Delta)) / _noise_gain4(k)
     holds = a1.holds and c3.holds and c4.holds and (a3 is None or a3.holds)
     return LeeAssumptions(
@@ -539,7 +549,8 @@ def _check_system(system) -> None:
     if not isinstance(system, SwitchedLinearSystem):
         raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
     if not system.is_continuous:
-        raise ValueError(f"system must be continuous-time (Lee et al. eq. (1)), got {system.domain!r}")
+        raise ValueError(f"system must be continuous-time (Lee et al. eq. (1)), "
+                         f"got {system.domain!r}")
 
 
 def _gains(system: SwitchedLinearSystem, observer_gains) -> np.ndarray:
@@ -552,7 +563,8 @@ def _gains(system: SwitchedLinearSystem, observer_gains) -> np.ndarray:
     if gains.ndim == 2:
         gains = np.broadcast_to(gains, (L, *gains.shape))
     if gains.shape != (L, n, m):
-        raise ValueError(f"observer_gains must have shape (L, n, m) = ({L}, {n}, {m}), got {gains.shape}")
+        raise ValueError(f"observer_gains must have shape (L, n, m) = ({L}, {n}, {m}), "
+                         f"got {gains.shape}")
     abscissa = np.linalg.eigvals(system.A - gains @ system.C).real.max(axis=1)
     if np.any(abscissa >= 0):
         i = int(np.argmax(abscissa))
@@ -674,7 +686,8 @@ def _shift_table(A: np.ndarray) -> _ShiftTable:
     abscissa = float(np.linalg.eigvals(A).real.max())
     scale = max(1.0, float(np.max(np.linalg.norm(A, ord=2, axis=(1, 2)))))
     shifts = abscissa + scale * np.logspace(-4, 3, _N_SHIFTS)
-    M = np.swapaxes(A, 1, 2)[None] - shifts[:, None, None, None] * np.eye(n)  # (A_i - rI)', (S, L, n, n)
+    # (A_i - rI)', (S, L, n, n)
+    M = np.swapaxes(A, 1, 2)[None] - shifts[:, None, None, None] * np.eye(n)
     eye = np.eye(n)
     # M P + P M' = -I  <=>  (I kron M + M kron I) vec(P) = -vec(I)   (P symmetric)
     K = np.einsum("ac,slbd->slabcd", eye, M) + np.einsum("slac,bd->slabcd", M, eye)
@@ -741,7 +754,8 @@ def _assumption3(signal, min_dwell, delta: float, Delta: float) -> LeeCondition 
     signals = [signal] if isinstance(signal, SwitchingSignal) else list(signal)
     for i, s in enumerate(signals):
         if not isinstance(s, SwitchingSignal):
-            raise TypeError(f"signal must be a SwitchingSignal or a sequence of them, got {type(s).__name__} at {i}")
+            raise TypeError(f"signal must be a SwitchingSignal or a sequence of them, "
+                            f"got {type(s).__name__} at {i}")
     gaps = [np.diff(s.times) for s in signals]
     dwell = min((float(g.min()) for g in gaps if g.size), default=np.inf)
     first = min((float(s.times[0]) for s in signals if s.times.size), default=np.inf)

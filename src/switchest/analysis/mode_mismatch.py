@@ -826,7 +826,8 @@ def _check_lam(lam, L: int) -> np.ndarray:
     lam = float_array(lam, "lam", ndim=2)
     if lam.shape != (L, L):
         raise ValueError(
-            f"lam must have shape ({L}, {L}) (lam[i, q], one row and column per mode), got {lam.shape}"
+            f"lam must have shape ({L}, {L}) (lam[i, q], one row and column per mode), "
+            f"got {lam.shape}"
         )
     check_finite(lam, "lam")
     if np.any(lam < 0):

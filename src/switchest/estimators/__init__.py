@@ -10,7 +10,9 @@ module and compiled kernels only (not the detectors' analysis, scipy.optimize or
 
 from importlib import import_module
 
-from .base import Estimate, Estimator
+# the protocol, re-exported (the redundant aliases say so to linters; __all__ is computed)
+from .base import Estimate as Estimate
+from .base import Estimator as Estimator
 
 # module -> the names it defines that the package exports
 _EXPORTS = {

@@ -94,7 +94,9 @@ _GRID_RTOL = 1e-6
 
 
 # ---------------------------------------------------------------------- kernels
-def augmented_system(system: SwitchedLinearSystem, observer_gains: np.ndarray) -> SwitchedLinearSystem:
+def augmented_system(
+    system: SwitchedLinearSystem, observer_gains: np.ndarray
+) -> SwitchedLinearSystem:
     """The dual system whose exact discretization integrates one grid step of the algorithm.
 
     Per mode, with ``Z = [x~; z; x^; u; y; y_dot]`` (sizes n, n, n, l, m, m; ``u``
@@ -324,15 +326,18 @@ class MinimumDistanceDetector(Estimator):
         self._K = np.linalg.solve(k.U, np.swapaxes(e_A, 1, 2))  # U_i^{-1} e^{A_i' delta}, (14)
         self._augmented = augmented_system(system, self.observer_gains)
 
-    def assumptions(self, x_min: float, *, signal=None, min_dwell: float | None = None) -> LeeAssumptions:
+    def assumptions(
+        self, x_min: float, *, signal=None, min_dwell: float | None = None
+    ) -> LeeAssumptions:
         """Lee et al. Assumptions 1-3 for this detector's windows, bounds and gains.
 
         See :func:`switchest.analysis.min_distance_design.lee_assumptions`; ``x_min`` bounds
         ``|x(t)|`` from below, ``signal`` / ``min_dwell`` check Assumption 3.
         """
         return lee_assumptions(self.system, u_max=self.u_max, v_max=self.v_max, x_min=x_min,
-                               delta=self.delta, Delta=self.Delta, observer_gains=self.observer_gains,
-                               signal=signal, min_dwell=min_dwell)
+                               delta=self.delta, Delta=self.Delta,
+                               observer_gains=self.observer_gains, signal=signal,
+                               min_dwell=min_dwell)
 
     # ------------------------------------------------------------------ protocol
     def init(self, batch_shape=()) -> MinDistanceState:
@@ -369,7 +374,8 @@ class MinimumDistanceDetector(Estimator):
         missing = np.isnan(y).any(axis=-1, keepdims=True)
         y = np.where(missing, state.y_last, y)  # a missing sample holds the last output
         if np.isnan(y).any():
-            raise ValueError("y must be finite at the first sample of every trial (nothing to hold yet)")
+            raise ValueError("y must be finite at the first sample of every trial "
+                             "(nothing to hold yet)")
         if dt is None:
             return replace(state, y_last=y, detected=np.zeros_like(state.detected))
         h = self._grid_step(state.h, dt)
@@ -407,7 +413,8 @@ class MinimumDistanceDetector(Estimator):
         x_check = np.where(reset[..., None], x_hat, x_check)
         k_up = np.where(reset, 0, k_up)
         energy = s_hist[..., -1] - self._lagged(s_hist, h)  # s(t) - s(t - Delta)
-        fired = detecting & ((~old & (gap > self.threshold)) | (energy > self.S_Delta))  # (23), (24)
+        # (23), (24)
+        fired = detecting & ((~old & (gap > self.threshold)) | (energy > self.S_Delta))
 
         estimating = (state.estimating & ~done) | fired
         zero_win = fired | done
@@ -467,8 +474,8 @@ class MinimumDistanceDetector(Estimator):
         off = np.flatnonzero(np.abs(steps - steps[0]) > _GRID_RTOL * steps[0]) if steps.size else ()
         if len(off):  # checked up front, so the message can name the sample
             k = int(off[0]) + 1
-            raise ValueError(f"t must be a uniform grid: sample {k} is {steps[k - 1]:.6g} after the previous "
-                             f"one, the first step is {steps[0]:.6g}")
+            raise ValueError(f"t must be a uniform grid: sample {k} is {steps[k - 1]:.6g} after "
+                             f"the previous one, the first step is {steps[0]:.6g}")
         if steps.size:  # the history of s over the last Delta, one value per grid step and trial
             check_memory(8 * y2.shape[0] * (self.Delta / steps[0] + 2),
                          f"Delta / (grid step) = {self.Delta / steps[0]:.3g} values of s per trial "
@@ -485,17 +492,19 @@ class MinimumDistanceDetector(Estimator):
         y2, u2, t, batch = self._prepare(y, u, t)
         h = self._grid_step(np.array(np.nan), t[1] - t[0]) if t.size > 1 else np.nan
         if t.size < 2 or t.size - 1 != self._steps(h):
-            raise ValueError(f"t must span exactly delta = {self.delta:g} (delta / step + 1 samples), "
-                             f"got {t.size} samples over {t[-1] - t[0]:g}")
+            raise ValueError(f"t must span exactly delta = {self.delta:g} "
+                             f"(delta / step + 1 samples), got {t.size} samples over "
+                             f"{t[-1] - t[0]:g}")
         state = self.init((y2.shape[0],))
         for k in range(t.size - 1):
             self._grid_step(np.array(h), t[k + 1] - t[k])
             tr = mode_steps(self._augmented, h)
-            win, e = exact_step(state.window, u2[:, k, None, :], y2[:, k, None, :], y2[:, k + 1, None, :],
-                                h, tr.F, tr.Qd)
+            win, e = exact_step(state.window, u2[:, k, None, :], y2[:, k, None, :],
+                                y2[:, k + 1, None, :], h, tr.F, tr.Qd)
             state = replace(state, window=win, rho=state.rho + e)
         n = self.system.n_states
-        X, J, mode = window_estimate(state.window[..., n : 2 * n], state.rho, self._K, self.constants.U)
+        X, J, mode = window_estimate(state.window[..., n : 2 * n], state.rho, self._K,
+                                     self.constants.U)
         return WindowEstimate(mode=mode.reshape(batch), X=X.reshape(*batch, *X.shape[1:]),
                               J=J.reshape(*batch, *J.shape[1:]))
 
@@ -507,7 +516,8 @@ class MinimumDistanceDetector(Estimator):
             return dt
         h = float(h_state)
         if abs(dt - h) > _GRID_RTOL * h:
-            raise ValueError(f"dt must stay equal to the first grid step {h:g} (uniform grid), got {dt:g}")
+            raise ValueError(f"dt must stay equal to the first grid step {h:g} (uniform grid), "
+                             f"got {dt:g}")
         return h
 
     def _steps(self, h: float) -> int:
@@ -515,8 +525,8 @@ class MinimumDistanceDetector(Estimator):
         k = round(self.delta / h)
         if k < 1 or abs(k * h - self.delta) > _GRID_RTOL * self.delta:
             raise ValueError(
-                f"delta must be a positive multiple of the grid step {h:g}, got delta = {self.delta:g} "
-                f"(delta / step = {self.delta / h:.6g})"
+                f"delta must be a positive multiple of the grid step {h:g}, "
+                f"got delta = {self.delta:g} (delta / step = {self.delta / h:.6g})"
             )
         return k
 
@@ -526,7 +536,7 @@ class MinimumDistanceDetector(Estimator):
         return c, c - self.Delta / h
 
     def _shifted(self, hist: np.ndarray, newest: np.ndarray, h: float) -> np.ndarray:
-        """Append the newest ``s (N,)`` and keep the last ``c + 1`` values (allocated on first use)."""
+        """Append the newest ``s (N,)``, keep the last ``c + 1`` values (allocated on first use)."""
         c, _ = self._lag(h)
         if hist.shape[-1] != c + 1:
             hist = np.zeros((*newest.shape, c + 1))

@@ -227,7 +227,8 @@ class ModeKalmanFilter(Estimator):
     def _segments(self, segments, batch, t) -> tuple[np.ndarray, np.ndarray]:
         """Validate ``(modes, offsets)``: modes in range, offsets finite in their interval."""
         if not (isinstance(segments, tuple) and len(segments) == 2):
-            raise TypeError("segments must be a tuple (modes (..., K-1, S+1), offsets (..., K-1, S))")
+            raise TypeError("segments must be a tuple "
+                            "(modes (..., K-1, S+1), offsets (..., K-1, S))")
         K = t.size
         seg_m = int_array(segments[0], "segments[0] (modes)")
         seg_o = float_array(segments[1], "segments[1] (offsets)")

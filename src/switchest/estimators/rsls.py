@@ -1,4 +1,4 @@
-"""Subsystem observers for randomly switched systems with unobservable modes (Wang et al., seed 003).
+"""Subsystem observers for random switching among unobservable modes (Wang et al., seed 003).
 
 Wang et al. §3: mode i observes only the sub-state ``z^i = F_i x``. Its
 sub-observer runs closed loop while ``alpha_k = i``::
@@ -146,7 +146,7 @@ class RSLSObserver(Estimator):
 
     # ------------------------------------------------------------------ protocol
     def init(self, batch_shape=()) -> RSLSState:
-        """The prior ``s = [F x0; x0]``, ``Sigma = [F; I] P0 [F; I]'``, replicated over ``batch_shape``."""
+        """The prior ``s = [F x0; x0]``, ``Sigma = [F; I] P0 [F; I]'``, one per ``batch_shape``."""
         d = self._lift.shape[0]
         m = self.system.n_outputs
         return RSLSState(

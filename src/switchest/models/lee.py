@@ -135,10 +135,11 @@ class LeeScenario:
         """
         rng = as_rng(rng)
         first = int(rng.integers(2))
-        return dwell_time(2, self.horizon, self.min_dwell, self.max_dwell, rng=rng, initial_mode=first)
+        return dwell_time(2, self.horizon, self.min_dwell, self.max_dwell, rng=rng,
+                          initial_mode=first)
 
     def input(self, t, trials: int, rng) -> np.ndarray:
-        """``u(t) = u_max sin(w t + phi)`` per trial, random ``w`` and ``phi``; shape (trials, K, 1)."""
+        """``u(t) = u_max sin(w t + phi)``, random ``w`` and ``phi`` per trial; (trials, K, 1)."""
         t = float_array(t, "t", ndim=1)
         trials = positive_int(trials, "trials")
         rng = as_rng(rng)
