@@ -18,9 +18,11 @@ switching instant integrated out over the grid instead of maximized, with the
 mean absolute switching-time error and the run time of each.
 
 The paper does not state the process noise, the prior or the transient it
-discards; here: process-noise intensity ``I`` (the model's default), the true
-initial state ``[0 A, 100 V]`` with prior covariance ``diag(100, 100)``, and the
-RMSE taken over the samples after the first 5 ms.
+discards; this script uses the recipe of the ``shankar-table1`` reproduction
+(:class:`switchest.models.shankar.BoostTable1`): process-noise intensity ``I``,
+initial states drawn from the prior ``N([0 A, 100 V], diag(25, 25))`` that every
+filter starts from, the IMM's switch probability 0.48 per sample, and the RMSE
+taken over the samples after the first 10 ms.
 
 Run ``python examples/shankar_table1.py``; the paper's size (100 trials x 10 s,
 two million samples) takes most of an hour on two shared cores, nearly all of
@@ -31,53 +33,34 @@ it in the refined search.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import partial
 
 import numpy as np
 from rich.console import Console
 from rich.table import Table
 from threadpoolctl import threadpool_limits
 
-from switchest.estimators import (
-    Estimate,
-    IMMEV1Filter,
-    IMMFilter,
-    ModeKalmanFilter,
-    SwitchTimeKalmanFilter,
+from switchest.experiments.shankar import (
+    TABLE1_PAPER,  # Table I as printed: g, i_L (A), v_0 (V)
+    table1_estimate,
 )
-from switchest.experiments.shankar import TABLE1_PAPER  # Table I as printed: g, i_L (A), v_0 (V)
 from switchest.metrics import mode_accuracy, rmse, switch_time_error
-from switchest.models import (
-    BOOST_INPUT_VOLTAGE,
-    BOOST_SAMPLE_PERIOD,
-    boost_converter,
-    boost_switching,
-)
-from switchest.signals import periodic
-from switchest.simulate import Trajectory, simulate
+from switchest.models.shankar import BOOST_SAMPLE_PERIOD, BoostTable1
+from switchest.simulate import Trajectory
 
 TRIALS = 100  # Table I: "100 trials"
 DURATION = 10.0  # §V.A: "We simulated 10 seconds of operation"
 GRIDS = (1, 2, 3, 4, 5)  # Table I: T/g = 0.5, 0.25, 0.167, 0.125, 0.1 ms
 SEED = 2019
-
-X0 = np.array([0.0, 100.0])  # true initial state and prior mean: i_L = 0 A, v_0 = 100 V
-P0 = np.diag([100.0, 100.0])
-DISCARD = 5e-3  # seconds of initial transient left out of the RMSE
-
-# The IMM assumes switches at the samples with probability T / (mean gap) per interval.
-MEAN_GAP = (0.9e-3 + 1.2e-3) / 2
-P_SWITCH = BOOST_SAMPLE_PERIOD / MEAN_GAP
-IMM_TRANSITION = np.array([[1 - P_SWITCH, P_SWITCH], [P_SWITCH, 1 - P_SWITCH]])
+SETTING = BoostTable1()  # model, prior, switching, IMM transition and transient of Table I
 
 
 @dataclass(frozen=True)
 class Row:
     """One filter on the common data.
 
-    ``rmse`` is ``(i_L, v_0)`` over trials and samples after :data:`DISCARD`;
+    ``rmse`` is ``(i_L, v_0)`` over trials and samples after ``SETTING.transient``;
     ``switch_error`` the mean ``|t_hat - t|`` in seconds over intervals where both
     the truth and the filter have a switch (NaN if none); ``mode_accuracy`` the
     fraction of samples whose estimated mode is the true one (NaN when the modes
@@ -93,23 +76,14 @@ class Row:
     paper: tuple[float, float] | None = None
 
 
-# %% Data: the switching scenario of §V.A, one random signal per trial
-def boost_data(*, trials: int, duration: float, seed: int) -> Trajectory:
-    """Simulate ``trials`` runs of the boost converter over ``duration`` seconds."""
-    system = boost_converter()
-    t = periodic(BOOST_SAMPLE_PERIOD, duration)
-    return simulate(system, lambda rng: boost_switching(rng, t_end=duration), t, X0,
-                    u=np.array([BOOST_INPUT_VOLTAGE]), trials=trials, rng=seed)
-
-
 # %% Filters: time each run, score it against the truth
-def score(name: str, g: int | None, run: Callable[[], Estimate], traj: Trajectory,
-          true_switch: np.ndarray) -> Row:
-    """Run one filter and score it against ``traj`` (``true_switch = traj.switch_times()``)."""
+def score(name: str, method: str, g: int | None, traj: Trajectory, true_switch: np.ndarray) -> Row:
+    """Run one filter of Table I's recipe (:func:`table1_estimate`) and score it against
+    ``traj`` (``true_switch = traj.switch_times()``)."""
     start = time.perf_counter()
-    est = run()
+    est = table1_estimate(SETTING, method, traj, g=g)
     seconds = time.perf_counter() - start
-    first = round(DISCARD / BOOST_SAMPLE_PERIOD)
+    first = SETTING.transient
     errors = [] if est.switch_time is None else switch_time_error(est.switch_time, true_switch)
     paper = None
     if name == "switch-time KF" and g in TABLE1_PAPER["g"]:
@@ -131,33 +105,18 @@ def main(*, trials: int = TRIALS, duration: float = DURATION, grids: Sequence[in
     """Reproduce Table I and its baselines; print the table and return its rows."""
     console = console or Console(width=150)
     with threadpool_limits(1):  # tiny matrices: threaded BLAS only adds contention
-        traj = boost_data(trials=trials, duration=duration, seed=seed)
-        system, t, y, u = boost_converter(), traj.t, traj.y, np.array([BOOST_INPUT_VOLTAGE])
+        traj = SETTING.simulate(duration, trials, seed)  # one random switching signal per trial
         true = traj.switch_times()
-
-        def clairvoyant():
-            return ModeKalmanFilter(system, X0, P0).run(y, u, t, modes=traj.mode,
-                                                        segments=traj.segments())
-
-        def grid_filter(g, polish, how="max"):
-            return SwitchTimeKalmanFilter(system, X0, P0, grid=g, refine=polish, switch_time=how).run(
-                y, u, t, modes=traj.mode)
-
-        def imm():
-            return IMMFilter(system, IMM_TRANSITION, X0, P0).run(y, u, t)
-
-        def imm_ev1(g, how):
-            return IMMEV1Filter(system, x0=X0, P0=P0, grid=g, switch_time=how).run(y, u, t)
-
-        jobs = [("clairvoyant", None, clairvoyant)]
-        for polish in (False, True) if refine else (False,):
-            name = "switch-time KF, refined" if polish else "switch-time KF"
-            jobs += [(name, g, partial(grid_filter, g, polish)) for g in grids]
-        jobs += [("switch-time KF, tau marginalized", g, partial(grid_filter, g, False, "marginal")) for g in grids]
-        jobs.append(("IMM", None, imm))
-        for name, how in (("IMM-EV1 (Alg. 1)", "max"), ("IMM-EV1, tau marginalized", "marginal")):
-            jobs += [(name, g, partial(imm_ev1, g, how)) for g in grids]
-        rows = [score(name, g, run, traj, true) for name, g, run in jobs]
+        jobs = [("clairvoyant", "clairvoyant", None)]
+        grid_methods = [("switch-time KF", "grid")]
+        grid_methods += [("switch-time KF, refined", "refine")] if refine else []
+        grid_methods += [("switch-time KF, tau marginalized", "marginal")]
+        jobs += [(name, method, g) for name, method in grid_methods for g in grids]
+        jobs.append(("IMM", "imm", None))
+        for name, method in (("IMM-EV1 (Alg. 1)", "imm-ev1"),
+                             ("IMM-EV1, tau marginalized", "imm-ev1-marginal")):
+            jobs += [(name, method, g) for g in grids]
+        rows = [score(name, method, g, traj, true) for name, method, g in jobs]
     console.print(render(rows, trials=trials, duration=duration))
     return rows
 

@@ -79,7 +79,7 @@ def test_demo_refuses_a_size_it_cannot_hold_and_a_duration_it_cannot_score(capsy
     assert ("--trials 1000000000 x 201 samples (--duration 0.1 s at T = 0.5 ms) would need about "
             "6.03e+04 GB; the demo is limited to 1,000,000 trials x samples") in err
     err = one_line_error(capsys, main(["demo", "--duration", "0.001"]))
-    assert "--duration 0.001: the demo scores the filters after their first 10 samples" in err
+    assert "--duration 0.001: the demo scores the filters after their first 20 samples" in err
 
 
 def test_trials_are_passed_through_and_refused_by_the_experiment(tmp_path, capsys):

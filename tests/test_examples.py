@@ -80,7 +80,7 @@ def test_table1_clairvoyant_filter_is_far_below_the_others(table1):
 
 def test_table1_one_point_grid_puts_every_switch_at_the_midpoint(table1):
     ex, rows, _ = table1
-    traj = ex.boost_data(trials=3, duration=0.02, seed=0)
+    traj = ex.SETTING.simulate(0.02, 3, 0)  # the data main() ran on
     true = traj.switch_times()
     k = np.nonzero(np.isfinite(true))[1]
     midpoint = traj.t[k - 1] + BOOST_SAMPLE_PERIOD / 2

@@ -43,7 +43,6 @@ DEMO_MAX_SAMPLES = 10**6
 """Most trials x samples ``switchest demo`` simulates and filters (about 0.3 GB)."""
 
 _DEMO_BYTES_PER_SAMPLE = 300  # peak memory per trial and sample of the demo: 230-330 B measured
-_DEMO_SCORE_START = 10  # the demo scores the filters after their first 10 samples
 _METHODS = ("kalman", "switch-time", "imm", "imm-ev1", "min-distance", "rsls", "impulsive")
 """The registered method names (``switchest.estimators.registry.METHOD_NAMES``, which
 ``switchest.tabular.METHODS`` is), repeated so that building the parser imports neither the
@@ -210,14 +209,15 @@ def _check_demo_size(trials: int, duration: float) -> None:
     """Refuse a demo too short to score or too large to hold in memory, before simulating."""
     import numpy as np
 
-    from .models import BOOST_SAMPLE_PERIOD
+    from .models.shankar import BOOST_SAMPLE_PERIOD, BoostTable1
 
     samples = np.floor(duration / BOOST_SAMPLE_PERIOD + 1e-9) + 1  # a float: may exceed any int
-    if samples <= _DEMO_SCORE_START:
+    start = BoostTable1.transient  # the samples Table I's recipe leaves out of the scores
+    if samples <= start:
         raise _UsageError(
             f"--duration {duration:g}: the demo scores the filters after their first "
-            f"{_DEMO_SCORE_START} samples (T = {BOOST_SAMPLE_PERIOD * 1e3:g} ms); give at least "
-            f"{_DEMO_SCORE_START * BOOST_SAMPLE_PERIOD:g} s")
+            f"{start} samples (T = {BOOST_SAMPLE_PERIOD * 1e3:g} ms); give at least "
+            f"{start * BOOST_SAMPLE_PERIOD:g} s")
     if trials * samples > DEMO_MAX_SAMPLES:
         gigabytes = trials * samples * _DEMO_BYTES_PER_SAMPLE / 1e9
         raise _UsageError(
@@ -229,48 +229,36 @@ def _check_demo_size(trials: int, duration: float) -> None:
 
 
 def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
-    """Simulate the boost converter of Shankar et al. §V.A and compare four filters."""
-    import numpy as np
+    """Simulate the boost converter of Shankar et al. §V.A and compare four filters, in the
+    setting of the Table I reproduction (:class:`~switchest.models.shankar.BoostTable1`: model,
+    prior, switching, methods), scored after its transient (``BoostTable1.transient`` samples)."""
     from rich.table import Table
 
-    from .estimators import IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
+    from .experiments.shankar import table1_estimate
     from .metrics import mode_accuracy, rmse, switch_time_error
-    from .models import BOOST_INPUT_VOLTAGE, BOOST_SAMPLE_PERIOD, boost_converter, boost_switching
-    from .signals import periodic
-    from .simulate import simulate
+    from .models.shankar import BOOST_SAMPLE_PERIOD, BoostTable1
 
-    system = boost_converter()
-    t = periodic(BOOST_SAMPLE_PERIOD, duration)
-    u = np.array([BOOST_INPUT_VOLTAGE])
-    x0, P0 = np.array([0.0, 100.0]), np.diag([100.0, 100.0])
+    setting = BoostTable1()
     t_start = time.perf_counter()
-    traj = simulate(system, lambda rng: boost_switching(rng, t_end=duration), t, x0, u=u,
-                    trials=trials, rng=seed)
+    traj = setting.simulate(duration, trials, seed)
     console.print(
-        f"simulated {trials} trials x {t.size} samples of the boost converter "
+        f"simulated {trials} trials x {traj.t.size} samples of the boost converter "
         f"(T = {BOOST_SAMPLE_PERIOD * 1e3:g} ms, switches every 1.2 ms, then random in "
         f"[0.9, 1.2] ms from 0.02 s) in {time.perf_counter() - t_start:.2f} s"
     )
-    imm_transition = [[0.5, 0.5], [0.5, 0.5]]
-    filters = {
-        "clairvoyant (true switch times)": lambda: ModeKalmanFilter(system, x0, P0).run(
-            traj.y, u, t, modes=traj.mode, segments=traj.segments()),
-        "switch-time KF, g = 1": lambda: SwitchTimeKalmanFilter(system, x0, P0, grid=1).run(
-            traj.y, u, t, modes=traj.mode),
-        "switch-time KF, g = 5": lambda: SwitchTimeKalmanFilter(system, x0, P0, grid=5).run(
-            traj.y, u, t, modes=traj.mode),
-        "IMM (modes unknown)": lambda: IMMFilter(system, imm_transition, x0, P0).run(traj.y, u, t),
-    }
-    table = Table(title=f"Boost converter: RMSE after the first {_DEMO_SCORE_START} samples")
+    filters = {"clairvoyant (true switch times)": ("clairvoyant", None),
+               "switch-time KF, g = 1": ("grid", 1), "switch-time KF, g = 5": ("grid", 5),
+               "IMM (modes unknown)": ("imm", None)}
+    start = setting.transient
+    table = Table(title=f"Boost converter: RMSE after the first {start} samples")
     table.add_column("filter", no_wrap=True)
     for col in ("RMSE i_L (A)", "RMSE v_0 (V)", "mode accuracy", "switch-time error (ms)",
                 "time (s)"):
         table.add_column(col, justify="right")
     true_switch = traj.switch_times()
-    start = _DEMO_SCORE_START
-    for name, run in filters.items():
+    for name, (method, g) in filters.items():
         t_start = time.perf_counter()
-        est = run()
+        est = table1_estimate(setting, method, traj, g=g)
         elapsed = time.perf_counter() - t_start
         r = rmse(est.x, traj.x, start=start).overall
         acc = "-" if est.mode is None else f"{mode_accuracy(est.mode, traj.mode, start=start):.3f}"

@@ -5,7 +5,7 @@ import pytest
 
 from switchest.experiments import Store, get, run_experiment
 from switchest.experiments.bakeoff import METHODS, cases, min_distance_inapplicable
-from switchest.experiments.scoring import combine, split_variants
+from switchest.experiments.scoring import merge_blocks, split_variants
 
 DETECTOR = "min-distance detector (Lee)"
 
@@ -40,7 +40,7 @@ def test_bakeoff_quick(quick):
 
 def test_min_distance_detector_on_the_fsk_case(quick):
     _, results, _ = quick
-    tot = combine([res for cfg, res in results if cfg["case"] == "FSK phasor" and cfg["method"] == "min-distance"])
+    tot = merge_blocks([res for cfg, res in results if cfg["case"] == "FSK phasor" and cfg["method"] == "min-distance"])
     wrong = tot["count"] - tot["mode_hits"]
     # Theorem 1: the mode found by every window is the true one, so the wrong samples are those between a
     # switch and its declaration (each delay rounded up) or after an undeclared switch less than

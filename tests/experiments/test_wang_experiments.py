@@ -6,8 +6,8 @@ compare them with exact moments rebuilt here from the library's error system, wi
 tolerance of ``Z_MAX`` standard errors of the run's trial count. Example 1's first
 component is heavy-tailed (its fourth moment grows without bound), so its sample standard
 error is not a tolerance: it is checked given the simulated modes, where the window sum has
-exactly mean 0 and variance 1 after standardization (``_given_modes``), and that check is
-shown to fail for a wrong gain.
+exactly mean 0 and variance 1 after standardization (``window_sums_given_modes``, whose
+power against a wrong gain tests/analysis/test_error_moments.py shows).
 """
 
 import json
@@ -23,6 +23,7 @@ from switchest.experiments import (
     get,
     wang,  # registers wang-examples and wang-ieee5bus
 )
+from switchest.experiments.scoring import merge_blocks
 from switchest.models import (
     IEEE_5BUS_INITIAL_ERROR,
     IEEE_5BUS_SAMPLE_PERIOD,
@@ -40,17 +41,8 @@ NAMES = ("wang-examples", "wang-ieee5bus")
 
 def _summed(results, **match):
     """Per-block ``stats`` of the matching tasks, summed (nested dicts of arrays)."""
-    total = None
-    for cfg, res in results:
-        if all(cfg[k] == v for k, v in match.items()):
-            total = res["stats"] if total is None else _add(total, res["stats"])
-    return total
-
-
-def _add(a, b):
-    if isinstance(a, dict):
-        return {k: _add(a[k], b[k]) for k in a}
-    return (np.asarray(a, float) + np.asarray(b, float)).tolist()
+    return merge_blocks(res["stats"] for cfg, res in results
+                        if all(cfg[k] == v for k, v in match.items()))
 
 
 def _mean_se(s, sq, n):
@@ -139,23 +131,6 @@ def test_examples_monte_carlo_given_the_modes(runs):
     assert find_row(summary, "Monte Carlo given the simulated modes").measured < Z_MAX
 
 
-def test_given_modes_check_detects_a_wrong_gain():
-    """The conditional check can fail: the same runs judged against another gain's error system."""
-    ex = WANG_EXAMPLES["example1"]
-    system, p = ex.system(), ex.probabilities()
-    rng = np.random.default_rng(7)
-    traj, t = wang._simulate(system, p, ex.T, 40, 10, 300, rng)
-    e0 = np.array([2.0, 2.0])
-    err = wang._errors(system, wang._scalar_gains(40.0, 15.0), ex.T, e0, traj, t)
-    modes = traj.mode[:, :-1]
-    right = wang._given_modes(system, wang._scalar_gains(40.0, 15.0), ex.T, e0, modes, err, 20, np.eye(2))
-    # L1 = 20 has almost the same steady state as 40 (0.4878 vs 0.4874): only the path-wise check sees it
-    wrong = wang._given_modes(system, wang._scalar_gains(20.0, 30.0), ex.T, e0, modes, err, 20, np.eye(2))
-    for g, ok in ((right, True), (wrong, False)):
-        z = np.abs(np.asarray(g["dev"]) / np.sqrt(g["var"]))
-        assert np.all(z < Z_MAX) if ok else np.all(z > Z_MAX)
-
-
 def test_examples_light_tailed_component_matches_the_recursion(runs):
     """Component 2 (tail index far above 4): MC time averages vs exact moments within Z_MAX sample SE."""
     _, results, _ = runs["wang-examples"]
@@ -166,7 +141,7 @@ def test_examples_light_tailed_component_matches_the_recursion(runs):
         (L1, L2), = cfg["gains"]
         s = tot[f"L1={L1:g},L2={L2:g}"]
         mc, se = _mean_se(s["win_sum"][1], s["win_sq"][1], tot["trials"])
-        exact = _exact_diag(ex.system(), wang._scalar_gains(L1, L2), ex.T, ex.probabilities(), cfg["e0"],
+        exact = _exact_diag(ex.system(), wang.scalar_gains(L1, L2), ex.T, ex.probabilities(), cfg["e0"],
                             cfg["horizon"])
         assert abs(mc - exact[cfg["window"]:, 1].mean()) < Z_MAX * se, figure
 
@@ -231,7 +206,7 @@ def test_bus_monte_carlo_matches_the_exact_moments(runs):
     means = {}
     for design in ("first", "aggressive"):
         tot = _summed(results, design=design)
-        gains = wang._bus_gains(design)
+        gains = wang.bus_gains(design)
         N, Nc = tot["trials"], tot["clear"]["trials"]
         assert N == params["trials"] and Nc <= N
         mc, se = _mean_se(tot["total"]["win_sum"][0], tot["total"]["win_sq"][0], N)

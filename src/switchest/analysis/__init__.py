@@ -12,7 +12,9 @@ designs:
 * :mod:`.min_distance_design`: the minimum-distance detector's constants and windows
   (Lee, paper 002);
 * :mod:`.subsystem_observers`: mean-square design of subsystem observers (Wang, paper 003);
-* :mod:`.impulsive_lmis`: the impulsive observer's LMIs and rates (Etienne et al., 004).
+* :mod:`.error_moments`: their error's moments per component and given the modes (Wang, 003);
+* :mod:`.impulsive_lmis`: the impulsive observer's LMIs and rates (Etienne et al., 004);
+* :mod:`.scalar_search`: the largest feasible scalar of a monotone problem (bracket, bisect).
 
 Names that carried a theorem number remain importable as deprecated aliases
 (:data:`DEPRECATED_NAMES`, old name -> new name). Each name is imported from its module at
@@ -25,6 +27,10 @@ from importlib import import_module
 
 # module -> the names it defines that the package exports
 _EXPORTS = {
+    "error_moments": ("ComponentOptimum", "ScalarErrorMoments", "WindowSums",
+                      "component_steady_state", "moment_fixed_point", "moment_matrix",
+                      "optimal_component_gain", "scalar_error_moments", "state_error_moments",
+                      "window_average_sd", "window_sums_given_modes"),
     "impulsive_lmis": ("ClosedLoopCertificate", "ImpulsiveObserverCertificate",
                        "ImpulsiveObserverSearch", "closed_loop_matrices",
                        "impulsive_closed_loop_analysis", "impulsive_closed_loop_decay_rate",
@@ -46,6 +52,7 @@ _EXPORTS = {
                       "joint_gramian", "joint_observability", "kalman_decomposition",
                       "mode_decompositions", "mode_observability", "observability_matrix",
                       "omega_min", "uniform_observability"),
+    "scalar_search": ("largest_feasible",),
     "stability": ("JSRBounds", "LyapunovCertificate", "MeanSquareStability", "cqlf",
                   "decrease_margin", "jsr_bounds", "ms_stable_iid", "spectral_radius"),
     "steady_state_kalman": ("steady_state_gain",),

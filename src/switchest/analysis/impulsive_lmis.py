@@ -95,6 +95,7 @@ from .._linalg import symmetrize
 from ..system import SwitchedLinearSystem
 from ._deprecation import renamed_field
 from ._lmi import cp, max_eigenvalue, min_eigenvalue, solve_sdp, symmetric_block
+from .scalar_search import largest_feasible
 
 __all__ = [
     "ClosedLoopCertificate",
@@ -535,24 +536,13 @@ def impulsive_observer_search(
             lo = (
                 -2 * impulsive_observer_decay_rate(0.0, ms, mc, tau_min, tau_max, dwell) + alpha_tol
             )  # beta > 0 from here
-            cert = problem.solve(lo, ms, mc)
-            if not cert.lmi_feasible:
+            found = largest_feasible(  # bracket by doubling steps, then bisect
+                lambda alpha, ms=ms, mc=mc: problem.solve(alpha, ms, mc),
+                lambda cert: cert.lmi_feasible, lo, tol=alpha_tol, step=1.0, doublings=12)
+            if found is None:
                 continue
-            step, hi = 1.0, None
-            for _ in range(12):  # bracket: double the step until the LMIs fail
-                trial = problem.solve(lo + step, ms, mc)
-                if not trial.lmi_feasible:
-                    hi = lo + step
-                    break
-                lo, cert, step = lo + step, trial, 2 * step
-            while hi is not None and hi - lo > alpha_tol:
-                mid = 0.5 * (lo + hi)
-                trial = problem.solve(mid, ms, mc)
-                if trial.lmi_feasible:
-                    lo, cert = mid, trial
-                else:
-                    hi = mid
-            alphas[r, c], betas[r, c] = lo, cert.beta
+            alphas[r, c], cert = found
+            betas[r, c] = cert.beta
             if cert.holds and (best is None or cert.beta > best.beta):
                 best = cert
     if best is None:

@@ -30,7 +30,7 @@ from ..switching import Dwell, MarkovContinuous, Schedule
 from ..system import SwitchedLinearSystem
 from ..tabular import transition_for
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, combine, score, split_variants
+from .scoring import blocks, merge_groups, score
 
 
 @dataclass(frozen=True)
@@ -219,10 +219,8 @@ def _stay(spec: ModelSpec, t: np.ndarray) -> float | None:
 
 
 def _summary(p: dict, results, out: Path) -> Summary:
-    grouped: dict[tuple[str, str], list] = {}
-    for cfg, res in split_variants(results):
-        grouped.setdefault((cfg["case"], cfg["method"]), []).append(res)
-    totals = {key: combine(v) for key, v in grouped.items()}
+    totals = {key: tot for key, (_, tot)
+              in merge_groups(results, lambda c: (c["case"], c["method"])).items()}
     all_cases = cases()
     rows, rel = [], {m: [] for m in METHODS}
     for case in p["cases"]:

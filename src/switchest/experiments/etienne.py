@@ -34,13 +34,14 @@ from ..analysis.impulsive_lmis import (
     impulsive_observer_search,
     impulsive_observer_synthesis,
 )
+from ..analysis.scalar_search import largest_feasible
 from ..estimators.impulsive import ImpulsiveObserver, simulate_observer_control
 from ..models import ETIENNE_SCENARIO, etienne_academic
 from ..plotting import curves
 from ..signals import aperiodic, dwell_time
 from ..simulate import simulate
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, split_variants
+from .scoring import blocks, merge_groups, split_variants
 
 S = ETIENNE_SCENARIO
 GRID_STEP = 0.05  # time grid (s) on which the per-block envelopes are held and combined
@@ -86,36 +87,18 @@ def _decay_stats(norm: np.ndarray, t: np.ndarray) -> dict:
             "rate_sum": float(rate.sum()), "trials": int(norm.shape[0])}
 
 
-def _merge(results: list[dict]) -> dict:
-    """Combine the blocks of one configuration.
-
-    Numbers add, except ``*_min`` / ``*_max`` (min / max); the per-sample
-    :data:`SERIES` stay per block (each block has its own sample times); anything
-    else (certificates, the example trial) is taken from the first block with it.
-    """
-    total: dict = {"blocks": []}
-    for res in results:
-        total["blocks"].append({k: np.asarray(res[k]) for k in SERIES})
-        for key, value in res.items():
-            if key in SERIES:
-                continue
-            if not isinstance(value, (int, float)):
-                total.setdefault(key, value)
-            elif key.endswith("_min"):
-                total[key] = min(total.get(key, math.inf), value)
-            elif key.endswith("_max"):
-                total[key] = max(total.get(key, -math.inf), value)
-            else:
-                total[key] = total.get(key, 0) + value
-    return total
-
-
 def _group(results, key: str) -> dict:
-    """``config[key]`` -> merged results of its blocks (variants split)."""
-    groups: dict = {}
-    for cfg, res in split_variants(results):
-        groups.setdefault(cfg[key], []).append(res)
-    return {k: _merge(v) for k, v in groups.items()}
+    """``config[key]`` -> the results of its blocks merged: numbers add, except ``*_min`` /
+    ``*_max``; the per-sample :data:`SERIES` stay per block (each block has its own sample
+    times); certificates and the example trial come from the first block with them."""
+    rules = {"per_block": SERIES, "first": ("certificate", "example"),
+             "minimum": ("rate_min", "roundoff_min"), "maximum": ("overshoot_max", "window_max")}
+    return {k: tot for k, (_, tot) in merge_groups(results, lambda c: c[key], **rules).items()}
+
+
+def _series(total: dict):
+    """The blocks' per-sample :data:`SERIES`, one dict per block."""
+    return [dict(zip(SERIES, values, strict=True)) for values in zip(*(total[k] for k in SERIES))]
 
 
 def _time_grid(horizon: float) -> np.ndarray:
@@ -125,19 +108,19 @@ def _time_grid(horizon: float) -> np.ndarray:
 def _envelope(total: dict, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Worst-case and geometric-mean ratio over all trials, each sample's value held to the next."""
     held = {key: np.stack([b[key][np.searchsorted(b["t"], grid, side="right") - 1]
-                           for b in total["blocks"]]) for key in ("worst_log", "sum_log")}
+                           for b in _series(total)]) for key in ("worst_log", "sum_log")}
     return np.exp(held["worst_log"].max(axis=0)), np.exp(held["sum_log"].sum(axis=0) / total["trials"])
 
 
 def _bound_excess(total: dict, M: float, beta: float) -> float:
     """Largest ``ratio(t_k+) / (M exp(-beta (t_k - t_0)))`` over all trials and samples (<= 1: holds)."""
     return float(max(np.max(np.exp(b["worst_log"] + beta * (b["t"] - b["t"][0]))) / M
-                     for b in total["blocks"]))
+                     for b in _series(total)))
 
 
 def _final_worst(total: dict) -> float:
     """Largest ``||.||(t_K) / ||.||(t_0+)`` over all trials of all blocks."""
-    return float(np.exp(max(b["worst_log"][-1] for b in total["blocks"])))
+    return float(np.exp(max(worst[-1] for worst in total["worst_log"])))
 
 
 def _example(t: np.ndarray, x: np.ndarray, err: np.ndarray, err0: np.ndarray, mode: np.ndarray,
@@ -255,7 +238,7 @@ def _sync_rows(p: dict, paper: dict, search: dict) -> list[Row]:
 def _sync_summary(p: dict, results, out: Path) -> Summary:
     by = _group(results, "gains")
     paper, search = by["paper"], by["search"]
-    t0 = paper["blocks"][0]["t"]
+    t0 = paper["t"][0]
     grid = _time_grid(p["horizon"])
     series = {}
     for name, tot in (("paper's scalars", paper), ("searched scalars", search)):
@@ -393,27 +376,17 @@ def _search_run(cfg: dict) -> dict:
     """
     mu_s, mu_c, tol = cfg["mu_s"], cfg["mu_c"], cfg["alpha_tol"]
     lmis = _theorem10()
-
-    def feasible(alpha, alpha_bar) -> bool:
-        return lmis.analyze(0.0, alpha, alpha_bar, mu_s, mu_c, mu_c).lmi_feasible
-
     # rate > 0 at delta = 0 from here
     floor = -2 * impulsive_observer_decay_rate(0.0, mu_s, mu_c, S.tau_min, S.tau_max, S.dwell) + tol
     points = []
     for alpha_bar in sorted(cfg["alpha_bar"]):
-        if not feasible(floor, alpha_bar):
+        found = largest_feasible(
+            lambda alpha, ab=alpha_bar: lmis.analyze(0.0, alpha, ab, mu_s, mu_c, mu_c),
+            lambda cert: cert.lmi_feasible, floor, tol=tol, step=0.25, doublings=10)
+        if found is None:
             points.append({"alpha_bar": alpha_bar, "alpha": None, "delta": None})
             continue
-        lo, hi, step = floor, None, 0.25
-        for _ in range(10):
-            if not feasible(lo + step, alpha_bar):
-                hi = lo + step
-                break
-            lo, step = lo + step, 2 * step
-        while hi is not None and hi - lo > tol:
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if feasible(mid, alpha_bar) else (lo, mid)
-        floor = lo
+        lo = floor = found[0]
         points.append({"alpha_bar": alpha_bar, "alpha": lo,
                        "delta": _largest_delay(lo, alpha_bar, mu_s, mu_c, mu_c)})
     out = {"mu_s": mu_s, "mu_c": mu_c, "points": points, "n_solves": lmis.n_solves,

@@ -33,13 +33,11 @@ from ..models.lee import LEE_SCENARIO, LeeScenario
 from ..plotting import curves
 from ..simulate import simulate
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, split_variants
+from .scoring import blocks, merge_groups
 
 EXAMPLE_STRIDE = 4  # grid points kept in the stored example trial
 MODE_OFFSET = 0.05  # the estimated mode is drawn this much above the true one, so both stay visible
 DELAY_AXIS = np.linspace(0.0, 1.5, 151)  # detection delay / Delta for the delay distribution
-_COUNTS = ("n_switches", "on_time", "late", "missed", "censored", "false", "windows", "windows_clean",
-           "windows_correct", "trials")
 
 
 # ------------------------------------------------------------------ tasks
@@ -183,21 +181,10 @@ def _example(t, traj, est) -> dict:
 # ------------------------------------------------------------------ summary
 def _grouped(results) -> dict[tuple[float, float], dict]:
     """(noise, told) -> counts summed, delays concatenated, extremes over the blocks, examples."""
-    out: dict[tuple[float, float], dict] = {}
-    for cfg, res in split_variants(results):
-        g = out.setdefault((cfg["noise"], cfg["told"]), {k: 0 for k in _COUNTS} | {
-            "delays": [], "observer_ratio": 0.0, "observer_samples": 0, "x_min_seen": np.inf, "v_seen": 0.0,
-            "dwell_seen": np.inf, "first_switch_seen": np.inf, "elapsed": 0.0})
-        for k in (*_COUNTS, "observer_samples", "elapsed"):
-            g[k] += res[k]
-        g["delays"] += res["delays"]
-        for k in ("observer_ratio", "v_seen"):
-            g[k] = max(g[k], res[k])
-        for k in ("x_min_seen", "dwell_seen", "first_switch_seen"):
-            g[k] = min(g[k], res[k])
-        if "example" in res:
-            g["example"] = res["example"]
-    return out
+    groups = merge_groups(results, lambda c: (c["noise"], c["told"]), concatenate=("delays",),
+                          first=("example",), maximum=("observer_ratio", "v_seen"),
+                          minimum=("x_min_seen", "dwell_seen", "first_switch_seen"))
+    return {key: tot for key, (_, tot) in groups.items()}
 
 
 def _assumptions(v_max: float, duration: float) -> LeeAssumptions:

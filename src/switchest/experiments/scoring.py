@@ -1,13 +1,16 @@
-"""Trial blocks, the variants a task runs on its block, and additive error statistics of an
-estimate, so that trial blocks combine by summation."""
+"""Trial blocks, the variants a task runs on its block, additive error statistics of an
+estimate, and the one merge of the blocks' results that every experiment's summary uses."""
 
 from __future__ import annotations
+
+from collections.abc import Callable, Collection, Hashable, Iterable
+from typing import NamedTuple
 
 import numpy as np
 
 from ..metrics import switch_time_error
 
-__all__ = ["blocks", "split_variants", "score", "combine"]
+__all__ = ["blocks", "merge_blocks", "merge_groups", "score", "split_variants"]
 
 
 def blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
@@ -70,13 +73,78 @@ def score(est, traj, start: int, defined: np.ndarray | None = None) -> dict:
     return out
 
 
-def combine(results: list[dict]) -> dict:
-    """Sum the statistics of several blocks (lists element-wise)."""
+def merge_blocks(results: Iterable[dict], *, first: Collection[str] = (),
+                 per_block: Collection[str] = (), concatenate: Collection[str] = (),
+                 minimum: Collection[str] = (), maximum: Collection[str] = ()) -> dict:
+    """Merge the results of the trial blocks of one configuration, in the order given.
+
+    By default a number adds, a list adds element-wise (as a float array), a dict merges
+    by the same rules, and anything else (text, ``None``) keeps its first value. A key
+    listed in ``first`` keeps its first block's value (a certificate, an example trial),
+    in ``per_block`` the list of its blocks' values as arrays (series on each block's own
+    time grid), in ``concatenate`` the concatenated lists (one entry per event), in
+    ``minimum`` / ``maximum`` the extreme over the blocks. A key missing from some blocks
+    merges over the blocks that have it.
+    """
+    rules = _Rules(first, per_block, concatenate, minimum, maximum)
     total: dict = {}
-    for r in results:
-        for k, v in r.items():
-            if isinstance(v, list):
-                total[k] = total[k] + np.asarray(v, float) if k in total else np.asarray(v, float)
-            elif isinstance(v, (int, float)):
-                total[k] = total.get(k, 0) + v
+    for result in results:
+        _merge_into(total, result, rules)
     return total
+
+
+def merge_groups(results: Iterable[tuple[dict, dict]], key: Callable[[dict], Hashable],
+                 **rules: Collection[str]) -> dict[Hashable, tuple[dict, dict]]:
+    """``key(config)`` -> (its first configuration, :func:`merge_blocks` of its results).
+
+    Tasks that ran several variants on one block are split first
+    (:func:`split_variants`); groups keep the order of ``results``.
+    """
+    groups: dict[Hashable, tuple[dict, list]] = {}
+    for cfg, res in split_variants(list(results)):
+        groups.setdefault(key(cfg), (cfg, []))[1].append(res)
+    return {k: (cfg, merge_blocks(v, **rules)) for k, (cfg, v) in groups.items()}
+
+
+class _Rules(NamedTuple):
+    first: Collection[str]
+    per_block: Collection[str]
+    concatenate: Collection[str]
+    minimum: Collection[str]
+    maximum: Collection[str]
+
+
+def _merge_into(total: dict, result: dict, rules: _Rules) -> None:
+    """Add one block's ``result`` to ``total`` (the blocks merged so far), in place."""
+    for key, value in result.items():
+        if key in rules.per_block:
+            total.setdefault(key, []).append(np.asarray(value))
+        elif key not in total:
+            total[key] = _first_value(key, value, rules)
+        elif key in rules.concatenate:
+            total[key] = total[key] + list(value)
+        elif key in rules.minimum:
+            total[key] = min(total[key], value)
+        elif key in rules.maximum:
+            total[key] = max(total[key], value)
+        elif key in rules.first:
+            continue
+        elif isinstance(value, dict):
+            _merge_into(total[key], value, rules)
+        elif isinstance(value, list):
+            total[key] = total[key] + np.asarray(value, float)
+        elif isinstance(value, (int, float)):
+            total[key] = total[key] + value
+
+
+def _first_value(key: str, value, rules: _Rules):
+    """The merged value of a key after the first block that has it."""
+    if key in rules.concatenate:
+        return list(value)
+    if isinstance(value, dict) and key not in rules.first:
+        merged: dict = {}
+        _merge_into(merged, value, rules)
+        return merged
+    if isinstance(value, list) and key not in rules.first:
+        return np.asarray(value, float)
+    return value

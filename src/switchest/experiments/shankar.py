@@ -14,21 +14,20 @@ import numpy as np
 
 from ..analysis.switch_time_bounds import switch_matrix_bounds
 from ..discretize import interval
-from ..estimators import IMMEV1Filter, IMMFilter, ModeKalmanFilter, SwitchTimeKalmanFilter
-from ..models import (
-    BOOST_INPUT_VOLTAGE,
-    BOOST_SAMPLE_PERIOD,
-    boost_converter,
-    boost_switching,
-    vehicle_2d,
-    vehicle_maneuver,
+from ..estimators import (
+    Estimate,
+    IMMEV1Filter,
+    IMMFilter,
+    ModeKalmanFilter,
+    SwitchTimeKalmanFilter,
 )
+from ..models import BOOST_SAMPLE_PERIOD, boost_converter, vehicle_2d, vehicle_maneuver
+from ..models.shankar import BoostTable1
 from ..plotting import curves, trajectory
-from ..signals import periodic
-from ..simulate import simulate
+from ..simulate import Trajectory, simulate
 from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, combine, score, split_variants
+from .scoring import blocks, merge_blocks, merge_groups, score, split_variants
 
 # Shankar et al. Table I (100 trials, T = 0.5 ms): RMSE for g = 1..5
 TABLE1_PAPER = {
@@ -36,10 +35,7 @@ TABLE1_PAPER = {
     "i_L": [13.5, 10.7, 9.40, 9.17, 9.09],
     "v_0": [2.74, 2.15, 2.00, 1.96, 1.89],
 }
-BOOST_X0 = np.array([0.0, 100.0])
-BOOST_P0 = np.diag([25.0, 25.0])
-# per-sample switch probability ~ T / mean dwell = 0.5 ms / 1.05 ms
-BOOST_TRANSITION = np.array([[0.52, 0.48], [0.48, 0.52]])
+TABLE1_METHODS = ("clairvoyant", "grid", "refine", "marginal", "imm", "imm-ev1", "imm-ev1-marginal")
 VEHICLE_P0 = 0.01 * np.eye(4)
 VEHICLE_TRANSITION = np.array([[0.9, 0.05, 0.05], [0.05, 0.9, 0.05], [0.05, 0.05, 0.9]])
 
@@ -57,32 +53,49 @@ def _table1_tasks(p: dict) -> list[dict]:
             for b, n in blocks(p["trials"], p["block_size"])]
 
 
+def table1_estimate(setting: BoostTable1, method: str, traj: Trajectory, *, g: int | None = None,
+                    system: SwitchedLinearSystem | None = None) -> Estimate:
+    """One method of Table I's comparison on trajectories of ``setting`` (Shankar et al. §V.A).
+
+    ``method``: ``"clairvoyant"`` (the mode Kalman filter told the true switching times),
+    ``"grid"`` (the switch-time Kalman filter of eq. (23) on ``g`` grid points, modes at the
+    samples given), ``"refine"`` (its grid maximum polished on the exact likelihood),
+    ``"marginal"`` (the switching time integrated out over the grid), ``"imm"`` (modes
+    unknown, switches at the samples), ``"imm-ev1"`` (Algorithm 1: modes and switching times
+    unknown) and ``"imm-ev1-marginal"`` (its switching time integrated out). Every filter
+    starts from the setting's prior; ``system`` (default ``setting.system()``) saves
+    rebuilding it for each method.
+    """
+    system = setting.system() if system is None else system
+    (x0, P0), u, t = setting.prior, setting.input, traj.t
+    if method == "clairvoyant":
+        return ModeKalmanFilter(system, x0, P0).run(traj.y, u, t, modes=traj.mode,
+                                                    segments=traj.segments())
+    if method in ("grid", "refine", "marginal"):
+        return SwitchTimeKalmanFilter(
+            system, x0, P0, grid=g, refine=method == "refine",
+            switch_time="marginal" if method == "marginal" else "max",
+        ).run(traj.y, u, t, modes=traj.mode)
+    if method == "imm":
+        return IMMFilter(system, np.array(setting.transition), x0, P0).run(traj.y, u, t)
+    if method == "imm-ev1":
+        return IMMEV1Filter(system, x0=x0, P0=P0, grid=g).run(traj.y, u, t)
+    if method == "imm-ev1-marginal":
+        return IMMEV1Filter(system, x0=x0, P0=P0, grid=g, switch_time="marginal").run(traj.y, u, t)
+    raise ValueError(f"method must be one of {', '.join(TABLE1_METHODS)}, got {method!r}")
+
+
 def _table1_run(cfg: dict, rng: np.random.Generator) -> dict:
-    system = boost_converter(process_noise=cfg["process_noise"])
-    t = periodic(BOOST_SAMPLE_PERIOD, cfg["duration"])
-    u = np.array([BOOST_INPUT_VOLTAGE])
-    traj = simulate(system, lambda r: boost_switching(r, t_end=cfg["duration"]), t,
-                    (BOOST_X0, BOOST_P0), u=u, trials=cfg["trials"], rng=rng)
-    return {"variants": [_table1_method(m, system, traj, u, cfg["start"])
+    setting = BoostTable1(process_noise=cfg["process_noise"])
+    system, traj = setting.system(), setting.simulate(cfg["duration"], cfg["trials"], rng)
+    return {"variants": [_table1_method(setting, m, system, traj, cfg["start"])
                          for m in cfg["variants"]]}
 
 
-def _table1_method(m: dict, system, traj, u: np.ndarray, start: int) -> dict:
+def _table1_method(setting: BoostTable1, m: dict, system, traj, start: int) -> dict:
     """One method on the block's trajectories: its scores and its run time (``elapsed``, s)."""
     begin = time.perf_counter()
-    method, t = m["method"], traj.t
-    if method == "clairvoyant":
-        est = ModeKalmanFilter(system, BOOST_X0, BOOST_P0).run(traj.y, u, t, modes=traj.mode,
-                                                               segments=traj.segments())
-    elif method in ("grid", "refine", "marginal"):
-        est = SwitchTimeKalmanFilter(
-            system, BOOST_X0, BOOST_P0, grid=m["g"], refine=method == "refine",
-            switch_time="marginal" if method == "marginal" else "max",
-        ).run(traj.y, u, t, modes=traj.mode)
-    elif method == "imm":
-        est = IMMFilter(system, BOOST_TRANSITION, BOOST_X0, BOOST_P0).run(traj.y, u, t)
-    else:
-        est = IMMEV1Filter(system, x0=BOOST_X0, P0=BOOST_P0, grid=m["g"]).run(traj.y, u, t)
+    est = table1_estimate(setting, m["method"], traj, g=m.get("g"), system=system)
     out = score(est, traj, start)
     out.pop("sse_per_step")
     return {**out, "elapsed": time.perf_counter() - begin}
@@ -98,13 +111,7 @@ def _label(cfg: dict) -> str:
 
 def _by_method(results: list[tuple[dict, dict]]) -> dict[str, tuple[dict, dict]]:
     """Method label -> (a configuration of it, its statistics summed over the blocks)."""
-    groups: dict[str, list] = {}
-    first: dict[str, dict] = {}
-    for cfg, res in split_variants(results):
-        key = _label(cfg)
-        groups.setdefault(key, []).append(res)
-        first.setdefault(key, cfg)
-    return {k: (first[k], combine(v)) for k, v in groups.items()}
+    return merge_groups(results, _label)
 
 
 def _table1_summary(p: dict, results, out: Path) -> Summary:
@@ -165,7 +172,8 @@ register(Experiment(
     # per worker; single trials would spend most of a task in per-call overhead.
     defaults=dict(trials=100, duration=10.0, grids=[1, 2, 3, 4, 5], refine_grids=[1, 2],
                   marginal_grids=[1, 2, 3, 4, 5],
-                  ev1_grids=[1, 5], process_noise=1.0, block_size=10, start=20),
+                  ev1_grids=[1, 5], process_noise=BoostTable1.process_noise, block_size=10,
+                  start=BoostTable1.transient),
     quick=dict(trials=4, duration=0.25, block_size=2),
     tasks=_table1_tasks,
     run_task=_table1_run,
@@ -209,7 +217,7 @@ def _vehicle_run(cfg: dict, rng: np.random.Generator) -> dict:
 def _vehicle_summary(p: dict, results, out: Path) -> Summary:
     man = vehicle_maneuver()
     rows, per_step, examples = [], {}, {}
-    for label, (cfg, tot) in _by_method(results).items():
+    for label, (_, tot) in _by_method(results).items():
         rmse = np.sqrt(tot["sse"] / tot["count"])
         per_step[label] = np.sqrt(np.asarray(tot["sse_per_step"]) / tot["trials"])
         extra = []
@@ -303,11 +311,9 @@ def _lemma2_run(cfg: dict, rng: np.random.Generator) -> dict:
 
 
 def _lemma2_summary(p: dict, results, out: Path) -> Summary:
-    random_res = [r for c, r in results if "cases" in c]
+    drawn = merge_blocks((r for c, r in results if "cases" in c), maximum=("worst_F", "worst_G"))
     boost = next(r for c, r in results if c.get("system") == "boost")
-    cases = sum(r["cases"] for r in random_res)
-    worst_F = max(r["worst_F"] for r in random_res)
-    worst_G = max(r["worst_G"] for r in random_res)
+    cases, worst_F, worst_G = drawn["cases"], drawn["worst_F"], drawn["worst_G"]
     tt = np.asarray(boost["t_tilde"]) * 1e3
     fig = curves(out / "shankar-lemma2.png", tt,
                  {"actual ||F~||": np.asarray(boost["actual_F"]), "bound (11)": np.asarray(boost["bound_F"])},

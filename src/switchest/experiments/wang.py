@@ -8,7 +8,7 @@ a fine grid (``simulate(..., output="integrated")``) — and run
 the error dynamics (Theorem 1) do not depend on ``x``, and a growing ``x`` would
 only cost floating-point digits. The Monte Carlo mean squared error is compared
 with the exact second-moment recursion and the steady state of eq. (21)
-(:func:`~switchest.analysis.subsystem_observers.second_moments`,
+(:func:`~switchest.analysis.error_moments.state_error_moments`,
 :func:`~switchest.analysis.subsystem_observers.steady_state`). A task simulates one trial
 block of a model once and runs every gain on it, so that two gains can be
 compared pairwise.
@@ -20,12 +20,14 @@ comparison therefore has two checks: the unconditional one, with the standard
 error from the exact fourth moments where they are known (the scalar examples),
 and one given the simulated modes, where the error is Gaussian with Theorem 1's
 mean and covariance and each run's window sum has an exact conditional mean and
-variance (:func:`_given_modes`).
+variance (:func:`~switchest.analysis.error_moments.window_sums_given_modes`).
 
 Where the paper's arithmetic is inconsistent (it mixes ``e^{(a-L)T}`` and
 ``e^{2(a-L)T}``), the summary shows the printed number beside the correct one
 and beside the number of the reading that reproduces it; the notes say which
-reading is right (tests/analysis/test_ms_design.py checks every reading).
+reading is right (tests/analysis/test_subsystem_observers.py checks every reading). The
+readings (``printed_*``) stay here: they evaluate the paper's misprinted formulas to show
+where a printed number comes from, not mathematics the library should offer.
 """
 
 from __future__ import annotations
@@ -36,6 +38,17 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from ..analysis.error_moments import (
+    ComponentOptimum,
+    component_steady_state,
+    moment_fixed_point,
+    moment_matrix,
+    optimal_component_gain,
+    scalar_error_moments,
+    state_error_moments,
+    window_average_sd,
+    window_sums_given_modes,
+)
 from ..analysis.subsystem_observers import (
     critical_interval,
     decoupled_gain_bounds,
@@ -44,7 +57,6 @@ from ..analysis.subsystem_observers import (
     ms_convergence,
     place_gains,
     pole_placement_gain,
-    second_moments,
     steady_state,
     subsystem_structure,
 )
@@ -64,7 +76,7 @@ from ..plotting import curves
 from ..signals import iid_at_samples
 from ..simulate import simulate
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, split_variants
+from .scoring import blocks, merge_blocks, split_variants
 
 # Wang et al. §4.1-§5.2 (Examples 1-4); components 1-based as printed
 EXAMPLES_PAPER = {
@@ -126,22 +138,11 @@ def _moment_stats(sq: np.ndarray, start: int) -> dict:
             "win_sum": window.sum(axis=0).tolist(), "win_sq": (window**2).sum(axis=0).tolist()}
 
 
-def _arrays(d):
-    return {k: _arrays(v) for k, v in d.items()} if isinstance(d, dict) else np.asarray(d, float)
-
-
-def _add(a: dict, b: dict) -> dict:
-    return {k: _add(v, b[k]) if isinstance(v, dict) else v + np.asarray(b[k], float) for k, v in a.items()}
-
-
 def _total(results, **match) -> tuple[dict, dict, dict]:
     """(config, ``stats`` summed over blocks, result of block 0) of the tasks whose config matches ``match``."""
     chosen = sorted(((c, r) for c, r in results if all(c[k] == v for k, v in match.items())),
                     key=lambda cr: cr[0]["block"])
-    total = _arrays(chosen[0][1]["stats"])
-    for _, res in chosen[1:]:
-        total = _add(total, res["stats"])
-    return chosen[0][0], total, chosen[0][1]
+    return chosen[0][0], merge_blocks(r["stats"] for _, r in chosen), chosen[0][1]
 
 
 def _mean_se(s, sq, n) -> tuple[np.ndarray, np.ndarray]:
@@ -152,123 +153,25 @@ def _mean_se(s, sq, n) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _exact(system, gains, T: float, p, e0, steps: int):
-    """Exact ``E[(x_hat_k - x_k)_c^2]`` ``(steps + 1, n)`` from a deterministic error ``e0``.
-
-    Also returns the diagonal of the steady state ``Phi V Phi'`` of eq. (21) (None when the
-    error system is not MS stable) and the MS tests (:func:`ms_convergence`).
-    """
+    """Exact ``E[(x_hat_k - x_k)_c^2]`` ``(steps + 1, n)`` from a deterministic error ``e0``, the
+    diagonal of the steady state of eq. (21) (None when the error system is not MS stable) and
+    the MS tests."""
     dyn = error_dynamics(system, gains, T)
-    F, Phi = dyn.structure.F, dyn.structure.Phi
-    z0 = F @ np.asarray(e0, float)
-    V = second_moments(dyn, p, np.outer(z0, z0), steps)
-    diag = np.einsum("ia,kab,ib->ki", Phi, V, Phi)  # diag(Phi V_k Phi')
     ms = ms_convergence(dyn, p)
-    return diag, (np.diag(steady_state(dyn, p).V_x) if ms.holds else None), ms
+    steady = np.diag(steady_state(dyn, p).V_x) if ms.holds else None
+    return state_error_moments(dyn, p, e0, steps), steady, ms
 
 
 def _given_modes(system, gains, T: float, e0, modes: np.ndarray, err: np.ndarray, start: int,
                  selectors: np.ndarray) -> dict:
-    """The simulated errors against Wang et al. Theorem 1 given each run's modes: additive sums over the runs.
-
-    Given ``alpha_0..alpha_{K-1}`` the error of eq. (15) is Gaussian, ``e_{k+1} = Lambda(alpha_k) e_k +
-    Gamma(alpha_k) d_k`` from the given ``e_0`` (here in state coordinates, ``Phi Lambda F`` and
-    ``Phi W Phi'``; ``n_s = n``), with mean ``m_k`` and covariance ``V_k``. For each diagonal weight
-    ``D`` (a row of ``selectors``) the window sum ``S = sum_{k >= start} e_k' D e_k`` then has exactly
-
-        E[S | alpha] = sum_k m_k' D m_k + tr(D V_k)
-        Var(S | alpha) = sum_{j, k} 2 tr(D C_jk D C_jk') + 4 m_j' D C_jk D m_k,   C_jk = V_j Phi_{k,j}'
-
-    (Gaussian fourth moments; ``Phi_{k,j}`` the product of the ``Lambda`` from j to k). The sums
-    ``dev = sum (S - E[S | alpha])`` and ``var = sum Var(S | alpha)`` give a statistic
-    ``dev / sqrt(var)`` with mean 0 and variance 1 whatever the tails of the mode sequences;
-    ``var2 = sum Var^2`` gives the effective number of runs ``var^2 / var2``.
-    """
-    dyn = error_dynamics(system, gains, T)
-    F, Phi = dyn.structure.F, dyn.structure.Phi
-    Lx, Wx = Phi @ dyn.Lam @ F, Phi @ dyn.W @ Phi.T
-    N, K = modes.shape
-    m, V = np.zeros((N, K + 1, F.shape[1])), np.zeros((N, K + 1, F.shape[1], F.shape[1]))
-    m[:, 0] = e0
-    for k in range(K):
-        A = Lx[modes[:, k]]
-        m[:, k + 1] = np.einsum("nab,nb->na", A, m[:, k])
-        V[:, k + 1] = A @ V[:, k] @ np.swapaxes(A, -1, -2) + Wx[modes[:, k]]
-    D = np.asarray(selectors, float)
-    mw, C = m[:, start:], V[:, start:].copy()  # C[:, j] = C_{j, j+d}, starting at lag d = 0
-    maps = np.swapaxes(Lx[modes[:, start:]], -1, -2)  # Lambda' of the steps start..K-1
-    W = K + 1 - start
-    expected = np.einsum("dc,nkc->nd", D, mw**2) + np.einsum("dc,nkcc->nd", D, C)
-    observed = np.einsum("dc,nkc->nd", D, err[:, start:] ** 2)
-    var = np.zeros((N, D.shape[0]))
-    for d in range(W):
-        term = (2.0 * np.einsum("da,db,njab->nd", D, D, C**2)
-                + 4.0 * np.einsum("nja,da,njab,db,njb->nd", mw[:, : W - d], D, C, D, mw[:, d:]))
-        var += term if d == 0 else 2.0 * term  # (j, k) and (k, j)
-        if d < W - 1:
-            C = C[:, : W - 1 - d] @ maps[:, d : W - 1]  # C_{j, j+d+1} = C_{j, j+d} Lambda_{j+d}'
-    return {"dev": (observed - expected).sum(axis=0).tolist(), "var": var.sum(axis=0).tolist(),
-            "var2": (var**2).sum(axis=0).tolist()}
-
-
-def _moment_matrix(system, gains, T: float, p) -> np.ndarray:
-    """``M = E[Lambda_k' Lambda_k]`` (§5.1; its diagonal is each scalar component's second-moment factor)."""
-    dyn = error_dynamics(system, gains, T)
-    return np.einsum("i,iba,ibc->ac", p, dyn.Lam, dyn.Lam)
-
-
-def _component_steady_state(system, gains, T: float, p) -> np.ndarray:
-    """Per-component steady state of a decoupled (diagonal ``Lambda(i)``) error, NaN where a component diverges.
-
-    ``sigma_inf = E[W]_cc / (1 - E[Lambda'Lambda]_cc)`` (Wang et al. eq. (23)); defined even when
-    another component diverges, as for Example 1's Kalman-Bucy gains.
-    """
-    dyn = error_dynamics(system, gains, T)
-    factor = np.diag(np.einsum("i,iba,ibc->ac", p, dyn.Lam, dyn.Lam))
-    noise = np.diag(np.einsum("i,iab->ab", p, dyn.W))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(factor < 1.0, noise / (1.0 - factor), np.nan)
-
-
-def _scalar_moments(system, gains, T: float, p, e0, steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Exact ``E e_k^2`` and ``E e_k^4`` per component of a decoupled error (diagonal ``Lambda(i)``).
-
-    With ``e_{k+1} = g e_k + q d_k`` (``g = Lambda(alpha_k)_cc``, ``q^2 = W(alpha_k)_cc``,
-    ``d_k ~ N(0, 1)``, all independent of ``e_k``; Wang et al. eqs. (22)-(23))::
-
-        E e^2_{k+1} = E[g^2] E e^2_k + E[q^2]
-        E e^4_{k+1} = E[g^4] E e^4_k + 6 E[g^2 q^2] E e^2_k + 3 E[q^4]
-
-    Returns ``E e^2 (steps + 1, n)``, ``E e^4 (steps + 1, n)``, ``E[g^2] (n,)`` and ``E[q^2] (n,)``:
-    the exact spread of the Monte Carlo squared errors, whose tails are too heavy for
-    their sample variance (the error has a power-law tail, index about 3.7 in Example 4).
-    """
-    dyn = error_dynamics(system, gains, T)
-    g = np.einsum("icc->ic", dyn.Lam)  # z^c = +-x_c: squares agree in both coordinates
-    w = np.einsum("icc->ic", dyn.W)
-    m2, m4, c22, s2, s4 = p @ g**2, p @ g**4, p @ (g**2 * w), p @ w, 3.0 * (p @ w**2)
-    E2, E4 = np.zeros((steps + 1, g.shape[1])), np.zeros((steps + 1, g.shape[1]))
-    E2[0], E4[0] = np.asarray(e0, float) ** 2, np.asarray(e0, float) ** 4
-    for k in range(steps):
-        E2[k + 1] = m2 * E2[k] + s2
-        E4[k + 1] = m4 * E4[k] + 6.0 * c22 * E2[k] + s4
-    return E2, E4, m2, s2
-
-
-def _window_sd(E2: np.ndarray, E4: np.ndarray, m2: np.ndarray, s2: np.ndarray, start: int) -> np.ndarray:
-    """Exact standard deviation of one run's average of ``e_k^2`` over ``k = start..K``, per component.
-
-    ``E[e_j^2 e_k^2] = m2^(k-j) E e_j^4 + s2 (1 + m2 + ... + m2^(k-j-1)) E e_j^2`` for ``j <= k``.
-    """
-    W = E2.shape[0] - start
-    lag = np.arange(W)
-    power = m2[None, :] ** lag[:, None]  # (W, n)
-    accumulated = s2[None, :] * np.concatenate([np.zeros((1, m2.size)), np.cumsum(power, axis=0)[:-1]])
-    j, k = np.meshgrid(np.arange(W), np.arange(W), indexing="ij")
-    lo, hi = np.minimum(j, k), np.maximum(j, k)
-    d = hi - lo
-    cross = power[d] * E4[start + lo] + accumulated[d] * E2[start + lo]  # (W, W, n)
-    cov = cross - E2[start + j] * E2[start + k]
-    return np.sqrt(np.maximum(cov.sum(axis=(0, 1)), 0.0)) / W
+    """The runs' window sums against Theorem 1 given their modes (:func:`window_sums_given_modes`),
+    as additive sums over the runs: ``dev = sum (S - E[S | alpha])``, ``var = sum Var(S | alpha)``
+    (so ``dev / sqrt(var)`` has mean 0 and variance 1) and ``var2 = sum Var^2`` (the effective
+    number of runs is ``var^2 / var2``)."""
+    given = window_sums_given_modes(error_dynamics(system, gains, T), e0, modes, start, selectors)
+    observed = np.einsum("dc,nkc->nd", np.asarray(selectors, float), err[:, start:] ** 2)
+    return {"dev": (observed - given.mean).sum(axis=0).tolist(),
+            "var": given.var.sum(axis=0).tolist(), "var2": (given.var**2).sum(axis=0).tolist()}
 
 
 def _fine_step_steady_state(system, gains, T: float, p, substeps: int) -> np.ndarray:
@@ -287,9 +190,7 @@ def _fine_step_steady_state(system, gains, T: float, p, substeps: int) -> np.nda
     runs = [RSLSObserver(system, gains, T, e, np.zeros((n, n))).run(quiet, t=t, modes=modes) for e in np.eye(n)]
     Lam = np.stack([r.x[:, -1] for r in runs], axis=-1)  # (L, n, n): column j from e_0 = unit vector j
     W = runs[0].P[:, -1]  # the covariance does not depend on the estimate
-    K = np.einsum("i,iab,icd->acbd", p, Lam, Lam).reshape(n * n, n * n)
-    V = np.linalg.solve(np.eye(n * n) - K, np.einsum("i,iab->ab", p, W).ravel()).reshape(n, n)
-    return np.diag(V)
+    return np.diag(moment_fixed_point(Lam, W, p))
 
 
 def _n_log_bins() -> int:
@@ -313,7 +214,7 @@ def _z(mc: float, se: float, exact: float) -> float:
 
 
 # ------------------------------------------------------------------ the paper's printed formulas (Examples 1-4)
-def _gamma_reading(a: float, L: float, p_closed: float, T: float) -> float:
+def printed_gamma(a: float, L: float, p_closed: float, T: float) -> float:
     """The paper's misprinted second-moment factor of a scalar component, ``p e^{(a-L) T} + (1-p) e^{2aT}``.
 
     The right factor has ``e^{2(a-L)T}`` (Examples 1-2's gammas, computed from the
@@ -323,40 +224,41 @@ def _gamma_reading(a: float, L: float, p_closed: float, T: float) -> float:
     return p_closed * np.exp((a - L) * T) + (1.0 - p_closed) * np.exp(2.0 * a * T)
 
 
-def _gain_bound_reading(a: float, p_closed: float, T: float) -> float:
-    """``L`` at which :func:`_gamma_reading` equals 1 (Example 2's printed bounds)."""
+def printed_gain_bound(a: float, p_closed: float, T: float) -> float:
+    """``L`` at which :func:`printed_gamma` equals 1 (Example 2's printed bounds)."""
     return a - np.log((1.0 - (1.0 - p_closed) * np.exp(2.0 * a * T)) / p_closed) / T
 
 
-def _sigma_reading(a: float, L: float, p_closed: float, T: float, zeta: float) -> float:
-    """Example 4's ``sigma_inf = p Q^2 / (1 - gamma)`` as the paper evaluates it: :func:`_gamma_reading`
+def printed_sigma(a: float, L: float, p_closed: float, T: float, zeta: float) -> float:
+    """Example 4's ``sigma_inf = p Q^2 / (1 - gamma)`` as the paper evaluates it: :func:`printed_gamma`
     and ``Q^2 = int_0^inf e^{2(a-L)s} L^2 zeta ds = L^2 zeta / (2(L - a))`` (Proposition 1 stops at T)."""
     Q2 = L**2 * zeta / (2.0 * (L - a))
-    gamma = _gamma_reading(a, L, p_closed, T)
+    gamma = printed_gamma(a, L, p_closed, T)
     return p_closed * Q2 / (1.0 - gamma) if gamma < 1 else np.inf
 
 
-def _reading_optimum(a, p_closed, T, zeta) -> tuple[float, float]:
-    lo = _gain_bound_reading(a, p_closed, T) + 1e-6
-    r = minimize_scalar(lambda L: _sigma_reading(a, L, p_closed, T, zeta), bounds=(lo, 1000.0),
+def printed_optimum(a: float, p_closed: float, T: float, zeta: float) -> tuple[float, float]:
+    """Example 4's optimum ``(L1*, sigma_inf)`` as printed (61.3, 0.9864): :func:`printed_sigma`
+    minimized above :func:`printed_gain_bound`."""
+    lo = printed_gain_bound(a, p_closed, T) + 1e-6
+    r = minimize_scalar(lambda L: printed_sigma(a, L, p_closed, T, zeta), bounds=(lo, 1000.0),
                         method="bounded", options={"xatol": 1e-10})
     return float(r.x), float(r.fun)
 
 
+def _correct_optimum(system, T: float, p) -> ComponentOptimum:
+    """Minimizer of the correct ``sigma_inf^1`` above the MS bound on ``L1`` (L2 irrelevant: the
+    components decouple)."""
+    return optimal_component_gain(system, p, T, scalar_gains(0.0, DESIGN_GAINS[1]), 0)
+
+
 def _sigma1(system, T: float, p, L1: float) -> float:
-    """Correct ``sigma_inf^1(L1, T)`` from the library's steady state (L2 irrelevant: the components decouple)."""
-    return float(steady_state(error_dynamics(system, _scalar_gains(L1, DESIGN_GAINS[1]), T), p).V_x[0, 0])
+    """Correct ``sigma_inf^1(L1, T)`` from the library's steady state."""
+    dyn = error_dynamics(system, scalar_gains(L1, DESIGN_GAINS[1]), T)
+    return float(steady_state(dyn, p).V_x[0, 0])
 
 
-def _correct_optimum(system, T: float, p) -> tuple[float, float]:
-    """Minimizer of the correct ``sigma_inf^1`` above the MS bound on ``L1``."""
-    lo = float(decoupled_gain_bounds(system, p, T).min_loop_gain[0]) + 1e-6
-    r = minimize_scalar(lambda L: _sigma1(system, T, p, L), bounds=(lo, 1000.0), method="bounded",
-                        options={"xatol": 1e-9})
-    return float(r.x), float(r.fun)
-
-
-def _scalar_gains(L1: float, L2: float) -> np.ndarray:
+def scalar_gains(L1: float, L2: float) -> np.ndarray:
     """State-coordinate gains of the scalar pair: mode 1 closes x_1 with L1, mode 2 closes x_2 with L2."""
     return np.array([[[L1], [0.0]], [[0.0], [L2]]])
 
@@ -370,7 +272,7 @@ def _examples_tasks(p: dict) -> list[dict]:
     ex = WANG_EXAMPLES["example1"]
     system = ex.system()
     kb = kalman_bucy_gains(system)
-    L_star = round(_correct_optimum(system, ex.T, ex.probabilities())[0], 3)
+    L_star = round(_correct_optimum(system, ex.T, ex.probabilities()).gain, 3)
     figures = [
         {"figure": "1", "example": "example1", "gains": [[round(float(kb[0, 0, 0]), 9), round(float(kb[1, 1, 0]), 9)]]},
         {"figure": "2", "example": "example1", "gains": [list(DESIGN_GAINS)]},
@@ -408,11 +310,11 @@ def _examples_figure(cfg: dict, ex, traj, t: np.ndarray) -> dict:
     windows = []
     out: dict = {}
     for L1, L2 in cfg["gains"]:
-        err = _errors(system, _scalar_gains(L1, L2), ex.T, e0, traj, t)
+        err = _errors(system, scalar_gains(L1, L2), ex.T, e0, traj, t)
         sq = err**2
         stats[_label(L1, L2)] = {**_moment_stats(sq, cfg["window"]),
                                  "below_start": np.sum(sq[:, -1] < sq[:, 0], axis=0).tolist(),
-                                 "given_modes": _given_modes(system, _scalar_gains(L1, L2), ex.T, e0,
+                                 "given_modes": _given_modes(system, scalar_gains(L1, L2), ex.T, e0,
                                                              traj.mode[:, :-1], err, cfg["window"], np.eye(2))}
         windows.append(sq[:, cfg["window"]:, 0].mean(axis=1))
         if cfg["figure"] == "3":  # distribution of log10 e_k^2 per step: medians next to the diverging means
@@ -456,13 +358,13 @@ class _Context:
         """MC time average of sigma^comp against the exact one; SE from the exact spread of a run's average."""
         N, w, stats = tot["trials"], cfg["window"], tot[_label(*gains)]
         mc, se_sample = _mean_se(stats["win_sum"][comp], stats["win_sq"][comp], N)
-        E2, E4, m2, s2 = _scalar_moments(self.system, _scalar_gains(*gains), self.T, self.prob, self.e0,
-                                         cfg["horizon"])
-        se = float(_window_sd(E2, E4, m2, s2, w)[comp] / np.sqrt(N))
-        exact = float(E2[w:, comp].mean())
+        dyn = error_dynamics(self.system, scalar_gains(*gains), self.T)
+        moments = scalar_error_moments(dyn, self.prob, self.e0, cfg["horizon"])
+        se = float(window_average_sd(moments, w)[comp] / np.sqrt(N))
+        exact = float(moments.E2[w:, comp].mean())
         z = _z(float(mc), se, exact)
         self.zs.append(z)
-        ss = _component_steady_state(self.system, _scalar_gains(*gains), self.T, self.prob)[comp]
+        ss = component_steady_state(dyn, self.prob)[comp]
         return Row(f"{where}: MC σ{'¹²'[comp]}, time average k = {w}..{cfg['horizon']}", float(mc), None, "",
                    f"exact {exact:.4g} (steady state (21): {ss:.4g}); |MC − exact| = {z:.2f} SE, SE {se:.2g} from "
                    f"the exact 4th moments (sample SE {float(se_sample):.2g}, {int(N)} runs); given the simulated "
@@ -474,18 +376,20 @@ def _example1_section(c: _Context) -> None:
     paper = EXAMPLES_PAPER["gamma_bar_kb"]
     cfg, tot, _ = _total(c.results, figure="1")
     L_kb = cfg["gains"][0]
-    kb = _scalar_gains(*L_kb)
-    M = np.diag(_moment_matrix(c.system, kb, c.T, c.prob))
+    kb = scalar_gains(*L_kb)
+    dyn = error_dynamics(c.system, kb, c.T)
+    M = np.diag(moment_matrix(dyn, c.prob))
     K, N = cfg["horizon"], tot["trials"]
     stats = tot[_label(*L_kb)]
     mc, se_sample = _mean_se(stats["sum"], stats["sq"], N)
-    E2, E4, _, _ = _scalar_moments(c.system, kb, c.T, c.prob, c.e0, K)
+    moments = scalar_error_moments(dyn, c.prob, c.e0, K)
+    E2, E4 = moments.E2, moments.E4
     ks = np.arange(K // 2, K + 1)
     growth = float(np.exp(np.polyfit(ks, np.log(mc[ks, 0]), 1)[0]))
     se = float(np.sqrt((E4[K, 0] - E2[K, 0] ** 2) / N))
     z = _z(mc[K, 0], se, E2[K, 0])
     c.zs.append(z)
-    steady = _component_steady_state(c.system, kb, c.T, c.prob)
+    steady = component_steady_state(dyn, c.prob)
     c.rows += [
         Row("Ex. 1: Kalman–Bucy gains L_1, L_2 (ARE of each observable sub-state)",
             f"{L_kb[0]:.4g}, {L_kb[1]:.4g}", "2a_1 = 4, 2a_2 = 8"),
@@ -526,10 +430,10 @@ def _example2_section(c: _Context) -> dict:
             Row(f"Ex. 2: bound L_{comp + 1} > (correct, e^(2(a−L)T))", float(bounds.min_loop_gain[comp]),
                 paper["gain_bounds"][comp], "", "the second-moment factor is 1 at this gain"),
             Row(f"Ex. 2: bound L_{comp + 1} > (paper's reading, e^((a−L)T))",
-                _gain_bound_reading(a, p_closed, c.T), paper["gain_bounds"][comp]),
+                printed_gain_bound(a, p_closed, c.T), paper["gain_bounds"][comp]),
         ]
-    gains = _scalar_gains(*DESIGN_GAINS)
-    M = np.diag(_moment_matrix(c.system, gains, c.T, c.prob))
+    gains = scalar_gains(*DESIGN_GAINS)
+    M = np.diag(moment_matrix(error_dynamics(c.system, gains, c.T), c.prob))
     cfg, tot, _ = _total(c.results, figure="2")
     exact, steady, ms = _exact(c.system, gains, c.T, c.prob, c.e0, cfg["horizon"])
     c.rows += [
@@ -557,11 +461,11 @@ def _example2_large_T(c: _Context) -> np.ndarray:
     """Fig. 3: the design of Fig. 2 with T = 0.25 > T_max; returns the exact per-step second-moment factors."""
     cfg, tot, _ = _total(c.results, figure="3")
     big = WANG_EXAMPLES[cfg["example"]]
-    gains = _scalar_gains(*DESIGN_GAINS)
+    gains = scalar_gains(*DESIGN_GAINS)
     K, N, stats = cfg["horizon"], int(tot["trials"]), tot[_label(*DESIGN_GAINS)]
     mc, _ = _mean_se(stats["sum"], stats["sq"], N)
     exact = _exact(c.system, gains, big.T, c.prob, c.e0, K)[0]
-    M = np.diag(_moment_matrix(c.system, gains, big.T, c.prob))
+    M = np.diag(moment_matrix(error_dynamics(c.system, gains, big.T), c.prob))
     k_fit = int(min(K, GROWTH_FRACTION * np.log(N) / np.log(1.0 / (1.0 - big.p))))
     ks = np.arange(1, k_fit + 1)
     growth = float(np.exp(np.polyfit(ks, np.log(mc[ks, 0]), 1)[0]))
@@ -610,14 +514,16 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
     """Example 4: gamma^1 under both readings, the optimum, Figs 4-6; returns the correct (L1*, sigma*)."""
     paper, ex = EXAMPLES_PAPER, c.ex
     for L1, printed in paper["gamma1_example4"].items():
-        M = _moment_matrix(c.system, _scalar_gains(L1, DESIGN_GAINS[1]), c.T, c.prob)[0, 0]
+        dyn = error_dynamics(c.system, scalar_gains(L1, DESIGN_GAINS[1]), c.T)
+        M = moment_matrix(dyn, c.prob)[0, 0]
         c.rows += [
             Row(f"Ex. 4: γ^1 for L1 = {L1:g} (correct, e^(2(a−L)T))", float(M), printed),
-            Row(f"Ex. 4: γ^1 for L1 = {L1:g} (paper's reading, e^((a−L)T))", _gamma_reading(ex.a1, L1, ex.p, c.T),
+            Row(f"Ex. 4: γ^1 for L1 = {L1:g} (paper's reading, e^((a−L)T))", printed_gamma(ex.a1, L1, ex.p, c.T),
                 printed),
         ]
-    L_star, s_star = _correct_optimum(c.system, c.T, c.prob)
-    L_read, s_read = _reading_optimum(ex.a1, ex.p, c.T, ex.zeta)
+    optimum = _correct_optimum(c.system, c.T, c.prob)
+    L_star, s_star = optimum.gain, optimum.steady_state
+    L_read, s_read = printed_optimum(ex.a1, ex.p, c.T, ex.zeta)
     c.rows += [
         Row("Ex. 4: optimal L1* (correct: e^(2(a−L)T), Q² = ∫_0^T)", L_star, paper["optimum"][0]),
         Row("Ex. 4: σ¹_∞(L1*) (correct)", s_star, paper["optimum"][1]),
@@ -633,14 +539,14 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
         stats = tot[_label(L1, L2)]
         c.rows.append(c.window_row(f"Fig. 4, L1 = {L1:g}", tot, (L1, L2), 0, cfg))
         mc, _ = _mean_se(stats["sum"], stats["sq"], N)
-        exact = _exact(c.system, _scalar_gains(L1, L2), c.T, c.prob, c.e0, K)[0]
+        exact = _exact(c.system, scalar_gains(L1, L2), c.T, c.prob, c.e0, K)[0]
         series[f"L1 = {L1:g}"] = np.column_stack([mc[:, 0], exact[:, 0]])
         mc_points[L1] = float(stats["win_sum"][0] / N)
     c.figs.append(curves(c.out / "wang-fig4-gains.png", np.arange(K + 1), series, xlabel="k (T = 0.03)",
                          ylabel=[f"σ¹_k, Monte Carlo ({int(N)} runs)", "σ¹_k, exact second moments"],
                          logy=True, title="Wang Fig. 4: error variance σ¹_k for several L1 (e_0 = 2)"))
     if "path" in first:  # path_gain is one of fig4_gains
-        exact, steady, _ = _exact(c.system, _scalar_gains(cfg["path_gain"], DESIGN_GAINS[1]), c.T, c.prob, c.e0, K)
+        exact, steady, _ = _exact(c.system, scalar_gains(cfg["path_gain"], DESIGN_GAINS[1]), c.T, c.prob, c.e0, K)
         band = np.sqrt(exact[:, 0])
         c.figs.append(curves(c.out / "wang-fig5-sample-path.png", np.arange(K + 1),
                              {"sample path e¹_k": np.asarray(first["path"]), "+√σ¹_k (exact)": band,
@@ -654,20 +560,20 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
     d_mc, d_se = _mean_se(tot["pair"]["sum"], tot["pair"]["sq"], tot["trials"])
     w = cfg["window"]
     (La, L2a), (Lb, L2b) = cfg["gains"]
-    d_exact = float(_exact(c.system, _scalar_gains(La, L2a), c.T, c.prob, c.e0, cfg["horizon"])[0][w:, 0].mean()
-                    - _exact(c.system, _scalar_gains(Lb, L2b), c.T, c.prob, c.e0, cfg["horizon"])[0][w:, 0].mean())
+    d_exact = float(_exact(c.system, scalar_gains(La, L2a), c.T, c.prob, c.e0, cfg["horizon"])[0][w:, 0].mean()
+                    - _exact(c.system, scalar_gains(Lb, L2b), c.T, c.prob, c.e0, cfg["horizon"])[0][w:, 0].mean())
     c.rows.append(Row(f"Fig. 6: MC σ¹(L1 = {La:g}) − σ¹(L1 = {Lb:g}), paired time averages", float(d_mc),
                       "> 0 (61.3 optimal)", "",
                       f"± {float(d_se):.2g} (sample SE); exact {d_exact:.4g}; |MC − exact| = "
                       f"{_z(float(d_mc), float(d_se), d_exact):.2f} SE: the correct optimum beats the printed one on "
                       "the same runs"))
     grid = np.unique(np.round(np.concatenate([np.geomspace(16.0, 200.0, 20), list(mc_points)]), 3))
-    bound = _gain_bound_reading(ex.a1, ex.p, c.T)
+    bound = printed_gain_bound(ex.a1, ex.p, c.T)
     c.figs.append(curves(
         c.out / "wang-fig6-tradeoff.png", grid,
         {"correct σ¹_∞ (steady state (21))": np.array([_sigma1(c.system, c.T, c.prob, L) for L in grid]),
          "paper's reading (e^((a−L)T), Q² to ∞)": np.array(
-             [_sigma_reading(ex.a1, L, ex.p, c.T, ex.zeta) if L > bound else np.nan for L in grid]),
+             [printed_sigma(ex.a1, L, ex.p, c.T, ex.zeta) if L > bound else np.nan for L in grid]),
          "Monte Carlo time average": np.array([mc_points.get(L, np.nan) for L in grid])},
         xlabel="L1", ylabel="σ¹_∞(L1, T = 0.03)", logy=True,
         paper={"optimum L1* = 61.3, σ = 0.9864": ([paper["optimum"][0]], [paper["optimum"][1]])},
@@ -685,9 +591,10 @@ def _examples_summary(p: dict, results, out: Path) -> Summary:
     L_star, s_star = _example4_section(c, found["mc_design"])
     offsets = []
     for L1, L2 in sorted({tuple(g) for cfg, _ in results if cfg["figure"] in ("2", "4", "6") for g in cfg["gains"]}):
-        G = _scalar_gains(L1, L2)
+        G = scalar_gains(L1, L2)
         fine = _fine_step_steady_state(c.system, G, c.T, c.prob, p["substeps"])
-        offsets.append(np.max(np.abs(fine / _component_steady_state(c.system, G, c.T, c.prob) - 1.0)))
+        steady = component_steady_state(error_dynamics(c.system, G, c.T), c.prob)
+        offsets.append(np.max(np.abs(fine / steady - 1.0)))
     c.rows += [
         Row(f"simulated observer ({p['substeps']} fine steps per T): largest steady-state offset from (21)",
             float(max(offsets)), None, "", "relative; exact for the discretization the Monte Carlo runs"),
@@ -765,7 +672,7 @@ register(Experiment(
 
 
 # ------------------------------------------------------------------ IEEE 5-bus (Figs 8-9)
-def _bus_gains(design: str, *, printed_eigenvalues: bool = False) -> np.ndarray:
+def bus_gains(design: str, *, printed_eigenvalues: bool = False) -> np.ndarray:
     """Pole-placement gains of modes 1-3 (mode 4 is blind); optionally mode 1's gain of the printed eigenvalues."""
     system = ieee_5bus()
     poles = np.asarray(BUS_POLES[design], float)
@@ -794,7 +701,7 @@ def _bus_run(cfg: dict, rng: np.random.Generator) -> dict:
 def _bus_design_run(design: str, traj, t: np.ndarray, window: int) -> dict:
     """The moments of one pole-placement design's observer on the block's trajectories."""
     system, T = ieee_5bus(), IEEE_5BUS_SAMPLE_PERIOD
-    gains = _bus_gains(design)
+    gains = bus_gains(design)
     err = _errors(system, gains, T, IEEE_5BUS_INITIAL_ERROR, traj, t)
     sq = err**2
     total = sq.sum(axis=-1, keepdims=True)
@@ -816,14 +723,14 @@ def _bus_design(design: str, p: dict) -> tuple[list[Row], dict]:
     and its exact moments for the Monte Carlo comparison."""
     system, prob, T = ieee_5bus(), ieee_5bus_mode_probabilities(), IEEE_5BUS_SAMPLE_PERIOD
     paper, e0 = BUS_PAPER, np.asarray(IEEE_5BUS_INITIAL_ERROR, float)
-    gains = _bus_gains(design)
+    gains = bus_gains(design)
     tag = "poles " + ", ".join(f"{v:g}" for v in BUS_POLES[design])
     rows = [Row(f"{design} design ({tag}): δ1-only mode (paper's mode 2) gain entry {j + 1}", float(v),
                 paper["gain"][design][j], "",
                 "the printed 'L_1' is the gain of mode 2 (δ1 only: single output, unique)" if j == 0 else "")
             for j, v in enumerate(gains[1, :, 0])]
     ms = ms_convergence(error_dynamics(system, gains, T), prob)
-    fitted = _bus_gains(design, printed_eigenvalues=True)
+    fitted = bus_gains(design, printed_eigenvalues=True)
     printed = ms_convergence(error_dynamics(system, fitted, T), prob)
     rows += [Row(f"{design}: eigenvalue {j + 1} of Σ p_i Λ(i)'Λ(i), scipy place_poles gain",
                  float(ms.moment_eigenvalues[j]), paper["moment_eig"][design][j], "",

@@ -38,7 +38,7 @@ from ..models import SMART_GRID_TAU, smart_grid, zhang_two_mode
 from ..plotting import curves
 from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, split_variants
+from .scoring import blocks, merge_groups
 
 # Zhang & Natarajan §5.1 (printed "A_i" is Lambda_i; 1-based modes as printed)
 EXAMPLE1_PAPER = {
@@ -138,17 +138,8 @@ def _monte_carlo(system: SwitchedLinearSystem, modes: np.ndarray, lam: np.ndarra
 def _group(results: list[tuple[dict, dict]]) -> dict[str, tuple[dict, dict]]:
     """Configurations (less block and trial count, variants split) -> (config, summed results
     over blocks)."""
-    groups: dict[str, tuple[dict, dict]] = {}
-    for cfg, res in split_variants(results):
-        key = json.dumps({k: v for k, v in cfg.items() if k not in ("block", "trials")},
-                         sort_keys=True)
-        if key not in groups:
-            groups[key] = (cfg, {k: np.asarray(v, float) for k, v in res.items()})
-        else:
-            total = groups[key][1]
-            for k, v in res.items():
-                total[k] = total[k] + np.asarray(v, float)
-    return groups
+    return merge_groups(results, lambda cfg: json.dumps(
+        {k: v for k, v in cfg.items() if k not in ("block", "trials")}, sort_keys=True))
 
 
 def _moments(total: dict, name: str) -> tuple[np.ndarray, np.ndarray]:
