@@ -23,7 +23,8 @@ scipy.optimize for the others.
 """
 
 import warnings
-from importlib import import_module
+
+from .._lazy import deferred
 
 # module -> the names it defines that the package exports
 _EXPORTS = {
@@ -65,8 +66,6 @@ _EXPORTS = {
     "switch_time_bounds": ("EstimationErrorBounds", "SwitchMatrixBounds",
                            "estimation_error_bounds", "switch_matrix_bounds"),
 }
-_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
-
 #: Old (theorem-numbered) name -> the name of the same object now.
 DEPRECATED_NAMES = {
     "lemma2_bounds": "switch_matrix_bounds",
@@ -76,24 +75,17 @@ DEPRECATED_NAMES = {
     "theorem10_rate": "impulsive_closed_loop_decay_rate",
 }
 
-__all__ = sorted([*_MODULE_OF, "DEPRECATED_NAMES"], key=str.lower)
+_exported, __dir__ = deferred(__name__, globals(), _EXPORTS)
+__all__ = sorted([*(n for names in _EXPORTS.values() for n in names), "DEPRECATED_NAMES"],
+                 key=str.lower)
 
 
 def __getattr__(name: str) -> object:
-    """An exported name, imported from its module at its first use and kept; an old name
-    warns ``DeprecationWarning`` and gives the object it was renamed to."""
+    """An exported name, imported from its module at its first use; an old name warns
+    ``DeprecationWarning`` and gives the object it was renamed to."""
     if name in DEPRECATED_NAMES:
         new = DEPRECATED_NAMES[name]
         warnings.warn(f"switchest.analysis.{name} is deprecated; use switchest.analysis.{new}",
                       DeprecationWarning, stacklevel=2)
-        return __getattr__(new)
-    if name not in _MODULE_OF:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(f".{_MODULE_OF[name]}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    """The package's names, the deferred ones included."""
-    return sorted({*globals(), *__all__})
+        name = new
+    return _exported(name)

@@ -8,7 +8,7 @@ first use (PEP 562 ``__getattr__``), so that a program using one filter loads th
 module and compiled kernels only (not the detectors' analysis, scipy.optimize or cvxpy).
 """
 
-from importlib import import_module
+from .._lazy import deferred
 
 # the protocol, re-exported (the redundant aliases say so to linters; __all__ is computed)
 from .base import Estimate as Estimate
@@ -30,20 +30,6 @@ _EXPORTS = {
     "rsls": ("RSLSObserver", "RSLSState"),
     "switch_time": ("SwitchTimeKalmanFilter", "switch_time_loglik"),
 }
-_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
-
-__all__ = sorted(["Estimate", "Estimator", *_MODULE_OF], key=str.lower)
-
-
-def __getattr__(name: str) -> object:
-    """An exported name, imported from its module at its first use and kept."""
-    if name not in _MODULE_OF:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(f".{_MODULE_OF[name]}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    """The package's names, the deferred ones included."""
-    return sorted({*globals(), *__all__})
+__getattr__, __dir__ = deferred(__name__, globals(), _EXPORTS)
+__all__ = sorted(["Estimate", "Estimator", *(n for names in _EXPORTS.values() for n in names)],
+                 key=str.lower)
