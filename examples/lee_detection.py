@@ -21,8 +21,9 @@ noise covariance (``3 v_max^2 / 16`` per component), process noise ``1e-3 I``
 the mean dwell time. Switching-time errors are those of the switches each
 method finds (first estimate at most one sample period early or before the next
 switch; for the filters, the intervals where the most probable mode changes,
-at IMM-EV1's estimated instant or the interval midpoint for the IMM); state RMSE is over the samples at which a method gives an estimate
-(the detector gives none inside its estimation windows: the fraction is shown).
+at IMM-EV1's estimated instant or the interval midpoint for the IMM); state RMSE is over the samples
+at which a method gives an estimate (the detector gives none inside its estimation windows: the
+fraction is shown).
 
 Run ``python examples/lee_detection.py`` (about a minute at full size).
 """
@@ -92,8 +93,8 @@ def data(*, trials: int, duration: float, seed: int):
 
 
 def detector(v_max: float) -> MinimumDistanceDetector:
-    return MinimumDistanceDetector(S.system(), delta=S.delta, Delta=S.Delta, v_max=v_max, u_max=S.u_max,
-                                   observer_gains=S.observer_gains)
+    return MinimumDistanceDetector(S.system(), delta=S.delta, Delta=S.Delta, v_max=v_max,
+                                   u_max=S.u_max, observer_gains=S.observer_gains)
 
 
 # %% Theorem 2 across noise levels
@@ -106,8 +107,10 @@ def detection_rows(t, u, traj, v_unit) -> list[DetectionRow]:
         m = match_detections(est.switch_time, traj.signals, Delta=S.Delta, t_end=t[-1])
         holds = detector(noise).assumptions(S.x_min(t[-1]), signal=traj.signals).holds
         d = m.delay[np.isfinite(m.delay)]
-        rows.append(DetectionRow(noise, told, holds, m.on_time, m.late, m.missed, m.censored, m.false,
-                                 float(d.mean()) if d.size else np.nan, float(d.max()) if d.size else np.nan))
+        rows.append(DetectionRow(noise, told, holds, m.on_time, m.late, m.missed, m.censored,
+                                 m.false,
+                                 float(d.mean()) if d.size else np.nan,
+                                 float(d.max()) if d.size else np.nan))
     return rows
 
 
@@ -128,8 +131,8 @@ def compare_rows(t, u, traj, v_unit) -> list[CompareRow]:
     rows = []
     begin = time.perf_counter()
     est = detector(S.v_max).run(y, u, t)
-    rows.append(_scored("Lee et al. detector", H, est.x, est.switch_time, traj, t, time.perf_counter() - begin,
-                        lead=0.0))
+    rows.append(_scored("Lee et al. detector", H, est.x, est.switch_time, traj, t,
+                        time.perf_counter() - begin, lead=0.0))
     for period in FILTER_PERIODS:
         step = round(period / H)
         idx = np.arange(0, t.size, step)
@@ -141,8 +144,10 @@ def compare_rows(t, u, traj, v_unit) -> list[CompareRow]:
         rows.append(_scored("IMM", period, imm.x, map_switches(imm.mode, ts), traj, ts,
                             time.perf_counter() - begin, lead=period, idx=idx))
         begin = time.perf_counter()
-        ev1 = IMMEV1Filter(system, transition(period), x0=np.array(S.x0), P0=P0, grid=5).run(ys, us, ts)
-        rows.append(_scored("IMM-EV1 (g = 5)", period, ev1.x, map_switches(ev1.mode, ts, ev1.switch_time),
+        ev1 = IMMEV1Filter(system, transition(period), x0=np.array(S.x0), P0=P0,
+                           grid=5).run(ys, us, ts)
+        rows.append(_scored("IMM-EV1 (g = 5)", period, ev1.x,
+                            map_switches(ev1.mode, ts, ev1.switch_time),
                             traj, ts, time.perf_counter() - begin, lead=period, idx=idx))
     return rows
 
@@ -157,7 +162,10 @@ def map_switches(mode: np.ndarray, t: np.ndarray, inside: np.ndarray | None = No
     changed = np.zeros(mode.shape, dtype=bool)
     changed[:, 1:] = np.diff(mode, axis=1) != 0
     mid = np.concatenate([[np.nan], 0.5 * (t[1:] + t[:-1])])
-    at = np.broadcast_to(mid, mode.shape) if inside is None else np.where(np.isfinite(inside), inside, mid)
+    if inside is None:
+        at = np.broadcast_to(mid, mode.shape)
+    else:
+        at = np.where(np.isfinite(inside), inside, mid)
     return np.where(changed, at, np.nan)
 
 
@@ -166,9 +174,10 @@ def _scored(method, period, x, switch_time, traj, t, seconds, *, lead, idx=None)
     found = np.isfinite(m.delay)
     truth = traj.x if idx is None else traj.x[:, idx]
     err = np.linalg.norm(x - truth, axis=-1)
-    return CompareRow(method, period, float(np.mean(np.abs(m.delay[found]))), found.sum() / m.n_switches,
-                      m.false / traj.n_trials, float(np.sqrt(np.nanmean(err**2))), float(np.mean(np.isfinite(err))),
-                      seconds)
+    return CompareRow(method, period, float(np.mean(np.abs(m.delay[found]))),
+                      found.sum() / m.n_switches,
+                      m.false / traj.n_trials, float(np.sqrt(np.nanmean(err**2))),
+                      float(np.mean(np.isfinite(err))), seconds)
 
 
 # %% Report
@@ -188,12 +197,14 @@ def main(*, trials: int = TRIALS, duration: float = DURATION, seed: int = SEED,
             ("Assumption 1 (PBH margin)", f"{a.assumption1.holds} ({a.assumption1.margin:.4g})"),
             ("(3): lhs / rhs", f"{a.condition3.lhs:.5g} / {a.condition3.rhs:.5g}"),
             ("(4): lhs / rhs", f"{a.condition4.lhs:.5g} / {a.condition4.rhs:.5g}"),
-            ("Assumption 3: dwell / delta + Delta", f"{a.assumption3.lhs:.4g} / {a.required_dwell:.4g}"),
+            ("Assumption 3: dwell / delta + Delta",
+             f"{a.assumption3.lhs:.4g} / {a.required_dwell:.4g}"),
             ("largest v_max allowed", f"{a.v_max_allowed:.4g}"),
             ("mu_check, lambda_check", f"{k.mu_check:.4g}, {k.lambda_check:.4g}"),
             ("mu_hat, lambda_hat", f"{k.mu_hat:.4g}, {k.lambda_hat:.4g}"),
             ("L_max, C_max", f"{k.L_max:.4g}, {k.C_max:.4g}"),
-            ("omega_min(delta), omega_min(Delta)", f"{k.omega_min_delta:.4g}, {k.omega_min_Delta:.4g}"),
+            ("omega_min(delta), omega_min(Delta)",
+             f"{k.omega_min_delta:.4g}, {k.omega_min_Delta:.4g}"),
             ("N_u(delta), N_u(Delta)", f"{k.N_u_delta:.4g}, {k.N_u_Delta:.4g}"),
             ("M_max(delta), E_hat(delta)", f"{k.M_max:.4g}, {k.E_hat:.4g}"),
             ("threshold of (21)/(23), S_Delta", f"{det.threshold:.4g}, {det.S_Delta:.4g}"),
@@ -202,23 +213,27 @@ def main(*, trials: int = TRIALS, duration: float = DURATION, seed: int = SEED,
         console.print(table)
 
         detections = detection_rows(t, u, traj, v_unit)
-        table = Table(title=f"Theorem 2 over {trials} realizations ({sum(s.n_switches for s in traj.signals)} switches)")
-        for col in ("noise", "v_max told", "assumptions", "on time", "late", "missed", "censored", "false",
-                    "mean delay", "max delay"):
+        table = Table(title=f"Theorem 2 over {trials} realizations "
+                            f"({sum(s.n_switches for s in traj.signals)} switches)")
+        for col in ("noise", "v_max told", "assumptions", "on time", "late", "missed", "censored",
+                    "false", "mean delay", "max delay"):
             table.add_column(col, justify="right")
         for r in detections:
-            table.add_row(f"{r.noise:g}", f"{r.told:g}", str(r.holds), str(r.on_time), str(r.late), str(r.missed),
-                          str(r.censored), str(r.false), f"{r.mean_delay:.3f}", f"{r.max_delay:.3f}")
+            table.add_row(f"{r.noise:g}", f"{r.told:g}", str(r.holds), str(r.on_time), str(r.late),
+                          str(r.missed),
+                          str(r.censored), str(r.false), f"{r.mean_delay:.3f}",
+                          f"{r.max_delay:.3f}")
         console.print(table)
 
         compared = compare_rows(t, u, traj, v_unit)
         table = Table(title="Same data, noise bound 0.1: switching-time error and state RMSE")
-        for col in ("method", "period T", "|t_hat - t*| mean", "switches found", "false / trial", "state RMSE",
-                    "samples with estimate", "seconds"):
+        for col in ("method", "period T", "|t_hat - t*| mean", "switches found", "false / trial",
+                    "state RMSE", "samples with estimate", "seconds"):
             table.add_column(col, justify="right")
         for r in compared:
             table.add_row(r.method, f"{r.period:g}", f"{r.switch_error:.4f}", f"{r.found:.3f}",
-                          f"{r.false_per_trial:.2f}", f"{r.rmse:.4f}", f"{r.defined:.3f}", f"{r.seconds:.1f}")
+                          f"{r.false_per_trial:.2f}", f"{r.rmse:.4f}", f"{r.defined:.3f}",
+                          f"{r.seconds:.1f}")
         console.print(table)
     return detections, compared
 

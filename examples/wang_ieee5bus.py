@@ -83,7 +83,8 @@ def main(trials=400, intervals=30, substeps=40, seed=2023):
     ci = critical_interval(system, p)
     T = IEEE_5BUS_SAMPLE_PERIOD
     print(
-        f"T_max (eq. (20), q = p_4, h = ||e^(AT)||^2): {ci.theorem3:.5f}   printed {PRINTED['T_max']}"
+        f"T_max (eq. (20), q = p_4, h = ||e^(AT)||^2): {ci.theorem3:.5f}   printed "
+        f"{PRINTED['T_max']}"
     )
     print(f"0.95 T_max = {0.95 * ci.theorem3:.5f}                      printed T = {PRINTED['T']}")
     print(f"exact fast-observer threshold p_4 e^(2 lambda_max T) = 1: {ci.fast_observer:.4f}")
@@ -106,7 +107,8 @@ def main(trials=400, intervals=30, substeps=40, seed=2023):
             PRINTED[name]["eig"],
         )
         print(
-            f"  Theorem 2 gamma = {ms.gamma:.4f}; exact MS radius rho(E[Lam kron Lam]) = {ms.radius:.4f}"
+            f"  Theorem 2 gamma = {ms.gamma:.4f}; exact MS radius rho(E[Lam kron Lam]) = "
+            f"{ms.radius:.4f}"
         )
         ss = steady_state(dyn, p)
         ss_cond = steady_state(dyn, no_blind)
@@ -116,23 +118,27 @@ def main(trials=400, intervals=30, substeps=40, seed=2023):
             system, p, gains, T, trials=trials, intervals=intervals, substeps=substeps, seed=seed
         )
         print(
-            f"  steady-state MS error (21, corrected): {ss.mu_x:.4g}; given no blind interval: {ss_cond.mu_x:.4g}"
+            f"  steady-state MS error (21, corrected): {ss.mu_x:.4g}; given no blind interval: "
+            f"{ss_cond.mu_x:.4g}"
         )
         print(
-            f"  {trials} runs x {intervals} intervals: {int(np.sum(modes == 3))} blind (mode 4) intervals"
+            f"  {trials} runs x {intervals} intervals: {int(np.sum(modes == 3))} blind (mode 4) "
+            "intervals"
         )
         print("   k   MC mean   MC s.e.   exact    exact|no mode 4")
         for k in sorted({k for k in (0, 1, 2, 3, 5, 10, 20) if k < intervals} | {intervals}):
             se = sq[:, k].std(ddof=1) / np.sqrt(trials)
             print(
-                f"  {k:2d}  {sq[:, k].mean():.4e}  {se:.1e}  {np.trace(V[k]):.4e}  {np.trace(Vc[k]):.4e}"
+                f"  {k:2d}  {sq[:, k].mean():.4e}  {se:.1e}  {np.trace(V[k]):.4e}  "
+                f"{np.trace(Vc[k]):.4e}"
             )
         start = min(5, intervals)  # steady state from k = 5 on (MS radius ~0.08 per interval)
         window = sq[:, start:].mean(axis=1)
         print(
-            f"  time average k >= {start}: {window.mean():.4e} +- {window.std(ddof=1) / np.sqrt(trials):.1e}"
-            f"  (exact {np.trace(V[start:], axis1=1, axis2=2).mean():.4e},"
-            f" no mode 4 {np.trace(Vc[start:], axis1=1, axis2=2).mean():.4e})"
+            f"  time average k >= {start}: {window.mean():.4e} +- "
+            f"{window.std(ddof=1) / np.sqrt(trials):.1e}  (exact "
+            f"{np.trace(V[start:], axis1=1, axis2=2).mean():.4e}, no mode 4 "
+            f"{np.trace(Vc[start:], axis1=1, axis2=2).mean():.4e})"
         )
         results[name] = {
             "gain_delta1": gains[1, :, 0],

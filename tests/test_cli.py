@@ -1,4 +1,5 @@
-"""The command line: the demo runs end to end and prints its comparison; estimate's options and errors."""
+"""The command line: the demo runs end to end and prints its comparison; estimate's options and
+errors."""
 
 import re
 import subprocess
@@ -31,16 +32,18 @@ def test_bad_arguments_exit_with_one_line(capsys):
                    "(see 'switchest demo --help')\n")
 
 
-# ---------------------------------------------------------------------- estimate: options of the new methods
+# ------------------------------------------------------------- estimate: options of the new methods
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "models"
 
 
 @pytest.fixture(scope="module")
 def lee_csv(tmp_path_factory):
-    """1.5 s of lee-fsk (601 rows on its 2.5 ms grid), noise-free: enough for one estimation window."""
+    """1.5 s of lee-fsk (601 rows on its 2.5 ms grid), noise-free: enough for one estimation
+    window."""
     spec = load_model(EXAMPLES / "lee-fsk.toml")
     t = spec.sample_times(1.5)
-    traj = simulate(spec.system, lambda r: spec.signal(r, t), t, spec.initial, u=np.array([0.01]), rng=0)
+    traj = simulate(spec.system, lambda r: spec.signal(r, t), t, spec.initial, u=np.array([0.01]),
+                    rng=0)
     df = pd.DataFrame({"t": t, "u": 0.01, "y0": traj.y[0, :, 0], "y1": traj.y[0, :, 1]})
     path = tmp_path_factory.mktemp("lee") / "lee.csv"
     df.to_csv(path, index=False)
@@ -52,7 +55,8 @@ def test_estimate_help_lists_every_method_and_the_integrated_output(capsys):
         main(["estimate", "--help"])
     assert exc.value.code == 0
     out = " ".join(capsys.readouterr().out.split())
-    assert all(m in out for m in METHODS) and "for rsls the y columns are the integrated output" in out
+    assert all(m in out for m in METHODS)
+    assert "for rsls the y columns are the integrated output" in out
     assert all(flag in out for flag in ("--v-max", "--delta", "--Delta", "--switch-interval"))
 
 
@@ -98,8 +102,10 @@ def test_help_imports_none_of_the_heavy_modules(command):
 def test_min_distance_options_override_the_model_file(lee_csv, tmp_path):
     spec, df, path = lee_csv
     out = tmp_path / "e.csv"
-    assert main(["estimate", "--model", str(EXAMPLES / "lee-fsk.toml"), "--data", str(path), "--method",
-                 "min-distance", "--v-max", "0.2", "--delta", "0.5", "--Delta", "0.75", "--out", str(out)]) == 0
+    assert main(["estimate", "--model", str(EXAMPLES / "lee-fsk.toml"), "--data", str(path),
+                 "--method",
+                 "min-distance", "--v-max", "0.2", "--delta", "0.5", "--Delta", "0.75", "--out",
+                 str(out)]) == 0
     api = estimate_table(spec, df, method="min-distance", v_max=0.2, delta=0.5, Delta=0.75)
     cli = pd.read_csv(out)
     # the same computation in this process; the CLI's table goes through a CSV file read back by
@@ -107,7 +113,8 @@ def test_min_distance_options_override_the_model_file(lee_csv, tmp_path):
     np.testing.assert_allclose(cli.to_numpy(dtype=float),
                                api.to_numpy(dtype=float, na_value=np.nan),
                                rtol=np.finfo(float).eps, atol=0, equal_nan=True)
-    # the first estimate comes one window after t = 0: 0.5 s here, the file's delta = 0.25 s otherwise
+    # the first estimate comes one window after t = 0: 0.5 s here, the file's delta = 0.25 s
+    # otherwise
     first = {w: int(np.flatnonzero(table["x0"].notna())[0]) for w, table in
              (("option", cli), ("file", estimate_table(spec, df, method="min-distance")))}
     assert first == {"option": 200, "file": 100}
@@ -117,7 +124,8 @@ def test_estimate_errors_name_the_model_tables(lee_csv, tmp_path, capsys):
     spec, _, path = lee_csv
     model = save_model(replace(spec, noise={k: v for k, v in spec.noise.items() if k != "v_max"}),
                        tmp_path / "no-bound.toml")
-    args = ["estimate", "--model", str(model), "--data", str(path), "--out", str(tmp_path / "e.csv")]
+    args = ["estimate", "--model", str(model), "--data", str(path), "--out",
+            str(tmp_path / "e.csv")]
     assert main([*args, "--method", "min-distance"]) == 2
     err = capsys.readouterr().err
     # [noise] is shown, not eaten as rich markup

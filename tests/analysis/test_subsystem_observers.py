@@ -1,4 +1,5 @@
-"""Wang et al. (seed 003): sampled error dynamics, MS tests, critical intervals, gains, steady state.
+"""Wang et al. (seed 003): sampled error dynamics, MS tests, critical intervals, gains, steady
+state.
 
 Every printed number of Examples 1-5 is checked against tests/data/wang_*.json: either
 reproduced by the library at the printed precision, or reproduced by a stated reading of
@@ -60,13 +61,15 @@ def at_printed_precision(computed, printed, decimals):
 
 
 def scalar_gains(L1, L2):
-    """State-coordinate gains of the scalar pair: loop gains L1 (mode 1 on x1), L2 (mode 2 on x2)."""
+    """State-coordinate gains of the scalar pair: loop gains L1 (mode 1 on x1), L2 (mode 2 on
+    x2)."""
     return np.array([[[L1], [0.0]], [[0.0], [L2]]])
 
 
 # ---------------------------------------------------------------- the paper's scalar formulas
 def gamma_component(a, L, p_closed, T, *, reading):
-    """Second-moment factor of a component closed w.p. p_closed: e2 correct, e1 the paper's misprint."""
+    """Second-moment factor of a component closed w.p. p_closed: e2 correct, e1 the paper's
+    misprint."""
     k = 2.0 if reading == "e2" else 1.0
     return p_closed * np.exp(k * (a - L) * T) + (1 - p_closed) * np.exp(2 * a * T)
 
@@ -158,7 +161,7 @@ def test_example1_kalman_bucy_gains_diverge_in_mean_square():
     assert ms.radius == pytest.approx(oracle[0], rel=1e-12) and not ms.holds
 
 
-# ---------------------------------------------------------------- Example 2: thresholds, bounds, gamma
+# ------------------------------------------------------------- Example 2: thresholds, bounds, gamma
 def test_example2_per_component_critical_intervals():
     ci = critical_interval(SYS, PROB)
     case = EX["T_max_per_component"]
@@ -254,9 +257,10 @@ def test_example4_gammas_use_the_first_power():
 
 def _optimum(gamma_reading, q_reading):
     lo = A1 + 1e-9
-    f = lambda L: sigma_component(
-        A1, L, P, T, ZETA, gamma_reading=gamma_reading, q_reading=q_reading
-    )
+    def f(L):
+        return sigma_component(A1, L, P, T, ZETA, gamma_reading=gamma_reading,
+                               q_reading=q_reading)
+
     # search above the admissible bound of the reading
     bound = A1 + (2 if gamma_reading == "e1" else 1) * (
         -np.log((1 - (1 - P) * np.exp(2 * A1 * T)) / P) / (2 * T)
@@ -284,20 +288,23 @@ def test_example4_optimum_matches_only_one_reading():
 
 
 def test_example4_correct_optimum_from_the_library():
-    """optimal_gains (the general steady state, Nelder-Mead over both gains) = the scalar closed form."""
+    """optimal_gains (the general steady state, Nelder-Mead over both gains) = the scalar closed
+    form."""
     L_star, sigma1 = _optimum("e2", "exact")  # 26.640, 0.4243
     res = optimal_gains(SYS, PROB, T, scalar_gains(40.0, 15.0))
     assert res.holds and res.radius < 1
     assert res.gains[0, 0, 0] == pytest.approx(L_star, rel=1e-5)
-    f2 = lambda L: sigma_component(A2, L, 1 - P, T, ZETA, gamma_reading="e2", q_reading="exact")
+    def f2(L):
+        return sigma_component(A2, L, 1 - P, T, ZETA, gamma_reading="e2", q_reading="exact")
+
     r2 = minimize_scalar(f2, bounds=(5.2, 200.0), method="bounded", options={"xatol": 1e-10})
     assert res.gains[1, 1, 0] == pytest.approx(r2.x, rel=1e-5)
     assert res.mu == pytest.approx(sigma1 + r2.fun, rel=1e-9)
 
 
 def test_a_radius_margin_trades_steady_state_error_for_convergence_rate():
-    # Example 4's unconstrained optimum contracts the second moment by 0.948 per interval; asking for
-    # 0.93 must give a design on that boundary with a larger (never smaller) steady-state error
+    # Example 4's unconstrained optimum contracts the second moment by 0.948 per interval; asking
+    # for 0.93 must give a design on that boundary with a larger (never smaller) steady-state error
     free = optimal_gains(SYS, PROB, T, scalar_gains(40.0, 15.0))
     fast = optimal_gains(SYS, PROB, T, scalar_gains(40.0, 15.0), max_radius=0.93)
     assert free.radius > 0.93 and fast.holds
@@ -328,7 +335,8 @@ def test_tradeoff_in_T_favours_the_shortest_interval():
 
 # ---------------------------------------------------------------- steady state (21) and moments
 def printed_eq21(dyn, p):
-    """Eq. (21) as printed: P'VP - V + Psi = 0 with P = M^(1/2), M = E[Lambda'Lambda], Psi = E[Gamma Gamma']."""
+    """Eq. (21) as printed: P'VP - V + Psi = 0 with P = M^(1/2), M = E[Lambda'Lambda], Psi = E[Gamma
+    Gamma']."""
     M = np.einsum("i,iba,ibc->ac", p, dyn.Lam, dyn.Lam)
     Pm = np.real(sqrtm(M))
     Psi = np.einsum("i,iab->ab", p, dyn.W)
@@ -609,19 +617,22 @@ def test_bad_input(call, exc, match):
 
 
 def test_large_gains_keep_the_noise_injection_psd_and_the_steady_state_growing():
-    # the 5-bus sub-observers with poles scaled up: gains ~1e3 .. 4e5, A_c T up to ~1e4. W (Proposition 1's
-    # noise integral) must stay PSD and the steady-state error must grow with the gain (more output noise
-    # injected, same MS contraction); the Van Loan exponential alone gave W eigenvalues of -7e6 at 2.83
+    # the 5-bus sub-observers with poles scaled up: gains ~1e3 .. 4e5, A_c T up to ~1e4. W
+    # (Proposition 1's noise integral) must stay PSD and the steady-state error must grow with the
+    # gain (more output noise injected, same MS contraction); the Van Loan exponential alone gave W
+    # eigenvalues of -7e6 at 2.83
     spec = catalog()["wang-ieee5bus"]
     system, T, p = spec.system, spec.sampling["period"], spec.switching.p
     structure = subsystem_structure(system)
-    rates = [max(float(np.max(np.abs(np.linalg.eigvals(A22)), initial=0.0)), 1.0 / T) for A22 in structure.A22]
+    rates = [max(float(np.max(np.abs(np.linalg.eigvals(A22)), initial=0.0)),
+                 1.0 / T) for A22 in structure.A22]
     mu = []
     for scale in (1.0, 2.83, 5.66):
         poles = [-scale * r * (1.0 + 0.25 * np.arange(A22.shape[0])) if A22.size else None
                  for r, A22 in zip(rates, structure.A22)]
         dyn = error_dynamics(system, place_gains(structure, poles), T, structure=structure)
-        assert min(np.linalg.eigvalsh(W).min() for W in dyn.W) >= -1e-12 * max(np.abs(dyn.W).max(), 1.0)
+        smallest = min(np.linalg.eigvalsh(W).min() for W in dyn.W)
+        assert smallest >= -1e-12 * max(np.abs(dyn.W).max(), 1.0)
         ss = steady_state(dyn, p)
         assert np.linalg.eigvalsh(ss.V).min() > 0
         mu.append(ss.mu)

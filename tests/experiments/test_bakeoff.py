@@ -1,4 +1,5 @@
-"""The bake-off runs every applicable method on every case and the clairvoyant filter is the floor."""
+"""The bake-off runs every applicable method on every case and the clairvoyant filter is the
+floor."""
 
 import numpy as np
 import pytest
@@ -28,9 +29,11 @@ def test_bakeoff_quick(quick):
         case, method = row.quantity.split(": ", 1)
         by_case.setdefault(case, {})[method] = row.measured
     # Lee's detector applies only where Assumption 1 holds: the FSK phasor, Lee's own system
-    applicable = {case for case in params["cases"] if min_distance_inapplicable(cases()[case][0]) is None}
+    applicable = {
+        case for case in params["cases"] if min_distance_inapplicable(cases()[case][0]) is None}
     assert applicable == {"FSK phasor"}
-    assert all((by_case[case][DETECTOR] == "n/a") == (case not in applicable) for case in params["cases"])
+    assert all((by_case[case][DETECTOR] == "n/a") == (case not in applicable)
+               for case in params["cases"])
     for case, rmse in by_case.items():
         floor = rmse["mode KF, true switch times"]
         # the detector is scored only where it has an estimate: not comparable with the floor
@@ -40,14 +43,16 @@ def test_bakeoff_quick(quick):
 
 def test_min_distance_detector_on_the_fsk_case(quick):
     _, results, _ = quick
-    tot = merge_blocks([res for cfg, res in results if cfg["case"] == "FSK phasor" and cfg["method"] == "min-distance"])
+    tot = merge_blocks([res for cfg, res in results
+                        if cfg["case"] == "FSK phasor" and cfg["method"] == "min-distance"])
     wrong = tot["count"] - tot["mode_hits"]
-    # Theorem 1: the mode found by every window is the true one, so the wrong samples are those between a
-    # switch and its declaration (each delay rounded up) or after an undeclared switch less than
-    # Delta = 100 T before the end
+    # Theorem 1: the mode found by every window is the true one, so the wrong samples are those
+    # between a switch and its declaration (each delay rounded up) or after an undeclared switch
+    # less than Delta = 100 T before the end
     assert wrong <= tot["delay_T"] + tot["declared"] + 100 * tot["censored"]
     # delays in a 40-trial run: 9.3 +- 0.6 T, at most 10.6 T; a 10 s trial holds at most 7 switches
-    # (dwell >= 1.3 s) among about 835 defined samples, so the accuracy is at least 1 - 7 * 11 / 835 = 0.908
+    # (dwell >= 1.3 s) among about 835 defined samples, so the accuracy is at least 1 - 7 * 11 / 835
+    # = 0.908
     assert tot["mode_hits"] / tot["count"] >= 0.9
     assert tot["on_time"] == tot["switches"] - tot["censored"] and tot["false"] == 0
     assert 0.8 < tot["count"] / tot["samples"] < 1.0 and np.isfinite(tot["sse"]).all()

@@ -17,10 +17,11 @@ from switchest.models import etienne_academic
 
 PAPER = {
     "provenance": (
-        "Etienne et al. (004) §4: scalars of Theorem 8 (alpha 0.2, mu_s 5, mu_c 0.98) and Theorem 10 "
-        "(delta 0.15, mu_c_bar 5, alpha_bar 3), tau in [0.3, 0.4], s = 7, 'the condition of Theorem 10 are "
-        "verified'; Fig. 1 claims the error converges, Fig. 2 that the closed loop is asymptotically stable. "
-        "The paper prints neither beta nor (28)'s value: both evaluated from the printed formulas (11), (31)."
+        "Etienne et al. (004) §4: scalars of Theorem 8 (alpha 0.2, mu_s 5, mu_c 0.98) and Theorem "
+        "10 (delta 0.15, mu_c_bar 5, alpha_bar 3), tau in [0.3, 0.4], s = 7, 'the condition of "
+        "Theorem 10 are verified'; Fig. 1 claims the error converges, Fig. 2 that the closed loop "
+        "is asymptotically stable. The paper prints neither beta nor (28)'s value: both evaluated "
+        "from the printed formulas (11), (31)."
     ),
     "theorem8_beta_eq11": 0.010294,  # (0.2 - ln 5 / 7 - ln 0.98 / 0.4) / 2
     "theorem10_lhs_eq28_printed": 0.16403,
@@ -42,7 +43,8 @@ def test_defaults_are_the_papers_setup():
     for exp in (sync, loop):
         assert exp.params(quick=True)["trials"] < exp.defaults["trials"]
         assert len(exp.tasks(exp.params(quick=True))) <= len(exp.tasks(exp.defaults))
-    assert loop.defaults["example_delay"] == PAPER["delta"] and PAPER["delta"] in loop.defaults["delays"]
+    assert loop.defaults["example_delay"] == PAPER["delta"]
+    assert PAPER["delta"] in loop.defaults["delays"]
     with pytest.raises(ValueError, match="has no parameter"):
         sync.params(delta=0.1)
 
@@ -51,14 +53,16 @@ def test_defaults_are_the_papers_setup():
 def test_sync_paper_scalars_rows(runs):
     summary = runs["etienne-sync"][2]
     assert find_row(summary, "Theorem 8 at the paper's scalars").measured == "feasible"
-    beta = (S.alpha - math.log(S.mu_s) / S.dwell - math.log(S.mu_c) / S.tau_max) / 2  # eq. (11) by hand
+    # eq. (11) by hand
+    beta = (S.alpha - math.log(S.mu_s) / S.dwell - math.log(S.mu_c) / S.tau_max) / 2
     assert beta == pytest.approx(PAPER["theorem8_beta_eq11"], abs=PAPER["tolerance"])
     row = find_row(summary, "guaranteed rate β of ‖e‖ (eq. 11), paper's scalars")
     assert row.measured == pytest.approx(beta, rel=1e-12)
     assert find_row(summary, "rate condition (9)").measured == pytest.approx(2 * beta, rel=1e-12)
     search = find_row(summary, "scalar search: best guaranteed β").measured
     assert search > 5 * beta  # the paper's scalars are far from the best (quick grid: 8.7x)
-    assert find_row(summary, "plant ‖x(t_K)‖/‖x(0)‖").measured > 1  # Fig. 1a: the plant is not stable
+    # Fig. 1a: the plant is not stable
+    assert find_row(summary, "plant ‖x(t_K)‖/‖x(0)‖").measured > 1
 
 
 @pytest.mark.parametrize("gains", ["paper's", "searched"])
@@ -74,21 +78,23 @@ def test_sync_measured_rate_is_at_least_the_guaranteed_beta(runs, gains):
     # ||e(t_k+)|| <= M exp(-beta t_k) ||e(0+)|| at every sample of every trial (Theorem 8, N0 = 1)
     excess = _bound_excess(mine, cert["M"], cert["beta"])
     assert excess <= 1
-    assert find_row(summary, f"largest ‖e(t_k+)‖/‖e(0+)‖ ÷ M e^(−β t_k), {gains}").measured == pytest.approx(excess)
+    row = find_row(summary, f"largest ‖e(t_k+)‖/‖e(0+)‖ ÷ M e^(−β t_k), {gains}")
+    assert row.measured == pytest.approx(excess)
     # the error is measured far above the round-off of x - x_hat
     assert min(r["roundoff_min"] for r in mine) > 100 * np.finfo(float).eps
 
 
 def test_sync_example_trial_follows_the_plant_and_error_dynamics(runs):
-    """Between two samples with no switch (mode i): x(t_{k+1}) = expm(A_i tau) x(t_k), u = 0 (eq. (1)),
-    and e(t_{k+1}+) = (I - G_i C_i) expm(A_i tau) e(t_k+) (eq. (4))."""
+    """Between two samples with no switch (mode i): x(t_{k+1}) = expm(A_i tau) x(t_k), u = 0 (eq.
+    (1)), and e(t_{k+1}+) = (I - G_i C_i) expm(A_i tau) e(t_k+) (eq. (4))."""
     _, results, _ = runs["etienne-sync"]
     res = next(r for c, r in results if c["gains"] == "paper" and c["block"] == 0)
     ex, G = res["example"], np.asarray(res["certificate"]["G"])
     sys = etienne_academic()
     t, x, e, mode = (np.asarray(ex[k]) for k in ("t", "x", "e", "mode"))
     switches = np.asarray(ex["switches"])
-    assert t[0] == t[1] == 0.0 and np.array_equal(x[0], x[1])  # x(0) and e(0-) = x(0) - 0, then e(0+)
+    # x(0) and e(0-) = x(0) - 0, then e(0+)
+    assert t[0] == t[1] == 0.0 and np.array_equal(x[0], x[1])
     np.testing.assert_allclose(e[1], (np.eye(2) - G[mode[1]] @ sys.C[mode[1]]) @ e[0], atol=1e-12)
     checked = 0
     for k in range(1, t.size - 1):
@@ -98,7 +104,8 @@ def test_sync_example_trial_follows_the_plant_and_error_dynamics(runs):
         assert mode[k + 1] == i
         F = expm(sys.A[i] * (t[k + 1] - t[k]))
         np.testing.assert_allclose(x[k + 1], F @ x[k], rtol=1e-9, atol=1e-12)
-        np.testing.assert_allclose(e[k + 1], (np.eye(2) - G[i] @ sys.C[i]) @ F @ e[k], rtol=1e-7, atol=1e-12)
+        np.testing.assert_allclose(e[k + 1], (np.eye(2) - G[i] @ sys.C[i]) @ F @ e[k], rtol=1e-7,
+                                   atol=1e-12)
         checked += 1
     assert checked > 40
 
@@ -110,16 +117,18 @@ def test_async_theorem10_verdict_printed_vs_corrected(runs):
     assert verdict.paper == PAPER["theorem10_verdict"] and verdict.measured == "not certified"
     assert find_row(summary, "LMIs (24)-(27), corrected, paper's scalars").measured == "infeasible"
     # (31) as printed, by hand: 2 beta = alpha (1 - r) - alpha_bar r - ln mu_s / s
-    #                                  - ln mu_c (1 - r) / tau_max - delta ln mu_c_bar / (tau_min s), r = delta / s
+    #                                  - ln mu_c (1 - r) / tau_max
+    #                                  - delta ln mu_c_bar / (tau_min s), r = delta / s
     r = S.delta / S.dwell
     two_beta = (S.alpha * (1 - r) - S.alpha_bar * r - math.log(S.mu_s) / S.dwell
-                - math.log(S.mu_c) * (1 - r) / S.tau_max - S.delta * math.log(S.mu_c_bar) / (S.tau_min * S.dwell))
+                - math.log(S.mu_c) * (1 - r) / S.tau_max
+                - S.delta * math.log(S.mu_c_bar) / (S.tau_min * S.dwell))
     assert -two_beta == pytest.approx(PAPER["theorem10_lhs_eq28_printed"], abs=PAPER["tolerance"])
     printed = find_row(summary, "(28) as printed")
     assert printed.measured == pytest.approx(-two_beta, rel=1e-12) and printed.measured > 0
     corrected = find_row(summary, "corrected rate β").measured
-    assert corrected == pytest.approx(impulsive_closed_loop_decay_rate(S.alpha, S.alpha_bar, S.mu_s, S.mu_c, S.mu_c_bar,
-                                                     S.tau_min, S.tau_max, S.dwell, S.delta))
+    assert corrected == pytest.approx(impulsive_closed_loop_decay_rate(
+        S.alpha, S.alpha_bar, S.mu_s, S.mu_c, S.mu_c_bar, S.tau_min, S.tau_max, S.dwell, S.delta))
     assert corrected < two_beta / 2 < 0
 
 
@@ -133,10 +142,12 @@ def test_async_largest_certified_delay(runs):
     assert best["delta"] == row.measured
 
     def rate(delta):
-        return impulsive_closed_loop_decay_rate(best["alpha"], best["alpha_bar"], search["mu_s"], search["mu_c"], search["mu_c"],
+        return impulsive_closed_loop_decay_rate(best["alpha"], best["alpha_bar"], search["mu_s"],
+                                                search["mu_c"], search["mu_c"],
                               S.tau_min, S.tau_max, S.dwell, delta)
 
-    assert rate(best["delta"] * (1 - 1e-6)) > 0 >= rate(best["delta"] * (1 + 1e-6))  # where (28) turns
+    # where (28) turns
+    assert rate(best["delta"] * (1 - 1e-6)) > 0 >= rate(best["delta"] * (1 + 1e-6))
     assert rate(PAPER["delta"]) < 0
     # below it the corrected Theorem 10 certifies, and the simulated closed loop obeys the bound
     certs = search["certificates"]
@@ -152,9 +163,11 @@ def test_async_closed_loop_converges_at_the_papers_delay(runs):
     row = find_row(summary, f"measured decay rate of ‖z‖, z = (x, e), δ = {PAPER['delta']:g} ")
     assert row.paper == "asymptotically stable"
     sims = [r for c, r in results if c["kind"] == "simulate" and c["delay"] == PAPER["delta"]]
-    assert row.measured == min(r["rate_min"] for r in sims) > 0  # every trial decays, though not certified
+    # every trial decays, though not certified
+    assert row.measured == min(r["rate_min"] for r in sims) > 0
     assert sum(r["trials"] for r in sims) == params["trials"]
-    # samples corrected with the wrong mode: one per switch at most here (ceil(0.15/0.3)), more than (31)'s 0.5
+    # samples corrected with the wrong mode: one per switch at most here (ceil(0.15/0.3)), more than
+    # (31)'s 0.5
     window = find_row(summary, "most samples in one mismatch window")
     assert window.measured == math.ceil(PAPER["delta"] / S.tau_min) == 1
     assert window.paper == pytest.approx(PAPER["delta"] / S.tau_min)

@@ -1,4 +1,5 @@
-"""Lee, Ping & Shim reproduction (lee-detection), run quick: Theorems 1-2 where the assumptions hold.
+"""Lee, Ping & Shim reproduction (lee-detection), run quick: Theorems 1-2 where the assumptions
+hold.
 
 The paper prints no numbers; what it states are guarantees, checked here on the
 stored per-task results at the noise level where its Assumptions 1-3 hold
@@ -70,8 +71,8 @@ def test_theorem_1_and_the_observer_bound_at_the_assumed_noise(run):
 
 
 def test_beyond_the_bound_failures_are_counted(run):
-    """Noise 3x the bound the detector was told raises false declarations; at v = 0.8 told the truth,
-    switches are missed: the bookkeeping reports failures when they happen."""
+    """Noise 3x the bound the detector was told raises false declarations; at v = 0.8 told the
+    truth, switches are missed: the bookkeeping reports failures when they happen."""
     _, results, _ = run
     over = _at(results, 0.3, S.v_max)
     assert sum(r["false"] for r in over) > 0
@@ -84,7 +85,8 @@ def test_blocks_share_their_data_across_noise_levels(run):
     _, results, _ = run
     by_block = {}
     for cfg, r in results:
-        by_block.setdefault(cfg["block"], set()).add((r["x_min_seen"], r["dwell_seen"], r["first_switch_seen"]))
+        by_block.setdefault(cfg["block"],
+                            set()).add((r["x_min_seen"], r["dwell_seen"], r["first_switch_seen"]))
     assert all(len(v) == 1 for v in by_block.values())
 
 
@@ -110,7 +112,8 @@ def test_interpolation_bound_covers_the_gap_to_the_smooth_output():
     rng = np.random.default_rng(3)
     u = S.input(t, 3, rng)
     traj = simulate(S.system(), S.signal, t, np.array(S.x0), u, trials=3, rng=rng, fine_dt=h / 16)
-    lin = np.stack([np.stack([np.interp(traj.t_fine, t, traj.x[n, :, j]) for j in range(2)], axis=-1)
+    lin = np.stack([np.stack([np.interp(traj.t_fine, t, traj.x[n, :, j]) for j in range(2)],
+                             axis=-1)
                     for n in range(3)])
     gap = np.max(np.linalg.norm(traj.x_fine - lin, axis=-1))
     bound = lee_exp.interpolation_bound(h, duration)

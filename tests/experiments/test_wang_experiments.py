@@ -1,4 +1,5 @@
-"""Wang et al. reproductions, run quick: printed numbers, readings, and the Monte Carlo against exact moments.
+"""Wang et al. reproductions, run quick: printed numbers, readings, and the Monte Carlo against
+exact moments.
 
 Printed values come from tests/data/wang_*.json (with their provenance). The statistical
 checks recompute Monte Carlo means and standard errors from the stored per-block sums and
@@ -51,7 +52,8 @@ def _mean_se(s, sq, n):
 
 
 def _exact_diag(system, gains, T, p, e0, steps):
-    """diag E[e_k e_k'] (state coordinates) from the library's recursion, an oracle independent of the summary."""
+    """diag E[e_k e_k'] (state coordinates) from the library's recursion, an oracle independent of
+    the summary."""
     dyn = error_dynamics(system, gains, T)
     F, Phi = dyn.structure.F, dyn.structure.Phi
     z0 = F @ np.asarray(e0, float)
@@ -77,25 +79,35 @@ def test_examples_printed_numbers_and_readings(runs):
         assert close_at_printed(row.measured, row.paper, EX["gamma_bar_kalman_bucy"]["decimals"])
     for c in (1, 2):
         row = find_row(summary, f"Ex. 2: T_max^{c}")
-        assert row.paper == EX["T_max_per_component"]["value"][c - 1] and close_at_printed(row.measured, row.paper, 4)
+        assert row.paper == EX["T_max_per_component"]["value"][c - 1]
+        assert close_at_printed(row.measured, row.paper, 4)
         row = find_row(summary, f"Ex. 2: γ for L{c}")
-        assert row.paper == EX["gamma_L40_L15"]["value"][c - 1] and close_at_printed(row.measured, row.paper, 4)
+        assert row.paper == EX["gamma_L40_L15"]["value"][c - 1]
+        assert close_at_printed(row.measured, row.paper, 4)
         printed = EX["gain_bounds"]["value"][c - 1]
         reading = find_row(summary, f"Ex. 2: bound L_{c} > (paper's reading")
         correct = find_row(summary, f"Ex. 2: bound L_{c} > (correct")
         assert reading.paper == correct.paper == printed
-        assert close_at_printed(reading.measured, printed, 4) and not close_at_printed(correct.measured, printed, 2)
-    for L, printed in zip(EX["gamma1_example4"]["gains"], EX["gamma1_example4"]["value"], strict=True):
-        assert close_at_printed(find_row(summary, f"Ex. 4: γ^1 for L1 = {L:g} (paper's reading").measured, printed, 4)
-        assert abs(find_row(summary, f"Ex. 4: γ^1 for L1 = {L:g} (correct").measured - printed) > 5e-3
+        assert close_at_printed(reading.measured, printed,
+                                4) and not close_at_printed(correct.measured, printed, 2)
+    for L, printed in zip(EX["gamma1_example4"]["gains"], EX["gamma1_example4"]["value"],
+                          strict=True):
+        assert close_at_printed(find_row(summary,
+                                         f"Ex. 4: γ^1 for L1 = {L:g} (paper's reading").measured,
+                                printed, 4)
+        assert abs(find_row(summary,
+                            f"Ex. 4: γ^1 for L1 = {L:g} (correct").measured - printed) > 5e-3
     opt = EX["optimum_example4"]
-    assert close_at_printed(find_row(summary, "Ex. 4: optimal L1* (paper's reading").measured, opt["value"]["L1"], 1)
-    assert close_at_printed(find_row(summary, "Ex. 4: σ¹_∞(L1*) (paper's reading").measured, opt["value"]["sigma"], 4)
+    assert close_at_printed(find_row(summary, "Ex. 4: optimal L1* (paper's reading").measured,
+                            opt["value"]["L1"], 1)
+    assert close_at_printed(find_row(summary, "Ex. 4: σ¹_∞(L1*) (paper's reading").measured,
+                            opt["value"]["sigma"], 4)
     assert close_at_printed(find_row(summary, "Ex. 3 (a = 10").measured, np.log(2) / 20, 10)
 
 
 def test_example4_correct_optimum_against_the_closed_form(runs):
-    """sigma_inf^1 = p Q^2 / (1 - gamma) with e^{2(a-L)T} and Q^2 = int_0^T (Wang eq. (23), read correctly)."""
+    """sigma_inf^1 = p Q^2 / (1 - gamma) with e^{2(a-L)T} and Q^2 = int_0^T (Wang eq. (23), read
+    correctly)."""
     ex = WANG_EXAMPLES["example4"]
     a, p, T, zeta = ex.a1, ex.p, ex.T, ex.zeta
 
@@ -107,16 +119,21 @@ def test_example4_correct_optimum_against_the_closed_form(runs):
     _, results, summary = runs["wang-examples"]
     optimum = find_row(summary, "Ex. 4: optimal L1* (correct").measured
     assert optimum == pytest.approx(r.x, rel=1e-5)  # 26.640
-    assert find_row(summary, "Ex. 4: σ¹_∞(L1*) (correct)").measured == pytest.approx(r.fun, rel=1e-8)  # 0.4243
-    assert find_row(summary, "Ex. 4: correct σ¹_∞ at the printed").measured == pytest.approx(sigma(61.3), rel=1e-9)
-    # Fig. 6's Monte Carlo runs that optimum (to the 3 decimals of the task config) beside the printed L1*
+    sigma_star = find_row(summary, "Ex. 4: σ¹_∞(L1*) (correct)").measured
+    assert sigma_star == pytest.approx(r.fun, rel=1e-8)  # 0.4243
+    sigma_printed = find_row(summary, "Ex. 4: correct σ¹_∞ at the printed").measured
+    assert sigma_printed == pytest.approx(sigma(61.3), rel=1e-9)
+    # Fig. 6's Monte Carlo runs that optimum (to the 3 decimals of the task config) beside the
+    # printed L1*
     cfg6 = next(c for c, _ in results if c["figure"] == "6")
-    assert [g[0] for g in cfg6["gains"]] == [round(optimum, 3), EX["optimum_example4"]["value"]["L1"]]
+    assert [g[0] for g in cfg6["gains"]] == [round(optimum, 3),
+                                             EX["optimum_example4"]["value"]["L1"]]
 
 
 # ---------------------------------------------------------------- Examples 1-4: Monte Carlo
 def test_examples_monte_carlo_given_the_modes(runs):
-    """Every gain of every figure: the runs' window sums agree with Theorem 1 along their own modes."""
+    """Every gain of every figure: the runs' window sums agree with Theorem 1 along their own
+    modes."""
     _, results, summary = runs["wang-examples"]
     checked = 0
     for figure in ("1", "2", "3", "4", "6"):
@@ -132,7 +149,8 @@ def test_examples_monte_carlo_given_the_modes(runs):
 
 
 def test_examples_light_tailed_component_matches_the_recursion(runs):
-    """Component 2 (tail index far above 4): MC time averages vs exact moments within Z_MAX sample SE."""
+    """Component 2 (tail index far above 4): MC time averages vs exact moments within Z_MAX sample
+    SE."""
     _, results, _ = runs["wang-examples"]
     ex = WANG_EXAMPLES["example1"]
     for figure in ("1", "2"):
@@ -141,8 +159,8 @@ def test_examples_light_tailed_component_matches_the_recursion(runs):
         (L1, L2), = cfg["gains"]
         s = tot[f"L1={L1:g},L2={L2:g}"]
         mc, se = _mean_se(s["win_sum"][1], s["win_sq"][1], tot["trials"])
-        exact = _exact_diag(ex.system(), wang.scalar_gains(L1, L2), ex.T, ex.probabilities(), cfg["e0"],
-                            cfg["horizon"])
+        exact = _exact_diag(ex.system(), wang.scalar_gains(L1, L2), ex.T, ex.probabilities(),
+                            cfg["e0"], cfg["horizon"])
         assert abs(mc - exact[cfg["window"]:, 1].mean()) < Z_MAX * se, figure
 
 
@@ -156,18 +174,21 @@ def test_examples_divergence_and_tradeoff(runs):
     s = _summed(results, figure="1")[f"L1={L1:g},L2={L2:g}"]
     mc = np.asarray(s["sum"]) / _summed(results, figure="1")["trials"]
     assert mc[-1, 0] > 1e4 * mc[0, 0]
-    assert find_row(summary, "Fig. 1: MC growth").measured == pytest.approx(EX["gamma_bar_kalman_bucy"]["value"][0],
-                                                                          abs=0.01)
+    growth = find_row(summary, "Fig. 1: MC growth").measured
+    assert growth == pytest.approx(EX["gamma_bar_kalman_bucy"]["value"][0], abs=0.01)
     # Fig. 3: T = 0.25 above T_max: exact factors above 1, the MC mean explodes, the median does not
-    assert find_row(summary, "Fig. 3 (T = 0.25): exact second-moment factor, component 1").measured > 2
-    assert find_row(summary, "Fig. 3 (T = 0.25): exact second-moment factor, component 2").measured > 1
+    assert find_row(summary,
+                    "Fig. 3 (T = 0.25): exact second-moment factor, component 1").measured > 2
+    assert find_row(summary,
+                    "Fig. 3 (T = 0.25): exact second-moment factor, component 2").measured > 1
     tot3 = _summed(results, figure="3")
     s3 = tot3["L1=40,L2=15"]
     mc3 = np.asarray(s3["sum"]) / tot3["trials"]
     assert mc3[:, 0].max() > 1e5 * mc3[0, 0]
     medians = [float(v) for v in find_row(summary, "Fig. 3: MC median").measured.split(", ")]
     assert max(medians) < mc3[0, 0]
-    # Fig. 6: on the same runs the correct optimum beats the printed L1* = 61.3 by many standard errors
+    # Fig. 6: on the same runs the correct optimum beats the printed L1* = 61.3 by many standard
+    # errors
     tot6 = _summed(results, figure="6")
     d, se = _mean_se(tot6["pair"]["sum"], tot6["pair"]["sq"], tot6["trials"])
     assert d < -Z_MAX * se
@@ -178,23 +199,28 @@ def test_bus_printed_numbers(runs):
     summary = runs["wang-ieee5bus"][2]
     row = find_row(summary, "T_max: eq. (20)")
     assert row.paper == BUS["T_max"]["value"]
-    assert np.floor(row.measured * 1e4) / 1e4 == pytest.approx(BUS["T_max"]["value"], abs=1e-12)  # truncated
+    # truncated
+    assert np.floor(row.measured * 1e4) / 1e4 == pytest.approx(BUS["T_max"]["value"], abs=1e-12)
     row = find_row(summary, "T = 0.95 T_max")
     assert close_at_printed(row.measured, BUS["T"]["value"], BUS["T"]["decimals"])
     for design, key in (("first", "gain_first"), ("aggressive", "gain_aggressive")):
         gain = [r.measured for r in summary.rows
                 if r.quantity.startswith(f"{design} design") and "gain entry" in r.quantity]
         assert len(gain) == 4
-        if design == "first":  # the printed A is rounded: 4e-3 (the unrounded A gives every digit, test_ms_design)
+        # the printed A is rounded: 4e-3 (the unrounded A gives every digit, test_ms_design)
+        if design == "first":
             assert np.max(np.abs(np.subtract(gain, BUS[key]["value"]))) < 5e-3
         else:
-            assert all(close_at_printed(g, v, BUS[key]["decimals"]) for g, v in zip(gain, BUS[key]["value"], strict=True))
+            assert all(close_at_printed(g, v, BUS[key]["decimals"]) for g,
+                       v in zip(gain, BUS[key]["value"], strict=True))
         printed = BUS[f"moment_eigenvalues_{design}"]
-        fitted = [r for r in summary.rows if r.quantity.startswith(f"{design}: eigenvalue") and "fitted" in r.quantity]
-        scipy_ = [r for r in summary.rows if r.quantity.startswith(f"{design}: eigenvalue") and "scipy" in r.quantity]
+        eigen_rows = [r for r in summary.rows if r.quantity.startswith(f"{design}: eigenvalue")]
+        fitted = [r for r in eigen_rows if "fitted" in r.quantity]
+        scipy_ = [r for r in eigen_rows if "scipy" in r.quantity]
         assert [r.paper for r in fitted] == printed["value"]
         decimals = np.broadcast_to(printed["decimals"], 4)
-        assert all(close_at_printed(r.measured, r.paper, d) for r, d in zip(fitted, decimals, strict=True))
+        assert all(close_at_printed(r.measured, r.paper, d) for r,
+                   d in zip(fitted, decimals, strict=True))
         assert max(abs(r.measured - r.paper) for r in scipy_) > 1e-3  # another (valid) place gain
 
 
@@ -213,7 +239,8 @@ def test_bus_monte_carlo_matches_the_exact_moments(runs):
         exact = _exact_diag(system, gains, T, p, IEEE_5BUS_INITIAL_ERROR, K).sum(axis=1)[w:].mean()
         assert abs(mc - exact) < Z_MAX * se, design
         mcc, sec = _mean_se(tot["clear"]["win_sum"][0], tot["clear"]["win_sq"][0], Nc)
-        exact_c = _exact_diag(system, gains, T, clear_p, IEEE_5BUS_INITIAL_ERROR, K).sum(axis=1)[w:].mean()
+        exact_c = _exact_diag(system, gains, T, clear_p, IEEE_5BUS_INITIAL_ERROR,
+                              K).sum(axis=1)[w:].mean()
         assert abs(mcc - exact_c) < Z_MAX * sec, design
         g = tot["given_modes"]
         assert abs(g["dev"][0] / np.sqrt(g["var"][0])) < Z_MAX

@@ -33,7 +33,8 @@ def _groups(results):
     """Config (less block, trials) -> summed per-block moments."""
     out = {}
     for cfg, res in results:
-        key = json.dumps({k: v for k, v in cfg.items() if k not in ("block", "trials")}, sort_keys=True)
+        key = json.dumps({k: v for k, v in cfg.items() if k not in ("block", "trials")},
+                         sort_keys=True)
         tot = out.setdefault(key, (cfg, {}))[1]
         for k, v in res.items():
             tot[k] = tot.get(k, 0) + np.asarray(v, float)
@@ -57,12 +58,15 @@ def _example1_case(cfg):
         return modes, np.asarray(cfg["lam"]), d
     dyn = mismatch_dynamics(zhang_two_mode())
     eta = 1.0 / (1.0 - np.linalg.norm(dyn.Lambda[0], 2))  # BIBO gain from ||Lambda_i|| < 1 (P = I)
-    p = cfg["bound"] / (cfg["eta_sup_input"] * np.linalg.norm(dyn.S[0, 1], 2))  # eq. (18), two modes
-    return modes, np.array([[1 - p, p], [p, 1 - p]]), cfg["eta_sup_input"] / eta * d / np.linalg.norm(d)
+    # eq. (18), two modes
+    p = cfg["bound"] / (cfg["eta_sup_input"] * np.linalg.norm(dyn.S[0, 1], 2))
+    return modes, np.array([[1 - p, p],
+                            [p, 1 - p]]), cfg["eta_sup_input"] / eta * d / np.linalg.norm(d)
 
 
 def _eq9(system, modes, lam, m0):
-    return bias_recursion(mismatch_dynamics(system), lam, modes, mean_state(system, modes, m0)[:-1])[1:]
+    return bias_recursion(mismatch_dynamics(system), lam, modes,
+                          mean_state(system, modes, m0)[:-1])[1:]
 
 
 def test_defaults_are_the_papers_monte_carlo_size():
@@ -81,7 +85,8 @@ def test_example1_printed_matrices_and_norms(runs):
         row = find_row(summary, f"‖Λ_{q}‖")
         assert row.paper == cases["norm_Lambda"]["value"][q - 1]
         assert close_at_printed(row.measured, row.paper, 4)
-    for prefix, key in (("Λ_1 ", "Lambda_1"), ("Λ_2", "Lambda_2"), ("Γ_1,2", "Gamma_1_2"), ("Γ_2,1", "Gamma_2_1")):
+    for prefix, key in (("Λ_1 ", "Lambda_1"), ("Λ_2", "Lambda_2"), ("Γ_1,2", "Gamma_1_2"),
+                        ("Γ_2,1", "Gamma_2_1")):
         row = find_row(summary, prefix)
         assert row.paper == _matrix(cases[key]["value"])
         assert row.measured == row.paper  # all four printed decimals
@@ -103,10 +108,11 @@ def test_example1_fig6_design_reproduces_0154554_and_holds(runs):
         assert np.max(np.linalg.norm(theory, axis=1)) <= case["bound"]  # the guarantee, on eq. (9)
         mean, se = _mc(tot, "alg1")
         # the paper's filter: below B up to Monte Carlo noise
-        assert np.max(np.linalg.norm(mean, axis=1) - Z_MAX * np.linalg.norm(se, axis=1)) <= case["bound"]
+        margin = np.linalg.norm(mean, axis=1) - Z_MAX * np.linalg.norm(se, axis=1)
+        assert np.max(margin) <= case["bound"]
         sig = cfg["signal"]
-        assert find_row(summary, f"Fig. 6 (signal {sig}): max_k ‖E(e_k)‖").measured == pytest.approx(
-            np.max(np.linalg.norm(theory, axis=1)), rel=1e-9)
+        row = find_row(summary, f"Fig. 6 (signal {sig}): max_k ‖E(e_k)‖")
+        assert row.measured == pytest.approx(np.max(np.linalg.norm(theory, axis=1)), rel=1e-9)
 
 
 def test_example1_monte_carlo_matches_eq9_with_steady_gains(runs):
@@ -120,9 +126,12 @@ def test_example1_monte_carlo_matches_eq9_with_steady_gains(runs):
         z = np.abs(mean - theory) / se
         assert z.max() < Z_MAX, (cfg, z.max())
         if cfg["figure"] in ("3", "4"):
-            assert np.max(np.abs(theory) / se) > 10.0  # the bias is far from zero: the check can fail
+            # the bias is far from zero: the check can fail
+            assert np.max(np.abs(theory) / se) > 10.0
             lam12, lam21 = lam[0, 1], lam[1, 0]
-            row = find_row(summary, f"Fig. {cfg['figure']} (signal {cfg['signal']}), λ12={lam12:g}, λ21={lam21:g}: "
+            row = find_row(summary,
+                           f"Fig. {cfg['figure']} (signal {cfg['signal']}), λ12={lam12:g}, "
+                           f"λ21={lam21:g}: "
                                 f"largest |MC")
             assert row.measured == pytest.approx(z.max(), rel=1e-9)
     # lam[i, q] is P(filter mode i | true mode q): the transposed reading is rejected
@@ -152,9 +161,11 @@ def test_example1_algorithm1_gap_and_theorem4_bound(runs):
 def test_smartgrid_printed_values(runs):
     summary = runs["zhang-smartgrid"][2]
     norms = GRID["cases"]["norm_Lambda"]["value"]
-    assert close_at_printed(find_row(summary, "‖Λ_1‖, Algorithm 1 gain after 99 steps").measured, norms[0], 4)
+    assert close_at_printed(find_row(summary, "‖Λ_1‖, Algorithm 1 gain after 99 steps").measured,
+                            norms[0], 4)
     steady1 = find_row(summary, "‖Λ_1‖, steady-state gain")
-    assert steady1.paper == norms[0] and not close_at_printed(steady1.measured, norms[0], 4)  # documented disagreement
+    # documented disagreement
+    assert steady1.paper == norms[0] and not close_at_printed(steady1.measured, norms[0], 4)
     for q in (2, 3):
         assert close_at_printed(find_row(summary, f"‖Λ_{q}‖").measured, norms[q - 1], 4)
     typos = {(t["T"], tuple(t["entry"])): t for t in GRID["cases"]["typos"]["value"]}
@@ -167,15 +178,18 @@ def test_smartgrid_printed_values(runs):
                 row = find_row(summary, f"T_{key}[{r},{c}]")
                 assert row.paper == matrix[r - 1][c - 1]
                 if (key, (r, c)) in typos:
-                    assert close_at_printed(row.measured, typos[key, (r, c)]["computed_at_printed_precision"], 4)
-                    assert row.ratio == pytest.approx(0.1, abs=0.01) and "slipped decimal" in row.note
+                    assert close_at_printed(row.measured,
+                                            typos[key, (r, c)]["computed_at_printed_precision"], 4)
+                    assert row.ratio == pytest.approx(0.1,
+                                                      abs=0.01) and "slipped decimal" in row.note
                 else:
                     assert close_at_printed(row.measured, row.paper, 4)
                 checked += 1
     assert checked == 10
     assert find_row(summary, "unstable components").measured == "{1}"
     region = GRID["cases"]["stable_region"]["value"]["zero"]
-    assert find_row(summary, "Algorithm 2: λ forced to 0").measured == ", ".join(f"λ{k.replace(',', '')}"
+    assert find_row(summary,
+                    "Algorithm 2: λ forced to 0").measured == ", ".join(f"λ{k.replace(',', '')}"
                                                                             for k in sorted(region))
     outside = GRID["cases"]["fig7_setting_II"]["outside"]
     assert find_row(summary, "Fig. 7 Setting II: entries outside").measured == ", ".join(
@@ -197,11 +211,13 @@ def test_smartgrid_fig7_bounded_inside_exploding_outside(runs):
         if cfg["setting"] == "I":
             # bounded: the theoretical bias stays tiny and the filter's is noise around it
             assert th_norm.max() < 0.01
-            assert np.all(np.linalg.norm(alg1, axis=1) <= th_norm + Z_MAX * np.linalg.norm(se1, axis=1))
+            allowed = th_norm + Z_MAX * np.linalg.norm(se1, axis=1)
+            assert np.all(np.linalg.norm(alg1, axis=1) <= allowed)
         else:
             assert np.max(np.abs(theory) / se) > 10.0
             assert th_norm[-1] > 1e6 * th_norm[0]  # explodes with E(P_G)
-            assert np.linalg.norm(alg1[-1]) > 1e6 * th_norm[0]  # and so does the paper's filter's bias
+            # and so does the paper's filter's bias
+            assert np.linalg.norm(alg1[-1]) > 1e6 * th_norm[0]
         seen.add(cfg["setting"])
     assert seen == {"I", "II"}
     for setting in ("I", "II"):

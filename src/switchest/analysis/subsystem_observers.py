@@ -425,8 +425,8 @@ def substate_gains(
         outside = np.linalg.norm(gains[i] - Fb.T @ (Fb @ gains[i]))
         if outside > 1e-8 * max(1.0, np.linalg.norm(gains[i])):
             raise ValueError(
-                f"{name}[{i}] must lie in mode {i}'s observable subspace (Wang et al. eq. (7) corrects "
-                f"only z^i = F_i x), got a component of norm {outside:.3g} outside it"
+                f"{name}[{i}] must lie in mode {i}'s observable subspace (Wang et al. eq. (7) "
+                f"corrects only z^i = F_i x), got a component of norm {outside:.3g} outside it"
             )
         out.append(Fb @ gains[i])
     return tuple(out)
@@ -564,7 +564,8 @@ def steady_state(dyn: ErrorDynamics, p) -> SteadyState:
     ms = ms_stable_iid(dyn.Lam, p)
     if not ms.holds:
         raise ValueError(
-            f"the error system must be mean-square stable for a steady state, got spectral radius {ms.radius:.4g}"
+            "the error system must be mean-square stable for a steady state, got spectral radius "
+            f"{ms.radius:.4g}"
         )
     K = np.einsum("i,iab,icd->acbd", p, dyn.Lam, dyn.Lam).reshape(n_s * n_s, n_s * n_s)
     rhs = np.einsum("i,iab->ab", p, dyn.W).ravel()
@@ -669,7 +670,8 @@ def place_gains(
         want = np.zeros(0) if poles[i] is None else np.asarray(poles[i], dtype=complex).ravel()
         if want.size != size:
             raise ValueError(
-                f"poles[{i}] must hold n_{i} = {size} poles (mode {i}'s observable sub-state), got {want.size}"
+                f"poles[{i}] must hold n_{i} = {size} poles (mode {i}'s observable sub-state), got "
+                f"{want.size}"
             )
         if size == 0:
             continue
@@ -838,7 +840,8 @@ def optimal_gains(
         raise ValueError(f"objective must be 'z' or 'x', got {objective!r}")
     max_radius = positive_scalar(max_radius, "max_radius")
     if max_radius > 1:
-        raise ValueError(f"max_radius must be at most 1 (mean-square stability), got {max_radius:g}")
+        raise ValueError(
+            f"max_radius must be at most 1 (mean-square stability), got {max_radius:g}")
     start = substate_gains(structure, initial_gains, "initial_gains")
     # free parameters: L_i U_r (columns on the informative output directions of C2^i)
     bases = []
@@ -865,8 +868,8 @@ def optimal_gains(
         return ss.mu if objective == "z" else ss.mu_x
 
     if not np.isfinite(cost(theta0)):
-        raise ValueError(f"initial_gains must give a mean-square stable error system with spectral radius "
-                         f"below max_radius = {max_radius:g}")
+        raise ValueError("initial_gains must give a mean-square stable error system with spectral "
+                         f"radius below max_radius = {max_radius:g}")
     res = minimize(
         cost,
         theta0,
@@ -909,8 +912,8 @@ def _structure(system, structure) -> SubsystemStructure:
         raise TypeError(f"structure must be a SubsystemStructure, got {type(structure).__name__}")
     if structure.block.size != system.n_modes or structure.F.shape[1] != system.n_states:
         raise ValueError(
-            f"structure must belong to a system with {system.n_modes} modes and {system.n_states} states, "
-            f"got {structure.block.size} modes and {structure.F.shape[1]} states"
+            f"structure must belong to a system with {system.n_modes} modes and {system.n_states} "
+            f"states, got {structure.block.size} modes and {structure.F.shape[1]} states"
         )
     return structure
 
@@ -920,7 +923,8 @@ def _probabilities(p, L: int) -> np.ndarray:
 
 
 def _open_loop(structure: SubsystemStructure, expAT: np.ndarray) -> np.ndarray:
-    """``Lambda^2 F e^{A_i T} Phi`` (eq. (15)): ``F e^{A_i T} Phi`` with the closed-loop block rows zeroed."""
+    """``Lambda^2 F e^{A_i T} Phi`` (eq. (15)): ``F e^{A_i T} Phi`` with the closed-loop block rows
+    zeroed."""
     full = structure.F @ expAT @ structure.Phi  # (..., L, n_s, n_s)
     keep = np.ones((structure.block.size, structure.n_substates))
     for i, b in enumerate(structure.block):

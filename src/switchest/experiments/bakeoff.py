@@ -74,7 +74,8 @@ FSK_V_MAX = 3 * FSK_NOISE_STD  # the noise bound the detector is told
 def _markov_jump() -> ModelSpec:
     """Two lightly damped oscillators of different frequency, one sensor, and a third mode that
     drifts; continuous-time Markov switching (mean dwell 0.8 s) at arbitrary instants."""
-    A = np.array([[[0.0, 2.0], [-2.0, -0.2]], [[0.0, 5.0], [-5.0, -0.3]], [[-0.5, 0.0], [0.0, -0.5]]])
+    A = np.array([[[0.0, 2.0], [-2.0, -0.2]], [[0.0, 5.0], [-5.0, -0.3]],
+                  [[-0.5, 0.0], [0.0, -0.5]]])
     B = np.array([[[0.0], [1.0]], [[0.0], [1.0]], [[1.0], [0.0]]])
     sys = SwitchedLinearSystem.continuous(A, B, [[1.0, 0.0]], Q=0.01 * np.eye(2), R=[[0.01]])
     rates = np.array([[-1.25, 0.75, 0.5], [0.5, -1.25, 0.75], [0.75, 0.5, -1.25]])
@@ -96,7 +97,8 @@ def _unobservable_mode() -> ModelSpec:
 
 
 def _fsk_phasor(lee: ModelSpec) -> ModelSpec:
-    """Lee's FSK phasor (catalog ``lee-fsk``) with Gaussian noise: R = 0.03^2 I, Q = 1e-4 I, T = 10 ms."""
+    """Lee's FSK phasor (catalog ``lee-fsk``) with Gaussian noise: R = 0.03^2 I, Q = 1e-4 I, T = 10
+    ms."""
     s = lee.system
     noisy = SwitchedLinearSystem.continuous(s.A, s.B, s.C, Q=1e-4 * np.eye(s.n_states),
                                             R=FSK_NOISE_STD**2 * np.eye(s.n_outputs))
@@ -151,8 +153,8 @@ def _detector(system: SwitchedLinearSystem) -> MinimumDistanceDetector:
     ``A_i - L_i C = -40 I``) and the noise bound ``v_max = 3 sigma`` of the FSK case.
     """
     s = LEE_SCENARIO
-    return MinimumDistanceDetector(system, delta=s.delta, Delta=s.Delta, v_max=FSK_V_MAX, u_max=s.u_max,
-                                   observer_gains=s.observer_gains)
+    return MinimumDistanceDetector(system, delta=s.delta, Delta=s.Delta, v_max=FSK_V_MAX,
+                                   u_max=s.u_max, observer_gains=s.observer_gains)
 
 
 def _run(cfg: dict, rng: np.random.Generator) -> dict:
@@ -210,11 +212,13 @@ def _detections(est, traj, Delta: float) -> dict:
     m = match_detections(est.switch_time, traj.signals, Delta=Delta, t_end=traj.t[-1])
     delays = m.delay[np.isfinite(m.delay)]
     return {"delay_T": float(np.sum(delays / np.diff(traj.t).mean())), "declared": int(delays.size),
-            "on_time": m.on_time, "switches": m.n_switches, "censored": m.censored, "false": m.false}
+            "on_time": m.on_time, "switches": m.n_switches, "censored": m.censored,
+            "false": m.false}
 
 
 def _stay(spec: ModelSpec, t: np.ndarray) -> float | None:
-    """A schedule implies no transition matrix; for the vehicle use its long dwell (0.9 per sample)."""
+    """A schedule implies no transition matrix; for the vehicle use its long dwell (0.9 per
+    sample)."""
     return 0.9 if isinstance(spec.switching, Schedule) else None
 
 
@@ -228,62 +232,75 @@ def _summary(p: dict, results, out: Path) -> Summary:
             tot = totals.get((case, m))
             if tot is None:
                 rel[m].append(np.nan)
-                reason = min_distance_inapplicable(all_cases[case][0]) if m == "min-distance" else None
+                reason = (min_distance_inapplicable(all_cases[case][0]) if m == "min-distance"
+                          else None)
                 if reason:
                     rows.append(Row(f"{case}: {_LABELS[m]}", "n/a", None, "RMSE", reason))
                 continue
             rmse = np.sqrt(tot["sse"].sum() / tot["count"])
             rel[m].append(np.sqrt(tot["sse"].sum() / tot["scale"].sum()))
-            parts = [f"relative RMSE {rel[m][-1]:.3g}", f"{tot['elapsed'] / tot['trials'] * 1e3:.1f} ms per trial"]
+            parts = [f"relative RMSE {rel[m][-1]:.3g}",
+                     f"{tot['elapsed'] / tot['trials'] * 1e3:.1f} ms per trial"]
             if "mode_hits" in tot:
                 parts.append(f"mode accuracy {tot['mode_hits'] / tot['count']:.3f}")
             if tot.get("switch_pairs"):
-                parts.append(f"switch-time error {tot['switch_rel_err'] / tot['switch_pairs']:.3f} T")
+                parts.append("switch-time error "
+                             f"{tot['switch_rel_err'] / tot['switch_pairs']:.3f} T")
             if "samples" in tot:
                 parts += _detector_parts(tot)
             rows.append(Row(f"{case}: {_LABELS[m]}", float(rmse), None, "RMSE", "; ".join(parts)))
     fig = bars(out / "bakeoff.png", list(p["cases"]), {_LABELS[m]: v for m, v in rel.items()},
-               ylabel="RMSE / RMS of the state", logy=True, title="Bake-off: every estimator on the same data")
-    setup = (f"{p['trials']} trials per case; each method on the same simulated trials. Methods that know the "
-             "modes at the samples (mode KF, switch-time KF) are given them; IMM, IMM-EV1 and the min-distance "
-             "detector estimate them. Relative RMSE = RMSE over the RMS of the true state (the first 5 % of "
-             "samples dropped). FSK phasor: Lee's system (catalog lee-fsk), R = 0.03² I, Q = 1e-4 I, T = 10 ms, "
-             f"dwell times uniform in [1.3, 2.5] s, u = {LEE_SCENARIO.u_max:g}; the min-distance detector with "
-             f"δ = {LEE_SCENARIO.delta:g} s, Δ = {LEE_SCENARIO.Delta:g} s, L_i = A_i + "
+               ylabel="RMSE / RMS of the state", logy=True,
+               title="Bake-off: every estimator on the same data")
+    setup = (f"{p['trials']} trials per case; each method on the same simulated trials. Methods "
+             "that know the modes at the samples (mode KF, switch-time KF) are given them; IMM, "
+             "IMM-EV1 and the min-distance detector estimate them. Relative RMSE = RMSE over the "
+             "RMS of the true state (the first 5 % of samples dropped). FSK phasor: Lee's system "
+             "(catalog lee-fsk), R = 0.03² I, Q = 1e-4 I, T = 10 ms, dwell times uniform in [1.3, "
+             f"2.5] s, u = {LEE_SCENARIO.u_max:g}; the min-distance detector with δ = "
+             f"{LEE_SCENARIO.delta:g} s, Δ = {LEE_SCENARIO.Delta:g} s, L_i = A_i + "
              f"{LEE_SCENARIO.observer_decay:g} I and v_max = 3σ = {FSK_V_MAX:g}.")
     notes = [
-        "No paper has this table. The clairvoyant mode KF knows every switching instant: the floor. "
-        "Switching-time error is in units of the sampling period.",
-        "The unobservable-mode case hides the state while its sensor is off; filters that track the mode "
-        "keep predicting through it, IMM-type filters must also infer the mode from the silence.",
+        "No paper has this table. The clairvoyant mode KF knows every switching instant: the "
+        "floor. Switching-time error is in units of the sampling period.",
+        "The unobservable-mode case hides the state while its sensor is off; filters that track "
+        "the mode keep predicting through it, IMM-type filters must also infer the mode from the "
+        "silence.",
         *_fsk_notes(p),
     ]
-    return Summary("bakeoff", "Bake-off — every estimator on the same data", setup, rows, notes, [fig])
+    return Summary("bakeoff", "Bake-off — every estimator on the same data", setup, rows, notes,
+                   [fig])
 
 
 def _detector_parts(tot: dict) -> list[str]:
     """The min-distance row's extras: where it was scored, and Theorem 2's detection counts."""
     delay = f", mean delay {tot['delay_T'] / tot['declared']:.1f} T" if tot["declared"] else ""
-    return [(f"scored only on the {tot['count'] / tot['samples']:.1%} of samples where it has an estimate "
-             "(none before its first window ends, nor from a declaration to the end of the next window)"),
-            (f"{tot['on_time']} of {tot['switches'] - tot['censored']} switches declared within Δ{delay}, "
-             f"{tot['false']} false declarations")]
+    return [(f"scored only on the {tot['count'] / tot['samples']:.1%} of samples where it has an "
+             "estimate (none before its first window ends, nor from a declaration to the end of "
+             "the next window)"),
+            (f"{tot['on_time']} of {tot['switches'] - tot['censored']} switches declared within "
+             f"Δ{delay}, {tot['false']} false declarations")]
 
 
 def _fsk_notes(p: dict) -> list[str]:
-    """Lee et al.'s conditions at the FSK case's noise bound, and why they are not a guarantee here."""
+    """Lee et al.'s conditions at the FSK case's noise bound, and why they are not a guarantee
+    here."""
     if "FSK phasor" not in p["cases"]:
         return []
     s = LEE_SCENARIO
     spec = cases()["FSK phasor"][0]
-    a = lee_assumptions(spec.system, u_max=s.u_max, v_max=FSK_V_MAX, x_min=spec.noise["x_min"], delta=s.delta,
-                        Delta=s.Delta, observer_gains=s.observer_gains, min_dwell=spec.switching.min_dwell)
-    return [(f"FSK phasor: Lee et al.'s Assumptions 1-3 {'hold' if a.holds else 'fail'} for |v| ≤ {FSK_V_MAX:g} "
-            f"(noise bound allowed {a.v_max_allowed:.4g}), but the Gaussian noise exceeds 3σ at about "
-            f"{np.exp(-4.5):.1%} of the samples, the process noise Q is outside their model and the linear "
-            "interpolation of the output between samples adds to the noise: Theorems 1-2 are not guaranteed, "
-            "the detector's rows are empirical. Its mode accuracy counts the samples between a switch and its "
-            "declaration (the detection delay) as wrong. No other case satisfies Assumption 1: n/a.")]
+    a = lee_assumptions(spec.system, u_max=s.u_max, v_max=FSK_V_MAX, x_min=spec.noise["x_min"],
+                        delta=s.delta,
+                        Delta=s.Delta, observer_gains=s.observer_gains,
+                        min_dwell=spec.switching.min_dwell)
+    return [(f"FSK phasor: Lee et al.'s Assumptions 1-3 {'hold' if a.holds else 'fail'} for |v| ≤ "
+             f"{FSK_V_MAX:g} "
+            f"(noise bound allowed {a.v_max_allowed:.4g}), but the Gaussian noise exceeds 3σ at "
+            f"about {np.exp(-4.5):.1%} of the samples, the process noise Q is outside their model "
+            "and the linear interpolation of the output between samples adds to the noise: "
+            "Theorems 1-2 are not guaranteed, the detector's rows are empirical. Its mode accuracy "
+            "counts the samples between a switch and its declaration (the detection delay) as "
+            "wrong. No other case satisfies Assumption 1: n/a.")]
 
 
 register(Experiment(

@@ -49,8 +49,8 @@ GRID_STEP = 0.05  # time grid (s) on which the per-block envelopes are held and 
 RELAXATIONS = {"ᾱ = 100": {"alpha_bar": 100.0}, "μc = 1.2": {"mu_c": 1.2}, "α = 0": {"alpha": 0.0}}
 SERIES = ("t", "worst_log", "sum_log")  # per-sample results, kept per block
 EPS = float(np.finfo(float).eps)
-# Fig. 1's horizon (not printed). The plant diverges while e = x - x_hat decays, so ||e|| must stay well
-# above eps ||x||: with the searched gains it is ~1e3 eps ||x|| at 20 s and round-off by 40 s.
+# Fig. 1's horizon (not printed). The plant diverges while e = x - x_hat decays, so ||e|| must stay
+# well above eps ||x||: with the searched gains it is ~1e3 eps ||x|| at 20 s and round-off by 40 s.
 SYNC_HORIZON = 20.0
 
 
@@ -109,11 +109,13 @@ def _envelope(total: dict, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Worst-case and geometric-mean ratio over all trials, each sample's value held to the next."""
     held = {key: np.stack([b[key][np.searchsorted(b["t"], grid, side="right") - 1]
                            for b in _series(total)]) for key in ("worst_log", "sum_log")}
-    return np.exp(held["worst_log"].max(axis=0)), np.exp(held["sum_log"].sum(axis=0) / total["trials"])
+    return (np.exp(held["worst_log"].max(axis=0)),
+            np.exp(held["sum_log"].sum(axis=0) / total["trials"]))
 
 
 def _bound_excess(total: dict, M: float, beta: float) -> float:
-    """Largest ``ratio(t_k+) / (M exp(-beta (t_k - t_0)))`` over all trials and samples (<= 1: holds)."""
+    """Largest ``ratio(t_k+) / (M exp(-beta (t_k - t_0)))`` over all trials and samples (<= 1:
+    holds)."""
     return float(max(np.max(np.exp(b["worst_log"] + beta * (b["t"] - b["t"][0]))) / M
                      for b in _series(total)))
 
@@ -138,11 +140,14 @@ def _example(t: np.ndarray, x: np.ndarray, err: np.ndarray, err0: np.ndarray, mo
 
 
 def _trial_figure(path: Path, example: dict, title: str) -> Path:
-    """The paper's panels a-b: plant state and observation error of one trial, a line per component."""
+    """The paper's panels a-b: plant state and observation error of one trial, a line per
+    component."""
     x, e = np.asarray(example["x"]), np.asarray(example["e"])
-    series = {f"component {i + 1} ({'measured' if i == 0 else 'unmeasured'})": np.stack([x[:, i], e[:, i]], 1)
+    series = {f"component {i + 1} ({'measured' if i == 0 else 'unmeasured'})":
+              np.stack([x[:, i], e[:, i]], 1)
               for i in range(x.shape[1])}
-    return curves(path, np.asarray(example["t"]), series, xlabel="t (s)", markers=example["switches"],
+    return curves(path, np.asarray(example["t"]), series, xlabel="t (s)",
+                  markers=example["switches"],
                   title=title, ylabel=["plant state x(t_k)", "error e = x − x̂ (after each jump)"])
 
 
@@ -162,7 +167,8 @@ def _sync_tasks(p: dict) -> list[dict]:
 
 
 def _sync_certificate(cfg: dict) -> tuple[ImpulsiveObserverCertificate, dict]:
-    """Theorem 8 at the paper's scalars, or the best of the scalar search (and the search's grid)."""
+    """Theorem 8 at the paper's scalars, or the best of the scalar search (and the search's
+    grid)."""
     if cfg["gains"] == "paper":
         return _paper_observer(), {}
     found = _searched_observer(tuple(cfg["mu_s"]), tuple(cfg["mu_c"]), cfg["alpha_tol"])
@@ -205,32 +211,46 @@ def _sync_rows(p: dict, paper: dict, search: dict) -> list[Row]:
     cp, cs = paper["certificate"], search["certificate"]
     rows = [
         Row(f"Theorem 8 at the paper's scalars α = {S.alpha:g}, μs = {S.mu_s:g}, μc = {S.mu_c:g}",
-            "feasible", "feasible", "", f"LMIs (5)-(8), corrected (notes); verified slack {cp['margin']:.3g}"),
+            "feasible", "feasible", "",
+            f"LMIs (5)-(8), corrected (notes); verified slack {cp['margin']:.3g}"),
         Row("rate condition (9): α − ln μs/s − ln μc/τ̄", 2 * cp["beta"], "> 0", "1/s",
             f"= 2β; s = {S.dwell:g}, τ̄ = {S.tau_max:g}"),
-        Row("guaranteed rate β of ‖e‖ (eq. 11), paper's scalars", cp["beta"], None, "1/s", "not printed"),
-        Row("overshoot M (N0 = 1), paper's scalars", cp["M"], None, "", "not printed; proof of Theorem 8"),
+        Row("guaranteed rate β of ‖e‖ (eq. 11), paper's scalars", cp["beta"], None, "1/s",
+            "not printed"),
+        Row("overshoot M (N0 = 1), paper's scalars", cp["M"], None, "",
+            "not printed; proof of Theorem 8"),
         Row("observer gains, paper's scalars", _gains_text(cp["G"]), None, "",
             "not printed; one SDP solution (Clarabel), not unique"),
         Row("scalar search: best guaranteed β", cs["beta"], None, "1/s",
-            f"at α = {cs['alpha']:.3f}, μs = {cs['mu_s']:g}, μc = {cs['mu_c']:g}; grid μs ∈ {p['search_mu_s']}, "
-            f"μc ∈ {p['search_mu_c']}, largest α bisected to {p['alpha_tol']:g} ({cs['n_solves']} SDPs); "
-            f"{cs['beta'] / cp['beta']:.1f}× the β of the paper's scalars"),
+            f"at α = {cs['alpha']:.3f}, μs = {cs['mu_s']:g}, μc = {cs['mu_c']:g}; grid μs ∈ "
+            f"{p['search_mu_s']}, μc ∈ {p['search_mu_c']}, largest α bisected to "
+            f"{p['alpha_tol']:g} ({cs['n_solves']} SDPs); {cs['beta'] / cp['beta']:.1f}× the β of "
+            "the paper's scalars"),
         Row("observer gains, searched scalars", _gains_text(cs["G"]), None),
     ]
     for name, tot in (("paper's", paper), ("searched", search)):
         cert = tot["certificate"]
         excess = _bound_excess(tot, cert["M"], cert["beta"])
+        verdict = ("≤ 1: Theorem 8’s bound holds at every sample" if excess <= 1
+                   else "> 1: BOUND VIOLATED")
         rows += [
-            Row(f"measured decay rate of ‖e‖, {name} scalars' gains (slowest trial)", tot["rate_min"], None,
-                "1/s", f"guaranteed β = {cert['beta']:.4g}: {'met' if tot['rate_min'] >= cert['beta'] else 'NOT met'}; "
-                f"mean {tot['rate_sum'] / tot['trials']:.3f}; −ln(‖e(t_K)‖/‖e(0+)‖)/t_K, {tot['trials']} trials"),
-            Row(f"largest ‖e(t_k+)‖/‖e(0+)‖ ÷ M e^(−β t_k), {name} scalars' gains", excess, None, "",
-                f"{'≤ 1: Theorem 8’s bound holds at every sample' if excess <= 1 else '> 1: BOUND VIOLATED'}; "
-                f"smallest ‖e(t_K)‖ = {tot['roundoff_min'] / EPS:.2g} ε‖x(t_K)‖, above the round-off of x − x̂"),
+            Row(f"measured decay rate of ‖e‖, {name} scalars' gains (slowest trial)",
+                tot["rate_min"], None,
+                "1/s",
+                f"guaranteed β = {cert['beta']:.4g}: "
+                f"{'met' if tot['rate_min'] >= cert['beta'] else 'NOT met'}; mean "
+                f"{tot['rate_sum'] / tot['trials']:.3f}; −ln(‖e(t_K)‖/‖e(0+)‖)/t_K, "
+                f"{tot['trials']} trials"),
+            Row(f"largest ‖e(t_k+)‖/‖e(0+)‖ ÷ M e^(−β t_k), {name} scalars' gains", excess, None,
+                "",
+                f"{verdict}; "
+                f"smallest ‖e(t_K)‖ = {tot['roundoff_min'] / EPS:.2g} ε‖x(t_K)‖, above the "
+                "round-off of x − x̂"),
         ]
-    rows.append(Row("plant ‖x(t_K)‖/‖x(0)‖ (geometric mean), u = 0", math.exp(paper["x_log_growth"] / paper["trials"]),
-                    "not stable (Fig. 1a)", "", f"grew in {paper['x_grew']} of {paper['trials']} trials: the "
+    rows.append(Row("plant ‖x(t_K)‖/‖x(0)‖ (geometric mean), u = 0",
+                    math.exp(paper["x_log_growth"] / paper["trials"]),
+                    "not stable (Fig. 1a)", "",
+                    f"grew in {paper['x_grew']} of {paper['trials']} trials: the "
                     "plant is not stable, the observer converges anyway"))
     return rows
 
@@ -244,52 +264,62 @@ def _sync_summary(p: dict, results, out: Path) -> Summary:
     for name, tot in (("paper's scalars", paper), ("searched scalars", search)):
         cert = tot["certificate"]
         series[f"worst trial, {name}"], series[f"geometric mean, {name}"] = _envelope(tot, grid)
-        series[f"bound M e^(−βt), {name}, β = {cert['beta']:.3g}"] = cert["M"] * np.exp(-cert["beta"] * grid)
+        bound_label = f"bound M e^(−βt), {name}, β = {cert['beta']:.3g}"
+        series[bound_label] = cert["M"] * np.exp(-cert["beta"] * grid)
     figs = [
         _trial_figure(out / "etienne-sync-fig1ab.png", paper["example"],
                       "Etienne Fig. 1a-b: one trial, paper's scalars' gains (dotted: switches)"),
-        curves(out / "etienne-sync-fig1c.png", t0[:-1], {"t_{k+1} − t_k": np.diff(t0)}, xlabel="t_k (s)",
+        curves(out / "etienne-sync-fig1c.png", t0[:-1], {"t_{k+1} − t_k": np.diff(t0)},
+               xlabel="t_k (s)",
                ylabel="inter-sampling time (s)", title="Etienne Fig. 1c: sampling intervals"),
-        curves(out / "etienne-sync-decay.png", grid, series, xlabel="t (s)", ylabel="‖e(t)‖ / ‖e(0+)‖", logy=True,
+        curves(out / "etienne-sync-decay.png", grid, series, xlabel="t (s)",
+               ylabel="‖e(t)‖ / ‖e(0+)‖", logy=True,
                title=f"Theorem 8: decay of ‖e‖, {paper['trials']} trials"),
     ]
     setup = (
-        "Etienne §4: A_1 = [[0.2, −0.5], [0.5, −0.3]], A_2 = [[0.2, 0.3], [−1, 0.4]], C_1 = C_2 = [1, 0], "
-        f"u = 0 (the observer alone). Sampling intervals uniform in [{S.tau_min:g}, {S.tau_max:g}] (one "
-        f"sequence per block of {p['block_size']} trials); switches uniform in [{S.dwell:g}, {p['max_dwell']:g}] s "
-        f"apart, random first mode (average dwell s = {S.dwell:g}, N0 = 1); x(0) ~ N(0, I), x̂(0) = 0; horizon "
-        f"{p['horizon']:g} s (not printed; longer, the searched gains' error would sink below the round-off of "
-        f"x − x̂ as the plant diverges); {p['trials']} trials. Observer (3) with the gains of Theorem 8 at the paper's "
-        "scalars and at the scalar search's best; ‖e‖ after each correction, e(0+) after the first (t_0 = 0)."
+        "Etienne §4: A_1 = [[0.2, −0.5], [0.5, −0.3]], A_2 = [[0.2, 0.3], [−1, 0.4]], C_1 = C_2 = "
+        f"[1, 0], u = 0 (the observer alone). Sampling intervals uniform in [{S.tau_min:g}, "
+        f"{S.tau_max:g}] (one sequence per block of {p['block_size']} trials); switches uniform in "
+        f"[{S.dwell:g}, {p['max_dwell']:g}] s apart, random first mode (average dwell s = "
+        f"{S.dwell:g}, N0 = 1); x(0) ~ N(0, I), x̂(0) = 0; horizon {p['horizon']:g} s (not "
+        "printed; longer, the searched gains' error would sink below the round-off of x − x̂ as "
+        f"the plant diverges); {p['trials']} trials. Observer (3) with the gains of Theorem 8 at "
+        "the paper's scalars and at the scalar search's best; ‖e‖ after each correction, e(0+) "
+        "after the first (t_0 = 0)."
     )
     notes = [
-        ("The paper prints no number for Fig. 1 (no β, no gains, no horizon, no initial errors): the rows give "
-         "ours; the claim reproduced is that the error converges although the plant is not stable."),
-        ("LMI (7) is printed [[μc P(θ), P0 − L C_j], [*, P0]]: its Schur complement bounds (P0 − LC) P0⁻¹ "
-         "(P0 − LC)ᵀ, not the jump (I − GC)ᵀ P0 (I − GC) the proof needs, so the off-diagonal block is transposed "
-         "(and C_j is C_i); (6) is printed with α/μc where the proof uses α. Both corrected "
-         "(switchest.analysis.impulsive_lmis); the paper's scalars stay feasible."),
-        ("Rate (11) assumes ln μc ≤ 0 (it counts at least t/τ̄ − 1 samples); for μc > 1 the search counts t/τ_min. "
-         "β is a guaranteed lower bound: the measured rates are far larger, because the LMIs bound every "
-         "interval by its worst case and the scalars are fixed by hand (Remark 12)."),
-        ("Fixing the scalars makes the BMI an LMI; the paper's choice is far from the best: the search over "
-         "(μs, μc) with the largest feasible α certifies a several times larger β."),
+        ("The paper prints no number for Fig. 1 (no β, no gains, no horizon, no initial errors): "
+         "the rows give ours; the claim reproduced is that the error converges although the plant "
+         "is not stable."),
+        ("LMI (7) is printed [[μc P(θ), P0 − L C_j], [*, P0]]: its Schur complement bounds (P0 − "
+         "LC) P0⁻¹ (P0 − LC)ᵀ, not the jump (I − GC)ᵀ P0 (I − GC) the proof needs, so the "
+         "off-diagonal block is transposed (and C_j is C_i); (6) is printed with α/μc where the "
+         "proof uses α. Both corrected (switchest.analysis.impulsive_lmis); the paper's scalars "
+         "stay feasible."),
+        ("Rate (11) assumes ln μc ≤ 0 (it counts at least t/τ̄ − 1 samples); for μc > 1 the search "
+         "counts t/τ_min. β is a guaranteed lower bound: the measured rates are far larger, "
+         "because the LMIs bound every interval by its worst case and the scalars are fixed by "
+         "hand (Remark 12)."),
+        ("Fixing the scalars makes the BMI an LMI; the paper's choice is far from the best: the "
+         "search over (μs, μc) with the largest feasible α certifies a several times larger β."),
     ]
-    return Summary("etienne-sync", "Etienne et al. Fig. 1 — synchronous impulsive observer (Theorem 8)",
+    return Summary("etienne-sync",
+                   "Etienne et al. Fig. 1 — synchronous impulsive observer (Theorem 8)",
                    setup, _sync_rows(p, paper, search), notes, figs)
 
 
 register(Experiment(
     name="etienne-sync",
     paper="Etienne",
-    title="Fig. 1: impulsive observer with synchronous mode knowledge, guaranteed vs measured decay",
+    title=("Fig. 1: impulsive observer with synchronous mode knowledge, "
+           "guaranteed vs measured decay"),
     # A task is a block observed with both gain sets, a fraction of a second (the first task of a
     # worker also runs the scalar search, ~2 s): 4 tasks of 250, 2 per worker on 2 cores;
     # --quick: 2 of 100, one per worker.
     defaults={"trials": 1000, "block_size": 250, "horizon": SYNC_HORIZON, "max_dwell": 14.0,
               "N0": 1.0,
-              "search_mu_s": [2.0, 5.0, 10.0, 20.0, 40.0], "search_mu_c": [0.5, 0.675, 0.85, 0.98, 1.0],
-              "alpha_tol": 1e-3},
+              "search_mu_s": [2.0, 5.0, 10.0, 20.0, 40.0],
+              "search_mu_c": [0.5, 0.675, 0.85, 0.98, 1.0], "alpha_tol": 1e-3},
     quick={"trials": 200, "block_size": 100, "search_mu_s": [5.0, 20.0],
            "search_mu_c": [0.675, 0.98]},
     tasks=_sync_tasks,
@@ -299,8 +329,10 @@ register(Experiment(
 
 
 # ------------------------------------------------------------------ Fig. 2: delayed mode, control
-def _largest_delay(alpha: float, alpha_bar: float, mu_s: float, mu_c: float, mu_c_bar: float) -> float:
-    """Supremum of the delays ``delta`` at which the corrected rate (28) is positive, at these scalars.
+def _largest_delay(alpha: float, alpha_bar: float, mu_s: float, mu_c: float,
+                   mu_c_bar: float) -> float:
+    """Supremum of the delays ``delta`` at which the corrected rate (28) is positive, at these
+    scalars.
 
     :func:`~switchest.analysis.impulsive_lmis.impulsive_closed_loop_decay_rate` is
     ``(b - (delta (alpha + alpha_bar)^+ + q c) / s) / 2`` with
@@ -309,7 +341,8 @@ def _largest_delay(alpha: float, alpha_bar: float, mu_s: float, mu_c: float, mu_
     on each ``((q-1) tau_min, q tau_min]``. NaN when even ``delta = 0`` fails,
     ``inf`` when no delay does.
     """
-    budget = S.dwell * 2 * impulsive_observer_decay_rate(alpha, mu_s, mu_c, S.tau_min, S.tau_max, S.dwell)  # s b
+    budget = S.dwell * 2 * impulsive_observer_decay_rate(alpha, mu_s, mu_c, S.tau_min, S.tau_max,
+                                                         S.dwell)  # s b
     if budget <= 0:
         return math.nan
     slope, per_sample = max(alpha + alpha_bar, 0.0), max(math.log(mu_c_bar / mu_c), 0.0)
@@ -447,49 +480,61 @@ def _certificate_at(winner: dict | None, delay: float) -> dict | None:
     return cert if cert and cert["feasible"] else None
 
 
-def _async_rows(p: dict, verdict: dict, winner: dict | None, n_solves: int, sims: dict) -> list[Row]:
+def _async_rows(p: dict, verdict: dict, winner: dict | None, n_solves: int,
+                sims: dict) -> list[Row]:
     q = math.ceil(S.delta / S.tau_min)
-    scalars = (f"δ = {S.delta:g}, α = {S.alpha:g}, ᾱ = {S.alpha_bar:g}, μs = {S.mu_s:g}, μc = {S.mu_c:g}, "
-               f"μ̄c = {S.mu_c_bar:g}")
-    relaxed = "; ".join(f"{k}: LMIs {'feasible' if v['lmi_feasible'] else 'infeasible'}, β = {v['beta']:.3g}"
+    scalars = (f"δ = {S.delta:g}, α = {S.alpha:g}, ᾱ = {S.alpha_bar:g}, μs = {S.mu_s:g}, μc = "
+               f"{S.mu_c:g}, μ̄c = {S.mu_c_bar:g}")
+    relaxed = "; ".join(f"{k}: LMIs {'feasible' if v['lmi_feasible'] else 'infeasible'}, β = "
+                        f"{v['beta']:.3g}"
                         for k, v in verdict["relaxed"].items())
     rows = [
         Row(f"Theorem 10 at the paper's scalars ({scalars})",
-            "certified" if verdict["feasible"] else "not certified", "verified", "", verdict["note"]),
-        Row("(28) as printed: −2β of (31), paper's scalars", -2 * verdict["printed_beta"], "≤ 0 (verified)", "",
-            "> 0: the printed scalar condition already fails"),
+            "certified" if verdict["feasible"] else "not certified", "verified", "",
+            verdict["note"]),
+        Row("(28) as printed: −2β of (31), paper's scalars", -2 * verdict["printed_beta"],
+            "≤ 0 (verified)", "", "> 0: the printed scalar condition already fails"),
         Row("corrected rate β (valid sample counts), paper's scalars", verdict["beta"], None, "1/s",
             f"q = ⌈δ/τ_min⌉ = {q} wrong-mode sample per switch"),
-        Row("LMIs (24)-(27), corrected, paper's scalars", "feasible" if verdict["lmi_feasible"] else "infeasible",
+        Row("LMIs (24)-(27), corrected, paper's scalars",
+            "feasible" if verdict["lmi_feasible"] else "infeasible",
             "feasible", "", f"one scalar relaxed — {relaxed}"),
     ]
     if winner is None:
-        rows.append(Row("largest δ certified by corrected Theorem 10 (grid search)", "none found", S.delta, "s"))
+        rows.append(Row("largest δ certified by corrected Theorem 10 (grid search)", "none found",
+                        S.delta, "s"))
     else:
         best = winner["best"]
         rows.append(Row(
-            "largest δ certified by corrected Theorem 10 (grid search)", best["delta"], S.delta, "s",
-            f"at α = {best['alpha']:.4f}, ᾱ = {best['alpha_bar']:g}, μs = {winner['mu_s']:g}, μc = μ̄c = "
-            f"{winner['mu_c']:g}; grid μs ∈ {p['search_mu_s']}, μc ∈ {p['search_mu_c']}, ᾱ ∈ {p['search_alpha_bar']}, "
-            f"largest α bisected to {p['alpha_tol']:g} ({n_solves} SDPs); other scalars may certify more"))
+            "largest δ certified by corrected Theorem 10 (grid search)", best["delta"], S.delta,
+            "s",
+            f"at α = {best['alpha']:.4f}, ᾱ = {best['alpha_bar']:g}, μs = {winner['mu_s']:g}, μc = "
+            f"μ̄c = {winner['mu_c']:g}; grid μs ∈ {p['search_mu_s']}, μc ∈ {p['search_mu_c']}, ᾱ ∈ "
+            f"{p['search_alpha_bar']}, largest α bisected to {p['alpha_tol']:g} ({n_solves} SDPs); "
+            "other scalars may certify more"))
         for d in sorted(float(k) for k in winner["certificates"]):
             c = winner["certificates"][str(d)]
-            rows.append(Row(f"Theorem 10 at δ = {d:g}, best scalars", "certified" if c["feasible"] else
-                            "not certified", None, "", f"β = {c['beta']:.4g} 1/s, M = {c['M']:.3g} (N0 = 1)"))
+            rows.append(Row(f"Theorem 10 at δ = {d:g}, best scalars",
+                            "certified" if c["feasible"] else
+                            "not certified", None, "",
+                            f"β = {c['beta']:.4g} 1/s, M = {c['M']:.3g} (N0 = 1)"))
     if p["example_delay"] in sims:
         tot = sims[p["example_delay"]]
         rows.append(Row(
-            f"most samples in one mismatch window [s_j, s_j + δ), δ = {p['example_delay']:g}", tot["window_max"],
-            p["example_delay"] / S.tau_min, "", f"(31) counts δ/τ_min per switch; a window can hold "
+            f"most samples in one mismatch window [s_j, s_j + δ), δ = {p['example_delay']:g}",
+            tot["window_max"],
+            p["example_delay"] / S.tau_min, "",
+            f"(31) counts δ/τ_min per switch; a window can hold "
             f"⌈δ/τ_min⌉ = {math.ceil(p['example_delay'] / S.tau_min)}; mean "
-            f"{tot['window_samples'] / max(tot['switches'], 1):.2f} over {tot['switches']} switches"))
+            f"{tot['window_samples'] / max(tot['switches'], 1):.2f} over "
+            f"{tot['switches']} switches"))
     for d in sorted(sims):
         tot, cert = sims[d], _certificate_at(winner, d)
         bound = ""
         if cert is not None:
             excess = _bound_excess(tot, cert["M"], cert["beta"])
-            bound = (f"; certified β = {cert['beta']:.3g}: largest ratio ÷ M e^(−βt) = {excess:.3g} "
-                     f"({'bound holds' if excess <= 1 else 'BOUND VIOLATED'})")
+            bound = (f"; certified β = {cert['beta']:.3g}: largest ratio ÷ M e^(−βt) = "
+                     f"{excess:.3g} ({'bound holds' if excess <= 1 else 'BOUND VIOLATED'})")
         rows.append(Row(
             f"measured decay rate of ‖z‖, z = (x, e), δ = {d:g} (slowest trial)", tot["rate_min"],
             "asymptotically stable" if d == S.delta else None, "1/s",
@@ -504,11 +549,12 @@ def _async_figures(p: dict, winner: dict | None, sims: dict, out: Path) -> list[
     if p["example_delay"] in sims:
         tot = sims[p["example_delay"]]
         figs.append(_trial_figure(out / "etienne-async-fig2ab.png", tot["example"],
-                                  f"Etienne Fig. 2a-b: one trial, switches detected δ = {p['example_delay']:g} s "
-                                  "late (dotted: switches)"))
+                                  "Etienne Fig. 2a-b: one trial, switches detected δ = "
+                                  f"{p['example_delay']:g} s late (dotted: switches)"))
     grid = _time_grid(p["horizon"])
     delays = sorted(sims)
-    shown = sorted({delays[0], p["example_delay"], *delays[-2:]} & set(delays))  # the rest: rate figure
+    # the rest: rate figure
+    shown = sorted({delays[0], p["example_delay"], *delays[-2:]} & set(delays))
     series = {f"worst trial, δ = {d:g}": _envelope(sims[d], grid)[0] for d in shown}
     for d in delays:
         if (cert := _certificate_at(winner, d)) is not None:
@@ -518,13 +564,14 @@ def _async_figures(p: dict, winner: dict | None, sims: dict, out: Path) -> list[
                        title=f"Fig. 2: decay of ‖z‖, {p['trials']} trials per δ"))
     rates = {"measured, slowest trial": [sims[d]["rate_min"] for d in delays],
              "measured, mean": [sims[d]["rate_sum"] / sims[d]["trials"] for d in delays],
-             "certified β (best scalars)": [c["beta"] if (c := _certificate_at(winner, d)) else np.nan
-                                            for d in delays]}
+             "certified β (best scalars)": [c["beta"] if (c := _certificate_at(winner, d))
+                                            else np.nan for d in delays]}
     marks = [p["example_delay"]] + ([winner["best"]["delta"]] if winner else [])
     where = ", ".join(f"{m:.2g}" for m in sorted(marks))
-    figs.append(curves(out / "etienne-async-delay.png", np.array(delays), {k: np.array(v) for k, v in rates.items()},
-                       xlabel="detection delay δ (s)", ylabel="decay rate of ‖z‖, z = (x, e) (1/s)", markers=marks,
-                       title=f"Decay rate vs delay (dotted: δ = {where})"))
+    figs.append(curves(out / "etienne-async-delay.png", np.array(delays),
+                       {k: np.array(v) for k, v in rates.items()},
+                       xlabel="detection delay δ (s)", ylabel="decay rate of ‖z‖, z = (x, e) (1/s)",
+                       markers=marks, title=f"Decay rate vs delay (dotted: δ = {where})"))
     return figs
 
 
@@ -533,56 +580,63 @@ def _async_summary(p: dict, results, out: Path) -> Summary:
     verdict = next(r for c, r in results if c["kind"] == "verdict")
     searches = [r for c, r in results if c["kind"] == "search"]
     sims = _group([(c, r) for c, r in results if c["kind"] == "simulate"], "delay")
-    winner = max((s for s in searches if "best" in s), key=lambda s: s["best"]["delta"], default=None)
+    winner = max((s for s in searches if "best" in s), key=lambda s: s["best"]["delta"],
+                 default=None)
     rows = _async_rows(p, verdict, winner, sum(s["n_solves"] for s in searches), sims)
     setup = (
-        f"Etienne §4 'Analyse': the academic example with u = K_σ̂ x̂, K_1 = {list(S.controller[0])}, "
-        f"K_2 = {list(S.controller[1])}, observer gains of Theorem 8 at the paper's scalars "
-        f"({_gains_text(verdict['G'])}); σ̂ detects every switch δ late (the extreme case of Assumption 5). "
-        f"Sampling intervals uniform in [{S.tau_min:g}, {S.tau_max:g}], switches uniform [{S.dwell:g}, "
-        f"{p['max_dwell']:g}] s apart, x(0), x̂(0) ~ N(0, I) independent, horizon {p['horizon']:g} s, "
-        f"{p['trials']} trials per delay, delays {p['delays']} s. Theorem 10 with the corrected LMIs and rate "
+        "Etienne §4 'Analyse': the academic example with u = K_σ̂ x̂, K_1 = "
+        f"{list(S.controller[0])}, K_2 = {list(S.controller[1])}, observer gains of Theorem 8 at "
+        f"the paper's scalars ({_gains_text(verdict['G'])}); σ̂ detects every switch δ late (the "
+        f"extreme case of Assumption 5). Sampling intervals uniform in [{S.tau_min:g}, "
+        f"{S.tau_max:g}], switches uniform [{S.dwell:g}, {p['max_dwell']:g}] s apart, x(0), x̂(0) "
+        f"~ N(0, I) independent, horizon {p['horizon']:g} s, {p['trials']} trials per delay, "
+        f"delays {p['delays']} s. Theorem 10 with the corrected LMIs and rate "
         "(switchest.analysis.impulsive_lmis)."
     )
     notes = [
-        ("§4 reports Theorem 10's conditions verified at the paper's scalars. The printed scalar condition (28) "
-         f"is violated there (−2β = {-2 * verdict['printed_beta']:.5f} > 0) and the corrected LMIs (24)-(27) are "
-         "infeasible. LMI (26) is printed with the block Q0 J where the proof needs Jᵀ Q0 (transposed like (7)); "
-         "with the printed block the LMIs are feasible at these scalars but the Q they return lets V grow at a "
-         "sample (tests/analysis/test_impulsive.py), which likely explains the paper's claim."),
-        ("(31) counts δ/τ_min wrong-mode samples per switch and (t − M_miss)/τ̄ right-mode ones; neither bounds "
-         "the true counts (a window of length δ can hold ⌈δ/τ_min⌉ samples: window row), so the corrected rate "
-         "charges q = ⌈δ/τ_min⌉ per switch. The printed jump block (22b) has the wrong sign of G C_ji (zero "
-         "here: C_1 = C_2)."),
-        ("With C_1 = C_2 a sample taken with the wrong mode estimate jumps exactly like one with the right one, "
-         "so μ̄c = μc costs nothing in the LMIs, while the paper's μ̄c = 5 adds ln(5/0.98) per switch to the "
-         "rate; the search sets μ̄c = μc."),
+        ("§4 reports Theorem 10's conditions verified at the paper's scalars. The printed scalar "
+         f"condition (28) is violated there (−2β = {-2 * verdict['printed_beta']:.5f} > 0) and the "
+         "corrected LMIs (24)-(27) are infeasible. LMI (26) is printed with the block Q0 J where "
+         "the proof needs Jᵀ Q0 (transposed like (7)); with the printed block the LMIs are "
+         "feasible at these scalars but the Q they return lets V grow at a sample "
+         "(tests/analysis/test_impulsive.py), which likely explains the paper's claim."),
+        ("(31) counts δ/τ_min wrong-mode samples per switch and (t − M_miss)/τ̄ right-mode ones; "
+         "neither bounds the true counts (a window of length δ can hold ⌈δ/τ_min⌉ samples: window "
+         "row), so the corrected rate charges q = ⌈δ/τ_min⌉ per switch. The printed jump block "
+         "(22b) has the wrong sign of G C_ji (zero here: C_1 = C_2)."),
+        ("With C_1 = C_2 a sample taken with the wrong mode estimate jumps exactly like one with "
+         "the right one, so μ̄c = μc costs nothing in the LMIs, while the paper's μ̄c = 5 adds "
+         "ln(5/0.98) per switch to the rate; the search sets μ̄c = μc."),
     ]
     if winner is not None and p["example_delay"] in sims:
         decaying = [d for d in sorted(sims) if sims[d]["rate_min"] > 0]
         notes.append(
-            f"The largest certified δ, {winner['best']['delta']:.3g} s, is {winner['best']['delta'] / S.delta:.2f} of "
-            f"the paper's {S.delta:g}: a disagreement on the certificate, not on stability. In simulation "
-            f"{'every' if sims[p['example_delay']]['rate_min'] > 0 else 'NOT every'} trial decays at δ = "
-            f"{p['example_delay']:g}, and the largest simulated δ at which every trial decays is "
-            f"{max(decaying, default=0):g} s (decay-rate figure): Theorem 10 is conservative here.")
+            f"The largest certified δ, {winner['best']['delta']:.3g} s, is "
+            f"{winner['best']['delta'] / S.delta:.2f} of the paper's {S.delta:g}: a disagreement "
+            "on the certificate, not on stability. In simulation "
+            f"{'every' if sims[p['example_delay']]['rate_min'] > 0 else 'NOT every'} trial decays "
+            f"at δ = {p['example_delay']:g}, and the largest simulated δ at which every trial "
+            f"decays is {max(decaying, default=0):g} s (decay-rate figure): Theorem 10 is "
+            "conservative here.")
     return Summary("etienne-async",
-                   "Etienne et al. Fig. 2 — observer-based control with a delayed mode estimate (Theorem 10)",
+                   "Etienne et al. Fig. 2 — observer-based control with a delayed mode estimate "
+                   "(Theorem 10)",
                    setup, rows, notes, _async_figures(p, winner, sims, out))
 
 
 register(Experiment(
     name="etienne-async",
     paper="Etienne",
-    title="Fig. 2: observer-based control with a delayed mode estimate; Theorem 10 verdict, largest δ",
+    title="Fig. 2: observer-based control with a delayed mode estimate; Theorem 10 verdict, "
+          "largest δ",
     # The verdict, a task per (mu_s, mu_c) of the search (1-2 s each) and a task per block at every
     # delay (~1 s for 100 trials): 21 tasks of similar size, 10 per worker on 2 cores; --quick: 4.
     defaults={"trials": 500, "block_size": 100, "horizon": 40.0, "max_dwell": 14.0, "N0": 1.0,
               "delays": [0.0, 0.05, 0.15, 0.5, 1.0, 2.0, 3.0], "example_delay": S.delta,
               "search_mu_s": [4.0, 5.0, 5.5, 6.0, 8.0], "search_mu_c": [0.95, 1.0, 1.05],
               "search_alpha_bar": [4.0, 5.0, 6.0, 7.0, 8.0, 10.0, 14.0], "alpha_tol": 2e-3},
-    quick={"trials": 100, "block_size": 50, "horizon": 30.0, "search_mu_s": [5.5], "search_mu_c": [1.0],
-           "search_alpha_bar": [6.0, 7.0], "alpha_tol": 5e-3},
+    quick={"trials": 100, "block_size": 50, "horizon": 30.0, "search_mu_s": [5.5],
+           "search_mu_c": [1.0], "search_alpha_bar": [6.0, 7.0], "alpha_tol": 5e-3},
     tasks=_async_tasks,
     run_task=_async_run,
     summarize=_async_summary,

@@ -80,8 +80,8 @@ def interpolation_bound(grid_step: float, duration: float) -> float:
 
 def _detector(v_max: float) -> MinimumDistanceDetector:
     s = LEE_SCENARIO
-    return MinimumDistanceDetector(s.system(), delta=s.delta, Delta=s.Delta, v_max=v_max, u_max=s.u_max,
-                                   observer_gains=s.observer_gains)
+    return MinimumDistanceDetector(s.system(), delta=s.delta, Delta=s.Delta, v_max=v_max,
+                                   u_max=s.u_max, observer_gains=s.observer_gains)
 
 
 def _run(cfg: dict, rng: np.random.Generator) -> dict:
@@ -147,7 +147,8 @@ def _window_checks(est, traj, t: np.ndarray, delta: float, observer_bound: float
     switch = np.full((N, max(S, 1)), np.inf)
     for n, sig in enumerate(traj.signals):
         switch[n, : sig.times.size] = sig.times
-    n_sw = np.sum(switch[:, None, :] <= t[None, :, None], axis=-1)  # true switches up to t_k, (N, K)
+    # true switches up to t_k, (N, K)
+    n_sw = np.sum(switch[:, None, :] <= t[None, :, None], axis=-1)
     ends = np.zeros((N, K), dtype=bool)
     ends[:, 1:] = (est.mode[:, 1:] >= 0) & (est.mode[:, :-1] < 0)
     k = np.arange(K)
@@ -159,20 +160,23 @@ def _window_checks(est, traj, t: np.ndarray, delta: float, observer_bound: float
     since = (last >= 0) & np.take_along_axis(correct, idx, axis=1)
     valid = since & (n_sw == np.take_along_axis(n_sw, idx, axis=1)) & (est.mode >= 0)
     err = np.linalg.norm(est.x - traj.x, axis=-1)
-    return {"windows": int(ends.sum()), "windows_clean": int(clean.sum()), "windows_correct": int(correct.sum()),
+    return {"windows": int(ends.sum()), "windows_clean": int(clean.sum()),
+            "windows_correct": int(correct.sum()),
             "observer_ratio": float(np.max(err[valid], initial=0.0) / observer_bound),
             "observer_samples": int(valid.sum())}
 
 
 def _example(t, traj, est) -> dict:
-    """Trial 0 every ``EXAMPLE_STRIDE`` grid points, with its exact true and declared switching instants."""
+    """Trial 0 every ``EXAMPLE_STRIDE`` grid points, with its exact true and declared switching
+    instants."""
     sl = slice(None, None, EXAMPLE_STRIDE)
     mode_hat = np.where(est.mode[0] >= 0, est.mode[0], np.nan)
 
     def listed(a):
         return [None if not np.isfinite(v) else float(v) for v in a[sl]]
 
-    return {"t": t[sl].tolist(), "mode": traj.mode[0, sl].astype(float).tolist(), "mode_hat": listed(mode_hat),
+    return {"t": t[sl].tolist(), "mode": traj.mode[0, sl].astype(float).tolist(),
+            "mode_hat": listed(mode_hat),
             "x1": traj.x[0, sl, 0].tolist(), "x1_hat": listed(est.x[0, :, 0]),
             "switches": traj.signals[0].times.tolist(),
             "declared": t[np.isfinite(est.switch_time[0])].tolist()}
@@ -189,16 +193,20 @@ def _grouped(results) -> dict[tuple[float, float], dict]:
 
 def _assumptions(v_max: float, duration: float) -> LeeAssumptions:
     s = LEE_SCENARIO
-    return lee_assumptions(s.system(), u_max=s.u_max, v_max=v_max, x_min=s.x_min(duration), delta=s.delta,
+    return lee_assumptions(s.system(), u_max=s.u_max, v_max=v_max, x_min=s.x_min(duration),
+                           delta=s.delta,
                            Delta=s.Delta, observer_gains=s.observer_gains, min_dwell=s.min_dwell)
 
 
-def _level_rows(noise: float, told: float, g: dict, holds: bool, a: LeeAssumptions, Delta: float) -> list[Row]:
-    """Theorem 2 (delay, misses, false declarations), Theorem 1 and the observer bound at one level."""
+def _level_rows(noise: float, told: float, g: dict, holds: bool, a: LeeAssumptions,
+                Delta: float) -> list[Row]:
+    """Theorem 2 (delay, misses, false declarations), Theorem 1 and the observer bound at one
+    level."""
     uncensored = g["n_switches"] - g["censored"]
     within = g["on_time"] / uncensored if uncensored else float("nan")
     d = np.asarray(g["delays"])
-    spread = (f"delay median {np.median(d):.3f} s, 95 % {np.quantile(d, 0.95):.3f} s, max {d.max():.3f} s"
+    spread = (f"delay median {np.median(d):.3f} s, 95 % {np.quantile(d, 0.95):.3f} s, max "
+              f"{d.max():.3f} s"
               if d.size else "no detection")
     if told == noise:
         where = f"v = {noise:g}"
@@ -213,22 +221,25 @@ def _level_rows(noise: float, told: float, g: dict, holds: bool, a: LeeAssumptio
         verdict = "guarantee met" if ok else "GUARANTEE VIOLATED"
     counts = (f"{g['on_time']} on time, {g['late']} late, {g['missed']} missed of {uncensored} "
               f"({g['censored']} censored at the end)")
-    windows = f"windows without a switch giving the true mode: {g['windows_correct']} of {g['windows_clean']}"
+    windows = (f"windows without a switch giving the true mode: {g['windows_correct']} of "
+               f"{g['windows_clean']}")
     rows = [Row(f"{where}: switches declared within Δ (uncensored)", within,
                 f"all, delay ≤ Δ = {Delta:g} s (Theorem 2)" if holds else None, "fraction",
                 "; ".join(filter(None, [verdict, counts, spread, windows, status])))]
     false_verdict = ("guarantee met" if g["false"] == 0 else "GUARANTEE VIOLATED") if holds else ""
     rows.append(Row(f"{where}: false declarations per trial", g["false"] / g["trials"],
                     "0 (Lemma 1)" if holds else None, "",
-                    "; ".join(filter(None, [false_verdict, f"{g['false']} in {g['trials']} trials"]))))
+                    "; ".join(filter(None,
+                                     [false_verdict, f"{g['false']} in {g['trials']} trials"]))))
     if holds:
         frac = g["windows_correct"] / g["windows_clean"] if g["windows_clean"] else float("nan")
         rows.append(Row(f"{where}: estimation windows with the true mode (no switch inside)", frac,
                         "all (Theorem 1)", "fraction",
                         f"{g['windows_correct']} of {g['windows_clean']} clean windows "
-                        f"({g['windows'] - g['windows_clean']} of {g['windows']} windows contained a switch)"))
-        rows.append(Row(f"{where}: largest |x̂ − x| / (v_max Ê(δ)) until the next switch", g["observer_ratio"],
-                        "≤ 1 (§IV, before (25))", "",
+                        f"({g['windows'] - g['windows_clean']} of {g['windows']} windows contained "
+                        "a switch)"))
+        rows.append(Row(f"{where}: largest |x̂ − x| / (v_max Ê(δ)) until the next switch",
+                        g["observer_ratio"], "≤ 1 (§IV, before (25))", "",
                         f"over {g['observer_samples']} samples; Ê(δ) = {a.constants.E_hat:.4g}"))
     return rows
 
@@ -245,11 +256,12 @@ def _summary(p: dict, results, out: Path) -> Summary:
     k = base.constants
     eps = interpolation_bound(p["grid_step"], p["duration"])
     rows = [
-        Row("Assumption 1: smallest PBH margin of the mode pairs", base.assumption1.margin, None, "",
-            "joint observability holds" if base.assumption1.holds else "FAILS"),
+        Row("Assumption 1: smallest PBH margin of the mode pairs", base.assumption1.margin, None,
+            "", "joint observability holds" if base.assumption1.holds else "FAILS"),
         Row(f"(3) at v_max = {s.v_max:g}: ω_min(δ) x_min² − rhs", base.condition3.margin, None, "",
             f"{base.condition3.lhs:.5g} > {base.condition3.rhs:.5g}; δ = {s.delta:g} s, x_min = "
-            f"{s.x_min(p['duration']):g} (smallest |x| seen {min(g['x_min_seen'] for g in groups.values()):.4g})"),
+            f"{s.x_min(p['duration']):g} (smallest |x| seen "
+            f"{min(g['x_min_seen'] for g in groups.values()):.4g})"),
         Row(f"(4) at v_max = {s.v_max:g}: ω_min(Δ) x_min² − rhs", base.condition4.margin, None, "",
             f"{base.condition4.lhs:.5g} > {base.condition4.rhs:.5g}; Δ = {s.Delta:g} s"),
         Row("Assumption 3: smallest dwell − (δ + Δ)", base.assumption3.margin, None, "s",
@@ -257,8 +269,8 @@ def _summary(p: dict, results, out: Path) -> Summary:
             f"{min(g['dwell_seen'] for g in groups.values()):.4g} s), first switch after "
             f"{min(g['first_switch_seen'] for g in groups.values()):.4g} s > δ"),
         Row("largest noise bound for which (3)-(4) hold", base.v_max_allowed, None, "",
-            f"Ê(δ) = {k.E_hat:.4g}, μ̌e^(λ̌Δ) = {k.growth:.4g}, S_Δ = {k.S_Delta(s.v_max):.4g}, threshold of "
-            f"(21)/(23) = {k.reset_threshold(s.v_max):.4g} at v_max = {s.v_max:g}"),
+            f"Ê(δ) = {k.E_hat:.4g}, μ̌e^(λ̌Δ) = {k.growth:.4g}, S_Δ = {k.S_Delta(s.v_max):.4g}, "
+            f"threshold of (21)/(23) = {k.reset_threshold(s.v_max):.4g} at v_max = {s.v_max:g}"),
     ]
     levels = sorted(v for v, told in groups if v == told)
     status = {v: _assumptions(v, p["duration"]) for v in levels}
@@ -268,47 +280,53 @@ def _summary(p: dict, results, out: Path) -> Summary:
         if v != told:
             rows += _level_rows(v, told, g, False, status.get(told, base), s.Delta)
     first_bad = next((v for v in levels if not _perfect(groups[(v, v)])), None)
-    top = max((v for v in levels if first_bad is None or v < first_bad), default=None)  # all perfect below it
+    # all perfect below it
+    top = max((v for v in levels if first_bad is None or v < first_bad), default=None)
     if top is not None:
-        rows.append(Row("largest level with every switch on time and no false declaration", top, None, "",
+        rows.append(Row("largest level with every switch on time and no false declaration", top,
+                        None, "",
                         f"{top / base.v_max_allowed:.2f} × the noise bound (3)-(4) allow; "
-                        + (f"first failure at v = {first_bad:g}" if first_bad is not None else "none failed")))
+                        + (f"first failure at v = {first_bad:g}" if first_bad is not None
+                           else "none failed")))
     examples = [(v, groups[(v, v)]["example"]) for v in levels if "example" in groups[(v, v)]]
     figs = _figures(groups, levels, examples, base.v_max_allowed, out)
-    detector_seconds = sum(g["elapsed"] for g in groups.values()) / sum(g["trials"] for g in groups.values())
+    detector_seconds = (sum(g["elapsed"] for g in groups.values())
+                        / sum(g["trials"] for g in groups.values()))
     setup = (
-        f"Demonstration system (the paper has none): x' = ω_i J x + b u, y = x + v, ω = (2π, 4π) rad/s, "
-        f"|u| ≤ {s.u_max:g} (sinusoid of random frequency and phase), |x(0)| = 1, dwell times uniform in "
-        f"[{s.min_dwell:g}, {s.max_dwell:g}] s, {p['duration']:g} s per trial, {p['trials']} trials per level; "
-        f"noise |v| ≤ level: half an interfering tone of random frequency, half white noise in the disc, the "
-        f"same realizations scaled at every level. Detector: δ = {s.delta:g} s, Δ = {s.Delta:g} s, observer "
-        f"gains L_i = A_i + {s.observer_decay:g} I, output on a {p['grid_step'] * 1e3:g} ms grid "
-        f"({detector_seconds * 1e3:.0f} ms of detector per trial). On time = declared within Δ after the "
-        f"switch; censored = undeclared and less than Δ before the end."
+        "Demonstration system (the paper has none): x' = ω_i J x + b u, y = x + v, ω = (2π, 4π) "
+        f"rad/s, |u| ≤ {s.u_max:g} (sinusoid of random frequency and phase), |x(0)| = 1, dwell "
+        f"times uniform in [{s.min_dwell:g}, {s.max_dwell:g}] s, {p['duration']:g} s per trial, "
+        f"{p['trials']} trials per level; noise |v| ≤ level: half an interfering tone of random "
+        "frequency, half white noise in the disc, the same realizations scaled at every level. "
+        f"Detector: δ = {s.delta:g} s, Δ = {s.Delta:g} s, observer gains L_i = A_i + "
+        f"{s.observer_decay:g} I, output on a {p['grid_step'] * 1e3:g} ms grid "
+        f"({detector_seconds * 1e3:.0f} ms of detector per trial). On time = declared within Δ "
+        "after the switch; censored = undeclared and less than Δ before the end."
     )
     notes = [
-        ("The paper prints no example and no numbers: the rows with a 'paper' entry compare with its "
-         "guarantees (Theorem 1: the mode of every window without a switch is exact; Lemma 1: no false "
-         "declaration; Theorem 2: every switch declared within Δ; §IV: observer error ≤ v_max Ê(δ)), which "
-         "apply only where the assumptions hold. The system, noise, input and windows are ours "
-         "(switchest.models.lee)."),
-        (f"The detector integrates the output as linear between grid points: the gap to the smooth output "
-         f"(≤ {eps:.2g}, most of it from the kink at a switch) acts as noise, so the noise drawn is bounded "
-         f"by level − {eps:.2g}."),
-        ("The guarantee is conservative: (3)-(4) bound worst-case noise (e.g. a tone mimicking the other "
-         "mode), while the noise here is only half such a tone. Past the allowed bound the detector keeps "
-         "declaring switches on time until the thresholds, which grow with the v_max it is told, exceed what a "
-         "switch produces within Δ: then switches are missed or declared late and noise bursts are declared "
-         "as switches."),
-        ("Told a bound below the true noise, the thresholds of (21)-(24) are too low: noise alone triggers "
-         "(24), and every false declaration restarts the estimation window, during which true switches may "
-         "pass unnoticed."),
+        ("The paper prints no example and no numbers: the rows with a 'paper' entry compare with "
+         "its guarantees (Theorem 1: the mode of every window without a switch is exact; Lemma 1: "
+         "no false declaration; Theorem 2: every switch declared within Δ; §IV: observer error ≤ "
+         "v_max Ê(δ)), which apply only where the assumptions hold. The system, noise, input and "
+         "windows are ours (switchest.models.lee)."),
+        ("The detector integrates the output as linear between grid points: the gap to the smooth "
+         f"output (≤ {eps:.2g}, most of it from the kink at a switch) acts as noise, so the noise "
+         f"drawn is bounded by level − {eps:.2g}."),
+        ("The guarantee is conservative: (3)-(4) bound worst-case noise (e.g. a tone mimicking the "
+         "other mode), while the noise here is only half such a tone. Past the allowed bound the "
+         "detector keeps declaring switches on time until the thresholds, which grow with the "
+         "v_max it is told, exceed what a switch produces within Δ: then switches are missed or "
+         "declared late and noise bursts are declared as switches."),
+        ("Told a bound below the true noise, the thresholds of (21)-(24) are too low: noise alone "
+         "triggers (24), and every false declaration restarts the estimation window, during which "
+         "true switches may pass unnoticed."),
         *_example_note(examples),
-        ("Departure from the letter of the paper (documented in switchest.estimators.min_distance): the "
-         "energy s of (24) starts at t̂_j + δ, as the proof of Lemma 1 requires, not at t̂_j as the printed "
-         "algorithm."),
+        ("Departure from the letter of the paper (documented in "
+         "switchest.estimators.min_distance): the energy s of (24) starts at t̂_j + δ, as the "
+         "proof of Lemma 1 requires, not at t̂_j as the printed algorithm."),
     ]
-    return Summary("lee-detection", "Lee, Ping & Shim — switching detection within Δ under bounded noise "
+    return Summary("lee-detection",
+                   "Lee, Ping & Shim — switching detection within Δ under bounded noise "
                    "(Theorems 1-2)", setup, rows, notes, figs)
 
 
@@ -333,14 +351,15 @@ def _figures(groups: dict, levels: list[float], shown: list[tuple[float, dict]],
     if shown:
         ex0 = shown[0][1]
         t = np.asarray(ex0["t"], float)
-        truth = np.column_stack([np.asarray(ex0["mode"], float), np.asarray(ex0["x1"], float)] * len(shown))
+        truth = np.column_stack([np.asarray(ex0["mode"], float),
+                                 np.asarray(ex0["x1"], float)] * len(shown))
         est = np.column_stack([np.asarray(e[key], float) + offset for _, e in shown
                                for key, offset in (("mode_hat", MODE_OFFSET), ("x1_hat", 0.0))])
         labels = [f"{name}, v = {v:g}" for v, _ in shown for name in ("mode σ", "x_1")]
         figs.append(curves(out / "lee-detection-trial.png", t, {"true": truth, "detector": est},
                            xlabel="t (s)", ylabel=labels, markers=ex0["switches"],
-                           title=f"One trial; true switches dotted; σ̂ drawn +{MODE_OFFSET:g}, undefined from a "
-                                 "declaration to the end of the next window"))
+                           title=f"One trial; true switches dotted; σ̂ drawn +{MODE_OFFSET:g}, "
+                                 "undefined from a declaration to the end of the next window"))
     x = np.asarray(levels, float)
     fractions = {"on time": [], "late": [], "missed": [], "false per switch": []}
     ecdf = {}
@@ -351,11 +370,13 @@ def _figures(groups: dict, levels: list[float], shown: list[tuple[float, dict]],
             fractions[key].append(value / n)
         d = np.sort(np.asarray(g["delays"], float)) / s.Delta
         ecdf[f"v = {v:g}"] = np.searchsorted(d, DELAY_AXIS, side="right") / n
-    figs.append(curves(out / "lee-detection-noise.png", x, {k: np.asarray(v) for k, v in fractions.items()},
-                       xlabel="noise bound v_max (detector told the truth)", ylabel="per uncensored switch",
-                       markers=[allowed],
+    figs.append(curves(out / "lee-detection-noise.png", x,
+                       {k: np.asarray(v) for k, v in fractions.items()},
+                       xlabel="noise bound v_max (detector told the truth)",
+                       ylabel="per uncensored switch", markers=[allowed],
                        title="Detections vs noise; dotted: bound of (3)-(4)"))
-    figs.append(curves(out / "lee-detection-delays.png", DELAY_AXIS, ecdf, xlabel="detection delay / Δ",
+    figs.append(curves(out / "lee-detection-delays.png", DELAY_AXIS, ecdf,
+                       xlabel="detection delay / Δ",
                        ylabel="fraction of switches declared", markers=[1.0],
                        title="Delays; Theorem 2: all by Δ (dotted)"))
     return figs
@@ -370,7 +391,8 @@ register(Experiment(
     # worker on 2 cores (blocks of 50 spent 70 % of the CPU in that fixed cost). --quick: 2 tasks.
     defaults={"trials": 500, "block_size": 125, "duration": LEE_SCENARIO.horizon,
               "grid_step": 0.0025,
-              "noise_levels": [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0], "over_bound": [0.15, 0.2, 0.3]},
+              "noise_levels": [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0],
+              "over_bound": [0.15, 0.2, 0.3]},
     quick={"trials": 40, "block_size": 20, "noise_levels": [0.1, 0.3, 0.8], "over_bound": [0.3]},
     tasks=_tasks,
     run_task=_run,

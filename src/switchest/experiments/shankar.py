@@ -125,7 +125,8 @@ def _table1_summary(p: dict, results, out: Path) -> Summary:
             paper_i, paper_v = TABLE1_PAPER["i_L"][k], TABLE1_PAPER["v_0"][k]
         extra = [f"{tot['elapsed'] / tot['trials']:.2f} s per trial"]
         if "switch_pairs" in tot and tot["switch_pairs"]:
-            extra.append(f"switch-time error {1e3 * tot['switch_abs_err'] / tot['switch_pairs']:.3f} ms")
+            extra.append("switch-time error "
+                         f"{1e3 * tot['switch_abs_err'] / tot['switch_pairs']:.3f} ms")
         if "mode_hits" in tot:
             extra.append(f"mode accuracy {tot['mode_hits'] / tot['count']:.3f}")
         rows.append(Row(f"RMSE i_L, {label}", float(rmse[0]), paper_i, "A", "; ".join(extra)))
@@ -141,26 +142,27 @@ def _table1_summary(p: dict, results, out: Path) -> Summary:
                  title="Shankar Table I: switch-time KF RMSE vs grid resolution",
                  paper={"Table I": (BOOST_SAMPLE_PERIOD * 1e3 / np.array(TABLE1_PAPER["g"]),
                                     np.stack([TABLE1_PAPER["i_L"], TABLE1_PAPER["v_0"]], axis=1))})
-    setup = (f"Boost converter (Shankar §V.A), T = 0.5 ms, R = 5 V², {p['trials']} trials x {p['duration']} s, "
-             f"switches every 1.2 ms then random in [0.9, 1.2] ms from 0.02 s; modes at the samples known, "
-             f"switching times estimated on the grid of eq. (23). Process noise intensity "
-             f"{p['process_noise']} (unstated in the paper); RMSE from sample {p['start']} on.")
+    setup = (f"Boost converter (Shankar §V.A), T = 0.5 ms, R = 5 V², {p['trials']} trials x "
+             f"{p['duration']} s, switches every 1.2 ms then random in [0.9, 1.2] ms from 0.02 s; "
+             "modes at the samples known, switching times estimated on the grid of eq. (23). "
+             f"Process noise intensity {p['process_noise']} (unstated in the paper); RMSE from "
+             f"sample {p['start']} on.")
     notes = [
-        "The paper does not state the process noise, the initial covariance or any covariance inflation, "
-        "so the digits cannot be matched; the claim reproduced is the shape: RMSE falls from g = 1 to g = 3 "
-        "and flattens by g = 5.",
-        "One 5 V² sample of v_0 says little about when a switch happened inside 0.5 ms, so the estimated "
-        "switching times are far from the grid resolution; refine=True polishes the grid maximum of the "
-        "exact likelihood (beyond the paper).",
-        "Beyond the paper, switch_time='marginal' keeps every grid instant, updates each with the sample and "
-        "merges them with their posterior weights instead of keeping the maximizer: a single sample cannot "
-        "locate the switch, but it can weigh the candidates, and the merged estimate improves steadily with g "
-        "at about the cost of the grid maximum.",
-        "The IMM and IMM-EV1 rows do not know the modes; the clairvoyant row knows the switching times "
-        "exactly (the best any method here can do).",
+        "The paper does not state the process noise, the initial covariance or any covariance "
+        "inflation, so the digits cannot be matched; the claim reproduced is the shape: RMSE falls "
+        "from g = 1 to g = 3 and flattens by g = 5.",
+        "One 5 V² sample of v_0 says little about when a switch happened inside 0.5 ms, so the "
+        "estimated switching times are far from the grid resolution; refine=True polishes the grid "
+        "maximum of the exact likelihood (beyond the paper).",
+        "Beyond the paper, switch_time='marginal' keeps every grid instant, updates each with the "
+        "sample and merges them with their posterior weights instead of keeping the maximizer: a "
+        "single sample cannot locate the switch, but it can weigh the candidates, and the merged "
+        "estimate improves steadily with g at about the cost of the grid maximum.",
+        "The IMM and IMM-EV1 rows do not know the modes; the clairvoyant row knows the switching "
+        "times exactly (the best any method here can do).",
     ]
-    return Summary("shankar-table1", "Shankar et al. Table I — gridded switching-time estimation", setup,
-                   rows, notes, [fig])
+    return Summary("shankar-table1", "Shankar et al. Table I — gridded switching-time estimation",
+                   setup, rows, notes, [fig])
 
 
 register(Experiment(
@@ -225,9 +227,11 @@ def _vehicle_summary(p: dict, results, out: Path) -> Summary:
             extra.append(f"mode accuracy {tot['mode_hits'] / tot['count']:.3f}")
         if tot.get("switch_pairs"):
             extra.append(f"switch-time error {tot['switch_abs_err'] / tot['switch_pairs']:.3f} s")
-        rows.append(Row(f"RMSE position, {label}", float(np.sqrt((rmse[0] ** 2 + rmse[2] ** 2) / 2)), None, "m",
+        rows.append(Row(f"RMSE position, {label}",
+                        float(np.sqrt((rmse[0] ** 2 + rmse[2] ** 2) / 2)), None, "m",
                         "; ".join(extra)))
-        rows.append(Row(f"RMSE velocity, {label}", float(np.sqrt((rmse[1] ** 2 + rmse[3] ** 2) / 2)), None, "m/s"))
+        rows.append(Row(f"RMSE velocity, {label}",
+                        float(np.sqrt((rmse[1] ** 2 + rmse[3] ** 2) / 2)), None, "m/s"))
     for cfg, res in split_variants(results):
         if "example_estimate" in res:
             examples[_label(cfg)] = np.asarray(res["example_estimate"])
@@ -244,18 +248,20 @@ def _vehicle_summary(p: dict, results, out: Path) -> Summary:
                    labels=["x1", "dx1/dt", "x2", "dx2/dt"], markers=switches,
                    title="Shankar Fig. 3: one trial, true and IMM-EV1 estimates"),
     ]
-    setup = (f"Vehicle (Shankar §V.B): double integrators, 3 modes differing by their input, T = 0.5 s, "
-             f"R = 0.05 I, Q = 1e-3 I (unstated in the paper), u = 1, switches at 1.65, 2.75, 3.9 s; "
-             f"{p['trials']} trials; IMM with transition 0.9 on the diagonal; P0 = 0.01 I.")
+    setup = ("Vehicle (Shankar §V.B): double integrators, 3 modes differing by their input, T = "
+             "0.5 s, R = 0.05 I, Q = 1e-3 I (unstated in the paper), u = 1, switches at 1.65, "
+             f"2.75, 3.9 s; {p['trials']} trials; IMM with transition 0.9 on the diagonal; P0 = "
+             "0.01 I.")
     notes = [
         "The paper prints no numbers for Fig. 4 (curves only); our rows are the measured RMSEs.",
         "IMM-EV1 does not improve with g here: the mode enters a position sample only through one "
-        "interval's acceleration, so a hypothesis 'switch at tau' fits one new sample as well as 'no "
-        "switch' (velocity is not measured), and each destination keeps only its best predecessor; "
-        "more grid points give more ways to fit the noise. See the mode accuracy per g.",
+        "interval's acceleration, so a hypothesis 'switch at tau' fits one new sample as well as "
+        "'no switch' (velocity is not measured), and each destination keeps only its best "
+        "predecessor; more grid points give more ways to fit the noise. See the mode accuracy per "
+        "g.",
     ]
-    return Summary("shankar-vehicle", "Shankar et al. Figs 3-4 — vehicle maneuver tracking", setup, rows,
-                   notes, figs)
+    return Summary("shankar-vehicle", "Shankar et al. Figs 3-4 — vehicle maneuver tracking", setup,
+                   rows, notes, figs)
 
 
 register(Experiment(
@@ -292,8 +298,8 @@ def _lemma2_run(cfg: dict, rng: np.random.Generator) -> dict:
         actual_F = np.linalg.norm(est.F - true.F, ord=2, axis=(-2, -1))
         actual_G = np.linalg.norm(est.G - true.G, ord=2, axis=(-2, -1))
         b = switch_matrix_bounds(A_i, A_j, B, B, T=T, t_bar=np.full(41, t_bar), t_hat=t_hat)
-        return {"t_tilde": (t_hat - t_bar).tolist(), "actual_F": actual_F.tolist(), "bound_F": b.F.tolist(),
-                "actual_G": actual_G.tolist(), "bound_G": b.G.tolist()}
+        return {"t_tilde": (t_hat - t_bar).tolist(), "actual_F": actual_F.tolist(),
+                "bound_F": b.F.tolist(), "actual_G": actual_G.tolist(), "bound_G": b.G.tolist()}
     n, N = 3, cfg["cases"]
     A = rng.standard_normal((N, 2, n, n))
     B = rng.standard_normal((N, 2, n, 1))
@@ -304,7 +310,8 @@ def _lemma2_run(cfg: dict, rng: np.random.Generator) -> dict:
         sys = SwitchedLinearSystem.continuous(A[k], B[k])
         true = interval(sys, T[k], [0, 1], [t_bar[k]])
         est = interval(sys, T[k], [0, 1], [t_hat[k]])
-        b = switch_matrix_bounds(A[k, 0], A[k, 1], B[k, 0], B[k, 1], T=T[k], t_bar=t_bar[k], t_hat=t_hat[k])
+        b = switch_matrix_bounds(A[k, 0], A[k, 1], B[k, 0], B[k, 1], T=T[k], t_bar=t_bar[k],
+                                 t_hat=t_hat[k])
         worst_F = max(worst_F, float(np.linalg.norm(est.F - true.F, 2) / b.F))
         worst_G = max(worst_G, float(np.linalg.norm(est.G - true.G, 2) / b.G))
     return {"worst_F": worst_F, "worst_G": worst_G, "cases": N}
@@ -316,21 +323,27 @@ def _lemma2_summary(p: dict, results, out: Path) -> Summary:
     cases, worst_F, worst_G = drawn["cases"], drawn["worst_F"], drawn["worst_G"]
     tt = np.asarray(boost["t_tilde"]) * 1e3
     fig = curves(out / "shankar-lemma2.png", tt,
-                 {"actual ||F~||": np.asarray(boost["actual_F"]), "bound (11)": np.asarray(boost["bound_F"])},
+                 {"actual ||F~||": np.asarray(boost["actual_F"]),
+                  "bound (11)": np.asarray(boost["bound_F"])},
                  xlabel="switching-time error t~ (ms)", ylabel="||F_hat - F||", logy=True,
                  title="Shankar Lemma 2 on the boost converter (t_bar = T/2)")
     mid = len(tt) // 2 + 4
     rows = [
-        Row("largest actual/bound ratio, eq. (11)", worst_F, None, "", f"over {cases} random cases; <= 1 means the bound holds"),
-        Row("largest actual/bound ratio, eq. (12)", worst_G, None, "", f"over {cases} random cases"),
-        Row("boost converter: bound/actual at |t~| = T/10", float(boost["bound_F"][mid] / boost["actual_F"][mid]),
+        Row("largest actual/bound ratio, eq. (11)", worst_F, None, "",
+            f"over {cases} random cases; <= 1 means the bound holds"),
+        Row("largest actual/bound ratio, eq. (12)", worst_G, None, "",
+            f"over {cases} random cases"),
+        Row("boost converter: bound/actual at |t~| = T/10",
+            float(boost["bound_F"][mid] / boost["actual_F"][mid]),
             None, "", "how conservative (11) is on the paper's system"),
     ]
-    setup = ("Random 3-state two-mode systems (standard normal A, B), T in [0.05, 1], t_bar and t_hat uniform in "
-             "[0, T]; exact F, G by Van Loan; and the boost converter with t_bar = T/2.")
-    notes = ["The printed bounds (11)-(12) held in every case we drew; the proof has typos that do not reach the "
-             "statement (see switchest.analysis.switch_time_bounds)."]
-    return Summary("shankar-lemma2", "Shankar et al. Lemma 2 — bound vs actual matrix error", setup, rows, notes, [fig])
+    setup = ("Random 3-state two-mode systems (standard normal A, B), T in [0.05, 1], t_bar and "
+             "t_hat uniform in [0, T]; exact F, G by Van Loan; and the boost converter with t_bar "
+             "= T/2.")
+    notes = ["The printed bounds (11)-(12) held in every case we drew; the proof has typos that do "
+             "not reach the statement (see switchest.analysis.switch_time_bounds)."]
+    return Summary("shankar-lemma2", "Shankar et al. Lemma 2 — bound vs actual matrix error", setup,
+                   rows, notes, [fig])
 
 
 register(Experiment(

@@ -49,7 +49,8 @@ EXAMPLE1_PAPER = {
     "norm_Lambda": [0.3373, 0.0209],
     "fig6_lambda": 0.154554,  # lambda_{1,2} = lambda_{2,1} for B = 0.3 by eq. (18)
     "fig6_bound": 0.3,
-    "eta_sup_input": 1.04,  # unstated; the value that reproduces 0.154554 (tests/data/zhang_example1.json)
+    # unstated; the value that reproduces 0.154554 (tests/data/zhang_example1.json)
+    "eta_sup_input": 1.04,
 }
 # Zhang & Natarajan §5.2: ||Lambda_q||, the nonzero entries of T_{i,q} = Lambda_i - Gamma_{i,q}
 # (1-based "i,q" -> {(row, col): value}), Algorithm 2's region and Fig. 7's settings
@@ -77,7 +78,8 @@ def _periodic_modes(horizon: int, dwell: int, n_modes: int) -> np.ndarray:
 
 
 def _lam_from(entries: dict[str, float], n_modes: int) -> np.ndarray:
-    """``lam[i, q]`` from the paper's off-diagonal ``{"i,q": value}`` (1-based); diagonal fills each column to 1."""
+    """``lam[i, q]`` from the paper's off-diagonal ``{"i,q": value}`` (1-based); diagonal fills each
+    column to 1."""
     lam = np.zeros((n_modes, n_modes))
     for key, value in entries.items():
         i, q = (int(s) - 1 for s in key.split(","))
@@ -143,14 +145,16 @@ def _group(results: list[tuple[dict, dict]]) -> dict[str, tuple[dict, dict]]:
 
 
 def _moments(total: dict, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Monte Carlo mean ``(K + 1, n)`` (with the exact ``e_0 = 0`` first) and its standard error ``(K, n)``."""
+    """Monte Carlo mean ``(K + 1, n)`` (with the exact ``e_0 = 0`` first) and its standard error
+    ``(K, n)``."""
     N = total["trials"]
     mean = total[f"{name}_sum"] / N
     var = np.maximum(total[f"{name}_sq"] / N - mean**2, 0.0) * N / (N - 1)
     return np.vstack([np.zeros(mean.shape[1]), mean]), np.sqrt(var / N)
 
 
-def _theory(system: SwitchedLinearSystem, lam: np.ndarray, modes: np.ndarray, m0: np.ndarray) -> np.ndarray:
+def _theory(system: SwitchedLinearSystem, lam: np.ndarray, modes: np.ndarray,
+            m0: np.ndarray) -> np.ndarray:
     """Eq. (9) with eq. (6)'s steady gains: ``E(e_0), ..., E(e_K)``, shape (K + 1, n)."""
     return bias_recursion(mismatch_dynamics(system), lam, modes, mean_state(system, modes, m0)[:-1])
 
@@ -168,19 +172,23 @@ def _compare(total: dict, theory: np.ndarray) -> dict:
     return {
         "steady": steady, "alg1": alg1, "se": se, "se_alg1": se_alg1,
         "z": float(z.max()), "power": float(power.max()), "peak": peak,
-        "gap_rel": float(np.max(np.linalg.norm(alg1 - theory, axis=1)) / peak) if peak else float("nan"),
-        "gap_paired_rel": float(np.max(np.linalg.norm(gap, axis=1)) / peak) if peak else float("nan"),
+        "gap_rel": float(np.max(np.linalg.norm(alg1 - theory,
+                                               axis=1)) / peak) if peak else float("nan"),
+        "gap_paired_rel": float(np.max(np.linalg.norm(gap,
+                                                      axis=1)) / peak) if peak else float("nan"),
         "gap_z": float(z_gap.max()),
     }
 
 
 def _matrix(M) -> str:
-    return "[" + ", ".join("[" + ", ".join(f"{v:.4f}" for v in row) + "]" for row in np.asarray(M)) + "]"
+    return "[" + ", ".join(
+        "[" + ", ".join(f"{v:.4f}" for v in row) + "]" for row in np.asarray(M)) + "]"
 
 
 def _lam_text(lam: np.ndarray) -> str:
     L = lam.shape[0]
-    return ", ".join(f"λ{i + 1}{q + 1}={lam[i, q]:.4g}" for q in range(L) for i in range(L) if i != q)
+    return ", ".join(
+        f"λ{i + 1}{q + 1}={lam[i, q]:.4g}" for q in range(L) for i in range(L) if i != q)
 
 
 def _switches(modes: np.ndarray) -> list[float]:
@@ -189,7 +197,8 @@ def _switches(modes: np.ndarray) -> list[float]:
 
 # ------------------------------------------------------------------ Example 1, Figs 3-6
 def _example1_x0(cfg: dict, eta: float | None = None) -> np.ndarray:
-    """E(x_0) of a configuration: ``mean_x0``, or for Fig. 6 ``(eta sup||u||) / eta`` along its direction.
+    """E(x_0) of a configuration: ``mean_x0``, or for Fig. 6 ``(eta sup||u||) / eta`` along its
+    direction.
 
     Fig. 6's scale makes our ``eta * sup_j ||E(x_j)||`` equal the 1.04 that the printed
     0.154554 needs; ``sup_j ||E(x_j)|| = ||E(x_0)||`` because ``||A_1||, ||A_2|| < 1``
@@ -220,7 +229,8 @@ def _example1_tasks(p: dict) -> list[dict]:
             configs.append({"figure": figure, "signal": signal, "lam": lam.tolist()})
     for signal in (1, 2):
         for P in p["fig5_P"]:
-            configs.append({"figure": "5", "signal": signal, "lam": _lam_from({"1,2": P, "2,1": P}, 2).tolist()})
+            configs.append({"figure": "5", "signal": signal,
+                            "lam": _lam_from({"1,2": P, "2,1": P}, 2).tolist()})
         configs.append({"figure": "6", "signal": signal, "bound": EXAMPLE1_PAPER["fig6_bound"],
                         "eta_sup_input": EXAMPLE1_PAPER["eta_sup_input"]})
     common = {"horizon": p["horizon"], "dwell": p["dwells"], "mean_x0": p["mean_x0"]}
@@ -246,23 +256,28 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
     eta = bibo_gain(dyn)
     paper = EXAMPLE1_PAPER
     norms = np.linalg.norm(dyn.Lambda, ord=2, axis=(-2, -1))
-    lam_max = max_mismatch_probability(dyn, bound=paper["fig6_bound"], eta=paper["eta_sup_input"], sup_input=1.0)
+    lam_max = max_mismatch_probability(dyn, bound=paper["fig6_bound"], eta=paper["eta_sup_input"],
+                                       sup_input=1.0)
     cq_lambda = cqlf(dyn.Lambda, "discrete")
     cq_A = cqlf(system.A, "discrete")
     A_norms = np.linalg.norm(system.A, ord=2, axis=(-2, -1))
     rows = [
         Row("‖Λ_1‖ (printed ‖A_1‖)", float(norms[0]), paper["norm_Lambda"][0]),
         Row("‖Λ_2‖ (printed ‖A_2‖)", float(norms[1]), paper["norm_Lambda"][1]),
-        Row("Λ_1 = A_1 − K_1 C_1 A_1 (eq. 7)", _matrix(dyn.Lambda[0]), _matrix(paper["Lambda_1"]), "",
-            "steady a-priori Riccati gain, Algorithm 1 line 8"),
+        Row("Λ_1 = A_1 − K_1 C_1 A_1 (eq. 7)", _matrix(dyn.Lambda[0]), _matrix(paper["Lambda_1"]),
+            "", "steady a-priori Riccati gain, Algorithm 1 line 8"),
         Row("Λ_2", _matrix(dyn.Lambda[1]), _matrix(paper["Lambda_2"])),
         Row("Γ_1,2 = A_2 − K_1 C_2 A_2", _matrix(dyn.Gamma[0, 1]), _matrix(paper["Gamma_1,2"])),
         Row("Γ_2,1 = A_1 − K_2 C_1 A_1", _matrix(dyn.Gamma[1, 0]), _matrix(paper["Gamma_2,1"])),
-        Row("CQLF of Λ_1, Λ_2 (eq. 13, Theorem 3)", "exists" if cq_lambda.holds else "not found", "exists"),
-        Row("CQLF of A_1, A_2 (original system stable)", "exists" if cq_A.holds else "not found", "exists"),
-        Row("λ12 = λ21 for B = 0.3 by eq. (18), η·sup‖u‖ = 1.04", float(lam_max), paper["fig6_lambda"], "",
+        Row("CQLF of Λ_1, Λ_2 (eq. 13, Theorem 3)", "exists" if cq_lambda.holds else "not found",
+            "exists"),
+        Row("CQLF of A_1, A_2 (original system stable)", "exists" if cq_A.holds else "not found",
+            "exists"),
+        Row("λ12 = λ21 for B = 0.3 by eq. (18), η·sup‖u‖ = 1.04", float(lam_max),
+            paper["fig6_lambda"], "",
             "η·sup‖u‖ is not printed; 1.04 is the value that reproduces the printed digits"),
-        Row("BIBO gain η of (10) (bibo_gain)", float(eta), None, "", "1/(1 − max‖Λ_i‖); not printed"),
+        Row("BIBO gain η of (10) (bibo_gain)", float(eta), None, "",
+            "1/(1 − max‖Λ_i‖); not printed"),
     ]
     groups = _group(results)
     figs: list[Path] = []
@@ -279,10 +294,12 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
             where = f"Fig. {figure} (signal {signal}), {label}"
             rows += [
                 Row(f"{where}: peak ‖E(e_k)‖ by (9)", c["peak"], None, "",
-                    f"Monte Carlo peak {np.max(np.linalg.norm(c['alg1'], axis=1)):.4g} (Algorithm 1 gains)"),
+                    f"Monte Carlo peak {np.max(np.linalg.norm(c['alg1'], axis=1)):.4g} (Algorithm "
+                    "1 gains)"),
                 Row(f"{where}: largest |MC − (9)| / SE, steady gains (eq. 6)", c["z"], "agree", "",
                     f"below {Z_MAX:g} means agreement; the bias reaches {c['power']:.0f} SE"),
-                Row(f"{where}: Algorithm 1 bias − (9), largest norm / peak", c["gap_paired_rel"], "agree", "",
+                Row(f"{where}: Algorithm 1 bias − (9), largest norm / peak", c["gap_paired_rel"],
+                    "agree", "",
                     f"paired with the steady-gain filter, {c['gap_z']:.1f} SE from zero; unpaired "
                     f"‖MC − (9)‖ / peak = {c['gap_rel']:.3f}"),
             ]
@@ -293,8 +310,8 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
             markers = _switches(modes) if cfg["dwell"][signal - 1] > 1 else []
         figs.append(curves(out / f"zhang-example1-fig{figure}.png", k, series, xlabel="step k",
                            ylabel=["E(e_k), component 1", "E(e_k), component 2"], markers=markers,
-                           title=f"Zhang Fig. {figure}: bias, eq. (9) vs Monte Carlo ({p['trials']} trials), "
-                                 f"signal {signal}"))
+                           title=f"Zhang Fig. {figure}: bias, eq. (9) vs Monte Carlo "
+                                 f"({p['trials']} trials), signal {signal}"))
     # Fig. 5: Theorem 4 bound vs Monte Carlo maximum over P
     fig5 = {}
     for cfg, total in (g for g in groups.values() if g[0]["figure"] == "5"):
@@ -304,7 +321,8 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
         sup_u = float(np.max(np.linalg.norm(mean_state(system, modes, m0), axis=-1)))
         theory = _theory(system, lam, modes, m0)
         c = _compare(total, theory)
-        entry = fig5.setdefault(cfg["signal"], {"P": [], "mc": [], "theory": [], "bound": [], "z": []})
+        entry = fig5.setdefault(cfg["signal"],
+                                {"P": [], "mc": [], "theory": [], "bound": [], "z": []})
         entry["P"].append(lam[0, 1])
         entry["mc"].append(float(np.max(np.linalg.norm(c["alg1"], axis=1))))
         entry["theory"].append(c["peak"])
@@ -315,18 +333,21 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
         order = np.argsort(e["P"])
         arr = {k: np.asarray(v)[order] for k, v in e.items()}
         ratio = arr["mc"] / arr["bound"]
-        rows.append(Row(f"Fig. 5 (signal {signal}): largest MC max‖E(e_k)‖ / Theorem 4 bound over P",
+        rows.append(Row(f"Fig. 5 (signal {signal}): largest MC max‖E(e_k)‖ / Theorem 4 bound "
+                        "over P",
                         float(ratio.max()), "≤ 1", "",
                         f"P = {arr['P'].min():g}..{arr['P'].max():g}; (9) reaches at most "
-                        f"{np.max(arr['theory'] / arr['bound']):.3f} of the bound; steady-gain MC vs (9) "
-                        f"within {np.max(arr['z']):.2f} SE"))
+                        f"{np.max(arr['theory'] / arr['bound']):.3f} of the bound; steady-gain MC "
+                        f"vs (9) within {np.max(arr['z']):.2f} SE"))
         series5[f"MC Alg. 1, signal {signal}"] = arr["mc"]
         series5[f"(9), signal {signal}"] = arr["theory"]
         series5["Theorem 4 bound"] = arr["bound"]  # the same for both signals: sup‖u‖ = ‖E(x_0)‖
         P_axis = arr["P"]
     if series5:
-        figs.append(curves(out / "zhang-example1-fig5.png", P_axis, series5, xlabel="mismatch probability P",
-                           ylabel="max_k ‖E(e_k)‖", title="Zhang Fig. 5: Theorem 4 bound vs Monte Carlo"))
+        figs.append(curves(out / "zhang-example1-fig5.png", P_axis, series5,
+                           xlabel="mismatch probability P",
+                           ylabel="max_k ‖E(e_k)‖",
+                           title="Zhang Fig. 5: Theorem 4 bound vs Monte Carlo"))
     # Fig. 6: the B = 0.3 design
     series6 = {}
     for cfg, total in (g for g in groups.values() if g[0]["figure"] == "6"):
@@ -338,55 +359,66 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
         se_norm = float(np.max(np.linalg.norm(c["se_alg1"], axis=1)))
         sig = cfg["signal"]
         rows += [
-            Row(f"Fig. 6 (signal {sig}): max_k ‖E(e_k)‖ by (9), λ12 = λ21 = {lam[0, 1]:.6f}", c["peak"], "≤ 0.3",
+            Row(f"Fig. 6 (signal {sig}): max_k ‖E(e_k)‖ by (9), λ12 = λ21 = {lam[0, 1]:.6f}",
+                c["peak"], "≤ 0.3",
                 "", f"our η·sup‖u‖ = {eta * sup_u:.4f} (E(x_0) = {np.round(m0, 4).tolist()})"),
-            Row(f"Fig. 6 (signal {sig}): max_k ‖MC bias‖, Algorithm 1 gains", float(mc_norm.max()), "≤ 0.3", "",
-                f"Monte Carlo noise: SE up to {se_norm:.3f} per step; steady-gain MC vs (9) within {c['z']:.2f} SE"),
+            Row(f"Fig. 6 (signal {sig}): max_k ‖MC bias‖, Algorithm 1 gains", float(mc_norm.max()),
+                "≤ 0.3", "",
+                f"Monte Carlo noise: SE up to {se_norm:.3f} per step; steady-gain MC vs (9) within "
+                f"{c['z']:.2f} SE"),
         ]
         series6[f"(9), signal {sig}"] = np.linalg.norm(theory, axis=1)
         series6[f"MC Alg. 1, signal {sig}"] = mc_norm
         k6 = np.arange(modes.size + 1)
     if series6:
         series6["B = 0.3"] = np.full(k6.size, paper["fig6_bound"])
-        figs.append(curves(out / "zhang-example1-fig6.png", k6, series6, xlabel="step k", ylabel="‖E(e_k)‖",
+        figs.append(curves(out / "zhang-example1-fig6.png", k6, series6, xlabel="step k",
+                           ylabel="‖E(e_k)‖",
                            title="Zhang Fig. 6: bias for λ12 = λ21 = 0.154554, B = 0.3"))
     setup = (
-        f"Zhang §5.1: two modes, A_1 = [[0.9, 0], [0.2, 0.8]], A_2 = [[0.5, 0.2], [0.2, 0.4]], C_1 = I, C_2 = 5 I, "
-        f"process noise B_q (0.5 I) B_q', R = 0.3 I. {p['trials']} Monte Carlo trials (paper: 5000) of "
-        f"{p['horizon']} steps; signal 1 holds each mode {p['dwells'][0]} steps, signal 2 {p['dwells'][1]} "
-        f"(both start in mode 1); the filter's mode is drawn at every step from λ[:, q_k]. E(x_0) = "
-        f"{p['mean_x0']} for Figs 3-5, Σ_0 = I, filter prior = (E(x_0), Σ_0) so e_0 = 0. Figs 3-4: "
-        f"(λ12, λ21) in {[tuple(x) for x in p['lambdas']]}; Fig. 5: λ12 = λ21 = P; Fig. 6: λ12 = λ21 from eq. (18) "
-        f"with B = 0.3 and E(x_0) scaled so that η·sup‖u‖ = 1.04."
+        "Zhang §5.1: two modes, A_1 = [[0.9, 0], [0.2, 0.8]], A_2 = [[0.5, 0.2], [0.2, 0.4]], C_1 "
+        f"= I, C_2 = 5 I, process noise B_q (0.5 I) B_q', R = 0.3 I. {p['trials']} Monte Carlo "
+        f"trials (paper: 5000) of {p['horizon']} steps; signal 1 holds each mode {p['dwells'][0]} "
+        f"steps, signal 2 {p['dwells'][1]} (both start in mode 1); the filter's mode is drawn at "
+        f"every step from λ[:, q_k]. E(x_0) = {p['mean_x0']} for Figs 3-5, Σ_0 = I, filter prior = "
+        f"(E(x_0), Σ_0) so e_0 = 0. Figs 3-4: (λ12, λ21) in {[tuple(x) for x in p['lambdas']]}; "
+        "Fig. 5: λ12 = λ21 = P; Fig. 6: λ12 = λ21 from eq. (18) with B = 0.3 and E(x_0) scaled so "
+        "that η·sup‖u‖ = 1.04."
     )
     notes = [
-        ("The text prints Λ_i as 'A_i'; the printed matrices and norms are Λ_i of eq. (7) with the gain from the "
-         "steady a-priori covariance (Algorithm 1 line 8), which reproduces all four printed decimals."),
-        ("The paper does not state the switching signals, the λ of Figs 3-4, E(x_0), Σ_0, the horizon, η or "
-         "sup‖u‖: every one of these is our choice (setup). Its figures print no numbers, so the reproduced claim "
-         "is the agreement of (9) with Monte Carlo, the bound of Theorem 4 above the Monte Carlo maximum, and the "
-         "B = 0.3 design holding."),
-        ("0.154554 needs η·sup‖u‖ = 1.04 in eq. (18) (any value in about [1.039995, 1.040002]). We take η from "
-         f"bibo_gain (= 1/(1 − ‖Λ_1‖) = {eta:.4f}) and, for Fig. 6 only, scale E(x_0) so that η‖E(x_0)‖ = 1.04; "
-         f"sup_k ‖E(x_k)‖ = ‖E(x_0)‖ because ‖A_1‖ = {A_norms[0]:.4f} and ‖A_2‖ = {A_norms[1]:.4f} are below 1. "
-         "The paper's design then applies to our setup and is checked, not assumed."),
-        ("With eq. (6)'s steady gains, eq. (9) is the exact mean of the filter's error: the Monte Carlo agrees "
-         f"within {Z_MAX:g} SE at every step. With Algorithm 1's time-varying gains (the paper's filter) the gain "
-         "also depends on the believed-mode history (C_2 = 5 C_1), so (9) misses a few per cent of the peak bias; "
-         "the paired difference of the two filters measures this gap free of most Monte Carlo noise."),
-        ("The per-trial error contains (Λ_i − Γ_i,q) x_{k−1} with the random x_{k−1}, so its spread is about "
-         "‖S_1,2‖·std(x) ≈ 2 whatever E(x_0) is: the bias is visible only for E(x_0) well above the noise, hence "
-         "E(x_0) = (5, 5) in Figs 3-5. In Fig. 6 (‖E(x_0)‖ = 0.69) the Monte Carlo maximum includes noise of a "
-         "few SE, which also pushes it above the (9) curve."),
+        ("The text prints Λ_i as 'A_i'; the printed matrices and norms are Λ_i of eq. (7) with the "
+         "gain from the steady a-priori covariance (Algorithm 1 line 8), which reproduces all four "
+         "printed decimals."),
+        ("The paper does not state the switching signals, the λ of Figs 3-4, E(x_0), Σ_0, the "
+         "horizon, η or sup‖u‖: every one of these is our choice (setup). Its figures print no "
+         "numbers, so the reproduced claim is the agreement of (9) with Monte Carlo, the bound of "
+         "Theorem 4 above the Monte Carlo maximum, and the B = 0.3 design holding."),
+        ("0.154554 needs η·sup‖u‖ = 1.04 in eq. (18) (any value in about [1.039995, 1.040002]). We "
+         f"take η from bibo_gain (= 1/(1 − ‖Λ_1‖) = {eta:.4f}) and, for Fig. 6 only, scale E(x_0) "
+         f"so that η‖E(x_0)‖ = 1.04; sup_k ‖E(x_k)‖ = ‖E(x_0)‖ because ‖A_1‖ = {A_norms[0]:.4f} "
+         f"and ‖A_2‖ = {A_norms[1]:.4f} are below 1. The paper's design then applies to our setup "
+         "and is checked, not assumed."),
+        ("With eq. (6)'s steady gains, eq. (9) is the exact mean of the filter's error: the Monte "
+         f"Carlo agrees within {Z_MAX:g} SE at every step. With Algorithm 1's time-varying gains "
+         "(the paper's filter) the gain also depends on the believed-mode history (C_2 = 5 C_1), "
+         "so (9) misses a few per cent of the peak bias; the paired difference of the two filters "
+         "measures this gap free of most Monte Carlo noise."),
+        ("The per-trial error contains (Λ_i − Γ_i,q) x_{k−1} with the random x_{k−1}, so its "
+         "spread is about ‖S_1,2‖·std(x) ≈ 2 whatever E(x_0) is: the bias is visible only for "
+         "E(x_0) well above the noise, hence E(x_0) = (5, 5) in Figs 3-5. In Fig. 6 (‖E(x_0)‖ = "
+         "0.69) the Monte Carlo maximum includes noise of a few SE, which also pushes it above the "
+         "(9) curve."),
     ]
-    return Summary("zhang-example1", "Zhang & Natarajan §5.1 (Figs 3-6) — mode-mismatch bias, two-mode example",
+    return Summary("zhang-example1",
+                   "Zhang & Natarajan §5.1 (Figs 3-6) — mode-mismatch bias, two-mode example",
                    setup, rows, notes, figs)
 
 
 register(Experiment(
     name="zhang-example1",
     paper="Zhang",
-    title="Figs 3-6: mismatch bias, eq. (9) vs Monte Carlo; Theorem 4 bound vs P; the B = 0.3 design",
+    title="Figs 3-6: mismatch bias, eq. (9) vs Monte Carlo; Theorem 4 bound vs P; the B = 0.3 "
+          "design",
     # A task is a block through all 26 configurations (~0.4 s fixed, 0.7 ms a trial): 4 tasks of
     # 1250, 2 per worker on 2 cores; --quick: 2 of 500, one per worker.
     defaults={"trials": 5000, "block_size": 1250, "horizon": 40, "dwells": [10, 1],
@@ -422,7 +454,8 @@ def _grid_run(cfg: dict, rng: np.random.Generator) -> dict:
 
 def _set_text(mask: np.ndarray) -> str:
     L = mask.shape[0]
-    return ", ".join(f"λ{i + 1}{q + 1}" for i in range(L) for q in range(L) if i != q and mask[i, q]) or "none"
+    return ", ".join(f"λ{i + 1}{q + 1}" for i in range(L) for q in range(L)
+                     if i != q and mask[i, q]) or "none"
 
 
 def _grid_summary(p: dict, results, out: Path) -> Summary:
@@ -449,7 +482,8 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
                 note = "printed value is ten times ours: a slipped decimal"
             elif i == 0:
                 note = f"steady-state gain: {steady.S[i, q, r - 1, c - 1]:.4f}"
-            rows.append(Row(f"T_{key}[{r},{c}] = (Λ_i − Γ_i,q)[{r},{c}] (Algorithm 2)", ours, value, "", note))
+            rows.append(Row(f"T_{key}[{r},{c}] = (Λ_i − Γ_i,q)[{r},{c}] (Algorithm 2)", ours, value,
+                            "", note))
     uc = unstable_components(system)
     region = stable_mismatch_region(system, dynamics=steady)
     cq_lambda = cqlf(steady.Lambda, "discrete")
@@ -457,13 +491,16 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
     lam_II = _lam_from(paper["setting_II"], 3)
     unstable = "{" + ", ".join(str(j + 1) for j in np.flatnonzero(uc.components)) + "}"
     rows += [
-        Row("CQLF of Λ_1, Λ_2, Λ_3 (Theorem 3)", "exists" if cq_lambda.holds else "not found", "exists"),
-        Row("CQLF of A_1, A_2, A_3 (original system)", "exists" if uc.certificate.holds else "none: unstable",
-            "none: unstable"),
+        Row("CQLF of Λ_1, Λ_2, Λ_3 (Theorem 3)", "exists" if cq_lambda.holds else "not found",
+            "exists"),
+        Row("CQLF of A_1, A_2, A_3 (original system)",
+            "exists" if uc.certificate.holds else "none: unstable", "none: unstable"),
         Row("unstable components I (Algorithm 2, step 2)", unstable, paper["unstable"]),
         Row("Algorithm 2: λ forced to 0", _set_text(~region), paper["zero"]),
-        Row("Fig. 7 Setting I: entries outside the region", _set_text((lam_I > 0) & ~region), "none"),
-        Row("Fig. 7 Setting II: entries outside the region", _set_text((lam_II > 0) & ~region), paper["outside_II"]),
+        Row("Fig. 7 Setting I: entries outside the region", _set_text((lam_I > 0) & ~region),
+            "none"),
+        Row("Fig. 7 Setting II: entries outside the region", _set_text((lam_II > 0) & ~region),
+            paper["outside_II"]),
     ]
     figs = []
     modes = _periodic_modes(p["horizon"], p["dwell"], 3)
@@ -482,58 +519,71 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
             rows += [
                 Row(f"{where}: max_k ‖E(e_k)‖ by (10)", float(th_norm.max()), "bounded", "",
                     "only the stable P_D enters: T_2,3 and T_3,2 have a zero first column"),
-                Row(f"{where}: max_k ‖MC bias‖, Algorithm 1 gains", float(mc_norm.max()), "bounded", "",
-                    f"Monte Carlo noise: SE up to {np.max(np.linalg.norm(c['se_alg1'], axis=1)):.3f}"),
+                Row(f"{where}: max_k ‖MC bias‖, Algorithm 1 gains", float(mc_norm.max()), "bounded",
+                    "",
+                    "Monte Carlo noise: SE up to "
+                    f"{np.max(np.linalg.norm(c['se_alg1'], axis=1)):.3f}"),
                 z_row,
             ]
         else:
             first = p["dwell"]
             rows += [
-                Row(f"{where}: ‖E(e_K)‖ at k = {modes.size} by (10)", float(th_norm[-1]), "explodes", "",
-                    f"{th_norm[first]:.3g} at k = {first}: a factor 10^{np.log10(th_norm[-1] / th_norm[first]):.1f}"),
-                Row(f"{where}: ‖MC bias‖ at k = {modes.size}, Algorithm 1 gains", float(mc_norm[-1]), "explodes"),
+                Row(f"{where}: ‖E(e_K)‖ at k = {modes.size} by (10)", float(th_norm[-1]),
+                    "explodes", "",
+                    f"{th_norm[first]:.3g} at k = {first}: a factor "
+                    f"10^{np.log10(th_norm[-1] / th_norm[first]):.1f}"),
+                Row(f"{where}: ‖MC bias‖ at k = {modes.size}, Algorithm 1 gains",
+                    float(mc_norm[-1]), "explodes"),
                 z_row,
-                Row(f"{where}: Algorithm 1 bias − (10), largest norm / peak", c["gap_paired_rel"], "agree", "",
+                Row(f"{where}: Algorithm 1 bias − (10), largest norm / peak", c["gap_paired_rel"],
+                    "agree", "",
                     f"paired with the steady-gain filter, {c['gap_z']:.1f} SE from zero; unpaired "
                     f"‖MC − (10)‖ / peak = {c['gap_rel']:.3f}"),
             ]
-        series = {"(10), steady gains": th_norm, "MC, steady gains": np.linalg.norm(c["steady"], axis=1),
+        series = {"(10), steady gains": th_norm,
+                  "MC, steady gains": np.linalg.norm(c["steady"], axis=1),
                   "MC, Algorithm 1 gains": mc_norm}
         figs.append(curves(out / f"zhang-smartgrid-setting{name}.png", k, series, xlabel="step k",
                            ylabel="‖E(e_k)‖", logy=name == "II", markers=_switches(modes),
                            title=f"Zhang Fig. 7, Setting {name}: bias norm"))
     setup = (
-        f"Zhang §5.2: smart grid of Table 1 sampled with τ = {p['tau']} (unstated; 0.1 reproduces the printed "
-        f"norms), C = I, Q = 2 I, R = I. {p['trials']} Monte Carlo trials (paper: 5000) of {p['horizon']} steps; "
-        f"true modes 1, 2, 3 for {p['dwell']} steps each, cyclically; E(x_0) = {p['mean_x0']}, Σ_0 = I; the "
-        f"filter's mode is drawn at every step from λ[:, q_k]. Setting I: {_lam_text(lam_I)}; Setting II: "
-        f"{_lam_text(lam_II)}."
+        f"Zhang §5.2: smart grid of Table 1 sampled with τ = {p['tau']} (unstated; 0.1 reproduces "
+        f"the printed norms), C = I, Q = 2 I, R = I. {p['trials']} Monte Carlo trials (paper: "
+        f"5000) of {p['horizon']} steps; true modes 1, 2, 3 for {p['dwell']} steps each, "
+        f"cyclically; E(x_0) = {p['mean_x0']}, Σ_0 = I; the filter's mode is drawn at every step "
+        f"from λ[:, q_k]. Setting I: {_lam_text(lam_I)}; Setting II: {_lam_text(lam_II)}."
     )
     notes = [
-        ("The text prints Λ_i as 'A_i' and Algorithm 2's T as 'A_i − F_i,q'; Λ_i and T_i,q = Λ_i − Γ_i,q are meant "
-         "and computed."),
-        (f"τ is not printed; τ = {SMART_GRID_TAU} is the value at which ‖Λ_2‖, ‖Λ_3‖ and the T_i,q of modes 2-3 "
-         "match to four decimals. The printed ‖Λ_1‖ = 0.9817 and the mode-1 entries of T_1,2, T_1,3 are not "
-         f"steady-state values (0.9828, −0.3307): they match Algorithm 1's gain after {RICCATI_STEPS} steps from "
-         "Σ_0 = I, so the T rows use those gains (the steady value is in the note)."),
-        ("Printed T_2,3[2,2] = −0.0088 and T_3,2[2,2] = 0.0086 are ten times the computed −0.00088 and 0.00086: "
-         "a slipped decimal. It changes nothing in Algorithm 2 (only first columns matter)."),
-        ("The switching signal, E(x_0), Σ_0 and the horizon of Fig. 7 are not printed: our choices (setup). The "
-         "claim reproduced is the shape: bounded bias in Setting I, bias growing with E(P_G) in Setting II."),
-        ("In Setting I the theoretical bias stays near 1e-3 (only T_2,3 and T_3,2, with entries below 1e-3, act, "
-         "on the decaying P_D), far below the Monte Carlo noise: the Monte Carlo shows bounded noise around zero."),
-        ("With Algorithm 1's time-varying gains (the paper's filter) mode 1's gain is still far from steady state "
-         "and is reset by every believed mode 2 or 3, so (10) with steady gains is only an approximation; the gap "
-         "is reported as a fraction of the peak bias."),
+        ("The text prints Λ_i as 'A_i' and Algorithm 2's T as 'A_i − F_i,q'; Λ_i and T_i,q = Λ_i − "
+         "Γ_i,q are meant and computed."),
+        (f"τ is not printed; τ = {SMART_GRID_TAU} is the value at which ‖Λ_2‖, ‖Λ_3‖ and the T_i,q "
+         "of modes 2-3 match to four decimals. The printed ‖Λ_1‖ = 0.9817 and the mode-1 entries "
+         "of T_1,2, T_1,3 are not steady-state values (0.9828, −0.3307): they match Algorithm 1's "
+         f"gain after {RICCATI_STEPS} steps from Σ_0 = I, so the T rows use those gains (the "
+         "steady value is in the note)."),
+        ("Printed T_2,3[2,2] = −0.0088 and T_3,2[2,2] = 0.0086 are ten times the computed −0.00088 "
+         "and 0.00086: a slipped decimal. It changes nothing in Algorithm 2 (only first columns "
+         "matter)."),
+        ("The switching signal, E(x_0), Σ_0 and the horizon of Fig. 7 are not printed: our choices "
+         "(setup). The claim reproduced is the shape: bounded bias in Setting I, bias growing with "
+         "E(P_G) in Setting II."),
+        ("In Setting I the theoretical bias stays near 1e-3 (only T_2,3 and T_3,2, with entries "
+         "below 1e-3, act, on the decaying P_D), far below the Monte Carlo noise: the Monte Carlo "
+         "shows bounded noise around zero."),
+        ("With Algorithm 1's time-varying gains (the paper's filter) mode 1's gain is still far "
+         "from steady state and is reset by every believed mode 2 or 3, so (10) with steady gains "
+         "is only an approximation; the gap is reported as a fraction of the peak bias."),
     ]
-    return Summary("zhang-smartgrid", "Zhang & Natarajan §5.2 (Fig. 7) — smart grid, stable and unstable mismatch",
+    return Summary("zhang-smartgrid",
+                   "Zhang & Natarajan §5.2 (Fig. 7) — smart grid, stable and unstable mismatch",
                    setup, rows, notes, figs)
 
 
 register(Experiment(
     name="zhang-smartgrid",
     paper="Zhang",
-    title="Fig. 7: smart-grid bias inside (Setting I) and outside (Setting II) Algorithm 2's stable region",
+    title="Fig. 7: smart-grid bias inside (Setting I) and outside (Setting II) Algorithm 2's "
+          "stable region",
     # A task is a block in both settings, a fraction of a second: 4 tasks of 1250, 2 per worker on
     # 2 cores; --quick: 2 of 500, one per worker.
     defaults={"trials": 5000, "block_size": 1250, "horizon": 100, "dwell": 10,
