@@ -19,6 +19,7 @@ __all__ = [
     "float_array",
     "int_array",
     "check_finite",
+    "gain_stack",
     "check_cores",
     "broadcast_batch",
     "check_square_stack",
@@ -192,6 +193,18 @@ def check_cores(arrays: dict[str, np.ndarray], cores: dict[str, str]) -> tuple[i
                 )
         batches[name] = arr.shape[: arr.ndim - len(core)]
     return broadcast_batch(batches)
+
+
+def gain_stack(value, name: str, shape: tuple[int, int, int], text: str) -> np.ndarray:
+    """``value`` as a finite, read-only float array of exactly ``shape`` (one gain per mode),
+    ``text`` naming the shape's letters in the error (``"(L, n, m)"``)."""
+    arr = float_array(value, name, ndim=3)
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {text} = {shape}, got {arr.shape}")
+    check_finite(arr, name)
+    arr = arr.copy()
+    arr.setflags(write=False)
+    return arr
 
 
 def check_square_stack(arr: np.ndarray, name: str) -> None:

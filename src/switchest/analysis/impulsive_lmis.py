@@ -90,7 +90,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_finite, float_array, positive_scalar
+from .._checks import float_array, gain_stack, positive_scalar
 from .._linalg import symmetrize
 from ..system import SwitchedLinearSystem
 from ._deprecation import renamed_field
@@ -344,8 +344,8 @@ def closed_loop_matrices(system: SwitchedLinearSystem, K, G) -> tuple[np.ndarray
     """
     system = _check_system(system)
     L, n, m, n_in = system.n_modes, system.n_states, system.n_outputs, system.n_inputs
-    K = _gain_stack(K, "K", (L, n_in, n), "(L, l, n)")
-    G = _gain_stack(G, "G", (L, n, m), "(L, n, m)")
+    K = gain_stack(K, "K", (L, n_in, n), "(L, l, n)")
+    G = gain_stack(G, "G", (L, n, m), "(L, n, m)")
     A, B, C = system.A, system.B, system.C
     Aj, Ai = A[:, None], A[None, :]  # [j, i]: true mode j, estimated mode i
     Bj, Bi = B[:, None], B[None, :]
@@ -947,11 +947,3 @@ def _check_system(system) -> SwitchedLinearSystem:
     if not system.is_continuous:
         raise ValueError(f"system must be continuous-time, got domain {system.domain!r}")
     return system
-
-
-def _gain_stack(value, name: str, shape: tuple[int, int, int], text: str) -> np.ndarray:
-    arr = float_array(value, name, ndim=3)
-    if arr.shape != shape:
-        raise ValueError(f"{name} must have shape {text} = {shape}, got {arr.shape}")
-    check_finite(arr, name)
-    return arr

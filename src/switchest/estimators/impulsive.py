@@ -27,7 +27,7 @@ from numbers import Real
 
 import numpy as np
 
-from .._checks import as_rng, check_cores, check_finite, float_array
+from .._checks import as_rng, check_cores, check_finite, float_array, gain_stack
 from .._linalg import joseph_update, matvec
 from ..discretize import mode_steps, segment_transitions
 from ..signals import SwitchingSignal, sample_segments, schedule
@@ -172,7 +172,7 @@ class ImpulsiveObserver(Estimator):
         system = _check_system(system)
         n = system.n_states
         self._set_prior(system, np.zeros(n) if x0 is None else x0, np.eye(n) if P0 is None else P0)
-        self.G = _gain_stack(gains, "gains", (system.n_modes, n, system.n_outputs), "(L, n, m)")
+        self.G = gain_stack(gains, "gains", (system.n_modes, n, system.n_outputs), "(L, n, m)")
         self.mode_estimate = _check_mode_estimate(mode_estimate)
 
     def estimated_signal(self, signal: SwitchingSignal) -> SwitchingSignal:
@@ -420,16 +420,6 @@ def _check_system(system) -> SwitchedLinearSystem:
             f"got domain {system.domain!r}"
         )
     return system
-
-
-def _gain_stack(value, name: str, shape: tuple[int, int, int], text: str) -> np.ndarray:
-    arr = float_array(value, name, ndim=3)
-    if arr.shape != shape:
-        raise ValueError(f"{name} must have shape {text} = {shape}, got {arr.shape}")
-    check_finite(arr, name)
-    arr = arr.copy()
-    arr.setflags(write=False)
-    return arr
 
 
 def _check_mode_estimate(rule) -> ModeEstimate:
