@@ -24,7 +24,7 @@ from switchest.experiments import (
     get,
     wang,  # registers wang-examples and wang-ieee5bus
 )
-from switchest.experiments.scoring import merge_blocks
+from switchest.experiments.scoring import mean_and_se, merge_blocks
 from switchest.models import (
     IEEE_5BUS_INITIAL_ERROR,
     IEEE_5BUS_SAMPLE_PERIOD,
@@ -44,11 +44,6 @@ def _summed(results, **match):
     """Per-block ``stats`` of the matching tasks, summed (nested dicts of arrays)."""
     return merge_blocks(res["stats"] for cfg, res in results
                         if all(cfg[k] == v for k, v in match.items()))
-
-
-def _mean_se(s, sq, n):
-    mean = np.asarray(s, float) / n
-    return mean, np.sqrt((np.asarray(sq, float) / n - mean**2) * n / (n - 1) / n)
 
 
 def _exact_diag(system, gains, T, p, e0, steps):
@@ -158,7 +153,7 @@ def test_examples_light_tailed_component_matches_the_recursion(runs):
         tot = _summed(results, figure=figure)
         (L1, L2), = cfg["gains"]
         s = tot[f"L1={L1:g},L2={L2:g}"]
-        mc, se = _mean_se(s["win_sum"][1], s["win_sq"][1], tot["trials"])
+        mc, se = mean_and_se(s["win_sum"][1], s["win_sq"][1], tot["trials"])
         exact = _exact_diag(ex.system(), wang.scalar_gains(L1, L2), ex.T, ex.probabilities(),
                             cfg["e0"], cfg["horizon"])
         assert abs(mc - exact[cfg["window"]:, 1].mean()) < Z_MAX * se, figure
@@ -190,7 +185,7 @@ def test_examples_divergence_and_tradeoff(runs):
     # Fig. 6: on the same runs the correct optimum beats the printed L1* = 61.3 by many standard
     # errors
     tot6 = _summed(results, figure="6")
-    d, se = _mean_se(tot6["pair"]["sum"], tot6["pair"]["sq"], tot6["trials"])
+    d, se = mean_and_se(tot6["pair"]["sum"], tot6["pair"]["sq"], tot6["trials"])
     assert d < -Z_MAX * se
 
 
@@ -235,10 +230,10 @@ def test_bus_monte_carlo_matches_the_exact_moments(runs):
         gains = wang.bus_gains(design)
         N, Nc = tot["trials"], tot["clear"]["trials"]
         assert N == params["trials"] and Nc <= N
-        mc, se = _mean_se(tot["total"]["win_sum"][0], tot["total"]["win_sq"][0], N)
+        mc, se = mean_and_se(tot["total"]["win_sum"][0], tot["total"]["win_sq"][0], N)
         exact = _exact_diag(system, gains, T, p, IEEE_5BUS_INITIAL_ERROR, K).sum(axis=1)[w:].mean()
         assert abs(mc - exact) < Z_MAX * se, design
-        mcc, sec = _mean_se(tot["clear"]["win_sum"][0], tot["clear"]["win_sq"][0], Nc)
+        mcc, sec = mean_and_se(tot["clear"]["win_sum"][0], tot["clear"]["win_sq"][0], Nc)
         exact_c = _exact_diag(system, gains, T, clear_p, IEEE_5BUS_INITIAL_ERROR,
                               K).sum(axis=1)[w:].mean()
         assert abs(mcc - exact_c) < Z_MAX * sec, design

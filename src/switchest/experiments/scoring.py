@@ -10,7 +10,7 @@ import numpy as np
 
 from ..metrics import switch_time_error
 
-__all__ = ["blocks", "merge_blocks", "merge_groups", "score", "split_variants"]
+__all__ = ["blocks", "mean_and_se", "merge_blocks", "merge_groups", "score", "split_variants"]
 
 
 def blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
@@ -71,6 +71,14 @@ def score(est, traj, start: int, defined: np.ndarray | None = None) -> dict:
         out["switch_rel_err"] = float(relative.sum())
         out["switch_pairs"] = int(gap.size)
     return out
+
+
+def mean_and_se(total, total_sq, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Monte Carlo mean of ``n`` trials and its standard error, from the merged sum ``total``
+    and sum of squares ``total_sq`` (the unbiased sample variance over ``n``)."""
+    mean = np.asarray(total, float) / n
+    var = np.maximum(np.asarray(total_sq, float) / n - mean**2, 0.0) * n / (n - 1)
+    return mean, np.sqrt(var / n)
 
 
 def merge_blocks(results: Iterable[dict], *, first: Collection[str] = (),

@@ -77,7 +77,7 @@ from ..plotting import curves
 from ..signals import iid_at_samples
 from ..simulate import simulate
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, merge_blocks, split_variants
+from .scoring import blocks, mean_and_se, merge_blocks, split_variants
 
 # Wang et al. §4.1-§5.2 (Examples 1-4); components 1-based as printed
 EXAMPLES_PAPER = {
@@ -154,13 +154,6 @@ def _total(results, **match) -> tuple[dict, dict, dict]:
     chosen = sorted(((c, r) for c, r in results if all(c[k] == v for k, v in match.items())),
                     key=lambda cr: cr[0]["block"])
     return chosen[0][0], merge_blocks(r["stats"] for _, r in chosen), chosen[0][1]
-
-
-def _mean_se(s, sq, n) -> tuple[np.ndarray, np.ndarray]:
-    """Monte Carlo mean and its standard error from a sum and a sum of squares over ``n`` trials."""
-    mean = np.asarray(s, float) / n
-    var = np.maximum(np.asarray(sq, float) / n - mean**2, 0.0) * n / (n - 1)
-    return mean, np.sqrt(var / n)
 
 
 def _exact(system, gains, T: float, p, e0, steps: int):
@@ -384,7 +377,7 @@ class _Context:
         """MC time average of sigma^comp against the exact one; SE from the exact spread of a run's
         average."""
         N, w, stats = tot["trials"], cfg["window"], tot[_label(*gains)]
-        mc, se_sample = _mean_se(stats["win_sum"][comp], stats["win_sq"][comp], N)
+        mc, se_sample = mean_and_se(stats["win_sum"][comp], stats["win_sq"][comp], N)
         dyn = error_dynamics(self.system, scalar_gains(*gains), self.T)
         moments = scalar_error_moments(dyn, self.prob, self.e0, cfg["horizon"])
         se = float(window_average_sd(moments, w)[comp] / np.sqrt(N))
@@ -409,7 +402,7 @@ def _example1_section(c: _Context) -> None:
     M = np.diag(moment_matrix(dyn, c.prob))
     K, N = cfg["horizon"], tot["trials"]
     stats = tot[_label(*L_kb)]
-    mc, se_sample = _mean_se(stats["sum"], stats["sq"], N)
+    mc, se_sample = mean_and_se(stats["sum"], stats["sq"], N)
     moments = scalar_error_moments(dyn, c.prob, c.e0, K)
     E2, E4 = moments.E2, moments.E4
     ks = np.arange(K // 2, K + 1)
@@ -484,7 +477,7 @@ def _example2_section(c: _Context) -> dict:
         c.window_row("Fig. 2", tot, DESIGN_GAINS, 1, cfg),
     ]
     stats = tot[_label(*DESIGN_GAINS)]
-    mc, _ = _mean_se(stats["sum"], stats["sq"], tot["trials"])
+    mc, _ = mean_and_se(stats["sum"], stats["sq"], tot["trials"])
     c.figs.append(curves(c.out / "wang-fig2-design.png", np.arange(cfg["horizon"] + 1),
                          {f"Monte Carlo ({int(tot['trials'])} runs)": mc,
                           "exact second moments": exact,
@@ -505,7 +498,7 @@ def _example2_large_T(c: _Context) -> np.ndarray:
     big = WANG_EXAMPLES[cfg["example"]]
     gains = scalar_gains(*DESIGN_GAINS)
     K, N, stats = cfg["horizon"], int(tot["trials"]), tot[_label(*DESIGN_GAINS)]
-    mc, _ = _mean_se(stats["sum"], stats["sq"], N)
+    mc, _ = mean_and_se(stats["sum"], stats["sq"], N)
     exact = _exact(c.system, gains, big.T, c.prob, c.e0, K)[0]
     M = np.diag(moment_matrix(error_dynamics(c.system, gains, big.T), c.prob))
     k_fit = int(min(K, GROWTH_FRACTION * np.log(N) / np.log(1.0 / (1.0 - big.p))))
@@ -588,7 +581,7 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
     for L1, L2 in cfg["gains"]:
         stats = tot[_label(L1, L2)]
         c.rows.append(c.window_row(f"Fig. 4, L1 = {L1:g}", tot, (L1, L2), 0, cfg))
-        mc, _ = _mean_se(stats["sum"], stats["sq"], N)
+        mc, _ = mean_and_se(stats["sum"], stats["sq"], N)
         exact = _exact(c.system, scalar_gains(L1, L2), c.T, c.prob, c.e0, K)[0]
         series[f"L1 = {L1:g}"] = np.column_stack([mc[:, 0], exact[:, 0]])
         mc_points[L1] = float(stats["win_sum"][0] / N)
@@ -611,7 +604,7 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
     cfg, tot, _ = _total(c.results, figure="6")
     for L1, L2 in cfg["gains"]:
         mc_points[L1] = float(tot[_label(L1, L2)]["win_sum"][0] / tot["trials"])
-    d_mc, d_se = _mean_se(tot["pair"]["sum"], tot["pair"]["sq"], tot["trials"])
+    d_mc, d_se = mean_and_se(tot["pair"]["sum"], tot["pair"]["sq"], tot["trials"])
     w = cfg["window"]
     (La, L2a), (Lb, L2b) = cfg["gains"]
     d_exact = float(_exact(c.system, scalar_gains(La, L2a), c.T, c.prob, c.e0,
@@ -847,11 +840,11 @@ def _bus_monte_carlo(design: str, exact: dict, results, out: Path):
     cfg, tot, _ = _total(results, design=design)
     N, w, K = int(tot["trials"]), cfg["window"], cfg["intervals"]
     moments, steady = exact["moments"], exact["steady"]
-    mc, se = _mean_se(tot["total"]["win_sum"][0], tot["total"]["win_sq"][0], N)
+    mc, se = mean_and_se(tot["total"]["win_sum"][0], tot["total"]["win_sq"][0], N)
     expected = float(moments[w:].sum(axis=1).mean())
     z = _z(float(mc), float(se), expected)
     Nc = int(tot["clear"]["trials"])
-    mcc, sec = _mean_se(tot["clear"]["win_sum"][0], tot["clear"]["win_sq"][0], Nc)
+    mcc, sec = mean_and_se(tot["clear"]["win_sum"][0], tot["clear"]["win_sq"][0], Nc)
     expected_c = float(exact["moments_clear"][w:].sum(axis=1).mean())
     zc = _z(float(mcc), float(sec), expected_c)
     g = tot["given_modes"]
@@ -866,7 +859,7 @@ def _bus_monte_carlo(design: str, exact: dict, results, out: Path):
             f"± {float(sec):.2g} (SE); exact given no blind interval {expected_c:.4g}; |MC − "
             f"exact| = {zc:.2f} SE"),
     ]
-    mean_c, _ = _mean_se(tot["component"]["sum"], tot["component"]["sq"], N)
+    mean_c, _ = mean_and_se(tot["component"]["sum"], tot["component"]["sq"], N)
     level = np.where(np.arange(K + 1)[:, None] >= w, tot["component"]["win_sum"] / N, np.nan)
     number = "8" if design == "first" else "9"
     fig = curves(out / f"wang-ieee5bus-fig{number}.png", np.arange(K + 1),
@@ -878,7 +871,7 @@ def _bus_monte_carlo(design: str, exact: dict, results, out: Path):
                  ylabel=[f"E(e_{s})²" for s in STATE_LABELS], logy=True,
                  title=f"Wang Fig. {number}: 5-bus, {design} design "
                        f"(poles {', '.join(f'{v:g}' for v in BUS_POLES[design])})")
-    total = (_mean_se(tot["total"]["sum"], tot["total"]["sq"], N)[0][:, 0], moments.sum(axis=1))
+    total = (mean_and_se(tot["total"]["sum"], tot["total"]["sq"], N)[0][:, 0], moments.sum(axis=1))
     return rows, fig, [z, zc], abs(zg), total
 
 

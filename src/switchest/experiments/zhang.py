@@ -38,7 +38,7 @@ from ..models import SMART_GRID_TAU, smart_grid, zhang_two_mode
 from ..plotting import curves
 from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, merge_groups
+from .scoring import blocks, mean_and_se, merge_groups
 
 # Zhang & Natarajan §5.1 (printed "A_i" is Lambda_i; 1-based modes as printed)
 EXAMPLE1_PAPER = {
@@ -147,10 +147,8 @@ def _group(results: list[tuple[dict, dict]]) -> dict[str, tuple[dict, dict]]:
 def _moments(total: dict, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Monte Carlo mean ``(K + 1, n)`` (with the exact ``e_0 = 0`` first) and its standard error
     ``(K, n)``."""
-    N = total["trials"]
-    mean = total[f"{name}_sum"] / N
-    var = np.maximum(total[f"{name}_sq"] / N - mean**2, 0.0) * N / (N - 1)
-    return np.vstack([np.zeros(mean.shape[1]), mean]), np.sqrt(var / N)
+    mean, se = mean_and_se(total[f"{name}_sum"], total[f"{name}_sq"], total["trials"])
+    return np.vstack([np.zeros(mean.shape[1]), mean]), se
 
 
 def _theory(system: SwitchedLinearSystem, lam: np.ndarray, modes: np.ndarray,
