@@ -20,6 +20,7 @@ from switchest.analysis.impulsive_lmis import (
     impulsive_observer_decay_rate,
     impulsive_observer_search,
     impulsive_observer_synthesis,
+    largest_tolerable_delay,
 )
 from switchest.estimators.impulsive import ImpulsiveObserver, simulate_observer_control
 from switchest.models import ETIENNE_SCENARIO, etienne_academic
@@ -467,3 +468,22 @@ def test_arguments_are_validated():
         )
     with pytest.raises(ValueError, match="mu_c_bar must be a finite positive number"):
         impulsive_closed_loop_decay_rate(0.2, 3.0, 5.0, 0.98, -1.0, 0.3, 0.4, 7.0, 0.1)
+
+
+@pytest.mark.parametrize("alpha_bar, mu_c_bar", [(0.5, 1.0), (0.5, 1.3), (-2.0, 1.3), (2.0, 3.0)])
+def test_largest_tolerable_delay_is_where_the_closed_loop_rate_stops_being_positive(alpha_bar,
+                                                                                    mu_c_bar):
+    """Below the returned delay the Theorem 10 rate is positive; just above it, not."""
+    args = dict(alpha=1.0, alpha_bar=alpha_bar, mu_s=1.2, mu_c=0.9, mu_c_bar=mu_c_bar,
+                tau_min=0.05, tau_max=0.1, dwell=2.0)
+    delta = largest_tolerable_delay(**args)
+    assert 0.0 < delta < math.inf
+    rate = [impulsive_closed_loop_decay_rate(**args, delta=d)
+            for d in (0.999 * delta, 1.001 * delta)]
+    assert rate[0] > 0.0 >= rate[1]
+
+
+def test_largest_tolerable_delay_is_nan_without_a_rate_and_inf_without_a_cost():
+    base = dict(mu_s=1.2, mu_c=0.9, tau_min=0.05, tau_max=0.1, dwell=2.0)
+    assert math.isnan(largest_tolerable_delay(alpha=-5.0, alpha_bar=0.0, mu_c_bar=1.0, **base))
+    assert largest_tolerable_delay(alpha=1.0, alpha_bar=-1.0, mu_c_bar=0.9, **base) == math.inf

@@ -36,7 +36,7 @@ _EXPORTS = {
                        "ImpulsiveObserverSearch", "closed_loop_matrices",
                        "impulsive_closed_loop_analysis", "impulsive_closed_loop_decay_rate",
                        "impulsive_observer_decay_rate", "impulsive_observer_search",
-                       "impulsive_observer_synthesis"),
+                       "impulsive_observer_synthesis", "largest_tolerable_delay"),
     "min_distance_design": ("LeeAssumptions", "LeeCondition", "LeeConstants", "LeeWindows",
                             "decay_observer_gains", "default_observer_gains", "lee_assumptions",
                             "lee_constants", "lee_windows", "observability_gramians"),

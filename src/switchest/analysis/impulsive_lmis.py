@@ -411,6 +411,45 @@ def impulsive_closed_loop_decay_rate(
     return 0.5 * (alpha - _sample_rate(mu_c, tau_min, tau_max) - per_switch / dwell)
 
 
+def largest_tolerable_delay(
+    alpha: float,
+    alpha_bar: float,
+    mu_s: float,
+    mu_c: float,
+    mu_c_bar: float,
+    tau_min: float,
+    tau_max: float,
+    dwell: float,
+) -> float:
+    """Supremum of the mode-estimate delays ``delta`` with condition (28) (Etienne et al.
+    Theorem 10, as re-derived in :func:`impulsive_closed_loop_decay_rate`): ``beta > 0``.
+
+    With ``b = alpha - ln(mu_c)/tau_c - ln(mu_s)/s`` (twice
+    :func:`impulsive_observer_decay_rate`),
+    ``2 beta = b - (delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+) / s`` is affine in
+    ``delta`` on each ``((q - 1) tau_min, q tau_min]``, ``q = ceil(delta/tau_min)``: the
+    supremum is where it reaches zero, or the left end of the first piece that starts at or
+    below zero. NaN when even ``delta = 0`` fails, ``inf`` when no delay does.
+    """
+    budget = dwell * 2 * impulsive_observer_decay_rate(alpha, mu_s, mu_c, tau_min, tau_max,
+                                                       dwell)  # s b
+    if budget <= 0:
+        return math.nan
+    slope = max(_real(alpha, "alpha") + _real(alpha_bar, "alpha_bar"), 0.0)
+    per_sample = max(math.log(positive_scalar(mu_c_bar, "mu_c_bar") / mu_c), 0.0)
+    if slope == 0 and per_sample == 0:
+        return math.inf
+    q = 1
+    while True:
+        room = budget - q * per_sample  # what the delayed flow may spend with q wrong samples
+        end = room / slope if slope > 0 else (math.inf if room > 0 else -math.inf)
+        if end <= (q - 1) * tau_min:
+            return (q - 1) * tau_min
+        if end <= q * tau_min:
+            return end
+        q += 1
+
+
 def _switch_cost(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, delta) -> float:
     """Growth of ``ln V`` charged to one switch: the jump ``mu_s``, at most ``delta`` of
     wrong-mode flow, at most ``q = ceil(delta/tau_min)`` wrong-mode samples."""

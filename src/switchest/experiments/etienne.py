@@ -33,6 +33,7 @@ from ..analysis.impulsive_lmis import (
     impulsive_observer_decay_rate,
     impulsive_observer_search,
     impulsive_observer_synthesis,
+    largest_tolerable_delay,
 )
 from ..analysis.scalar_search import largest_feasible
 from ..estimators.impulsive import ImpulsiveObserver, simulate_observer_control
@@ -329,36 +330,6 @@ register(Experiment(
 
 
 # ------------------------------------------------------------------ Fig. 2: delayed mode, control
-def _largest_delay(alpha: float, alpha_bar: float, mu_s: float, mu_c: float,
-                   mu_c_bar: float) -> float:
-    """Supremum of the delays ``delta`` at which the corrected rate (28) is positive, at these
-    scalars.
-
-    :func:`~switchest.analysis.impulsive_lmis.impulsive_closed_loop_decay_rate` is
-    ``(b - (delta (alpha + alpha_bar)^+ + q c) / s) / 2`` with
-    ``b = alpha - ln(mu_c)/tau_c - ln(mu_s)/s`` (``= 2 impulsive_observer_decay_rate``),
-    ``c = ln(mu_c_bar/mu_c)^+`` and ``q = ceil(delta/tau_min)``: affine in ``delta``
-    on each ``((q-1) tau_min, q tau_min]``. NaN when even ``delta = 0`` fails,
-    ``inf`` when no delay does.
-    """
-    budget = S.dwell * 2 * impulsive_observer_decay_rate(alpha, mu_s, mu_c, S.tau_min, S.tau_max,
-                                                         S.dwell)  # s b
-    if budget <= 0:
-        return math.nan
-    slope, per_sample = max(alpha + alpha_bar, 0.0), max(math.log(mu_c_bar / mu_c), 0.0)
-    if slope == 0 and per_sample == 0:
-        return math.inf
-    q = 1
-    while True:
-        room = budget - q * per_sample  # what the delayed flow may still spend with q wrong samples
-        end = room / slope if slope > 0 else (math.inf if room > 0 else -math.inf)
-        if end <= (q - 1) * S.tau_min:
-            return (q - 1) * S.tau_min
-        if end <= q * S.tau_min:
-            return end
-        q += 1
-
-
 def _theorem10() -> ClosedLoopLMIs:
     """Theorem 10's LMIs for the paper's controller and Theorem 8's gains at the paper's scalars,
     compiled once per task and re-solved at every point of its verdicts or search."""
@@ -421,7 +392,8 @@ def _search_run(cfg: dict) -> dict:
             continue
         lo = floor = found[0]
         points.append({"alpha_bar": alpha_bar, "alpha": lo,
-                       "delta": _largest_delay(lo, alpha_bar, mu_s, mu_c, mu_c)})
+                       "delta": largest_tolerable_delay(lo, alpha_bar, mu_s, mu_c, mu_c, S.tau_min,
+                                                        S.tau_max, S.dwell)})
     out = {"mu_s": mu_s, "mu_c": mu_c, "points": points, "n_solves": lmis.n_solves,
            "certificates": {}}
     found = [pt for pt in points if pt["delta"] is not None]
