@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from summary_rows import find_row
 
-import switchest.experiments.lee as lee_exp  # registers lee-detection
 from switchest.analysis.min_distance_design import lee_assumptions
 from switchest.models.lee import LEE_SCENARIO as S
 from switchest.simulate import simulate
@@ -104,9 +103,9 @@ def test_summary_shows_the_guarantees_beside_ours(run):
     assert len(summary.figures) == 3 and all(f.exists() for f in summary.figures)
 
 
-def test_interpolation_bound_covers_the_gap_to_the_smooth_output():
+def test_interpolation_gap_covers_the_gap_to_the_smooth_output():
     """Oracle: the exact path on a 16x finer grid never leaves the linear interpolant of the
-    detector's grid by more than :func:`interpolation_bound`."""
+    detector's grid by more than :meth:`LeeScenario.interpolation_gap`."""
     h, duration = 0.0025, 4.0
     t = h * np.arange(round(duration / h) + 1)
     rng = np.random.default_rng(3)
@@ -116,5 +115,5 @@ def test_interpolation_bound_covers_the_gap_to_the_smooth_output():
                              axis=-1)
                     for n in range(3)])
     gap = np.max(np.linalg.norm(traj.x_fine - lin, axis=-1))
-    bound = lee_exp.interpolation_bound(h, duration)
+    bound = S.interpolation_gap(h, duration)
     assert 0.2 * bound < gap <= bound

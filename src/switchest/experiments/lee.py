@@ -57,27 +57,6 @@ def _tasks(p: dict) -> list[dict]:
             for b, n in blocks(p["trials"], p["block_size"])]
 
 
-def interpolation_bound(grid_step: float, duration: float) -> float:
-    """Largest gap between the noise-free output and its linear interpolation on the grid.
-
-    The detector integrates ``y`` as linear between grid points; the gap acts like
-    noise. With ``u`` held on each step, ``y'' = A_i (A_i x + b u)`` inside a step;
-    a switch inside a step adds a kink where ``y'`` jumps by ``(A_j - A_i) x``.
-    Linear interpolation of ``f`` with ``|f''| <= M`` and one kink of size ``J`` is
-    off by at most ``h^2 M / 8 + h J / 4``, so the gap is at most::
-
-        h^2 / 8 (omega_max^2 x_max + omega_max ||b|| u_max) + h / 4 |omega_1 - omega_0| x_max
-
-    with ``x_max = |x_0| + ||b|| u_max t`` (``A_i`` skew-symmetric, at most one
-    switch per step since dwell times exceed the step).
-    """
-    s = LEE_SCENARIO
-    w = max(s.omega)
-    x_max = np.hypot(*s.x0) + s.input_gain * s.u_max * duration
-    smooth = grid_step**2 / 8 * (w**2 * x_max + w * s.input_gain * s.u_max)
-    return smooth + grid_step / 4 * abs(s.omega[1] - s.omega[0]) * x_max
-
-
 def _detector(v_max: float) -> MinimumDistanceDetector:
     s = LEE_SCENARIO
     return MinimumDistanceDetector(s.system(), delta=s.delta, Delta=s.Delta, v_max=v_max,
@@ -89,7 +68,7 @@ def _run(cfg: dict, rng: np.random.Generator) -> dict:
 
     The noise is drawn once, with unit bound, and scaled to each level: the levels see
     the same realizations (:meth:`~switchest.models.lee.LeeScenario.noise` is linear
-    in its bound). At a level, its bound is ``noise - interpolation_bound``, so that
+    in its bound). At a level, its bound is ``noise - LeeScenario.interpolation_gap``, so that
     noise plus interpolation error stays within ``noise`` (the detector's ``v_max``
     when told the truth).
     """
@@ -99,7 +78,7 @@ def _run(cfg: dict, rng: np.random.Generator) -> dict:
     u = s.input(t, N, rng)
     traj = simulate(s.system(), s.signal, t, np.array(s.x0), u, trials=N, rng=rng)
     shape = s.noise(t, N, rng, v_max=1.0)
-    gap = interpolation_bound(h, cfg["duration"])
+    gap = LEE_SCENARIO.interpolation_gap(h, cfg["duration"])
     return {"variants": [_level(c, traj, u, (c["noise"] - gap) * shape, s)
                          for c in cfg["variants"]]}
 
@@ -254,7 +233,7 @@ def _summary(p: dict, results, out: Path) -> Summary:
     groups = _grouped(results)
     base = _assumptions(s.v_max, p["duration"])
     k = base.constants
-    eps = interpolation_bound(p["grid_step"], p["duration"])
+    eps = LEE_SCENARIO.interpolation_gap(p["grid_step"], p["duration"])
     rows = [
         Row("Assumption 1: smallest PBH margin of the mode pairs", base.assumption1.margin, None,
             "", "joint observability holds" if base.assumption1.holds else "FAILS"),

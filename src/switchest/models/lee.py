@@ -128,6 +128,27 @@ class LeeScenario:
         T = self.horizon if horizon is None else positive_scalar(horizon, "horizon")
         return float(np.hypot(*self.x0) - self.input_gain * self.u_max * T)
 
+    def interpolation_gap(self, grid_step: float, duration: float) -> float:
+        """Largest gap between the noise-free output and its linear interpolation on a grid.
+
+        The detector integrates ``y`` as linear between grid points; the gap acts like
+        noise. With ``u`` held on each step, ``y'' = A_i (A_i x + b u)`` inside a step;
+        a switch inside a step adds a kink where ``y'`` jumps by ``(A_j - A_i) x``.
+        Linear interpolation of ``f`` with ``|f''| <= M`` and one kink of size ``J`` is
+        off by at most ``h^2 M / 8 + h J / 4``, so the gap is at most::
+
+            h^2 / 8 (omega_max^2 x_max + omega_max ||b|| u_max) + h / 4 |omega_1 - omega_0| x_max
+
+        with ``x_max = |x_0| + ||b|| u_max t`` (``A_i`` skew-symmetric, at most one
+        switch per step since dwell times exceed the step).
+        """
+        h = positive_scalar(grid_step, "grid_step")
+        w = max(self.omega)
+        x_max = np.hypot(*self.x0) + self.input_gain * self.u_max * positive_scalar(duration,
+                                                                                    "duration")
+        smooth = h**2 / 8 * (w**2 * x_max + w * self.input_gain * self.u_max)
+        return float(smooth + h / 4 * abs(self.omega[1] - self.omega[0]) * x_max)
+
     def signal(self, rng) -> SwitchingSignal:
         """A random switching signal on ``[0, horizon]`` with dwell in ``[min_dwell, max_dwell]``.
 
