@@ -368,8 +368,8 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
     except ValueError as exc:
         # e.g. Assumption 2(b): the modes' observable subspaces do not span the state
         return Check(name, paper, None, f"not applicable: {exc}")
-    truncated = np.floor(ci.theorem3 * 1e4) / 1e4
-    eq20 = f"eq. (20) T_max = {truncated:.4f} ({ci.theorem3:.6f}, q_max = {ci.q_max:.4g})"
+    truncated = np.floor(ci.printed_t_max * 1e4) / 1e4
+    eq20 = f"eq. (20) T_max = {truncated:.4f} ({ci.printed_t_max:.6f}, q_max = {ci.q_max:.4g})"
     exact = f"exact MS threshold {ci.fast_observer:.4f}"
     per = ("" if ci.per_block.size < 2
            else "; per sub-state " + ", ".join(f"{v:.4f}" for v in ci.per_block))
@@ -381,7 +381,7 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
                      f"T = {T:g} equals the {exact} to its accuracy; {eq20}{per}",
                      float(1.0 - T / ci.fast_observer))
     verdict = bool(T < ci.fast_observer)
-    detail = (f"T = {T:g} {'<' if T < ci.theorem3 else '>='} {eq20}; "
+    detail = (f"T = {T:g} {'<' if T < ci.printed_t_max else '>='} {eq20}; "
               f"T {'<' if verdict else '>='} {exact} "
               f"(fast sub-observers are MS convergent below it){per}")
     return Check(name, paper, verdict, detail, float(1.0 - T / ci.fast_observer))

@@ -10,6 +10,7 @@ import pytest
 
 import switchest.analysis as analysis
 from switchest.analysis import (
+    autonomous_stability,
     cqlf,
     dwell_time_observability,
     mismatch_dynamics,
@@ -128,3 +129,10 @@ def test_dwell_time_holds_is_the_proven_lemma_and_the_printed_one_is_named_as_su
     assert old(between, "holds_corrected") is between.holds
     enough = dwell_time_observability(system, T, tau_d=1.0)
     assert enough.holds and enough.printed_lemma_holds and old(enough, "holds_corrected")
+
+
+def test_theorem_numbered_fields_are_read_under_their_new_names():
+    system = zhang_two_mode()
+    stab = autonomous_stability(mismatch_dynamics(system), [[0.9, 0.2], [0.1, 0.8]])
+    assert old(stab, "lemma3") is stab.each_mode_contracts
+    assert old(stab, "lemma4") is stab.one_mode_per_column

@@ -134,7 +134,7 @@ def test_example1_cqlf_for_lambdas_and_for_the_original_modes():
     # §5.1: Lambda_1, Lambda_2 share a CQLF (Theorem 3) and so do A_1, A_2
     # (original system stable): Algorithm 2 then puts no zero in the region.
     stab = autonomous_stability(example1())
-    assert stab.holds and stab.lemma3
+    assert stab.holds and stab.each_mode_contracts
     uc = unstable_components(zhang_two_mode())
     assert uc.certificate.holds and uc.holds is True and not uc.components.any()
     assert stable_mismatch_region(zhang_two_mode()).all()
@@ -326,7 +326,7 @@ def test_lemma3_spectral_radius_identity():
         np.testing.assert_allclose(
             stab.lambda_radius, np.max(np.abs(np.linalg.eigvals(closed)), axis=-1), rtol=1e-10
         )
-        assert stab.lemma3
+        assert stab.each_mode_contracts
 
 
 def test_lemma3_hypotheses():
@@ -349,10 +349,10 @@ def test_lemma4_one_nonzero_per_column():
     d = mismatch_dynamics(three_mode_system())
     lam = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # always wrong
     stab = autonomous_stability(d, lam)
-    assert stab.lemma4
+    assert stab.one_mode_per_column
     np.testing.assert_allclose(stab.F_radius, stab.lambda_radius[[1, 2, 0]], rtol=1e-12)
     assert np.all(stab.F_radius < 1.0)
-    assert autonomous_stability(d, np.full((3, 3), 1 / 3)).lemma4 is False
+    assert autonomous_stability(d, np.full((3, 3), 1 / 3)).one_mode_per_column is False
 
 
 @functools.cache

@@ -165,7 +165,7 @@ class AutonomousBiasStability:
         ``min_q -max eig(F_q' P F_q - P)`` with ``P`` of ``certificate``: Theorem 3's
         conclusion checked with numpy (positive when it holds); NaN when there is no
         certificate, None without lam.
-    lemma4 : bool or None
+    one_mode_per_column : bool or None
         Lemma 4's hypothesis: every column of lam has exactly one non-zero entry
         (then ``F_q = Lambda_{k_q}``); None without lam.
     """
@@ -174,10 +174,13 @@ class AutonomousBiasStability:
     certificate: LyapunovCertificate
     F_radius: np.ndarray | None
     F_margin: float | None
-    lemma4: bool | None
+    one_mode_per_column: bool | None
+
+    lemma4 = renamed_field("lemma4", "one_mode_per_column")
+    lemma3 = renamed_field("lemma3", "each_mode_contracts")
 
     @property
-    def lemma3(self) -> bool:
+    def each_mode_contracts(self) -> bool:
         """Lemma 3's conclusion: ``rho(Lambda_i) < 1`` for every mode."""
         return bool(np.all(self.lambda_radius < 1.0))
 
@@ -507,8 +510,8 @@ def autonomous_stability(
         if certificate.holds
         else float("nan")
     )
-    lemma4 = bool(np.all(np.count_nonzero(ts.lam, axis=0) == 1))
-    return AutonomousBiasStability(radius, certificate, spectral_radius(ts.F), F_margin, lemma4)
+    one_mode = bool(np.all(np.count_nonzero(ts.lam, axis=0) == 1))
+    return AutonomousBiasStability(radius, certificate, spectral_radius(ts.F), F_margin, one_mode)
 
 
 def filter_stability_hypotheses(system: SwitchedLinearSystem) -> np.ndarray:

@@ -40,7 +40,7 @@ Paper discrepancies (each tested in ``tests/analysis/test_subsystem_observers.py
   every ``T > 0``, so Theorem 2's test can never certify it.
 * Theorem 3's step (20), ``E||Lambda^2 F e^{A_k T} Phi||^2 <= q_max h(T)``, has no
   justification (the projection ``Lambda^2`` only removes block i); the bound it
-  defines (:attr:`CriticalInterval.theorem3`) is kept because §6's
+  defines (:attr:`CriticalInterval.printed_t_max`) is kept because §6's
   ``T_max = 0.7365`` is that bound. The existence claim itself is right for the
   exact MS test: in the limit of infinitely fast sub-observers the open-loop
   second-moment operator has spectral radius below 1 at ``T = 0`` (an error
@@ -253,7 +253,7 @@ class CriticalInterval:
 
     Attributes
     ----------
-    theorem3 : float
+    printed_t_max : float
         Smallest ``T`` with ``q_max h(T) = 1``, ``h(T) = max_i ||F e^{A_i T} Phi||^2``,
         ``q_max`` the largest probability that a block runs open loop (Wang et al.
         eq. (20); their ``max_i (1 - p_i)`` when every mode has its own block).
@@ -268,13 +268,15 @@ class CriticalInterval:
         the threshold of block g on its own (Example 2's ``T_max^1, T_max^2``).
         Above it no gain makes block g MS convergent when the blocks decouple.
     q_max : float
-        The ``q_max`` of ``theorem3``.
+        The ``q_max`` of ``printed_t_max``.
     """
 
-    theorem3: float
+    printed_t_max: float
     fast_observer: float
     per_block: np.ndarray
     q_max: float
+
+    theorem3 = renamed_field("theorem3", "printed_t_max")
 
 
 @dataclass(frozen=True)
@@ -615,7 +617,7 @@ def critical_interval(
 
     per_block = np.array([_first_crossing(block_fn(g), grid) for g in range(structure.n_blocks)])
     return CriticalInterval(
-        theorem3=_first_crossing(theorem3, grid),
+        printed_t_max=_first_crossing(theorem3, grid),
         fast_observer=_first_crossing(fast, grid),
         per_block=per_block,
         q_max=q_max,

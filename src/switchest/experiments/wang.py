@@ -448,7 +448,8 @@ def _example2_section(c: _Context) -> dict:
         Row("Ex. 2: exact MS threshold for fast observers (critical_interval)",
             float(ci.fast_observer),
             paper["T_max"][0], "", "= min(T_max^1, T_max^2): the components decouple"),
-        Row("Ex. 2: Theorem 3 eq. (20) as printed, q_max h(T) = 1", float(ci.theorem3), None, "",
+        Row("Ex. 2: Theorem 3 eq. (20) as printed, q_max h(T) = 1", float(ci.printed_t_max),
+            None, "",
             f"q_max = {ci.q_max:g}, h(T) = e^(2a_2T): half of T_max^1; T = 0.03 violates it, yet "
             "is MS convergent"),
     ]
@@ -680,8 +681,9 @@ def _examples_summary(p: dict, results, out: Path) -> Summary:
         ("Example 2's γ = max{0.9225, 0.6677} are the eigenvalues of E[Λ'Λ] (the §5.1 test), not "
          f"Theorem 2's E‖Λ_k‖² = {found['gamma_theorem2']:.4f}; here E‖Λ_k‖² ≥ p e^(2a_2T) + (1−p) "
          "e^(2a_1T) > 1 for every gain and T > 0, so Theorem 2 can never certify this system."),
-        (f"Theorem 3's eq. (20) as printed gives T_max = {ci.theorem3:.4f} here (q_max = 1 − p, "
-         "h(T) = e^(2a_2T)), not Example 2's 0.0558, and the paper's own T = 0.03 violates it: eq. "
+        (f"Theorem 3's eq. (20) as printed gives T_max = {ci.printed_t_max:.4f} here "
+         "(q_max = 1 − p, h(T) = e^(2a_2T)), not Example 2's 0.0558, and the paper's own "
+         "T = 0.03 violates it: eq. "
          "(20) is not the criterion of Example 2. The per-component thresholds are exact (the "
          "error decouples); the exact MS threshold for fast observers is their minimum, 0.0558."),
         ("Example 4's optimum L1* = 61.3, σ = 0.9864 is reproduced only with e^((a−L)T) in γ^1 "
@@ -889,10 +891,12 @@ def _bus_summary(p: dict, results, out: Path) -> Summary:
     rows += [Row(f"p_{i + 1} from ξ_1 = 0.99, ξ_2 = 0.995", float(prob[i]), paper["p"][i], "",
                  "printed rounded (they sum to 1.00005)" if i == 0 else "") for i in range(4)]
     rows += [
-        Row("T_max: eq. (20) with q = p_4, h(T) = ‖e^(AT)‖²", ci.theorem3, paper["T_max"], "",
-            f"{ci.theorem3:.6f}: the printed 0.7365 is this truncated (rounding gives 0.7366)"),
-        Row("T = 0.95 T_max", 0.95 * ci.theorem3, paper["T"]),
-        Row("eq. (20) with one sub-state per mode (§3.2 literally)", ci_stacked.theorem3, None, "",
+        Row("T_max: eq. (20) with q = p_4, h(T) = ‖e^(AT)‖²", ci.printed_t_max, paper["T_max"], "",
+            f"{ci.printed_t_max:.6f}: the printed 0.7365 is this truncated (rounding gives "
+            "0.7366)"),
+        Row("T = 0.95 T_max", 0.95 * ci.printed_t_max, paper["T"]),
+        Row("eq. (20) with one sub-state per mode (§3.2 literally)", ci_stacked.printed_t_max,
+            None, "",
             f"q_max = {ci_stacked.q_max:g}; that observer's exact threshold is "
             f"{ci_stacked.fast_observer:.4f} < T"),
         Row("exact MS threshold for fast observers, p_4 e^(2 λ_max T) = 1", ci.fast_observer, None,
@@ -930,7 +934,8 @@ def _bus_summary(p: dict, results, out: Path) -> Summary:
                         "fast-observer limit p_4 e^(2λ_max T)": prob[3] * np.exp(2 * lam * Ts),
                         "1": np.ones_like(Ts)},
                        xlabel="switching interval T", ylabel="mean-square factor per interval",
-                       logy=True, markers=[IEEE_5BUS_SAMPLE_PERIOD, ci.theorem3, ci.fast_observer],
+                       logy=True,
+                       markers=[IEEE_5BUS_SAMPLE_PERIOD, ci.printed_t_max, ci.fast_observer],
                        title="5-bus: MS factor vs T (dotted: T, T_max, exact)"))
     rows += [
         Row(f"Monte Carlo vs exact moments: largest |MC − exact| / SE ({len(zs)} comparisons)",
@@ -952,8 +957,9 @@ def _bus_summary(p: dict, results, out: Path) -> Summary:
     )
     notes = [
         ("T_max = 0.7365 is eq. (20) with q = p_4 (the probability that the shared sub-state runs "
-         f"open loop) and h(T) = ‖e^(AT)‖², = {ci.theorem3:.6f}, truncated in print; T = 0.6997 is "
-         "0.95 T_max. Eq. (20) read with one sub-state per mode (§3.2) gives a useless bound, and "
+         f"open loop) and h(T) = ‖e^(AT)‖², = {ci.printed_t_max:.6f}, truncated in print; "
+         "T = 0.6997 is 0.95 T_max. Eq. (20) read with one sub-state per mode (§3.2) gives a "
+         "useless bound, and "
          "that observer diverges at the paper's T. Eq. (20) is not a proven bound (Theorem 3's "
          "step (20) has no justification); the exact MS threshold for fast observers is "
          f"{ci.fast_observer:.4f}."),
