@@ -29,6 +29,7 @@ from .linalg import (
     GATED,
     OK,
     gather_matrices,
+    gather_rows,
     gather_samples,
     jit,
     observe,
@@ -244,9 +245,7 @@ def _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x_
     P_rows = P_out.reshape((N, K, n * n))
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
-        for r in range(n):
-            for b in range(nb):
-                x[r, b] = x_init[i0 + b, r]
+        gather_rows(x_init, i0, nb, x)
         for b in range(nb):
             held[0, b] = -1
             held[1, b] = -1

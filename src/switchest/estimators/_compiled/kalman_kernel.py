@@ -52,6 +52,7 @@ from .linalg import (
     correct,
     correct_mean,
     gather_matrices,
+    gather_rows,
     gather_samples,
     information_form,
     innovation,
@@ -157,9 +158,7 @@ def kalman_filter(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_fir
     report[0], report[1] = 0.0, math.inf
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
-        for r in range(n):
-            for b in range(nb):
-                x[r, b] = x_init[i0 + b, r]
+        gather_rows(x_init, i0, nb, x)
         for b in range(nb):
             held[0, b] = -1
             held[1, b] = -1

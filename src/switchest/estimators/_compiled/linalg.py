@@ -81,6 +81,14 @@ def gather_samples(data, i0, nb, k, out):
 
 
 @jit
+def gather_rows(data, i0, nb, out):
+    """``out[:, b] = data[i0 + b]`` for the ``nb`` lanes of a block (a trial's initial state)."""
+    for r in range(data.shape[1]):
+        for b in range(nb):
+            out[r, b] = data[i0 + b, r]
+
+
+@jit
 def gather_matrices(table, index, nb, out):
     """``out[r, c, b] = table[index[b], r, c]``: each lane's matrix from a table."""
     for r in range(out.shape[0]):
@@ -307,7 +315,15 @@ def _solve(chol, scale, v, nb):
                 v[a, b] -= chol[a, c, b] * v[c, b]
         for b in range(nb):
             v[a, b] /= chol[a, a, b]
-    for a in range(m - 1, -1, -1):  # back: L' w = w, then D^-1/2
+    back_substitute(chol, scale, v, nb)
+
+
+@jit
+def back_substitute(chol, scale, v, nb):
+    """``v <- D^-1/2 L'^-1 v`` per lane: the second half of :func:`_solve` (``S^-1 e`` from
+    ``z = L^-1 D^-1/2 e``)."""
+    m = v.shape[0]
+    for a in range(m - 1, -1, -1):
         for c in range(a + 1, m):
             for b in range(nb):
                 v[a, b] -= chol[c, a, b] * v[c, b]
@@ -382,15 +398,7 @@ def correct_mean(x, z, PCt, chol, scale, use, nb):
     covariance's); ``z`` is overwritten with ``S^-1 e``. :func:`correct` updates ``x`` with it
     too, so a lane gets the same bits either way."""
     n, m = x.shape[0], z.shape[0]
-    for a in range(m - 1, -1, -1):  # S^-1 e = D^-1/2 L'^-1 z
-        for c in range(a + 1, m):
-            for b in range(nb):
-                z[a, b] -= chol[c, a, b] * z[c, b]
-        for b in range(nb):
-            z[a, b] /= chol[a, a, b]
-    for a in range(m):
-        for b in range(nb):
-            z[a, b] *= scale[a, b]
+    back_substitute(chol, scale, z, nb)  # S^-1 e = D^-1/2 L'^-1 z
     for i in range(n):
         for a in range(m):
             for b in range(nb):

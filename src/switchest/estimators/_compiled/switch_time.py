@@ -58,6 +58,7 @@ from .linalg import (
     _moments,
     correct,
     gather_matrices,
+    gather_rows,
     gather_samples,
     information_form,
     innovation,
@@ -882,9 +883,8 @@ def switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau,
     report[0], report[1] = 0.0, math.inf
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
+        gather_rows(x_init, i0, nb, x)
         for r in range(n):
-            for b in range(nb):
-                x[r, b] = x_init[i0 + b, r]
             for c in range(n):
                 for b in range(nb):
                     P[r, c, b] = P_init[i0 + b, r, c]
