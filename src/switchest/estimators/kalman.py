@@ -7,8 +7,8 @@ run one sample of the compiled Kalman kernel
 implementation of each equation that every filter runs.
 
 ``steady_state_gain`` (the Riccati equation of one mode) is a design and lives in
-:mod:`switchest.analysis.steady_state_kalman`; it stays importable from here, loaded at its
-first use so that filtering does not import the analysis.
+:mod:`switchest.analysis.steady_state_kalman` (numpy and scipy.linalg only); it stays
+importable from here.
 """
 
 from __future__ import annotations
@@ -18,9 +18,10 @@ import math
 import numpy as np
 
 from .._checks import check_cores, float_array, positive_scalar
+from ..analysis.steady_state_kalman import steady_state_gain
 from ._compiled import GATED, kalman_step, raise_for_status, warn_for_repairs
 
-__all__ = ["kf_predict", "kf_update", "steady_state_gain"]  # noqa: F822 - see __getattr__
+__all__ = ["kf_predict", "kf_update", "steady_state_gain"]
 
 
 def kf_predict(x, P, F, G, u, Qd, *, inflation: float = 0.0):
@@ -123,12 +124,3 @@ def _stack(arrays: dict, cores: dict) -> dict:
         flat[name] = np.broadcast_to(arr, (*batch, *core)).reshape(N, *core)
     return {**flat, "batch": batch, "N": N}
 
-
-def __getattr__(name: str) -> object:
-    """``steady_state_gain``, imported from :mod:`switchest.analysis.steady_state_kalman` at its
-    first use (PEP 562)."""
-    if name != "steady_state_gain":
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    from ..analysis.steady_state_kalman import steady_state_gain
-
-    return steady_state_gain

@@ -25,6 +25,7 @@ from .._checks import (
     int_array,
     positive_scalar,
 )
+from ..analysis.steady_state_kalman import steady_state_gain
 from ..discretize import mode_steps, segment_transitions
 from ..dyadic import dyadic_table, interval_transitions
 from ._compiled import (
@@ -260,10 +261,6 @@ def _steady_gains(system, period: float) -> tuple[np.ndarray, ...]:
     steady innovation covariance ``S_i = C_i P_i C_i' + R_i = L_i L_i'`` (for the gate's
     ``e' S_i^-1 e = |W_i e|^2``); a function of its arguments only, so a filter keeps no state
     between runs."""
-    # the design (scipy's Riccati solver); imported here so that filtering with given gains
-    # does not import the analysis
-    from ..analysis.steady_state_kalman import steady_state_gain
-
     steps = mode_steps(system, period)
     out = [steady_state_gain(steps.F[i], system.C[i], steps.Qd[i], system.R[i])
            for i in range(system.n_modes)]
