@@ -270,26 +270,34 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
 
 # ---------------------------------------------------------------------- run, reproduce, report
 def _summary_table(summary) -> Table:
-    """Paper vs measured values of one experiment, with their ratio; row notes as a caption."""
+    """Paper vs measured values of one experiment with the verdict at the printed precision
+    (:mod:`switchest.experiments.verdict`); row notes as a caption."""
     from rich.table import Table
 
-    from .experiments.report import AGREE
+    from .experiments.verdict import Verdict, printed_number
 
+    colour = {Verdict.REPRODUCED: "green", Verdict.WITHIN_ERROR: "green",
+              Verdict.EXPLAINED: "yellow", Verdict.DIFFERS: "red", Verdict.DERIVED: "dim"}
     table = Table(title=escape(summary.title), title_justify="left", caption_justify="left")
     table.add_column("quantity", overflow="fold")
-    for col in ("paper", "ours", "ours/paper", "unit"):
+    for col in ("paper", "ours", "unit"):
         table.add_column(col, justify="right", no_wrap=True)
+    table.add_column("verdict", no_wrap=True)
     notes = []
 
-    def fmt(v) -> str:
-        return "—" if v is None else (escape(v) if isinstance(v, str) else f"{v:.4g}")
+    def fmt(v, se=None) -> str:
+        if v is None:
+            return "—"
+        if isinstance(v, str):
+            return escape(v)
+        return f"{v:.6g}" + ("" if se is None else f" ± {se:.2g}")
 
     for row in summary.rows:
-        ratio = row.ratio
-        style = "" if ratio is None else ("green" if abs(ratio - 1) <= AGREE else "red")
-        shown = "—" if ratio is None else f"[{style}]{ratio:.3f}[/{style}]"
-        table.add_row(escape(row.quantity), fmt(row.paper), fmt(row.measured), shown,
-                      escape(row.unit))
+        printed = printed_number(row.paper)
+        style = colour[row.verdict]
+        table.add_row(escape(row.quantity), fmt(row.paper if printed is None else str(printed)),
+                      fmt(row.measured, row.se), escape(row.unit),
+                      f"[{style}]{row.verdict.value}[/{style}]")
         if row.note:
             notes.append(escape(f"{row.quantity}: {row.note}"))
     table.caption = "\n".join(notes) or None
@@ -356,6 +364,7 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
 def _cmd_run(args: argparse.Namespace, console: Console) -> int:
     from .experiments import RunInterrupted, names, write_report
 
+    started = time.perf_counter()
     chosen = [args.name] if args.command == "run" else (names() if args.all else args.names)
     if not chosen:
         raise _UsageError("name the reproductions to run, or pass --all")
@@ -369,7 +378,8 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
             raise
         raise _Interrupted(exc) from None
     if args.command == "reproduce":
-        report = write_report(store, args.out, chosen)
+        report = write_report(store, args.out, chosen, command=args.command_line,
+                              wall_seconds=time.perf_counter() - started)
         console.print(f"report: [bold]{escape(str(report))}[/bold]  "
                       f"(results store: {escape(str(store.path))})")
     return 0
@@ -383,7 +393,8 @@ def _cmd_report(args: argparse.Namespace, console: Console) -> int:
         store = Store(args.store)
     except (ValueError, OSError) as exc:
         raise _UsageError(f"--store: {exc}") from None
-    console.print(f"report: [bold]{escape(str(write_report(store, args.out)))}[/bold]")
+    report = write_report(store, args.out, command=args.command_line)
+    console.print(f"report: [bold]{escape(str(report))}[/bold]")
     return 0
 
 
@@ -545,6 +556,7 @@ def main(argv: list[str] | None = None) -> int:
     debug = False
     try:
         args = _parser().parse_args(argv)
+        args.command_line = shlex.join(["switchest", *argv])
         debug = args.debug
         return args.run(args, Console())
     except _UsageError as exc:
@@ -554,7 +566,7 @@ def main(argv: list[str] | None = None) -> int:
         run = exc.run
         _say(errors, "interrupted", f"{run.stored} of {run.total} tasks of {run.experiment} are "
                                     f"stored in {_store_path(args)}")
-        _say(errors, "resume with", shlex.join(["switchest", *argv]))
+        _say(errors, "resume with", args.command_line)
         return 130
     except KeyboardInterrupt:
         if debug:

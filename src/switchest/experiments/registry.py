@@ -17,27 +17,54 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import positive_int
+from .verdict import Verdict, judge, printed_number
 
 __all__ = ["Experiment", "Row", "Summary", "register", "get", "names", "EXPERIMENTS", "MAX_BLOCKS"]
 
 
 @dataclass(frozen=True)
 class Row:
-    """One compared quantity: the paper's value (None where it prints none) and ours."""
+    """One compared quantity: the paper's printed value and ours.
+
+    Attributes
+    ----------
+    quantity : str
+    measured : float or str
+        Ours: a number or a word.
+    paper : float, str or None
+        The printed value: a number (a string keeps the printed digits, trailing zeros
+        included: ``"0.150"``), a word, or None where the paper prints none (the row is then
+        *derived*: shown, not counted).
+    unit, note : str
+        The note explains a difference (it is what makes one *explained*).
+    se : float, optional
+        Standard error of a Monte Carlo ``measured``.
+    trials : int, optional
+        The number of trials behind ``measured``.
+    """
 
     quantity: str
     measured: float | str
     paper: float | str | None = None
     unit: str = ""
     note: str = ""
+    se: float | None = None
+    trials: int | None = None
 
     @property
     def ratio(self) -> float | None:
         """measured / paper, where both are numbers and the paper's is non-zero."""
-        numbers = isinstance(self.paper, (int, float)) and isinstance(self.measured, (int, float))
-        if numbers and self.paper:
-            return float(self.measured) / float(self.paper)
+        printed = printed_number(self.paper)
+        numeric = isinstance(self.measured, (int, float)) and not isinstance(self.measured, bool)
+        if printed is not None and numeric and printed != 0:
+            return float(self.measured) / float(printed)
         return None
+
+    @property
+    def verdict(self) -> Verdict:
+        """Reproduced, within sampling error, differs (explained or not), or derived
+        (:func:`~switchest.experiments.verdict.judge`)."""
+        return judge(self.paper, self.measured, se=self.se, note=self.note)
 
 
 @dataclass(frozen=True)

@@ -1,53 +1,112 @@
 """A self-contained HTML report of every experiment in a results store.
 
-For each experiment: the paper's values beside ours with their ratio, the
-setup, the notes that explain every disagreement, and the figures (embedded as
-PNG data, so the page opens from disk without a server).
+The page opens with its provenance (version, commit, command, quick or full runs, seeds, date,
+machine, times) and a summary per paper of how its printed values fare. Then, for each
+experiment: the paper's printed values beside ours with a verdict at the printed precision
+(:mod:`.verdict`), Monte Carlo values with their standard errors, the setup, the notes that
+explain every difference, and the figures (embedded as PNG data, so the page opens from disk
+without a server).
 """
 
 from __future__ import annotations
 
 import base64
 import html
+import os
+import platform
+import subprocess
 import time
+from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
-from .registry import Summary, get
-from .runner import stored_results
+from .registry import Experiment, Row, Summary, get
+from .runner import run_tasks, stored_results
 from .store import Store
+from .verdict import Verdict, printed_half_unit, printed_number
 
-__all__ = ["summarize_store", "write_report", "AGREE"]
+__all__ = ["RunFacts", "Section", "summarize_store", "provenance", "write_report"]
 
-AGREE = 0.10
-"""Relative difference up to which a measured value counts as agreeing with the paper's."""
+_COUNTED = (Verdict.REPRODUCED, Verdict.WITHIN_ERROR, Verdict.EXPLAINED, Verdict.DIFFERS)
+_CLASS = {Verdict.REPRODUCED: "ok", Verdict.WITHIN_ERROR: "near", Verdict.EXPLAINED: "known",
+          Verdict.DIFFERS: "off", Verdict.DERIVED: "derived"}
 
 _CSS = """
-body { font: 15px/1.5 system-ui, sans-serif; max-width: 1100px; margin: 2em auto; \
+body { font: 15px/1.5 system-ui, sans-serif; max-width: 1150px; margin: 2em auto; \
 padding: 0 1em; color: #222; }
 h1 { font-size: 1.6em; margin-bottom: 0.2em; } \
 h2 { margin-top: 2.2em; border-bottom: 1px solid #ddd; }
 .meta { color: #666; font-size: 0.9em; }
 table { border-collapse: collapse; width: 100%; margin: 0.8em 0; font-size: 0.92em; }
 th, td { padding: 4px 8px; border-bottom: 1px solid #eee; text-align: right; vertical-align: top; }
-th:first-child, td:first-child, td.note { text-align: left; }
+th:first-child, td:first-child, td.note, td.verdict { text-align: left; }
 th { background: #f6f6f6; }
-tr.off td.ratio { background: #fde2e1; font-weight: 600; }
-tr.ok td.ratio { background: #e3f4e4; }
+td.num { font-variant-numeric: tabular-nums; white-space: nowrap; }
+tr.ok td.verdict { background: #e3f4e4; } tr.near td.verdict { background: #eef6d8; }
+tr.known td.verdict { background: #fff0cc; } tr.off td.verdict { background: #fde2e1; \
+font-weight: 600; }
+tr.derived td.verdict { color: #777; font-style: italic; }
 td.note { color: #555; max-width: 28em; }
 .setup { background: #f8f8f8; padding: 0.6em 0.9em; border-left: 3px solid #bbb; }
 ul.notes li { margin-bottom: 0.3em; }
 .figs img { max-width: 100%; margin: 0.5em 0; border: 1px solid #eee; }
-.toc a { margin-right: 1em; }
-.badge { display: inline-block; padding: 0 6px; border-radius: 3px; font-size: 0.8em; \
-background: #eee; }
-.badge.off { background: #fde2e1; } .badge.ok { background: #e3f4e4; }
+.badge { display: inline-block; padding: 0 6px; border-radius: 3px; font-size: 0.85em; \
+background: #eee; margin-right: 0.3em; }
+.badge.ok { background: #e3f4e4; } .badge.near { background: #eef6d8; } \
+.badge.known { background: #fff0cc; } .badge.off { background: #fde2e1; }
+.badge.quick { background: #ffe8b3; font-weight: 600; }
+table.provenance td, table.provenance th { text-align: left; }
+table.summary td:first-child { white-space: nowrap; }
 """
 
 
-def summarize_store(store: Store, out_dir: Path,
-                    names: list[str] | None = None) -> list[tuple[Summary, int]]:
-    """Summaries of the latest run of each experiment in ``store``, with the count of missing
-    tasks."""
+@dataclass(frozen=True)
+class RunFacts:
+    """Where an experiment's section comes from: its latest run in the store.
+
+    Attributes
+    ----------
+    mode : str
+        ``"full"`` (the paper's setup), ``"quick"`` (the ``--quick`` preset) or ``"custom"``.
+    seed : int
+    tasks, missing : int
+        Tasks of the run in the store, and those the store lacks.
+    compute_seconds : float
+        Sum over the stored tasks of the time each took.
+    finished : float or None
+        When the last of them finished (seconds since the epoch).
+    """
+
+    mode: str
+    seed: int
+    tasks: int
+    missing: int
+    compute_seconds: float
+    finished: float | None
+
+
+@dataclass(frozen=True)
+class Section:
+    """One experiment's part of the report: its summary, its paper and its run."""
+
+    summary: Summary
+    paper: str
+    facts: RunFacts
+
+    def counts(self) -> Counter:
+        """How many rows got each verdict."""
+        return Counter(row.verdict for row in self.summary.rows)
+
+
+def _mode(experiment: Experiment, params: dict) -> str:
+    if params == experiment.params():
+        return "full"
+    return "quick" if params == experiment.params(quick=True) else "custom"
+
+
+def summarize_store(store: Store, out_dir: Path, names: list[str] | None = None) -> list[Section]:
+    """The sections of the latest run of each experiment in ``store`` (figures are written
+    under ``out_dir/figures``)."""
     out = []
     for name in names or store.experiments():
         latest = store.latest_run(name)
@@ -58,71 +117,206 @@ def summarize_store(store: Store, out_dir: Path,
         results, missing = stored_results(experiment, params, store, seed)
         if not results:
             continue
-        out.append((experiment.summarize(params, results, out_dir / "figures"), missing))
+        tasks = run_tasks(experiment, params, store, seed)
+        facts = RunFacts(_mode(experiment, params), seed, len(tasks), missing,
+                         sum(t.elapsed for t in tasks), max((t.finished for t in tasks),
+                                                            default=None))
+        summary = experiment.summarize(params, results, out_dir / "figures")
+        out.append(Section(summary, experiment.paper, facts))
     return out
 
 
-def _fmt(v) -> str:
-    if v is None:
-        return "—"
-    if isinstance(v, str):
-        return html.escape(v)
-    return f"{v:.4g}"
+def provenance(*, command: str | None = None, wall_seconds: float | None = None) -> dict:
+    """What produced a report: version, commit, command, date and machine (name: value)."""
+    from .. import __version__
+
+    facts = {"switchest": __version__, "commit": _commit()}
+    if command:
+        facts["command"] = command
+    facts["date"] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    facts["machine"] = (f"{_cpu()}, {os.cpu_count()} logical CPUs; {platform.system()} "
+                        f"{platform.release()}; Python {platform.python_version()}")
+    if wall_seconds is not None:
+        facts["wall time"] = f"{wall_seconds:.0f} s (the runs and this report)"
+    return facts
 
 
-def _table(summary: Summary) -> tuple[str, int]:
-    lines = ["<table><tr><th>quantity</th><th>paper</th><th>ours</th><th>ours / "
-             "paper</th><th>unit</th><th>note</th></tr>"]
-    off = 0
+def _commit() -> str:
+    """The git commit of the source tree switchest runs from, '+ changes' if it has
+    uncommitted ones; 'not a git checkout' for an installed copy."""
+    here = Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(["git", "-C", str(here), "rev-parse", "--short=12", "HEAD"],
+                              capture_output=True, text=True, timeout=10)
+        if head.returncode != 0:
+            return "not a git checkout"
+        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
+                                "--untracked-files=no", "--", str(here.parent)],
+                               capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return "unknown (git not available)"
+    return head.stdout.strip() + (" + uncommitted changes" if dirty.stdout.strip() else "")
+
+
+def _cpu() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _number(value: float, decimals: int | None) -> str:
+    """``value`` to ``decimals`` places (None: six significant digits)."""
+    if decimals is None or abs(value) >= 1e15:
+        return f"{value:.6g}"
+    return f"{value:.{decimals}f}"
+
+
+def _cells(row: Row) -> tuple[str, str]:
+    """The paper's cell (its printed digits) and ours: two digits beyond the printed ones, so
+    that a miss at the printed precision shows, with ``± se`` for a Monte Carlo value."""
+    printed = printed_number(row.paper)
+    paper = ("—" if row.paper is None
+             else html.escape(str(row.paper)) if printed is None else str(printed))
+    if isinstance(row.measured, str):
+        return paper, html.escape(row.measured)
+    decimals = None if printed is None else max(0, -printed.as_tuple().exponent) + 2
+    if decimals is None and row.se is not None:
+        decimals = _se_decimals(row.se)
+    ours = _number(float(row.measured), decimals)
+    if row.se is not None:
+        ours += f" ± {_number(row.se, _se_decimals(row.se))}"
+        if row.trials:
+            ours += f" <span class='meta'>(n = {row.trials})</span>"
+    return paper, ours
+
+
+def _se_decimals(se: float) -> int:
+    """Decimals that show two significant digits of a standard error."""
+    if not se > 0 or se >= 1e15:
+        return 0
+    digits = 0
+    while se < 10 and digits < 12:
+        se *= 10
+        digits += 1
+    return digits
+
+
+def _table(summary: Summary) -> str:
+    lines = ["<table><tr><th>quantity</th><th>paper (printed)</th><th>ours</th><th>ours / "
+             "paper</th><th>unit</th><th>verdict</th><th>note</th></tr>"]
     for row in summary.rows:
-        ratio = row.ratio
-        cls = "" if ratio is None else ("ok" if abs(ratio - 1) <= AGREE else "off")
-        off += cls == "off"
+        ratio, verdict = row.ratio, row.verdict
+        paper, ours = _cells(row)
+        tolerance = ""
+        printed = printed_number(row.paper)
+        if printed is not None:
+            tolerance = f" title='printed to ± {printed_half_unit(printed):g}'"
         lines.append(
-            f'<tr class="{cls}"><td>{html.escape(row.quantity)}</td><td>{_fmt(row.paper)}</td>'
-            f"<td>{_fmt(row.measured)}</td><td "
-            f"class=\"ratio\">{'—' if ratio is None else f'{ratio:.3f}'}</td>"
-            f'<td>{html.escape(row.unit)}</td><td class="note">{html.escape(row.note)}</td></tr>'
+            f'<tr class="{_CLASS[verdict]}"><td>{html.escape(row.quantity)}</td>'
+            f"<td class='num'{tolerance}>{paper}</td><td class='num'>{ours}</td>"
+            f"<td class='num'>{'—' if ratio is None else f'{ratio:.4f}'}</td>"
+            f"<td>{html.escape(row.unit)}</td><td class='verdict'>{verdict.value}</td>"
+            f'<td class="note">{html.escape(row.note)}</td></tr>'
         )
     lines.append("</table>")
-    return "\n".join(lines), off
+    return "\n".join(lines)
 
 
-def write_report(store: Store, out_dir: str | Path, names: list[str] | None = None) -> Path:
-    """Write ``out_dir/report.html`` for the experiments in ``store``; returns its path."""
+def _badges(counts: Counter) -> str:
+    """The section's badges: printed values only (derived rows are not counted)."""
+    shown = [(v, counts[v]) for v in _COUNTED if counts[v]]
+    if not shown:
+        return '<span class="badge">no printed value compared</span>'
+    return "".join(f'<span class="badge {_CLASS[v]}">{n} {v.value}</span>' for v, n in shown)
+
+
+def _summary_table(sections: list[Section]) -> str:
+    """Per paper: how many printed values are reproduced, within error, differ (explained or
+    not), with links to its sections."""
+    papers: dict[str, list[Section]] = {}
+    for section in sections:
+        papers.setdefault(section.paper, []).append(section)
+    head = "".join(f"<th>{v.value}</th>" for v in _COUNTED)
+    lines = [f"<table class='summary'><tr><th>paper</th>{head}<th>derived (not counted)</th>"
+             "<th>sections</th></tr>"]
+    for paper, group in papers.items():
+        counts = sum((s.counts() for s in group), Counter())
+        cells = "".join(
+            f"<td class='num'>{counts[v] or ''}</td>" for v in (*_COUNTED, Verdict.DERIVED))
+        links = ", ".join(
+            f'<a href="#{s.summary.experiment}">{html.escape(s.summary.experiment)}</a>'
+            + (" <span class='badge quick'>quick</span>" if s.facts.mode == "quick" else "")
+            for s in group)
+        lines.append(f"<tr><td>{html.escape(paper)}</td>{cells}<td>{links}</td></tr>")
+    lines.append("</table>")
+    return "\n".join(lines)
+
+
+def _provenance_block(facts: dict, sections: list[Section], store: Store) -> str:
+    modes = Counter(s.facts.mode for s in sections)
+    facts = {**facts, "runs": ", ".join(f"{n} {m}" for m, n in sorted(modes.items())) or "none",
+             "seeds": ", ".join(sorted({str(s.facts.seed) for s in sections})) or "—",
+             "compute time": f"{sum(s.facts.compute_seconds for s in sections):.0f} s "
+                             "summed over the stored tasks",
+             "results store": str(store.path)}
+    rows = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
+                   for k, v in facts.items())
+    warning = ""
+    if modes.get("quick"):
+        warning = ("<p><span class='badge quick'>quick</span> Sections marked quick ran the "
+                   "<code>--quick</code> preset (few trials, short runs): their Monte Carlo "
+                   "values carry large standard errors and are not the paper's setup.</p>")
+    return f"<table class='provenance'>{rows}</table>{warning}"
+
+
+def _section(section: Section) -> str:
+    summary, facts = section.summary, section.facts
+    quick = " <span class='badge quick'>quick</span>" if facts.mode == "quick" else ""
+    incomplete = (f'<p class="badge off">incomplete: {facts.missing} task(s) missing from the '
+                  'store</p>' if facts.missing else "")
+    notes = "".join(f"<li>{html.escape(n)}</li>" for n in summary.notes)
+    figs = "".join(
+        f'<img alt="{html.escape(f.name)}" src="data:image/png;base64,'
+        f'{base64.b64encode(Path(f).read_bytes()).decode()}">' for f in summary.figures)
+    run = (f"{facts.mode} run, seed {facts.seed}, {facts.tasks} task(s), "
+           f"{facts.compute_seconds:.1f} s of compute")
+    return (f'<h2 id="{summary.experiment}">{html.escape(summary.title)}</h2>'
+            f'<p class="meta"><code>{summary.experiment}</code>{quick} '
+            f"{_badges(section.counts())} · {run}</p>{incomplete}"
+            f'<p class="setup">{html.escape(summary.setup)}</p>{_table(summary)}'
+            f'<ul class="notes">{notes}</ul><div class="figs">{figs}</div>')
+
+
+_LEGEND = ("<p class='meta'>A printed value is <b>reproduced</b> when ours rounds to the digits "
+           "the paper prints; a Monte Carlo value is <b>within sampling error</b> when its 95 % "
+           "interval (mean ± 1.96 standard errors, widened by half a unit of the last printed "
+           "digit) covers the printed one; otherwise it <b>differs</b>, <b>explained</b> when "
+           "the note gives the reason. Words compare as words. Rows the paper prints no value "
+           "for are <b>derived</b>: shown, not counted.</p>")
+
+
+def write_report(store: Store, out_dir: str | Path, names: list[str] | None = None, *,
+                 command: str | None = None, wall_seconds: float | None = None) -> Path:
+    """Write ``out_dir/report.html`` for the experiments in ``store``; returns its path.
+
+    ``command`` (the command line) and ``wall_seconds`` (how long it ran) go into the
+    provenance block when given.
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    summaries = summarize_store(store, out_dir, names)
-    sections, toc = [], []
-    for summary, missing in summaries:
-        table, off = _table(summary)
-        badge = (f'<span class="badge off">{off} value(s) differ from the paper by more than '
-                 f'{AGREE:.0%}: '
-                 f"see the notes</span>" if off else '<span class="badge ok">no printed value '
-                                                     'differs by more '
-                 f"than {AGREE:.0%}</span>")
-        incomplete = (f'<p class="badge off">incomplete: {missing} task(s) missing from the '
-                      'store</p>'
-                      if missing else "")
-        notes = "".join(f"<li>{html.escape(n)}</li>" for n in summary.notes)
-        figs = "".join(
-            f'<img alt="{html.escape(f.name)}" src="data:image/png;base64,'
-            f'{base64.b64encode(Path(f).read_bytes()).decode()}">' for f in summary.figures)
-        toc.append(f'<a href="#{summary.experiment}">{summary.experiment}</a>')
-        sections.append(
-            f'<h2 id="{summary.experiment}">{html.escape(summary.title)}</h2>'
-            f'<p class="meta"><code>{summary.experiment}</code> {badge}</p>{incomplete}'
-            f'<p class="setup">{html.escape(summary.setup)}</p>{table}'
-            f'<ul class="notes">{notes}</ul><div class="figs">{figs}</div>'
-        )
-    body = "".join(sections) or "<p>No experiment has been run into this store yet.</p>"
+    sections = summarize_store(store, out_dir, names)
+    facts = provenance(command=command, wall_seconds=wall_seconds)
+    body = ("".join(_section(s) for s in sections)
+            or "<p>No experiment has been run into this store yet.</p>")
     page = (
-        f"<!doctype html><html><head><meta charset='utf-8'><title>switchest reproductions</title>"
-        f"<style>{_CSS}</style></head><body><h1>switchest — paper reproductions</h1>"
-        f"<p class='meta'>Generated {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} from "
-        f"<code>{html.escape(str(store.path))}</code>. Green: within {AGREE:.0%} of the printed "
-        "value; red: further, with the reason in the notes.</p><p "
-        f"class='toc'>{''.join(toc)}</p>{body}</body></html>"
+        "<!doctype html><html><head><meta charset='utf-8'><title>switchest reproductions"
+        f"</title><style>{_CSS}</style></head><body><h1>switchest — paper reproductions</h1>"
+        f"{_provenance_block(facts, sections, store)}<h2 id='summary'>Summary</h2>{_LEGEND}"
+        f"{_summary_table(sections)}{body}</body></html>"
     )
     path = out_dir / "report.html"
     path.write_text(page, encoding="utf-8")

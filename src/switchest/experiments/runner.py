@@ -36,9 +36,10 @@ from threadpoolctl import threadpool_limits
 
 from ..estimators._compiled.warmup import warm_up
 from .registry import Experiment, get
-from .store import Claimant, Store, process_token, task_key
+from .store import Claimant, Store, StoredTask, process_token, task_key
 
-__all__ = ["run_experiment", "execute_task", "stored_results", "RunInterrupted", "MAX_WORKERS"]
+__all__ = ["run_experiment", "execute_task", "stored_results", "run_tasks", "RunInterrupted",
+           "MAX_WORKERS"]
 
 MAX_WORKERS = 256
 """Most local worker processes a run accepts. Each is a Python process with its own compiled
@@ -159,6 +160,13 @@ def stored_results(experiment: Experiment, params: dict, store: Store,
     by_key = {t.key: t.result for t in store.tasks(experiment.name)}
     found = [(cfg, by_key[k]) for cfg, k in zip(configs, keys, strict=True) if k in by_key]
     return found, len(configs) - len(found)
+
+
+def run_tasks(experiment: Experiment, params: dict, store: Store,
+              seed: int = 0) -> list[StoredTask]:
+    """The stored tasks of a run (its parameters and seed), with their timings."""
+    keys = set(_plan(experiment, params, seed)[2])
+    return [t for t in store.tasks(experiment.name) if t.key in keys]
 
 
 def _plan(experiment: Experiment, params: dict, seed: int):
