@@ -17,9 +17,11 @@ LAYERS = [
     {"discretize", "dyadic"},
     {"simulate"},
     {"modelfile"},
+    {"measurements"},  # the measurement table (CSV / pandas) checked against a model file
     {"models"},  # the published systems: system, signals and modelfile only
     {"metrics"},
     {"analysis"},  # certificates and designs: functions of a system and of gains
+    {"default_designs"},  # the designs the methods take from a model file alone
     {"estimators"},  # the filters, which may run designs from the analysis
     {"plotting"},
     {"tabular", "certify"},

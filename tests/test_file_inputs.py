@@ -21,8 +21,8 @@ from hypothesis import strategies as st
 
 from switchest import SwitchedLinearSystem
 from switchest._toml import ModelFileError, dumps
+from switchest.measurements import read_measurements
 from switchest.modelfile import load_model
-from switchest.tabular import read_measurements
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "models"
 BASES = {name: tomllib.loads((EXAMPLES / f"{name}.toml").read_text())
