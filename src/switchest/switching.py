@@ -157,6 +157,12 @@ def _horizon(t) -> float:
     return float(t[-1]) + (float(t[-1] - t[-2]) if t.size > 1 else 1.0)
 
 
+def _store(model: SwitchingModel, **checked) -> None:
+    """Write the checked parameters onto the frozen ``model`` (from its ``__post_init__``)."""
+    for name, value in checked.items():
+        object.__setattr__(model, name, value)
+
+
 def _frozen(value: np.ndarray) -> np.ndarray:
     value = np.array(value)
     value.setflags(write=False)
@@ -190,11 +196,8 @@ class Dwell(SwitchingModel):
     def __post_init__(self) -> None:
         n_modes = _check_n_modes(self.n_modes)
         lo, hi = _check_dwell_bounds(self.min_dwell, self.max_dwell)
-        object.__setattr__(self, "n_modes", n_modes)
-        object.__setattr__(self, "min_dwell", lo)
-        object.__setattr__(self, "max_dwell", hi)
-        object.__setattr__(self, "initial_mode",
-                           check_mode(self.initial_mode, n_modes, "initial_mode"))
+        _store(self, n_modes=n_modes, min_dwell=lo, max_dwell=hi,
+               initial_mode=check_mode(self.initial_mode, n_modes, "initial_mode"))
 
     @property
     def dwell_time(self) -> float:
@@ -239,12 +242,8 @@ class AverageDwell(SwitchingModel):
     def __post_init__(self) -> None:
         n_modes = _check_n_modes(self.n_modes)
         tau_a, N0, rate = _check_average_dwell(self.tau_a, self.N0, self.rate)
-        object.__setattr__(self, "n_modes", n_modes)
-        object.__setattr__(self, "tau_a", tau_a)
-        object.__setattr__(self, "N0", N0)
-        object.__setattr__(self, "rate", rate)
-        object.__setattr__(self, "initial_mode",
-                           check_mode(self.initial_mode, n_modes, "initial_mode"))
+        _store(self, n_modes=n_modes, tau_a=tau_a, N0=N0, rate=rate,
+               initial_mode=check_mode(self.initial_mode, n_modes, "initial_mode"))
 
     def sample(self, rng, t) -> SwitchingSignal:
         """Draw one signal (see :meth:`SwitchingModel.sample`)."""
@@ -276,9 +275,8 @@ class MarkovAtSamples(SwitchingModel):
     def __post_init__(self) -> None:
         P = _frozen(check_row_stochastic(self.transition, "transition"))
         initial = _check_initial(self.initial, P.shape[0])
-        object.__setattr__(self, "transition", P)
-        object.__setattr__(self, "initial",
-                           _frozen(initial) if isinstance(initial, np.ndarray) else initial)
+        _store(self, transition=P,
+               initial=_frozen(initial) if isinstance(initial, np.ndarray) else initial)
 
     @property
     def n_modes(self) -> int:
@@ -312,9 +310,8 @@ class MarkovContinuous(SwitchingModel):
 
     def __post_init__(self) -> None:
         rates = _frozen(_check_rates(self.rates))
-        object.__setattr__(self, "rates", rates)
-        object.__setattr__(self, "initial_mode",
-                           check_mode(self.initial_mode, rates.shape[0], "initial_mode"))
+        _store(self, rates=rates,
+               initial_mode=check_mode(self.initial_mode, rates.shape[0], "initial_mode"))
 
     @property
     def n_modes(self) -> int:
@@ -343,7 +340,7 @@ class IID(SwitchingModel):
     p: np.ndarray
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "p", _frozen(check_probability_vector(self.p, "p")))
+        _store(self, p=_frozen(check_probability_vector(self.p, "p")))
 
     @property
     def n_modes(self) -> int:
@@ -373,8 +370,8 @@ class Schedule(SwitchingModel):
 
     def __post_init__(self) -> None:
         schedule(self.times, self.modes)  # validates both
-        object.__setattr__(self, "times", _frozen(float_array(self.times, "times", ndim=1)))
-        object.__setattr__(self, "modes", _frozen(np.asarray(self.modes, dtype=np.int64)))
+        _store(self, times=_frozen(float_array(self.times, "times", ndim=1)),
+               modes=_frozen(np.asarray(self.modes, dtype=np.int64)))
 
     @property
     def n_modes(self) -> None:

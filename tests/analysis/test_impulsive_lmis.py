@@ -487,3 +487,16 @@ def test_largest_tolerable_delay_is_nan_without_a_rate_and_inf_without_a_cost():
     base = dict(mu_s=1.2, mu_c=0.9, tau_min=0.05, tau_max=0.1, dwell=2.0)
     assert math.isnan(largest_tolerable_delay(alpha=-5.0, alpha_bar=0.0, mu_c_bar=1.0, **base))
     assert largest_tolerable_delay(alpha=1.0, alpha_bar=-1.0, mu_c_bar=0.9, **base) == math.inf
+
+
+def test_the_certificates_and_rates_stay_importable_from_impulsive_lmis_and_the_package():
+    """They are defined in impulsive_certificates and impulsive_rates; impulsive_lmis and
+    switchest.analysis give the same objects."""
+    import switchest.analysis as analysis
+    from switchest.analysis import impulsive_certificates, impulsive_lmis, impulsive_rates
+
+    for module in (impulsive_certificates, impulsive_rates):
+        for name in module.__all__:
+            assert name in impulsive_lmis.__all__, name
+            assert getattr(impulsive_lmis, name) is getattr(module, name), name
+            assert getattr(analysis, name) is getattr(module, name), name

@@ -637,3 +637,15 @@ def test_large_gains_keep_the_noise_injection_psd_and_the_steady_state_growing()
         assert np.linalg.eigvalsh(ss.V).min() > 0
         mu.append(ss.mu)
     assert mu[0] < mu[1] < mu[2]
+
+
+def test_the_error_system_stays_importable_from_subsystem_observers_and_the_package():
+    """It is defined in subsystem_error_dynamics; subsystem_observers and switchest.analysis
+    give the same objects."""
+    import switchest.analysis as analysis
+    from switchest.analysis import subsystem_error_dynamics, subsystem_observers
+
+    for name in subsystem_error_dynamics.__all__:
+        assert name in subsystem_observers.__all__, name
+        assert getattr(subsystem_observers, name) is getattr(subsystem_error_dynamics, name), name
+        assert getattr(analysis, name) is getattr(subsystem_error_dynamics, name), name

@@ -11,9 +11,12 @@ designs:
 * :mod:`.switch_time_bounds`: error bounds from a switching-time error (Shankar et al., 000);
 * :mod:`.min_distance_design`: the minimum-distance detector's constants and windows
   (Lee, paper 002);
-* :mod:`.subsystem_observers`: mean-square design of subsystem observers (Wang, paper 003);
+* :mod:`.subsystem_error_dynamics`: the sub-states and sampled error system of subsystem
+  observers, its mean-square tests and second moments (Wang, paper 003);
+* :mod:`.subsystem_observers`: their mean-square design, critical interval and gains (Wang, 003);
 * :mod:`.error_moments`: their error's moments per component and given the modes (Wang, 003);
-* :mod:`.impulsive_lmis`: the impulsive observer's LMIs and rates (Etienne et al., 004);
+* :mod:`.impulsive_lmis`: the impulsive observer's LMIs (Etienne et al., 004), with
+  :mod:`.impulsive_certificates` (what they prove) and :mod:`.impulsive_rates` (the decay rates);
 * :mod:`.scalar_search`: the largest feasible scalar of a monotone problem (bracket, bisect).
 
 Names that carried a theorem number remain importable as deprecated aliases
@@ -32,11 +35,12 @@ _EXPORTS = {
                       "component_steady_state", "moment_fixed_point", "moment_matrix",
                       "optimal_component_gain", "scalar_error_moments", "state_error_moments",
                       "window_average_sd", "window_sums_given_modes"),
-    "impulsive_lmis": ("ClosedLoopCertificate", "ImpulsiveObserverCertificate",
-                       "ImpulsiveObserverSearch", "closed_loop_matrices",
-                       "impulsive_closed_loop_analysis", "impulsive_closed_loop_decay_rate",
-                       "impulsive_observer_decay_rate", "impulsive_observer_search",
-                       "impulsive_observer_synthesis", "largest_tolerable_delay"),
+    "impulsive_certificates": ("ClosedLoopCertificate", "ImpulsiveObserverCertificate",
+                               "ImpulsiveObserverSearch"),
+    "impulsive_lmis": ("closed_loop_matrices", "impulsive_closed_loop_analysis",
+                       "impulsive_observer_search", "impulsive_observer_synthesis"),
+    "impulsive_rates": ("impulsive_closed_loop_decay_rate", "impulsive_observer_decay_rate",
+                        "largest_tolerable_delay"),
     "min_distance_design": ("LeeAssumptions", "LeeCondition", "LeeConstants", "LeeWindows",
                             "decay_observer_gains", "default_observer_gains", "lee_assumptions",
                             "lee_constants", "lee_windows", "observability_gramians"),
@@ -57,12 +61,13 @@ _EXPORTS = {
     "stability": ("JSRBounds", "LyapunovCertificate", "MeanSquareStability", "cqlf",
                   "decrease_margin", "jsr_bounds", "ms_stable_iid", "spectral_radius"),
     "steady_state_kalman": ("steady_state_gain",),
-    "subsystem_observers": ("CriticalInterval", "ErrorDynamics", "GainBounds", "MSConvergence",
-                            "OptimalGains", "SteadyState", "SubsystemStructure",
-                            "critical_interval", "decoupled_gain_bounds", "error_dynamics",
-                            "kalman_bucy_gains", "ms_convergence", "optimal_gains", "place_gains",
-                            "pole_placement_gain", "second_moments", "steady_state",
-                            "substate_gains", "subsystem_structure"),
+    "subsystem_error_dynamics": ("ErrorDynamics", "MSConvergence", "SteadyState",
+                                 "SubsystemStructure", "error_dynamics", "ms_convergence",
+                                 "second_moments", "steady_state", "substate_gains",
+                                 "subsystem_structure"),
+    "subsystem_observers": ("CriticalInterval", "GainBounds", "OptimalGains", "critical_interval",
+                            "decoupled_gain_bounds", "kalman_bucy_gains", "optimal_gains",
+                            "place_gains", "pole_placement_gain"),
     "switch_time_bounds": ("EstimationErrorBounds", "SwitchMatrixBounds",
                            "estimation_error_bounds", "switch_matrix_bounds"),
 }

@@ -1,20 +1,5 @@
-"""Deprecated module path: the switching-time error bounds (Shankar et al.) moved to
-:mod:`switchest.analysis.switch_time_bounds`; ``lemma2_bounds`` is now ``switch_matrix_bounds``.
+"""Deprecated path of :mod:`switchest.analysis.switch_time_bounds` (Shankar et al.'s bounds)."""
 
-Importing this module warns ``DeprecationWarning`` and gives the same objects.
-"""
+from ._deprecation import moved_module
 
-import warnings
-
-from .switch_time_bounds import *  # noqa: F403 - every public name of the module it became
-from .switch_time_bounds import __all__ as _moved
-from .switch_time_bounds import switch_matrix_bounds as lemma2_bounds
-
-__all__ = [*_moved, "lemma2_bounds"]
-
-warnings.warn(
-    "switchest.analysis.bounds is deprecated: its names are in "
-    "switchest.analysis.switch_time_bounds (lemma2_bounds -> switch_matrix_bounds)",
-    DeprecationWarning,
-    stacklevel=2,
-)
+moved_module(__name__, "switch_time_bounds")

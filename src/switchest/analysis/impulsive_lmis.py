@@ -18,13 +18,13 @@ Theorem 8 (synchronous mode knowledge), as derived from its proof:
   theta in {tau_min, tau_max} (jump: by Schur,
   ``(I - G_i C_i)' P0^i (I - G_i C_i) < mu_c P^i(theta)`` with ``G_i = (P0^i)^-1 L_i``);
 * (8)  ``P^i(theta) < mu_s P^j(theta)``, i != j, theta in {0, tau_max} (switches);
-* (9)  ``beta > 0`` with the rate (11)
-  ``beta = (alpha - ln(mu_s)/s - ln(mu_c)/tau_c) / 2``, ``tau_c = tau_max`` when
-  ``mu_c <= 1`` and ``tau_min`` when ``mu_c > 1``;
+* (9)  ``beta > 0`` with the rate (11) of
+  :func:`~switchest.analysis.impulsive_rates.impulsive_observer_decay_rate`;
 
 then ``||e(t)|| <= M exp(-beta t) ||e(0+)||``.
 
-Discrepancies with the printed Theorem 8, each checked against the proof:
+Discrepancies with the printed Theorem 8, each checked against the proof (those of the
+rate (9)/(11) are in :mod:`switchest.analysis.impulsive_rates`):
 
 * (7) is printed ``[[mu_c P(theta), P0 - L C_j], [*, P0]]``: its Schur complement is
   ``mu_c P - (P0 - L C) P0^-1 (P0 - L C)'``, not the bound
@@ -37,11 +37,6 @@ Discrepancies with the printed Theorem 8, each checked against the proof:
   ``alpha < 0`` it does not imply the proof's step. Implemented with ``alpha``.
 * (8) is printed for all i, j; for i = j and ``mu_s = 1`` it reads ``P < P``
   (infeasible), and the proof only uses i != j.
-* (9)/(11) use ``N_c(0, t) >= t/tau_max - 1`` (Remark 3), a lower bound on the
-  number of samples, which bounds ``mu_c^{N_c}`` only when ``ln(mu_c) <= 0``.
-  For ``mu_c > 1`` the bound needs ``N_c(0, t) <= t/tau_min``: ``tau_min``
-  replaces ``tau_max``. (The theorem states ``mu_c <= 1``; the search here may
-  use either.)
 
 Theorem 10 (mode estimate delayed by at most ``delta``, observer-based control
 ``u = K_{sigma_hat} x_hat``): the same structure on the extended state
@@ -54,47 +49,45 @@ with ``Q^i`` indexed by the estimated mode ``i`` and the true mode ``j``:
 * (26) ``[[mu_ij Q^i(theta), J[j, i]' Q0^i], [Q0^i J[j, i], Q0^i]] > 0``, theta in
   {tau_min, tau_max}, ``mu_ii = mu_c``, ``mu_ij = mu_c_bar``;
 * (27) ``Q^i(theta) < mu_s Q^j(theta)``, i != j;
-* (28) ``beta > 0`` with the rate of :func:`impulsive_closed_loop_decay_rate`.
+* (28) ``beta > 0`` with the rate of
+  :func:`~switchest.analysis.impulsive_rates.impulsive_closed_loop_decay_rate`.
 
-Discrepancies with the printed Theorem 10: (26) is transposed like (7); (22b)
-has the wrong sign (see ``closed_loop_matrices``); and the rate (28)/(31)
-counts the samples that fall while the mode estimate is wrong as
-``delta/tau_min`` per switch and the correct ones as ``(t - M_miss)/tau_max``.
-A mismatch window of length ``delta`` can hold ``ceil(delta/tau_min)`` samples
-(one, not one half, for ``delta = 0.15``, ``tau_min = 0.3``), and a correct-mode
-stretch of length ``l`` may hold only ``floor(l/tau_max)`` samples, so neither
-count is a valid bound. :func:`impulsive_closed_loop_decay_rate` uses
-``N_miss <= q N_s``, ``q = ceil(delta/tau_min)``, and ``N_match = N_c - N_miss``,
-which gives::
+Discrepancies with the printed Theorem 10: (26) is transposed like (7); (22b) has the wrong
+sign (see ``closed_loop_matrices``); the rate (28)/(31) miscounts the samples
+(:mod:`switchest.analysis.impulsive_rates`; the printed value is kept in the result as
+``printed_beta``). With the §4 scalars and the block of (26) as printed the LMIs (24)-(27)
+are feasible (for the observer gains of Theorem 8), but the ``Q`` they return violates
+``J' Q0 J < mu Q(tau)``; the corrected LMIs are infeasible
+(tests/analysis/test_impulsive_lmis.py).
 
-    2 beta = alpha - ln(mu_c)/tau_c
-             - (ln(mu_s) + delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+) / s
-
-(``x^+ = max(x, 0)``; with ``delta = 0`` it is Theorem 8's rate, as Remark 11
-says). This form needs none of the printed restrictions ``mu_c <= 1 <= mu_c_bar``
-(any positive values are accepted; ``mu_s >= 1`` is required). The printed
-value is kept in the result as ``printed_beta`` for comparison.
-
-With the §4 scalars the printed (28) is already violated (``-2 beta = +0.16403``)
-although §4 reports the conditions verified. With the block of (26) as printed
-the LMIs (24)-(27) are feasible there (for the observer gains of Theorem 8), but
-the ``Q`` they return violates ``J' Q0 J < mu Q(tau)``; the corrected LMIs are
-infeasible (tests/analysis/test_impulsive_lmis.py).
+The certificates these functions return are defined in
+:mod:`switchest.analysis.impulsive_certificates` and the rates in
+:mod:`switchest.analysis.impulsive_rates`; both are importable from here too.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from .._checks import float_array, gain_stack, positive_scalar
 from .._linalg import symmetrize
 from ..system import SwitchedLinearSystem
-from ._deprecation import renamed_field
 from ._lmi import cp, max_eigenvalue, min_eigenvalue, solve_sdp, symmetric_block
+from .impulsive_certificates import (
+    ClosedLoopCertificate,
+    ImpulsiveObserverCertificate,
+    ImpulsiveObserverSearch,
+)
+from .impulsive_rates import (
+    _printed_theorem10_rate,
+    _scalars8,
+    impulsive_closed_loop_decay_rate,
+    impulsive_observer_decay_rate,
+    largest_tolerable_delay,
+)
 from .scalar_search import largest_feasible
 
 __all__ = [
@@ -108,203 +101,11 @@ __all__ = [
     "impulsive_observer_synthesis",
     "impulsive_observer_decay_rate",
     "impulsive_closed_loop_decay_rate",
+    "largest_tolerable_delay",
 ]
 
 _DEFAULT_MU_S = (2.0, 5.0, 10.0, 16.0, 25.0, 40.0)
 _DEFAULT_MU_C = (0.3, 0.5, 0.7, 0.85, 0.95, 1.0)
-
-
-# ---------------------------------------------------------------------- results
-@dataclass(frozen=True)
-class ImpulsiveObserverCertificate:
-    """Outcome of :func:`impulsive_observer_synthesis` (Etienne et al. Theorem 8).
-
-    Attributes
-    ----------
-    holds : bool
-        Theorem 8's conclusion is proven: the LMIs (5)-(8) were solved, their solution
-        passed the numpy re-check, and the rate condition (9) holds (``beta > 0``).
-    lmi_feasible : bool
-        The LMIs alone (verified); ``holds`` also needs ``beta > 0``.
-    P0, P1 : ndarray, shape (L, n, n), or None
-        ``P^i(theta) = P0[i] + theta P1[i]`` (eq. (10)); ``P1`` is the slope.
-        Normalized so that ``P^i(theta) >= I`` at theta in {0, tau_max}.
-    L : ndarray, shape (L, n, m), or None
-        The LMI variables ``L_i = P0^i G_i``.
-    G : ndarray, shape (L, n, m), or None
-        Observer gains ``G_i = (P0^i)^-1 L_i``.
-    beta : float
-        Decay rate of ``||e||`` that the scalars give (eq. (11), corrected for
-        ``mu_c > 1``); guaranteed only when ``holds``.
-    alpha, mu_s, mu_c : float
-        The fixed scalars.
-    tau_min, tau_max, dwell : float
-        Sampling range (Assumption 2) and average dwell time (Assumption 1).
-    margin : float
-        Smallest verified slack of the strict LMIs (NaN when not solved).
-    solver_status : str
-    note : str
-    """
-
-    holds: bool
-    lmi_feasible: bool
-    P0: np.ndarray | None
-    P1: np.ndarray | None
-    L: np.ndarray | None
-    G: np.ndarray | None
-    beta: float
-    alpha: float
-    mu_s: float
-    mu_c: float
-    tau_min: float
-    tau_max: float
-    dwell: float
-    margin: float
-    solver_status: str
-    note: str
-
-    feasible = renamed_field("feasible")
-
-    def P(self, theta) -> np.ndarray:
-        """``P^i(theta) = P0^i + theta P1^i`` for ``theta (...)``, shape ``(..., L, n, n)``."""
-        if self.P0 is None:
-            raise ValueError("the certificate holds no P: the LMIs were not feasible")
-        return _clock_affine(self.P0, self.P1, theta)
-
-    def overshoot(self, N0: float = 1.0) -> float:
-        """``M`` in ``||e(t)|| <= M exp(-beta t) ||e(0+)||`` (proof of Theorem 8, eqs (19)-(20)).
-
-        ``M^2 = mu_s^N0 theta_max / (mu_c' theta_min)`` with ``theta_max`` the largest
-        eigenvalue of the ``P0^i``, ``theta_min`` the smallest of the ``P^i(theta)``
-        over ``[0, tau_max]`` (attained at an end: the smallest eigenvalue is concave),
-        ``mu_c' = mu_c`` when ``mu_c <= 1`` and 1 otherwise. ``e(0+)`` is the error
-        just after the correction at ``t_0`` (the clock starts there), and ``N0``
-        the chatter bound of Assumption 1.
-        """
-        if not self.holds:
-            raise ValueError("no overshoot bound: the certificate is not feasible")
-        N0 = positive_scalar(N0, "N0", allow_zero=True)
-        ends = self.P(np.array([0.0, self.tau_max]))
-        return _overshoot(self.P0, ends, N0 * math.log(self.mu_s), self.mu_c)
-
-
-@dataclass(frozen=True)
-class ImpulsiveObserverSearch:
-    """Outcome of :func:`impulsive_observer_search`.
-
-    Attributes
-    ----------
-    best : ImpulsiveObserverCertificate
-        The certificate with the largest ``beta`` found (``holds=False`` if none).
-    mu_s, mu_c : ndarray, shapes (a,), (b,)
-        The grids searched.
-    alpha : ndarray, shape (a, b)
-        Largest ``alpha`` (to ``alpha_tol``) with feasible LMIs for each
-        ``(mu_s, mu_c)``, searched above the value where ``beta = 0``; NaN where
-        the LMIs are infeasible there (no positive rate).
-    beta : ndarray, shape (a, b)
-        Rate (11) at ``alpha``; NaN where ``alpha`` is.
-    n_solves : int
-        Number of SDPs solved.
-    """
-
-    best: ImpulsiveObserverCertificate
-    mu_s: np.ndarray
-    mu_c: np.ndarray
-    alpha: np.ndarray
-    beta: np.ndarray
-    n_solves: int
-
-    @property
-    def holds(self) -> bool:
-        """The best certificate proves Theorem 8's conclusion (``best.holds``)."""
-        return self.best.holds
-
-
-@dataclass(frozen=True)
-class ClosedLoopCertificate:
-    """Outcome of :func:`impulsive_closed_loop_analysis` (Etienne et al. Theorem 10).
-
-    Attributes
-    ----------
-    holds : bool
-        Theorem 10's conclusion (corrected) is proven: LMIs (24)-(27) solved and verified
-        with numpy, and ``beta > 0``.
-    lmi_feasible : bool
-        The LMIs alone.
-    Q0, Q1 : ndarray, shape (L, 2n, 2n), or None
-        ``Q^i(theta) = Q0[i] + theta Q1[i]`` (eq. (29)), normalized ``>= I`` at the ends.
-    beta : float
-        Rate of :func:`impulsive_closed_loop_decay_rate` (the corrected (31)); reported
-        whatever the LMIs, so ``holds`` is the verdict.
-    printed_beta : float
-        Eq. (31) as printed (``-printed_beta`` is the left side of (28)).
-    scalars : dict
-        ``alpha, alpha_bar, mu_s, mu_c, mu_c_bar, delta, tau_min, tau_max, dwell``.
-    margin : float
-        Smallest verified slack of the strict LMIs (NaN when not solved).
-    solver_status : str
-    note : str
-    """
-
-    holds: bool
-    lmi_feasible: bool
-    Q0: np.ndarray | None
-    Q1: np.ndarray | None
-    beta: float
-    printed_beta: float
-    scalars: dict
-    margin: float
-    solver_status: str
-    note: str
-
-    feasible = renamed_field("feasible")
-
-    def Q(self, theta) -> np.ndarray:
-        """``Q^i(theta) = Q0^i + theta Q1^i`` for ``theta (...)``, shape ``(..., L, 2n, 2n)``."""
-        if self.Q0 is None:
-            raise ValueError("the certificate holds no Q: the LMIs were not feasible")
-        return _clock_affine(self.Q0, self.Q1, theta)
-
-    def overshoot(self, N0: float = 1.0) -> float:
-        """``M`` in ``||z(t)|| <= M exp(-beta t) ||z(0+)||`` (proof of Theorem 10, corrected).
-
-        ``M^2 = exp(N0 c) theta_max / (mu_c' theta_min)`` with
-        ``c = ln(mu_s) + delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+`` the
-        per-switch cost of :func:`impulsive_closed_loop_decay_rate`, ``theta_max``,
-        ``theta_min`` and ``mu_c'`` as in :meth:`ImpulsiveObserverCertificate.overshoot`,
-        ``z(0+)`` the state just after the jump at ``t_0`` and ``N0`` the chatter bound. (The
-        printed constant ``M~`` carries the printed, invalid sample counts.)
-        """
-        if not self.holds:
-            raise ValueError("no overshoot bound: the certificate is not feasible")
-        N0 = positive_scalar(N0, "N0", allow_zero=True)
-        k = self.scalars
-        cost = _switch_cost(
-            k["alpha"],
-            k["alpha_bar"],
-            k["mu_s"],
-            k["mu_c"],
-            k["mu_c_bar"],
-            k["tau_min"],
-            k["delta"],
-        )
-        return _overshoot(self.Q0, self.Q(np.array([0.0, k["tau_max"]])), N0 * cost, k["mu_c"])
-
-
-def _clock_affine(M0: np.ndarray, M1: np.ndarray, theta) -> np.ndarray:
-    """``M0^i + theta M1^i`` for ``theta (...)``: shape ``(..., L, k, k)`` (eq. (10))."""
-    theta = float_array(theta, "theta")
-    return M0 + theta[..., None, None, None] * M1
-
-
-def _overshoot(M0: np.ndarray, M_ends: np.ndarray, log_switch_cost: float, mu_c: float) -> float:
-    """``sqrt(exp(cost) theta_max / (min(mu_c, 1) theta_min))``: ``theta_max`` the largest
-    eigenvalue of the ``M0^i``, ``theta_min`` the smallest of ``M^i(theta)`` at the clock's
-    two ends."""
-    top = float(np.max(max_eigenvalue(M0)))
-    low = float(np.min(min_eigenvalue(M_ends)))
-    return math.sqrt(math.exp(log_switch_cost) * top / (min(mu_c, 1.0) * low))
 
 
 # ---------------------------------------------------------------------- closed loop
@@ -358,121 +159,6 @@ def closed_loop_matrices(system: SwitchedLinearSystem, K, G) -> tuple[np.ndarray
     return Acl, J
 
 
-# ---------------------------------------------------------------------- rates
-def impulsive_observer_decay_rate(
-    alpha: float, mu_s: float, mu_c: float, tau_min: float, tau_max: float, dwell: float
-) -> float:
-    """Decay rate of the observer error, Etienne et al. Theorem 8 (synchronous mode knowledge).
-
-    Eq. (11): ``beta = (alpha - ln(mu_s)/s - ln(mu_c)/tau_c) / 2``.
-
-    ``tau_c = tau_max`` for ``mu_c <= 1`` (as printed) and ``tau_min`` for
-    ``mu_c > 1`` (the printed form assumes ``ln(mu_c) <= 0``; see the module notes).
-    Condition (9) is ``beta > 0``.
-    """
-    alpha, mu_s, mu_c, tau_min, tau_max, dwell = _scalars8(
-        alpha, mu_s, mu_c, tau_min, tau_max, dwell
-    )
-    return 0.5 * (alpha - math.log(mu_s) / dwell - _sample_rate(mu_c, tau_min, tau_max))
-
-
-def impulsive_closed_loop_decay_rate(
-    alpha: float,
-    alpha_bar: float,
-    mu_s: float,
-    mu_c: float,
-    mu_c_bar: float,
-    tau_min: float,
-    tau_max: float,
-    dwell: float,
-    delta: float,
-) -> float:
-    """Decay rate of the closed loop ``||z||``, Etienne et al. Theorem 10 (delayed mode estimate).
-
-    The mode estimate lags the true switches by at most ``delta``.
-
-    Re-derived from the proof of Etienne et al. Theorem 10 (eqs (32)-(40)) with
-    valid sample counts::
-
-        2 beta = alpha - ln(mu_c)/tau_c
-                 - (ln(mu_s) + delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+) / s
-
-    with ``q = ceil(delta/tau_min)`` (the most samples a mismatch window of length
-    ``delta`` holds), ``tau_c`` as in :func:`impulsive_observer_decay_rate`, ``x^+ = max(x, 0)``.
-    Condition (28) is ``beta > 0``. The printed (31) differs; see the module notes.
-    """
-    alpha, mu_s, mu_c, tau_min, tau_max, dwell = _scalars8(
-        alpha, mu_s, mu_c, tau_min, tau_max, dwell
-    )
-    alpha_bar = _real(alpha_bar, "alpha_bar")
-    mu_c_bar = positive_scalar(mu_c_bar, "mu_c_bar")
-    delta = positive_scalar(delta, "delta", allow_zero=True)
-    per_switch = _switch_cost(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, delta)
-    return 0.5 * (alpha - _sample_rate(mu_c, tau_min, tau_max) - per_switch / dwell)
-
-
-def largest_tolerable_delay(
-    alpha: float,
-    alpha_bar: float,
-    mu_s: float,
-    mu_c: float,
-    mu_c_bar: float,
-    tau_min: float,
-    tau_max: float,
-    dwell: float,
-) -> float:
-    """Supremum of the mode-estimate delays ``delta`` with condition (28) (Etienne et al.
-    Theorem 10, as re-derived in :func:`impulsive_closed_loop_decay_rate`): ``beta > 0``.
-
-    With ``b = alpha - ln(mu_c)/tau_c - ln(mu_s)/s`` (twice
-    :func:`impulsive_observer_decay_rate`),
-    ``2 beta = b - (delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+) / s`` is affine in
-    ``delta`` on each ``((q - 1) tau_min, q tau_min]``, ``q = ceil(delta/tau_min)``: the
-    supremum is where it reaches zero, or the left end of the first piece that starts at or
-    below zero. NaN when even ``delta = 0`` fails, ``inf`` when no delay does.
-    """
-    budget = dwell * 2 * impulsive_observer_decay_rate(alpha, mu_s, mu_c, tau_min, tau_max,
-                                                       dwell)  # s b
-    if budget <= 0:
-        return math.nan
-    slope = max(_real(alpha, "alpha") + _real(alpha_bar, "alpha_bar"), 0.0)
-    per_sample = max(math.log(positive_scalar(mu_c_bar, "mu_c_bar") / mu_c), 0.0)
-    if slope == 0 and per_sample == 0:
-        return math.inf
-    q = 1
-    while True:
-        room = budget - q * per_sample  # what the delayed flow may spend with q wrong samples
-        end = room / slope if slope > 0 else (math.inf if room > 0 else -math.inf)
-        if end <= (q - 1) * tau_min:
-            return (q - 1) * tau_min
-        if end <= q * tau_min:
-            return end
-        q += 1
-
-
-def _switch_cost(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, delta) -> float:
-    """Growth of ``ln V`` charged to one switch: the jump ``mu_s``, at most ``delta`` of
-    wrong-mode flow, at most ``q = ceil(delta/tau_min)`` wrong-mode samples."""
-    q = math.ceil(delta / tau_min - 1e-12) if delta > 0 else 0
-    return (
-        math.log(mu_s)
-        + delta * max(alpha + alpha_bar, 0.0)
-        + q * max(math.log(mu_c_bar / mu_c), 0.0)
-    )
-
-
-def _printed_theorem10_rate(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta):
-    """Eq. (31) exactly as printed (for comparison only)."""
-    r = delta / dwell
-    return 0.5 * (
-        alpha * (1 - r)
-        - alpha_bar * r
-        - math.log(mu_s) / dwell
-        - math.log(mu_c) / tau_max * (1 - r)
-        - delta * math.log(mu_c_bar) / (tau_min * dwell)
-    )
-
-
 # ---------------------------------------------------------------------- Theorem 8
 def impulsive_observer_synthesis(
     system: SwitchedLinearSystem,
@@ -488,7 +174,7 @@ def impulsive_observer_synthesis(
     """Impulsive observer gains for synchronous mode knowledge (Etienne et al. Theorem 8).
 
     Solves the LMIs (5)-(8) in ``P0^i, P1^i, L_i`` for fixed ``(alpha, mu_s, mu_c)``
-    in their corrected forms (module notes): strict inequalities posed with the
+    in their corrected forms (module docstring): strict inequalities posed with the
     explicit ``margin`` after the normalization ``P^i(theta) >= I`` (the LMIs are
     homogeneous), as a feasibility problem. The solution is re-checked with numpy eigenvalues
     (slack at least ``margin / 2``) before ``holds=True``.
@@ -517,9 +203,8 @@ def impulsive_observer_synthesis(
     """
     system = _check_system(system)
     _scalars8(alpha, mu_s, mu_c, tau_min, tau_max, dwell)
-    return _Theorem8(system, tau_min, tau_max, dwell, positive_scalar(margin, "margin")).solve(
-        alpha, mu_s, mu_c
-    )
+    problem = _Theorem8(system, tau_min, tau_max, dwell, positive_scalar(margin, "margin"))
+    return problem.solve(alpha, mu_s, mu_c)
 
 
 def impulsive_observer_search(
@@ -572,9 +257,8 @@ def impulsive_observer_search(
     best = None
     for r, ms in enumerate(grid_s):
         for c, mc in enumerate(grid_c):
-            lo = (
-                -2 * impulsive_observer_decay_rate(0.0, ms, mc, tau_min, tau_max, dwell) + alpha_tol
-            )  # beta > 0 from here
+            rate0 = impulsive_observer_decay_rate(0.0, ms, mc, tau_min, tau_max, dwell)
+            lo = -2 * rate0 + alpha_tol  # beta > 0 from here on
             found = largest_feasible(  # bracket by doubling steps, then bisect
                 lambda alpha, ms=ms, mc=mc: problem.solve(alpha, ms, mc),
                 lambda cert: cert.lmi_feasible, lo, tol=alpha_tol, step=1.0, doublings=12)
@@ -585,19 +269,10 @@ def impulsive_observer_search(
             if cert.holds and (best is None or cert.beta > best.beta):
                 best = cert
     if best is None:
-        best = _failed8(
-            "searched",
-            "no scalars on the grid gave feasible LMIs with beta > 0",
-            {
-                "beta": math.nan,
-                "alpha": math.nan,
-                "mu_s": math.nan,
-                "mu_c": math.nan,
-                "tau_min": float(tau_min),
-                "tau_max": float(tau_max),
-                "dwell": float(dwell),
-            },
-        )
+        unknown = dict.fromkeys(("beta", "alpha", "mu_s", "mu_c"), math.nan)
+        best = _failed8("searched", "no scalars on the grid gave feasible LMIs with beta > 0",
+                        {**unknown, "tau_min": float(tau_min), "tau_max": float(tau_max),
+                         "dwell": float(dwell)})
     return ImpulsiveObserverSearch(
         best=best, mu_s=grid_s, mu_c=grid_c, alpha=alphas, beta=betas, n_solves=problem.n_solves
     )
@@ -614,9 +289,8 @@ class _Theorem8:
         self.L = [cp.Variable((n, m)) for _ in range(Lm)]
         for i in range(Lm):
             self.lmi.add_flow(i, system.A[i], self.alpha)
-            self.lmi.add_jump(
-                i, self.lmi.P0[i] - self.L[i] @ system.C[i], self.mu_c
-            )  # P0 (I - G C)
+            self.lmi.add_jump(i, self.lmi.P0[i] - self.L[i] @ system.C[i],  # P0 (I - G C)
+                              self.mu_c)
 
     @property
     def n_solves(self) -> int:
@@ -627,15 +301,8 @@ class _Theorem8:
             alpha, mu_s, mu_c, self.lmi.tau_min, self.lmi.tau_max, self.dwell
         )
         beta = impulsive_observer_decay_rate(alpha, mu_s, mu_c, tau_min, tau_max, dwell)
-        common = {
-            "beta": beta,
-            "alpha": alpha,
-            "mu_s": mu_s,
-            "mu_c": mu_c,
-            "tau_min": tau_min,
-            "tau_max": tau_max,
-            "dwell": dwell,
-        }
+        common = {"beta": beta, "alpha": alpha, "mu_s": mu_s, "mu_c": mu_c, "tau_min": tau_min,
+                  "tau_max": tau_max, "dwell": dwell}
         self.alpha.value, self.mu_c.value = alpha, mu_c
         status, P0, P1, slack = self.lmi.solve(mu_s)
         if P0 is None:
@@ -677,7 +344,7 @@ def impulsive_closed_loop_analysis(
 
     For given controller gains ``K`` (``u = K_{sigma_hat} x_hat``) and observer gains
     ``G``, solves the LMIs (24)-(27) in ``Q0^i, Q1^i`` on the extended system
-    (21)-(23) (jump sign and (26) corrected, module notes) and evaluates the
+    (21)-(23) (jump sign and (26) corrected, module docstring) and evaluates the
     corrected rate condition (28) (:func:`impulsive_closed_loop_decay_rate`). Posed and verified as
     in :func:`impulsive_observer_synthesis`. For many scalars with one ``K`` and
     ``G`` (a sweep, a bisection), :class:`ClosedLoopLMIs` compiles the LMIs once.
@@ -753,15 +420,8 @@ class ClosedLoopLMIs:
     def n_solves(self) -> int:
         return self._lmi.n_solves
 
-    def analyze(
-        self,
-        delta: float,
-        alpha: float,
-        alpha_bar: float,
-        mu_s: float,
-        mu_c: float,
-        mu_c_bar: float,
-    ) -> ClosedLoopCertificate:
+    def analyze(self, delta: float, alpha: float, alpha_bar: float, mu_s: float, mu_c: float,
+                mu_c_bar: float) -> ClosedLoopCertificate:
         """Theorem 10 at these scalars (arguments as in :func:`impulsive_closed_loop_analysis`).
 
         Returns
@@ -777,29 +437,19 @@ class ClosedLoopLMIs:
         printed = _printed_theorem10_rate(
             alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta
         )
-        scalars = {
-            "alpha": alpha,
-            "alpha_bar": alpha_bar,
-            "mu_s": mu_s,
-            "mu_c": mu_c,
-            "mu_c_bar": mu_c_bar,
-            "delta": delta,
-            "tau_min": tau_min,
-            "tau_max": tau_max,
-            "dwell": dwell,
-        }
+        scalars = {"alpha": alpha, "alpha_bar": alpha_bar, "mu_s": mu_s, "mu_c": mu_c,
+                   "mu_c_bar": mu_c_bar, "delta": delta, "tau_min": tau_min, "tau_max": tau_max,
+                   "dwell": dwell}
         self._alpha.value, self._alpha_bar.value = alpha, alpha_bar
         self._mu_c.value, self._mu_c_bar.value = mu_c, mu_c_bar
         status, Q0, Q1, slack = self._lmi.solve(mu_s)
-        common = {
-            "beta": beta, "printed_beta": printed, "scalars": scalars, "solver_status": status
-        }
+        common = {"beta": beta, "printed_beta": printed, "scalars": scalars,
+                  "solver_status": status}
         if Q0 is None:
             unsolved = _unsolved("(24)-(27)", status, slack, self.margin)
             note = f"{unsolved}; stability is not certified"
-            return ClosedLoopCertificate(
-                False, False, None, None, margin=math.nan, **common, note=note
-            )
+            return ClosedLoopCertificate(False, False, None, None, margin=math.nan, **common,
+                                         note=note)
         if beta <= 0:
             note = (
                 f"LMIs (24)-(27) hold but the rate condition (28) fails: beta = {beta:.4g} <= 0 "
@@ -923,48 +573,9 @@ def _unsolved(which: str, status: str, slack: float, margin: float) -> str:
 
 
 def _failed8(status: str, note: str, common: dict) -> ImpulsiveObserverCertificate:
-    return ImpulsiveObserverCertificate(
-        False,
-        False,
-        None,
-        None,
-        None,
-        None,
-        **common,
-        margin=math.nan,
-        solver_status=status,
-        note=note,
-    )
-
-
-def _sample_rate(mu_c: float, tau_min: float, tau_max: float) -> float:
-    """``ln(mu_c)`` per unit time from the samples: over ``tau_max`` when ``mu_c <= 1``
-    (fewest samples), over ``tau_min`` when ``mu_c > 1`` (most samples)."""
-    return math.log(mu_c) / (tau_max if mu_c <= 1 else tau_min)
-
-
-def _scalars8(alpha, mu_s, mu_c, tau_min, tau_max, dwell):
-    alpha = _real(alpha, "alpha")
-    mu_s = positive_scalar(mu_s, "mu_s")
-    if mu_s < 1:
-        raise ValueError(f"mu_s must be >= 1 (switching cannot shrink every P^i), got {mu_s:g}")
-    mu_c = positive_scalar(mu_c, "mu_c")
-    tau_min = positive_scalar(tau_min, "tau_min")
-    tau_max = positive_scalar(tau_max, "tau_max")
-    if tau_max < tau_min:
-        raise ValueError(f"tau_max must be >= tau_min = {tau_min:g}, got {tau_max:g}")
-    dwell = positive_scalar(dwell, "dwell")
-    return alpha, mu_s, mu_c, tau_min, tau_max, dwell
-
-
-def _real(value, name: str) -> float:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(
-        value, (int, float, np.integer, np.floating)
-    ):
-        raise TypeError(f"{name} must be a real scalar, got {type(value).__name__}")
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return float(value)
+    """The certificate of LMIs (5)-(8) left unsolved: no matrices, no gains."""
+    return ImpulsiveObserverCertificate(False, False, None, None, None, None, **common,
+                                        margin=math.nan, solver_status=status, note=note)
 
 
 def _grid(values, name: str) -> np.ndarray:

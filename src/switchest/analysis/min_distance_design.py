@@ -247,18 +247,13 @@ def default_observer_gains(system: SwitchedLinearSystem) -> np.ndarray:
     -------
     ndarray, shape (L, n, m)
     """
-    from scipy.signal import place_poles  # scipy.signal: most of a second to import
     _check_system(system)
-    gains = []
-    for i in range(system.n_modes):
-        A, C = system.A[i], system.C[i]
-        if not is_observable(A, C):
-            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), "
-                             f"(A_{i}, C_{i}) is not")
+
+    def poles(A, C):
         rho = max(1.0, 2.0 * float(np.max(np.abs(np.linalg.eigvals(A)))))
-        poles = -rho * (1.0 + 0.25 * np.arange(system.n_states))
-        gains.append(place_poles(A.T, C.T, poles).gain_matrix.T)
-    return np.array(gains)
+        return -rho * (1.0 + 0.25 * np.arange(system.n_states))
+
+    return _placed_gains(system, poles)
 
 
 def decay_observer_gains(system: SwitchedLinearSystem, decay: float) -> np.ndarray:
@@ -273,18 +268,13 @@ def decay_observer_gains(system: SwitchedLinearSystem, decay: float) -> np.ndarr
     -------
     ndarray, shape (L, n, m)
     """
-    from scipy.signal import place_poles  # scipy.signal: most of a second to import
     _check_system(system)
     a = positive_scalar(decay, "decay")
-    gains = []
-    for i in range(system.n_modes):
-        A, C = system.A[i], system.C[i]
-        if not is_observable(A, C):
-            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), "
-                             f"(A_{i}, C_{i}) is not")
-        poles = -a * (1.0 + 0.25 * (np.arange(system.n_states) // np.linalg.matrix_rank(C)))
-        gains.append(place_poles(A.T, C.T, poles).gain_matrix.T)
-    return np.array(gains)
+
+    def poles(A, C):
+        return -a * (1.0 + 0.25 * (np.arange(system.n_states) // np.linalg.matrix_rank(C)))
+
+    return _placed_gains(system, poles)
 
 
 def observability_gramians(system: SwitchedLinearSystem, t) -> np.ndarray:
@@ -434,9 +424,7 @@ def lee_assumptions(
         noise bound at which (3) or (4) becomes an equality.
     """
     _check_system(system)
-    u_max = positive_scalar(u_max, "u_max", allow_zero=True)
-    v_max = positive_scalar(v_max, "v_max", allow_zero=True)
-    x_min = positive_scalar(x_min, "x_min", allow_zero=True)
+    u_max, v_max, x_min = _bounds(u_max, v_max, x_min)
     if signal is not None and min_dwell is not None:
         raise ValueError("pass either signal or min_dwell for Assumption 3, got both")
     k = lee_constants(system, delta, Delta, observer_gains)
@@ -508,9 +496,7 @@ def lee_windows(
         quadrature, so read its ``holds`` for the verdict.
     """
     _check_system(system)
-    u_max = positive_scalar(u_max, "u_max", allow_zero=True)
-    v_max = positive_scalar(v_max, "v_max", allow_zero=True)
-    x_min = positive_scalar(x_min, "x_min", allow_zero=True)
+    u_max, v_max, x_min = _bounds(u_max, v_max, x_min)
     t_max = positive_scalar(t_max, "t_max")
     step = t_max / 2000 if step is None else positive_scalar(step, "step")
     if step > t_max:
@@ -551,6 +537,28 @@ def _check_system(system) -> None:
     if not system.is_continuous:
         raise ValueError(f"system must be continuous-time (Lee et al. eq. (1)), "
                          f"got {system.domain!r}")
+
+
+def _placed_gains(system: SwitchedLinearSystem, poles) -> np.ndarray:
+    """``L_i (L, n, m)`` placing the eigenvalues of ``A_i - L_i C_i`` at ``poles(A_i, C_i)``,
+    by ``scipy.signal.place_poles`` on the dual pair ``(A_i', C_i')``; every mode must be
+    observable (Lee et al. §II)."""
+    from scipy.signal import place_poles  # scipy.signal: most of a second to import
+    gains = []
+    for i in range(system.n_modes):
+        A, C = system.A[i], system.C[i]
+        if not is_observable(A, C):
+            raise ValueError(f"system mode {i} must be observable (Lee et al. §II), "
+                             f"(A_{i}, C_{i}) is not")
+        gains.append(place_poles(A.T, C.T, poles(A, C)).gain_matrix.T)
+    return np.array(gains)
+
+
+def _bounds(u_max: float, v_max: float, x_min: float) -> tuple[float, float, float]:
+    """The input and noise bounds of eq. (2) and the state's lower bound, each ``>= 0``."""
+    return (positive_scalar(u_max, "u_max", allow_zero=True),
+            positive_scalar(v_max, "v_max", allow_zero=True),
+            positive_scalar(x_min, "x_min", allow_zero=True))
 
 
 def _gains(system: SwitchedLinearSystem, observer_gains) -> np.ndarray:

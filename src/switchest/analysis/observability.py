@@ -297,10 +297,8 @@ def is_observable(A, C, *, rtol: float = _RTOL) -> bool:
 
     Parameters
     ----------
-    A : array_like, shape (n, n)
-    C : array_like, shape (m, n)
-    rtol : float, optional
-        Relative tolerance of the PBH singular values (keyword-only).
+    A, C, rtol
+        As in :func:`kalman_decomposition`.
 
     Returns
     -------
