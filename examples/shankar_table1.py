@@ -73,7 +73,7 @@ class Row:
     switch_error: float
     mode_accuracy: float
     seconds: float
-    paper: tuple[float, float] | None = None
+    paper: tuple[str, str] | None = None
 
 
 # %% Filters: time each run, score it against the truth
@@ -138,8 +138,8 @@ def render(rows: Sequence[Row], *, trials: int, duration: float) -> Table:
             row.filter,
             "-" if row.g is None else str(row.g),
             "-" if row.g is None else f"{BOOST_SAMPLE_PERIOD * 1e3 / row.g:.3g}",
-            number(row.paper and row.paper[0], "#.3g"),  # the paper's printed digits
-            number(row.paper and row.paper[1], "#.3g"),
+            "-" if row.paper is None else row.paper[0],  # the paper's printed digits
+            "-" if row.paper is None else row.paper[1],
             f"{row.rmse[0]:.3g}",
             f"{row.rmse[1]:.3g}",
             number(row.switch_error * 1e3, ".3f"),

@@ -65,7 +65,7 @@ def test_table1_rows_cover_every_filter_and_grid(table1):
 def test_table1_prints_the_papers_values_beside_the_grid_filter(table1):
     _, rows, text = table1
     paper = {r.g: r.paper for r in rows if r.filter == "switch-time KF"}
-    assert paper == {1: (13.5, 2.74), 2: (10.7, 2.15)}
+    assert paper == {1: ("13.5", "2.74"), 2: ("10.7", "2.15")}
     assert all(r.paper is None for r in rows if r.filter != "switch-time KF")
     assert "13.5" in text and "2.74" in text and "10.7" in text and "2.15" in text
 

@@ -32,11 +32,14 @@ def curves(
     paper: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
     logy: bool = False,
     markers: Sequence[float] = (),
+    bands: Mapping[str, np.ndarray] | None = None,
 ) -> Path:
     """Lines ``series[label]`` against ``x``; 2-D series get one panel per column.
 
     ``paper`` adds the paper's printed points as black markers (label ->
-    ``(x, y)``); ``markers`` draws vertical lines (e.g. true switching times).
+    ``(x, y)``); ``markers`` draws vertical lines (e.g. true switching times);
+    ``bands[label]`` (the shape of ``series[label]``) shades ``y ± band`` around a
+    line, e.g. 1.96 standard errors of a Monte Carlo mean.
     """
     first = np.asarray(next(iter(series.values())))
     panels = 1 if first.ndim == 1 else first.shape[1]
@@ -52,8 +55,13 @@ def curves(
             for label, y in series.items():
                 y = np.asarray(y)
                 style = {"color": "k", "lw": 2.0, "zorder": 3} if label == "true" else {}
-                ax.plot(x, y if y.ndim == 1 else y[:, p], marker="o" if len(x) < 30 else None,
-                        ms=3, label=label, **style)
+                line, = ax.plot(x, y if y.ndim == 1 else y[:, p],
+                                marker="o" if len(x) < 30 else None, ms=3, label=label, **style)
+                if bands is not None and label in bands:
+                    half = np.asarray(bands[label])
+                    mid, half = (y, half) if y.ndim == 1 else (y[:, p], half[:, p])
+                    ax.fill_between(x, mid - half, mid + half, color=line.get_color(),
+                                    alpha=0.2, lw=0)
             for label, (px, py) in (paper or {}).items():
                 py = np.asarray(py)
                 ax.plot(px, py if py.ndim == 1 else py[:, p], "k^", ms=6, label=f"paper: {label}")

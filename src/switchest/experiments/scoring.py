@@ -10,7 +10,8 @@ import numpy as np
 
 from ..metrics import switch_time_error
 
-__all__ = ["blocks", "mean_and_se", "merge_blocks", "merge_groups", "score", "split_variants"]
+__all__ = ["blocks", "mean_and_se", "merge_blocks", "merge_groups", "rmse_and_se", "score",
+           "split_variants"]
 
 
 def blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
@@ -44,7 +45,9 @@ def split_variants(results: list[tuple[dict, dict]]) -> list[tuple[dict, dict]]:
 def score(est, traj, start: int, defined: np.ndarray | None = None) -> dict:
     """Sums over trials (and over samples from ``start`` on) of squared errors and hits.
 
-    ``sse``/``scale`` per state component, ``sse_per_step (K, n)``, ``mode_hits``
+    ``sse``/``scale`` per state component, ``sse_per_step (K, n)``, the sum over trials of
+    each trial's mean squared error and of its square (``trial_mse``, ``trial_mse_sq``, per
+    component: :func:`rmse_and_se`), ``mode_hits``
     where the estimate has modes, and switching-time errors (absolute and in units
     of the sampling interval) where it has switching times. ``defined (trials, K)``
     marks the samples where a method gives an estimate at all (e.g. a detector
@@ -58,6 +61,9 @@ def score(est, traj, start: int, defined: np.ndarray | None = None) -> dict:
     out = {"sse": np.sum(err[:, start:] ** 2, axis=(0, 1)).tolist(), "count": int(kept.sum()),
            "scale": np.sum(np.where(kept, traj.x[:, start:], 0.0) ** 2, axis=(0, 1)).tolist(),
            "sse_per_step": np.sum(err**2, axis=0).tolist(), "trials": traj.n_trials}
+    per_trial = np.sum(err[:, start:] ** 2, axis=1) / np.maximum(kept.sum(axis=1), 1)
+    out["trial_mse"] = np.sum(per_trial, axis=0).tolist()  # for the standard error of the RMSE
+    out["trial_mse_sq"] = np.sum(per_trial**2, axis=0).tolist()
     if defined is not None:
         out["samples"] = int(kept.size)
     if est.mode is not None:
@@ -79,6 +85,23 @@ def mean_and_se(total, total_sq, n: int) -> tuple[np.ndarray, np.ndarray]:
     mean = np.asarray(total, float) / n
     var = np.maximum(np.asarray(total_sq, float) / n - mean**2, 0.0) * n / (n - 1)
     return mean, np.sqrt(var / n)
+
+
+def rmse_and_se(total: dict) -> tuple[np.ndarray, np.ndarray]:
+    """RMSE per state component of merged :func:`score` sums, and its standard error.
+
+    The RMSE pools every scored sample, ``sqrt(sse / count)``. Its standard error comes from
+    the spread of the trials' own mean squared errors ``m_i`` (independent trials):
+    ``SE(mean m) = sd(m_i) / sqrt(N)``, carried to the square root by the delta method,
+    ``SE(RMSE) = SE(mean m) / (2 RMSE)``. NaN where fewer than two trials were scored.
+    """
+    rmse = np.sqrt(np.asarray(total["sse"], float) / total["count"])
+    n = total["trials"]
+    if n < 2 or "trial_mse" not in total:
+        return rmse, np.full_like(rmse, np.nan)
+    _, se_mse = mean_and_se(total["trial_mse"], total["trial_mse_sq"], n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return rmse, np.where(rmse > 0, se_mse / (2 * rmse), 0.0)
 
 
 def merge_blocks(results: Iterable[dict], *, first: Collection[str] = (),

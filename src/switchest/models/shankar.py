@@ -196,6 +196,10 @@ class BoostTable1:
         gap, 0.5 ms / 1.05 ms.
     transient : int
         Samples left out of the RMSE (10 ms).
+    min_dwell, max_dwell : float
+        Range of the random gaps between switches after 0.02 s (:func:`boost_switching`):
+        0.9 ms and 1.2 ms ("switch frequencies ranging from 1.2 to 0.9 ms/switch", §V.A);
+        ``min_dwell = max_dwell = 0.9e-3`` is the constant 0.9 ms of the Fig. 2 caption.
     """
 
     process_noise: float = 1.0
@@ -203,6 +207,8 @@ class BoostTable1:
     P0_diagonal: tuple[float, float] = (25.0, 25.0)
     transition: tuple[tuple[float, float], ...] = ((0.52, 0.48), (0.48, 0.52))
     transient: int = 20
+    min_dwell: float = 0.9e-3
+    max_dwell: float = 1.2e-3
 
     @property
     def prior(self) -> tuple[np.ndarray, np.ndarray]:
@@ -221,8 +227,12 @@ class BoostTable1:
     def simulate(self, duration: float, trials: int, rng) -> Trajectory:
         """``trials`` runs over ``duration`` seconds, initial states drawn from the prior."""
         t = periodic(BOOST_SAMPLE_PERIOD, duration)
-        return simulate(self.system(), lambda r: boost_switching(r, t_end=duration), t, self.prior,
-                        u=self.input, trials=trials, rng=rng)
+        def switching(r):
+            return boost_switching(r, t_end=duration, min_dwell=self.min_dwell,
+                                   max_dwell=self.max_dwell)
+
+        return simulate(self.system(), switching, t, self.prior, u=self.input, trials=trials,
+                        rng=rng)
 
 
 def vehicle_2d(*, measurement_variance: float = 0.05, process_noise=1e-3) -> SwitchedLinearSystem:
