@@ -410,3 +410,24 @@ def test_dwell_time_validation():
         dwell_time_observability(sys, 0.5, tau_d=-1.0)
     with pytest.raises(ValueError, match=r"R must have shape \(1, 1\)"):
         uniform_observability(sys.A[0], sys.C[0], 0.5, R=np.eye(2))
+
+
+def test_window_gramian_matches_the_segment_oracle():
+    from switchest.analysis import window_gramian
+
+    ex = LEMMA1_COUNTEREXAMPLE
+    A, H, T = np.array(ex["A"]), np.array(ex["H"]), ex["T"]
+    sys = SwitchedLinearSystem.continuous(A, C=H)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        times = np.sort(rng.uniform(-1.0, 6.0, size=3))
+        modes = rng.integers(0, 2, size=4)
+        expected = _window_gramian(A, np.stack([H, H]), T, 4, times, modes)
+        got = window_gramian(sys, T, 4, times, modes)
+        np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-14)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        window_gramian(sys, T, 2, [1.0, 0.5], [0, 1, 0])
+    with pytest.raises(ValueError, match=r"modes must have shape \(3,\)"):
+        window_gramian(sys, T, 2, [0.5, 1.0], [0, 1])
+    with pytest.raises(ValueError, match="mode index"):
+        window_gramian(sys, T, 2, [0.5], [0, 2])

@@ -56,7 +56,7 @@ _EXPORTS = {
                       "combined_observability", "dwell_time_observability", "is_observable",
                       "joint_gramian", "joint_observability", "kalman_decomposition",
                       "mode_decompositions", "mode_observability", "observability_matrix",
-                      "omega_min", "uniform_observability"),
+                      "omega_min", "uniform_observability", "window_gramian"),
     "scalar_search": ("largest_feasible",),
     "stability": ("JSRBounds", "LyapunovCertificate", "MeanSquareStability", "cqlf",
                   "decrease_margin", "jsr_bounds", "ms_stable_iid", "spectral_radius"),

@@ -20,11 +20,12 @@ decomposition, W_S); Shankar et al. (000) Definition 1, Assumption 1, Lemma 1
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
-from scipy.linalg import qr
+from scipy.linalg import expm, qr
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
@@ -60,6 +61,7 @@ __all__ = [
     "observability_matrix",
     "omega_min",
     "uniform_observability",
+    "window_gramian",
 ]
 
 _RTOL = 1e-7
@@ -642,6 +644,65 @@ def dwell_time_observability(
         h_modes=h_modes,
         rho_modes=rho_modes,
     )
+
+
+def window_gramian(system: SwitchedLinearSystem, T: float, h: int, switch_times,
+                   modes) -> np.ndarray:
+    """The window Gramian of the sampled switched system (Shankar et al., proof of Lemma 1).
+
+    ``G = sum_{i=0}^{h} Phi_{i,0}' C_i' R_i^{-1} C_i Phi_{i,0}`` over the samples
+    ``t_i = i T``, where ``Phi_{i,0}`` is the exact transition from ``t_0 = 0`` to ``t_i``
+    (segment exponentials composed across every switch inside an interval, Shankar et al.
+    eqs (3)-(5)) and ``C_i``, ``R_i`` are those of the mode active at ``t_i``; ``R`` is the
+    identity for a noise-free system. Lemma 1 claims ``G >= rho_1 I``: the smallest
+    eigenvalue of this matrix is what the claim is checked against
+    (:func:`dwell_time_observability`).
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        Continuous-time.
+    T : float
+        Sampling period.
+    h : int
+        The window: samples ``0..h``.
+    switch_times : array_like, shape (S,)
+        Increasing switching instants (any sign: a switch before 0 sets the mode at 0).
+    modes : array_like of int, shape (S + 1,)
+        ``modes[q]`` is active between ``switch_times[q-1]`` and ``switch_times[q]``.
+    """
+    _check_system(system)
+    if system.domain != "continuous":
+        raise ValueError(f"system must be continuous-time, got {system.domain!r}")
+    T = positive_scalar(T, "T")
+    h = positive_int(h, "h")
+    times = float_array(switch_times, "switch_times", ndim=1)
+    check_finite(times, "switch_times")
+    if np.any(np.diff(times) <= 0):
+        raise ValueError("switch_times must be strictly increasing")
+    modes = np.asarray(modes)
+    if modes.shape != (times.size + 1,):
+        raise ValueError(f"modes must have shape ({times.size + 1},) (one more than the switch "
+                         f"times), got {modes.shape}")
+    for q, mode in enumerate(modes):
+        check_mode(mode, system.n_modes, f"modes[{q}]")
+
+    def mode_at(t: float) -> int:
+        return int(modes[np.searchsorted(times, t, side="right")])
+
+    n = system.n_states
+    gram, phi = np.zeros((n, n)), np.eye(n)
+    for i in range(h + 1):
+        mode = mode_at(i * T)
+        C = system.C[mode]
+        if system.has_measurement_noise:
+            C = np.linalg.solve(np.linalg.cholesky(system.R[mode]), C)  # R^{-1/2} C
+        gram += phi.T @ C.T @ C @ phi
+        inside = times[(times > i * T) & (times < (i + 1) * T)]
+        cuts = np.concatenate([[i * T], inside, [(i + 1) * T]])
+        for lo, hi in itertools.pairwise(cuts):
+            phi = expm(system.A[mode_at(lo)] * (hi - lo)) @ phi
+    return symmetrize(gram)
 
 
 # ---------------------------------------------------------------------- helpers
