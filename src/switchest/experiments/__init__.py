@@ -1,5 +1,5 @@
 """Paper reproductions: a registry of named experiments, a resumable parallel runner,
-a SQLite results store and an HTML report (DESIGN.md §6).
+a SQLite results store and an HTML report.
 
 Importing this package registers every experiment.
 """
