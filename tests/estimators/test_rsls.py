@@ -20,7 +20,7 @@ from switchest.analysis.subsystem_observers import (
     steady_state,
     subsystem_structure,
 )
-from switchest.estimators.rsls import RSLSObserver
+from switchest.estimators.rsls import RSLSObserver, fine_step_error_system
 from switchest.models.wang import (
     IEEE_5BUS_INITIAL_ERROR,
     IEEE_5BUS_POLES,
@@ -118,6 +118,80 @@ def test_noise_free_5bus_multi_output_and_lost_channels():
         pred.append(e)
     assert len(np.unique(traj.mode[:, :K])) == 4
     np.testing.assert_allclose(err, np.stack(pred, axis=1), rtol=0, atol=2e-3 * np.abs(pred).max())
+
+
+# ---------------------------------------------------------------- the fine-step error system
+def test_fine_step_error_system_of_the_scalar_pair_in_closed_form():
+    """Per fine step h the closed component's error is multiplied by
+    g = e^{ah} - K_h Psi_h, K_h = L (e^{(a-L)h} - 1) / ((a-L) h), Psi_h = (e^{ah} - 1) / a, and
+    receives K_h^2 zeta h of noise; the open component follows e^{aT}."""
+    L1, L2, T, sub = 40.0, 15.0, 0.03, 20
+    Lam, W = fine_step_error_system(SYS, scalar_gains(L1, L2), T, sub)
+    h = T / sub
+    for mode, (a, L) in enumerate(((A1, L1), (A2, L2))):
+        K = L * np.expm1((a - L) * h) / ((a - L) * h)
+        g = np.exp(a * h) - K * np.expm1(a * h) / a
+        closed = np.zeros((2, 2))
+        closed[mode, mode] = g**sub
+        other = 1 - mode
+        closed[other, other] = np.exp((A1, A2)[other] * T)
+        np.testing.assert_allclose(Lam[mode], closed, rtol=1e-11, atol=0)
+        noise = np.zeros((2, 2))
+        noise[mode, mode] = K**2 * ZETA * h * np.sum(g ** (2 * np.arange(sub)))
+        np.testing.assert_allclose(W[mode], noise, rtol=1e-11, atol=1e-20)
+
+
+def test_fine_step_error_system_tends_to_theorem_1_at_second_order():
+    """The 5-bus observer (multi-output mode 1, shared 4-dimensional sub-state): the fine-step
+    maps and noise approach Theorem 1's Lambda(i) and W(i) with an O(h^2) gap."""
+    bus, T = ieee_5bus(), IEEE_5BUS_SAMPLE_PERIOD
+    gains = place_gains(subsystem_structure(bus), [IEEE_5BUS_POLES] * 3 + [None])
+    dyn = error_dynamics(bus, gains, T)
+    F, Phi = dyn.structure.F, dyn.structure.Phi
+    gaps = []
+    for sub in (40, 80):
+        Lam, W = fine_step_error_system(bus, gains, T, sub)
+        gaps.append((np.abs(Lam - Phi @ dyn.Lam @ F).max(), np.abs(W - Phi @ dyn.W @ Phi.T).max()))
+    (lam40, w40), (lam80, w80) = gaps
+    assert lam80 < 1e-2 * np.abs(dyn.Lam).max() and w80 < 1e-2 * np.abs(dyn.W).max()
+    assert 3.5 < lam40 / lam80 < 5.0 and 3.5 < w40 / w80 < 5.0  # 4.15, 4.43
+
+
+def test_sample_errors_follow_the_fine_step_error_system_exactly():
+    """Noise free, the errors at kT are products of the fine-step maps along each run's modes."""
+    nf = SwitchedLinearSystem.continuous(SYS.A, C=SYS.C)
+    gains, T, K, sub = scalar_gains(40.0, 15.0), 0.03, 30, 10
+    t = T * np.arange(K + 1)
+    traj = simulate(nf, lambda r: iid_at_samples(PROB, t, rng=r), t, X0, trials=3, rng=11,
+                    fine_dt=T / sub, output="integrated")
+    err = RSLSObserver(nf, gains, T, XHAT0, np.zeros((2, 2))).sample_errors(traj)
+    Lam, W = fine_step_error_system(nf, gains, T, sub)
+    assert np.all(W == 0.0)
+    e = np.broadcast_to(XHAT0 - X0, (3, 2))
+    pred = [e]
+    for k in range(K):
+        e = np.einsum("nij,nj->ni", Lam[traj.mode[:, k]], e)
+        pred.append(e)
+    assert err.shape == (3, K + 1, 2) and len(np.unique(traj.mode[:, :K])) == 2
+    np.testing.assert_allclose(err, np.stack(pred, axis=1), rtol=0,
+                               atol=1e-12 * np.abs(XHAT0 - X0).max())
+
+
+def test_fine_step_error_system_and_sample_errors_refuse_what_they_cannot_do():
+    stacked = wang_scalar_pair(A1, A2, ZETA)
+    with pytest.raises(TypeError, match="system must be a SwitchedLinearSystem"):
+        fine_step_error_system("sys", scalar_gains(40.0, 15.0), 0.03, 10)
+    with pytest.raises(ValueError, match="substeps must be a positive int"):
+        fine_step_error_system(stacked, scalar_gains(40.0, 15.0), 0.03, 0)
+    # mode 1 observes the whole state, mode 2 only x_2: three sub-states for two states
+    nested = SwitchedLinearSystem.continuous(SYS.A, C=[[[1.0, 1.0]], [[0.0, 1.0]]], R=SYS.R)
+    with pytest.raises(ValueError, match=r"one sub-state per state \(n_s = n\), got n_s = 3"):
+        fine_step_error_system(nested, np.zeros((2, 2, 1)), 0.03, 10)
+    t = 0.03 * np.arange(4)
+    coarse = simulate(stacked, lambda r: iid_at_samples(PROB, t, rng=r), t, X0, trials=2, rng=0)
+    observer = RSLSObserver(stacked, scalar_gains(40.0, 15.0), 0.03, XHAT0, np.eye(2))
+    with pytest.raises(ValueError, match="integrated output on a fine grid"):
+        observer.sample_errors(coarse)
 
 
 # ---------------------------------------------------------------- Monte Carlo, 400 runs

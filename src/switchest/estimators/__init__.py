@@ -1,4 +1,4 @@
-"""Estimators, all on one protocol: ``init -> step -> run -> Estimate`` (DESIGN.md §4).
+"""Estimators, all on one protocol: ``init -> step -> run -> Estimate``.
 
 :class:`Estimator` declares the protocol; :mod:`.registry` lists the methods a user selects
 by name (:data:`METHOD_NAMES`, :func:`get_method`).
@@ -27,7 +27,7 @@ _EXPORTS = {
                      "window_estimate"),
     "mode_kalman": ("ModeKalmanFilter",),
     "registry": ("METHOD_NAMES", "Method", "get_method"),
-    "rsls": ("RSLSObserver", "RSLSState"),
+    "rsls": ("RSLSObserver", "RSLSState", "fine_step_error_system"),
     "switch_time": ("SwitchTimeKalmanFilter", "switch_time_loglik"),
 }
 __getattr__, __dir__ = deferred(__name__, globals(), _EXPORTS)

@@ -30,6 +30,9 @@ open-loop prediction ``x_ol(t) = e^{A_k (t - kT)} x_hat_k`` that drives the open
 blocks inside the interval. Alongside it the estimator propagates ``Sigma``, the
 exact covariance of the error of ``s`` given the mode path (for a Gaussian
 initial error ``N(0, P0)``); ``P = Phi Sigma_zz Phi'`` is reported.
+
+:meth:`RSLSObserver.sample_errors` gives the observer's error at the samples of a simulated
+trajectory, :func:`fine_step_error_system` the exact sampled error system of its fine steps.
 """
 
 from __future__ import annotations
@@ -38,14 +41,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_bool, float_array, positive_scalar
+from .._checks import check_bool, float_array, positive_int, positive_scalar
 from .._linalg import symmetrize
 from ..analysis.subsystem_observers import substate_gains, subsystem_structure
 from ..discretize import mode_steps
 from ..system import SwitchedLinearSystem
 from .base import Estimate, Estimator
 
-__all__ = ["RSLSObserver", "RSLSState"]
+__all__ = ["RSLSObserver", "RSLSState", "fine_step_error_system"]
 
 _GRID_RTOL = 1e-9
 
@@ -230,6 +233,30 @@ class RSLSObserver(Estimator):
             )
         return self._unflatten(self._loop(y2, u2, t, {"mode": used}), batch)
 
+    def sample_errors(self, traj) -> np.ndarray:
+        """The estimation error ``x_hat_k - x_k`` at the samples of a simulated trajectory.
+
+        Runs the observer on ``traj``'s integrated output on its fine grid and subtracts the
+        true state at the samples: with samples at the switching instants ``kT`` this is the
+        error of Wang et al. Theorem 1 (eq. (15)), whose moments
+        :mod:`switchest.analysis.error_moments` gives exactly.
+
+        Parameters
+        ----------
+        traj : Trajectory
+            From ``simulate(..., fine_dt=..., output="integrated")``: the fine grid contains
+            every sample.
+
+        Returns
+        -------
+        ndarray, shape (N, K, n)
+        """
+        if traj.y_fine is None:
+            raise ValueError("traj must carry the integrated output on a fine grid: "
+                             "simulate(..., fine_dt=..., output='integrated')")
+        est = self.run(traj.y_fine, t=traj.t_fine, modes=traj.mode_fine)
+        return est.x[:, np.searchsorted(traj.t_fine, traj.t)] - traj.x
+
     # ------------------------------------------------------------------ fine-step matrices
     def _fine(self, h: float) -> _FineStep:
         key = float(np.format_float_positional(h, precision=13, unique=False, fractional=False))
@@ -252,3 +279,49 @@ class RSLSObserver(Estimator):
         C[:, :, :n_s] = self._C2 @ op.G  # C2 Psi_h
         self._steps[key] = _FineStep(A0, B, C)
         return self._steps[key]
+
+
+def fine_step_error_system(system, gains, T: float, substeps: int) -> tuple[np.ndarray, np.ndarray]:
+    """The sampled error system of the observer as it runs, ``substeps`` fine steps per interval.
+
+    Wang et al. Theorem 1 (eq. (15)), ``e_{k+1} = Lambda(alpha_k) e_k + Gamma(alpha_k) d_k``,
+    is the error of the continuous-time sub-observers
+    (:func:`~switchest.analysis.subsystem_observers.error_dynamics`). :class:`RSLSObserver`
+    runs them on fine steps ``h = T / substeps``, whose error map agrees with ``e^{A_c h}`` to
+    second order in ``h`` only. This is the sampled error system of that discretization, in
+    state coordinates: column ``j`` of ``Lam[i]`` is the error after one interval in mode
+    ``i`` from the unit initial error ``e_j``, noise free, and ``W[i]`` the covariance of the
+    error the interval's output noise injects (the propagated covariance from ``P0 = 0``). The
+    steady state of eq. (21) of the observer as it runs is then
+    :func:`~switchest.analysis.error_moments.moment_fixed_point` of ``(Lam, W)``.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        As for :class:`RSLSObserver`, with one sub-state per state (``n_s = n``), so that the
+        state error at ``kT`` determines the sub-state error the next interval starts from.
+    gains : array_like, shape (L, n, m)
+        Sub-observer gains in state coordinates.
+    T : float
+        Switching interval.
+    substeps : int
+        Fine steps per interval.
+
+    Returns
+    -------
+    Lam, W : ndarray, shape (L, n, n)
+    """
+    if not isinstance(system, SwitchedLinearSystem):
+        raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    substeps = positive_int(substeps, "substeps")
+    n, L, m = system.n_states, system.n_modes, system.n_outputs
+    observers = [RSLSObserver(system, gains, T, e, np.zeros((n, n))) for e in np.eye(n)]
+    if observers[0].structure.n_substates != n:
+        raise ValueError(f"fine_step_error_system needs one sub-state per state (n_s = n), got "
+                         f"n_s = {observers[0].structure.n_substates}, n = {n}")
+    t = np.linspace(0.0, T, substeps + 1)
+    quiet = np.zeros((L, substeps + 1, m))  # x = 0 and no noise: the estimate is the error
+    modes = np.repeat(np.arange(L)[:, None], substeps + 1, axis=1)  # run i stays in mode i
+    runs = [obs.run(quiet, t=t, modes=modes) for obs in observers]
+    Lam = np.stack([r.x[:, -1] for r in runs], axis=-1)
+    return Lam, runs[0].P[:, -1]  # the covariance does not depend on the estimate
