@@ -41,6 +41,17 @@ def test_bakeoff_quick(quick):
         assert all(floor <= 1.001 * v for v in kalman), case
 
 
+def test_rmse_rows_carry_standard_errors(quick):
+    """Each measured RMSE has its standard error over the trials; the per-trial sums of the
+    whole state's mean squared error add up to the per-component ones of score()."""
+    params, results, summary = quick
+    measured = [r for r in summary.rows if r.measured != "n/a"]
+    assert all(r.paper is None and r.trials == params["trials"] and r.se > 0 for r in measured)
+    for cfg, res in results:
+        assert res["state_trial_mse"] == pytest.approx(sum(res["trial_mse"]), rel=1e-12)
+        assert res["state_trial_mse_sq"] >= res["state_trial_mse"] ** 2 / cfg["trials"]
+
+
 def test_min_distance_detector_on_the_fsk_case(quick):
     _, results, _ = quick
     tot = merge_blocks([res for cfg, res in results

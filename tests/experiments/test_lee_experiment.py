@@ -14,6 +14,8 @@ import pytest
 from summary_rows import find_row
 
 from switchest.analysis.min_distance_design import lee_assumptions
+from switchest.experiments.scoring import mean_and_se
+from switchest.experiments.verdict import Verdict, printed_condition
 from switchest.models.lee import LEE_SCENARIO as S
 from switchest.simulate import simulate
 
@@ -93,14 +95,47 @@ def test_summary_shows_the_guarantees_beside_ours(run):
     _, _, summary = run
     within = find_row(summary, f"v = {S.v_max:g}: switches declared within Δ")
     assert within.measured == 1.0 and "Theorem 2" in within.paper
-    assert "guarantee met" in within.note
+    assert printed_condition(within.paper) == ("≥", 1.0)
     false = find_row(summary, f"v = {S.v_max:g}: false declarations")
-    assert false.measured == 0.0 and false.paper == "0 (Lemma 1)"
+    assert false.measured == 0.0 and printed_condition(false.paper) == ("≤", 0.0)
+    assert "Lemma 1" in false.paper
+    # the guarantees hold for every switch, window and trial: reproduced, with no sampling
+    # allowance (a single failure would refute them)
+    guarantees = _rows(summary, f"v = {S.v_max:g}:")
+    assert len(guarantees) == 4
+    assert all(r.verdict is Verdict.REPRODUCED and r.se is None for r in guarantees)
+    assert not any(n.startswith("GUARANTEE VIOLATED") for n in summary.notes)
     # no guarantee is claimed where the assumptions fail
     assert all(r.paper is None for r in _rows(summary, "v = 0.8:"))
     allowed = find_row(summary, "largest noise bound").measured
     assert S.v_max < allowed < 0.3
     assert len(summary.figures) == 3 and all(f.exists() for f in summary.figures)
+
+
+def test_monte_carlo_rows_carry_standard_errors(run):
+    """Beyond the assumptions the counts are Monte Carlo estimates: binomial over the uncensored
+    switches for the fraction declared on time, over the trials for false declarations (from the
+    per-trial sums of squares, checked against a recount)."""
+    _, results, summary = run
+    blocks = _at(results, 0.8, 0.8)
+    on_time = sum(r["on_time"] for r in blocks)
+    n = sum(r["n_switches"] - r["censored"] for r in blocks)
+    within = find_row(summary, "v = 0.8: switches declared within Δ")
+    p = on_time / n
+    assert within.trials == n and within.se == pytest.approx(np.sqrt(p * (1 - p) / n))
+    false = find_row(summary, "v = 0.8: false declarations")
+    trials = sum(r["trials"] for r in blocks)
+    _, se = mean_and_se(sum(r["false"] for r in blocks), sum(r["false_sq"] for r in blocks),
+                        trials)
+    assert false.trials == trials and false.se == pytest.approx(se) and false.se > 0
+    for r in blocks:  # the sum of squares is of per-trial counts that add up to the total
+        assert r["false"] <= r["false_sq"] <= r["false"] ** 2
+
+
+def test_the_window_note_gives_the_margin_the_printed_start_would_eat(run):
+    _, _, summary = run
+    note = next(n for n in summary.notes if "energy s of (24)" in n)
+    assert f"up to {S.v_max**2 * S.delta:.3g}" in note
 
 
 def test_interpolation_gap_covers_the_gap_to_the_smooth_output():
