@@ -189,8 +189,8 @@ def _cells(row: Row) -> tuple[str, str]:
     ours = _number(float(row.measured), decimals)
     if row.se is not None:
         ours += f" ± {_number(row.se, _se_decimals(row.se))}"
-        if row.trials:
-            ours += f" <span class='meta'>(n = {row.trials})</span>"
+    if row.trials:
+        ours += f" <span class='meta'>(n = {row.trials})</span>"
     return paper, ours
 
 
