@@ -135,3 +135,23 @@ def test_estimate_errors_name_the_model_tables(lee_csv, tmp_path, capsys):
     assert main([*args, "--method", "imm", "--switch-interval", "0.1"]) == 2
     err = capsys.readouterr().err
     assert "switch_interval applies to method 'rsls' only, got method 'imm'" in err
+
+
+def test_simulate_then_estimate_from_the_shell(tmp_path, capsys):
+    model = Path(__file__).resolve().parents[1] / "examples" / "models" / "shankar-boost.toml"
+    data, est = tmp_path / "d.csv", tmp_path / "e.csv"
+    assert main(["simulate", "--model", str(model), "--duration", "0.05", "--trials", "2",
+                 "--input", "100", "--seed", "3", "--out", str(data)]) == 0
+    assert "2 trials of 101 samples" in capsys.readouterr().out
+    assert main(["estimate", "--model", str(model), "--data", str(data), "--method",
+                 "switch-time", "--out", str(est)]) == 2
+    assert "--trial" in capsys.readouterr().err
+    assert main(["estimate", "--model", str(model), "--data", str(data), "--method",
+                 "switch-time", "--trial", "1", "--out", str(est)]) == 0
+    truth = pd.read_csv(data).query("trial == 1")
+    estimate = pd.read_csv(est)
+    rmse = np.sqrt(np.mean((estimate["x1"].to_numpy() - truth["x1"].to_numpy()) ** 2))
+    assert rmse < np.sqrt(5.0)  # v_0 better than its raw measurement (R = 5 V^2)
+    assert main(["simulate", "--model", str(model), "--input", "1,x", "--out",
+                 str(data)]) == 2
+    assert "--input must be comma-separated numbers" in capsys.readouterr().err

@@ -122,3 +122,41 @@ def test_arrays_without_a_trials_axis_go_with_the_chosen_trial():
     table = write_measurements(None, t, traj.y, u=shared, trial=0)
     np.testing.assert_array_equal(table["u"], shared[:, 0])
     np.testing.assert_array_equal(table[["y0", "y1"]].to_numpy(), traj.y[0])
+
+
+# ------------------------------------------------------------------ simulate_measurements, trials
+def test_simulated_trials_read_back_one_at_a_time():
+    from switchest.measurements import simulate_measurements
+
+    table = simulate_measurements(LEE, duration=0.05, trials=3, u=[0.5], rng=4)
+    assert list(table.columns[:2]) == ["trial", "t"] and set(table["trial"]) == {0, 1, 2}
+    with pytest.raises(ValueError, match=r"holds 3 trials \(0\.\.2\): choose one"):
+        read_measurements(table, LEE)
+    again = simulate_measurements(LEE, duration=0.05, trials=3, u=[0.5], rng=4)
+    pd.testing.assert_frame_equal(table, again)  # one seed, one table
+    runs = [read_measurements(table, LEE, trial=i) for i in range(3)]
+    np.testing.assert_array_equal(runs[0]["t"], runs[2]["t"])  # the trials share their times
+    boost = load_model(EXAMPLES / "shankar-boost.toml")  # a model with noise: each trial its own
+    noisy = simulate_measurements(boost, duration=0.01, trials=2, u=[100.0], rng=4)
+    first, second = (read_measurements(noisy, boost, trial=i)["y"] for i in range(2))
+    assert not np.array_equal(first, second)
+    assert np.all(runs[1]["u"] == 0.5) and runs[1]["mode"].min() >= 0
+    with pytest.raises(ValueError, match=r"trial=5: .* holds trials 0\.\.2"):
+        read_measurements(table, LEE, trial=5)
+    with pytest.raises(TypeError, match="trial must be an int"):
+        read_measurements(table, LEE, trial=1.0)
+    single = simulate_measurements(LEE, duration=0.05, rng=4)
+    assert "trial" not in single.columns
+    with pytest.raises(ValueError, match="has no 'trial' column"):
+        read_measurements(single, LEE, trial=0)
+
+
+def test_simulate_measurements_refuses_bad_input():
+    from switchest.measurements import simulate_measurements
+
+    with pytest.raises(ValueError, match="u must hold the model's 1 input"):
+        simulate_measurements(LEE, duration=0.05, u=[1.0, 2.0])
+    with pytest.raises(ValueError, match="trials must be a positive int"):
+        simulate_measurements(LEE, duration=0.05, trials=0)
+    with pytest.raises(ValueError, match=r"no \[switching\] table"):
+        simulate_measurements(spec_for(1, 0, 2), duration=1.0)

@@ -433,7 +433,7 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
         table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
                                refine=args.refine, stay=args.stay, v_max=args.v_max,
                                delta=args.delta, Delta=args.Delta,
-                               switch_interval=args.switch_interval)
+                               switch_interval=args.switch_interval, trial=args.trial)
     table.to_csv(out, index=False)
     console.print(f"{len(table)} samples estimated with {args.method}: "
                   f"[bold]{escape(str(out))}[/bold]")
@@ -448,6 +448,30 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
                ylabel=[f"x{i}" for i in range(states.shape[1])], markers=switches, title=title)
         console.print(f"figure: {escape(str(plot))}")
     return 0
+
+
+def _cmd_simulate(args: argparse.Namespace, console: Console) -> int:
+    from .measurements import simulate_measurements
+    from .modelfile import load_model
+
+    out = _output_file(Path(args.out), "--out")
+    spec = load_model(args.model)
+    u = None if args.input is None else _numbers_option(args.input, "--input")
+    table = simulate_measurements(spec, duration=args.duration, trials=args.trials, u=u,
+                                  rng=args.seed)
+    table.to_csv(out, index=False)
+    runs = f"{args.trials} trials of " if args.trials > 1 else ""
+    console.print(f"{runs}{table['t'].nunique()} samples simulated from {escape(str(args.model))}: "
+                  f"[bold]{escape(str(out))}[/bold]")
+    return 0
+
+
+def _numbers_option(text: str, option: str) -> list[float]:
+    """Comma-separated numbers of a command-line option."""
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise _UsageError(f"{option} must be comma-separated numbers, got {text!r}") from None
 
 
 def _cmd_check(args: argparse.Namespace, console: Console) -> int:
@@ -539,8 +563,21 @@ def _parser() -> _Parser:
     p_est.add_argument("--switch-interval", type=_window, default=None,
                        help="rsls: switching interval T, modes change only at t0 + kT (default: "
                             "sampling.period)")
+    p_est.add_argument("--trial", type=_seed, default=None,
+                       help="which trial to estimate, in a CSV with a trial column")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")
     p_est.add_argument("--plot", default=None, help="figure of the estimates (.png, .pdf, .svg)")
+    p_sim = command("simulate", _cmd_simulate,
+                    help="simulate a model file into a measurement CSV (for estimate)")
+    p_sim.add_argument("--model", required=True, type=_existing_file, help="TOML model file")
+    p_sim.add_argument("--duration", type=_duration, default=None,
+                       help="time to simulate (default: the model's sampling.duration)")
+    p_sim.add_argument("--trials", type=_positive, default=1,
+                       help="independent runs (a trial column when more than one)")
+    p_sim.add_argument("--input", default=None,
+                       help="constant input, comma-separated (default: zero)")
+    p_sim.add_argument("--seed", type=_seed, default=0)
+    p_sim.add_argument("--out", required=True, help="CSV of t, u, y, mode and the true x")
     p_check = command("check", _cmd_check, help="certify what switchest can about a model file")
     p_check.add_argument("--model", required=True, type=_existing_file, help="TOML model file")
     p_report = command("report", _cmd_report, help="write the HTML report of a results store")

@@ -8,11 +8,14 @@ output column (or ``NaN``) is a missing sample; anything else that is not a
 finite number (``n/a``, ``NA``, ``null``, ``-``, ``inf`` ...) is refused with the
 row and column named. Other columns are ignored, but a ``y``/``u`` column the
 model does not have is refused, as are a duplicated column name and, in a CSV
-file, a row with more or fewer fields than the header.
+file, a row with more or fewer fields than the header. A table of several runs
+(``switchest simulate --trials N``) has a column ``trial`` (0, 1, ...) ahead of
+the others; the reader takes one trial at a time.
 
 :func:`read_measurements` reads and checks a table against a model,
 :func:`write_measurements` writes samples (one trial of a
-:class:`~switchest.simulate.Trajectory`, say) in the same format, and
+:class:`~switchest.simulate.Trajectory`, say) in the same format,
+:func:`simulate_measurements` simulates a model file into such a table, and
 :func:`mode_signal` is the switching signal a ``mode`` column stands for.
 """
 
@@ -27,11 +30,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._checks import check_finite, float_array, int_array
+from ._checks import as_rng, check_finite, float_array, int_array, positive_int
 from .modelfile import ModelSpec
 from .signals import SwitchingSignal, schedule
+from .simulate import simulate
 
-__all__ = ["mode_signal", "read_measurements", "write_measurements"]
+__all__ = ["mode_signal", "read_measurements", "simulate_measurements", "write_measurements"]
 
 _SIGNAL_NAME = re.compile(r"[yu]\d*")  # names the model's output and input columns take
 _MISSING_TEXT = ("", "nan")  # the only cells that mean "no sample" (case-insensitive, stripped)
@@ -54,7 +58,8 @@ class _Table:
         return f"{self.name} row {i}" + ("" if self.lines is None else f" (line {self.lines[i]})")
 
 
-def read_measurements(data: pd.DataFrame | str | Path, spec: ModelSpec) -> dict[str, np.ndarray]:
+def read_measurements(data: pd.DataFrame | str | Path, spec: ModelSpec, *,
+                      trial: int | None = None) -> dict[str, np.ndarray]:
     """Validate a measurement table against the model; returns ``t``, ``y``, ``u`` (and ``mode``).
 
     Only an empty cell or ``NaN`` (any case) is a missing value, and only in an
@@ -69,6 +74,9 @@ def read_measurements(data: pd.DataFrame | str | Path, spec: ModelSpec) -> dict[
         The table, or the path of a CSV file holding it.
     spec : ModelSpec
         The model whose inputs, outputs and modes the table must match.
+    trial : int, optional
+        Which trial to read from a table with a ``trial`` column; needed when it
+        holds more than one.
 
     Returns
     -------
@@ -94,6 +102,7 @@ def read_measurements(data: pd.DataFrame | str | Path, spec: ModelSpec) -> dict[
     else:
         raise TypeError(f"data must be a DataFrame or the path of a CSV file, got "
                         f"{type(data).__name__}")
+    table = _select_trial(table, trial)
     sys = spec.system
     y_cols = _columns("y", sys.n_outputs)
     u_cols = _columns("u", sys.n_inputs) if sys.n_inputs else []
@@ -132,6 +141,93 @@ def read_measurements(data: pd.DataFrame | str | Path, spec: ModelSpec) -> dict[
                              f"index; column 'mode' must hold mode indices 0..{sys.n_modes - 1}")
         result["mode"] = modes.astype(np.int64)
     return result
+
+
+def _select_trial(table: _Table, trial: int | None) -> _Table:
+    """The rows of one trial of a table with a ``trial`` column (the table itself without
+    one, where ``trial`` must be None)."""
+    names = [str(c) for c in table.frame.columns]
+    if "trial" not in names:
+        if trial is not None:
+            raise ValueError(f"trial={trial!r}: {table.name} has no 'trial' column (it holds one "
+                             "run); leave the trial out")
+        return table
+    if names.count("trial") > 1:
+        raise ValueError(f"{table.name}: column 'trial' appears more than once")
+    labels = _numbers(table, names.index("trial"), "trial")
+    bad = ~np.isfinite(labels) | (labels != np.round(labels)) | (labels < 0)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{table.row(row)}, column 'trial': must be a trial number 0, 1, ...")
+    present = np.unique(labels).astype(np.int64)
+    if trial is None:
+        if present.size > 1:
+            raise ValueError(f"{table.name} holds {present.size} trials ({present[0]}.."
+                             f"{present[-1]}): choose one (trial=, or --trial)")
+        trial = int(present[0])
+    elif isinstance(trial, bool) or not isinstance(trial, (int, np.integer)):
+        raise TypeError(f"trial must be an int, got {type(trial).__name__}")
+    if trial not in present:
+        raise ValueError(f"trial={trial}: {table.name} holds trials {present[0]}..{present[-1]}"
+                         f" ({present.size} of them)")
+    rows = np.flatnonzero(labels == trial)
+    frame = table.frame.iloc[rows].drop(columns="trial").reset_index(drop=True)
+    lines = None if table.lines is None else [table.lines[i] for i in rows]
+    return _Table(frame, f"{table.name} (trial {trial})", lines)
+
+
+def simulate_measurements(spec: ModelSpec, *, duration: float | None = None, trials: int = 1,
+                          u=None, rng=None) -> pd.DataFrame:
+    """Simulate a model file into a measurement table (``switchest simulate``).
+
+    The sample times come from the file's ``[sampling]`` (an aperiodic one drawn once and
+    shared by the trials), the switching from its ``[switching]`` model (drawn per trial),
+    the initial state from its ``[initial]`` Gaussian (zero without one); the noises are the
+    system's. The table holds ``t``, the inputs, the outputs, the true ``mode`` and the true
+    states ``x0 ..`` (which the reader ignores), with a ``trial`` column first when
+    ``trials > 1``: it reads back with :func:`read_measurements` and runs in
+    ``switchest estimate``.
+
+    Parameters
+    ----------
+    spec : ModelSpec
+        The model file (:func:`switchest.modelfile.load_model`).
+    duration : float, optional
+        Seconds (or, for a discrete system, time units) to simulate; default the file's
+        ``sampling.duration``.
+    trials : int
+        Independent runs.
+    u : array_like, shape (l,), optional
+        A constant input; zero by default.
+    rng : numpy.random.Generator, int or None
+        The seed of everything drawn.
+
+    Returns
+    -------
+    DataFrame
+    """
+    trials = positive_int(trials, "trials")
+    rng = as_rng(rng)
+    sys = spec.system
+    if spec.switching is None:
+        raise ValueError("the model has no [switching] table: simulate needs a switching model")
+    if u is None:
+        u = np.zeros(sys.n_inputs)
+    u = float_array(u, "u", ndim=1)
+    if u.shape != (sys.n_inputs,):
+        raise ValueError(f"u must hold the model's {sys.n_inputs} input(s), got {u.size}")
+    check_finite(u, "u")
+    t = spec.sample_times(duration, rng=rng)
+    x0 = spec.initial if spec.initial is not None else np.zeros(sys.n_states)
+    traj = simulate(sys, spec.switching, t, x0, u, trials=trials, rng=rng)
+    frames = []
+    for i in range(trials):
+        frame = write_measurements(None, t, traj.y, u=traj.u if sys.n_inputs else None,
+                                   x=traj.x, modes=traj.mode, trial=i)
+        if trials > 1:
+            frame.insert(0, "trial", i)
+        frames.append(frame)
+    return pd.concat(frames, ignore_index=True)
 
 
 def _read_csv(path: Path) -> _Table:

@@ -84,7 +84,8 @@ _LEE_SETTINGS = {  # option -> (what it is, CLI flag)
 def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: str, grid: int = 5,
                    refine: bool = False, stay: float | None = None, v_max: float | None = None,
                    delta: float | None = None, Delta: float | None = None,
-                   switch_interval: float | None = None) -> pd.DataFrame:
+                   switch_interval: float | None = None,
+                   trial: int | None = None) -> pd.DataFrame:
     """Run ``method`` on measured data; returns a table of estimates per sample.
 
     Parameters
@@ -108,6 +109,8 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     switch_interval : float, optional
         ``rsls`` only: the switching interval ``T`` (Wang et al. Assumption 1);
         overrides ``sampling.period``.
+    trial : int, optional
+        The trial to estimate from a table of several (a ``trial`` column).
 
     Returns
     -------
@@ -125,7 +128,7 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
                 owners = " or ".join(repr(m) for m in METHODS if name in get_method(m).options)
                 raise ValueError(f"{name} applies to method {owners} only, got method {method!r}")
             options[name] = positive_scalar(options[name], name)
-    meas = read_measurements(data, spec)
+    meas = read_measurements(data, spec, trial=trial)
     modes = _modes(meas, method) if entry.needs_modes else None
     return _table(meas["t"], _RUNNERS[method](entry, spec, meas, options, modes))
 
