@@ -155,3 +155,23 @@ def test_simulate_then_estimate_from_the_shell(tmp_path, capsys):
     assert main(["simulate", "--model", str(model), "--input", "1,x", "--out",
                  str(data)]) == 2
     assert "--input must be comma-separated numbers" in capsys.readouterr().err
+
+
+def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatch):
+    """In a pipe or a log (80 columns) no column is squeezed away: every row still starts with
+    its label, and no line is wider than the terminal."""
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["run", "shankar-lemma1", "--quick", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert max(len(line) for line in out.splitlines()) <= 80
+    first_cells = [line.split("│")[1].strip() for line in out.splitlines()
+                   if line.startswith("│")]
+    for label in ("Lemma 1's", "smallest eigenvalue", "corrected statement"):
+        assert any(cell.startswith(label.split()[0]) for cell in first_cells), label
+    model = Path(__file__).resolve().parents[1] / "examples" / "models" / "wang-ieee5bus.toml"
+    assert main(["check", "--model", str(model)]) == 0
+    out = capsys.readouterr().out
+    assert max(len(line) for line in out.splitlines()) <= 80
+    first_cells = [line.split("│")[1].strip() for line in out.splitlines()
+                   if line.startswith("│")]
+    assert sum(1 for cell in first_cells if len(cell) >= 4) >= 5  # labels, not slivers

@@ -279,10 +279,13 @@ def _summary_table(summary) -> Table:
     colour = {Verdict.REPRODUCED: "green", Verdict.WITHIN_ERROR: "green",
               Verdict.EXPLAINED: "yellow", Verdict.DIFFERS: "red", Verdict.DERIVED: "dim"}
     table = Table(title=escape(summary.title), title_justify="left", caption_justify="left")
+    # every column may fold, so that at 80 columns (a pipe, a log) none is squeezed to nothing
+    # (rich's min_width is not honoured when it collapses a table: the table then overflows)
     table.add_column("quantity", overflow="fold")
-    for col in ("paper", "ours", "unit"):
-        table.add_column(col, justify="right", no_wrap=True)
-    table.add_column("verdict", no_wrap=True)
+    for col in ("paper", "ours"):
+        table.add_column(col, justify="right", overflow="fold")
+    for col in ("unit", "verdict"):
+        table.add_column(col, overflow="fold")
     notes = []
 
     def fmt(v, se=None) -> str:
