@@ -307,6 +307,25 @@ def _summary_table(summary) -> Table:
     return table
 
 
+def _print_compact(summary, console: Console) -> None:
+    """One line of verdict counts for an experiment, then the rows that differ unexplained."""
+    from collections import Counter
+
+    from .experiments.verdict import Verdict
+
+    counts = Counter(row.verdict for row in summary.rows)
+    parts = [f"{counts[v]} {v.value}" for v in Verdict if counts[v]]
+    console.print(f"[bold]{escape(summary.title)}[/bold]: {escape(', '.join(parts))}")
+    for row in summary.rows:
+        if row.verdict is Verdict.DIFFERS:
+            console.print(f"  [red]differs[/red]: {escape(row.quantity)}: paper "
+                          f"{escape(str(row.paper))}, ours {escape(_short(row.measured))}")
+
+
+def _short(value) -> str:
+    return value if isinstance(value, str) else f"{value:.6g}"
+
+
 def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store:
     """Run (or resume) each named experiment into the store; print its summary; return the store."""
     from rich.progress import (
@@ -358,7 +377,10 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
                     raise
                 raise _UsageError(f"--scheduler {args.scheduler}: {exc}") from None
         summary = experiment.summarize(params, results, out / "figures")
-        console.print(_summary_table(summary))
+        if args.command == "run":
+            console.print(_summary_table(summary))
+        else:  # several experiments: a line each and what differs; every row is in the report
+            _print_compact(summary, console)
         console.print(f"[dim]{escape(experiment.name)}: {len(results)} tasks, "
                       f"{time.perf_counter() - start:.1f} s[/dim]\n")
     return store
@@ -381,11 +403,24 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
             raise
         raise _Interrupted(exc) from None
     if args.command == "reproduce":
-        report = write_report(store, args.out, chosen, command=args.command_line,
-                              wall_seconds=time.perf_counter() - started)
+        with _report_progress(console) as progress:
+            report = write_report(store, args.out, chosen, command=args.command_line,
+                                  wall_seconds=time.perf_counter() - started, progress=progress)
         console.print(f"report: [bold]{escape(str(report))}[/bold]  "
                       f"(results store: {escape(str(store.path))})")
     return 0
+
+
+@contextmanager
+def _report_progress(console: Console) -> Iterator[Callable[[str, int, int], None]]:
+    """A status line while the report's figures are drawn: ``progress(name, done, total)``."""
+    with console.status("writing the report…") as status:
+        def progress(name: str, done: int, total: int) -> None:
+            status.update(f"writing the report: {name} ({done + 1} of {total})")
+            if not console.is_terminal:
+                console.print(f"[dim]report: {escape(name)} ({done + 1} of {total})[/dim]")
+
+        yield progress
 
 
 def _cmd_report(args: argparse.Namespace, console: Console) -> int:
@@ -396,7 +431,8 @@ def _cmd_report(args: argparse.Namespace, console: Console) -> int:
         store = Store(args.store)
     except (ValueError, OSError) as exc:
         raise _UsageError(f"--store: {exc}") from None
-    report = write_report(store, args.out, command=args.command_line)
+    with _report_progress(console) as progress:
+        report = write_report(store, args.out, command=args.command_line, progress=progress)
     console.print(f"report: [bold]{escape(str(report))}[/bold]")
     return 0
 

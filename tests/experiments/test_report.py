@@ -102,6 +102,11 @@ def test_report_shows_provenance_summary_verdicts_and_uncertainty(tmp_path, toy_
     page = write_report(store, tmp_path, command="switchest report --store r.sqlite",
                         wall_seconds=12.0).read_text()
 
+    rows = (tmp_path / "rows.csv").read_text().splitlines()
+    assert rows[0] == "experiment,quantity,paper,ours,se,trials,unit,verdict,note"
+    assert any(r.startswith("toy-mc,Monte Carlo mean,2.000,2.0015,0.01,400,,within sampling error")
+               for r in rows)
+
     provenance = page[:page.index("id='summary'")]
     for fact in ("commit", "switchest report --store r.sqlite", "machine", "date", "12 s"):
         assert fact in provenance

@@ -11,12 +11,14 @@ without a server).
 from __future__ import annotations
 
 import base64
+import csv
 import html
 import os
 import platform
 import subprocess
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -104,11 +106,15 @@ def _mode(experiment: Experiment, params: dict) -> str:
     return "quick" if params == experiment.params(quick=True) else "custom"
 
 
-def summarize_store(store: Store, out_dir: Path, names: list[str] | None = None) -> list[Section]:
+def summarize_store(store: Store, out_dir: Path, names: list[str] | None = None, *,
+                    progress: Callable[[str, int, int], None] | None = None) -> list[Section]:
     """The sections of the latest run of each experiment in ``store`` (figures are written
-    under ``out_dir/figures``)."""
+    under ``out_dir/figures``); ``progress(name, done, total)`` is called before each."""
     out = []
-    for name in names or store.experiments():
+    chosen = names or store.experiments()
+    for done, name in enumerate(chosen):
+        if progress is not None:
+            progress(name, done, len(chosen))
         latest = store.latest_run(name)
         if latest is None:
             continue
@@ -291,6 +297,21 @@ def _section(section: Section) -> str:
             f'<ul class="notes">{notes}</ul><div class="figs">{figs}</div>')
 
 
+def _write_rows(sections: list[Section], path: Path) -> None:
+    """Every row of the report as CSV."""
+    with path.open("w", newline="", encoding="utf-8") as f:
+        out = csv.writer(f)
+        out.writerow(["experiment", "quantity", "paper", "ours", "se", "trials", "unit",
+                      "verdict", "note"])
+        for section in sections:
+            for row in section.summary.rows:
+                out.writerow([section.summary.experiment, row.quantity,
+                              "" if row.paper is None else row.paper, row.measured,
+                              "" if row.se is None else row.se,
+                              "" if row.trials is None else row.trials, row.unit,
+                              row.verdict.value, row.note])
+
+
 _LEGEND = ("<p class='meta'>A printed value is <b>reproduced</b> when ours rounds to the digits "
            "the paper prints; a Monte Carlo value is <b>within sampling error</b> when its 95 % "
            "interval (mean ± 1.96 standard errors, widened by half a unit of the last printed "
@@ -300,15 +321,19 @@ _LEGEND = ("<p class='meta'>A printed value is <b>reproduced</b> when ours round
 
 
 def write_report(store: Store, out_dir: str | Path, names: list[str] | None = None, *,
-                 command: str | None = None, wall_seconds: float | None = None) -> Path:
+                 command: str | None = None, wall_seconds: float | None = None,
+                 progress: Callable[[str, int, int], None] | None = None) -> Path:
     """Write ``out_dir/report.html`` for the experiments in ``store``; returns its path.
 
     ``command`` (the command line) and ``wall_seconds`` (how long it ran) go into the
-    provenance block when given.
+    provenance block when given; ``progress`` as in :func:`summarize_store`. Every row of
+    every section is also written to ``out_dir/rows.csv`` (experiment, quantity, paper,
+    ours, standard error, trials, unit, verdict, note), for a spreadsheet or a script.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    sections = summarize_store(store, out_dir, names)
+    sections = summarize_store(store, out_dir, names, progress=progress)
+    _write_rows(sections, out_dir / "rows.csv")
     facts = provenance(command=command, wall_seconds=wall_seconds)
     body = ("".join(_section(s) for s in sections)
             or "<p>No experiment has been run into this store yet.</p>")
