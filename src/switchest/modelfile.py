@@ -13,6 +13,9 @@ A TOML file holds the system (read by :func:`system_from_dict`) and, optionally:
     [initial]               # Gaussian initial state
     mean = [0.0, 100.0]
     cov = [[25.0, 0.0], [0.0, 25.0]]
+    [states]                # names and units of the states, for tables and figures
+    names = ["i_L", "v_0"]
+    units = ["A", "V"]
     [noise]                 # bounds for Lee et al.'s conditions (bounded noise):
     v_max = 0.1             # |v| <= v_max, |u| <= u_max, |x| >= x_min; and, optionally,
     u_max = 1.0             # their detector's design: windows delta, Delta and
@@ -58,7 +61,8 @@ _INITIAL_KEYS = {"mean", "cov"}
 _NOISE_BOUNDS = {"v_max", "u_max", "x_min"}  # bounds on |v|, |u|, |x|: zero is meaningful
 _NOISE_DESIGN = {"delta", "Delta", "observer_decay"}  # windows (s) and a decay rate (1/s)
 _TOP_KEYS = {"domain", "dt", "shared", "modes", "sampling", "switching", "initial", "noise",
-             "description"}
+             "states", "description"}
+_STATES_KEYS = {"names", "units"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,6 +81,8 @@ class ModelSpec:
     noise : dict
         Bounds such as ``v_max``, ``u_max``, ``x_min`` for bounded-noise analyses,
         and the minimum-distance detector's ``delta``, ``Delta``, ``observer_decay``.
+    state_names, state_units : tuple of str
+        A name and a unit per state (empty: ``x0, x1, ...`` without units).
     description : str
     """
 
@@ -86,8 +92,17 @@ class ModelSpec:
     initial: tuple[np.ndarray, np.ndarray] | None = None
     noise: dict = field(default_factory=dict)
     description: str = ""
+    state_names: tuple[str, ...] = ()
+    state_units: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        n = self.system.n_states
+        for name in ("state_names", "state_units"):
+            labels = getattr(self, name)
+            if not isinstance(labels, tuple) or not all(isinstance(v, str) for v in labels):
+                raise TypeError(f"{name} must be a tuple of str, got {labels!r}")
+            if labels and len(labels) != n:
+                raise ValueError(f"{name} must name all {n} states, got {len(labels)}")
         sw = self.switching
         if sw is not None and not isinstance(sw, SwitchingModel):
             raise TypeError(f"switching must be a SwitchingModel (switchest.switching) or None, "
@@ -135,6 +150,10 @@ class ModelSpec:
                              for k, v in table.items()}
         if self.initial is not None:
             doc["initial"] = {"mean": self.initial[0], "cov": self.initial[1]}
+        states = {k: list(v) for k, v in (("names", self.state_names),
+                                          ("units", self.state_units)) if v}
+        if states:
+            doc["states"] = states
         modes = doc.pop("modes")
         doc["modes"] = modes  # arrays of tables last
         return doc
@@ -171,6 +190,7 @@ def load_model(path: str | Path) -> ModelSpec:
         initial=_initial(doc.get("initial"), source, system.n_states),
         noise=_noise(doc.get("noise", {}), source),
         description=description,
+        **_states(doc.get("states", {}), source, system.n_states),
     )
 
 
@@ -431,6 +451,22 @@ def _initial(table, source: str, n: int):
     except ValueError as exc:
         raise _toml.ModelFileError(_toml.where(source, str(exc))) from None
     return mean, cov
+
+
+def _states(table, source: str, n: int) -> dict:
+    """``state_names``, ``state_units`` of the ``[states]`` table: lists of n strings."""
+    table = _table(table, source, "states")
+    out = {}
+    for key, value in table.items():
+        if key not in _STATES_KEYS:
+            raise _toml.unknown_key(source, "states", key, _STATES_KEYS)
+        at = _toml.where(source, f"states.{key}")
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise _toml.ModelFileError(f"{at}: expected a list of strings, got {value!r}")
+        if len(value) != n:
+            raise _toml.ModelFileError(f"{at}: expected one per state ({n}), got {len(value)}")
+        out[f"state_{key}"] = tuple(value)
+    return out
 
 
 def _noise(table, source: str) -> dict:

@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-__all__ = ["bars", "curves", "trajectory"]
+__all__ = ["bars", "curves", "estimate_figure", "trajectory"]
 
 _STYLE = {"figure.dpi": 110, "axes.grid": True, "grid.alpha": 0.3, "axes.spines.top": False,
           "axes.spines.right": False, "font.size": 9}
@@ -120,6 +120,75 @@ def bars(
                   bbox_to_anchor=(0.5, -0.12))
         if title:
             ax.set_title(title)
+        return _save(fig, path)
+
+
+def estimate_figure(
+    path: str | Path,
+    t: np.ndarray,
+    x: np.ndarray,
+    *,
+    std: np.ndarray | None = None,
+    truth: np.ndarray | None = None,
+    measured: Mapping[int, np.ndarray] | None = None,
+    mode_prob: np.ndarray | None = None,
+    true_mode: np.ndarray | None = None,
+    switch_times: Sequence[float] = (),
+    names: Sequence[str] = (),
+    units: Sequence[str] = (),
+    title: str = "",
+) -> Path:
+    """An estimate to read at a glance: one panel per state, and the modes.
+
+    Each state panel shows the estimate ``x[:, i]`` with its ``± 2 std`` band, the true
+    state (``truth``, black) and the samples that measure it directly
+    (``measured[i]``, grey dots); a last panel shows the mode probabilities
+    ``mode_prob (K, L)`` with the true mode (``true_mode``) as a step. Estimated
+    switching instants are ticks along the bottom edge (not lines across the figure:
+    a fast-switching system has thousands of them). ``names``/``units`` label the axes
+    (``x0 ..`` without units when empty).
+    """
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    n = x.shape[1]
+    names = list(names) or [f"x{i}" for i in range(n)]
+    units = list(units) or [""] * n
+    for label, given in (("names", names), ("units", units)):
+        if len(given) != n:
+            raise ValueError(f"{label} must have one entry per state ({n}), got {len(given)}")
+    panels = n + (mode_prob is not None)
+    with plt.rc_context(_STYLE):
+        fig, axes = plt.subplots(panels, 1, figsize=(7.5, 1.9 * panels + 0.6), sharex=True,
+                                 squeeze=False)
+        axes = axes[:, 0]
+        for i, ax in enumerate(axes[:n]):
+            if measured is not None and i in measured:
+                ax.plot(t, measured[i], ".", color="0.6", ms=2.5, label="measured")
+            if truth is not None:
+                ax.plot(t, truth[:, i], color="k", lw=1.2, label="true")
+            line, = ax.plot(t, x[:, i], lw=1.2, label="estimate")
+            if std is not None:
+                ax.fill_between(t, x[:, i] - 2 * std[:, i], x[:, i] + 2 * std[:, i],
+                                color=line.get_color(), alpha=0.2, lw=0, label="± 2σ")
+            ax.set_ylabel(names[i] + (f" ({units[i]})" if units[i] else ""))
+        axes[0].legend(loc="upper right", fontsize=7, ncols=4)
+        if mode_prob is not None:
+            ax = axes[-1]
+            for j in range(mode_prob.shape[1]):
+                ax.plot(t, mode_prob[:, j], lw=1.0, label=f"P(mode {j})")
+            if true_mode is not None and mode_prob.shape[1] > 1:
+                scale = 1.0 / (mode_prob.shape[1] - 1)
+                ax.step(t, np.asarray(true_mode) * scale, where="post", color="k", lw=0.8,
+                        ls="--", label="true mode (0 bottom, last top)")
+            ax.set_ylim(-0.05, 1.05)
+            ax.set_ylabel("mode probability")
+            ax.legend(loc="upper right", fontsize=7, ncols=3)
+        if len(switch_times):
+            bottom = axes[-1]
+            bottom.plot(switch_times, np.zeros(len(switch_times)), "|", color="C3", ms=8,
+                        transform=bottom.get_xaxis_transform(), label="estimated switches")
+        axes[-1].set_xlabel("t (s)")
+        if title:
+            axes[0].set_title(title)
         return _save(fig, path)
 
 
