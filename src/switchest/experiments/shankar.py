@@ -28,7 +28,15 @@ from ..plotting import curves, trajectory
 from ..simulate import Trajectory, simulate
 from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
-from .scoring import blocks, merge_blocks, merge_groups, rmse_and_se, score, split_variants
+from .scoring import (
+    blocks,
+    mean_and_se,
+    merge_blocks,
+    merge_groups,
+    rmse_and_se,
+    score,
+    split_variants,
+)
 from .verdict import Z_95
 
 # Shankar et al. Table I (100 trials, T = 0.5 ms): RMSE for g = 1..5, as printed (the digits
@@ -375,7 +383,7 @@ def _vehicle_run(cfg: dict, rng: np.random.Generator) -> dict:
             est = IMMFilter(system, VEHICLE_TRANSITION, x0, VEHICLE_P0).run(traj.y, man.u, man.t)
         else:
             est = IMMEV1Filter(system, x0=x0, P0=VEHICLE_P0, grid=m["g"]).run(traj.y, man.u, man.t)
-        out = score(est, traj, 0)
+        out = {**score(est, traj, 0), **_position_velocity_errors(est.x - traj.x)}
         if cfg["block"] == 0:
             out["example_truth"] = traj.x[0].tolist()
             out["example_estimate"] = est.x[0].tolist()
@@ -383,31 +391,49 @@ def _vehicle_run(cfg: dict, rng: np.random.Generator) -> dict:
     return {"variants": results}
 
 
+def _position_velocity_errors(err: np.ndarray) -> dict:
+    """Sums over trials, for the standard errors of Fig. 4: each trial's squared position and
+    velocity errors ``(e_1^2 + e_2^2) / 2`` per step (and their squares), and its mean over the
+    run (and its square)."""
+    sq = np.stack([(err[..., 0] ** 2 + err[..., 2] ** 2) / 2,
+                   (err[..., 1] ** 2 + err[..., 3] ** 2) / 2], axis=-1)  # (N, K, 2)
+    run = sq.mean(axis=1)
+    return {"pv_step": sq.sum(axis=0).tolist(), "pv_step_sq": (sq**2).sum(axis=0).tolist(),
+            "pv_run": run.sum(axis=0).tolist(), "pv_run_sq": (run**2).sum(axis=0).tolist()}
+
+
+def _rms_and_se(total, total_sq, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Root of a Monte Carlo mean square, and its standard error by the delta method."""
+    mean, se = mean_and_se(total, total_sq, n)
+    root = np.sqrt(mean)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return root, np.where(root > 0, se / (2 * root), 0.0)
+
+
 def _vehicle_summary(p: dict, results, out: Path) -> Summary:
     man = vehicle_maneuver()
-    rows, per_step, examples = [], {}, {}
+    rows, pos_vel, bands, examples = [], {}, {}, {}
     for label, (_, tot) in _by_method(results).items():
-        rmse = np.sqrt(tot["sse"] / tot["count"])
-        per_step[label] = np.sqrt(np.asarray(tot["sse_per_step"]) / tot["trials"])
+        n = tot["trials"]
+        pos_vel[label], se_step = _rms_and_se(tot["pv_step"], tot["pv_step_sq"], n)
+        bands[label] = Z_95 * se_step
+        overall, se = _rms_and_se(tot["pv_run"], tot["pv_run_sq"], n)
         extra = []
         if "mode_hits" in tot:
             extra.append(f"mode accuracy {tot['mode_hits'] / tot['count']:.3f}")
         if tot.get("switch_pairs"):
             extra.append(f"switch-time error {tot['switch_abs_err'] / tot['switch_pairs']:.3f} s")
-        rows.append(Row(f"RMSE position, {label}",
-                        float(np.sqrt((rmse[0] ** 2 + rmse[2] ** 2) / 2)), None, "m",
-                        "; ".join(extra)))
-        rows.append(Row(f"RMSE velocity, {label}",
-                        float(np.sqrt((rmse[1] ** 2 + rmse[3] ** 2) / 2)), None, "m/s"))
+        rows.append(Row(f"RMSE position, {label}", float(overall[0]), None, "m",
+                        "; ".join(extra), se=float(se[0]), trials=n))
+        rows.append(Row(f"RMSE velocity, {label}", float(overall[1]), None, "m/s",
+                        se=float(se[1]), trials=n))
     for cfg, res in split_variants(results):
         if "example_estimate" in res:
             examples[_label(cfg)] = np.asarray(res["example_estimate"])
             truth = np.asarray(res["example_truth"])
     switches = list(man.signal.times)
-    pos_vel = {k: np.stack([np.hypot(v[:, 0], v[:, 2]), np.hypot(v[:, 1], v[:, 3])], axis=1)
-               for k, v in per_step.items()}
     figs = [
-        curves(out / "shankar-vehicle-rmse.png", man.t, pos_vel, xlabel="t (s)",
+        curves(out / "shankar-vehicle-rmse.png", man.t, pos_vel, bands=bands, xlabel="t (s)",
                ylabel=["position RMSE (m)", "velocity RMSE (m/s)"], markers=switches,
                title=f"Shankar Fig. 4: vehicle RMSE over {p['trials']} trials"),
         trajectory(out / "shankar-vehicle-trial.png", man.t, truth,
