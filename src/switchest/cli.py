@@ -22,6 +22,7 @@ import os
 import shlex
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -463,16 +464,24 @@ def _cmd_list(args: argparse.Namespace, console: Console) -> int:
 
 def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
     from .modelfile import load_model
-    from .tabular import estimate_table
+    from .tabular import ImplausibleEstimateWarning, estimate_table
 
     out = _output_file(Path(args.out), "--out")
     plot = args.plot and _output_file(Path(args.plot), "--plot", ("png", "pdf", "svg"))
     spec = load_model(args.model)
-    with _compile_notice():
+    with _compile_notice(), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ImplausibleEstimateWarning)
         table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
                                refine=args.refine, stay=args.stay, v_max=args.v_max,
                                delta=args.delta, Delta=args.Delta,
                                switch_interval=args.switch_interval, trial=args.trial)
+    for warning in caught:
+        if issubclass(warning.category, ImplausibleEstimateWarning):
+            _say(Console(stderr=True, soft_wrap=True, highlight=False), "warning",
+                 str(warning.message))
+        else:
+            warnings.showwarning(warning.message, warning.category, warning.filename,
+                                 warning.lineno)
     table.to_csv(out, index=False)
     console.print(f"{len(table)} samples estimated with {args.method}: "
                   f"[bold]{escape(str(out))}[/bold]")

@@ -12,7 +12,8 @@ import numpy as np
 
 from ._checks import float_array, int_array
 
-__all__ = ["RMSE", "rmse", "mode_accuracy", "switch_time_error"]
+__all__ = ["RMSE", "InnovationConsistency", "innovation_consistency", "rmse", "mode_accuracy",
+           "switch_time_error"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,3 +89,79 @@ def _check_start(start, K: int) -> int:
     if not 0 <= start < K:
         raise ValueError(f"start must be in 0..{K - 1}, got {start}")
     return int(start)
+
+
+@dataclass(frozen=True)
+class InnovationConsistency:
+    """Whether a Kalman-type filter's residuals match the covariance it claims.
+
+    Attributes
+    ----------
+    mean_nis : float
+        Mean normalized innovation squared over the samples used.
+    expected : float
+        Its expectation for a consistent filter: the mean number of observed outputs.
+    samples : int
+        Samples used (observed, not gated, with a finite estimate).
+    z : float
+        ``(mean_nis - expected) / sd``, ``sd = sqrt(2 expected / samples)`` (the NIS of a
+        consistent filter is chi-square with ``m`` degrees of freedom, independent over time).
+    """
+
+    mean_nis: float
+    expected: float
+    samples: int
+    z: float
+
+
+def innovation_consistency(system, y, x, P, modes, *, used=None) -> InnovationConsistency:
+    """The normalized innovations squared of a filter, recovered from its posterior estimates.
+
+    For a Kalman update with gain ``K = P- C' S^-1`` the posterior residual
+    ``r = y - C x+`` equals ``R S^-1 e`` (``e`` the innovation, ``S = C P- C' + R``), and
+    ``R - C P+ C' = R S^-1 R``; hence ``r' (R - C P+ C')^-1 r = e' S^-1 e``, the NIS, with no
+    access to the filter's internals (Bar-Shalom, Li & Kirubarajan §5.4: a consistent filter's
+    NIS is chi-square with ``m`` degrees of freedom). Missing components (NaN in ``y``) are left
+    out of ``r``, ``R`` and ``C``, as the update does.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    y : array_like, shape (K, m)
+        Measurements (NaN: missing).
+    x, P : array_like, shapes (K, n), (K, n, n)
+        The filter's posterior means and covariances.
+    modes : array_like of int, shape (K,)
+        The mode whose ``C``, ``R`` each update used.
+    used : array_like of bool, shape (K,), optional
+        The samples the filter used (False: gated as an outlier); default all.
+    """
+    y = float_array(y, "y", ndim=2)
+    x = float_array(x, "x", ndim=2)
+    P = float_array(P, "P", ndim=3)
+    modes = int_array(modes, "modes", ndim=1)
+    K = y.shape[0]
+    if x.shape[0] != K or P.shape[0] != K or modes.shape != (K,):
+        raise ValueError(f"y, x, P and modes must have the same number of samples, got "
+                         f"{y.shape[0]}, {x.shape[0]}, {P.shape[0]}, {modes.shape[0]}")
+    used = np.ones(K, dtype=bool) if used is None else np.asarray(used, dtype=bool)
+    nis, dims = [], []
+    for k in range(K):
+        seen = np.isfinite(y[k])
+        if not (used[k] and seen.any() and np.all(np.isfinite(x[k])) and np.all(np.isfinite(P[k]))):
+            continue
+        C = system.C[modes[k]][seen]
+        M = system.R[modes[k]][np.ix_(seen, seen)] - C @ P[k] @ C.T
+        r = y[k, seen] - C @ x[k]
+        try:
+            root = np.linalg.cholesky((M + M.T) / 2)
+        except np.linalg.LinAlgError:
+            continue  # R S^-1 R is positive definite for a proper update: not one here
+        w = np.linalg.solve(root, r)
+        nis.append(float(w @ w))
+        dims.append(int(seen.sum()))
+    if not nis:
+        return InnovationConsistency(np.nan, np.nan, 0, np.nan)
+    mean, expected = float(np.mean(nis)), float(np.mean(dims))
+    return InnovationConsistency(mean, expected, len(nis),
+                                 (mean - expected) / np.sqrt(2 * expected / len(nis)))

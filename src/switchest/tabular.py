@@ -49,6 +49,7 @@ estimated or declared).
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -59,11 +60,13 @@ from .analysis import decay_observer_gains
 from .default_designs import impulsive_gains, rsls_gains, transition_for
 from .estimators import METHOD_NAMES, Estimate, Method, get_method
 from .measurements import mode_signal, read_measurements
+from .metrics import innovation_consistency
 from .modelfile import ModelSpec
 from .switching import MarkovAtSamples
 
 __all__ = [
     "METHODS",
+    "ImplausibleEstimateWarning",
     "estimate_table",
     "impulsive_gains",
     "mode_signal",
@@ -130,7 +133,41 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
             options[name] = positive_scalar(options[name], name)
     meas = read_measurements(data, spec, trial=trial)
     modes = _modes(meas, method) if entry.needs_modes else None
-    return _table(meas["t"], _RUNNERS[method](entry, spec, meas, options, modes))
+    est = _RUNNERS[method](entry, spec, meas, options, modes)
+    if method in _CHECKED:
+        _warn_if_inconsistent(spec, meas, est, modes, method)
+    return _table(meas["t"], est)
+
+
+class ImplausibleEstimateWarning(UserWarning):
+    """The filter's residuals do not match the covariance it claims: the model does not fit
+    the data (:func:`switchest.metrics.innovation_consistency`)."""
+
+
+_CHECKED = ("kalman", "switch-time")  # Kalman updates along the given modes: the NIS is exact
+_Z_LIMIT = 4.0  # |z| beyond which the mean NIS is implausible for a consistent filter
+
+
+def _warn_if_inconsistent(spec: ModelSpec, meas: dict, est: Estimate, modes, method: str) -> None:
+    """Warn when the mean normalized innovation squared is more than :data:`_Z_LIMIT`
+    standard deviations from its value for a consistent filter, naming the likely cause."""
+    used = None if est.outlier is None else ~np.asarray(est.outlier)
+    check = innovation_consistency(spec.system, meas["y"], est.x, est.P, modes, used=used)
+    if check.samples < 20 or abs(check.z) <= _Z_LIMIT:
+        return
+    seen = (f"mean normalized innovation squared {check.mean_nis:.3g} over {check.samples} "
+            f"samples, {check.expected:g} expected for a filter whose model fits the data "
+            f"(z = {check.z:.1f})")
+    if check.z > 0:
+        cause = ("the residuals are larger than the filter's covariance claims: the mode column, "
+                 "the process noise Q or the measurement noise R of the model file do not fit "
+                 "the data" + ("; switches between the samples also do it, which method "
+                               "'switch-time' models" if method == "kalman" else ""))
+    else:
+        cause = ("the residuals are smaller than the filter's covariance claims: the model "
+                 "file's Q or R is larger than the data's")
+    warnings.warn(f"implausible estimate ({method}): {seen}; {cause}",
+                  ImplausibleEstimateWarning, stacklevel=3)
 
 
 # ------------------------------------------------------------------ one runner per method family
