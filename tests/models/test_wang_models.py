@@ -50,6 +50,9 @@ PAPER = {
     },
     "V": (1.06, 1.0474, 1.0242, 1.0236, 1.0179),
     "angle": (0.0, -2.8063, -4.997, -5.3291, -6.1503),
+    # Table 2: generation P + jQ and load P_L + j Q_L (MW, MVAr), base 100 MVA
+    "generation": (129 - 7.42j, 40 + 30j, 0, 0, 0),
+    "load": (0, 20 + 10j, 45 + 15j, 40 + 5j, 60 + 10j),
 }
 
 
@@ -305,3 +308,113 @@ def test_from_tables_deviation_as_documented():
     # degrees: opposite signs to the print, a stable oscillation instead of the printed saddle
     assert np.max(np.linalg.eigvals(deg).real) < 1e-9
     assert np.max(np.linalg.eigvals(IEEE_5BUS_A).real) > 5.0
+
+
+# ------------------------------------------------------------------ other readings of §6
+
+
+def network_A(unit, line="exact", flat=False, reactance=None, bus2_load=True):
+    """Oracle for the constant-impedance readings: the network solved for the load-bus voltages
+    at perturbed generator angles, the generators' electrical power Re(E conj(I)) differenced."""
+    V = np.array(PAPER["V"], dtype=float)
+    if flat:
+        V[:2] = 1.0
+    angle = np.asarray(PAPER["angle"], dtype=float)
+    angle = np.deg2rad(angle) if unit == "deg" else angle
+    n = 5 + (2 if reactance else 0)
+    off = 2 if reactance else 0  # network bus i is node i + off; internal nodes 0, 1
+    Y = np.zeros((n, n), dtype=complex)
+
+    def branch(a, c, z):
+        Y[a, a] += 1 / z
+        Y[c, c] += 1 / z
+        Y[a, c] -= 1 / z
+        Y[c, a] -= 1 / z
+
+    for (a, c), (R, X, Z, th) in PAPER["lines"].items():
+        branch(a - 1 + off, c - 1 + off, complex(R, X) if line == "exact" else Z * np.exp(1j * th))
+    load = np.conj(np.asarray(PAPER["load"]) / 100) / V**2
+    if not bus2_load:
+        load[1] = 0
+    for i in range(5):
+        Y[i + off, i + off] += load[i]
+    E = V[:2] * np.exp(1j * angle[:2])
+    if reactance:
+        E = E + 1j * reactance * np.conj(np.asarray(PAPER["generation"][:2]) / 100 / E)
+        for g in range(2):
+            branch(g, g + 2, 1j * reactance)
+    gens, rest = [0, 1], list(range(2, n))
+
+    def power(Eg):
+        v_rest = -np.linalg.solve(Y[np.ix_(rest, rest)], Y[np.ix_(rest, gens)] @ Eg)
+        current = Y[np.ix_(gens, gens)] @ Eg + Y[np.ix_(gens, rest)] @ v_rest
+        return np.real(Eg * np.conj(current))
+
+    M, b = PAPER["generators"]["M"], PAPER["generators"]["b"]
+    A = np.zeros((4, 4))
+    A[0, 1] = A[2, 3] = 1.0
+    A[1, 1], A[3, 3] = -b[0] / M[0], -b[1] / M[1]
+    h = 1e-6
+    for k, col in ((0, 0), (1, 2)):
+        step = np.zeros(2)
+        step[k] = h
+        dP = (power(E * np.exp(1j * step)) - power(E * np.exp(-1j * step))) / (2 * h)
+        A[1, col], A[3, col] = -dP[0] / M[0], -dP[1] / M[1]  # M w' = P_in - P_e
+    return A
+
+
+@pytest.mark.parametrize("unit", ["deg", "rad"])
+@pytest.mark.parametrize("kwargs, oracle", [
+    ({"line_angle": "exact"}, {"line": "exact"}),
+    ({}, {"line": "printed"}),
+    ({"line_angle": "exact", "generator_voltage": "flat"}, {"line": "exact", "flat": True}),
+    ({"bus2_load": False}, {"line": "printed", "bus2_load": False}),
+    ({"internal_reactance": 0.25}, {"line": "printed", "reactance": 0.25}),
+])
+def test_impedance_loads_are_the_linearized_network(unit, kwargs, oracle):
+    A = ieee_5bus_from_tables(angle_unit=unit, loads="impedance", **kwargs)
+    np.testing.assert_allclose(A, network_A(unit, **oracle), rtol=1e-6, atol=1e-8)
+    np.testing.assert_allclose(A[[1, 3]][:, [0, 2]].sum(axis=1), 0.0, atol=1e-12)
+
+
+def test_defaults_are_the_text_and_readings_change_only_what_they_say():
+    A = ieee_5bus_from_tables()
+    np.testing.assert_array_equal(A, ieee_5bus_from_tables(
+        angle_unit="deg", impedance="X", line_angle="printed", flow="printed", loads="power",
+        generator_voltage="table"))
+    # swapping the inertias swaps which row each coupling divides
+    swapped = ieee_5bus_from_tables(M=(0.9, 1.9))
+    np.testing.assert_allclose(swapped[1, 0] * 0.9, A[1, 0] * 1.9, rtol=1e-12)
+    # bus 2's own load enters the reduced network's diagonal only: no effect on the couplings
+    np.testing.assert_allclose(ieee_5bus_from_tables(loads="impedance", bus2_load=False),
+                               ieee_5bus_from_tables(loads="impedance"), rtol=1e-12)
+
+
+@pytest.mark.parametrize("kwargs, coupling", [
+    # A[1, 0], A[3, 0] of each reading (the wang-ieee5bus report lists them all); printed
+    # +7.7926, -20.3866: none reproduces them
+    ({"angle_unit": "rad", "impedance": "Z"}, (8.55, -16.55)),
+    ({"angle_unit": "rad", "line_angle": "lossless"}, (8.00, -16.88)),
+    ({"angle_unit": "deg", "flow": "reversed"}, (11.05, -22.58)),
+    ({"angle_unit": "rad", "flow": "reversed"}, (-7.94, 16.25)),
+    ({"angle_unit": "rad", "loads": "impedance", "line_angle": "exact"}, (8.65, -22.88)),
+    ({"angle_unit": "rad", "loads": "impedance", "line_angle": "exact",
+      "generator_voltage": "flat"}, (7.79, -20.61)),
+])
+def test_readings_couplings_as_reported(kwargs, coupling):
+    A = ieee_5bus_from_tables(**kwargs)
+    at_printed_precision(A[[1, 3], 0], coupling, 2)
+    assert np.max(np.abs(A[[1, 3], 0] - IEEE_5BUS_A[[1, 3], 0])) > 0.1
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"line_angle": "flat"}, "line_angle must be 'printed' or 'exact' or 'lossless'"),
+    ({"loads": "current"}, "loads must be 'power' or 'impedance'"),
+    ({"internal_reactance": 0.25}, "need loads='impedance'"),
+    ({"bus2_load": False}, "need loads='impedance'"),
+    ({"loads": "impedance", "flow": "reversed"}, "they need loads='power'"),
+    ({"loads": "impedance", "internal_reactance": -1.0}, "internal_reactance must be a finite"),
+])
+def test_readings_reject_bad_combinations(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ieee_5bus_from_tables(**kwargs)

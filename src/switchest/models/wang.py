@@ -163,7 +163,7 @@ mode, ``[20.7170, 187.0468, -123.7698, -568.3264]``, is reproduced to the printe
 digits only with the exact damping ``b_1/M_1 = 0.105263``, ``b_2/M_2 = 0.177778`` and
 couplings ``7.79261``, ``20.38663`` (least-squares fit, within the rounding of the
 printed entries); this rounded ``A`` gives it to about 4e-3
-(tests/analysis/test_ms_design.py).
+(tests/analysis/test_subsystem_observers.py).
 """
 
 IEEE_5BUS_SAMPLE_PERIOD = 0.6997
@@ -280,9 +280,14 @@ _LINES = {
     (3, 4): (0.01, 0.03, 0.03, 1.25),
     (4, 5): (0.08, 0.24, 0.25, 1.25),
 }
-# Table 2: bus voltage magnitudes (p.u.) and angles (the printed numbers).
+# Table 2: bus voltage magnitudes (p.u.) and angles (the printed numbers), generation P, Q and
+# loads P_L, Q_L (MW, MVAr; base 100 MVA).
 _BUS_V = np.array([1.06, 1.0474, 1.0242, 1.0236, 1.0179])
 _BUS_ANGLE = np.array([0.0, -2.8063, -4.997, -5.3291, -6.1503])
+_BUS_GEN = np.array([129.0 - 7.42j, 40.0 + 30.0j, 0.0, 0.0, 0.0])
+_BUS_LOAD = np.array([0.0, 20.0 + 10.0j, 45.0 + 15.0j, 40.0 + 5.0j, 60.0 + 10.0j])
+_BASE_MVA = 100.0
+_GEN, _LOADS = [0, 1], [2, 3, 4]
 
 
 def ieee_5bus_from_tables(
@@ -290,6 +295,13 @@ def ieee_5bus_from_tables(
     angle_unit: Literal["deg", "rad"] = "deg",
     M: tuple[float, float] = (1.9, 0.9),
     b: tuple[float, float] = (0.2, 0.16),
+    impedance: Literal["X", "Z"] = "X",
+    line_angle: Literal["printed", "exact", "lossless"] = "printed",
+    flow: Literal["printed", "reversed"] = "printed",
+    loads: Literal["power", "impedance"] = "power",
+    generator_voltage: Literal["table", "flat"] = "table",
+    internal_reactance: float | None = None,
+    bus2_load: bool = True,
 ) -> np.ndarray:
     """The 5-bus ``A`` rebuilt from Wang et al.'s Tables 1-2 and eq. (26).
 
@@ -315,8 +327,10 @@ def ieee_5bus_from_tables(
       unstable one. Read in radians, as Table 2's header says, the signs agree
       with the print but not the values: ``+8.49`` and ``-16.57``.
 
-    No reading we tried (units, ``X`` or ``|Z|``, printed or exact impedances)
-    reproduces the printed couplings; :func:`ieee_5bus` uses the printed ``A``.
+    The keywords other than ``angle_unit``, ``M`` and ``b`` are other readings of
+    the section, each defaulting to the text as printed. No reading we tried
+    reproduces the printed couplings (the ``wang-ieee5bus`` report lists them
+    with their couplings); :func:`ieee_5bus` uses the printed ``A``.
 
     Parameters
     ----------
@@ -325,31 +339,67 @@ def ieee_5bus_from_tables(
     M, b : tuple of float
         Inertias and damping of generators 1 and 2 (§6: 1.9, 0.9 and 0.2, 0.16;
         the paper misprints ``b_2`` as a second ``b_1``).
+    impedance : {"X", "Z"}
+        Denominator of eq. (26)'s angle term: ``X_ij`` as printed, or ``|Z_ij|``
+        (Table 1's), as in the textbook line flow. Constant-power loads only.
+    line_angle : {"printed", "exact", "lossless"}
+        ``theta_ij``: Table 1's rounded angle, ``atan(X/R)`` from Table 1's ``R``
+        and ``X``, or ``pi/2`` (lossless lines, ``R = 0``). With impedance loads
+        the line impedance is ``|Z| e^{j theta}`` (printed), ``R + jX`` (exact) or
+        ``jX`` (lossless).
+    flow : {"printed", "reversed"}
+        The sign of the angle difference in eq. (26): ``delta_i - delta_j`` as
+        printed, or ``delta_j - delta_i`` (the flow that leaves bus ``j``).
+        Constant-power loads only.
+    loads : {"power", "impedance"}
+        Load buses holding their power (the text), or loads as constant
+        admittances ``(P_L - j Q_L) / V^2`` from Table 2, the load buses
+        eliminated by Kron reduction of the network's admittance matrix and the
+        generators' electrical power ``Re(E_i conj(I_i))`` linearized.
+    generator_voltage : {"table", "flat"}
+        Generator voltage magnitudes from Table 2, or 1 p.u.
+    internal_reactance : float, optional
+        A reactance (p.u.) between each generator's internal voltage and its
+        bus, the internal voltage set by Table 2's generation ``P + jQ``; not in
+        the paper (impedance loads only).
+    bus2_load : bool
+        Whether bus 2's own load (Table 2: 20 MW, 10 MVAr) is a shunt admittance
+        (impedance loads only; with constant-power loads it is a constant and
+        drops out of the linearization).
 
     Returns
     -------
     ndarray, shape (4, 4)
         ``A`` for the state ``[delta_1, omega_1, delta_2, omega_2]``.
     """
-    if angle_unit not in ("deg", "rad"):
-        raise ValueError(f"angle_unit must be 'deg' or 'rad', got {angle_unit!r}")
+    choices = {"angle_unit": (angle_unit, ("deg", "rad")), "impedance": (impedance, ("X", "Z")),
+               "line_angle": (line_angle, ("printed", "exact", "lossless")),
+               "flow": (flow, ("printed", "reversed")), "loads": (loads, ("power", "impedance")),
+               "generator_voltage": (generator_voltage, ("table", "flat"))}
+    for name, (value, allowed) in choices.items():
+        if value not in allowed:
+            raise ValueError(f"{name} must be " + " or ".join(repr(a) for a in allowed)
+                             + f", got {value!r}")
     M = float_array(M, "M", ndim=1)
     b = float_array(b, "b", ndim=1)
     for name, arr in (("M", M), ("b", b)):
         if arr.shape != (2,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
             raise ValueError(f"{name} must hold two finite positive numbers, got {arr.tolist()}")
+    if loads == "power" and (internal_reactance is not None or not bus2_load):
+        raise ValueError("internal_reactance and bus2_load=False need loads='impedance'")
+    if loads == "impedance" and (impedance != "X" or flow != "printed"):
+        raise ValueError("impedance and flow are readings of eq. (26): they need loads='power'")
+    if internal_reactance is not None:
+        internal_reactance = positive_scalar(internal_reactance, "internal_reactance")
     delta = np.deg2rad(_BUS_ANGLE) if angle_unit == "deg" else _BUS_ANGLE
-    # J[j, k] = d(sum_i P_ij^j)/d(delta_k): sensitivity of the power flowing into bus j.
-    J = np.zeros((5, 5))
-    for (p, q), (_, X, _, theta) in _LINES.items():
-        for i, j in ((p - 1, q - 1), (q - 1, p - 1)):
-            # d/d(delta_i) of eq. (26) = V_i V_j / X sin(theta + delta_i - delta_j) = -d/d(delta_j)
-            s = _BUS_V[i] * _BUS_V[j] / X * np.sin(theta + delta[i] - delta[j])
-            J[j, i] += s
-            J[j, j] -= s
-    gen, load = [0, 1], [2, 3, 4]
-    H = -np.linalg.solve(J[np.ix_(load, load)], J[np.ix_(load, gen)])
-    coupling = J[np.ix_(gen, gen)] + J[np.ix_(gen, load)] @ H  # d(power into gen)/d(delta_gen)
+    V = _BUS_V.copy()
+    if generator_voltage == "flat":
+        V[_GEN] = 1.0
+    if loads == "power":
+        coupling = _coupling_constant_power(delta, V, impedance, line_angle, flow)
+    else:
+        coupling = _coupling_constant_impedance(delta, V, line_angle, internal_reactance,
+                                                bus2_load)
     A = np.zeros((4, 4))
     A[0, 1] = A[2, 3] = 1.0
     A[1, [0, 2]] = coupling[0] / M[0]
@@ -357,3 +407,67 @@ def ieee_5bus_from_tables(
     A[1, 1] = -b[0] / M[0]
     A[3, 3] = -b[1] / M[1]
     return A
+
+
+def _line_angle(R: float, X: float, theta: float, reading: str) -> float:
+    return {"printed": theta, "exact": float(np.arctan2(X, R)), "lossless": np.pi / 2}[reading]
+
+
+def _coupling_constant_power(delta, V, impedance: str, line_angle: str, flow: str) -> np.ndarray:
+    """``d(power into generator i)/d(delta_k)`` ``(2, 2)`` by eq. (26), load buses at constant
+    power."""
+    sign = 1.0 if flow == "printed" else -1.0
+    # J[j, k] = d(sum_i P_ij^j)/d(delta_k): sensitivity of the power flowing into bus j.
+    J = np.zeros((5, 5))
+    for (p, q), (R, X, Z, theta) in _LINES.items():
+        theta = _line_angle(R, X, theta, line_angle)
+        denominator = X if impedance == "X" else Z
+        for i, j in ((p - 1, q - 1), (q - 1, p - 1)):
+            # d/d(delta_i) of eq. (26) = V_i V_j / X sin(theta + delta_i - delta_j) = -d/d(delta_j)
+            s = sign * V[i] * V[j] / denominator * np.sin(theta + sign * (delta[i] - delta[j]))
+            J[j, i] += s
+            J[j, j] -= s
+    H = -np.linalg.solve(J[np.ix_(_LOADS, _LOADS)], J[np.ix_(_LOADS, _GEN)])
+    return J[np.ix_(_GEN, _GEN)] + J[np.ix_(_GEN, _LOADS)] @ H
+
+
+def _coupling_constant_impedance(delta, V, line_angle: str, internal_reactance: float | None,
+                                 bus2_load: bool) -> np.ndarray:
+    """``-d(electrical power of generator i)/d(delta_k)`` ``(2, 2)`` of the Kron-reduced network
+    with the loads as constant admittances."""
+    Y = np.zeros((5, 5), dtype=complex)
+    for (p, q), (R, X, Z, theta) in _LINES.items():
+        z = {"printed": Z * np.exp(1j * theta), "exact": complex(R, X),
+             "lossless": complex(0.0, X)}[line_angle]
+        i, j = p - 1, q - 1
+        Y[[i, j], [i, j]] += 1.0 / z
+        Y[i, j] -= 1.0 / z
+        Y[j, i] -= 1.0 / z
+    load = np.conj(_BUS_LOAD / _BASE_MVA) / V**2  # (P_L - j Q_L) / V^2
+    if not bus2_load:
+        load[1] = 0.0
+    Y += np.diag(load)
+    E = V[_GEN] * np.exp(1j * delta[_GEN])
+    if internal_reactance is not None:  # internal buses 0, 1 behind j x; network buses 2..6
+        current = np.conj(_BUS_GEN[_GEN] / _BASE_MVA / E)
+        E = E + 1j * internal_reactance * current
+        y = 1.0 / (1j * internal_reactance)
+        big = np.zeros((7, 7), dtype=complex)
+        big[2:, 2:] = Y
+        for g in _GEN:
+            big[[g, g + 2], [g, g + 2]] += y
+            big[g, g + 2] -= y
+            big[g + 2, g] -= y
+        Y, keep, drop = big, [0, 1], [2, 3, 4, 5, 6]
+    else:
+        keep, drop = _GEN, _LOADS
+    reduced = Y[np.ix_(keep, keep)] - Y[np.ix_(keep, drop)] @ np.linalg.solve(
+        Y[np.ix_(drop, drop)], Y[np.ix_(drop, keep)])
+    # P_i = sum_k |E_i||E_k||Y_ik| cos(angle_i - angle_k - phase(Y_ik)); M w' = P_in - P_i
+    magnitude, angle = np.abs(E), np.angle(E)
+    coupling = np.zeros((2, 2))
+    for i, k in ((0, 1), (1, 0)):
+        dP = magnitude[i] * magnitude[k] * np.abs(reduced[i, k]) * np.sin(
+            angle[i] - angle[k] - np.angle(reduced[i, k]))  # dP_i / d(angle_k)
+        coupling[i, k], coupling[i, i] = -dP, dP
+    return coupling

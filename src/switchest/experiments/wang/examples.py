@@ -36,6 +36,7 @@ from ...models import WANG_EXAMPLES
 from ...plotting import curves
 from ..registry import Experiment, Row, Summary, register
 from ..scoring import blocks, mean_and_se, split_variants
+from ..verdict import Z_95
 from .monte_carlo import (
     block_total,
     exact_moments,
@@ -75,6 +76,13 @@ def _sigma1(system, T: float, p, L1: float) -> float:
     """Correct ``sigma_inf^1(L1, T)`` from the library's steady state."""
     dyn = error_dynamics(system, scalar_gains(L1, DESIGN_GAINS[1]), T)
     return float(steady_state(dyn, p).V_x[0, 0])
+
+
+def _exact_se(system, gains, T: float, prob, e0, steps: int, trials: int) -> np.ndarray:
+    """Standard error ``(steps + 1, n)`` of a Monte Carlo mean of ``e_k^2`` over ``trials`` runs,
+    from the exact second and fourth moments (the sample SE understates it: heavy tails)."""
+    m = scalar_error_moments(error_dynamics(system, scalar_gains(*gains), T), prob, e0, steps)
+    return np.sqrt(np.maximum(m.E4 - m.E2**2, 0.0) / trials)
 
 
 def _n_log_bins() -> int:
@@ -198,7 +206,8 @@ class _Context:
                    None, "",
                    f"exact {exact:.4g} (steady state (21): {ss:.4g}); |MC − exact| = {z:.2f} SE, "
                    f"SE {se:.2g} from the exact 4th moments (sample SE {float(se_sample):.2g}, "
-                   f"{int(N)} runs); given the simulated modes {self.given_z(stats, comp):+.2f} SD")
+                   f"{int(N)} runs); given the simulated modes {self.given_z(stats, comp):+.2f} SD",
+                   se=se, trials=int(N))
 
 
 def _example1_section(c: _Context) -> None:
@@ -220,25 +229,33 @@ def _example1_section(c: _Context) -> None:
     z = z_score(mc[K, 0], se, E2[K, 0])
     c.zs.append(z)
     steady = component_steady_state(dyn, c.prob)
+    a = np.array([c.ex.a1, c.ex.a2])
+    is_2a = np.allclose(L_kb, 2.0 * a, rtol=1e-9, atol=0.0)
     c.rows += [
         Row("Ex. 1: Kalman–Bucy gains L_1, L_2 (ARE of each observable sub-state)",
-            f"{L_kb[0]:.4g}, {L_kb[1]:.4g}", "2a_1 = 4, 2a_2 = 8"),
+            EXAMPLES_PAPER["kb_gains"] if is_2a else f"{L_kb[0]:.6g}, {L_kb[1]:.6g}",
+            EXAMPLES_PAPER["kb_gains"], "", f"ours {L_kb[0]:.6g}, {L_kb[1]:.6g} with a = "
+            f"({a[0]:g}, {a[1]:g})" if is_2a else ""),
         Row("Ex. 1: γ̄^1 = p e^{−2a_1T} + (1−p) e^{2a_1T} (Kalman–Bucy)", float(M[0]), paper[0], "",
             "> 1: e¹ diverges in mean square"),
         Row("Ex. 1: γ̄^2 = (1−p) e^{−2a_2T} + p e^{2a_2T} (Kalman–Bucy)", float(M[1]), paper[1]),
-        Row(f"Fig. 1: MC growth of σ¹_k per step, k = {K // 2}..{K}", growth, paper[0], "",
-            "least-squares slope of log σ¹_k (the noise term is negligible there)"),
+        Row(f"Fig. 1: MC growth of σ¹_k per step, k = {K // 2}..{K} (the paper: e¹ diverges)",
+            growth, "> 1 (diverges)", "",
+            f"least-squares slope of log σ¹_k (the noise term is negligible there); the exact "
+            f"factor is γ̄^1 = {M[0]:.4f}", trials=int(N)),
         Row(f"Fig. 1: MC σ¹ at k = {K}", float(mc[K, 0]), None, "",
             f"exact {E2[K, 0]:.4g}; |MC − exact| = {z:.2f} SE, SE {se:.2g} from the exact 4th "
             f"moment (sample SE {se_sample[K, 0]:.2g}); time average k ≥ {cfg['window']} given the "
-            f"simulated modes {c.given_z(stats, 0):+.2f} SD"),
+            f"simulated modes {c.given_z(stats, 0):+.2f} SD", se=se, trials=int(N)),
         c.window_row("Fig. 1", tot, L_kb, 1, cfg),
     ]
+    mc_label = f"Monte Carlo ({int(N)} runs)"
     c.figs.append(curves(c.out / "wang-fig1-kalman-bucy.png", np.arange(K + 1),
-                         {f"Monte Carlo ({int(N)} runs)": mc, "exact second moments": E2,
+                         {mc_label: mc, "exact second moments": E2,
                           "steady state (21)": np.broadcast_to(steady, E2.shape)},
                          xlabel="k (switching intervals, T = 0.03)",
                          ylabel=["σ¹_k = E(e¹_k)²", "σ²_k = E(e²_k)²"],
+                         bands={mc_label: Z_95 * np.sqrt(np.maximum(E4 - E2**2, 0.0) / N)},
                          logy=True,
                          title="Wang Fig. 1: Kalman–Bucy gains L_i = 2a_i — e¹ diverges in MS, e² "
                                "converges"))
@@ -266,7 +283,10 @@ def _example2_section(c: _Context) -> dict:
         c.rows += [
             Row(f"Ex. 2: bound L_{comp + 1} > (correct, e^(2(a−L)T))",
                 float(bounds.min_loop_gain[comp]),
-                paper["gain_bounds"][comp], "", "the second-moment factor is 1 at this gain"),
+                paper["gain_bounds"][comp], "",
+                "the printed bound solves the condition with e^((a−L)T) (next row reproduces it), "
+                "although Example 2 writes the condition with e^(2(a−L)T), as second moments "
+                "need: at this gain the exact second-moment factor is 1"),
             Row(f"Ex. 2: bound L_{comp + 1} > (paper's reading, e^((a−L)T))",
                 printed_gain_bound(a, p_closed, c.T), paper["gain_bounds"][comp]),
         ]
@@ -288,12 +308,15 @@ def _example2_section(c: _Context) -> dict:
     ]
     stats = tot[_label(*DESIGN_GAINS)]
     mc, _ = mean_and_se(stats["sum"], stats["sq"], tot["trials"])
+    mc_label = f"Monte Carlo ({int(tot['trials'])} runs)"
+    band = Z_95 * _exact_se(c.system, DESIGN_GAINS, c.T, c.prob, c.e0, cfg["horizon"],
+                            int(tot["trials"]))
     c.figs.append(curves(c.out / "wang-fig2-design.png", np.arange(cfg["horizon"] + 1),
-                         {f"Monte Carlo ({int(tot['trials'])} runs)": mc,
+                         {mc_label: mc,
                           "exact second moments": exact,
                           "steady state (21)": np.broadcast_to(steady, exact.shape)},
                          xlabel="k (switching intervals, T = 0.03)", ylabel=["σ¹_k", "σ²_k"],
-                         logy=True,
+                         bands={mc_label: band}, logy=True,
                          title="Wang Fig. 2: L1 = 40, L2 = 15, T = 0.03 < T_max — both components "
                                "converge in MS"))
     return {"ci": ci, "bounds": bounds, "gamma_theorem2": ms.gamma,
@@ -322,10 +345,11 @@ def _example2_large_T(c: _Context) -> np.ndarray:
         Row(f"Fig. 3 (T = {big.T:g}): exact second-moment factor, component 2", float(M[1]),
             "> 1 (diverges)"),
         Row(f"Fig. 3: MC growth of σ¹_k per step, k = 1..{k_fit}", growth, None, "",
-            f"exact {M[0]:.4g}; fitted while some of the {N} runs are still all open loop"),
+            f"exact {M[0]:.4g}; fitted while some of the {N} runs are still all open loop",
+            trials=N),
         Row(f"Fig. 3: MC σ² at k = {K} / σ² at k = 0", float(mc[K, 1] / mc[0, 1]), None, "",
             f"exact {exact[K, 1] / exact[0, 1]:.3g}: MS divergence of e² rides on runs of mode 1 "
-            f"(probability {big.p:g}^k) that {N} runs cannot sample"),
+            f"(probability {big.p:g}^k) that {N} runs cannot sample", trials=N),
         Row("Fig. 3: time averages given the simulated modes, components 1, 2",
             f"{c.given_z(stats, 0):+.2f}, {c.given_z(stats, 1):+.2f}", None, "SD",
             "the simulated errors follow Theorem 1 along every mode sequence, diverging ones "
@@ -336,9 +360,12 @@ def _example2_large_T(c: _Context) -> np.ndarray:
             "e_0²: almost every path stays bounded (E log|γ_k| < 0) while the mean square "
             "diverges"),
     ]
+    mc_label = f"Monte Carlo mean ({N} runs)"
     c.figs.append(curves(c.out / "wang-fig3-large-T.png", np.arange(K + 1),
-                         {f"Monte Carlo mean ({N} runs)": mc, "exact second moments": exact,
+                         {mc_label: mc, "exact second moments": exact,
                           "Monte Carlo median": median},
+                         bands={mc_label: Z_95 * _exact_se(c.system, DESIGN_GAINS, big.T, c.prob,
+                                                           c.e0, K, N)},
                          xlabel=f"k (switching intervals, T = {big.T:g})", ylabel=["σ¹_k", "σ²_k"],
                          logy=True,
                          title=f"Wang Fig. 3: the same gains with T = {big.T:g} > T_max — MS "
@@ -352,12 +379,22 @@ def _example3_rows() -> list[Row]:
     ci = critical_interval(ex.system(), ex.probabilities())
     T = 0.02  # Example 3 fixes no T; any T below ln(2)/20
     bound = decoupled_gain_bounds(ex.system(), ex.probabilities(), T)
+    threshold, printed_T = float(ci.per_block[0]), np.log(2.0) / 20.0
+    ours_L, printed_L = (float(bound.min_loop_gain[0]),
+                         float(-np.log(2.0 * np.exp(-20.0 * T) - 1.0) / (2.0 * T)))
+    same_T = np.isclose(threshold, printed_T, rtol=1e-12, atol=0.0)
+    same_L = np.isclose(ours_L, printed_L, rtol=1e-10, atol=0.0)
     return [
-        Row("Ex. 3 (a = 10, p = 0.5): threshold T < ln(2)/20", float(ci.per_block[0]),
-            EXAMPLES_PAPER["example3_T"], "", "printed as ln(2)/20"),
-        Row(f"Ex. 3: L1 bound at T = {T:g} (decoupled_gain_bounds)", float(bound.min_loop_gain[0]),
-            float(-np.log(2.0 * np.exp(-20.0 * T) - 1.0) / (2.0 * T)), "",
-            "paper: the printed formula −ln(2e^(−20T) − 1)/(2T) evaluated"),
+        Row("Ex. 3 (a = 10, p = 0.5): critical interval, T < ... (critical_interval)",
+            EXAMPLES_PAPER["example3_T"] if same_T else f"{threshold:.10g}",
+            EXAMPLES_PAPER["example3_T"], "",
+            f"ours {threshold:.10g}, ln(2)/20 = {printed_T:.10g}" if same_T else ""),
+        Row(f"Ex. 3: L1 bound, L1 > ... (decoupled_gain_bounds at T = {T:g}, a T below ln(2)/20; "
+            "the paper fixes none)",
+            EXAMPLES_PAPER["example3_bound"] if same_L else f"{ours_L:.10g}",
+            EXAMPLES_PAPER["example3_bound"], "",
+            f"ours {ours_L:.10g}; the printed formula at T = {T:g}: {printed_L:.10g}"
+            if same_L else ""),
     ]
 
 
@@ -369,37 +406,50 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
         dyn = error_dynamics(c.system, scalar_gains(L1, DESIGN_GAINS[1]), c.T)
         M = moment_matrix(dyn, c.prob)[0, 0]
         c.rows += [
-            Row(f"Ex. 4: γ^1 for L1 = {L1:g} (correct, e^(2(a−L)T))", float(M), printed),
+            Row(f"Ex. 4: γ^1 for L1 = {L1:g} (correct, e^(2(a−L)T))", float(M), printed, "",
+                "the printed γ^1 is p e^((a−L)T) + (1−p) e^(2aT) (next row reproduces it), not "
+                "the γ^1 = p e^(2(a−L)T) + (1−p) e^(2aT) the paper itself defines below (23)"),
             Row(f"Ex. 4: γ^1 for L1 = {L1:g} (paper's reading, e^((a−L)T))",
                 printed_gamma(ex.a1, L1, ex.p, c.T), printed),
         ]
     optimum = _correct_optimum(c.system, c.T, c.prob)
     L_star, s_star = optimum.gain, optimum.steady_state
     L_read, s_read = printed_optimum(ex.a1, ex.p, c.T, ex.zeta)
+    misread = ("the printed optimum minimizes the paper's reading of σ¹_∞ = p Q_1²/(1 − γ^1): "
+               "γ^1 with e^((a−L)T) and Q_1² integrated to ∞ (the rows below reproduce it); with "
+               "(23)'s γ^1 and Q_1² = ∫_0^T, as Proposition 1 has it, the optimum is ours")
     c.rows += [
-        Row("Ex. 4: optimal L1* (correct: e^(2(a−L)T), Q² = ∫_0^T)", L_star, paper["optimum"][0]),
-        Row("Ex. 4: σ¹_∞(L1*) (correct)", s_star, paper["optimum"][1]),
+        Row("Ex. 4: optimal L1* (correct: e^(2(a−L)T), Q² = ∫_0^T)", L_star, paper["optimum"][0],
+            "", misread),
+        Row("Ex. 4: σ¹_∞(L1*) (correct)", s_star, paper["optimum"][1], "", misread),
         Row("Ex. 4: optimal L1* (paper's reading: e^((a−L)T), Q² = ∫_0^∞)", L_read,
             paper["optimum"][0]),
         Row("Ex. 4: σ¹_∞(L1*) (paper's reading)", s_read, paper["optimum"][1]),
         Row("Ex. 4: correct σ¹_∞ at the printed L1* = 61.3",
-            _sigma1(c.system, c.T, c.prob, paper["optimum"][0]), paper["optimum"][1]),
+            _sigma1(c.system, c.T, c.prob, paper["optimum"][0]), paper["optimum"][1], "",
+            "the printed 0.9864 is the paper's reading of σ¹_∞ at its optimum (row above); the "
+            "correct steady state at L1 = 61.3 is ours"),
     ]
     cfg, tot, first = block_total(c.results, figure="4")
     K, N = cfg["horizon"], tot["trials"]
-    series, mc_points = {}, {DESIGN_GAINS[0]: mc_design}
+    series, bands, mc_points = {}, {}, {DESIGN_GAINS[0]: mc_design}
+    fig4_rows = {}
     for L1, L2 in cfg["gains"]:
         stats = tot[_label(L1, L2)]
-        c.rows.append(c.window_row(f"Fig. 4, L1 = {L1:g}", tot, (L1, L2), 0, cfg))
+        fig4_rows[L1] = c.window_row(f"Fig. 4, L1 = {L1:g}", tot, (L1, L2), 0, cfg)
+        c.rows.append(fig4_rows[L1])
         mc, _ = mean_and_se(stats["sum"], stats["sq"], N)
         exact = exact_moments(c.system, scalar_gains(L1, L2), c.T, c.prob, c.e0, K)[0]
         series[f"L1 = {L1:g}"] = np.column_stack([mc[:, 0], exact[:, 0]])
+        se = _exact_se(c.system, (L1, L2), c.T, c.prob, c.e0, K, int(N))[:, 0]
+        bands[f"L1 = {L1:g}"] = np.column_stack([Z_95 * se, np.zeros_like(se)])
         mc_points[L1] = float(stats["win_sum"][0] / N)
+    c.rows += _fig4_claims(c, fig4_rows)
     c.figs.append(curves(c.out / "wang-fig4-gains.png", np.arange(K + 1), series,
                          xlabel="k (T = 0.03)",
-                         ylabel=[f"σ¹_k, Monte Carlo ({int(N)} runs)",
+                         ylabel=[f"σ¹_k, Monte Carlo ({int(N)} runs, 95% bands)",
                                  "σ¹_k, exact second moments"],
-                         logy=True,
+                         bands=bands, logy=True,
                          title="Wang Fig. 4: error variance σ¹_k for several L1 (e_0 = 2)"))
     if "path" in first:  # path_gain is one of fig4_gains
         exact, steady, _ = exact_moments(c.system, scalar_gains(cfg["path_gain"], DESIGN_GAINS[1]),
@@ -423,9 +473,11 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
                                     cfg["horizon"])[0][w:, 0].mean())
     c.rows.append(Row(f"Fig. 6: MC σ¹(L1 = {La:g}) − σ¹(L1 = {Lb:g}), paired time averages",
                       float(d_mc), "> 0 (61.3 optimal)", "",
-                      f"± {float(d_se):.2g} (sample SE); exact {d_exact:.4g}; |MC − exact| = "
-                      f"{z_score(float(d_mc), float(d_se), d_exact):.2f} SE: the correct optimum "
-                      "beats the printed one on the same runs"))
+                      "61.3 is optimal only for the paper's reading of σ¹_∞ (e^((a−L)T), Q² to ∞); "
+                      f"the correct optimum L1 = {La:g} beats it on the same runs: exact "
+                      f"{d_exact:.4g}, |MC − exact| = "
+                      f"{z_score(float(d_mc), float(d_se), d_exact):.2f} SE (sample SE)",
+                      se=float(d_se), trials=int(tot["trials"])))
     grid = np.unique(np.round(np.concatenate([np.geomspace(16.0, 200.0, 20), list(mc_points)]), 3))
     bound = printed_gain_bound(ex.a1, ex.p, c.T)
     c.figs.append(curves(
@@ -439,6 +491,39 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
         paper={"optimum L1* = 61.3, σ = 0.9864": ([paper["optimum"][0]], [paper["optimum"][1]])},
         markers=[L_star], title=f"Wang Fig. 6: σ¹_∞(L1), T = 0.03 (dotted: L1* = {L_star:.2f})"))
     return L_star, s_star
+
+
+def _fig4_claims(c: _Context, mc_rows: dict) -> list[Row]:
+    """The text's claims about Fig. 4's steady states: L1 = 60 below L1 = 30, L1 = 200 above L1 =
+    60, judged on the exact σ¹_∞ (21), with the paper's reading and the Monte Carlo beside."""
+    ex = c.ex
+
+    def correct(L):
+        return _sigma1(c.system, c.T, c.prob, L)
+
+    def reading(L):
+        return printed_sigma(ex.a1, L, ex.p, c.T, ex.zeta)
+
+    def mc(L):
+        row = mc_rows.get(L)
+        return (f"; Monte Carlo time average at L1 = {L:g}: {row.measured:.4g} ± {row.se:.2g}"
+                if row is not None else "")
+
+    d60 = correct(60.0) - correct(30.0)
+    d200 = correct(200.0) - correct(60.0)
+    return [
+        Row("Fig. 4: σ¹_∞(L1 = 60) − σ¹_∞(L1 = 30), steady state (21) (the text: smaller at 60)",
+            d60, "< 0 (smaller at L1 = 60)", "",
+            "the text's claim holds for its reading of σ¹_∞ (e^((a−L)T), Q² to ∞): there the "
+            f"difference is {reading(60.0) - reading(30.0):+.4f}; with the correct second moments "
+            f"L1 = 30 has the smaller steady state ({correct(30.0):.4f} against "
+            f"{correct(60.0):.4f})" + mc(30.0) + mc(60.0) if d60 >= 0 else
+            f"σ¹_∞ = {correct(30.0):.4f} (L1 = 30), {correct(60.0):.4f} (L1 = 60)"),
+        Row("Fig. 4: σ¹_∞(L1 = 200) − σ¹_∞(L1 = 60), steady state (21) (the text: bigger at "
+            "200)", d200, "> 0 (bigger at L1 = 200)", "",
+            f"σ¹_∞ = {correct(60.0):.4f} (L1 = 60), {correct(200.0):.4f} (L1 = 200)"
+            + mc(60.0) + mc(200.0) if d200 > 0 else ""),
+    ]
 
 
 def _examples_summary(p: dict, results, out: Path) -> Summary:
