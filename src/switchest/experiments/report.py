@@ -43,12 +43,12 @@ table { border-collapse: collapse; width: 100%; margin: 0.8em 0; font-size: 0.92
 th, td { padding: 4px 8px; border-bottom: 1px solid #eee; text-align: right; vertical-align: top; }
 th:first-child, td:first-child, td.note, td.verdict { text-align: left; }
 th { background: #f6f6f6; }
-td.num { font-variant-numeric: tabular-nums; white-space: nowrap; }
+td.num { font-variant-numeric: tabular-nums; }
 tr.ok td.verdict { background: #e3f4e4; } tr.near td.verdict { background: #eef6d8; }
 tr.known td.verdict { background: #fff0cc; } tr.off td.verdict { background: #fde2e1; \
 font-weight: 600; }
 tr.derived td.verdict { color: #777; font-style: italic; }
-td.note { color: #555; max-width: 28em; }
+td.note { color: #555; max-width: 36em; }
 .setup { background: #f8f8f8; padding: 0.6em 0.9em; border-left: 3px solid #bbb; }
 ul.notes li { margin-bottom: 0.3em; }
 .figs img { max-width: 100%; margin: 0.5em 0; border: 1px solid #eee; }
@@ -188,7 +188,8 @@ def _cells(row: Row) -> tuple[str, str]:
     paper = ("—" if row.paper is None
              else html.escape(str(row.paper)) if printed is None else str(printed))
     if isinstance(row.measured, str):
-        return paper, html.escape(row.measured)
+        count = f" <span class='meta'>(n = {row.trials})</span>" if row.trials else ""
+        return paper, html.escape(row.measured) + count
     decimals = None if printed is None else max(0, -printed.as_tuple().exponent) + 2
     if decimals is None and row.se is not None:
         decimals = _se_decimals(row.se)
