@@ -59,6 +59,8 @@ background: #eee; margin-right: 0.3em; }
 .badge.quick { background: #ffe8b3; font-weight: 600; }
 table.provenance td, table.provenance th { text-align: left; }
 table.summary td:first-child { white-space: nowrap; }
+table.summary td:last-child { text-align: left; }
+td.num span.meta { white-space: nowrap; }
 """
 
 
