@@ -64,7 +64,7 @@ class Estimate:
 
 
 class Estimator(ABC):
-    """The protocol of every estimator (DESIGN.md §4), with the configuration and the time
+    """The protocol of every estimator, with the configuration and the time
     loop they share.
 
     Notes
@@ -128,6 +128,13 @@ class Estimator(ABC):
         self.system = system
         self.x0 = x0
         self.P0 = check_symmetric_psd(P0, "P0")
+
+    def _prior_copies(self, shape) -> tuple[np.ndarray, np.ndarray]:
+        """The prior ``x0``, ``P0`` replicated over ``shape`` (trials, or trials and modes) as
+        writeable arrays ``(*shape, n)``, ``(*shape, n, n)``: the start of ``init``'s state."""
+        n = self.system.n_states
+        return (np.broadcast_to(self.x0, (*shape, n)).copy(),
+                np.broadcast_to(self.P0, (*shape, n, n)).copy())
 
     # ------------------------------------------------------------------ the loop
     def _loop(self, y, u, t, per_step: dict[str, np.ndarray] | None = None) -> Estimate:

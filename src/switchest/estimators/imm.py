@@ -99,16 +99,12 @@ class IMMFilter(Estimator):
 
     def init(self, batch_shape=()) -> IMMState:
         """Every mode-matched filter starts from the prior ``(x0, P0)``."""
-        L, n = self.system.n_modes, self.system.n_states
-        return IMMState(
-            x=np.broadcast_to(self.x0, (*batch_shape, L, n)).copy(),
-            P=np.broadcast_to(self.P0, (*batch_shape, L, n, n)).copy(),
-            log_prob=np.broadcast_to(self._log_p0, (*batch_shape, L)).copy(),
-            loglik=np.zeros(batch_shape),
-            outlier=np.zeros(batch_shape, dtype=bool),
-            combined_x=np.broadcast_to(self.x0, (*batch_shape, n)).copy(),
-            combined_P=np.broadcast_to(self.P0, (*batch_shape, n, n)).copy(),
-        )
+        L = self.system.n_modes
+        x, P = self._prior_copies((*batch_shape, L))
+        combined_x, combined_P = self._prior_copies(batch_shape)
+        return IMMState(x=x, P=P, log_prob=np.broadcast_to(self._log_p0, (*batch_shape, L)).copy(),
+                        loglik=np.zeros(batch_shape), outlier=np.zeros(batch_shape, dtype=bool),
+                        combined_x=combined_x, combined_P=combined_P)
 
     def step(self, state: IMMState, y, u=None, *, dt=None) -> IMMState:
         """Mix and predict over ``dt`` (skipped when ``None``), update with ``y (..., m)``.
@@ -131,18 +127,17 @@ class IMMFilter(Estimator):
         else:
             steps = mode_steps(sys, dt)
             F, G, Qd = steps.F, steps.G, steps.Qd
-        out = imm_step(state.x.reshape(N, L, n), state.P.reshape(N, L, n, n),
-                       state.log_prob.reshape(N, L), y, u, F, G, Qd,
-                       np.arange(L), sys.C, sys.R, self._log_transition,
-                       predict_first=dt is not None, gate=self._gate)
+        out, (x, P, log_prob) = imm_step(
+            state.x.reshape(N, L, n), state.P.reshape(N, L, n, n), state.log_prob.reshape(N, L),
+            y, u, F, G, Qd, np.arange(L), sys.C, sys.R, self._log_transition,
+            predict_first=dt is not None, gate=self._gate)
         raise_for_status(out.status)
         warn_for_repairs(out)
         return IMMState(
-            x=out.x.reshape(*batch, L, n), P=out.P.reshape(*batch, L, n, n),
-            log_prob=out.log_prob.reshape(*batch, L), loglik=out.loglik.reshape(batch),
+            x=x.reshape(*batch, L, n), P=P.reshape(*batch, L, n, n),
+            log_prob=log_prob.reshape(*batch, L), loglik=out.loglik.reshape(batch),
             outlier=(out.flag == GATED).reshape(batch),
-            combined_x=out.combined_x.reshape(*batch, n),
-            combined_P=out.combined_P.reshape(*batch, n, n),
+            combined_x=out.x.reshape(*batch, n), combined_P=out.P.reshape(*batch, n, n),
         )
 
     def run(self, y, u=None, t=None) -> Estimate:

@@ -144,11 +144,10 @@ class IMMEV1Filter(Estimator):
 
     def init(self, batch_shape=()) -> IMMEV1State:
         """Every destination filter starts from the prior."""
-        L, n = self.system.n_modes, self.system.n_states
+        L = self.system.n_modes
+        x, P = self._prior_copies((*batch_shape, L))
         return IMMEV1State(
-            x=np.broadcast_to(self.x0, (*batch_shape, L, n)).copy(),
-            P=np.broadcast_to(self.P0, (*batch_shape, L, n, n)).copy(),
-            log_weight=np.broadcast_to(self._log_p0, (*batch_shape, L)).copy(),
+            x=x, P=P, log_weight=np.broadcast_to(self._log_p0, (*batch_shape, L)).copy(),
             predecessor=np.broadcast_to(np.arange(L), (*batch_shape, L)).copy(),
             switch_offset=np.full((*batch_shape, L), np.nan),
             outlier=np.zeros(batch_shape, dtype=bool),
@@ -178,7 +177,7 @@ class IMMEV1Filter(Estimator):
                              f"shape and l = {sys.n_inputs} inputs), got {u.shape}") from None
         steps = None if dt is None else np.array([positive_scalar(dt, "dt")])
         F, G, Qd, tau = self._transitions(steps)
-        out = imm_ev1_step(
+        out, (x, P, log_weight, predecessor, switch_offset) = imm_ev1_step(
             state.x.reshape(N, L, n), state.P.reshape(N, L, n, n),
             state.log_weight.reshape(N, L), state.predecessor.reshape(N, L),
             state.switch_offset.reshape(N, L), y.reshape(N, m), u, F, G, Qd, tau[0],
@@ -187,11 +186,9 @@ class IMMEV1Filter(Estimator):
         raise_for_status(out.status)
         warn_for_repairs(out)
         return IMMEV1State(
-            x=out.x.reshape(*batch, L, n), P=out.P.reshape(*batch, L, n, n),
-            log_weight=out.log_weight.reshape(*batch, L),
-            predecessor=out.predecessor.reshape(*batch, L),
-            switch_offset=out.switch_offset.reshape(*batch, L),
-            outlier=out.outlier.reshape(batch),
+            x=x.reshape(*batch, L, n), P=P.reshape(*batch, L, n, n),
+            log_weight=log_weight.reshape(*batch, L), predecessor=predecessor.reshape(*batch, L),
+            switch_offset=switch_offset.reshape(*batch, L), outlier=out.outlier.reshape(batch),
         )
 
     def run(self, y, u=None, t=None) -> Estimate:

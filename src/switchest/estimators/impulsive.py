@@ -181,12 +181,8 @@ class ImpulsiveObserver(Estimator):
 
     def init(self, batch_shape=()) -> ImpulsiveState:
         """The initial estimate; ``mode`` is -1 until the first sample sets it."""
-        n = self.system.n_states
-        return ImpulsiveState(
-            x=np.broadcast_to(self.x0, (*batch_shape, n)).copy(),
-            P=np.broadcast_to(self.P0, (*batch_shape, n, n)).copy(),
-            mode=np.full(batch_shape, -1, dtype=np.int64),
-        )
+        x, P = self._prior_copies(batch_shape)
+        return ImpulsiveState(x=x, P=P, mode=np.full(batch_shape, -1, dtype=np.int64))
 
     def step(
         self,

@@ -89,13 +89,9 @@ class ModeKalmanFilter(Estimator):
 
     def init(self, batch_shape=()) -> KalmanState:
         """The prior, replicated over ``batch_shape``."""
-        n = self.system.n_states
-        return KalmanState(
-            x=np.broadcast_to(self.x0, (*batch_shape, n)).copy(),
-            P=np.broadcast_to(self.P0, (*batch_shape, n, n)).copy(),
-            loglik=np.zeros(batch_shape),
-            outlier=np.zeros(batch_shape, dtype=bool),
-        )
+        x, P = self._prior_copies(batch_shape)
+        return KalmanState(x=x, P=P, loglik=np.zeros(batch_shape),
+                           outlier=np.zeros(batch_shape, dtype=bool))
 
     def step(self, state: KalmanState, y, u=None, *, dt=None, mode, prev_mode=None,
              segment_modes=None, segment_offsets=None, period=None) -> KalmanState:

@@ -202,14 +202,10 @@ class SwitchTimeKalmanFilter(Estimator):
 
     def init(self, batch_shape=()) -> SwitchTimeState:
         """The prior, replicated over ``batch_shape``."""
-        n = self.system.n_states
-        return SwitchTimeState(
-            x=np.broadcast_to(self.x0, (*batch_shape, n)).copy(),
-            P=np.broadcast_to(self.P0, (*batch_shape, n, n)).copy(),
-            loglik=np.zeros(batch_shape),
-            switch_offset=np.full(batch_shape, np.nan),
-            outlier=np.zeros(batch_shape, dtype=bool),
-        )
+        x, P = self._prior_copies(batch_shape)
+        return SwitchTimeState(x=x, P=P, loglik=np.zeros(batch_shape),
+                               switch_offset=np.full(batch_shape, np.nan),
+                               outlier=np.zeros(batch_shape, dtype=bool))
 
     def step(self, state: SwitchTimeState, y, u=None, *, dt=None, mode,
              prev_mode=None) -> SwitchTimeState:

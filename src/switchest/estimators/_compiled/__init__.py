@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 
-from .imm import IMMOutput, IMMStepOutput, imm_run, imm_step
+from .imm import IMMOutput, imm_run, imm_step
 from .kalman import KalmanOutput, kalman_run, kalman_steady_run, kalman_steady_step, kalman_step
 from .linalg import ACCEPTED, GATED, NOT_FINITE, NOT_POSITIVE_DEFINITE, OK, PARTLY_GATED
 
@@ -27,7 +27,6 @@ __all__ = [
     "GATED",
     "PARTLY_GATED",
     "IMMOutput",
-    "IMMStepOutput",
     "KalmanOutput",
     "imm_run",
     "imm_step",

@@ -22,14 +22,15 @@ import numpy as np
 from .linalg import (
     ACCEPTED,
     GATED,
-    NOT_POSITIVE_DEFINITE,
     OK,
     PARTLY_GATED,
     combine,
     correct,
     gather_matrices,
+    gather_modes,
+    gather_rows,
     gather_samples,
-    information_form,
+    information_or_repair,
     innovation,
     jit,
     joseph_lost,
@@ -37,7 +38,9 @@ from .linalg import (
     mix,
     observe,
     predict,
-    repair,
+    scatter_modes,
+    scatter_rows,
+    write_lane,
 )
 
 __all__ = ["LANES", "filter_bank"]
@@ -108,7 +111,8 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
     Returns
     -------
     status : int
-        ``OK`` or the failure code that stopped the kernel.
+        ``OK``, or the failure code of the mode-matched innovation covariance that stopped the
+        kernel (outputs then incomplete).
 
     Notes
     -----
@@ -151,16 +155,11 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
     report[0], report[1] = 0.0, math.inf
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
+        gather_rows(log_prob_init, i0, nb, log_prob)
+        gather_modes(x_init, P_init, i0, nb, x, P)
         for j in range(n_modes):
             for b in range(nb):
-                log_prob[j, b] = log_prob_init[i0 + b, j]
                 prob[j, b] = math.exp(log_prob[j, b])
-            for r in range(n):
-                for b in range(nb):
-                    x[j, r, b] = x_init[i0 + b, j, r]
-                for c in range(n):
-                    for b in range(nb):
-                        P[j, r, c, b] = P_init[i0 + b, j, r, c]
         for k in range(K):
             gather_samples(y, i0, nb, k, yl)
             observe(yl, nb, obs, n_obs)
@@ -185,14 +184,7 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
                     gather_matrices(R, idx, nb, Rl[j])
             for j in range(n_modes):
                 status = innovation(x[j], P[j], yl, Cl[j], Rl[j], obs, n_obs, nb, e[j], PCt[j],
-                                    chol[j], scale[j], z[j], nis[j], loglik[j], work, bad)
-                if status == NOT_POSITIVE_DEFINITE:  # repair the failing lanes' P, retry once
-                    for b in range(nb):
-                        if bad[b] and not repair(P[j], b, False, report):
-                            return status
-                    status = innovation(x[j], P[j], yl, Cl[j], Rl[j], obs, n_obs, nb, e[j],
-                                        PCt[j], chol[j], scale[j], z[j], nis[j], loglik[j],
-                                        work, bad)
+                                    chol[j], scale[j], z[j], nis[j], loglik[j], work, bad, report)
                 if status != OK:
                     return status
             for b in range(nb):  # the gating decision, before anything changes
@@ -213,10 +205,7 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
                 correct(x[j], P[j], Cl[j], Rl[j], use[j], nb, PCt[j], chol[j], scale[j], z[j],
                         gain, T, AP, prior)
                 if joseph_lost(P[j], prior, use[j], nb, root, lost):  # rare: lane by lane
-                    for b in range(nb):
-                        if lost[b] and n_obs[b] > 0.0 and not information_form(
-                                P[j], prior, Cl[j], Rl[j], obs, b):
-                            repair(P[j], b, True, report)
+                    information_or_repair(P[j], prior, Cl[j], Rl[j], obs, n_obs, lost, nb, report)
             log_normalize(a, prob, total, nb)  # log mu_j = log c_j + log Lambda_j, normalized
             _copy_rows(a, log_prob, nb)
             combine(x, P, prob, log_prob, nb, xc, Pc, best)
@@ -228,15 +217,7 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
                 flag_out[i, k] = flag[b]
                 for j in range(n_modes):
                     prob_out[i, k, j] = prob[j, b]
-                for r in range(n):
-                    x_out[i, k, r] = xc[r, b]
-                    for c in range(n):
-                        P_out[i, k, r, c] = Pc[r, c, b]
-        for b in range(nb):
-            for j in range(n_modes):
-                log_prob_last[i0 + b, j] = log_prob[j, b]
-                for r in range(n):
-                    x_last[i0 + b, j, r] = x[j, r, b]
-                    for c in range(n):
-                        P_last[i0 + b, j, r, c] = P[j, r, c, b]
+                write_lane(xc, Pc, b, i, k, x_out, P_out)
+        scatter_rows(log_prob, i0, nb, log_prob_last)
+        scatter_modes(x, P, i0, nb, x_last, P_last)
     return OK

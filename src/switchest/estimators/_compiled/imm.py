@@ -23,14 +23,15 @@ from typing import NamedTuple
 import numpy as np
 
 from ..._checks import positive_int
-from .arrays import check_gate, floats, indices
+from .arrays import check_gate, checked
 from .bank import LANES, filter_bank
 
-__all__ = ["IMMOutput", "IMMStepOutput", "imm_run", "imm_step"]
+__all__ = ["IMMOutput", "imm_run", "imm_step"]
 
 
 class IMMOutput(NamedTuple):
-    """What the IMM reports after each sample, for every trial.
+    """What the IMM reports after each sample, for every trial (:func:`imm_run`; from
+    :func:`imm_step`, the one sample as ``K = 1``).
 
     Attributes
     ----------
@@ -57,34 +58,6 @@ class IMMOutput(NamedTuple):
 
     x: np.ndarray
     P: np.ndarray
-    mode_prob: np.ndarray
-    mode: np.ndarray
-    loglik: np.ndarray
-    flag: np.ndarray
-    status: int
-    repaired: int = 0
-    smallest_eigenvalue: float = math.inf
-
-
-class IMMStepOutput(NamedTuple):
-    """The IMM state after one sample of every trial, and what it reports.
-
-    Attributes
-    ----------
-    x, P, log_prob : ndarray, shapes (N, L, n), (N, L, n, n), (N, L)
-        Mode-matched posteriors and log mode probabilities: the state to continue from.
-    combined_x, combined_P, mode_prob, mode : ndarray, shapes (N, n), (N, n, n), (N, L), (N,)
-        The combined estimate and mode probabilities, as :class:`IMMOutput` reports them.
-    loglik, flag : ndarray, shape (N,)
-    status, repaired, smallest_eigenvalue
-        As in :class:`IMMOutput`.
-    """
-
-    x: np.ndarray
-    P: np.ndarray
-    log_prob: np.ndarray
-    combined_x: np.ndarray
-    combined_P: np.ndarray
     mode_prob: np.ndarray
     mode: np.ndarray
     loglik: np.ndarray
@@ -122,60 +95,47 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
         Trials per SIMD block (the results do not depend on it).
     """
     sizes: dict[str, int] = {}
-    y = floats(y, "y", "NKm", sizes)
-    u = floats(u, "u", "NKl", sizes)
-    F = floats(F, "F", "Mnn", sizes)
-    G = floats(G, "G", "Mnl", sizes)
-    Qd = floats(Qd, "Qd", "Mnn", sizes)
-    C = floats(C, "C", "Lmn", sizes)
-    trans = indices(trans, "trans", "KL", sizes, "M")
-    R = floats(R, "R", "Lmm", sizes)
-    log_transition = floats(log_transition, "log_transition", "LL", sizes)
-    x0 = floats(x0, "x0", "n", sizes)
-    P0 = floats(P0, "P0", "nn", sizes)
-    log_prob0 = floats(log_prob0, "log_prob0", "L", sizes)
+    y, u, F, G, Qd, C, trans, R, log_transition, x0, P0, log_prob0 = checked(
+        sizes, "y:NKm u:NKl F:Mnn G:Mnl Qd:Mnn C:Lmn trans:KL<M R:Lmm log_transition:LL x0:n "
+        "P0:nn log_prob0:L", y, u, F, G, Qd, C, trans, R, log_transition, x0, P0, log_prob0)
     N, L = sizes["N"], sizes["L"]
-    output, *_ = _bank(y, u, F, G, Qd, trans[None], C, R, log_transition,
-                       np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
-                       np.tile(log_prob0, (N, 1)), False, check_gate(gate),
-                       positive_int(lanes, "lanes"))
+    output, _ = _bank(y, u, F, G, Qd, trans[None], C, R, log_transition,
+                      np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
+                      np.tile(log_prob0, (N, 1)), False, check_gate(gate),
+                      positive_int(lanes, "lanes"))
     return output
 
 
 def imm_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
-             predict_first: bool, gate=math.inf) -> IMMStepOutput:
+             predict_first: bool, gate=math.inf) -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
     """One sample of every trial: mix and predict (when ``predict_first``), then update.
 
     ``x (N, L, n)``, ``P (N, L, n, n)``, ``log_prob (N, L)`` are the mode-matched posteriors
     at the previous sample, ``y (N, m)``, ``u (N, l)``, ``trans (L,)`` the transition of each
     mode into this sample; the rest as in :func:`imm_run`, whose compiled kernel runs this
     one sample. Inputs are not modified.
+
+    Returns
+    -------
+    output : IMMOutput
+        What the IMM reports for this sample, each array with a sample axis of length 1.
+    state : tuple of ndarray
+        ``x``, ``P``, ``log_prob`` after this sample, shaped as given: the state to continue
+        from.
     """
     sizes: dict[str, int] = {}
-    x = floats(x, "x", "NLn", sizes)
-    P = floats(P, "P", "NLnn", sizes)
-    log_prob = floats(log_prob, "log_prob", "NL", sizes)
-    y = floats(y, "y", "Nm", sizes)
-    u = floats(u, "u", "Nl", sizes)
-    F = floats(F, "F", "Mnn", sizes)
-    G = floats(G, "G", "Mnl", sizes)
-    Qd = floats(Qd, "Qd", "Mnn", sizes)
-    trans = indices(trans, "trans", "L", sizes, "M")
-    C = floats(C, "C", "Lmn", sizes)
-    R = floats(R, "R", "Lmm", sizes)
-    log_transition = floats(log_transition, "log_transition", "LL", sizes)
-    out, x, P, log_prob = _bank(y[:, None], u[:, None], F, G, Qd, trans[None, None], C, R,
-                                log_transition, x, P, log_prob, bool(predict_first),
-                                check_gate(gate), LANES)
-    return IMMStepOutput(x, P, log_prob, out.x[:, 0], out.P[:, 0], out.mode_prob[:, 0],
-                         out.mode[:, 0], out.loglik[:, 0], out.flag[:, 0], out.status,
-                         out.repaired, out.smallest_eigenvalue)
+    x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition = checked(
+        sizes, "x:NLn P:NLnn log_prob:NL y:Nm u:Nl F:Mnn G:Mnl Qd:Mnn trans:L<M C:Lmn R:Lmm "
+        "log_transition:LL", x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition)
+    return _bank(y[:, None], u[:, None], F, G, Qd, trans[None, None], C, R, log_transition,
+                 x, P, log_prob, bool(predict_first), check_gate(gate), LANES)
 
 
 def _bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_init,
           predict_first, gate, lanes):
     """The bank kernel with every mode ``j`` on its own ``C[j]``, ``R[j]``; returns the
-    :class:`IMMOutput` and the mode-matched state after the last sample."""
+    :class:`IMMOutput` and the mode-matched state ``(x, P, log_prob)`` after the last
+    sample."""
     N, K, _ = y.shape
     L, n = x_init.shape[1], x_init.shape[2]
     x, P = np.empty((N, K, n)), np.empty((N, K, n, n))
@@ -188,4 +148,4 @@ def _bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_
                          predict_first, gate, lanes, x, P, prob, mode, loglik, flag, *last,
                          report)
     return (IMMOutput(x, P, prob, mode, loglik, flag, int(status), int(report[0]),
-                      float(report[1])), *last)
+                      float(report[1])), last)

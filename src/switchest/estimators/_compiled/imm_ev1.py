@@ -23,26 +23,30 @@ from typing import NamedTuple
 import numpy as np
 
 from ..._checks import positive_int, positive_scalar
-from .arrays import check_gate, floats, indices
+from .arrays import check_gate, checked, indices
 from .bank import LANES
 from .linalg import (
-    NOT_POSITIVE_DEFINITE,
     OK,
     _moments,
     correct,
     gather_matrices,
+    gather_modes,
+    gather_rows,
     gather_samples,
-    information_form,
+    information_or_repair,
     innovation,
     jit,
     joseph_lost,
     log_normalize,
     observe,
     predict,
-    repair,
+    residual,
+    scatter_modes,
+    scatter_rows,
+    write_lane,
 )
 
-__all__ = ["IMMEV1Output", "IMMEV1StepOutput", "imm_ev1_run", "imm_ev1_step", "viterbi_bank"]
+__all__ = ["IMMEV1Output", "imm_ev1_run", "imm_ev1_step", "viterbi_bank"]
 
 
 @jit
@@ -80,18 +84,6 @@ def _inflate(P, epsilon, width):
 
 
 @jit
-def _input_response(y, Gy, u, width, out):
-    """``out = y - (C G) u``: the measurement less the response of the output to the input
-    over the interval (Shankar et al. eq. (6) seen through ``C``)."""
-    for a in range(out.shape[0]):
-        for b in range(width):
-            out[a, b] = y[a, b]
-        for c in range(u.shape[0]):
-            for b in range(width):
-                out[a, b] -= Gy[a, c, b] * u[c, b]
-
-
-@jit
 def _hypothesis(x, P, source, F, G, Qd, entry, u, epsilon, y, C, R, obs, n_obs, nb, width, pred,
                 inn, report):
     """Predict in each lane the filter ``source[l]`` of its trial with transition ``entry[l]``
@@ -100,43 +92,18 @@ def _hypothesis(x, P, source, F, G, Qd, entry, u, epsilon, y, C, R, obs, n_obs, 
     ``x- = F x + G u``, ``P- = F P F' + Qd + epsilon I`` (Shankar et al. eqs (6)-(7), §IV) into
     ``pred[0]``, ``pred[1]`` (``pred``: ``xs, Ps, Fl, Gl, Ql, FP, xv``), then
     :func:`.linalg.innovation` of ``y`` against ``(x-, P-)`` (eq. (8)) into ``inn``
-    (``e, PCt, chol, scale, z, nis, loglik, work, bad``); a lane whose innovation covariance
-    fails its factorization has ``P-`` repaired (:func:`.linalg.repair`, counted in
-    ``report``) and is factored once more, as in :func:`.bank.filter_bank`. Returns the status
-    of :func:`.linalg.innovation`.
+    (``e, PCt, chol, scale, z, nis, loglik, work, bad``): a lane whose innovation covariance
+    fails its factorization has ``P-`` repaired, as in :func:`.bank.filter_bank`. Returns its
+    status.
     """
     xs, Ps, Fl, Gl, Ql, FP, xv = pred
-    e, PCt, chol, scale, z, nis, loglik, work, bad = inn
     _gather_states(x, P, source, nb, width, xs, Ps)
     gather_matrices(F, entry, width, Fl)
     gather_matrices(G, entry, width, Gl)
     gather_matrices(Qd, entry, width, Ql)
     predict(xs, Ps, Fl, Gl, u, Ql, width, FP, xv)
     _inflate(Ps, epsilon, width)
-    status = innovation(xs, Ps, y, C, R, obs, n_obs, width, e, PCt, chol, scale, z, nis, loglik,
-                        work, bad)
-    if status == NOT_POSITIVE_DEFINITE:
-        for b in range(width):
-            if bad[b] and not repair(Ps, b, False, report):
-                return status
-        status = innovation(xs, Ps, y, C, R, obs, n_obs, width, e, PCt, chol, scale, z, nis,
-                            loglik, work, bad)
-    return status
-
-
-@jit
-def _update(xs, Ps, C, R, use, obs, n_obs, width, inn, fix, report):
-    """Measurement update of the lanes that ``use`` it, after :func:`_hypothesis` (Shankar et
-    al. eqs (9)-(10), Joseph form; the information form where that loses its digits, a
-    posterior neither resolves repaired, as in :func:`.bank.filter_bank`). ``fix`` is the
-    scratch tuple ``gain, T, AP, prior, root, lost``."""
-    e, PCt, chol, scale, z, nis, loglik, work, bad = inn
-    gain, T, AP, prior, root, lost = fix
-    correct(xs, Ps, C, R, use, width, PCt, chol, scale, z, gain, T, AP, prior)
-    if joseph_lost(Ps, prior, use, width, root, lost):
-        for b in range(width):
-            if lost[b] and n_obs[b] > 0.0 and not information_form(Ps, prior, C, R, obs, b):
-                repair(Ps, b, True, report)
+    return innovation(xs, Ps, y, C, R, obs, n_obs, width, *inn, report)
 
 
 @jit
@@ -163,7 +130,7 @@ def _likelihoods(x, P, nb, width, y, u, obs, n_obs, F, G, Qd, H, Gy, S0, C, R, s
     xw, Pw = pred[0], pred[1]
     nis, loglik = inn[5], inn[6]
     _gather_states(x, P, source, nb, width, xw, Pw)
-    _input_response(y, Gy, u, width, yh)
+    residual(u, y, Gy, width, yh)  # y less the response to the input, (C G) u
     full = innovation(xw, Pw, yh, H, S0, obs, n_obs, width, *inn) != OK
     if full:  # the predictions themselves, repaired where needed
         status = _hypothesis(x, P, source, F, G, Qd, entry, u, epsilon, y, C, R, obs, n_obs, nb,
@@ -312,7 +279,10 @@ def _predict_chosen(x, P, d, chosen, best_k, use, w, F, G, Qd, u, epsilon, y, C,
     if status != OK:
         return status
     xs, Ps = pred[0], pred[1]
-    _update(xs, Ps, C, R, use_lanes, obs, n_obs, width, inn, fix, report)
+    gain, T, AP, prior, root, lost = fix
+    correct(xs, Ps, C, R, use_lanes, width, *inn[1:5], gain, T, AP, prior)
+    if joseph_lost(Ps, prior, use_lanes, width, root, lost):  # rare: lane by lane
+        information_or_repair(Ps, prior, C, R, obs, n_obs, lost, width, report)
     for i in range(n_modes):
         if not marginal:
             _from_lanes(xs, Ps, i * nb, nb, x_new[i], P_new[i])
@@ -333,20 +303,18 @@ def _update_only(x, P, log_w, y, Cl, Rl, obs, n_obs, gate, nb, use, a, outlier, 
     where mode ``j`` rejects ``y``; where every mode rejects it, nothing is updated and the
     weights are kept (an outlier). Unnormalized weights into ``a``; returns a status."""
     n_modes = x.shape[0]
-    nis, loglik, bad = inn[5], inn[6], inn[8]
+    nis, loglik = inn[5], inn[6]
+    gain, T, AP, prior, root, lost = fix
     for j in range(n_modes):
-        status = innovation(x[j], P[j], y, Cl[j], Rl[j], obs, n_obs, nb, *inn)
-        if status == NOT_POSITIVE_DEFINITE:  # repair the failing lanes' P, retry once
-            for b in range(nb):
-                if bad[b] and not repair(P[j], b, False, report):
-                    return status
-            status = innovation(x[j], P[j], y, Cl[j], Rl[j], obs, n_obs, nb, *inn)
+        status = innovation(x[j], P[j], y, Cl[j], Rl[j], obs, n_obs, nb, *inn, report)
         if status != OK:
             return status
         for b in range(nb):
             use[j, b] = math.isfinite(loglik[b]) and nis[b] <= gate
             a[j, b] = log_w[j, b] + loglik[b] if use[j, b] else -math.inf
-        _update(x[j], P[j], Cl[j], Rl[j], use[j], obs, n_obs, nb, inn, fix, report)
+        correct(x[j], P[j], Cl[j], Rl[j], use[j], nb, *inn[1:5], gain, T, AP, prior)
+        if joseph_lost(P[j], prior, use[j], nb, root, lost):  # rare: lane by lane
+            information_or_repair(P[j], prior, Cl[j], Rl[j], obs, n_obs, lost, nb, report)
     for b in range(nb):
         outlier[b] = True
         for j in range(n_modes):
@@ -366,11 +334,8 @@ def viterbi_bank(y, u, table, F, G, Qd, H, Gy, S0, tau, C, R, log_transition, ep
 
     Parameters
     ----------
-    y : (N, K, m) float64
-        Measurements; NaN components are missing.
-    u : (N, K, l) float64
-        Inputs; ``u[:, k-1]`` is held over the interval into sample ``k`` (``u[:, 0]`` into
-        sample 0 when ``predict_first``).
+    y, u : (N, K, m), (N, K, l) float64
+        Measurements and inputs, as in :func:`.bank.filter_bank`.
     table : (K,) int64
         The interval length ``d`` into each sample (entry 0 unused unless ``predict_first``).
     F, G, Qd : (M, n, n), (M, n, l), (M, n, n) float64
@@ -409,7 +374,8 @@ def viterbi_bank(y, u, table, F, G, Qd, H, Gy, S0, tau, C, R, log_transition, ep
     Returns
     -------
     status : int
-        ``OK`` or the failure code that stopped the kernel.
+        ``OK``, or the failure code of the innovation covariance (of a hypothesis, or of a
+        destination's update) that stopped the kernel (outputs then incomplete).
 
     Notes
     -----
@@ -458,6 +424,9 @@ def viterbi_bank(y, u, table, F, G, Qd, H, Gy, S0, tau, C, R, log_transition, ep
     C2, R2 = np.empty((m, n, W)), np.empty((m, m, W))  # the update pass's lanes
     H1, Gy1, S1 = np.empty((m, n, W)), np.empty((m, n_in, W)), np.empty((m, m, W))
     zero = np.zeros((n, n, W))
+    # the workspaces: pred of _hypothesis (xs, Ps, Fl, Gl, Ql, FP, xv), inn of
+    # linalg.innovation (e, PCt, chol, scale, z, nis, loglik, work, bad) and fix, the rest of
+    # linalg.correct's and joseph_lost's (gain, T, AP, prior, root, lost)
     pred = (np.empty((n, W)), np.empty((n, n, W)), np.empty((n, n, W)), np.empty((n, n_in, W)),
             np.empty((n, n, W)), np.empty((n, n, W)), np.empty((n, W)))
     inn = (np.empty((m, W)), np.empty((n, m, W)), np.empty((m, m, W)), np.empty((m, W)),
@@ -485,17 +454,10 @@ def viterbi_bank(y, u, table, F, G, Qd, H, Gy, S0, tau, C, R, log_transition, ep
         gather_matrices(C, entry, width2, C2)
         gather_matrices(R, entry, width2, R2)
         d_last = -1
-        for j in range(n_modes):
-            for b in range(nb):
-                log_w[j, b] = log_w_init[i0 + b, j]
-                chosen[j, b] = chosen_init[i0 + b, j]
-                offset[j, b] = offset_init[i0 + b, j]
-            for r in range(n):
-                for b in range(nb):
-                    x[j, r, b] = x_init[i0 + b, j, r]
-                for c in range(n):
-                    for b in range(nb):
-                        P[j, r, c, b] = P_init[i0 + b, j, r, c]
+        gather_rows(log_w_init, i0, nb, log_w)
+        gather_rows(chosen_init, i0, nb, chosen)
+        gather_rows(offset_init, i0, nb, offset)
+        gather_modes(x_init, P_init, i0, nb, x, P)
         for k in range(K):
             predicted = k > 0 or predict_first
             width = max(width1, width2) if predicted else nb
@@ -549,24 +511,17 @@ def viterbi_bank(y, u, table, F, G, Qd, H, Gy, S0, tau, C, R, log_transition, ep
                 outlier_out[i, k] = outlier[b]
                 for j in range(n_modes):
                     prob_out[i, k, j] = prob[j, b]
-                for r in range(n):
-                    x_out[i, k, r] = x[best, r, b]
-                    for c in range(n):
-                        P_out[i, k, r, c] = P[best, r, c, b]
-        for b in range(nb):
-            for j in range(n_modes):
-                log_w_last[i0 + b, j] = log_w[j, b]
-                chosen_last[i0 + b, j] = chosen[j, b]
-                offset_last[i0 + b, j] = offset[j, b]
-                for r in range(n):
-                    x_last[i0 + b, j, r] = x[j, r, b]
-                    for c in range(n):
-                        P_last[i0 + b, j, r, c] = P[j, r, c, b]
+                write_lane(x[best], P[best], b, i, k, x_out, P_out)
+        scatter_rows(log_w, i0, nb, log_w_last)
+        scatter_rows(chosen, i0, nb, chosen_last)
+        scatter_rows(offset, i0, nb, offset_last)
+        scatter_modes(x, P, i0, nb, x_last, P_last)
     return OK
 
 
 class IMMEV1Output(NamedTuple):
-    """What the IMM-EV1 reports after each sample, for every trial.
+    """What the IMM-EV1 reports after each sample, for every trial (:func:`imm_ev1_run`; from
+    :func:`imm_ev1_step`, the one sample as ``K = 1``).
 
     Attributes
     ----------
@@ -595,31 +550,6 @@ class IMMEV1Output(NamedTuple):
     smallest_eigenvalue: float = math.inf
 
 
-class IMMEV1StepOutput(NamedTuple):
-    """The IMM-EV1 state after one sample of every trial.
-
-    Attributes
-    ----------
-    x, P, log_weight : ndarray, shapes (N, L, n), (N, L, n, n), (N, L)
-        Each destination's posterior and normalized log path weight.
-    predecessor, switch_offset : ndarray, shapes (N, L)
-        Each destination's chosen predecessor (int64) and switch offset (NaN without one).
-    outlier : ndarray of bool, shape (N,)
-    status, repaired, smallest_eigenvalue
-        As in :class:`.imm.IMMOutput`.
-    """
-
-    x: np.ndarray
-    P: np.ndarray
-    log_weight: np.ndarray
-    predecessor: np.ndarray
-    switch_offset: np.ndarray
-    outlier: np.ndarray
-    status: int
-    repaired: int = 0
-    smallest_eigenvalue: float = math.inf
-
-
 def imm_ev1_run(y, u, F, G, Qd, table, tau, C, R, log_transition, x0, P0, log_weight0, *,
                 epsilon, gate=math.inf, printed=False, marginal=False, by_path=True,
                 lanes: int = LANES) -> IMMEV1Output:
@@ -627,10 +557,8 @@ def imm_ev1_run(y, u, F, G, Qd, table, tau, C, R, log_transition, x0, P0, log_we
 
     Parameters
     ----------
-    y : array_like, shape (N, K, m)
-        Measurements; a NaN component is missing.
-    u : array_like, shape (N, K, l)
-        Inputs; ``u[:, k-1]`` is held over the interval into sample ``k``.
+    y, u : array_like, shapes (N, K, m), (N, K, l)
+        Measurements and inputs, as in :func:`.imm.imm_run`.
     F, G, Qd : array_like, shapes (M, n, n), (M, n, l), (M, n, n)
         Transitions of the hypotheses, ``M = D L L g`` (entry ``((d L + j) L + i) g + k``:
         from ``j`` to ``i`` at ``tau[d, k]``), e.g. :func:`switchest.discretize.pairwise_grid`
@@ -657,11 +585,8 @@ def imm_ev1_run(y, u, F, G, Qd, table, tau, C, R, log_transition, x0, P0, log_we
         Trials per SIMD block (the results do not depend on it).
     """
     sizes: dict[str, int] = {}
-    y = floats(y, "y", "NKm", sizes)
-    u = floats(u, "u", "NKl", sizes)
-    x0 = floats(x0, "x0", "n", sizes)
-    P0 = floats(P0, "P0", "nn", sizes)
-    log_weight0 = floats(log_weight0, "log_weight0", "L", sizes)
+    y, u, x0, P0, log_weight0 = checked(sizes, "y:NKm u:NKl x0:n P0:nn log_weight0:L",
+                                        y, u, x0, P0, log_weight0)
     N, L = sizes["N"], sizes["L"]
     state = (np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)), np.tile(log_weight0, (N, 1)),
              np.tile(np.arange(L), (N, 1)), np.full((N, L), np.nan))
@@ -674,7 +599,7 @@ def imm_ev1_run(y, u, F, G, Qd, table, tau, C, R, log_transition, x0, P0, log_we
 
 def imm_ev1_step(x, P, log_weight, predecessor, switch_offset, y, u, F, G, Qd, tau, C, R,
                  log_transition, *, predict_first: bool, epsilon, gate=math.inf, printed=False,
-                 marginal=False, by_path=True) -> IMMEV1StepOutput:
+                 marginal=False, by_path=True) -> tuple[IMMEV1Output, tuple[np.ndarray, ...]]:
     """One sample of every trial: the hypotheses of one interval and the update (when
     ``predict_first``), else the update of every destination's filter alone.
 
@@ -684,36 +609,32 @@ def imm_ev1_step(x, P, log_weight, predecessor, switch_offset, y, u, F, G, Qd, t
     ``(L L g, ...)`` and ``tau (g,)`` the hypotheses of this interval (read only when
     ``predict_first``); the rest as in :func:`imm_ev1_run`, whose compiled kernel runs this
     one sample. Inputs are not modified.
+
+    Returns
+    -------
+    output : IMMEV1Output
+        What the IMM-EV1 reports for this sample, each array with a sample axis of length 1.
+    state : tuple of ndarray
+        ``x``, ``P``, ``log_weight``, ``predecessor``, ``switch_offset`` after this sample,
+        shaped as given: the state to continue from.
     """
     sizes: dict[str, int] = {}
-    x = floats(x, "x", "NLn", sizes)
-    P = floats(P, "P", "NLnn", sizes)
-    log_weight = floats(log_weight, "log_weight", "NL", sizes)
-    predecessor = indices(predecessor, "predecessor", "NL", sizes, "L")
-    switch_offset = floats(switch_offset, "switch_offset", "NL", sizes)
-    y = floats(y, "y", "Nm", sizes)
-    u = floats(u, "u", "Nl", sizes)
-    tau = floats(tau, "tau", "g", sizes)
+    x, P, log_weight, predecessor, switch_offset, y, u, tau = checked(
+        sizes, "x:NLn P:NLnn log_weight:NL predecessor:NL<L switch_offset:NL y:Nm u:Nl tau:g",
+        x, P, log_weight, predecessor, switch_offset, y, u, tau)
     tables = _tables(F, G, Qd, tau[None], C, R, log_transition, epsilon, sizes)
     state = (x.copy(), P.copy(), log_weight.copy(), predecessor.copy(), switch_offset.copy())
-    out, last = _viterbi(y[:, None], u[:, None], tables, np.zeros(1, dtype=np.int64), state,
-                         bool(predict_first), check_gate(gate), printed, marginal, by_path,
-                         LANES)
-    return IMMEV1StepOutput(*last, out.outlier[:, 0], out.status, out.repaired,
-                            out.smallest_eigenvalue)
+    return _viterbi(y[:, None], u[:, None], tables, np.zeros(1, dtype=np.int64), state,
+                    bool(predict_first), check_gate(gate), printed, marginal, by_path, LANES)
 
 
 def _tables(F, G, Qd, tau, C, R, log_transition, epsilon, sizes):
     """The validated hypothesis tables and what the likelihood pass reads of them:
     ``H = C_i F``, ``Gy = C_i G`` and ``S0 = C_i (Qd + epsilon I) C_i' + R_i`` per entry
     (:func:`_likelihoods`), with ``i`` the destination of each entry."""
-    F = floats(F, "F", "Mnn", sizes)
-    G = floats(G, "G", "Mnl", sizes)
-    Qd = floats(Qd, "Qd", "Mnn", sizes)
-    tau = floats(tau, "tau", "Dg", sizes)
-    C = floats(C, "C", "Lmn", sizes)
-    R = floats(R, "R", "Lmm", sizes)
-    log_transition = floats(log_transition, "log_transition", "LL", sizes)
+    F, G, Qd, tau, C, R, log_transition = checked(
+        sizes, "F:Mnn G:Mnl Qd:Mnn tau:Dg C:Lmn R:Lmm log_transition:LL",
+        F, G, Qd, tau, C, R, log_transition)
     epsilon = positive_scalar(epsilon, "epsilon", allow_zero=True)
     D, L, g, n = sizes["D"], sizes["L"], sizes["g"], sizes["n"]
     if sizes["M"] != D * L * L * g:

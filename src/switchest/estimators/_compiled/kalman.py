@@ -22,8 +22,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..._checks import positive_int
-from .arrays import check_gate, floats, indices
-from .kalman_kernel import CHUNK, LANES, kalman_filter, lane_entries, write_out
+from .arrays import check_gate, checked
+from .kalman_kernel import CHUNK, LANES, kalman_filter, lane_entries, predict_means, write_out
 from .linalg import (
     ACCEPTED,
     GATED,
@@ -33,7 +33,6 @@ from .linalg import (
     gather_samples,
     jit,
     observe,
-    predict_mean,
     residual,
 )
 
@@ -98,17 +97,9 @@ def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, *, gate=math.inf,
         once (:mod:`.kalman_kernel`; the results do not depend on it).
     """
     sizes: dict[str, int] = {}
-    y = floats(y, "y", "NKm", sizes)
-    u = floats(u, "u", "NKl", sizes)
-    F = floats(F, "F", "Mnn", sizes)
-    G = floats(G, "G", "Mnl", sizes)
-    Qd = floats(Qd, "Qd", "Mnn", sizes)
-    trans = indices(trans, "trans", "NK", sizes, "M")
-    C = floats(C, "C", "Lmn", sizes)
-    R = floats(R, "R", "Lmm", sizes)
-    mode = indices(mode, "mode", "NK", sizes, "L")
-    x0 = floats(x0, "x0", "n", sizes)
-    P0 = floats(P0, "P0", "nn", sizes)
+    y, u, F, G, Qd, trans, C, R, mode, x0, P0 = checked(
+        sizes, "y:NKm u:NKl F:Mnn G:Mnl Qd:Mnn trans:NK<M C:Lmn R:Lmm mode:NK<L x0:n P0:nn",
+        y, u, F, G, Qd, trans, C, R, mode, x0, P0)
     N = sizes["N"]
     return _one_mode(y, u, F, G, Qd, trans, C, R, mode, np.repeat(x0[None], N, axis=0),
                      np.repeat(P0[None], N, axis=0), False, check_gate(gate),
@@ -125,15 +116,8 @@ def kalman_step(x, P, y, u, F, G, Qd, C, R, *, predict_first: bool,
     ``gate`` as in :func:`kalman_run`, whose compiled kernel runs this one sample.
     """
     sizes: dict[str, int] = {}
-    x = floats(x, "x", "Nn", sizes)
-    P = floats(P, "P", "Nnn", sizes)
-    y = floats(y, "y", "Nm", sizes)
-    u = floats(u, "u", "Nl", sizes)
-    F = floats(F, "F", "Nnn", sizes)
-    G = floats(G, "G", "Nnl", sizes)
-    Qd = floats(Qd, "Qd", "Nnn", sizes)
-    C = floats(C, "C", "Nmn", sizes)
-    R = floats(R, "R", "Nmm", sizes)
+    x, P, y, u, F, G, Qd, C, R = checked(
+        sizes, "x:Nn P:Nnn y:Nm u:Nl F:Nnn G:Nnl Qd:Nnn C:Nmn R:Nmm", x, P, y, u, F, G, Qd, C, R)
     own = np.arange(sizes["N"])[:, None]  # trial i uses entry i of the per-trial "tables"
     out = _one_mode(y[:, None], u[:, None], F, G, Qd, own, C, R, own, x, P, bool(predict_first),
                     check_gate(gate), LANES)
@@ -169,18 +153,9 @@ def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten,
     not used (flag ``GATED``). Other arguments as in :func:`kalman_run`.
     """
     sizes: dict[str, int] = {}
-    y = floats(y, "y", "NKm", sizes)
-    u = floats(u, "u", "NKl", sizes)
-    F = floats(F, "F", "Mnn", sizes)
-    G = floats(G, "G", "Mnl", sizes)
-    trans = indices(trans, "trans", "NK", sizes, "M")
-    C = floats(C, "C", "Lmn", sizes)
-    mode = indices(mode, "mode", "NK", sizes, "L")
-    gain = floats(gain, "gain", "Lnm", sizes)
-    P_prior = floats(P_prior, "P_prior", "Lnn", sizes)
-    P_post = floats(P_post, "P_post", "Lnn", sizes)
-    whiten = floats(whiten, "whiten", "Lmm", sizes)
-    x0 = floats(x0, "x0", "n", sizes)
+    y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x0 = checked(
+        sizes, "y:NKm u:NKl F:Mnn G:Mnl trans:NK<M C:Lmn mode:NK<L gain:Lnm P_prior:Lnn "
+        "P_post:Lnn whiten:Lmm x0:n", y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x0)
     N, K, n = sizes["N"], sizes["K"], sizes["n"]
     x, P, loglik = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K))
     flag = np.empty((N, K), dtype=np.uint8)
@@ -196,16 +171,9 @@ def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, whiten, *,
     runs it), with per-trial ``F``, ``G``, ``C``, ``gain (N, n, m)``, ``P_prior``,
     ``P_post (N, n, n)``, ``whiten (N, m, m)``."""
     sizes: dict[str, int] = {}
-    x = floats(x, "x", "Nn", sizes)
-    y = floats(y, "y", "Nm", sizes)
-    u = floats(u, "u", "Nl", sizes)
-    F = floats(F, "F", "Nnn", sizes)
-    G = floats(G, "G", "Nnl", sizes)
-    C = floats(C, "C", "Nmn", sizes)
-    gain = floats(gain, "gain", "Nnm", sizes)
-    P_prior = floats(P_prior, "P_prior", "Nnn", sizes)
-    P_post = floats(P_post, "P_post", "Nnn", sizes)
-    whiten = floats(whiten, "whiten", "Nmm", sizes)
+    x, y, u, F, G, C, gain, P_prior, P_post, whiten = checked(
+        sizes, "x:Nn y:Nm u:Nl F:Nnn G:Nnl C:Nmn gain:Nnm P_prior:Nnn P_post:Nnn whiten:Nmm",
+        x, y, u, F, G, C, gain, P_prior, P_post, whiten)
     N, n = sizes["N"], sizes["n"]
     own = np.arange(N)[:, None]
     x_out, P_out, loglik = np.empty((N, 1, n)), np.empty((N, 1, n, n)), np.empty((N, 1))
@@ -220,7 +188,7 @@ def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, whiten, *,
 def _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x_init,
                    predict_first, gate, lanes, x_out, P_out, loglik_out, flag_out):
     """Fixed-gain filter of every trial from ``x_init[i]``, in blocks of ``lanes`` trials:
-    ``x <- F x + G u`` (:func:`.linalg.predict_mean`), then ``x <- x + K (y - C x)`` in the
+    ``x <- F x + G u`` (:func:`.kalman_kernel.predict_means`), then ``x <- x + K (y - C x)`` in the
     lanes where every component of ``y`` is observed and its normalized innovation squared
     ``|W e|^2`` passes ``gate`` (Zhang & Natarajan eq. (6)); ``P`` is copied from the tables,
     ``loglik`` is NaN. A lane's matrices are gathered when its entry changes; the outputs are
@@ -246,16 +214,10 @@ def _steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x_
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
         gather_rows(x_init, i0, nb, x)
-        for b in range(nb):
-            held[0, b] = -1
-            held[1, b] = -1
+        held.fill(-1)  # no entry held: each lane gathers its matrices at its first sample
         for k in range(K):
             if k > 0 or predict_first:
-                if lane_entries(trans, i0, nb, k, held[0]):
-                    gather_matrices(F, held[0], nb, Fl)
-                    gather_matrices(G, held[0], nb, Gl)
-                gather_samples(u, i0, nb, max(k - 1, 0), ul)
-                predict_mean(x, Fl, Gl, ul, nb, xs)
+                predict_means(trans, F, G, u, i0, nb, k, held[0], Fl, Gl, ul, x, xs)
             if lane_entries(mode, i0, nb, k, held[1]):
                 gather_matrices(C, held[1], nb, Cl)
                 gather_matrices(gain, held[1], nb, Kl)

@@ -65,7 +65,7 @@ from .linalg import (
     repair,
 )
 
-__all__ = ["CHUNK", "LANES", "kalman_filter", "lane_entries", "write_out"]
+__all__ = ["CHUNK", "LANES", "kalman_filter", "lane_entries", "predict_means", "write_out"]
 
 LANES = 256  # trials per block: a group's covariance equations serve up to this many
 CHUNK = 16  # samples buffered per block before they are written out, trial by trial
@@ -159,9 +159,7 @@ def kalman_filter(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_fir
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
         gather_rows(x_init, i0, nb, x)
-        for b in range(nb):
-            held[0, b] = -1
-            held[1, b] = -1
+        held.fill(-1)  # no entry held: each lane gathers its matrices at its first sample
         n_groups = _group_equal(P_init, i0, nb, group, slot, P)
         fixed = False  # the groups' covariances are at a fixed point of the last sample's map
         for k in range(K):
@@ -177,11 +175,7 @@ def kalman_filter(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_fir
             # in P, prior, PCt_g, chol_g, scale_g and log_det_g, to the last bit
             repeat = fixed and predicting and n_groups == before and not changed
             if predicting:  # Shankar et al. eqs (6)-(7)
-                if lane_entries(trans, i0, nb, k, held[0]):
-                    gather_matrices(F, held[0], nb, Fl)
-                    gather_matrices(G, held[0], nb, Gl)
-                gather_samples(u, i0, nb, max(k - 1, 0), ul)
-                predict_mean(x, Fl, Gl, ul, nb, xs)
+                predict_means(trans, F, G, u, i0, nb, k, held[0], Fl, Gl, ul, x, xs)
                 if not repeat:
                     predict(xg, P, Fg, Gg, ug, Qg, n_groups, FP, xs)
             if lane_entries(mode, i0, nb, k, held[1]):
@@ -239,6 +233,19 @@ def lane_entries(index, i0, nb, k, held):
         changed |= index[i0 + b, k] != held[b]
         held[b] = index[i0 + b, k]
     return changed
+
+
+@jit
+def predict_means(trans, F, G, u, i0, nb, k, held, Fl, Gl, ul, x, xs):
+    """Every trial's mean predicted into sample ``k``, ``x <- F x + G u`` (Shankar et al. eq.
+    (6), :func:`.linalg.predict_mean`), with ``u[:, k-1]`` and the transition
+    ``trans[i0 + b, k]`` of the table ``F``, ``G``, whose lane matrices ``Fl``, ``Gl`` are
+    gathered again where it changed (:func:`lane_entries`); ``ul``, ``xs`` are scratch."""
+    if lane_entries(trans, i0, nb, k, held):
+        gather_matrices(F, held, nb, Fl)
+        gather_matrices(G, held, nb, Gl)
+    gather_samples(u, i0, nb, max(k - 1, 0), ul)
+    predict_mean(x, Fl, Gl, ul, nb, xs)
 
 
 @jit

@@ -9,8 +9,9 @@ short a loop to vectorize along.
 The functions work in place and allocate nothing; each is compiled once and called by the
 kernels (:mod:`.bank`), a block of trials per call, so a call costs nothing measurable.
 (Inlining them into the kernel, numba's ``inline="always"``, ran 10 % faster at 10 trials but
-took 36 instead of 20 CPU-s to compile once.) Divisions follow numpy's error model (no
-zero-division checks; every divisor is checked positive first).
+took 36 instead of 20 CPU-s to compile once.) Only the smallest helpers, called per lane or
+within an equation (:func:`write_lane`, :func:`symmetric_sum`), are inlined. Divisions follow
+numpy's error model (no zero-division checks; every divisor is checked positive first).
 
 A missing component of ``y`` (NaN) is removed exactly by decoupling it: its row of ``C`` and
 its noise are replaced by a unit innovation that is never observed (``e_a = 0``, ``S_aa = 1``,
@@ -27,11 +28,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from ..._jit import jit
 
 __all__ = [
     "jit",
+    "inline",
     "OK",
     "NOT_POSITIVE_DEFINITE",
     "NOT_FINITE",
@@ -39,16 +42,24 @@ __all__ = [
     "GATED",
     "PARTLY_GATED",
     "gather_samples",
+    "gather_rows",
+    "scatter_rows",
+    "gather_modes",
+    "scatter_modes",
+    "write_lane",
     "gather_matrices",
     "observe",
     "predict_mean",
     "predict",
+    "symmetric_sum",
+    "residual",
     "innovation",
     "innovation_mean",
     "correct",
     "correct_mean",
     "joseph_lost",
     "information_form",
+    "information_or_repair",
     "repair",
     "log_normalize",
     "mix",
@@ -70,6 +81,11 @@ _EPS = 2.220446049250313e-16  # numpy.finfo(float).eps
 _CORRELATION_BOUND = 1.0 + math.sqrt(_EPS)
 _TINY_SUM = 1e-250  # below it, a sum of probability products is redone in the log domain
 
+# For the smallest helpers (a lane's outputs, one loop of an equation), inlined into their callers
+# by numba: a call passing a dozen arrays costs about 100 ns, as much as their arithmetic on a few
+# lanes.
+inline = njit(cache=True, error_model="numpy", inline="always")
+
 
 
 @jit
@@ -86,6 +102,52 @@ def gather_rows(data, i0, nb, out):
     for r in range(data.shape[1]):
         for b in range(nb):
             out[r, b] = data[i0 + b, r]
+
+
+@jit
+def scatter_rows(src, i0, nb, data):
+    """``data[i0 + b] = src[:, b]`` for the ``nb`` lanes of a block: :func:`gather_rows` back."""
+    for r in range(data.shape[1]):
+        for b in range(nb):
+            data[i0 + b, r] = src[r, b]
+
+
+@jit
+def gather_modes(x_init, P_init, i0, nb, x, P):
+    """``x[j, :, b] = x_init[i0 + b, j]``, ``P[j, :, :, b] = P_init[i0 + b, j]``: the
+    mode-matched means ``(N, L, n)`` and covariances ``(N, L, n, n)`` of the block's trials
+    into their lanes."""
+    n = x.shape[1]
+    for j in range(x.shape[0]):
+        for r in range(n):
+            for b in range(nb):
+                x[j, r, b] = x_init[i0 + b, j, r]
+            for c in range(n):
+                for b in range(nb):
+                    P[j, r, c, b] = P_init[i0 + b, j, r, c]
+
+
+@jit
+def scatter_modes(x, P, i0, nb, x_last, P_last):
+    """``x_last[i0 + b, j] = x[j, :, b]``, ``P_last[i0 + b, j] = P[j, :, :, b]``:
+    :func:`gather_modes` back."""
+    n = x.shape[1]
+    for b in range(nb):
+        for j in range(x.shape[0]):
+            for r in range(n):
+                x_last[i0 + b, j, r] = x[j, r, b]
+                for c in range(n):
+                    P_last[i0 + b, j, r, c] = P[j, r, c, b]
+
+
+@inline
+def write_lane(x, P, b, i, k, x_out, P_out):
+    """Lane ``b`` of ``x (n, B)`` and ``P (n, n, B)`` as sample ``k`` of trial ``i`` of the
+    outputs ``x_out (N, K, n)``, ``P_out (N, K, n, n)``."""
+    for r in range(x.shape[0]):
+        x_out[i, k, r] = x[r, b]
+        for c in range(x.shape[0]):
+            P_out[i, k, r, c] = P[r, c, b]
 
 
 @jit
@@ -145,20 +207,30 @@ def predict(x, P, F, G, u, Qd, nb, FP, xs):
             for k in range(n):
                 for b in range(nb):
                     FP[i, j, b] += F[i, k, b] * P[k, j, b]
+    symmetric_sum(Qd, FP, F, nb, P)
+
+
+@inline
+def symmetric_sum(base, X, Y, nb, out):
+    """``out = base + X Y'`` per lane, for ``X``, ``Y (n, q, B)`` whose sum is symmetric
+    (``Qd + (F P) F'``, ``A P + T K'``): the upper triangle is computed, ``base``'s read, and
+    mirrored, so ``out`` is exactly symmetric. ``out`` may be ``base``."""
+    n, q = X.shape[0], X.shape[1]
     for i in range(n):
         for j in range(i, n):
             for b in range(nb):
-                P[i, j, b] = Qd[i, j, b]
-            for k in range(n):
+                out[i, j, b] = base[i, j, b]
+            for k in range(q):
                 for b in range(nb):
-                    P[i, j, b] += FP[i, k, b] * F[j, k, b]
+                    out[i, j, b] += X[i, k, b] * Y[j, k, b]
             for b in range(nb):
-                P[j, i, b] = P[i, j, b]
+                out[j, i, b] = out[i, j, b]
 
 
 @jit
 def residual(x, y, C, nb, e):
-    """``e = y - C x`` in every lane (the innovation before missing components are removed)."""
+    """``e = y - C x`` in every lane, ``C (m, n, B)``: the innovation before missing components
+    are removed, or ``y`` less the response to an input ``x``."""
     m, n = C.shape[0], C.shape[1]
     for a in range(m):
         for b in range(nb):
@@ -196,7 +268,8 @@ def whiten(e, chol, scale, nb, z, nis):
 
 
 @jit
-def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work, bad):
+def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work, bad,
+               report=None):
     """Innovation of ``y`` against ``(x, P)`` over each lane's observed components.
 
     ``e = y - C x``, ``P C'`` and ``S = C P C' + R`` (Shankar et al. eq. (8)), with every
@@ -210,77 +283,91 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
     observed). ``work (3, B)`` is scratch; ``e``, ``PCt``, ``chol``, ``scale``, ``z`` keep what
     :func:`correct` needs.
 
+    With ``report`` (``[count, smallest eigenvalue]`` of :func:`repair`), the lanes whose
+    factorization fails have their ``P`` repaired and every lane is factored once more: the rule
+    of the filters here. Without it the caller decides (a group's repair in
+    :mod:`.kalman_kernel`, a full prediction in :mod:`.imm_ev1`).
+
     Returns
     -------
     status
         ``OK``; ``NOT_FINITE`` if a lane's ``S`` has a non-finite diagonal; else
-        ``NOT_POSITIVE_DEFINITE`` if a lane's factorization failed, ``bad (B,)`` then marking
-        those lanes (the others are complete), so that the caller can repair their ``P`` and
-        call again.
+        ``NOT_POSITIVE_DEFINITE`` if a lane's factorization failed (with ``report``: again, or
+        where its ``P`` needed no repair), ``bad (B,)`` then marking those lanes (the others
+        are complete).
     """
     n, m = x.shape[0], y.shape[0]
     log_det, det, pivot = work[0], work[1], work[2]
-    observed_residual(x, y, C, obs, nb, e)
-    for a in range(m):
-        for i in range(n):
-            for b in range(nb):
-                PCt[i, a, b] = 0.0
-            for j in range(n):
-                for b in range(nb):
-                    PCt[i, a, b] += P[i, j, b] * C[a, j, b]
-            for b in range(nb):
-                PCt[i, a, b] *= obs[a, b]
-    finite, positive = True, True
-    for b in range(nb):
-        log_det[b] = 0.0
-        det[b] = 1.0
-    for a in range(m):  # S, lower triangle, into chol; then its diagonal D
-        for c in range(a + 1):
-            for b in range(nb):
-                chol[a, c, b] = R[a, c, b] * obs[c, b]
+    repaired = False
+    while True:  # once; with report, again after the failing lanes' P are repaired
+        observed_residual(x, y, C, obs, nb, e)
+        for a in range(m):
             for i in range(n):
                 for b in range(nb):
-                    chol[a, c, b] += C[a, i, b] * PCt[i, c, b]
-            unit = 1.0 if a == c else 0.0
-            for b in range(nb):
-                chol[a, c, b] = chol[a, c, b] * obs[a, b] + unit * (1.0 - obs[a, b])
+                    PCt[i, a, b] = 0.0
+                for j in range(n):
+                    for b in range(nb):
+                        PCt[i, a, b] += P[i, j, b] * C[a, j, b]
+                for b in range(nb):
+                    PCt[i, a, b] *= obs[a, b]
+        finite, positive = True, True
         for b in range(nb):
-            d = chol[a, a, b]
-            finite &= math.isfinite(d)
-            positive &= d > 0.0
-            scale[a, b] = 1.0 / math.sqrt(d)
-            log_det[b] += math.log(d)
-    if not finite:
-        return NOT_FINITE
-    for a in range(m):  # D^-1/2 S D^-1/2: |S_ac| <= sqrt(S_aa S_cc), so nothing overflows
-        for c in range(a + 1):
+            log_det[b] = 0.0
+            det[b] = 1.0
+        for a in range(m):  # S, lower triangle, into chol; then its diagonal D
+            for c in range(a + 1):
+                for b in range(nb):
+                    chol[a, c, b] = R[a, c, b] * obs[c, b]
+                for i in range(n):
+                    for b in range(nb):
+                        chol[a, c, b] += C[a, i, b] * PCt[i, c, b]
+                unit = 1.0 if a == c else 0.0
+                for b in range(nb):
+                    chol[a, c, b] = chol[a, c, b] * obs[a, b] + unit * (1.0 - obs[a, b])
             for b in range(nb):
-                chol[a, c, b] = chol[a, c, b] * scale[a, b] * scale[c, b]
-    for j in range(m):  # Cholesky, column by column
-        for b in range(nb):
-            pivot[b] = chol[j, j, b]
-        for p in range(j):
+                d = chol[a, a, b]
+                finite &= math.isfinite(d)
+                positive &= d > 0.0
+                scale[a, b] = 1.0 / math.sqrt(d)
+                log_det[b] += math.log(d)
+        if not finite:
+            return NOT_FINITE
+        for a in range(m):  # D^-1/2 S D^-1/2: |S_ac| <= sqrt(S_aa S_cc), so nothing overflows
+            for c in range(a + 1):
+                for b in range(nb):
+                    chol[a, c, b] = chol[a, c, b] * scale[a, b] * scale[c, b]
+        for j in range(m):  # Cholesky, column by column
             for b in range(nb):
-                pivot[b] -= chol[j, p, b] * chol[j, p, b]
-        for b in range(nb):
-            positive &= pivot[b] > 0.0
-            root = math.sqrt(pivot[b])
-            chol[j, j, b] = root
-            det[b] *= pivot[b]
-        for i in range(j + 1, m):
+                pivot[b] = chol[j, j, b]
             for p in range(j):
                 for b in range(nb):
-                    chol[i, j, b] -= chol[i, p, b] * chol[j, p, b]
+                    pivot[b] -= chol[j, p, b] * chol[j, p, b]
             for b in range(nb):
-                chol[i, j, b] /= chol[j, j, b]
-    whiten(e, chol, scale, nb, z, nis)
-    for b in range(nb):
-        loglik[b] = -0.5 * (nis[b] + log_det[b] + math.log(det[b]) + n_obs[b] * _LOG_2PI)
-    if positive:
-        return OK
-    for b in range(nb):  # a failed pivot leaves NaN (or 0) in det: the lanes to repair
-        bad[b] = not det[b] > 0.0
-    return NOT_POSITIVE_DEFINITE
+                positive &= pivot[b] > 0.0
+                root = math.sqrt(pivot[b])
+                chol[j, j, b] = root
+                det[b] *= pivot[b]
+            for i in range(j + 1, m):
+                for p in range(j):
+                    for b in range(nb):
+                        chol[i, j, b] -= chol[i, p, b] * chol[j, p, b]
+                for b in range(nb):
+                    chol[i, j, b] /= chol[j, j, b]
+        whiten(e, chol, scale, nb, z, nis)
+        for b in range(nb):
+            loglik[b] = -0.5 * (nis[b] + log_det[b] + math.log(det[b]) + n_obs[b] * _LOG_2PI)
+        if positive:
+            return OK
+        for b in range(nb):  # a failed pivot leaves NaN (or 0) in det: the lanes to repair
+            bad[b] = not det[b] > 0.0
+        if report is None:  # decided as numba compiles: report omitted, or an array
+            return NOT_POSITIVE_DEFINITE
+        if repaired:
+            return NOT_POSITIVE_DEFINITE
+        for b in range(nb):
+            if bad[b] and not repair(P, b, False, report):
+                return NOT_POSITIVE_DEFINITE
+        repaired = True
 
 
 @jit
@@ -379,15 +466,7 @@ def correct(x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP, prior):
             for j in range(n):
                 for b in range(nb):
                     T[i, c, b] -= AP[i, j, b] * C[c, j, b]
-    for i in range(n):  # P = A P + T K'
-        for j in range(i, n):
-            for b in range(nb):
-                P[i, j, b] = AP[i, j, b]
-            for a in range(m):
-                for b in range(nb):
-                    P[i, j, b] += T[i, a, b] * K[j, a, b]
-            for b in range(nb):
-                P[j, i, b] = P[i, j, b]
+    symmetric_sum(AP, T, K, nb, P)  # P = A P + T K'
 
 
 @jit
@@ -432,6 +511,17 @@ def joseph_lost(P, prior, use, nb, root, lost):
         lost[b] &= use[b]
         found |= lost[b]
     return found
+
+
+@jit
+def information_or_repair(P, prior, C, R, obs, n_obs, lost, nb, report):
+    """The posterior of each ``lost`` lane (:func:`joseph_lost`) that observed something, in
+    information form (:func:`information_form`), or where that fails, repaired if indefinite
+    (:func:`repair`, counted in ``report``): the rule of the filters here, after
+    :func:`correct` (a group's repair in :mod:`.kalman_kernel` counts its trials)."""
+    for b in range(nb):
+        if lost[b] and n_obs[b] > 0.0 and not information_form(P, prior, C, R, obs, b):
+            repair(P, b, True, report)
 
 
 @jit

@@ -45,9 +45,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from .arrays import check_gate, floats, indices
+from .arrays import check_gate, checked, indices
 from .bank import LANES
 from .linalg import (
     ACCEPTED,
@@ -60,7 +59,8 @@ from .linalg import (
     gather_matrices,
     gather_rows,
     gather_samples,
-    information_form,
+    information_or_repair,
+    inline,
     innovation,
     jit,
     joseph_lost,
@@ -68,6 +68,9 @@ from .linalg import (
     observe,
     predict,
     repair,
+    residual,
+    symmetric_sum,
+    write_lane,
 )
 
 __all__ = [
@@ -83,10 +86,6 @@ _GOLDEN_STEP = (3.0 - math.sqrt(5.0)) / 2.0  # 1 - 0.618...: Brent's golden-sect
 _SQRT_EPS = math.sqrt(np.finfo(np.float64).eps)  # Brent's relative tolerance on the instant
 _LOG_2PI = math.log(2.0 * math.pi)
 REFINE_TOLERANCE = 1e-4  # Brent's tolerance on the refined instant (tol = 1e-4 T, _refine)
-
-# The functions of a probe, inlined into their callers: a call passing a dozen arrays costs about
-# 100 ns (their reference counts), as much as the arithmetic of a probe on a few lanes.
-inline = njit(cache=True, error_model="numpy", inline="always")
 
 
 class SwitchTimeOutput(NamedTuple):
@@ -174,19 +173,9 @@ def switch_time_run(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, x0
         computed here when not given).
     """
     sizes: dict[str, int] = {}
-    y = floats(y, "y", "NKm", sizes)
-    u = floats(u, "u", "NKl", sizes)
-    C = floats(C, "C", "Lmn", sizes)
-    R = floats(R, "R", "Lmm", sizes)
-    mode = indices(mode, "mode", "NK", sizes, "L")
-    prev = indices(prev, "prev", "NK", sizes, "L")
-    F = floats(F, "F", "Mnn", sizes)
-    G = floats(G, "G", "Mnl", sizes)
-    Qd = floats(Qd, "Qd", "Mnn", sizes)
-    steps = floats(steps, "steps", "D", sizes)
-    grid_tau = floats(grid_tau, "grid_tau", "Dg", sizes)
-    x0 = floats(x0, "x0", "Nn", sizes)
-    P0 = floats(P0, "P0", "Nnn", sizes)
+    y, u, C, R, mode, prev, F, G, Qd, steps, grid_tau, x0, P0 = checked(
+        sizes, "y:NKm u:NKl C:Lmn R:Lmm mode:NK<L prev:NK<L F:Mnn G:Mnl Qd:Mnn steps:D "
+        "grid_tau:Dg x0:Nn P0:Nnn", y, u, C, R, mode, prev, F, G, Qd, steps, grid_tau, x0, P0)
     if sizes["D"]:
         which = indices(which, "which", "K", sizes, "D")
     else:  # no interval: nothing is predicted, the table is not read
@@ -206,8 +195,7 @@ def switch_time_run(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, x0
     if outputs is None:
         outputs = coarse_outputs(C, F, G, Qd, D, g, n_coarse)
     sizes["H"] = D * L * n_coarse
-    outputs = tuple(floats(arr, f"outputs[{i}]", axes, sizes)
-                    for i, (arr, axes) in enumerate(zip(outputs, ("Hmn", "Hml", "Hmm"))))
+    outputs = tuple(checked(sizes, "outputs[0]:Hmn outputs[1]:Hml outputs[2]:Hmm", *outputs))
     predicting = slice(0 if predict_first else 1, None)
     if not D and which[predicting].size:
         raise ValueError("steps must hold the sampling step of every predicted sample, got none")
@@ -303,29 +291,26 @@ def pull_back(E, Go, Qo, F, G, Qd, rows, nb, EQ):
             for j in range(n):
                 for b in range(nb):
                     Go[a, c, b] += E[a, j, b] * G[rows[b], j, c]
-        for j in range(n):
-            for b in range(nb):
-                EQ[a, j, b] = 0.0
-            for i in range(n):
-                for b in range(nb):
-                    EQ[a, j, b] += E[a, i, b] * Qd[rows[b], i, j]
-    for a in range(r):
-        for c in range(a, r):
-            for j in range(n):
-                for b in range(nb):
-                    Qo[a, c, b] += EQ[a, j, b] * E[c, j, b]
-            for b in range(nb):
-                Qo[c, a, b] = Qo[a, c, b]
+        _row_times_entries(E, Qd, rows, a, nb, EQ)
+    symmetric_sum(Qo, EQ, E, nb, Qo)
     for a in range(r):  # E <- E Phi, a row at a time through EQ
-        for j in range(n):
-            for b in range(nb):
-                EQ[a, j, b] = 0.0
-            for i in range(n):
-                for b in range(nb):
-                    EQ[a, j, b] += E[a, i, b] * F[rows[b], i, j]
+        _row_times_entries(E, F, rows, a, nb, EQ)
         for j in range(n):
             for b in range(nb):
                 E[a, j, b] = EQ[a, j, b]
+
+
+@inline
+def _row_times_entries(E, table, rows, a, nb, out):
+    """``out[a] = E[a] table[rows[b]]`` in every lane ``b``: row ``a`` of ``E (r, n, B)`` times
+    each lane's entry of ``table (M, n, n)``."""
+    n = E.shape[1]
+    for j in range(n):
+        for b in range(nb):
+            out[a, j, b] = 0.0
+        for i in range(n):
+            for b in range(nb):
+                out[a, j, b] += E[a, i, b] * table[rows[b], i, j]
 
 
 @inline
@@ -344,23 +329,6 @@ def _start(E, Go, Qo, C, nb):
 
 
 @inline
-def _innovate(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work, bad,
-              report):
-    """:func:`.linalg.innovation` with the bank's rule for a failed factorization: the failing
-    lanes' ``P`` is repaired (:func:`.linalg.repair`) and factored once more; returns the
-    status."""
-    status = innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik,
-                        work, bad)
-    if status == NOT_POSITIVE_DEFINITE:
-        for b in range(nb):
-            if bad[b] and not repair(P, b, False, report):
-                return status
-        status = innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis,
-                            loglik, work, bad)
-    return status
-
-
-@inline
 def _likelihood(x, P, y, u, obs, n_obs, R, E, Go, Qo, printed, gate, nb, ye, Re, zero, e, PCt,
                 chol, scale, z, nis, loglik, work, bad, J, report):
     """``J_k`` of one hypothesis per lane (Shankar et al. §IV), ``-inf`` where it is rejected.
@@ -373,29 +341,26 @@ def _likelihood(x, P, y, u, obs, n_obs, R, E, Go, Qo, printed, gate, nb, ye, Re,
     ``printed``: the paper's literal ``J = N(y; C x-(tau), R)`` (``P-`` replaced by 0 in the
     likelihood), rejected where its own normalized square is not finite or, with a finite
     gate, where the innovation's fails the gate. ``ye (m, B)``, ``Re (m, m, B)`` are scratch,
-    ``zero (n, n, B)`` all zeros; the rest is the workspace of :func:`.linalg.innovation`.
+    ``zero (n, n, B)`` all zeros; the rest is the workspace of :func:`.linalg.innovation`, which
+    repairs a failing ``P`` as the bank does.
     """
-    m, n_in = y.shape[0], u.shape[0]
+    m = y.shape[0]
+    residual(u, y, Go, nb, ye)  # y - Go u
     for a in range(m):
-        for b in range(nb):
-            ye[a, b] = y[a, b]
-        for c in range(n_in):
-            for b in range(nb):
-                ye[a, b] -= Go[a, c, b] * u[c, b]
         for c in range(m):
             for b in range(nb):
                 Re[a, c, b] = R[a, c, b] + Qo[a, c, b]
     if not printed or gate < math.inf:
-        status = _innovate(x, P, ye, E, Re, obs, n_obs, nb, e, PCt, chol, scale, z, nis,
-                           loglik, work, bad, report)
+        status = innovation(x, P, ye, E, Re, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik,
+                            work, bad, report)
         if status != OK:
             return status
         for b in range(nb):
             J[b] = loglik[b] if math.isfinite(loglik[b]) and nis[b] <= gate else -math.inf
         if not printed:
             return OK
-    status = _innovate(x, zero, ye, E, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik,
-                       work, bad, report)
+    status = innovation(x, zero, ye, E, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik,
+                        work, bad, report)
     if status != OK:
         return status
     for b in range(nb):
@@ -719,25 +684,23 @@ def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs, pk, report):
 @jit
 def _update(x, P, y, C, R, obs, n_obs, gate, nb, ws, cs, use, report):
     """Measurement update of every lane, as the bank does for one mode
-    (:func:`.bank.filter_bank`): innovation (:func:`_innovate`), the gate (``use``: the
-    normalized innovation squared within ``gate`` and a finite likelihood), the Joseph-form
-    correction of the lanes that use it (Shankar et al. eqs (8)-(10)), and the information form
-    where Joseph's loses its digits, a repair where neither resolves ``P``. ``ws`` is the
-    workspace of :func:`.linalg.innovation`, ``cs`` ``(gain, T, AP, prior, root, lost)``.
-    Returns the status."""
-    e, PCt, chol, scale, z, nis, loglik, work, bad = ws
+    (:func:`.bank.filter_bank`): innovation (:func:`.linalg.innovation`, repairing), the gate
+    (``use``: the normalized innovation squared within ``gate`` and a finite likelihood), the
+    Joseph-form correction of the lanes that use it (Shankar et al. eqs (8)-(10)), and the
+    information form where Joseph's loses its digits, a repair where neither resolves ``P``
+    (:func:`.linalg.information_or_repair`). ``ws`` is the workspace of
+    :func:`.linalg.innovation`, ``cs`` ``(gain, T, AP, prior, root, lost)``. Returns the
+    status."""
+    nis, loglik = ws[5], ws[6]
     gain, T, AP, prior, root, lost = cs
-    status = _innovate(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work,
-                       bad, report)
+    status = innovation(x, P, y, C, R, obs, n_obs, nb, *ws, report)
     if status != OK:
         return status
     for b in range(nb):
         use[b] = math.isfinite(loglik[b]) and nis[b] <= gate
-    correct(x, P, C, R, use, nb, PCt, chol, scale, z, gain, T, AP, prior)
+    correct(x, P, C, R, use, nb, *ws[1:5], gain, T, AP, prior)
     if joseph_lost(P, prior, use, nb, root, lost):  # rare: lane by lane
-        for b in range(nb):
-            if lost[b] and n_obs[b] > 0.0 and not information_form(P, prior, C, R, obs, b):
-                repair(P, b, True, report)
+        information_or_repair(P, prior, C, R, obs, n_obs, lost, nb, report)
     return OK
 
 
@@ -832,7 +795,8 @@ def switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau,
     Returns
     -------
     status : int
-        ``OK`` or the failure code that stopped the kernel.
+        ``OK``, or the failure code of the innovation covariance (of a grid instant, a
+        refinement probe or the update) that stopped the kernel (outputs then incomplete).
 
     Notes
     -----
@@ -945,8 +909,5 @@ def switch_time_filter(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau,
                 loglik_out[i, k] = lik[b]
                 offset_out[i, k] = off[b]
                 flag_out[i, k] = flg[b]
-                for r in range(n):
-                    x_out[i, k, r] = x[r, b]
-                    for c in range(n):
-                        P_out[i, k, r, c] = P[r, c, b]
+                write_lane(x, P, b, i, k, x_out, P_out)
     return OK
