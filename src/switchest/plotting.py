@@ -100,8 +100,10 @@ def bars(
     ylabel: str,
     title: str = "",
     logy: bool = False,
+    errors: Mapping[str, Sequence[float]] | None = None,
 ) -> Path:
-    """Grouped bars: one group per entry of ``groups``, one bar per series (NaN = no bar)."""
+    """Grouped bars: one group per entry of ``groups``, one bar per series (NaN = no bar);
+    ``errors[label]`` draws ``± errors`` on the series' bars (e.g. 1.96 standard errors)."""
     k = len(series)
     width = 0.8 / max(k, 1)
     x = np.arange(len(groups))
@@ -109,8 +111,9 @@ def bars(
         size = (max(6.0, 1.6 * len(groups) + 2), 3.6 + 0.2 * ((k + 3) // 4))
         fig, ax = plt.subplots(figsize=size)
         for j, (label, values) in enumerate(series.items()):
+            half = None if errors is None or label not in errors else np.asarray(errors[label])
             ax.bar(x + (j - (k - 1) / 2) * width, np.asarray(values, dtype=float), width,
-                   label=label)
+                   label=label, yerr=half, error_kw={"lw": 0.8, "capsize": 2})
         ax.set_xticks(x, groups)
         ax.set_ylabel(ylabel)
         if logy:

@@ -35,6 +35,7 @@ from ..system import SwitchedLinearSystem
 from ..tabular import transition_for
 from .registry import Experiment, Row, Summary, register
 from .scoring import blocks, merge_groups, rmse_and_se, score
+from .verdict import Z_95
 
 
 @dataclass(frozen=True)
@@ -258,12 +259,13 @@ def _summary(p: dict, results, out: Path) -> Summary:
     totals = {key: tot for key, (_, tot)
               in merge_groups(results, lambda c: (c["case"], c["method"])).items()}
     all_cases = cases()
-    rows, rel = [], {m: [] for m in METHODS}
+    rows, rel, rel_err = [], {m: [] for m in METHODS}, {m: [] for m in METHODS}
     for case in p["cases"]:
         for m in METHODS:
             tot = totals.get((case, m))
             if tot is None:
                 rel[m].append(np.nan)
+                rel_err[m].append(np.nan)
                 reason = (min_distance_inapplicable(all_cases[case][0]) if m == "min-distance"
                           else None)
                 if reason:
@@ -271,6 +273,9 @@ def _summary(p: dict, results, out: Path) -> Summary:
                 continue
             rmse, se = _rmse(tot)
             rel[m].append(np.sqrt(tot["sse"].sum() / tot["scale"].sum()))
+            # the RMS of the true state as a constant: 1.96 SE of the RMSE, relative
+            rel_err[m].append(np.nan if se is None
+                              else Z_95 * se / np.sqrt(tot["scale"].sum() / tot["count"]))
             parts = [f"relative RMSE {rel[m][-1]:.3g}",
                      f"{tot['elapsed'] / tot['trials'] * 1e3:.1f} ms per trial"]
             if "mode_hits" in tot:
@@ -283,7 +288,8 @@ def _summary(p: dict, results, out: Path) -> Summary:
             rows.append(Row(f"{case}: {_LABELS[m]}", rmse, None, "RMSE", "; ".join(parts), se=se,
                             trials=tot["trials"]))
     fig = bars(out / "bakeoff.png", list(p["cases"]), {_LABELS[m]: v for m, v in rel.items()},
-               ylabel="RMSE / RMS of the state", logy=True,
+               errors={_LABELS[m]: v for m, v in rel_err.items()},
+               ylabel="RMSE / RMS of the state (± 1.96 SE)", logy=True,
                title="Bake-off: every estimator on the same data")
     setup = (f"{p['trials']} trials per case; each method on the same simulated trials. Methods "
              "that know the modes at the samples (mode KF, switch-time KF) are given them; IMM, "
