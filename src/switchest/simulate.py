@@ -333,6 +333,10 @@ def _signals(signal, trials, rng, n_modes, t) -> list[SwitchingSignal]:
     if isinstance(signal, SwitchingSignal):
         return _check_modes([signal] * trials, n_modes)
     if callable(getattr(signal, "sample", None)):
+        model_modes = getattr(signal, "n_modes", None)
+        if model_modes is not None and model_modes > n_modes:  # refused before any draw
+            raise ValueError(f"signal uses mode {model_modes - 1} (a switching model of "
+                             f"{model_modes} modes), but the system has modes 0..{n_modes - 1}")
         draw, call = (lambda r: signal.sample(r, t)), "signal.sample(rng, t)"
     elif callable(signal):
         draw, call = signal, "signal(rng)"
