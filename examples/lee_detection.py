@@ -1,4 +1,5 @@
 """Lee, Ping & Shim: minimum-distance switching detection under bounded noise, and the IMM filters.
+================================================================================================
 
 The paper prints no example; this runs its whole algorithm (§V) on the
 demonstration scenario :data:`switchest.models.lee.LEE_SCENARIO`: a phasor whose

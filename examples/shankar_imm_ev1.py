@@ -1,4 +1,5 @@
 """Shankar et al. Algorithm 1 (IMM-EV1 with gridded switching times) on the vehicle maneuver.
+==========================================================================================
 
 The setting of Shankar, Yang & Hespanha §V.B (Figs 3-4): the two-dimensional
 vehicle (:func:`switchest.models.vehicle_2d`, positions measured every

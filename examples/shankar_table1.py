@@ -1,4 +1,5 @@
 """Shankar et al. Table I: Kalman filtering with gridded switching times on the boost converter.
+=============================================================================================
 
 The setting of Shankar, Yang & Hespanha §III and §V.A: the boost converter
 (:func:`switchest.models.boost_converter`, output ``v_0`` sampled every
@@ -26,12 +27,14 @@ taken over the samples after the first 10 ms.
 
 Run ``python examples/shankar_table1.py``; the paper's size (100 trials x 10 s,
 two million samples) takes most of an hour on two shared cores, nearly all of
-it in the refined search.
+it in the refined search. ``python examples/shankar_table1.py TRIALS DURATION``
+runs a smaller size (the documentation's gallery: 10 trials x 1 s, seconds).
 """
 
 # %% Setup
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -151,4 +154,7 @@ def render(rows: Sequence[Row], *, trials: int, duration: float) -> Table:
 
 
 if __name__ == "__main__":
-    main()
+    if len(sys.argv) > 2:  # a smaller size: TRIALS DURATION
+        main(trials=int(sys.argv[1]), duration=float(sys.argv[2]))
+    else:
+        main()

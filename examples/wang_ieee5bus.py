@@ -1,14 +1,15 @@
-# %% [markdown]
-# # IEEE 5-bus with packet losses: Wang et al. §6 (Example 5, Figs. 8-9)
-#
-# Two PMUs measure the generator angles delta_1, delta_2; their packets are lost
-# independently, giving four i.i.d. sensor modes at the switching instants kT. The
-# subsystem observer (one 4-dimensional sub-state shared by the three observable
-# modes, open loop when both packets are lost) is designed by pole placement, its
-# critical interval and MS error are computed exactly, and a 400-run Monte Carlo
-# of the observer fed the integrated (Ito) output checks them.
-#
-# Run: `python examples/wang_ieee5bus.py [trials] [intervals]`.
+"""IEEE 5-bus with packet losses: Wang et al. §6 (Example 5, Figs. 8-9)
+====================================================================
+
+Two PMUs measure the generator angles delta_1, delta_2; their packets are lost
+independently, giving four i.i.d. sensor modes at the switching instants kT. The
+subsystem observer (one 4-dimensional sub-state shared by the three observable
+modes, open loop when both packets are lost) is designed by pole placement, its
+critical interval and MS error are computed exactly, and a 400-run Monte Carlo
+of the observer fed the integrated (Ito) output checks them.
+
+Run: ``python examples/wang_ieee5bus.py [trials] [intervals]``.
+"""
 
 # %%
 import sys
