@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
-from summary_rows import close_at_printed, find_row
+from summary_rows import assert_rows_compare_only_what_is_printed, close_at_printed, find_row
 
 from switchest.analysis.subsystem_observers import error_dynamics, second_moments
 from switchest.experiments import (
@@ -25,7 +25,7 @@ from switchest.experiments import (
     wang,  # registers wang-examples and wang-ieee5bus
 )
 from switchest.experiments.scoring import mean_and_se, merge_blocks
-from switchest.experiments.verdict import Verdict, printed_condition, printed_number
+from switchest.experiments.verdict import Verdict
 from switchest.models import (
     IEEE_5BUS_INITIAL_ERROR,
     IEEE_5BUS_SAMPLE_PERIOD,
@@ -322,15 +322,4 @@ def test_rows_compare_only_what_the_paper_prints(runs, name):
     """A referee's reading of the table: printed words are compared with words, printed values
     carry printed digits (no computed float in the paper column), differences are explained only
     by a note, and Monte Carlo rows have their trial counts."""
-    summary = runs[name][2]
-    for row in summary.rows:
-        printed = printed_number(row.paper)
-        if row.paper is not None and printed is None and printed_condition(row.paper) is None:
-            assert isinstance(row.measured, str), row
-        if printed is not None:
-            assert printed.as_tuple().exponent >= -6, row
-        if row.verdict is Verdict.DIFFERS:
-            assert not row.note.strip()
-        if "MC" in row.quantity and not row.quantity.startswith("our check") and not isinstance(
-                row.measured, str):
-            assert row.trials, row  # a Monte Carlo value says how many runs are behind it
+    assert_rows_compare_only_what_is_printed(runs[name][2])

@@ -11,12 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from summary_rows import close_at_printed, find_row
+from summary_rows import assert_rows_compare_only_what_is_printed, close_at_printed, find_row
 
 import switchest.experiments.zhang  # noqa: F401  (registers the Zhang experiments)
 from switchest.analysis.mode_mismatch import bias_recursion, mean_state, mismatch_dynamics
 from switchest.experiments import get
-from switchest.experiments.verdict import Verdict, printed_condition, printed_number
+from switchest.experiments.verdict import Verdict
 from switchest.models.zhang import smart_grid, zhang_two_mode
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -253,14 +253,4 @@ def test_rows_compare_only_what_the_paper_prints(runs, name):
     """A referee's reading of the table: printed words are compared with words, printed values
     carry printed digits (no computed float in the paper column), differences are explained only
     by a note, and Monte Carlo rows have their standard errors."""
-    summary = runs[name][2]
-    for row in summary.rows:
-        printed = printed_number(row.paper)
-        if row.paper is not None and printed is None and printed_condition(row.paper) is None:
-            assert isinstance(row.measured, str), row  # a printed word against a word of ours
-        if printed is not None:
-            assert printed.as_tuple().exponent >= -6, row  # printed digits, not a computed float
-        assert (row.verdict is Verdict.EXPLAINED) == (
-            row.verdict in (Verdict.EXPLAINED, Verdict.DIFFERS) and bool(row.note.strip()))
-        if "MC" in row.quantity and not isinstance(row.measured, str):
-            assert row.trials, row
+    assert_rows_compare_only_what_is_printed(runs[name][2])
