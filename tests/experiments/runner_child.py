@@ -13,6 +13,7 @@ from ``time.time()``, when the runner had stopped) and exits with 130.
 """
 
 import json
+import signal
 import sys
 import time
 from pathlib import Path
@@ -22,6 +23,10 @@ from switchest.experiments.store import task_key
 
 
 def main(spec: dict) -> int:
+    # Ctrl-C as in a terminal, whatever this process inherited: a suite started as a background
+    # job of a non-interactive shell (nohup ... &) runs with SIGINT ignored, and Python then
+    # installs no handler of its own
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     experiment = get(spec["name"])
     params = experiment.params(quick=True, **spec["overrides"])
     if spec.get("log"):
