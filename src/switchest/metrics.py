@@ -145,21 +145,27 @@ def innovation_consistency(system, y, x, P, modes, *, used=None) -> InnovationCo
         raise ValueError(f"y, x, P and modes must have the same number of samples, got "
                          f"{y.shape[0]}, {x.shape[0]}, {P.shape[0]}, {modes.shape[0]}")
     used = np.ones(K, dtype=bool) if used is None else np.asarray(used, dtype=bool)
+    seen = np.isfinite(y)
+    ok = (used & seen.any(axis=1) & np.all(np.isfinite(x), axis=1)
+          & np.all(np.isfinite(P), axis=(1, 2)))
     nis, dims = [], []
-    for k in range(K):
-        seen = np.isfinite(y[k])
-        if not (used[k] and seen.any() and np.all(np.isfinite(x[k])) and np.all(np.isfinite(P[k]))):
-            continue
-        C = system.C[modes[k]][seen]
-        M = system.R[modes[k]][np.ix_(seen, seen)] - C @ P[k] @ C.T
-        r = y[k, seen] - C @ x[k]
-        try:
-            root = np.linalg.cholesky((M + M.T) / 2)
-        except np.linalg.LinAlgError:
-            continue  # R S^-1 R is positive definite for a proper update: not one here
-        w = np.linalg.solve(root, r)
-        nis.append(float(w @ w))
-        dims.append(int(seen.sum()))
+    # one batch of Cholesky solves per (mode, observed components): no loop over samples
+    patterns = np.concatenate([modes[:, None], seen], axis=1)[ok]
+    for key in np.unique(patterns, axis=0):
+        at = np.flatnonzero(ok)[np.all(patterns == key, axis=1)]
+        obs = key[1:].astype(bool)
+        C = system.C[key[0]][obs]
+        M = system.R[key[0]][np.ix_(obs, obs)] - C @ P[at] @ C.T  # (k, o, o)
+        r = y[at][:, obs] - x[at] @ C.T
+        M = (M + np.swapaxes(M, 1, 2)) / 2
+        # R S^-1 R is positive definite for a proper update: a sample where it is not (by
+        # eigenvalue) is left out rather than failing the batch factorization
+        eig = np.linalg.eigvalsh(M)
+        proper = eig[:, 0] > 1e-12 * np.abs(eig[:, -1])
+        root = np.linalg.cholesky(M[proper])
+        w = np.linalg.solve(root, r[proper][..., None])[..., 0]
+        nis += np.sum(w**2, axis=1).tolist()
+        dims += [int(obs.sum())] * int(proper.sum())
     if not nis:
         return InnovationConsistency(np.nan, np.nan, 0, np.nan)
     mean, expected = float(np.mean(nis)), float(np.mean(dims))

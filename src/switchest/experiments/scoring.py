@@ -10,8 +10,8 @@ import numpy as np
 
 from ..metrics import switch_time_error
 
-__all__ = ["blocks", "mean_and_se", "merge_blocks", "merge_groups", "rmse_and_se", "score",
-           "split_variants"]
+__all__ = ["blocks", "mean_and_se", "merge_blocks", "merge_groups", "rms_and_se", "rmse_and_se",
+           "score", "split_variants"]
 
 
 def blocks(trials: int, block_size: int) -> list[tuple[int, int]]:
@@ -87,6 +87,16 @@ def mean_and_se(total, total_sq, n: int) -> tuple[np.ndarray, np.ndarray]:
     return mean, np.sqrt(var / n)
 
 
+def rms_and_se(total, total_sq, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Root of a Monte Carlo mean square (merged sum ``total`` and sum of squares
+    ``total_sq`` of ``n`` trials' squared errors) and its standard error by the delta method,
+    ``SE(sqrt(m)) = SE(m) / (2 sqrt(m))``."""
+    mean, se = mean_and_se(total, total_sq, n)
+    root = np.sqrt(mean)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return root, np.where(root > 0, se / (2 * root), 0.0)
+
+
 def rmse_and_se(total: dict) -> tuple[np.ndarray, np.ndarray]:
     """RMSE per state component of merged :func:`score` sums, and its standard error.
 
@@ -99,9 +109,7 @@ def rmse_and_se(total: dict) -> tuple[np.ndarray, np.ndarray]:
     n = total["trials"]
     if n < 2 or "trial_mse" not in total:
         return rmse, np.full_like(rmse, np.nan)
-    _, se_mse = mean_and_se(total["trial_mse"], total["trial_mse_sq"], n)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return rmse, np.where(rmse > 0, se_mse / (2 * rmse), 0.0)
+    return rmse, rms_and_se(total["trial_mse"], total["trial_mse_sq"], n)[1]
 
 
 def merge_blocks(results: Iterable[dict], *, first: Collection[str] = (),

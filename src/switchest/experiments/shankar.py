@@ -30,9 +30,9 @@ from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
 from .scoring import (
     blocks,
-    mean_and_se,
     merge_blocks,
     merge_groups,
+    rms_and_se,
     rmse_and_se,
     score,
     split_variants,
@@ -402,22 +402,14 @@ def _position_velocity_errors(err: np.ndarray) -> dict:
             "pv_run": run.sum(axis=0).tolist(), "pv_run_sq": (run**2).sum(axis=0).tolist()}
 
 
-def _rms_and_se(total, total_sq, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Root of a Monte Carlo mean square, and its standard error by the delta method."""
-    mean, se = mean_and_se(total, total_sq, n)
-    root = np.sqrt(mean)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return root, np.where(root > 0, se / (2 * root), 0.0)
-
-
 def _vehicle_summary(p: dict, results, out: Path) -> Summary:
     man = vehicle_maneuver()
     rows, pos_vel, bands, examples = [], {}, {}, {}
     for label, (_, tot) in _by_method(results).items():
         n = tot["trials"]
-        pos_vel[label], se_step = _rms_and_se(tot["pv_step"], tot["pv_step_sq"], n)
+        pos_vel[label], se_step = rms_and_se(tot["pv_step"], tot["pv_step_sq"], n)
         bands[label] = Z_95 * se_step
-        overall, se = _rms_and_se(tot["pv_run"], tot["pv_run_sq"], n)
+        overall, se = rms_and_se(tot["pv_run"], tot["pv_run_sq"], n)
         extra = []
         if "mode_hits" in tot:
             extra.append(f"mode accuracy {tot['mode_hits'] / tot['count']:.3f}")
