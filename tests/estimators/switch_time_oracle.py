@@ -27,12 +27,13 @@ class SwitchTimeOracle:
     """The numpy switch-time Kalman filter; options as in ``SwitchTimeKalmanFilter``."""
 
     def __init__(self, system, x0, P0, *, grid=5, refine=False, likelihood="innovation",
-                 refine_iterations=20, switch_time="max", gate=None, resolution=None,
-                 tolerance=REFINE_TOLERANCE):
+                 refine_iterations=20, switch_time="max", gate=None, inflation=0.0,
+                 resolution=None, tolerance=REFINE_TOLERANCE):
         self.system, self.x0, self.P0 = system, np.asarray(x0, float), np.asarray(P0, float)
         self.grid, self.refine, self.likelihood = grid, refine, likelihood
         self.refine_iterations, self.switch_time, self.gate = refine_iterations, switch_time, gate
         self.resolution, self.tolerance = resolution, tolerance
+        self.inflation = inflation
 
     def run(self, y, u, t, modes):
         """Filter ``y (N, K, m)`` with inputs ``u (N, K, l)`` along ``modes (N, K)``; returns a
@@ -72,7 +73,7 @@ class SwitchTimeOracle:
                 F, G, Qd = F.copy(), G.copy(), Qd.copy()
                 F[sw], G[sw], Qd[sw] = tr
                 offset[sw] = tau
-            x, P = kf_predict(x, P, F, G, u, Qd)
+            x, P = kf_predict(x, P, F, G, u, Qd, inflation=self.inflation)
         x, P, loglik = kf_update(x, P, y, C, R, gate=self.gate)
         if merged is not None:
             x[sw], P[sw], loglik[sw], offset[sw] = merged
@@ -100,7 +101,8 @@ class SwitchTimeOracle:
         sys = self.system
         grid = pairwise_grid(sys, dt, self.grid)
         F, G, Qd = grid.F[prev, mode], grid.G[prev, mode], grid.Qd[prev, mode]
-        x_pred, P_pred = kf_predict(x[:, None], P[:, None], F, G, u[:, None], Qd)
+        x_pred, P_pred = kf_predict(x[:, None], P[:, None], F, G, u[:, None], Qd,
+                                    inflation=self.inflation)
         x_up, P_up, ll = kf_update(x_pred, P_pred, y[:, None], sys.C[mode][:, None],
                                    sys.R[mode][:, None], gate=self.gate)
         rejected = np.all(np.isneginf(ll), axis=1)
@@ -114,7 +116,7 @@ class SwitchTimeOracle:
         return xm[..., 0, :], Pm[..., 0, :, :], loglik, w @ tau
 
     def _loglik(self, x, P, F, G, u, Qd, y, mode):
-        x_pred, P_pred = kf_predict(x, P, F, G, u, Qd)
+        x_pred, P_pred = kf_predict(x, P, F, G, u, Qd, inflation=self.inflation)
         C, R = self.system.C[mode], self.system.R[mode]
         if self.likelihood == "innovation":
             return kf_update(x_pred, P_pred, y, C, R, gate=self.gate)[2]

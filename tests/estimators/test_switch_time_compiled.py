@@ -302,6 +302,34 @@ def test_many_distinct_steps_run_in_stretches_of_samples(monkeypatch):
     np.testing.assert_array_equal(parts.outlier, whole.outlier)
 
 
+@pytest.mark.parametrize("options", [
+    dict(grid=3), dict(grid=4, switch_time="marginal"), dict(grid=3, likelihood="printed"),
+], ids=str)
+def test_algorithm_1_inflation_matches_the_oracle(options):
+    # epsilon I added to every predicted covariance (Shankar et al. §IV), switched or not
+    system, t, y, u, modes, prior = three_mode_case()
+    est, ref, t = run_both((system, t, with_holes(y, 6), u, modes, prior), inflation=0.05,
+                           **options)
+    assert_same_run(est, ref, t)
+    plain = SwitchTimeKalmanFilter(system, *prior, **options).run(y, u, t, modes=modes)
+    inflated = SwitchTimeKalmanFilter(system, *prior, inflation=0.05, **options).run(
+        y, u, t, modes=modes)
+    # up to a trial's first switch (where the two may pick other instants) every prior
+    # covariance is larger by at least 0.05 I, and so is every posterior (Riccati monotonicity)
+    first = np.argmax(modes[:, 1:] != modes[:, :-1], axis=1) + 1
+    grown = np.trace(inflated.P - plain.P, axis1=-2, axis2=-1)
+    assert np.sum(first - 1) >= 20  # samples compared
+    assert all(np.all(grown[i, 1:first[i]] > 0) for i in range(len(first)))
+
+
+def test_inflation_is_refused_with_refinement_or_below_zero():
+    system = boost_converter()
+    with pytest.raises(ValueError, match="inflation .* needs refine=False"):
+        SwitchTimeKalmanFilter(system, np.zeros(2), np.eye(2), refine=True, inflation=1e-3)
+    with pytest.raises(ValueError, match="inflation"):
+        SwitchTimeKalmanFilter(system, np.zeros(2), np.eye(2), inflation=-1.0)
+
+
 def test_the_kernel_refuses_inconsistent_tables():
     system = boost_converter()
     y, u = np.zeros((2, 3, 1)), np.zeros((2, 3, 1))

@@ -22,9 +22,10 @@ def test_lemma1_printed_claim_fails_and_the_corrected_one_holds(tmp_path):
 
 
 def test_table1_readings_judge_the_closest_reading_against_the_printed_table(tmp_path):
-    summary = _summary("shankar-table1-readings", tmp_path, process_noises=[1.0, 10000.0])
+    summary = _summary("shankar-table1-readings", tmp_path, process_noises=[1.0, 10000.0],
+                       inflations=[0.0, 1.0])
     readings = [r for r in summary.rows if r.quantity.startswith("reading:")]
-    assert len(readings) == 2 * 2 * 2  # schedules x process noises x likelihoods
+    assert len(readings) == 2 * 2 * 2 * 2  # schedules x process noises x inflations x likelihoods
     assert all(r.verdict is Verdict.DERIVED and 0 <= r.measured <= 10 for r in readings)
     judged = [r for r in summary.rows if r.quantity.startswith("closest reading")]
     assert len(judged) == 10 and all(r.paper is not None and r.se > 0 for r in judged)
@@ -32,3 +33,5 @@ def test_table1_readings_judge_the_closest_reading_against_the_printed_table(tmp
     best = summary.notes[0]
     assert best.startswith("Closest to the printed table:")
     assert np.all([r.trials == 4 for r in judged]) and summary.figures[0].exists()
+    effect = next(note for note in summary.notes if note.startswith("Algorithm 1's inflation"))
+    assert "epsilon = 1: i_L by up to" in effect

@@ -156,6 +156,13 @@ class SwitchTimeKalmanFilter(Estimator):
         hypotheses are merged with their posterior weights
         (:func:`marginalize_switch_time`); the reported switching instant is the
         posterior mean. Needs ``likelihood="innovation"`` and ``refine=False``.
+    inflation : float
+        ``epsilon >= 0`` added as ``epsilon I`` to every predicted covariance,
+        ``P_k|k-1 = F P F' + Qd + epsilon I``: the inflation of Shankar et al.'s Algorithm 1
+        (§IV, which adds it so that the bound of Assumption 2 exists), here for the grid
+        filter of Table I too (default 0: none). It is defined on the grid's whole-interval
+        transitions; ``refine=True`` composes its probes from partial flows and does not
+        take it.
     gate : float, optional
         Largest normalized innovation squared accepted. A measurement beyond it,
         or one whose innovation overflows (whatever the gate), is rejected: treated
@@ -171,7 +178,8 @@ class SwitchTimeKalmanFilter(Estimator):
 
     def __init__(self, system, x0, P0, *, grid: int = 5, refine: bool = False,
                  likelihood: str = "innovation", refine_iterations: int = 20,
-                 switch_time: str = "max", gate: float | None = None):
+                 switch_time: str = "max", inflation: float = 0.0,
+                 gate: float | None = None):
         self._set_prior(system, x0, P0)
         if not system.is_continuous:
             raise ValueError("SwitchTimeKalmanFilter needs a continuous-time system (switches "
@@ -190,6 +198,10 @@ class SwitchTimeKalmanFilter(Estimator):
         if switch_time == "marginal" and (refine or likelihood != "innovation"):
             raise ValueError("switch_time='marginal' weighs the grid by the innovation "
                              "likelihood: it needs likelihood='innovation' and refine=False")
+        inflation = positive_scalar(inflation, "inflation", allow_zero=True)
+        if refine and inflation:
+            raise ValueError("inflation applies to the grid's whole-interval transitions: it "
+                             "needs refine=False")
         if refine:
             check_memory(offset_table_nbytes(system),
                          f"refine=True (an offset table of L = {system.n_modes} modes)")
@@ -198,6 +210,7 @@ class SwitchTimeKalmanFilter(Estimator):
         self.refine = refine
         self.likelihood = likelihood
         self.refine_iterations = int(iters)
+        self.inflation = inflation
         self.gate = None if gate is None else positive_scalar(gate, "gate")
 
     def init(self, batch_shape=()) -> SwitchTimeState:
@@ -283,7 +296,7 @@ class SwitchTimeKalmanFilter(Estimator):
         """The compiled filter over ``y (N, K, m)`` from ``x (N, n)``, ``P (N, n, n)`` with the
         transition tables of the sampling ``steps (D,)`` (:func:`_tables`); raises for a failure
         and warns of repaired covariances."""
-        key = (self.system, tuple(steps.tolist()), self.grid, self.refine)
+        key = (self.system, tuple(steps.tolist()), self.grid, self.refine, self.inflation)
         size = steps.size * offset_table_nbytes(self.system) if self.refine else 0
         F, G, Qd, grid_tau, levels, outputs = (_cached_tables if size <= _CACHED_BYTES
                                                else _tables)(*key)
@@ -312,13 +325,15 @@ class SwitchTimeKalmanFilter(Estimator):
         return tau, (tr.F, tr.G, tr.Qd)
 
 
-def _tables(system, steps: tuple, g: int, refine: bool):
+def _tables(system, steps: tuple, g: int, refine: bool, inflation: float = 0.0):
     """The kernel's transition table for the distinct sampling ``steps`` (the layout of
     :mod:`switchest.estimators._compiled.switch_time`): per step and mode the transition without
     a switch (:func:`~switchest.discretize.mode_steps`), per step, mode pair and grid instant the
     switched one (:func:`~switchest.discretize.pairwise_grid`, eq. (23)) and, with ``refine``,
     the offset tables (:func:`~switchest.discretize.offset_table`); the grid ``(D, g)`` and the
-    refinement levels ``(N1, N0 + 1)``."""
+    refinement levels ``(N1, N0 + 1)``. ``inflation`` (without ``refine``: every entry is then a
+    whole interval) is added as ``epsilon I`` to each ``Qd``, so the kernel's prediction
+    ``F P F' + Qd`` is Algorithm 1's ``F P F' + Qd + epsilon I`` (Shankar et al. §IV)."""
     n, l = system.n_states, system.n_inputs
     parts = [mode_steps(system, h) for h in steps] + [pairwise_grid(system, h, g) for h in steps]
     levels = (0, 0)
@@ -329,6 +344,8 @@ def _tables(system, steps: tuple, g: int, refine: bool):
     F = np.concatenate([np.empty((0, n, n))] + [p.F.reshape(-1, n, n) for p in parts])
     G = np.concatenate([np.empty((0, n, l))] + [p.G.reshape(-1, n, l) for p in parts])
     Qd = np.concatenate([np.empty((0, n, n))] + [p.Qd.reshape(-1, n, n) for p in parts])
+    if inflation:
+        Qd = Qd + inflation * np.eye(n)
     grid_tau = np.array([switch_grid(h, g) for h in steps]).reshape(len(steps), g)
     outputs = coarse_outputs(system.C, F, G, Qd, len(steps), g, levels[0])
     return F, G, Qd, grid_tau, levels, outputs
