@@ -32,3 +32,14 @@ def test_estimate_figure_labels_default_to_state_indices(tmp_path):
     with pytest.raises(ValueError, match=r"names must have one entry per state \(2\), got 1"):
         plotting.estimate_figure(tmp_path / "f.png", np.arange(3.0), np.zeros((3, 2)),
                                  names=["only one"])
+
+
+def test_measured_states_keeps_outputs_that_are_one_state_in_every_mode():
+    y = np.arange(12.0).reshape(4, 3)
+    C = np.array([[[0, 1, 0], [1, 1, 0], [0, 0, 2]],
+                  [[0, 1, 0], [1, 1, 0], [0, 0, 2]]], dtype=float)
+    measured = plotting.measured_states(C, y)
+    assert list(measured) == [1]  # output 0 is state 1; output 1 mixes, output 2 scales
+    np.testing.assert_array_equal(measured[1], y[:, 0])
+    C[1, 0] = [1, 0, 0]  # another state in mode 1: not one state throughout
+    assert plotting.measured_states(C, y) == {}

@@ -495,23 +495,16 @@ def _plot_estimate(path: Path, spec, table, args: argparse.Namespace) -> None:
     """The figure of ``switchest estimate --plot``: states with their bands, the data's
     measurements of them and true values (columns ``x0 ..``, as ``simulate`` writes), the
     mode probabilities and the estimated switching instants."""
-    import numpy as np
     import pandas as pd
 
     from .measurements import read_measurements
-    from .plotting import estimate_figure
+    from .plotting import estimate_figure, measured_states
 
     meas = read_measurements(args.data, spec, trial=args.trial)
     data = pd.read_csv(args.data)
     if "trial" in data:
         data = data[data["trial"] == (args.trial if args.trial is not None else data["trial"][0])]
-    n, C = spec.system.n_states, spec.system.C
-    measured = {}
-    for j in range(spec.system.n_outputs):  # an output that is one state in every mode
-        row = C[:, j, :]
-        hits = np.flatnonzero(row[0])
-        if hits.size == 1 and row[0, hits[0]] == 1.0 and np.all(row == row[0]):
-            measured[int(hits[0])] = meas["y"][:, j]
+    n = spec.system.n_states
     state_cols = [f"x{i}" for i in range(n)]  # the estimate's, and the data's true states
     std_cols = [f"std_x{i}" for i in range(n)]
     prob_cols = [c for c in table.columns if c.startswith("p_mode")]
@@ -519,7 +512,8 @@ def _plot_estimate(path: Path, spec, table, args: argparse.Namespace) -> None:
         path, table["t"].to_numpy(), table[state_cols].to_numpy(),
         std=table[std_cols].to_numpy() if set(std_cols) <= set(table.columns) else None,
         truth=data[state_cols].to_numpy() if set(state_cols) <= set(data.columns) else None,
-        measured=measured, mode_prob=table[prob_cols].to_numpy() if prob_cols else None,
+        measured=measured_states(spec.system.C, meas["y"]),
+        mode_prob=table[prob_cols].to_numpy() if prob_cols else None,
         true_mode=meas.get("mode"),
         switch_times=table["switch_time"].dropna().to_numpy() if "switch_time" in table else (),
         names=spec.state_names, units=spec.state_units,

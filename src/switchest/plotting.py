@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-__all__ = ["bars", "curves", "estimate_figure", "trajectory"]
+__all__ = ["bars", "curves", "estimate_figure", "measured_states"]
 
 _STYLE = {"figure.dpi": 110, "axes.grid": True, "grid.alpha": 0.3, "axes.spines.top": False,
           "axes.spines.right": False, "font.size": 9}
@@ -75,21 +75,6 @@ def curves(
         if title:
             fig.suptitle(title)
         return _save(fig, path)
-
-
-def trajectory(
-    path: str | Path,
-    t: np.ndarray,
-    truth: np.ndarray,
-    estimates: Mapping[str, np.ndarray],
-    *,
-    labels: Sequence[str],
-    title: str = "",
-    markers: Sequence[float] = (),
-) -> Path:
-    """True state components ``truth (K, n)`` and estimates ``(K, n)`` over time, a panel each."""
-    return curves(path, t, {"true": truth, **estimates}, xlabel="t (s)", ylabel=labels, title=title,
-                  markers=markers)
 
 
 def bars(
@@ -193,6 +178,19 @@ def estimate_figure(
         if title:
             axes[0].set_title(title)
         return _save(fig, path)
+
+
+def measured_states(C: np.ndarray, y: np.ndarray) -> dict[int, np.ndarray]:
+    """The samples that measure a state directly, for :func:`estimate_figure`'s grey dots:
+    ``{i: y[:, j]}`` for each output ``j`` that is state ``i`` alone, with weight 1, in every
+    mode (``C (L, m, n)``, ``y (K, m)``)."""
+    measured = {}
+    for j in range(C.shape[1]):
+        row = C[:, j, :]
+        hits = np.flatnonzero(row[0])
+        if hits.size == 1 and row[0, hits[0]] == 1.0 and np.all(row == row[0]):
+            measured[int(hits[0])] = np.asarray(y)[:, j]
+    return measured
 
 
 def _save(fig, path: str | Path) -> Path:

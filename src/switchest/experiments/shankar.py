@@ -24,7 +24,7 @@ from ..estimators import (
 )
 from ..models import BOOST_SAMPLE_PERIOD, boost_converter, vehicle_2d, vehicle_maneuver
 from ..models.shankar import BoostTable1
-from ..plotting import curves, trajectory
+from ..plotting import curves, estimate_figure, measured_states
 from ..simulate import Trajectory, simulate
 from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
@@ -410,9 +410,14 @@ def _vehicle_run(cfg: dict, rng: np.random.Generator) -> dict:
         else:
             est = IMMEV1Filter(system, x0=x0, P0=VEHICLE_P0, grid=m["g"]).run(traj.y, man.u, man.t)
         out = {**score(est, traj, 0), **_position_velocity_errors(est.x - traj.x)}
-        if cfg["block"] == 0:
-            out["example_truth"] = traj.x[0].tolist()
-            out["example_estimate"] = est.x[0].tolist()
+        if cfg["block"] == 0:  # the first trial, for the figure of Fig. 3
+            out["example"] = {
+                "truth": traj.x[0].tolist(), "x": est.x[0].tolist(), "y": traj.y[0].tolist(),
+                "std": np.sqrt(np.diagonal(est.P[0], axis1=-2, axis2=-1)).tolist(),
+                "mode": traj.mode[0].tolist(),
+                "mode_prob": None if est.mode_prob is None else est.mode_prob[0].tolist(),
+                "switch_time": ([] if est.switch_time is None else
+                                est.switch_time[0][np.isfinite(est.switch_time[0])].tolist())}
         results.append({**out, "elapsed": time.perf_counter() - start})
     return {"variants": results}
 
@@ -446,19 +451,26 @@ def _vehicle_summary(p: dict, results, out: Path) -> Summary:
         rows.append(Row(f"RMSE velocity, {label}", float(overall[1]), None, "m/s",
                         se=float(se[1]), trials=n))
     for cfg, res in split_variants(results):
-        if "example_estimate" in res:
-            examples[_label(cfg)] = np.asarray(res["example_estimate"])
-            truth = np.asarray(res["example_truth"])
+        if "example" in res:
+            examples[_label(cfg)] = res["example"]
     switches = list(man.signal.times)
     figs = [
         curves(out / "shankar-vehicle-rmse.png", man.t, pos_vel, bands=bands, xlabel="t (s)",
                ylabel=["position RMSE (m)", "velocity RMSE (m/s)"], markers=switches,
                title=f"Shankar Fig. 4: vehicle RMSE over {p['trials']} trials"),
-        trajectory(out / "shankar-vehicle-trial.png", man.t, truth,
-                   {k: v for k, v in examples.items() if "IMM-EV1" in k},
-                   labels=["x1", "dx1/dt", "x2", "dx2/dt"], markers=switches,
-                   title="Shankar Fig. 3: one trial, true and IMM-EV1 estimates"),
     ]
+    ev1 = [label for label in examples if "IMM-EV1" in label]
+    if ev1:  # the finest grid's estimate of the first trial, as the paper's Fig. 3
+        ex = examples[ev1[-1]]
+        figs.append(estimate_figure(
+            out / "shankar-vehicle-trial.png", man.t, np.asarray(ex["x"]),
+            std=np.asarray(ex["std"]), truth=np.asarray(ex["truth"]),
+            measured=measured_states(vehicle_2d().C, np.asarray(ex["y"])),
+            mode_prob=None if ex["mode_prob"] is None else np.asarray(ex["mode_prob"]),
+            true_mode=np.asarray(ex["mode"]), switch_times=ex["switch_time"],
+            names=["position x1", "velocity dx1/dt", "position x2", "velocity dx2/dt"],
+            units=["m", "m/s", "m", "m/s"],
+            title=f"Shankar Fig. 3: one trial, {ev1[-1]}"))
     setup = ("Vehicle (Shankar §V.B): double integrators, 3 modes differing by their input, T = "
              "0.5 s, R = 0.05 I, Q = 1e-3 I (unstated in the paper), u = 1, switches at 1.65, "
              f"2.75, 3.9 s; {p['trials']} trials; IMM with transition 0.9 on the diagonal; P0 = "
