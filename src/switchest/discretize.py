@@ -45,6 +45,7 @@ __all__ = [
     "pairwise_grid",
     "pairwise_grid_nbytes",
     "mode_steps",
+    "sample_mode_steps",
     "segment_transitions",
     "OFFSET_BITS",
     "OffsetTable",
@@ -215,6 +216,27 @@ def mode_steps(system: SwitchedLinearSystem, T: float) -> Transition:
 @lru_cache(maxsize=256)
 def _mode_steps(system: SwitchedLinearSystem, T: float) -> Transition:
     return interval(system, T, np.arange(system.n_modes)[:, None])
+
+
+def sample_mode_steps(system: SwitchedLinearSystem, t) -> tuple[Transition, np.ndarray]:
+    """Every mode's transition over every distinct interval of the sample times ``t (K,)``.
+
+    Returns the table ``(F, G, Qd)`` with batch shape ``(D L,)`` (:func:`mode_steps` of each
+    distinct step ``h_d``, concatenated: entry ``d L + j`` is mode ``j`` over ``h_d``) and
+    ``entry (K, L)`` of int64, ``entry[k, j]`` the row of mode ``j`` over the interval into
+    sample ``k`` (row 0, before the first sample, is 0 and unused): the layout the compiled
+    multiple-model filters read. One sample gives a table of one unit step, never read.
+    """
+    t = np.asarray(t, dtype=float)
+    steps, which = np.unique(np.diff(t), return_inverse=True)
+    if steps.size == 0:  # one sample: update only, the table is not read
+        steps = np.ones(1)
+    table = [mode_steps(system, h) for h in steps]
+    L = system.n_modes
+    entry = np.zeros((t.size, L), dtype=np.int64)
+    entry[1:] = np.arange(L) + L * which.reshape(-1, 1)
+    return Transition(*(np.concatenate([getattr(s, a) for s in table])
+                        for a in ("F", "G", "Qd"))), entry
 
 
 def segment_transitions(system: SwitchedLinearSystem, T: float, modes, offsets) -> Transition:

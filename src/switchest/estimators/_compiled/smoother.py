@@ -1,0 +1,314 @@
+"""The compiled backward pass of the fixed-interval smoother with mode probabilities.
+
+Kim (1994, J. Econometrics 60, "Dynamic linear models with Markov-switching", §2.2), as applied
+to collapsed (GPB2 / IMM) filters by Murphy (1998, "Switching Kalman filters", tech. report,
+§3-4): from the filtered mode-matched posteriors ``x_j(k|k)``, ``P_j(k|k)`` and probabilities
+``mu_j(k|k)``, for ``k = K-2 .. 0`` and every pair (mode ``j`` at ``k``, mode ``i`` at ``k+1``),
+
+- the Rauch-Tung-Striebel step (Rauch, Tung & Striebel 1965) of ``x_j(k|k)`` through mode
+  ``i``'s transition towards ``x_i(k+1|K)``, ``P_i(k+1|K)``:
+  ``x_ji = x_j + J (x_i(k+1|K) - x_pred)``, ``P_ji = P_j + J (P_i(k+1|K) - P_pred) J'``,
+  ``x_pred = F_i x_j + G_i u_k``, ``P_pred = F_i P_j F_i' + Qd_i``, ``J = P_j F_i' P_pred^-1``;
+- the pair's probability ``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / c_i`` with
+  ``c_i = sum_j' mu_j'(k|k) pi_j'i`` (Kim 1994 §2.2; log domain, a pair whose ``c_i`` is zero
+  gets weight zero);
+- the merge over ``i``: ``mu_j(k|K) = sum_i mu_ji``, ``x_j(k|K) = sum_i (mu_ji / mu_j) x_ji``,
+  ``P_j(k|K) = sum_i (mu_ji / mu_j) (P_ji + (x_ji - x_j)(x_ji - x_j)')`` (Kim 1994 §2.2;
+  Murphy 1998 §4), and the combined output, the moments of the mixture over ``j``
+  (:func:`.linalg.combine`).
+
+At ``k = K-1`` the smoothed posterior is the filtered one.
+
+One RTS step is a Kalman update of ``x_j(k|k)`` by the pseudo-measurement
+``x_{k+1} = F_i x_k + G_i u_k + w``, ``w ~ N(0, Qd_i)``: conditioned on ``x_{k+1}`` the state
+is Gaussian with mean ``x_j + J (x_{k+1} - x_pred)`` and covariance
+``P_j - J P_pred J' = (I - J F_i) P_j (I - J F_i)' + J Qd_i J'`` (Joseph's form), and averaging
+over ``x_{k+1} ~ N(x_i(k+1|K), P_i(k+1|K))`` adds ``J P_i(k+1|K) J'`` (Särkkä 2013, "Bayesian
+Filtering and Smoothing", the derivation of the RTS smoother, Theorem 8.2). So the step runs
+the filters' own update, :func:`.linalg.innovation` and :func:`.linalg.correct` with
+``C = F_i``, ``R = Qd_i``, and its covariance is a sum of two positive semidefinite terms,
+symmetric by construction: no second Kalman update, no difference of covariances that could
+turn indefinite.
+
+``P_pred`` is factored by :func:`.linalg.innovation` as the innovation covariance of the
+measurement ``x_i(k+1|K)`` of ``x_pred`` (``C = I``, ``R = 0``: ``S = P_pred``), never
+inverted. Where it is singular to working precision (``Qd_i = 0`` with a singular ``F_i``: a
+state reset, a deterministic component) that function's rule applies: its eigenvalues are
+raised to its rounding level (:func:`.linalg.repair`, counted for the caller's warning) and it
+is factored again. The gain ``J`` then annihilates the directions ``P_pred`` cannot reach (the
+columns of ``P_j F_i'`` vanish there) up to rounding, as a pseudo-inverse would, and Joseph's
+form keeps the covariance positive semidefinite for that gain; a conditional covariance that
+loses its digits (``Qd_i = 0`` with an invertible ``F_i``: ``x_k`` determined by ``x_{k+1}``)
+is taken in information form or repaired (:func:`.linalg.joseph_lost`,
+:func:`.linalg.information_or_repair`), as in the filters.
+
+Trials are processed in blocks of ``lanes`` laid across SIMD lanes (:mod:`.linalg`); the
+results do not depend on the block size.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..._checks import positive_int
+from .arrays import checked
+from .bank import LANES, lane_index
+from .linalg import (
+    OK,
+    combine,
+    correct,
+    gather_matrices,
+    gather_modes,
+    gather_rows,
+    gather_samples,
+    information_or_repair,
+    innovation,
+    jit,
+    joseph_lost,
+    log_normalize,
+    predict,
+    scatter_modes,
+    scatter_rows,
+    symmetric_sum,
+    write_lane,
+)
+
+__all__ = ["KimOutput", "kim_smooth"]
+
+
+class KimOutput(NamedTuple):
+    """The smoothed posteriors of every trial and sample (:func:`kim_smooth`).
+
+    Attributes
+    ----------
+    x, P : ndarray, shapes (N, K, n), (N, K, n, n)
+        Combined smoothed estimate: the moments of the mixture of the mode-matched ones.
+    mode_prob : ndarray, shape (N, K, L)
+        Smoothed mode probabilities ``mu_j(k|K)``.
+    mode : ndarray of int64, shape (N, K)
+        Most probable smoothed mode (the first on a tie).
+    x_modes, P_modes : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
+        Mode-matched smoothed posteriors ``x_j(k|K)``, ``P_j(k|K)``; a mode of smoothed
+        probability zero keeps its filtered posterior.
+    status : int
+        ``linalg.OK`` or the failure code that stopped the kernel (outputs then incomplete).
+    repaired : int
+        How many covariances were repaired to their rounding level (:func:`.linalg.repair`).
+    smallest_eigenvalue : float
+        The smallest eigenvalue a repaired covariance had (``inf`` if none was).
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    mode_prob: np.ndarray
+    mode: np.ndarray
+    x_modes: np.ndarray
+    P_modes: np.ndarray
+    status: int
+    repaired: int = 0
+    smallest_eigenvalue: float = math.inf
+
+
+def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *,
+               lanes: int = LANES) -> KimOutput:
+    """Kim's fixed-interval smoother of ``N`` trials over ``K`` samples (module docstring).
+
+    Parameters
+    ----------
+    x_modes, P_modes : array_like, shapes (N, K, L, n), (N, K, L, n, n)
+        Filtered mode-matched posteriors after each sample's measurement update.
+    log_prob : array_like, shape (N, K, L)
+        Log filtered mode probabilities (``-inf`` for probability zero), normalized again
+        here (log-sum-exp) against rounding.
+    u : array_like, shape (N, K, l)
+        Inputs; ``u[:, k]`` is held over the interval into sample ``k + 1``.
+    F, G, Qd : array_like, shapes (M, n, n), (M, n, l), (M, n, n)
+        Table of exact transitions.
+    trans : array_like of int, shape (N or 1, K, L)
+        ``trans[., k + 1, j]``: the transition of mode ``j`` over the interval into sample
+        ``k + 1`` (shared by all trials when the first axis has length 1; row 0 unused).
+    log_transition : array_like, shape (L, L)
+        ``log transition[i, j]`` = log P(mode j at k+1 | mode i at k), ``-inf`` if impossible.
+    lanes : int
+        Trials per SIMD block (the results do not depend on it).
+    """
+    sizes: dict[str, int] = {}
+    x_modes, P_modes, log_prob, u, F, G, Qd, log_transition = checked(
+        sizes, "x_modes:NKLn P_modes:NKLnn log_prob:NKL u:NKl F:Mnn G:Mnl Qd:Mnn "
+        "log_transition:LL", x_modes, P_modes, log_prob, u, F, G, Qd, log_transition)
+    (trans,) = checked(sizes, "trans:TKL<M", trans)
+    N, K, L, n = x_modes.shape
+    if sizes["T"] not in (1, N):
+        raise ValueError(f"trans must have shape (N or 1, K, L) = ({N} or 1, {K}, {L}), "
+                         f"got {trans.shape}")
+    out = KimOutput(np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K, L)),
+                    np.empty((N, K), dtype=np.int64), np.empty_like(x_modes),
+                    np.empty_like(P_modes), OK)
+    report = np.empty(2)
+    status = kim_backward(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition,
+                          positive_int(lanes, "lanes"), out.x, out.P, out.mode_prob, out.mode,
+                          out.x_modes, out.P_modes, report)
+    return out._replace(status=int(status), repaired=int(report[0]),
+                        smallest_eigenvalue=float(report[1]))
+
+
+@jit
+def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes, x_out, P_out,
+                 prob_out, mode_out, x_s, P_s, report):
+    """The backward recursion over every trial, in blocks of ``lanes`` trials.
+
+    Arguments as :func:`kim_smooth` (checked there); written: the combined ``x_out``,
+    ``P_out``, ``prob_out``, ``mode_out`` and the mode-matched ``x_s``, ``P_s`` (shapes of
+    :class:`KimOutput`), and ``report`` ``[repairs, smallest eigenvalue]``. Returns ``OK`` or
+    the failure code of a predicted covariance that could not be factored even repaired.
+    """
+    N, K, L, n = x_f.shape
+    n_in, B = u.shape[2], lanes
+    xf, Pf = np.empty((L, n, B)), np.empty((L, n, n, B))  # filtered at k
+    xn, Pn = np.empty((L, n, B)), np.empty((L, n, n, B))  # smoothed at k + 1
+    xk, Pk = np.empty((L, n, B)), np.empty((L, n, n, B))  # smoothed at k
+    lpf, lpn, lpk = np.empty((L, B)), np.empty((L, B)), np.empty((L, B))
+    prob = np.empty((L, B))
+    back = np.empty((L, L, B))  # back[i, j] = log P(r_k = j | r_{k+1} = i, y_0..k)
+    x_pair, P_pair = np.empty((L, n, B)), np.empty((L, n, n, B))
+    log_w, w = np.empty((L, B)), np.empty((L, B))
+    total, best, idx = np.empty(B), np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64)
+    xc, Pc, ul = np.empty((n, B)), np.empty((n, n, B)), np.empty((n_in, B))
+    Fl, Gl, Ql = np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((n, n, B))
+    eye, zero = np.zeros((n, n, B)), np.zeros((n, n, B))  # C = I, R = 0: S = P_pred
+    for r in range(n):
+        for b in range(B):
+            eye[r, r, b] = 1.0
+    obs, n_obs = np.ones((n, B)), np.full(B, float(n))
+    use = np.ones(B, dtype=np.bool_)
+    scratch = rts_scratch(n, B)
+    report[0], report[1] = 0.0, math.inf
+    for i0 in range(0, N, B):
+        nb = min(B, N - i0)
+        gather_modes(x_f[:, K - 1], P_f[:, K - 1], i0, nb, xn, Pn)  # smoothed = filtered
+        gather_rows(log_prob_f[:, K - 1], i0, nb, lpn)
+        log_normalize(lpn, prob, total, nb)
+        _write(xn, Pn, prob, lpn, i0, nb, K - 1, xc, Pc, best, x_out, P_out, prob_out,
+               mode_out, x_s, P_s)
+        for k in range(K - 2, -1, -1):
+            gather_modes(x_f[:, k], P_f[:, k], i0, nb, xf, Pf)
+            gather_rows(log_prob_f[:, k], i0, nb, lpf)
+            log_normalize(lpf, prob, total, nb)
+            gather_samples(u, i0, nb, k, ul)
+            for i in range(L):  # log mu_j(k|k) pi_ji - log c_i, normalized over j
+                for j in range(L):
+                    for b in range(nb):
+                        back[i, j, b] = lpf[j, b] + log_transition[j, i]
+                log_normalize(back[i], prob, total, nb)
+            for j in range(L):
+                for i in range(L):
+                    lane_index(trans, i0, nb, k + 1, i, idx)
+                    gather_matrices(F, idx, nb, Fl)
+                    gather_matrices(G, idx, nb, Gl)
+                    gather_matrices(Qd, idx, nb, Ql)
+                    status = rts_step(xf[j], Pf[j], xn[i], Pn[i], Fl, Gl, ul, Ql, eye, zero,
+                                      obs, n_obs, use, nb, x_pair[i], P_pair[i], report, scratch)
+                    if status != OK:
+                        return status
+                    for b in range(nb):  # log mu_ji(k|K) = log mu_i(k+1|K) + back[i, j]
+                        log_w[i, b] = lpn[i, b] + back[i, j, b]
+                log_normalize(log_w, w, total, nb)  # total: log mu_j(k|K)
+                combine(x_pair, P_pair, w, log_w, nb, xk[j], Pk[j], best)
+                for b in range(nb):
+                    lpk[j, b] = total[b]
+                    if total[b] == -math.inf:  # mode j impossible: keep its filtered posterior
+                        _copy_lane(xf[j], Pf[j], b, xk[j], Pk[j])
+            log_normalize(lpk, prob, total, nb)
+            _write(xk, Pk, prob, lpk, i0, nb, k, xc, Pc, best, x_out, P_out, prob_out,
+                   mode_out, x_s, P_s)
+            xn, xk = xk, xn
+            Pn, Pk = Pk, Pn
+            lpn, lpk = lpk, lpn
+    return OK
+
+
+@jit
+def rts_scratch(n, B):
+    """The work arrays of :func:`rts_step` for ``n`` states and ``B`` lanes, in its order:
+    ``x_pred, P_pred, F P, xs`` (:func:`.linalg.predict`); ``e, P C', chol, scale, z, nis,
+    loglik, work, bad`` (:func:`.linalg.innovation`); ``gain, T, AP, prior``
+    (:func:`.linalg.correct`); ``root, lost`` (:func:`.linalg.joseph_lost`); ``J P_next``."""
+    return (np.empty((n, B)), np.empty((n, n, B)), np.empty((n, n, B)), np.empty((n, B)),
+            np.empty((n, B)), np.empty((n, n, B)), np.empty((n, n, B)), np.empty((n, B)),
+            np.empty((n, B)), np.empty(B), np.empty(B), np.empty((3, B)),
+            np.zeros(B, dtype=np.bool_), np.empty((n, n, B)), np.empty((n, n, B)),
+            np.empty((n, n, B)), np.empty((n, n, B)), np.empty((n, B)),
+            np.empty(B, dtype=np.bool_), np.empty((n, n, B)))
+
+
+@jit
+def rts_step(xj, Pj, x_next, P_next, F, G, u, Qd, eye, zero, obs, n_obs, use, nb, x, P, report,
+             scratch):
+    """One RTS step per lane, into ``x``, ``P``: mode ``j``'s filtered ``xj``, ``Pj`` at ``k``
+    smoothed through the transition ``F``, ``G``, ``Qd`` (with input ``u``) towards the
+    smoothed ``x_next``, ``P_next`` at ``k + 1`` (Rauch, Tung & Striebel 1965), as a Kalman
+    update by the pseudo-measurement ``x_{k+1}`` plus ``J P_next J'`` (module docstring).
+
+    ``eye``, ``zero`` are the lanes' identity and zero ``(n, n)``, ``obs`` ones ``(n, B)``,
+    ``n_obs`` ``n``, ``use`` all true; ``scratch`` the work arrays (:func:`rts_scratch`).
+    Returns ``OK`` or the failure code of :func:`.linalg.innovation` on ``P_pred``.
+    """
+    (xp, Pp, FP, xs, e, PCt, chol, scale, z, nis, loglik, work, bad, gain, T, AP, prior, root,
+     lost, X) = scratch
+    n = xj.shape[0]
+    for r in range(n):
+        for b in range(nb):
+            xp[r, b] = xj[r, b]
+            x[r, b] = xj[r, b]
+        for c in range(n):
+            for b in range(nb):
+                Pp[r, c, b] = Pj[r, c, b]
+                P[r, c, b] = Pj[r, c, b]
+    predict(xp, Pp, F, G, u, Qd, nb, FP, xs)  # x_pred, P_pred; FP = F P_j
+    # e = x_next - x_pred, S = P_pred factored (repaired where singular), z = S^-1/2 e
+    status = innovation(xp, Pp, x_next, eye, zero, obs, n_obs, nb, e, PCt, chol, scale, z, nis,
+                        loglik, work, bad, report)
+    if status != OK:
+        return status
+    for r in range(n):  # the pseudo-measurement's P C' = P_j F' = (F P_j)'
+        for a in range(n):
+            for b in range(nb):
+                PCt[r, a, b] = FP[a, r, b]
+    # x = x_j + J e, P = (I - J F) P_j (I - J F)' + J Qd J', gain = J = P_j F' P_pred^-1
+    correct(x, P, F, Qd, use, nb, PCt, chol, scale, z, gain, T, AP, prior)
+    if joseph_lost(P, prior, use, nb, root, lost):
+        information_or_repair(P, prior, F, Qd, obs, n_obs, lost, nb, report)
+    for r in range(n):  # X = J P_next
+        for c in range(n):
+            for b in range(nb):
+                X[r, c, b] = 0.0
+            for a in range(n):
+                for b in range(nb):
+                    X[r, c, b] += gain[r, a, b] * P_next[a, c, b]
+    symmetric_sum(P, X, gain, nb, P)  # P += J P_next J'
+    return OK
+
+
+@jit
+def _copy_lane(x, P, b, x_to, P_to):
+    """Lane ``b`` of ``x (n, B)``, ``P (n, n, B)`` into ``x_to``, ``P_to``."""
+    for r in range(x.shape[0]):
+        x_to[r, b] = x[r, b]
+        for c in range(x.shape[0]):
+            P_to[r, c, b] = P[r, c, b]
+
+
+@jit
+def _write(x, P, prob, log_prob, i0, nb, k, xc, Pc, best, x_out, P_out, prob_out, mode_out,
+           x_s, P_s):
+    """Sample ``k`` of the block's trials: the mode-matched ``x (L, n, B)``, ``P``, their
+    probabilities and the combined moments (:func:`.linalg.combine`) into the outputs."""
+    scatter_modes(x, P, i0, nb, x_s[:, k], P_s[:, k])
+    scatter_rows(prob, i0, nb, prob_out[:, k])
+    combine(x, P, prob, log_prob, nb, xc, Pc, best)
+    for b in range(nb):
+        mode_out[i0 + b, k] = best[b]
+        write_lane(xc, Pc, b, i0 + b, k, x_out, P_out)

@@ -1,0 +1,195 @@
+"""Fixed-interval smoothing of a filter's mode-matched posteriors, with mode probabilities.
+
+:func:`smooth_mode_matched` runs the backward recursion of Kim (1994, J. Econometrics 60,
+"Dynamic linear models with Markov-switching", §2.2) on what a collapsing filter (IMM, GPB1,
+GPB2) reports after each sample: its mode-matched posteriors and mode probabilities. Murphy
+(1998, "Switching Kalman filters", tech. report, §3-4) shows how it applies to such filters.
+For every pair (mode ``j`` at sample ``k``, mode ``i`` at ``k+1``) mode ``j``'s filtered
+posterior takes a Rauch-Tung-Striebel step through mode ``i``'s transition towards mode
+``i``'s smoothed posterior. The pairs are weighted by
+``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` and merged over
+``i`` by moment matching. With one mode it is the RTS smoother (Rauch, Tung & Striebel 1965).
+The equations, and how a singular predicted covariance is handled, are in
+:mod:`switchest.estimators._compiled.smoother`; the backward loop runs there, compiled.
+
+Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k); mode
+``j`` at sample ``k+1`` governs the interval into ``k+1`` (transition ``trans[k+1, j]``, the
+IMM's), with the input ``u[k]`` held over it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._checks import (
+    check_finite,
+    check_row_stochastic,
+    check_symmetric_psd,
+    float_array,
+    int_array,
+)
+from ._compiled import raise_for_status, warn_for_repairs
+from ._compiled.smoother import kim_smooth
+
+__all__ = ["SmoothedModes", "smooth_mode_matched"]
+
+
+@dataclass(frozen=True, eq=False)
+class SmoothedModes:
+    """Smoothed posteriors, with the batch shape the filtered ones were given.
+
+    Attributes
+    ----------
+    x, P : ndarray, shapes (..., K, n), (..., K, n, n)
+        Combined smoothed estimate: the moments of the mixture of the mode-matched
+        posteriors (Bar-Shalom, Li & Kirubarajan §11.6.6).
+    mode_prob : ndarray, shape (..., K, L)
+        Smoothed mode probabilities ``P(mode j at k | y_0 .. y_{K-1})`` (as the collapsed
+        filter approximates them).
+    mode : ndarray of int, shape (..., K)
+        Most probable smoothed mode (the first on a tie).
+    x_modes, P_modes : ndarray, shapes (..., K, L, n), (..., K, L, n, n)
+        Mode-matched smoothed posteriors; a mode of smoothed probability zero keeps its
+        filtered posterior.
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    mode_prob: np.ndarray
+    mode: np.ndarray
+    x_modes: np.ndarray
+    P_modes: np.ndarray
+
+
+def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
+                        transition) -> SmoothedModes:
+    """Kim's fixed-interval smoother of filtered mode-matched posteriors (Kim 1994, §2.2).
+
+    Parameters
+    ----------
+    x_modes : array_like, shape (..., K, L, n)
+        Filtered mode-matched means after each sample's measurement update.
+    P_modes : array_like, shape (..., K, L, n, n)
+        Their covariances (symmetric positive semidefinite).
+    mode_prob : array_like, shape (..., K, L)
+        Filtered mode probabilities after each sample (each row sums to 1).
+    u : array_like or None
+        Inputs, ``u[..., k, :]`` held over the interval into sample ``k + 1``: ``(l,)``,
+        ``(K, l)`` or ``(..., K, l)``; None for zero input.
+    F, G, Qd : array_like, shapes (M, n, n), (M, n, l), (M, n, n)
+        Table of exact transitions (e.g. :func:`switchest.discretize.mode_steps` of each
+        distinct sampling step, concatenated).
+    trans : array_like of int, shape (K, L) or (..., K, L)
+        ``trans[..., k + 1, j]``: the table entry of mode ``j`` over the interval into sample
+        ``k + 1`` (row 0 unused); ``(K, L)`` or leading axes of length 1 share it across trials.
+    transition : array_like, shape (L, L)
+        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows summing to 1.
+
+    Returns
+    -------
+    SmoothedModes
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        When a predicted covariance ``F P F' + Qd`` is not finite (it overflowed) or cannot be
+        factored even after its repair. A covariance repaired to its rounding level (a singular
+        ``F P F' + Qd``) issues a ``RuntimeWarning``.
+    """
+    x_modes = _finite(x_modes, "x_modes")
+    if x_modes.ndim < 3:
+        raise ValueError(f"x_modes must have shape (..., K, L, n), got {x_modes.shape}")
+    *batch, K, L, n = x_modes.shape
+    batch = tuple(batch)
+    P_modes = _finite(P_modes, "P_modes")
+    if P_modes.shape != (*batch, K, L, n, n):
+        raise ValueError(f"P_modes must have shape (..., K, L, n, n) = {(*batch, K, L, n, n)} "
+                         f"as x_modes, got {P_modes.shape}")
+    if K == 0 or L == 0 or n == 0 or 0 in batch:
+        raise ValueError(f"x_modes must hold at least one trial, sample, mode and state, got "
+                         f"shape {x_modes.shape}")
+    P_modes = check_symmetric_psd(P_modes, "P_modes")
+    mode_prob = _probabilities(mode_prob, (*batch, K, L))
+    transition = check_row_stochastic(transition, "transition", n=L)
+    F, G, Qd = _table(F, G, Qd, n)
+    u = _inputs(u, batch, K, G.shape[2])
+    trans = _transitions(trans, batch, K, L, F.shape[0])
+    N = math.prod(batch)
+    with np.errstate(divide="ignore"):
+        log_prob, log_transition = np.log(mode_prob), np.log(transition)
+    out = kim_smooth(x_modes.reshape(N, K, L, n), P_modes.reshape(N, K, L, n, n),
+                     log_prob.reshape(N, K, L), u, F, G, Qd, trans, log_transition)
+    try:
+        raise_for_status(out.status)
+    except np.linalg.LinAlgError as err:
+        raise np.linalg.LinAlgError(
+            f"a predicted covariance F P F' + Qd of the smoother could not be factored ({err})"
+        ) from None
+    warn_for_repairs(out)
+    return SmoothedModes(*(a.reshape(*batch, *a.shape[1:]) for a in
+                           (out.x, out.P, out.mode_prob, out.mode, out.x_modes, out.P_modes)))
+
+
+def _finite(value, name: str) -> np.ndarray:
+    arr = float_array(value, name)
+    check_finite(arr, name)
+    return arr
+
+
+def _probabilities(value, shape) -> np.ndarray:
+    """``mode_prob`` of exactly ``shape``: finite, non-negative, each row summing to 1."""
+    p = _finite(value, "mode_prob")
+    if p.shape != shape:
+        raise ValueError(f"mode_prob must have shape (..., K, L) = {shape} as x_modes, "
+                         f"got {p.shape}")
+    if np.any(p < 0):
+        raise ValueError(f"mode_prob must be non-negative, got minimum {p.min():.3g}")
+    worst = float(np.max(np.abs(p.sum(axis=-1) - 1.0)))
+    if worst > 1e-9:
+        raise ValueError(f"mode_prob must sum to 1 over the modes (last axis), got a row off by "
+                         f"{worst:.3g}")
+    return p
+
+
+def _table(F, G, Qd, n) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The transition table: ``F (M, n, n)``, ``G (M, n, l)``, ``Qd (M, n, n)`` symmetric PSD."""
+    F, G, Qd = _finite(F, "F"), _finite(G, "G"), _finite(Qd, "Qd")
+    if F.ndim != 3 or F.shape[1:] != (n, n) or F.shape[0] == 0:
+        raise ValueError(f"F must have shape (M, n, n) with n = {n}, got {F.shape}")
+    M = F.shape[0]
+    if G.ndim != 3 or G.shape[:2] != (M, n):
+        raise ValueError(f"G must have shape (M, n, l) = ({M}, {n}, l) as F, got {G.shape}")
+    if Qd.shape != F.shape:
+        raise ValueError(f"Qd must have shape (M, n, n) = {F.shape} as F, got {Qd.shape}")
+    return F, G, check_symmetric_psd(Qd, "Qd")
+
+
+def _inputs(u, batch, K, l) -> np.ndarray:
+    """``u`` as ``(N, K, l)``: zeros for None; ``(l,)``, ``(K, l)`` broadcast over trials."""
+    N = math.prod(batch)
+    if u is None:
+        return np.zeros((N, K, l))
+    u = _finite(u, "u")
+    if u.shape not in ((l,), (K, l), (*batch, K, l)):
+        raise ValueError(f"u must have shape (l,) = ({l},), (K, l) = ({K}, {l}) or "
+                         f"{(*batch, K, l)}, got {u.shape}")
+    return np.broadcast_to(u, (*batch, K, l)).reshape(N, K, l)
+
+
+def _transitions(trans, batch, K, L, M) -> np.ndarray:
+    """``trans`` as ``(1, K, L)`` (shared) or ``(N, K, L)``, each entry in ``0..M-1``."""
+    trans = int_array(trans, "trans")
+    lead = trans.shape[:-2]
+    if (trans.ndim < 2 or trans.shape[-2:] != (K, L) or len(lead) > len(batch)
+            or any(a not in (1, b) for a, b in zip(lead[::-1], batch[::-1]))):
+        raise ValueError(f"trans must have shape (K, L) = ({K}, {L}) or {(*batch, K, L)} "
+                         f"(leading axes of length 1 are shared), got {trans.shape}")
+    if trans.min() < 0 or trans.max() >= M:
+        raise ValueError(f"trans must index the table's 0..{M - 1} entries, "
+                         f"got {trans.min()}..{trans.max()}")
+    if all(a == 1 for a in lead):
+        return trans.reshape(1, K, L)
+    return np.broadcast_to(trans, (*batch, K, L)).reshape(-1, K, L)
