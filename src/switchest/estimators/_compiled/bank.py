@@ -1,9 +1,12 @@
 """The compiled kernel of the Gaussian filters: a bank of mode-matched Kalman filters.
 
 :func:`filter_bank` runs, for every trial and every sample, ``L`` Kalman filters (one per
-mode) with the interaction of the IMM between them (Blom & Bar-Shalom, 1988; Bar-Shalom,
-Li & Kirubarajan §11.6.6). With one mode the interaction and the combination reduce to
-copies and it is the Kalman filter (Shankar et al. eqs (6)-(10)). :mod:`.imm` calls this
+mode) with an interaction between them before each prediction: the IMM's mixing
+(``MIX``: Blom & Bar-Shalom, 1988; Bar-Shalom, Li & Kirubarajan §11.6.6) or GPB1's
+collapse of all of them into one Gaussian (``COLLAPSE``: Bar-Shalom, Li & Kirubarajan
+§11.6.4). With one mode the interaction and the combination reduce to copies and it is the
+Kalman filter (Shankar et al. eqs (6)-(10)). On request it writes the mode-matched
+posteriors after each sample's update, the input of a smoother. :mod:`.imm` calls this
 kernel for a whole record (``run``) or for one sample (``step``, the streaming API); the
 Kalman filter has a kernel of its own (:mod:`.kalman_kernel`: trials that share their
 covariance run its equations once) on the same equations of :mod:`.linalg`, so each
@@ -24,6 +27,7 @@ from .linalg import (
     GATED,
     OK,
     PARTLY_GATED,
+    collapse,
     combine,
     correct,
     gather_matrices,
@@ -41,15 +45,20 @@ from .linalg import (
     scatter_modes,
     scatter_rows,
     write_lane,
+    write_modes,
 )
 
-__all__ = ["LANES", "filter_bank"]
+__all__ = ["LANES", "MIX", "COLLAPSE", "filter_bank", "lane_index", "copy_rows"]
 
 LANES = 16  # trials per block: four AVX2 registers of float64 per row of lanes
 
+# the interaction of filter_bank's mode-matched filters before each prediction
+MIX = 0  # the IMM's: mode j restarts from the mixture with weights mu_{i|j}
+COLLAPSE = 1  # GPB1's: every mode restarts from the one Gaussian of all modes' mixture
+
 
 @jit
-def _lane_index(index, i0, nb, k, j, out):
+def lane_index(index, i0, nb, k, j, out):
     """``out[b]``: entry ``[trial, k, j]`` of ``index (N or 1, K or 1, L)`` for trial
     ``i0 + b``; an axis of length 1 is shared by all trials (or samples)."""
     for b in range(nb):
@@ -58,7 +67,7 @@ def _lane_index(index, i0, nb, k, j, out):
 
 
 @jit
-def _copy_rows(src, dst, nb):
+def copy_rows(src, dst, nb):
     """``dst[:, :nb] = src[:, :nb]`` as loops (numba compiles slice assignment slowly)."""
     for j in range(src.shape[0]):
         for b in range(nb):
@@ -67,8 +76,9 @@ def _copy_rows(src, dst, nb):
 
 @jit
 def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transition, x_init,
-                P_init, log_prob_init, predict_first, gate, lanes, x_out, P_out, prob_out,
-                mode_out, loglik_out, flag_out, x_last, P_last, log_prob_last, report):
+                P_init, log_prob_init, interaction, predict_first, gate, lanes, x_out, P_out,
+                prob_out, mode_out, loglik_out, flag_out, x_modes_out, P_modes_out, x_last,
+                P_last, log_prob_last, report):
     """Filter ``N`` trials over ``K`` samples with ``L`` interacting mode-matched filters.
 
     Parameters
@@ -91,6 +101,10 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
         Mode transition matrix and its logarithm (``transition[i, j]`` = P(j next | i now)).
     x_init, P_init, log_prob_init : (N, L, n), (N, L, n, n), (N, L) float64
         Mode-matched state of every trial before the first sample.
+    interaction : int
+        ``MIX``: the IMM's interaction (:func:`.linalg.mix`); ``COLLAPSE``: GPB1's
+        (:func:`.linalg.collapse`). The predicted mode probabilities are
+        ``c_j = sum_i pi_ij mu_i`` either way.
     predict_first : bool
         Whether the first sample is mixed and predicted into (a streaming step) or only
         updated (the start of a record).
@@ -102,6 +116,10 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
         Written: combined estimate ``(N, K, n)``, ``(N, K, n, n)``, mode probabilities
         ``(N, K, L)``, most probable mode, log-likelihood (0 when nothing was observed or the
         sample was gated) and flag ``(N, K)``.
+    x_modes_out, P_modes_out
+        Written when their first axis has length ``N`` (pass zero-size arrays otherwise): the
+        mode-matched posteriors after each sample's update, ``(N, K, L, n)``,
+        ``(N, K, L, n, n)``.
     x_last, P_last, log_prob_last
         Written: the mode-matched state after the last sample, shaped as ``x_init`` etc.
     report : (2,) float64
@@ -152,6 +170,7 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
     xc, Pc = np.empty((n, B)), np.empty((n, n, B))
     bad, lost = np.zeros(B, dtype=np.bool_), np.empty(B, dtype=np.bool_)
     prior, root = np.empty((n, n, B)), np.empty((n, B))
+    modes_wanted = x_modes_out.shape[0] == N
     report[0], report[1] = 0.0, math.inf
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
@@ -165,21 +184,24 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
             observe(yl, nb, obs, n_obs)
             if k > 0 or predict_first:
                 gather_samples(u, i0, nb, max(k - 1, 0), ul)
-                if n_modes > 1:
+                if n_modes > 1 and interaction == COLLAPSE:
+                    collapse(x, P, prob, log_prob, transition, log_transition, nb, log_c, w,
+                             xm, Pm)
+                elif n_modes > 1:
                     mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm)
                 else:
-                    _copy_rows(log_prob, log_c, nb)
+                    copy_rows(log_prob, log_c, nb)
                 for j in range(n_modes):
-                    _lane_index(trans, i0, nb, k, j, idx)
+                    lane_index(trans, i0, nb, k, j, idx)
                     gather_matrices(F, idx, nb, Fl)
                     gather_matrices(G, idx, nb, Gl)
                     gather_matrices(Qd, idx, nb, Ql)
                     predict(x[j], P[j], Fl, Gl, ul, Ql, nb, AP, xs)
             else:
-                _copy_rows(log_prob, log_c, nb)
+                copy_rows(log_prob, log_c, nb)
             if k == 0 or out_index.shape[1] > 1:
                 for j in range(n_modes):
-                    _lane_index(out_index, i0, nb, k, j, idx)
+                    lane_index(out_index, i0, nb, k, j, idx)
                     gather_matrices(C, idx, nb, Cl[j])
                     gather_matrices(R, idx, nb, Rl[j])
             for j in range(n_modes):
@@ -207,7 +229,7 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
                 if joseph_lost(P[j], prior, use[j], nb, root, lost):  # rare: lane by lane
                     information_or_repair(P[j], prior, Cl[j], Rl[j], obs, n_obs, lost, nb, report)
             log_normalize(a, prob, total, nb)  # log mu_j = log c_j + log Lambda_j, normalized
-            _copy_rows(a, log_prob, nb)
+            copy_rows(a, log_prob, nb)
             combine(x, P, prob, log_prob, nb, xc, Pc, best)
             for b in range(nb):
                 i = i0 + b
@@ -218,6 +240,8 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
                 for j in range(n_modes):
                     prob_out[i, k, j] = prob[j, b]
                 write_lane(xc, Pc, b, i, k, x_out, P_out)
+                if modes_wanted:
+                    write_modes(x, P, b, i, k, x_modes_out, P_modes_out)
         scatter_rows(log_prob, i0, nb, log_prob_last)
         scatter_modes(x, P, i0, nb, x_last, P_last)
     return OK

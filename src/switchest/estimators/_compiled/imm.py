@@ -13,6 +13,10 @@ into sample ``k`` is ``u[:, k-1]``; sample 0 is update only.
 
 Gating is decided mode by mode, a gated mode getting no weight at that sample (a truncated
 likelihood); a sample no mode can use counts as missing (:func:`.bank.filter_bank`).
+
+``interaction="collapse"`` replaces the IMM's mixing by GPB1's collapse of the mode-matched
+posteriors into one Gaussian (Bar-Shalom, Li & Kirubarajan §11.6.4); ``modes_out=True`` also
+returns the mode-matched posteriors after each sample's update (the input of a smoother).
 """
 
 from __future__ import annotations
@@ -24,9 +28,11 @@ import numpy as np
 
 from ..._checks import positive_int
 from .arrays import check_gate, checked
-from .bank import LANES, filter_bank
+from .bank import COLLAPSE, LANES, MIX, filter_bank
 
 __all__ = ["IMMOutput", "imm_run", "imm_step"]
+
+_INTERACTIONS = {"mix": MIX, "collapse": COLLAPSE}
 
 
 class IMMOutput(NamedTuple):
@@ -54,6 +60,11 @@ class IMMOutput(NamedTuple):
         warns about them.
     smallest_eigenvalue : float
         The smallest eigenvalue a repaired covariance had (``inf`` if none was).
+    x_modes : ndarray, shape (N, K, L, n), or None
+        The mode-matched posterior means after each sample's update, where asked for
+        (``modes_out=True``).
+    P_modes : ndarray, shape (N, K, L, n, n), or None
+        Their covariances.
     """
 
     x: np.ndarray
@@ -65,11 +76,15 @@ class IMMOutput(NamedTuple):
     status: int
     repaired: int = 0
     smallest_eigenvalue: float = math.inf
+    x_modes: np.ndarray | None = None
+    P_modes: np.ndarray | None = None
 
 
 def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
-            gate=math.inf, lanes: int = LANES) -> IMMOutput:
-    """IMM filter of ``N`` trials over ``K`` samples (Bar-Shalom, Li & Kirubarajan §11.6.6).
+            gate=math.inf, lanes: int = LANES, interaction: str = "mix",
+            modes_out: bool = False) -> IMMOutput:
+    """IMM filter of ``N`` trials over ``K`` samples (Bar-Shalom, Li & Kirubarajan §11.6.6),
+    or GPB1 (``interaction="collapse"``, §11.6.4).
 
     Parameters
     ----------
@@ -93,6 +108,14 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
         Largest normalized innovation squared a mode accepts (``inf``: no gate).
     lanes : int
         Trials per SIMD block (the results do not depend on it).
+    interaction : {"mix", "collapse"}
+        Before each prediction, mode ``j`` restarts from the IMM's mixture with weights
+        ``mu_{i|j} = pi_ij mu_i / c_j`` (``"mix"``) or, for GPB1, from the one Gaussian with
+        the moments of all modes' mixture, ``mu_{i|j} = mu_i`` (``"collapse"``); the predicted
+        mode probabilities ``c_j = sum_i pi_ij mu_i`` are the same.
+    modes_out : bool
+        Whether to return the mode-matched posteriors after each sample's update
+        (``IMMOutput.x_modes``, ``P_modes``; None otherwise).
     """
     sizes: dict[str, int] = {}
     y, u, F, G, Qd, C, trans, R, log_transition, x0, P0, log_prob0 = checked(
@@ -101,19 +124,21 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
     N, L = sizes["N"], sizes["L"]
     output, _ = _bank(y, u, F, G, Qd, trans[None], C, R, log_transition,
                       np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
-                      np.tile(log_prob0, (N, 1)), False, check_gate(gate),
-                      positive_int(lanes, "lanes"))
+                      np.tile(log_prob0, (N, 1)), _interaction(interaction), False,
+                      check_gate(gate), positive_int(lanes, "lanes"), bool(modes_out))
     return output
 
 
 def imm_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
-             predict_first: bool, gate=math.inf) -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
-    """One sample of every trial: mix and predict (when ``predict_first``), then update.
+             predict_first: bool, gate=math.inf,
+             interaction: str = "mix") -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
+    """One sample of every trial: mix (or collapse) and predict (when ``predict_first``), then
+    update.
 
     ``x (N, L, n)``, ``P (N, L, n, n)``, ``log_prob (N, L)`` are the mode-matched posteriors
     at the previous sample, ``y (N, m)``, ``u (N, l)``, ``trans (L,)`` the transition of each
     mode into this sample; the rest as in :func:`imm_run`, whose compiled kernel runs this
-    one sample. Inputs are not modified.
+    one sample, with the same ``interaction``. Inputs are not modified.
 
     Returns
     -------
@@ -128,24 +153,35 @@ def imm_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
         sizes, "x:NLn P:NLnn log_prob:NL y:Nm u:Nl F:Mnn G:Mnl Qd:Mnn trans:L<M C:Lmn R:Lmm "
         "log_transition:LL", x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition)
     return _bank(y[:, None], u[:, None], F, G, Qd, trans[None, None], C, R, log_transition,
-                 x, P, log_prob, bool(predict_first), check_gate(gate), LANES)
+                 x, P, log_prob, _interaction(interaction), bool(predict_first),
+                 check_gate(gate), LANES, False)
+
+
+def _interaction(name) -> int:
+    """The bank's code for the interaction called ``name``."""
+    if not isinstance(name, str) or name not in _INTERACTIONS:
+        raise ValueError(f"interaction must be one of {tuple(_INTERACTIONS)}, got {name!r}")
+    return _INTERACTIONS[name]
 
 
 def _bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_init,
-          predict_first, gate, lanes):
+          interaction, predict_first, gate, lanes, modes_out):
     """The bank kernel with every mode ``j`` on its own ``C[j]``, ``R[j]``; returns the
-    :class:`IMMOutput` and the mode-matched state ``(x, P, log_prob)`` after the last
-    sample."""
+    :class:`IMMOutput` (with the mode-matched posteriors of every sample if ``modes_out``)
+    and the mode-matched state ``(x, P, log_prob)`` after the last sample."""
     N, K, _ = y.shape
     L, n = x_init.shape[1], x_init.shape[2]
     x, P = np.empty((N, K, n)), np.empty((N, K, n, n))
     prob, mode = np.empty((N, K, L)), np.empty((N, K), dtype=np.int64)
     loglik, flag = np.empty((N, K)), np.empty((N, K), dtype=np.uint8)
+    size = (N, K, L) if modes_out else (0, 0, 0)  # zero-size: not written
+    x_modes, P_modes = np.empty((*size, n)), np.empty((*size, n, n))
     last = np.empty_like(x_init), np.empty_like(P_init), np.empty_like(log_prob_init)
     report = np.empty(2)
     status = filter_bank(y, u, F, G, Qd, trans, C, R, np.arange(L)[None, None],
                          np.exp(log_transition), log_transition, x_init, P_init, log_prob_init,
-                         predict_first, gate, lanes, x, P, prob, mode, loglik, flag, *last,
-                         report)
+                         interaction, predict_first, gate, lanes, x, P, prob, mode, loglik,
+                         flag, x_modes, P_modes, *last, report)
+    modes = (x_modes, P_modes) if modes_out else (None, None)
     return (IMMOutput(x, P, prob, mode, loglik, flag, int(status), int(report[0]),
-                      float(report[1])), last)
+                      float(report[1]), *modes), last)

@@ -62,8 +62,12 @@ __all__ = [
     "information_or_repair",
     "repair",
     "log_normalize",
+    "predicted_mode_probabilities",
     "mix",
+    "collapse",
+    "merge",
     "combine",
+    "write_modes",
 ]
 
 # status codes a kernel returns (the Python side raises; nothing raises inside compiled code)
@@ -711,6 +715,30 @@ def mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm):
     ``Pm (L, n, n, B)`` are scratch; ``log_c (L, B)`` is written.
     """
     n_modes = x.shape[0]
+    predicted_mode_probabilities(prob, log_prob, transition, log_transition, nb, log_c, w)
+    for j in range(n_modes):
+        _moments(w[j], x, P, nb, xm[j], Pm[j])
+    for j in range(n_modes):
+        for r in range(x.shape[1]):
+            for b in range(nb):
+                x[j, r, b] = xm[j, r, b]
+            for c in range(x.shape[1]):
+                for b in range(nb):
+                    P[j, r, c, b] = Pm[j, r, c, b]
+
+
+@jit
+def predicted_mode_probabilities(prob, log_prob, transition, log_transition, nb, log_c, w):
+    """Predicted mode probabilities ``log c_j = log sum_i pi_ij mu_i`` and the IMM's mixing
+    weights ``w[j][i] = mu_{i|j} = pi_ij mu_i / c_j`` (Blom & Bar-Shalom, 1988; Bar-Shalom, Li &
+    Kirubarajan §11.6.6), per lane, for ``L`` modes of probabilities ``prob (L, B)`` (and their
+    logarithms ``log_prob``): the first half of :func:`mix`, shared with :func:`collapse`.
+
+    The sums are taken over the probabilities themselves; one below 1e-250 is redone in the log
+    domain (see :func:`mix`). A mode no predecessor reaches gets ``log c_j = -inf`` and zero
+    weights. ``log_c (L, B)`` and ``w (L, L, B)`` are written.
+    """
+    n_modes = prob.shape[0]
     for j in range(n_modes):
         wj, cj = w[j], log_c[j]
         for b in range(nb):
@@ -726,15 +754,50 @@ def mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm):
                 cj[b] = math.log(cj[b])
             else:
                 cj[b] = _log_weights(log_prob, log_transition, j, b, wj)
-    for j in range(n_modes):
-        _moments(w[j], x, P, nb, xm[j], Pm[j])
-    for j in range(n_modes):
-        for r in range(x.shape[1]):
+
+
+@jit
+def collapse(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm):
+    """GPB1 interaction, in place on the mode-matched ``x (L, n, B)``, ``P (L, n, n, B)``.
+
+    Every mode-matched filter restarts from one Gaussian, the moments of the mixture of all
+    of them, ``x0 = sum_i mu_i x_i``, ``P0 = sum_i mu_i (P_i + (x_i - x0)(x_i - x0)')`` (the
+    mixing weights ``mu_{i|j} = mu_i`` for every ``j``); the predicted mode probabilities are
+    the IMM's, ``c_j = sum_i pi_ij mu_i`` (Bar-Shalom, Li & Kirubarajan §11.6.4, "GPB1").
+    Arguments as :func:`mix`, whose scratch ``w``, ``xm``, ``Pm`` it uses (``w`` gets the IMM's
+    mixing weights, unused here).
+    """
+    predicted_mode_probabilities(prob, log_prob, transition, log_transition, nb, log_c, w)
+    _moments(prob, x, P, nb, xm[0], Pm[0])
+    n = x.shape[1]
+    for j in range(x.shape[0]):
+        for r in range(n):
             for b in range(nb):
-                x[j, r, b] = xm[j, r, b]
-            for c in range(x.shape[1]):
+                x[j, r, b] = xm[0, r, b]
+            for c in range(n):
                 for b in range(nb):
-                    P[j, r, c, b] = Pm[j, r, c, b]
+                    P[j, r, c, b] = Pm[0, r, c, b]
+
+
+@jit
+def merge(w, x, P, nb, xm, Pm):
+    """Moments of the mixture ``sum_i w_i N(x_i, P_i)`` per lane, ``w (L, B)`` summing to one:
+    ``xm = sum_i w_i x_i``, ``Pm = sum_i w_i (P_i + (x_i - xm)(x_i - xm)')`` (``xm (n, B)``,
+    ``Pm (n, n, B)``, exactly symmetric): the merging of Gaussians of GPB2 (Bar-Shalom, Li &
+    Kirubarajan §11.6.5), the computation :func:`mix` and :func:`combine` make."""
+    _moments(w, x, P, nb, xm, Pm)
+
+
+@inline
+def write_modes(x, P, b, i, k, x_out, P_out):
+    """Lane ``b`` of the mode-matched ``x (L, n, B)``, ``P (L, n, n, B)`` as sample ``k`` of
+    trial ``i`` of ``x_out (N, K, L, n)``, ``P_out (N, K, L, n, n)``."""
+    n = x.shape[1]
+    for j in range(x.shape[0]):
+        for r in range(n):
+            x_out[i, k, j, r] = x[j, r, b]
+            for c in range(n):
+                P_out[i, k, j, r, c] = P[j, r, c, b]
 
 
 @jit

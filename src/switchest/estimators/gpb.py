@@ -1,0 +1,128 @@
+"""Generalized pseudo-Bayesian filters of the first and second order, GPB1 and GPB2
+(Bar-Shalom, Li & Kirubarajan 2001, §11.6.4-§11.6.5).
+
+Both approximate the posterior of a jump-Markov linear system, a mixture of ``L^k`` Gaussians
+after ``k`` samples (one per mode sequence), by a mixture of fewer, switches happening at the
+sample instants:
+
+- GPB1 keeps one Gaussian: ``L`` Kalman filters, one per mode at sample ``k``, all predicted
+  from the one Gaussian with the moments of the previous sample's mixture; mode probabilities
+  ``mu_j(k) ∝ Lambda_j(k) sum_i pi_ij mu_i(k-1)``. It is the IMM's bank with the interaction
+  replaced by that collapse (:func:`~switchest.estimators._compiled.imm_run` with
+  ``interaction="collapse"``).
+- GPB2 keeps one Gaussian per mode: ``L^2`` Kalman filters, one per pair (mode ``i`` at
+  ``k - 1``, mode ``j`` at ``k``), predicted from mode ``i``'s Gaussian with mode ``j``'s model,
+  ``mu_ij(k) ∝ Lambda_ij(k) pi_ij mu_i(k-1)``; each mode's pairs are merged into one Gaussian
+  (:mod:`switchest.estimators._compiled.gpb`).
+
+The output of both is the moments of the mixture over the modes, as the IMM's; ``smooth`` (of
+:class:`~switchest.estimators.mode_bank.ModeBankFilter`) runs Kim's (1994) smoother on either.
+The IMM (:class:`~switchest.estimators.IMMFilter`) costs what GPB1 costs and is, in general,
+about as accurate as GPB2 (Bar-Shalom, Li & Kirubarajan §11.6.6).
+
+Conventions as :class:`~switchest.estimators.IMMFilter`: ``transition[i, j]`` = P(mode j at
+k+1 | mode i at k), rows summing to one; mode probabilities kept as log-weights; Joseph-form
+updates; NaN in ``y`` a missing component; sample 0 an update of every mode from the prior;
+one exact transition per mode and distinct sampling step. Outliers: a filter (of a mode, or of
+a pair for GPB2) whose normalized innovation squared exceeds ``gate``, or overflows, is not
+updated and gets weight zero; a sample no filter can use counts as missing and is flagged in
+``Estimate.outlier``.
+"""
+
+from __future__ import annotations
+
+from ._compiled import imm_run, imm_step
+from ._compiled.gpb import gpb2_run, gpb2_step
+from .mode_bank import ModeBankFilter
+
+__all__ = ["GPB1Filter", "GPB2Filter"]
+
+
+class GPB1Filter(ModeBankFilter):
+    """First-order generalized pseudo-Bayesian filter (Bar-Shalom, Li & Kirubarajan §11.6.4),
+    batched over trials and modes.
+
+    Before each prediction every mode-matched Kalman filter restarts from one Gaussian, the
+    moments of the mixture ``sum_i mu_i N(x_i, P_i)`` of the previous sample; mode ``j``
+    predicts with its model and updates with its ``C``, ``R``, and
+    ``mu_j(k) ∝ Lambda_j(k) sum_i pi_ij mu_i(k-1)``. The output is the moments of the mixture
+    over the modes.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    transition : array_like, shape (L, L)
+        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
+    x0, P0 : array_like
+        Prior mean and covariance of the state at the first sample (every mode).
+    mode_prob0 : array_like, shape (L,), optional
+        Prior mode probabilities at the first sample (keyword-only); uniform by default.
+    gate : float, optional
+        Largest normalized innovation squared a mode-matched filter accepts (keyword-only);
+        ``None`` rejects only measurements whose innovation overflows. A sample every mode
+        rejects is treated as missing and flagged in ``Estimate.outlier``.
+
+    Notes
+    -----
+    With the identity ``transition`` GPB1 is *not* the static multiple-model bank (each mode's
+    filter alone from the prior, ``mu_j(k) ∝ mu_j(0) prod Lambda_j``): its probabilities do
+    follow ``mu_j(k) ∝ mu_j(k-1) Lambda_j(k)``, but ``Lambda_j`` is the likelihood of mode
+    ``j``'s filter restarted from the collapsed Gaussian of all modes. The IMM and GPB2 with
+    the identity transition are that bank (their mixing weights are ``delta_ij``).
+    """
+
+    def _kernel_run(self, y, u, F, G, Qd, trans, modes_out):
+        sys = self.system
+        return imm_run(y, u, F, G, Qd, trans, sys.C, sys.R, self._log_transition, self.x0,
+                       self.P0, self._log_p0, gate=self._gate, interaction="collapse",
+                       modes_out=modes_out)
+
+    def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first):
+        sys = self.system
+        return imm_step(x, P, log_prob, y, u, F, G, Qd, trans, sys.C, sys.R,
+                        self._log_transition, predict_first=predict_first, gate=self._gate,
+                        interaction="collapse")
+
+
+class GPB2Filter(ModeBankFilter):
+    """Second-order generalized pseudo-Bayesian filter (Bar-Shalom, Li & Kirubarajan §11.6.5),
+    batched over trials, modes and pairs of modes.
+
+    ``L^2`` Kalman filters, one per pair (mode ``i`` at ``k - 1``, mode ``j`` at ``k``), each
+    predicted from mode ``i``'s Gaussian with mode ``j``'s model and updated with mode ``j``'s
+    ``C``, ``R``; ``mu_ij(k) ∝ Lambda_ij(k) pi_ij mu_i(k-1)``. Mode ``j``'s pairs are merged
+    into one Gaussian: ``mu_j = sum_i mu_ij``, ``x_j = sum_i mu_{i|j} x_ij``,
+    ``P_j = sum_i mu_{i|j} (P_ij + (x_ij - x_j)(x_ij - x_j)')`` with
+    ``mu_{i|j} = mu_ij / mu_j``. The output is the moments of the mixture over the modes. At
+    sample 0 there is only the prior: ``L`` filters, ``mu_j(0) ∝ Lambda_j mode_prob0_j``.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    transition : array_like, shape (L, L)
+        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
+    x0, P0 : array_like
+        Prior mean and covariance of the state at the first sample (every mode).
+    mode_prob0 : array_like, shape (L,), optional
+        Prior mode probabilities at the first sample (keyword-only); uniform by default.
+    gate : float, optional
+        Largest normalized innovation squared a pair's filter accepts (keyword-only); ``None``
+        rejects only measurements whose innovation overflows. A sample every pair rejects is
+        treated as missing and flagged in ``Estimate.outlier``.
+
+    Notes
+    -----
+    With the identity ``transition`` the pairs ``i != j`` have weight zero and GPB2 is the
+    static multiple-model bank: each mode's Kalman filter alone from the prior,
+    ``mu_j(k) ∝ mu_j(0) prod_t Lambda_j(t)``.
+    """
+
+    def _kernel_run(self, y, u, F, G, Qd, trans, modes_out):
+        sys = self.system
+        return gpb2_run(y, u, F, G, Qd, trans, sys.C, sys.R, self._log_transition, self.x0,
+                        self.P0, self._log_p0, gate=self._gate, modes_out=modes_out)
+
+    def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first):
+        sys = self.system
+        return gpb2_step(x, P, log_prob, y, u, F, G, Qd, trans, sys.C, sys.R,
+                         self._log_transition, predict_first=predict_first, gate=self._gate)

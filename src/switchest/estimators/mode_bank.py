@@ -1,0 +1,252 @@
+"""Filters on a bank of mode-matched Kalman filters: the IMM, GPB1 and GPB2.
+
+They share their configuration (``system, transition, x0, P0, *, mode_prob0, gate``), their
+state (:class:`IMMState`: one Gaussian and one log-probability per mode, and the combined
+estimate), their streaming ``step``, their ``run`` and a fixed-interval smoother, and differ
+only in the compiled kernel that takes one sample: the IMM's interaction (Blom & Bar-Shalom,
+1988), GPB1's collapse (Bar-Shalom, Li & Kirubarajan §11.6.4) or GPB2's pairs of modes
+(§11.6.5). :class:`ModeBankFilter` holds what they share; a filter names its kernels.
+
+``smooth`` runs Kim's (1994) backward recursion on the filter's mode-matched posteriors
+(:func:`switchest.estimators.smoothing.smooth_mode_matched`).
+
+Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k); mode
+``j`` at sample ``k`` governs the interval into ``k`` and the measurement there.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import abstractmethod
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .._checks import (
+    check_memory,
+    check_probability_vector,
+    check_row_stochastic,
+    positive_scalar,
+)
+from ..discretize import mode_steps, sample_mode_steps
+from ._compiled import GATED, IMMOutput, raise_for_status, warn_for_repairs
+from .base import Estimate, Estimator
+from .smoothing import smooth_mode_matched
+
+__all__ = ["IMMState", "ModeBankFilter", "ModeMatchedRun"]
+
+
+@dataclass(frozen=True, eq=False)
+class IMMState:
+    """The state of the IMM after a sample, for ``N`` trials.
+
+    Attributes
+    ----------
+    x, P : ndarray, shapes (N, L, n), (N, L, n, n)
+        Mode-matched posteriors.
+    log_prob : ndarray, shape (N, L)
+        Log mode probabilities.
+    loglik : ndarray, shape (N,)
+        Log-likelihood of the last measurement given the past (0 when nothing was observed
+        or every mode rejected it).
+    outlier : ndarray of bool, shape (N,)
+        True where every mode rejected the last measurement.
+    combined_x, combined_P : ndarray, shapes (N, n), (N, n, n)
+        The combined estimate, the moments of the mixture of the mode-matched posteriors
+        (Bar-Shalom, Li & Kirubarajan §11.6.6, the output of the IMM): what ``run`` reports.
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    log_prob: np.ndarray
+    loglik: np.ndarray
+    outlier: np.ndarray
+    combined_x: np.ndarray
+    combined_P: np.ndarray
+
+
+
+class ModeMatchedRun(NamedTuple):
+    """A filtered record with the per-mode Gaussians after each sample's update and the model
+    that produced them: the input of a smoother over the modes.
+
+    Attributes
+    ----------
+    estimate : Estimate
+        The filter's output with the batch axes flattened to one, ``(N, K, ...)``.
+    x_modes, P_modes : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
+        Mode-matched posteriors after each sample's update (GPB2: the merged Gaussians).
+    mode_prob : ndarray, shape (N, K, L)
+        Mode probabilities after each sample's update.
+    u : ndarray, shape (N, K, l)
+        The inputs, ``u[:, k]`` held over the interval into sample ``k + 1``.
+    F, G, Qd : ndarray, shapes (M, n, n), (M, n, l), (M, n, n)
+        The table of exact transitions.
+    trans : ndarray of int64, shape (K, L)
+        ``trans[k, j]``: mode ``j``'s transition into sample ``k`` (row 0 unused).
+    transition : ndarray, shape (L, L)
+        ``transition[i, j]`` = P(mode j at k+1 | mode i at k).
+    batch : tuple of int
+        The batch shape of ``y``, ``N`` its product (to restore it in a result).
+    """
+
+    estimate: Estimate
+    x_modes: np.ndarray
+    P_modes: np.ndarray
+    mode_prob: np.ndarray
+    u: np.ndarray
+    F: np.ndarray
+    G: np.ndarray
+    Qd: np.ndarray
+    trans: np.ndarray
+    transition: np.ndarray
+    batch: tuple[int, ...]
+
+
+class ModeBankFilter(Estimator):
+    """Configuration, state, loop and smoother of the filters on a bank of mode-matched
+    Kalman filters (IMM, GPB1, GPB2); a subclass names its compiled kernels.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    transition : array_like, shape (L, L)
+        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
+    x0, P0 : array_like
+        Prior mean and covariance of the state at the first sample (every mode).
+    mode_prob0 : array_like, shape (L,), optional
+        Prior mode probabilities at the first sample (keyword-only); uniform by default.
+    gate : float, optional
+        Largest normalized innovation squared ``e' S^-1 e`` a filter accepts (keyword-only);
+        e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None`` rejects only measurements whose
+        innovation overflows. A sample every filter rejects is treated as missing and flagged
+        in ``Estimate.outlier``.
+    """
+
+    def __init__(self, system, transition, x0, P0, *, mode_prob0=None, gate: float | None = None):
+        self._set_prior(system, x0, P0)
+        self.gate = None if gate is None else positive_scalar(gate, "gate")
+        L = system.n_modes
+        self.transition = check_row_stochastic(transition, "transition", n=L)
+        p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
+        self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
+        with np.errstate(divide="ignore"):
+            self._log_transition = np.log(self.transition)
+            self._log_p0 = np.log(self.mode_prob0)
+        self._gate = math.inf if self.gate is None else self.gate
+
+    # ------------------------------------------------------------------ the kernels
+    @abstractmethod
+    def _kernel_run(self, y, u, F, G, Qd, trans, modes_out: bool) -> IMMOutput:
+        """The compiled filter over a prepared record."""
+
+    @abstractmethod
+    def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first: bool):
+        """One compiled sample from the mode-matched state: ``(IMMOutput, (x, P, log_prob))``."""
+
+    # ------------------------------------------------------------------ the protocol
+    def init(self, batch_shape=()) -> IMMState:
+        """Every mode starts from the prior ``(x0, P0)`` with probability ``mode_prob0``."""
+        L = self.system.n_modes
+        x, P = self._prior_copies((*batch_shape, L))
+        combined_x, combined_P = self._prior_copies(batch_shape)
+        return IMMState(x=x, P=P, log_prob=np.broadcast_to(self._log_p0, (*batch_shape, L)).copy(),
+                        loglik=np.zeros(batch_shape), outlier=np.zeros(batch_shape, dtype=bool),
+                        combined_x=combined_x, combined_P=combined_P)
+
+    def step(self, state: IMMState, y, u=None, *, dt=None) -> IMMState:
+        """Predict over ``dt`` (skipped when ``None``: the first sample) and update with
+        ``y (..., m)``; one sample of the compiled kernel ``run`` loops over.
+
+        ``state`` is an :class:`~switchest.estimators.imm.IMMState`: the mode-matched
+        Gaussians (GPB2: merged), log mode probabilities and the combined estimate.
+        """
+        sys = self.system
+        batch = state.log_prob.shape[:-1]
+        L, n = sys.n_modes, sys.n_states
+        N = int(np.prod(batch, dtype=np.int64))
+        y = np.asarray(y, dtype=float).reshape(N, sys.n_outputs)
+        if u is None:
+            u = np.zeros((N, sys.n_inputs))
+        u = np.broadcast_to(np.asarray(u, dtype=float), (*batch, sys.n_inputs)).reshape(N, -1)
+        if dt is None:  # update only: the transition table is not read
+            F, G, Qd = np.zeros((L, n, n)), np.zeros((L, n, sys.n_inputs)), np.zeros((L, n, n))
+        else:
+            steps = mode_steps(sys, dt)
+            F, G, Qd = steps.F, steps.G, steps.Qd
+        out, (x, P, log_prob) = self._kernel_step(
+            state.x.reshape(N, L, n), state.P.reshape(N, L, n, n), state.log_prob.reshape(N, L),
+            y, u, F, G, Qd, np.arange(L), predict_first=dt is not None)
+        raise_for_status(out.status)
+        warn_for_repairs(out)
+        return IMMState(
+            x=x.reshape(*batch, L, n), P=P.reshape(*batch, L, n, n),
+            log_prob=log_prob.reshape(*batch, L), loglik=out.loglik.reshape(batch),
+            outlier=(out.flag == GATED).reshape(batch),
+            combined_x=out.x.reshape(*batch, n), combined_P=out.P.reshape(*batch, n, n),
+        )
+
+    def run(self, y, u=None, t=None) -> Estimate:
+        """Filter ``y (..., K, m)``; returns the combined ``x``, ``P``, ``mode_prob``, the most
+        probable ``mode``, ``loglik`` and the ``outlier`` flags at each sample.
+
+        The whole record runs in the compiled kernel, with one exact transition per mode and
+        distinct sampling step.
+        """
+        y2, u2, t, batch = self._prepare(y, u, t)
+        F, G, Qd, trans = self._table(t)
+        return self._unflatten(self._estimate(self._kernel_run(y2, u2, F, G, Qd, trans, False)),
+                               batch)
+
+    def _run_modes(self, y, u=None, t=None) -> ModeMatchedRun:
+        """:meth:`run`, also returning the mode-matched Gaussians after each sample's update,
+        the prepared inputs and the transition table (:class:`ModeMatchedRun`, batch axes
+        flattened): what a smoother over the modes needs."""
+        y2, u2, t, batch = self._prepare(y, u, t)
+        N, K, _ = y2.shape
+        n, L = self.system.n_states, self.system.n_modes
+        check_memory(8 * N * K * L * (n * n + n),
+                     f"{type(self).__name__} mode-matched posteriors of y of shape {y2.shape} "
+                     f"(N K L (n^2 + n) floats, n = {n}, L = {L})")
+        F, G, Qd, trans = self._table(t)
+        out = self._kernel_run(y2, u2, F, G, Qd, trans, True)
+        return ModeMatchedRun(self._estimate(out), out.x_modes, out.P_modes, out.mode_prob,
+                              np.ascontiguousarray(u2), F, G, Qd, trans, self.transition,
+                              tuple(batch))
+
+    def _table(self, t):
+        """``F, G, Qd`` of each mode and distinct sampling step, and ``trans (K, L)``, the entry
+        of mode ``j`` into sample ``k`` (:func:`switchest.discretize.sample_mode_steps`)."""
+        table, trans = sample_mode_steps(self.system, t)
+        return table.F, table.G, table.Qd, trans
+
+    def smooth(self, y, u=None, t=None) -> Estimate:
+        """Fixed-interval smoothing of ``y (..., K, m)``: the combined smoothed ``x``, ``P``,
+        the smoothed ``mode_prob`` and the most probable ``mode`` at each sample, given the
+        whole record.
+
+        The filter runs forward (:meth:`run`, keeping its mode-matched posteriors); Kim's
+        backward recursion (Kim 1994, §2.2; for collapsing filters as Murphy 1998, §3-4)
+        then weighs every pair (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) by
+        ``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` and moves mode
+        ``j``'s filtered posterior by a Rauch-Tung-Striebel step through mode ``i``'s
+        transition (:func:`~switchest.estimators.smoothing.smooth_mode_matched`). The last
+        sample's smoothed estimate is the filtered one. Like the filter it approximates, the
+        smoother is not exact; :class:`~switchest.estimators.ExactMixtureFilter` is, for short
+        records.
+        """
+        fwd = self._run_modes(y, u, t)
+        s = smooth_mode_matched(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
+                                fwd.Qd, fwd.trans, fwd.transition)
+        return self._unflatten(Estimate(x=s.x, P=s.P, mode_prob=s.mode_prob, mode=s.mode),
+                               fwd.batch)
+
+    @staticmethod
+    def _estimate(out: IMMOutput) -> Estimate:
+        """The :class:`Estimate` of a kernel's output, after raising for its status and warning
+        about repaired covariances."""
+        raise_for_status(out.status)
+        warn_for_repairs(out)
+        return Estimate(x=out.x, P=out.P, mode_prob=out.mode_prob, mode=out.mode,
+                        loglik=out.loglik, outlier=out.flag == GATED)
