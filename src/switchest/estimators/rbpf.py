@@ -1,0 +1,283 @@
+"""The Rao-Blackwellized particle filter for jump-Markov linear systems.
+
+Each particle carries a mode and the Kalman filter ``(x, P)`` conditional on its mode history:
+the modes are sampled, the continuous state is filtered exactly given them (Doucet, de
+Freitas, Murphy & Russell 2000, "Rao-Blackwellised particle filtering for dynamic Bayesian
+networks", §3; Doucet, Gordon & Krishnamurthy 2001, "Particle filters for state estimation of
+jump Markov linear systems", IEEE Trans. Signal Processing 49(3), §III). Switches happen at the
+sample instants, as in the IMM; the modes advance at every sample.
+
+- ``proposal="prior"``: ``r_k ~ pi(r_{k-1}, .)``, Kalman prediction with ``r_k``, weight times
+  the predictive likelihood ``N(y_k; C x-, C P- C' + R)``, Joseph update.
+- ``proposal="optimal"`` (Doucet, Gordon & Krishnamurthy 2001, §III): every candidate mode's
+  predictive likelihood ``Lambda_r``; ``r_k ∝ pi(r_{k-1}, r) Lambda_r``, weight times
+  ``sum_r pi(r_{k-1}, r) Lambda_r``, the candidate's updated filter kept.
+
+At sample 0 the modes are drawn from ``mode_prob0`` (with the optimal proposal
+``∝ mode_prob0 Lambda``), update only. Weights are kept in the log domain; the particles are
+resampled (systematic, stratified or multinomial: Douc, Cappé & Moulines 2005) when the
+effective sample size ``1 / sum_p w_p^2`` falls below ``ess_threshold * particles``. Outputs:
+``x = sum_p w_p x_p``, ``P = sum_p w_p (P_p + (x_p - x)(x_p - x)')``, mode probabilities the
+weights summed per mode, and the log of the unbiased estimate
+``sum_p w_{p,k-1} exp(inc_p)`` of ``p(y_k | y_{0:k-1})``. A missing component of ``y`` (NaN)
+leaves the observed ones' marginal likelihood; a fully missing sample does not reweight. A
+sample no particle's likelihood is finite for (an overflowing outlier) is treated as missing
+and flagged in ``Estimate.outlier``.
+
+Randomness: ``rng`` gives one 64-bit root key when the filter is built; trial ``i`` (in the
+flattened batch) gets key ``i`` of the SplitMix64 sequence of the root
+(:meth:`RBPFilter.trial_keys`), and every uniform of that trial is a pure function of its key,
+the sample index and the draw's index (:func:`switchest.estimators._compiled.rbpf.uniform`,
+counter-based: Salmon, Moraes, Dror & Shaw 2011). So a run is
+reproducible, a trial's result depends on its key alone, not on the batch it ran in (pass the
+keys it got, ``keys=``, to run it alone), and streaming with :meth:`RBPFilter.step` reproduces
+:meth:`RBPFilter.run`. Both call the compiled kernel of
+:mod:`switchest.estimators._compiled.rbpf`.
+
+Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._checks import (
+    as_rng,
+    check_memory,
+    check_probability_vector,
+    check_row_stochastic,
+    float_array,
+    positive_int,
+    positive_scalar,
+)
+from ..discretize import mode_steps, sample_mode_steps
+from ._compiled import GATED, raise_for_status, warn_for_repairs
+from ._compiled.rbpf import RESAMPLING, rbpf_run, rbpf_step
+from ._compiled.rbpf import trial_keys as split_keys
+from .base import Estimate, Estimator
+
+__all__ = ["RBPFState", "RBPFilter"]
+
+PROPOSALS = ("prior", "optimal")
+
+
+@dataclass(frozen=True, eq=False)
+class RBPFState:
+    """The particles of ``N`` trials after a sample, and what the filter reports for it.
+
+    Attributes
+    ----------
+    k : int
+        Samples processed so far (the index of the next one).
+    keys : ndarray of uint64, shape (N,)
+        Each trial's random key.
+    mode : ndarray of int64, shape (N, Np)
+        Each particle's mode.
+    x, P : ndarray, shapes (N, Np, n), (N, Np, n, n)
+        Each particle's Kalman filter, conditional on its mode history.
+    log_weight : ndarray, shape (N, Np)
+        Normalized log-weights.
+    combined_x, combined_P : ndarray, shapes (N, n), (N, n, n)
+        Weighted mean of the particles' filters and the covariance of their mixture: what
+        ``run`` reports.
+    mode_prob : ndarray, shape (N, L)
+        Sum of the weights of the particles in each mode.
+    loglik : ndarray, shape (N,)
+        Log of the particle estimate of ``p(y_k | y_{0:k-1})`` (0 when nothing was observed).
+    outlier : ndarray of bool, shape (N,)
+        True where no particle's likelihood was finite: the sample was treated as missing.
+    ess : ndarray, shape (N,)
+        Effective sample size ``1 / sum_p w_p^2`` before resampling.
+    """
+
+    k: int
+    keys: np.ndarray
+    mode: np.ndarray
+    x: np.ndarray
+    P: np.ndarray
+    log_weight: np.ndarray
+    combined_x: np.ndarray
+    combined_P: np.ndarray
+    mode_prob: np.ndarray
+    loglik: np.ndarray
+    outlier: np.ndarray
+    ess: np.ndarray
+
+
+class RBPFilter(Estimator):
+    """Rao-Blackwellized particle filter for a jump-Markov linear system, batched over trials.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+    transition : array_like, shape (L, L)
+        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
+    x0, P0 : array_like
+        Prior mean and covariance of the state at the first sample (every particle).
+    mode_prob0 : array_like, shape (L,), optional
+        Prior mode probabilities at the first sample; uniform by default.
+    particles : int
+        Particles per trial (default 1000).
+    rng : numpy Generator, int seed, SeedSequence or None
+        Source of the root key, drawn once here (None: a fresh one); every run and stream of
+        this filter derives its trials' keys from it (:meth:`trial_keys`).
+    resample : {"systematic", "stratified", "multinomial"}
+        Resampling scheme (Douc, Cappé & Moulines 2005, §2).
+    ess_threshold : float in [0, 1]
+        Resample after a sample whose effective sample size is below
+        ``ess_threshold * particles``: 1 resamples at every sample, 0 never.
+    proposal : {"prior", "optimal"}
+        Importance distribution of the modes: the transition prior, or the optimal one
+        (Doucet, Gordon & Krishnamurthy 2001, §III).
+
+    Attributes
+    ----------
+    root_key : numpy.uint64
+        The key drawn from ``rng``, from which every trial's key derives.
+    """
+
+    def __init__(self, system, transition, x0, P0, *, mode_prob0=None, particles: int = 1000,
+                 rng=None, resample: str = "systematic", ess_threshold: float = 0.5,
+                 proposal: str = "prior"):
+        self._set_prior(system, x0, P0)
+        L = system.n_modes
+        self.transition = check_row_stochastic(transition, "transition", n=L)
+        p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
+        self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
+        self.particles = positive_int(particles, "particles")
+        self.resample = _one_of(resample, "resample", tuple(RESAMPLING))
+        threshold = positive_scalar(ess_threshold, "ess_threshold", allow_zero=True)
+        if threshold > 1.0:
+            raise ValueError(f"ess_threshold must be in [0, 1], got {ess_threshold!r}")
+        self.ess_threshold = threshold
+        self.proposal = _one_of(proposal, "proposal", PROPOSALS)
+        self.root_key = as_rng(rng).integers(2**64, dtype=np.uint64)
+
+    def trial_keys(self, batch_shape=()) -> np.ndarray:
+        """The random keys (uint64, shape ``batch_shape``) that :meth:`run` and :meth:`init`
+        give the trials of that batch shape by default: key ``i`` of the flattened batch is
+        element ``i`` of the SplitMix64 sequence of :attr:`root_key`."""
+        shape = tuple(int(s) for s in batch_shape)
+        return split_keys(self.root_key, math.prod(shape)).reshape(shape)
+
+    def init(self, batch_shape=(), *, keys=None) -> RBPFState:
+        """Every particle at the prior ``(x0, P0)`` with weight ``1 / particles``, before the
+        first sample; ``keys`` (uint64, ``batch_shape``) default to :meth:`trial_keys`."""
+        batch = tuple(batch_shape)
+        Np, L = self.particles, self.system.n_modes
+        self._check_particle_memory(math.prod(batch))
+        x, P = self._prior_copies((*batch, Np))
+        nothing = np.zeros(batch)
+        combined_x, combined_P = self._prior_copies(batch)
+        return RBPFState(
+            k=0, keys=self._keys(keys, batch), mode=np.zeros((*batch, Np), dtype=np.int64),
+            x=x, P=P, log_weight=np.full((*batch, Np), -math.log(Np)),
+            combined_x=combined_x, combined_P=combined_P,
+            mode_prob=np.broadcast_to(self.mode_prob0, (*batch, L)).copy(), loglik=nothing,
+            outlier=np.zeros(batch, dtype=bool), ess=np.full(batch, float(Np)))
+
+    def step(self, state: RBPFState, y, u=None, *, dt=None) -> RBPFState:
+        """Sample the modes, predict over ``dt`` and update every particle with ``y (..., m)``,
+        reweight and resample if due.
+
+        ``dt`` is None at the first sample (modes drawn from ``mode_prob0``, update only) and
+        the time since the previous sample after it. One sample of the compiled kernel
+        (:func:`~switchest.estimators._compiled.rbpf.rbpf_step`), the one ``run`` loops over,
+        with the same uniforms: stepping through a record reproduces ``run``.
+        """
+        sys = self.system
+        batch = state.keys.shape
+        L, n, Np = sys.n_modes, sys.n_states, self.particles
+        N = math.prod(batch)
+        if (dt is None) != (state.k == 0):
+            raise ValueError("dt must be None at the first sample and the time since the "
+                             f"previous sample after it; got dt = {dt!r} at sample {state.k}")
+        y = float_array(y, "y", masked="nan")
+        if y.shape != (*batch, sys.n_outputs):
+            raise ValueError(f"y must have shape {(*batch, sys.n_outputs)}, got {y.shape}")
+        u = np.zeros((N, sys.n_inputs)) if u is None else np.broadcast_to(
+            float_array(u, "u"), (*batch, sys.n_inputs)).reshape(N, -1)
+        if dt is None:  # update only: the transition table is not read
+            F, G, Qd = np.zeros((L, n, n)), np.zeros((L, n, sys.n_inputs)), np.zeros((L, n, n))
+        else:
+            steps = mode_steps(sys, dt)
+            F, G, Qd = steps.F, steps.G, steps.Qd
+        out, (x, P, mode, log_weight) = rbpf_step(
+            state.x.reshape(N, Np, n), state.P.reshape(N, Np, n, n), state.mode.reshape(N, Np),
+            state.log_weight.reshape(N, Np), y.reshape(N, -1), u, F, G, Qd, np.arange(L), sys.C,
+            sys.R, self.transition, self.mode_prob0, state.keys.reshape(N), state.k,
+            predict_first=dt is not None, optimal=self.proposal == "optimal",
+            scheme=RESAMPLING[self.resample], threshold=self.ess_threshold)
+        raise_for_status(out.status)
+        warn_for_repairs(out)
+        return RBPFState(
+            k=state.k + 1, keys=state.keys, mode=mode.reshape(*batch, Np),
+            x=x.reshape(*batch, Np, n), P=P.reshape(*batch, Np, n, n),
+            log_weight=log_weight.reshape(*batch, Np), combined_x=out.x.reshape(*batch, n),
+            combined_P=out.P.reshape(*batch, n, n), mode_prob=out.mode_prob.reshape(*batch, L),
+            loglik=out.loglik.reshape(batch), outlier=(out.flag == GATED).reshape(batch),
+            ess=out.ess.reshape(batch))
+
+    def run(self, y, u=None, t=None, *, keys=None) -> Estimate:
+        """Filter ``y (..., K, m)``; returns ``x``, ``P``, ``mode_prob``, the most probable
+        ``mode``, ``loglik`` and the ``outlier`` flags at each sample.
+
+        ``keys`` (uint64, the batch shape of ``y``) default to :meth:`trial_keys`. The whole
+        record runs in the compiled kernel, with one exact transition per mode and distinct
+        sampling step (as :class:`~switchest.estimators.IMMFilter`).
+        """
+        return self.run_with_ess(y, u, t, keys=keys)[0]
+
+    def run_with_ess(self, y, u=None, t=None, *, keys=None) -> tuple[Estimate, np.ndarray]:
+        """:meth:`run`, and the effective sample size ``1 / sum_p w_p^2`` of every trial and
+        sample before resampling (shape ``(..., K)``): a diagnostic of weight degeneracy."""
+        y2, u2, t, batch = self._prepare(y, u, t)
+        sys = self.system
+        self._check_particle_memory(1)
+        table, trans = sample_mode_steps(sys, t)
+        out = rbpf_run(y2, u2, table.F, table.G, table.Qd, trans, sys.C, sys.R, self.transition,
+                       self.x0, self.P0, self.mode_prob0, self._keys(keys, batch).reshape(-1),
+                       particles=self.particles, optimal=self.proposal == "optimal",
+                       scheme=RESAMPLING[self.resample], threshold=self.ess_threshold)
+        raise_for_status(out.status)
+        warn_for_repairs(out)
+        est = Estimate(x=out.x, P=out.P, mode_prob=out.mode_prob, mode=out.mode,
+                       loglik=out.loglik, outlier=out.flag == GATED)
+        return self._unflatten(est, batch), out.ess.reshape(*batch, t.size)
+
+    def _keys(self, keys, batch) -> np.ndarray:
+        """``keys`` checked against ``batch`` (non-negative integers below 2^64) as uint64, or
+        :meth:`trial_keys` when None."""
+        if keys is None:
+            return self.trial_keys(batch)
+        arr = np.asarray(keys)
+        if arr.dtype.kind not in "ui":
+            raise TypeError(f"keys must be integers (uint64), got dtype {arr.dtype}")
+        if arr.shape != tuple(batch):
+            raise ValueError(f"keys must have the batch shape {tuple(batch)}, got {arr.shape}")
+        if arr.dtype.kind == "i" and arr.size and arr.min() < 0:
+            raise ValueError(f"keys must be non-negative, got {arr.min()}")
+        return arr.astype(np.uint64)
+
+    def _check_particle_memory(self, trials: int) -> None:
+        """Refuse particles whose filters would not fit: ``trials`` trials' worth, and with the
+        optimal proposal one predicted filter per candidate mode."""
+        n, L, Np = self.system.n_states, self.system.n_modes, self.particles
+        copies = trials + 2 + (L if self.proposal == "optimal" else 0)
+        check_memory(8 * Np * copies * (n * n + n + 2),
+                     f"{type(self).__name__} with particles = {Np} (n^2 + n + 2 floats per "
+                     f"particle, n = {n}, for {trials} trial(s) and the kernel's copies)")
+
+
+def _one_of(value, name: str, choices: tuple[str, ...]) -> str:
+    """``value`` if it is one of the strings ``choices``."""
+    if not isinstance(value, str):
+        raise TypeError(f"{name} must be one of {', '.join(map(repr, choices))}, "
+                        f"got {type(value).__name__}")
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(map(repr, choices))}, "
+                         f"got {value!r}")
+    return value
