@@ -474,7 +474,8 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
         table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
                                refine=args.refine, stay=args.stay, v_max=args.v_max,
                                delta=args.delta, Delta=args.Delta,
-                               switch_interval=args.switch_interval, trial=args.trial)
+                               switch_interval=args.switch_interval, smooth=args.smooth,
+                               particles=args.particles, seed=args.seed, trial=args.trial)
     for warning in caught:
         if issubclass(warning.category, ImplausibleEstimateWarning):
             _say(Console(stderr=True, soft_wrap=True, highlight=False), "warning",
@@ -613,9 +614,9 @@ def _parser() -> _Parser:
                             "rsls, impulsive); for rsls the y columns are the integrated output "
                             "at fine instants t including every switching instant t0 + kT")
     p_est.add_argument("--method", required=True, choices=_METHODS,
-                       help="kalman, switch-time (known modes); imm, imm-ev1 (modes unknown); "
-                            "min-distance (Lee et al., uniform t); rsls (Wang et al., integrated "
-                            "output); impulsive (Etienne et al.)")
+                       help="kalman, switch-time (known modes); imm, gpb1, gpb2, rbpf, imm-ev1 "
+                            "(modes unknown); min-distance (Lee et al., uniform t); rsls (Wang "
+                            "et al., integrated output); impulsive (Etienne et al.)")
     p_est.add_argument("--grid", type=_positive, default=5,
                        help="switching-time grid points per interval")
     p_est.add_argument("--refine", action="store_true",
@@ -633,6 +634,13 @@ def _parser() -> _Parser:
     p_est.add_argument("--switch-interval", type=_window, default=None,
                        help="rsls: switching interval T, modes change only at t0 + kT (default: "
                             "sampling.period)")
+    p_est.add_argument("--smooth", action="store_true",
+                       help="imm, gpb1, gpb2: smoothed estimates given the whole record (Kim's "
+                            "smoother) instead of filtered ones")
+    p_est.add_argument("--particles", type=_positive, default=None,
+                       help="rbpf: number of particles (default 1000)")
+    p_est.add_argument("--seed", type=_seed, default=None,
+                       help="rbpf: seed of the particles' random numbers (default 0)")
     p_est.add_argument("--trial", type=_seed, default=None,
                        help="which trial to estimate, in a CSV with a trial column")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")

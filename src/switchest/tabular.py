@@ -11,9 +11,12 @@ The methods (:data:`METHODS`), what each needs and where it finds it:
 ``kalman``, ``switch-time``
     Mode-based Kalman filters (Zhang & Natarajan; Shankar et al.) along the
     ``mode`` column (required); ``[initial]`` starts them.
-``imm``, ``imm-ev1``
-    IMM and Shankar et al.'s Algorithm 1; modes unknown. The transition matrix
-    comes from the switching model (:func:`transition_for`) or ``stay``.
+``imm``, ``gpb1``, ``gpb2``, ``rbpf``, ``imm-ev1``
+    The multiple-model filters (IMM, GPB1, GPB2, the Rao-Blackwellized particle
+    filter) and Shankar et al.'s Algorithm 1; modes unknown. The transition matrix
+    comes from the switching model (:func:`transition_for`) or ``stay``. ``smooth``
+    (``imm``, ``gpb1``, ``gpb2``) gives fixed-interval smoothed estimates instead of
+    filtered ones; ``particles`` and ``seed`` configure ``rbpf``.
 ``min-distance``
     Lee, Ping & Shim's mode estimation and switching detection
     (:class:`~switchest.estimators.MinimumDistanceDetector`) on a continuous-time
@@ -87,7 +90,8 @@ _LEE_SETTINGS = {  # option -> (what it is, CLI flag)
 def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: str, grid: int = 5,
                    refine: bool = False, stay: float | None = None, v_max: float | None = None,
                    delta: float | None = None, Delta: float | None = None,
-                   switch_interval: float | None = None,
+                   switch_interval: float | None = None, smooth: bool = False,
+                   particles: int | None = None, seed: int | None = None,
                    trial: int | None = None) -> pd.DataFrame:
     """Run ``method`` on measured data; returns a table of estimates per sample.
 
@@ -112,6 +116,12 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     switch_interval : float, optional
         ``rsls`` only: the switching interval ``T`` (Wang et al. Assumption 1);
         overrides ``sampling.period``.
+    smooth : bool
+        ``imm``, ``gpb1``, ``gpb2``: fixed-interval smoothed estimates (Kim's smoother, given
+        the whole record) instead of filtered ones.
+    particles, seed : int, optional
+        ``rbpf`` only: the number of particles (default 1000) and the seed of its random
+        numbers (default 0).
     trial : int, optional
         The trial to estimate from a table of several (a ``trial`` column).
 
@@ -124,13 +134,15 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     """
     entry = get_method(method)
     options = {"grid": grid, "refine": refine, "stay": stay, "v_max": v_max, "delta": delta,
-               "Delta": Delta, "switch_interval": switch_interval}
-    for name in ("v_max", "delta", "Delta", "switch_interval"):  # no default: refused elsewhere
-        if options[name] is not None:
+               "Delta": Delta, "switch_interval": switch_interval, "smooth": smooth,
+               "particles": particles, "seed": seed}
+    for name in ("v_max", "delta", "Delta", "switch_interval", "smooth", "particles", "seed"):
+        if options[name] is not None and options[name] is not False:  # no default elsewhere
             if name not in entry.options:
                 owners = " or ".join(repr(m) for m in METHODS if name in get_method(m).options)
                 raise ValueError(f"{name} applies to method {owners} only, got method {method!r}")
-            options[name] = positive_scalar(options[name], name)
+            if name in ("v_max", "delta", "Delta", "switch_interval"):
+                options[name] = positive_scalar(options[name], name)
     meas = read_measurements(data, spec, trial=trial)
     modes = _modes(meas, method) if entry.needs_modes else None
     est = _RUNNERS[method](entry, spec, meas, options, modes)
@@ -187,7 +199,12 @@ def _filter(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) ->
     elif entry.transition == "optional":
         args.append(None)
     chosen = {name: options[name] for name in ("grid", "refine") if name in entry.options}
+    if "particles" in entry.options:
+        chosen["particles"] = 1000 if options["particles"] is None else options["particles"]
+        chosen["rng"] = 0 if options["seed"] is None else options["seed"]
     est = entry.estimator(spec.system, *args, *_prior(spec), **chosen)
+    if options["smooth"]:
+        return est.smooth(y, u, t)
     return est.run(y, u, t, **({} if modes is None else {"modes": modes}))
 
 
@@ -236,7 +253,8 @@ def _impulsive(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes)
 
 
 #: How estimate_table builds and runs each registered method (every name of METHODS).
-_RUNNERS = {"kalman": _filter, "switch-time": _filter, "imm": _filter, "imm-ev1": _filter,
+_RUNNERS = {"kalman": _filter, "switch-time": _filter, "imm": _filter, "gpb1": _filter,
+            "gpb2": _filter, "rbpf": _filter, "imm-ev1": _filter,
             "min-distance": _min_distance, "rsls": _rsls, "impulsive": _impulsive}
 
 

@@ -23,11 +23,14 @@ from switchest.estimators import (
     METHOD_NAMES,
     Estimate,
     Estimator,
+    GPB1Filter,
+    GPB2Filter,
     IMMEV1Filter,
     IMMFilter,
     ImpulsiveObserver,
     MinimumDistanceDetector,
     ModeKalmanFilter,
+    RBPFilter,
     RSLSObserver,
     SwitchTimeKalmanFilter,
     get_method,
@@ -132,6 +135,10 @@ def read_imm(est, s) -> dict:
             "loglik": s.loglik}
 
 
+def read_rbpf(est, s) -> dict:
+    return {"x": s.combined_x, "P": s.combined_P, "mode_prob": s.mode_prob, "loglik": s.loglik}
+
+
 def read_imm_ev1(est, s) -> dict:
     """The destination of largest weight (the MAP path), as run reports."""
     best = np.argmax(s.log_weight, axis=-1)
@@ -175,7 +182,9 @@ class Case:
     ``run`` derives from its own; ``read(estimator, state)`` the fields of the Estimate that
     ``run`` reports for a state. ``one_mode(system, steady)`` builds the configuration on a
     one-mode system with the prior covariance the Kalman filter it must equal starts from
-    (returned with it), or is the reason it has no Kalman equivalent.
+    (returned with it), or is the reason it has no Kalman equivalent. ``alone(estimator,
+    trials, n)`` gives the keywords that run trial ``n`` of a batch of ``trials`` by itself as
+    in the batch (the particle filter: the random key the trial had there).
     """
 
     method: str
@@ -185,6 +194,7 @@ class Case:
     stream: Callable[[Scenario, int], dict]
     read: Callable[[Estimator, object], dict]
     one_mode: Callable[[SwitchedLinearSystem, SteadyState], tuple] | str
+    alone: Callable[[Estimator, int, int], dict] = lambda est, trials, n: {}
 
 
 CASES = {
@@ -208,6 +218,17 @@ CASES = {
     "imm": Case(
         "imm", lambda s: IMMFilter(s, TRANSITION, X0, P0), switched, (0.25, 0.2), no_keywords,
         read_imm, lambda one, ss: (IMMFilter(one, [[1.0]], X0, P0), P0)),
+    "gpb1": Case(
+        "gpb1", lambda s: GPB1Filter(s, TRANSITION, X0, P0), switched, (0.25, 0.2),
+        no_keywords, read_imm, lambda one, ss: (GPB1Filter(one, [[1.0]], X0, P0), P0)),
+    "gpb2": Case(
+        "gpb2", lambda s: GPB2Filter(s, TRANSITION, X0, P0), switched, (0.25, 0.2),
+        no_keywords, read_imm, lambda one, ss: (GPB2Filter(one, [[1.0]], X0, P0), P0)),
+    "rbpf": Case(
+        "rbpf", lambda s: RBPFilter(s, TRANSITION, X0, P0, particles=64, rng=5), switched,
+        (0.25, 0.2), no_keywords, read_rbpf,
+        lambda one, ss: (RBPFilter(one, [[1.0]], X0, P0, particles=8, rng=5), P0),
+        alone=lambda est, trials, n: {"keys": est.trial_keys((trials,))[n]}),
     "imm-ev1": Case(
         "imm-ev1", lambda s: IMMEV1Filter(s, TRANSITION, X0, P0, grid=3), switched,
         (0.25, 0.2), no_keywords, read_imm_ev1,
@@ -330,7 +351,7 @@ def test_batched_equals_looped(name):
     est = CASES[name].make(system_of(CASES[name]))
     batched = fields(run(name, est, sc))
     for n in range(sc.y.shape[0]):
-        single = fields(run(name, est, sc.trial(n)))
+        single = fields(run(name, est, sc.trial(n), **CASES[name].alone(est, sc.y.shape[0], n)))
         assert single.keys() == batched.keys()
         assert single["x"].shape == sc.y.shape[1:2] + batched["x"].shape[-1:]  # no batch axis
         for f, value in batched.items():

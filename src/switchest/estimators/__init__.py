@@ -16,6 +16,8 @@ from .base import Estimator as Estimator
 
 # module -> the names it defines that the package exports
 _EXPORTS = {
+    "exact_mixture": ("ExactMixtureFilter", "ExactMixtureState"),
+    "gpb": ("GPB1Filter", "GPB2Filter"),
     "imm": ("IMMFilter",),
     "imm_ev1": ("IMMEV1Filter",),
     "impulsive": ("ImpulsiveObserver", "ImpulsiveState", "ObserverControlTrajectory",
@@ -25,9 +27,12 @@ _EXPORTS = {
     "min_distance": ("DetectionMatch", "MinDistanceState", "MinimumDistanceDetector",
                      "WindowEstimate", "augmented_system", "exact_step", "match_detections",
                      "window_estimate"),
+    "mode_bank": ("IMMState", "ModeBankFilter", "ModeMatchedRun"),
     "mode_kalman": ("ModeKalmanFilter",),
+    "rbpf": ("RBPFState", "RBPFilter"),
     "registry": ("METHOD_NAMES", "Method", "get_method"),
     "rsls": ("RSLSObserver", "RSLSState", "fine_step_error_system"),
+    "smoothing": ("SmoothedModes", "smooth_mode_matched"),
     "switch_time": ("SwitchTimeKalmanFilter", "switch_time_loglik"),
 }
 __getattr__, __dir__ = deferred(__name__, globals(), _EXPORTS)

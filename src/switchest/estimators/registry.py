@@ -15,11 +15,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .base import Estimator
+from .gpb import GPB1Filter, GPB2Filter
 from .imm import IMMFilter
 from .imm_ev1 import IMMEV1Filter
 from .impulsive import ImpulsiveObserver
 from .min_distance import MinimumDistanceDetector
 from .mode_kalman import ModeKalmanFilter
+from .rbpf import RBPFilter
 from .rsls import RSLSObserver
 from .switch_time import SwitchTimeKalmanFilter
 
@@ -73,8 +75,17 @@ _METHODS = (
     Method("switch-time", SwitchTimeKalmanFilter, "modes", "unused", ("grid", "refine"),
            "Kalman filter with the modes known at the samples and gridded maximum-likelihood "
            "switching times", "Shankar et al. (000), §III-§IV, eq. (23)"),
-    Method("imm", IMMFilter, None, "required", ("stay",),
+    Method("imm", IMMFilter, None, "required", ("stay", "smooth"),
            "interacting multiple model filter; modes unknown", "Blom & Bar-Shalom (1988)"),
+    Method("gpb1", GPB1Filter, None, "required", ("stay", "smooth"),
+           "first-order generalized pseudo-Bayesian filter (one Gaussian kept); modes unknown",
+           "Bar-Shalom, Li & Kirubarajan (2001), §11.6.4"),
+    Method("gpb2", GPB2Filter, None, "required", ("stay", "smooth"),
+           "second-order generalized pseudo-Bayesian filter (one Gaussian per mode, L^2 "
+           "filters); modes unknown", "Bar-Shalom, Li & Kirubarajan (2001), §11.6.5"),
+    Method("rbpf", RBPFilter, None, "required", ("stay", "particles", "seed"),
+           "Rao-Blackwellized particle filter (modes sampled, a Kalman filter per particle); "
+           "modes unknown", "Doucet, Gordon & Krishnamurthy (2001), §III"),
     Method("imm-ev1", IMMEV1Filter, None, "optional", ("grid", "stay"),
            "IMM extended-Viterbi filter with switching-time estimation; modes unknown",
            "Shankar et al. (000), Algorithm 1"),
@@ -91,7 +102,8 @@ _METHODS = (
 _BY_NAME = {m.name: m for m in _METHODS}
 
 METHOD_NAMES: tuple[str, ...] = tuple(_BY_NAME)
-"""The registered method names, in the order they are offered."""
+"""The registered method names, in the order they are offered (``switchest estimate --method``,
+:func:`switchest.tabular.estimate_table`)."""
 
 
 def get_method(name: str) -> Method:

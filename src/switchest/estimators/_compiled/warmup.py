@@ -161,3 +161,22 @@ def _imm_ev1() -> None:
     f = IMMEV1Filter(system, x0=np.zeros(1), P0=np.eye(1), grid=2)
     f.run(y, np.zeros(1), t)
     f.step(f.init((1,)), y[:, 1], np.zeros((1, 1)), dt=0.1)
+
+
+@register
+def _multiple_model() -> None:
+    """GPB1's and GPB2's kernels, Kim's smoother (through ``smooth``) and the particle filter's
+    kernel (both proposals share it), over a record and one step of a two-mode system."""
+    from ..gpb import GPB1Filter, GPB2Filter
+    from ..rbpf import RBPFilter
+
+    system, t, y, _ = _tiny_switched()
+    transition = np.full((2, 2), 0.5)
+    for kind in (GPB1Filter, GPB2Filter):
+        f = kind(system, transition, np.zeros(1), np.eye(1))
+        f.smooth(y, np.zeros(1), t)
+        f.step(f.init((1,)), y[:, 1], np.zeros((1, 1)), dt=0.1)
+    pf = RBPFilter(system, transition, np.zeros(1), np.eye(1), particles=4, rng=0)
+    pf.run(y, np.zeros(1), t)
+    state = pf.step(pf.init((1,)), y[:, 0], np.zeros((1, 1)))
+    pf.step(state, y[:, 1], np.zeros((1, 1)), dt=0.1)
