@@ -13,6 +13,7 @@ from switchest.estimators import (
     GPB2Filter,
     IMMFilter,
     ModeKalmanFilter,
+    SmootherDivergenceWarning,
 )
 
 FILTERS = (IMMFilter, GPB1Filter, GPB2Filter)
@@ -77,3 +78,21 @@ def test_smooth_keeps_the_batch_shape_and_ends_at_the_filtered_estimate(kind):
     np.testing.assert_allclose(smoothed.x[..., -1, :], filtered.x[..., -1, :], rtol=1e-12)
     np.testing.assert_allclose(smoothed.mode_prob.sum(axis=-1), 1.0, rtol=1e-12)
     np.testing.assert_array_equal(smoothed.mode, np.argmax(smoothed.mode_prob, axis=-1))
+
+
+def test_a_diverging_smoother_is_reported():
+    """The boost converter with the switch closed leaves the inductor current unobserved while
+    e^{A T} shrinks it 7-fold per sample: Kim's backward step multiplies the pairs' mismatch
+    there, and ``smooth`` says so rather than return the estimate silently."""
+    from switchest.models import boost_converter
+    from switchest.signals import dwell_time
+    from switchest.simulate import simulate
+
+    system = boost_converter()
+    t = 5e-4 * np.arange(41)
+    traj = simulate(system, lambda r: dwell_time(2, t[-1], 0.9e-3, 1.2e-3, rng=r), t,
+                    (np.array([10.0, 100.0]), np.diag([25.0, 4.0])), u=np.array([20.0]),
+                    trials=2, rng=1)
+    imm = IMMFilter(system, np.full((2, 2), 0.5), np.array([10.0, 100.0]), np.diag([25.0, 4.0]))
+    with pytest.warns(SmootherDivergenceWarning, match="Kim's smoother diverged"):
+        imm.smooth(traj.y, np.array([20.0]), t)

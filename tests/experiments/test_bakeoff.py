@@ -36,9 +36,14 @@ def test_bakeoff_quick(quick):
                for case in params["cases"])
     for case, rmse in by_case.items():
         floor = rmse["mode KF, true switch times"]
-        # the detector is scored only where it has an estimate: not comparable with the floor
-        kalman = [v for m, v in rmse.items() if m != DETECTOR]
-        assert all(floor <= 1.001 * v for v in kalman), case
+        # the detector is scored only where it has an estimate, and a smoother sees the whole
+        # record (the floor is a filter): neither is comparable with the floor
+        causal = [v for m, v in rmse.items() if m != DETECTOR and "smoothed" not in m]
+        assert all(floor <= 1.001 * v for v in causal), case
+        if case == "boost converter":  # Kim's smoother diverges there, and the row says so
+            assert {v for m, v in rmse.items() if "smoothed" in m} and all(
+                row.note.startswith("diverged") for row in summary.rows
+                if row.quantity.startswith(case) and "smoothed" in row.quantity)
 
 
 def test_rmse_rows_carry_standard_errors(quick):

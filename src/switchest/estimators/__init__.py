@@ -27,7 +27,7 @@ _EXPORTS = {
     "min_distance": ("DetectionMatch", "MinDistanceState", "MinimumDistanceDetector",
                      "WindowEstimate", "augmented_system", "exact_step", "match_detections",
                      "window_estimate"),
-    "mode_bank": ("IMMState", "ModeBankFilter", "ModeMatchedRun"),
+    "mode_bank": ("IMMState", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"),
     "mode_kalman": ("ModeKalmanFilter",),
     "rbpf": ("RBPFState", "RBPFilter"),
     "registry": ("METHOD_NAMES", "Method", "get_method"),

@@ -17,6 +17,7 @@ Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i a
 from __future__ import annotations
 
 import math
+import warnings
 from abc import abstractmethod
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -34,7 +35,14 @@ from ._compiled import GATED, IMMOutput, raise_for_status, warn_for_repairs
 from .base import Estimate, Estimator
 from .smoothing import smooth_mode_matched
 
-__all__ = ["IMMState", "ModeBankFilter", "ModeMatchedRun"]
+__all__ = ["IMMState", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"]
+
+_DIVERGED = 1e4  # smoothed spread beyond this many times the filtered one: the smoother diverged
+
+
+class SmootherDivergenceWarning(RuntimeWarning):
+    """Kim's smoother moved an estimate far outside its filtered uncertainty: its approximation
+    is unstable on this system (:meth:`ModeBankFilter.smooth`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,6 +247,7 @@ class ModeBankFilter(Estimator):
         fwd = self._run_modes(y, u, t)
         s = smooth_mode_matched(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
                                 fwd.Qd, fwd.trans, fwd.transition)
+        _warn_if_diverged(fwd.estimate, s)
         return self._unflatten(Estimate(x=s.x, P=s.P, mode_prob=s.mode_prob, mode=s.mode),
                                fwd.batch)
 
@@ -250,3 +259,29 @@ class ModeBankFilter(Estimator):
         warn_for_repairs(out)
         return Estimate(x=out.x, P=out.P, mode_prob=out.mode_prob, mode=out.mode,
                         loglik=out.loglik, outlier=out.flag == GATED)
+
+
+def _warn_if_diverged(filtered: Estimate, smoothed) -> None:
+    """Warn when a smoothed covariance's trace, or the squared distance of a smoothed mean from
+    the filtered one, exceeds :data:`_DIVERGED` times the filtered covariance's trace.
+
+    An exact smoother never increases the uncertainty of the filter it smooths; Kim's
+    approximation can, and on a system with a strongly contracting direction that some mode
+    leaves unobserved (the boost converter: ``e^{A T}`` shrinks the inductor current by 0.14
+    per sample while the switch is closed) its backward step, ``J ~ F^-1`` in that direction,
+    multiplies the mismatch between the merged pairs at every sample: the estimates grow
+    geometrically towards the start of the record.
+    """
+    spread = np.trace(filtered.P, axis1=-2, axis2=-1)
+    grown = np.trace(smoothed.P, axis1=-2, axis2=-1) / spread
+    moved = np.sum((smoothed.x - filtered.x) ** 2, axis=-1) / spread
+    worst = np.nanmax(np.maximum(grown, moved), initial=0.0)
+    if not worst <= _DIVERGED:
+        k = int(np.unravel_index(np.nanargmax(np.maximum(grown, moved)), grown.shape)[-1])
+        warnings.warn(
+            f"Kim's smoother diverged: at sample {k} the smoothed estimate lies {worst:.3g} "
+            "times the filtered covariance's trace away from (or its covariance beyond) the "
+            "filtered one; its approximation is unstable on this system (a mode that leaves a "
+            "strongly contracting direction unobserved). Use the filtered estimate, or "
+            "ExactMixtureFilter.smooth on short records.", SmootherDivergenceWarning,
+            stacklevel=3)
