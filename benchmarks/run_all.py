@@ -27,6 +27,7 @@ import bench_engine
 import bench_imm
 import bench_imm_ev1
 import bench_mode_kalman
+import bench_multiple_model
 import bench_reproduce
 import bench_simulate
 import bench_startup
@@ -46,6 +47,8 @@ BENCHMARKS = [
     ("IMM engine vs a plain scalar numba IMM", bench_engine),
     ("Kalman filter vs dynamax", bench_mode_kalman),
     ("Switching-time estimation: refine vs grid", bench_switch_time),
+    ("Multiple-model filters: GPB, smoothing, particles against the exact posterior",
+     bench_multiple_model),
     ("IMM-EV1 scaling", bench_imm_ev1),
     ("Simulation", bench_simulate),
     ("Paper reproductions at full size", bench_reproduce),
