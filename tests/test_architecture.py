@@ -23,6 +23,7 @@ LAYERS = [
     {"analysis"},  # certificates and designs: functions of a system and of gains
     {"default_designs"},  # the designs the methods take from a model file alone
     {"estimators"},  # the filters, which may run designs from the analysis
+    {"learn"},  # fitting a system to data: runs the filters and smoothers, and the analysis
     {"plotting"},
     {"tabular", "certify"},
     {"experiments"},

@@ -35,28 +35,28 @@ __all__ = ["ExactMixtureState", "ExactMixtureFilter"]
 
 @dataclass(frozen=True, eq=False)
 class ExactMixtureState:
-    """The exact posterior after a sample, for trials of shape ``batch``: one Gaussian per
+    """The exact posterior after a sample, for a batch of trials (``...``): one Gaussian per
     mode sequence up to that sample (a prefix), ``S`` of them (``L^(k+1)`` after sample ``k``).
 
     Attributes
     ----------
-    x, P : ndarray, shapes (*batch, S, n), (*batch, S, n, n)
+    x, P : ndarray, shapes (..., S, n), (..., S, n, n)
         Each prefix's Kalman posterior.
-    log_weight : ndarray, shape (*batch, S)
+    log_weight : ndarray, shape (..., S)
         Log posterior probability of each prefix (normalized; before the first sample the
         prior of ``r_0``).
     last_mode : ndarray of int, shape (S,)
         The mode of each prefix at the last sample (the prefixes are the same for every
         trial).
-    loglik : ndarray, shape batch
+    loglik : ndarray, shape (...)
         Log-likelihood of the last measurement given the past (0 when nothing was observed
         or the measurement was an outlier).
-    outlier : ndarray of bool, shape batch
+    outlier : ndarray of bool, shape (...)
         True where every prefix's Kalman filter rejected the last measurement (its innovation
         overflowed): it was treated as missing.
-    mode_prob : ndarray, shape (*batch, L)
+    mode_prob : ndarray, shape (..., L)
         Posterior mode probabilities at the last sample.
-    combined_x, combined_P : ndarray, shapes (*batch, n), (*batch, n, n)
+    combined_x, combined_P : ndarray, shapes (..., n), (..., n, n)
         Mean and covariance of the mixture: what ``run`` reports.
     """
 

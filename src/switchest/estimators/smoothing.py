@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import (
+    check_bool,
     check_finite,
     check_row_stochastic,
     check_symmetric_psd,
@@ -54,6 +55,15 @@ class SmoothedModes:
     x_modes, P_modes : ndarray, shapes (..., K, L, n), (..., K, L, n, n)
         Mode-matched smoothed posteriors; a mode of smoothed probability zero keeps its
         filtered posterior.
+    pair_prob : ndarray, shape (..., K-1, L, L), or None
+        With ``lagged=True``: ``pair_prob[..., k, j, i] = P(r_k = j, r_{k+1} = i | Y)``, Kim's
+        ``mu_ji(k|K)``.
+    lag_x, lag_P : ndarray, shapes (..., K-1, L, n), (..., K-1, L, n, n), or None
+        With ``lagged=True``: mean and covariance of ``x_k`` given ``r_{k+1} = i`` and the
+        record.
+    lag_cross : ndarray, shape (..., K-1, L, n, n), or None
+        With ``lagged=True``: the lag-one cross-covariance ``Cov(x_{k+1}, x_k | r_{k+1} = i,
+        Y)``; with one mode ``P_{k+1|K} J_k'`` (de Jong & MacKinnon 1988).
     """
 
     x: np.ndarray
@@ -62,10 +72,14 @@ class SmoothedModes:
     mode: np.ndarray
     x_modes: np.ndarray
     P_modes: np.ndarray
+    pair_prob: np.ndarray | None = None
+    lag_x: np.ndarray | None = None
+    lag_P: np.ndarray | None = None
+    lag_cross: np.ndarray | None = None
 
 
 def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
-                        transition) -> SmoothedModes:
+                        transition, *, lagged: bool = False) -> SmoothedModes:
     """Kim's fixed-interval smoother of filtered mode-matched posteriors (Kim 1994, §2.2).
 
     Parameters
@@ -87,6 +101,10 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
         ``k + 1`` (row 0 unused); ``(K, L)`` or leading axes of length 1 share it across trials.
     transition : array_like, shape (L, L)
         ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows summing to 1.
+    lagged : bool
+        Also return, for each interval ``k -> k+1``, the pairwise mode probabilities and the
+        lag-one moments an expectation-maximization step needs (``pair_prob``, ``lag_x``,
+        ``lag_P``, ``lag_cross``; :mod:`switchest.estimators._compiled.smoother`).
 
     Returns
     -------
@@ -121,7 +139,8 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
     with np.errstate(divide="ignore"):
         log_prob, log_transition = np.log(mode_prob), np.log(transition)
     out = kim_smooth(x_modes.reshape(N, K, L, n), P_modes.reshape(N, K, L, n, n),
-                     log_prob.reshape(N, K, L), u, F, G, Qd, trans, log_transition)
+                     log_prob.reshape(N, K, L), u, F, G, Qd, trans, log_transition,
+                     lagged=check_bool(lagged, "lagged"))
     try:
         raise_for_status(out.status)
     except np.linalg.LinAlgError as err:
@@ -129,8 +148,10 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
             f"a predicted covariance F P F' + Qd of the smoother could not be factored ({err})"
         ) from None
     warn_for_repairs(out)
-    return SmoothedModes(*(a.reshape(*batch, *a.shape[1:]) for a in
-                           (out.x, out.P, out.mode_prob, out.mode, out.x_modes, out.P_modes)))
+    fields = (out.x, out.P, out.mode_prob, out.mode, out.x_modes, out.P_modes)
+    if lagged:
+        fields += (out.pair_prob, out.lag_x, out.lag_P, out.lag_cross)
+    return SmoothedModes(*(a.reshape(*batch, *a.shape[1:]) for a in fields))
 
 
 def _finite(value, name: str) -> np.ndarray:

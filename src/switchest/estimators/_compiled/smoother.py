@@ -19,6 +19,18 @@ to collapsed (GPB2 / IMM) filters by Murphy (1998, "Switching Kalman filters", t
 
 At ``k = K-1`` the smoothed posterior is the filtered one.
 
+On request (``lagged``) the pass also reports, for each interval ``k -> k+1``, what the
+expectation step of maximum-likelihood fitting needs (Shumway & Stoffer 1982, J. Time Series
+Anal. 3, eqs (9)-(12); Kim 1994 §2.2 for the mode pairs): the pairwise probabilities
+``mu_ji(k|K) = P(r_k = j, r_{k+1} = i | Y)`` above, and the moments of ``x_k`` given
+``r_{k+1} = i`` and the record: the mixture over ``j`` (weights
+``P(r_k = j | r_{k+1} = i, y_0..k)``, Kim's approximation) of the pairs' ``x_ji``, ``P_ji``, and
+the lag-one cross-covariance ``Cov(x_{k+1}, x_k | r_{k+1} = i, Y) = P_i(k+1|K) Jbar_i'`` with
+``Jbar_i`` the weighted mean of the pairs' gains (de Jong & MacKinnon 1988, Econometric Theory 4,
+``P_{k+1,k|K} = P_{k+1|K} J_k'``; with one mode it is exactly that formula). The weighted
+covariance of the pairs' means is accumulated by West's incremental rule (West 1979, Comm. ACM
+22) so that no second moment is differenced.
+
 One RTS step is a Kalman update of ``x_j(k|k)`` by the pseudo-measurement
 ``x_{k+1} = F_i x_k + G_i u_k + w``, ``w ~ N(0, Qd_i)``: conditioned on ``x_{k+1}`` the state
 is Gaussian with mean ``x_j + J (x_{k+1} - x_pred)`` and covariance
@@ -99,6 +111,12 @@ class KimOutput(NamedTuple):
         How many covariances were repaired to their rounding level (:func:`.linalg.repair`).
     smallest_eigenvalue : float
         The smallest eigenvalue a repaired covariance had (``inf`` if none was).
+    pair_prob : ndarray, shape (N, K-1, L, L), or None
+        With ``lagged``: ``pair_prob[:, k, j, i] = mu_ji(k|K) = P(r_k = j, r_{k+1} = i | Y)``.
+    lag_x, lag_P : ndarray, shapes (N, K-1, L, n), (N, K-1, L, n, n), or None
+        With ``lagged``: mean and covariance of ``x_k`` given ``r_{k+1} = i`` and the record.
+    lag_cross : ndarray, shape (N, K-1, L, n, n), or None
+        With ``lagged``: ``Cov(x_{k+1}, x_k | r_{k+1} = i, Y)``, the lag-one cross-covariance.
     """
 
     x: np.ndarray
@@ -110,10 +128,14 @@ class KimOutput(NamedTuple):
     status: int
     repaired: int = 0
     smallest_eigenvalue: float = math.inf
+    pair_prob: np.ndarray | None = None
+    lag_x: np.ndarray | None = None
+    lag_P: np.ndarray | None = None
+    lag_cross: np.ndarray | None = None
 
 
 def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *,
-               lanes: int = LANES) -> KimOutput:
+               lanes: int = LANES, lagged: bool = False) -> KimOutput:
     """Kim's fixed-interval smoother of ``N`` trials over ``K`` samples (module docstring).
 
     Parameters
@@ -134,6 +156,9 @@ def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *
         ``log transition[i, j]`` = log P(mode j at k+1 | mode i at k), ``-inf`` if impossible.
     lanes : int
         Trials per SIMD block (the results do not depend on it).
+    lagged : bool
+        Also report the pairwise mode probabilities and the lag-one moments of each interval
+        (``pair_prob``, ``lag_x``, ``lag_P``, ``lag_cross``; module docstring).
     """
     sizes: dict[str, int] = {}
     x_modes, P_modes, log_prob, u, F, G, Qd, log_transition = checked(
@@ -148,21 +173,28 @@ def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *
                     np.empty((N, K), dtype=np.int64), np.empty_like(x_modes),
                     np.empty_like(P_modes), OK)
     report = np.empty(2)
+    J = K - 1 if lagged else 0  # intervals reported (none unless asked)
+    lag = (np.zeros((N, J, L, L)), np.zeros((N, J, L, n)), np.zeros((N, J, L, n, n)),
+           np.zeros((N, J, L, n, n)))
     status = kim_backward(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition,
                           positive_int(lanes, "lanes"), out.x, out.P, out.mode_prob, out.mode,
-                          out.x_modes, out.P_modes, report)
-    return out._replace(status=int(status), repaired=int(report[0]),
-                        smallest_eigenvalue=float(report[1]))
+                          out.x_modes, out.P_modes, report, bool(lagged), *lag)
+    out = out._replace(status=int(status), repaired=int(report[0]),
+                       smallest_eigenvalue=float(report[1]))
+    return out._replace(pair_prob=lag[0], lag_x=lag[1], lag_P=lag[2],
+                        lag_cross=lag[3]) if lagged else out
 
 
 @jit
 def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes, x_out, P_out,
-                 prob_out, mode_out, x_s, P_s, report):
+                 prob_out, mode_out, x_s, P_s, report, lagged, pair_out, lag_x, lag_P,
+                 lag_cross):
     """The backward recursion over every trial, in blocks of ``lanes`` trials.
 
     Arguments as :func:`kim_smooth` (checked there); written: the combined ``x_out``,
     ``P_out``, ``prob_out``, ``mode_out`` and the mode-matched ``x_s``, ``P_s`` (shapes of
-    :class:`KimOutput`), and ``report`` ``[repairs, smallest eigenvalue]``. Returns ``OK`` or
+    :class:`KimOutput`), ``report`` ``[repairs, smallest eigenvalue]`` and, when ``lagged``,
+    ``pair_out``, ``lag_x``, ``lag_P``, ``lag_cross`` (:class:`KimOutput`). Returns ``OK`` or
     the failure code of a predicted covariance that could not be factored even repaired.
     """
     N, K, L, n = x_f.shape
@@ -185,6 +217,11 @@ def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes
     obs, n_obs = np.ones((n, B)), np.full(B, float(n))
     use = np.ones(B, dtype=np.bool_)
     scratch = rts_scratch(n, B)
+    gain = scratch[13]  # J of the last rts_step
+    # per mode i at k + 1: weight, mean, scatter of the pairs' x_ji, mean P_ji and mean gain
+    acc_w, acc_x = np.empty((L, B)), np.empty((L, n, B))
+    acc_M, acc_P, acc_J = np.empty((L, n, n, B)), np.empty((L, n, n, B)), np.empty((L, n, n, B))
+    delta = np.empty(n)
     report[0], report[1] = 0.0, math.inf
     for i0 in range(0, N, B):
         nb = min(B, N - i0)
@@ -203,6 +240,12 @@ def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes
                     for b in range(nb):
                         back[i, j, b] = lpf[j, b] + log_transition[j, i]
                 log_normalize(back[i], prob, total, nb)
+            if lagged:
+                acc_w[:] = 0.0
+                acc_x[:] = 0.0
+                acc_M[:] = 0.0
+                acc_P[:] = 0.0
+                acc_J[:] = 0.0
             for j in range(L):
                 for i in range(L):
                     lane_index(trans, i0, nb, k + 1, i, idx)
@@ -213,6 +256,9 @@ def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes
                                       obs, n_obs, use, nb, x_pair[i], P_pair[i], report, scratch)
                     if status != OK:
                         return status
+                    if lagged:
+                        _accumulate(x_pair[i], P_pair[i], gain, back[i, j], nb, acc_w[i],
+                                    acc_x[i], acc_M[i], acc_P[i], acc_J[i], delta)
                     for b in range(nb):  # log mu_ji(k|K) = log mu_i(k+1|K) + back[i, j]
                         log_w[i, b] = lpn[i, b] + back[i, j, b]
                 log_normalize(log_w, w, total, nb)  # total: log mu_j(k|K)
@@ -224,6 +270,9 @@ def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes
             log_normalize(lpk, prob, total, nb)
             _write(xk, Pk, prob, lpk, i0, nb, k, xc, Pc, best, x_out, P_out, prob_out,
                    mode_out, x_s, P_s)
+            if lagged:
+                _write_lagged(lpn, back, Pn, acc_x, acc_M, acc_P, acc_J, i0, nb, k, pair_out,
+                              lag_x, lag_P, lag_cross)
             xn, xk = xk, xn
             Pn, Pk = Pk, Pn
             lpn, lpk = lpk, lpn
@@ -290,6 +339,52 @@ def rts_step(xj, Pj, x_next, P_next, F, G, u, Qd, eye, zero, obs, n_obs, use, nb
                     X[r, c, b] += gain[r, a, b] * P_next[a, c, b]
     symmetric_sum(P, X, gain, nb, P)  # P += J P_next J'
     return OK
+
+
+@jit
+def _accumulate(x, P, gain, log_w, nb, acc_w, acc_x, acc_M, acc_P, acc_J, delta):
+    """Add one pair ``(j, i)`` of weight ``exp(log_w)`` (``P(r_k = j | r_{k+1} = i, y_0..k)``)
+    to mode ``i``'s running moments of ``x_k``: weight, mean and scatter of the means by West's
+    (1979) weighted incremental rule, weighted sums of the covariances ``P`` and gains ``gain``."""
+    n = x.shape[0]
+    for b in range(nb):
+        if log_w[b] == -math.inf:
+            continue
+        w = math.exp(log_w[b])
+        acc_w[b] += w
+        share = w / acc_w[b]
+        for r in range(n):
+            delta[r] = x[r, b] - acc_x[r, b]
+            acc_x[r, b] += share * delta[r]
+        for r in range(n):
+            for c in range(n):
+                acc_M[r, c, b] += w * delta[r] * (x[c, b] - acc_x[c, b])
+                acc_P[r, c, b] += w * P[r, c, b]
+                acc_J[r, c, b] += w * gain[r, c, b]
+
+
+@jit
+def _write_lagged(lpn, back, Pn, acc_x, acc_M, acc_P, acc_J, i0, nb, k, pair_out, lag_x, lag_P,
+                  lag_cross):
+    """Interval ``k -> k+1`` of the block's trials: ``mu_ji(k|K) = exp(lpn[i] + back[i, j])``,
+    the moments of ``x_k`` given ``r_{k+1} = i`` and ``Cov(x_{k+1}, x_k | i) = P_i(k+1|K)
+    Jbar_i'`` (module docstring). The weights over ``j`` sum to one (``back[i]`` is normalized;
+    a mode ``i`` no pair reaches gets zeros)."""
+    L, n = acc_x.shape[0], acc_x.shape[1]
+    for b in range(nb):
+        t = i0 + b
+        for i in range(L):
+            for j in range(L):
+                pair_out[t, k, j, i] = math.exp(lpn[i, b] + back[i, j, b])
+            for r in range(n):
+                lag_x[t, k, i, r] = acc_x[i, r, b]
+                for c in range(n):  # symmetric part of the scatter: rounding only
+                    lag_P[t, k, i, r, c] = acc_P[i, r, c, b] + 0.5 * (acc_M[i, r, c, b]
+                                                                       + acc_M[i, c, r, b])
+                    s = 0.0
+                    for a in range(n):
+                        s += Pn[i, r, a, b] * acc_J[i, c, a, b]
+                    lag_cross[t, k, i, r, c] = s
 
 
 @jit

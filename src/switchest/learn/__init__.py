@@ -1,0 +1,13 @@
+"""Learning a switched linear system from data: maximum likelihood by expectation-maximization.
+
+:func:`fit` estimates the mode transition matrix, the process-noise covariance (the intensity
+of a continuous-time system) and the measurement-noise covariance, optionally ``A``, ``B``
+(discrete time) and ``C``, from one or several trials of measurements, with the modes known or
+not; :class:`FitResult` holds the fitted model, the log-likelihood trace and standard errors.
+"""
+
+from .em import fit
+from .markov_step import rates_from_transition
+from .result import FitResult
+
+__all__ = ["FitResult", "fit", "rates_from_transition"]

@@ -1,0 +1,255 @@
+"""Maximum-likelihood fitting of a switched linear system by expectation-maximization.
+
+The loop of Dempster, Laird & Rubin (1977, JRSS B 39): an E-step
+(:mod:`~switchest.learn.expectation`) and conditional M-steps (Meng & Rubin 1993): transition
+matrix (:mod:`~switchest.learn.markov_step`), then ``A``, ``B`` and ``C``
+(:mod:`~switchest.learn.dynamics_step`), then ``Q`` and ``R``
+(:mod:`~switchest.learn.noise_step`) with the new matrices.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Iterable
+
+import numpy as np
+
+from .._checks import (
+    as_rng,
+    check_row_stochastic,
+    check_symmetric_psd,
+    float_array,
+    positive_int,
+    positive_scalar,
+)
+from ..analysis.observability import mode_observability
+from ..discretize import sample_mode_steps
+from ..system import SwitchedLinearSystem
+from .data import Record, record
+from .dynamics_step import fit_AB, fit_C
+from .expectation import expectation, log_likelihood
+from .markov_step import fit_transition, rates_from_transition, transition_se
+from .noise_step import fit_Q, fit_R, shared
+from .result import FitResult
+from .standard_errors import noise_standard_errors
+
+__all__ = ["fit"]
+
+_PARAMETERS = ("transition", "A", "B", "C", "Q", "R")
+
+
+def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0, P0,
+        modes=None, estimate: Iterable[str] = ("transition", "Q", "R"), max_iter: int = 200,
+        tol: float = 1e-6, rng=None,
+        progress: Callable[[int, float], object] | None = None) -> FitResult:
+    """Fit the transition matrix and the noise covariances (and optionally ``A``, ``B``, ``C``)
+    of a switched linear system to measurements, by expectation-maximization.
+
+    Parameters
+    ----------
+    system : SwitchedLinearSystem
+        The model; its matrices are the starting point, and those not estimated stay fixed. A
+        matrix equal in all modes is shared and fitted as one; a noise component of zero
+        variance stays zero.
+    y : array_like, shape (K, m) or (N, K, m)
+        Measurements of one or ``N`` trials; NaN marks a missing component.
+    u : array_like, optional
+        Inputs ``(l,)``, ``(K, l)`` or ``(N, K, l)``, ``u[k]`` held over the interval into
+        sample ``k + 1``; zero by default.
+    t : array_like, shape (K,)
+        Sample times (required for a continuous-time system; periodic or not).
+    transition : array_like, shape (L, L), optional
+        Starting (or, without ``"transition"`` in ``estimate``, fixed) transition matrix,
+        ``transition[i, j]`` = P(mode j at k+1 | mode i at k). Default: with known modes the
+        counts' estimate; otherwise drawn from ``rng`` around a stay of 0.9 (Dirichlet rows),
+        which breaks the symmetry between modes of equal starting parameters.
+    x0, P0 : array_like
+        Prior mean ``(n,)`` and covariance ``(n, n)`` of the state at the first sample (fixed).
+    modes : array_like of int, shape (K,) or (N, K), optional
+        The known mode at each sample (mode ``r_k`` drives the interval into ``k + 1`` and the
+        measurement at ``k``, as ``switchest.simulate`` draws them). With them the E-step is
+        exact and the log-likelihood never decreases; without them the GPB2 filter and Kim's
+        smoother give an approximate E-step (mode ``r_{k+1}`` drives the interval into
+        ``k + 1``, the convention of the IMM and GPB filters).
+    estimate : iterable of str
+        What to fit, among ``"transition"``, ``"Q"``, ``"R"``, ``"C"`` and, for a
+        discrete-time system, ``"A"``, ``"B"``.
+    max_iter : int
+        Most E-steps.
+    tol : float
+        Stop when ``|loglik_i - loglik_{i-1}| <= tol |loglik_{i-1}|``.
+    rng : numpy.random.Generator, int or None
+        Draws the starting transition matrix when none is given with unknown modes (unused
+        otherwise).
+    progress : callable, optional
+        Called as ``progress(iteration, loglik)`` after each E-step.
+
+    Returns
+    -------
+    FitResult
+
+    Warns
+    -----
+    RuntimeWarning
+        Naming the mode: a mode never visited (known modes) or whose smoothed probability mass
+        is below one sample (unknown modes), whose parameters keep their starting values; a mode
+        whose pair ``(C, A)`` is unobservable, whose ``Q`` is not identifiable from ``y``. Also
+        when the log-likelihood decreases from one iteration to the next (naming the
+        iteration and the drop): with unknown modes the E-step is approximate (the exact
+        posterior is a mixture of ``L^K`` Gaussians), so EM's monotonicity is not guaranteed.
+
+    Notes
+    -----
+    Continuous-time systems: ``Q`` is the intensity, fitted through the exact discretization
+    ``Qd(h) = int_0^h e^{As} Q e^{A's} ds`` of every distinct step (generalized EM); ``A``,
+    ``B`` are not fitted (no closed-form M-step exists for them in continuous time) and are
+    refused. With known modes a switch is taken at the sample instants (the mode at a sample
+    holds until the next one). ``FitResult.rates`` gives the generator of a continuous-time
+    chain matching the fitted per-sample ``transition`` (periodic sampling).
+
+    Standard errors: ``transition`` from the (expected) counts, ``Q`` and ``R`` from the
+    observed information (:mod:`~switchest.learn.standard_errors`), NaN for ``A``, ``B``,
+    ``C``.
+    """
+    data = record(system, y, u, t, modes)
+    wanted = _estimate(estimate, system)
+    x0 = float_array(x0, "x0", ndim=1)
+    P0 = check_symmetric_psd(float_array(P0, "P0", ndim=2), "P0")
+    max_iter = positive_int(max_iter, "max_iter")
+    tol = positive_scalar(tol, "tol")
+    L = system.n_modes
+    transition = _start_transition(transition, data, L, rng)
+    _warn_unobservable(system, wanted)
+    steps = np.unique(np.diff(data.t))
+    trace: list[float] = []
+    warned: set[int] = set()
+    converged = False
+    visits = np.zeros(L)
+    for it in range(max_iter):
+        mom = expectation(system, transition, x0, P0, data)
+        trace.append(mom.loglik)
+        if progress is not None:
+            progress(it, mom.loglik)
+        if it and _stalled(trace, tol, it):
+            converged = True
+            break
+        if it == max_iter - 1:
+            break
+        system, transition, visits = _maximize(system, transition, data, steps, mom, wanted,
+                                               warned)
+    se = _standard_errors(system, transition, x0, P0, data, wanted, mom)
+    period = np.diff(data.t)
+    rates = (rates_from_transition(transition, float(period[0]))
+             if system.is_continuous and np.ptp(period) <= 1e-9 * period.max() else None)
+    return FitResult(system=system, transition=transition, loglik=np.array(trace),
+                     converged=converged, iterations=len(trace), se=se, rates=rates)
+
+
+def _estimate(estimate, system: SwitchedLinearSystem) -> tuple[str, ...]:
+    if isinstance(estimate, str):
+        raise TypeError(f"estimate must be a collection of names such as ('transition', 'Q'), "
+                        f"got the string {estimate!r}")
+    wanted = tuple(estimate)
+    bad = [e for e in wanted if e not in _PARAMETERS]
+    if bad or not wanted:
+        raise ValueError(f"estimate must name some of {_PARAMETERS}, got {wanted}")
+    if system.is_continuous and ("A" in wanted or "B" in wanted):
+        raise ValueError("estimate: 'A' and 'B' can be fitted only for a discrete-time system "
+                         "(a continuous-time A enters the likelihood through expm; no "
+                         "closed-form M-step); leave them out")
+    if "B" in wanted and system.n_inputs == 0:
+        raise ValueError("estimate: 'B' given but the system has no input")
+    return wanted
+
+
+def _start_transition(transition, data: Record, L: int, rng) -> np.ndarray:
+    if transition is not None:
+        return check_row_stochastic(transition, "transition", n=L)
+    if data.modes is not None:
+        pairs = np.zeros((L, L))
+        np.add.at(pairs, (data.modes[:, :-1], data.modes[:, 1:]), 1.0)
+        return fit_transition(pairs, np.full((L, L), 1.0 / L))[0]
+    if L == 1:
+        return np.ones((1, 1))
+    mean = np.full((L, L), 0.1 / (L - 1))
+    np.fill_diagonal(mean, 0.9)
+    gen = as_rng(rng)
+    return np.array([gen.dirichlet(20.0 * row) for row in mean])  # concentration 20
+
+
+def _warn_unobservable(system: SwitchedLinearSystem, wanted) -> None:
+    if "Q" not in wanted:
+        return
+    obs = mode_observability(system)
+    for j in np.flatnonzero(~obs.observable):
+        warnings.warn(f"mode {j}: the pair (C, A) is unobservable ({obs.n_observable[j]} of "
+                      f"{system.n_states} states observable): its process noise Q is not "
+                      "identifiable from y" + (" alone (Q is shared with the other modes)"
+                                               if np.all(system.Q == system.Q[:1]) and
+                                               system.n_modes > 1 else ""),
+                      RuntimeWarning, stacklevel=3)
+
+
+def _stalled(trace: list[float], tol: float, it: int) -> bool:
+    """Convergence test; warns where the log-likelihood decreased."""
+    new, old = trace[-1], trace[-2]
+    drop = old - new
+    if drop > 1e-9 * max(1.0, abs(old)):
+        warnings.warn(f"EM iteration {it}: the log-likelihood decreased by {drop:.6g} (from "
+                      f"{old:.10g} to {new:.10g}); with unknown modes the E-step is "
+                      "approximate and monotonicity is not guaranteed", RuntimeWarning,
+                      stacklevel=3)
+    return abs(new - old) <= tol * max(abs(old), 1e-300)
+
+
+def _maximize(system, transition, data: Record, steps, mom, wanted, warned):
+    """One round of conditional M-steps; returns the new system, transition and visits."""
+    mass = mom.weight.sum(axis=(0, 1))
+    for j in np.flatnonzero(mass < 1.0):
+        if int(j) not in warned:
+            warned.add(int(j))
+            how = ("was never visited" if data.modes is not None else
+                   f"has smoothed probability mass {mass[j]:.3g} < 1 sample")
+            warnings.warn(f"mode {j} {how}: its parameters are not identifiable from the data "
+                          "and keep their starting values", RuntimeWarning, stacklevel=4)
+    visits = mom.pairs.sum(axis=1)
+    if "transition" in wanted:
+        transition, visits = fit_transition(mom.pairs, transition)
+    A, B, C, Q, R = system.A, system.B, system.C, system.Q, system.R
+    if "A" in wanted or "B" in wanted:
+        newA, newB = fit_AB(A, B, data.u, mom, with_B="B" in wanted and np.any(data.u))
+        A = newA if "A" in wanted else A
+        B = newB if "B" in wanted else B
+    if "C" in wanted:
+        C = fit_C(C, data.y, mom)
+    system = _rebuild(system, A, B, C, Q, R)
+    if "Q" in wanted:
+        table = mom.table if not ("A" in wanted or "B" in wanted) else sample_mode_steps(
+            system, data.t)[0]
+        Q = fit_Q(system, steps, data.u, mom, table)[0]
+    if "R" in wanted:
+        R = fit_R(C, R, data.y, mom)[0]
+    keep = (mass < 1.0)[:, None, None]  # unidentifiable modes keep their own matrices
+    A, B, C, Q, R = (new if shared(old) else np.where(keep, old, new) for old, new in
+                     zip((system.A, system.B, system.C, system.Q, system.R), (A, B, C, Q, R)))
+    return _rebuild(system, A, B, C, Q, R), transition, visits
+
+
+def _rebuild(system, A, B, C, Q, R) -> SwitchedLinearSystem:
+    if system.is_continuous:
+        return SwitchedLinearSystem.continuous(A, B, C, Q, R)
+    return SwitchedLinearSystem.discrete(A, B, C, Q, R, dt=system.dt)
+
+
+def _standard_errors(system, transition, x0, P0, data, wanted, mom) -> dict[str, np.ndarray]:
+    se = {}
+    if "transition" in wanted:
+        se["transition"] = transition_se(transition, mom.pairs.sum(axis=1))
+    noise = [name for name in ("Q", "R") if name in wanted]
+    if noise:
+        se.update(noise_standard_errors(
+            system, noise, lambda s: log_likelihood(s, transition, x0, P0, data)))
+    for name in ("A", "B", "C"):
+        if name in wanted:
+            se[name] = np.full(getattr(system, name).shape, np.nan)
+    return se

@@ -1,0 +1,55 @@
+"""Maximization step of the mode transition matrix, and the rate matrix of a continuous chain.
+
+``pi_ji = sum_k xi_k(j, i) / sum_k sum_i' xi_k(j, i')`` with ``xi_k(j, i) = P(r_k = j, r_{k+1} = i
+| Y)`` (Hamilton 1990, J. Econometrics 45, eq. (4.8); with known modes the counts of the
+observed transitions, the exact MLE of a Markov chain, Anderson & Goodman 1957, Ann. Math.
+Stat. 28, eq. (2.4)). Its standard error is the multinomial one, ``sqrt(pi_ji (1 - pi_ji) /
+n_j)`` with ``n_j`` the (expected) visits of ``j`` (Anderson & Goodman 1957, §3); with unknown
+modes the expected counts are treated as observed, which understates the uncertainty.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import logm
+
+__all__ = ["fit_transition", "rates_from_transition", "transition_se"]
+
+
+def fit_transition(pairs: np.ndarray, current: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """New transition matrix from (expected) counts ``pairs[j, i]`` and each row's count; a row
+    with less than one (expected) visit keeps its ``current`` value."""
+    visits = pairs.sum(axis=1)
+    new = current.copy()
+    ok = visits >= 1.0
+    new[ok] = pairs[ok] / visits[ok, None]
+    return new, visits
+
+
+def transition_se(transition: np.ndarray, visits: np.ndarray) -> np.ndarray:
+    """Multinomial standard errors ``sqrt(p (1 - p) / n_j)``; NaN for a row never visited."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        se = np.sqrt(transition * (1 - transition) / visits[:, None])
+    se[visits < 1.0] = np.nan
+    return se
+
+
+def rates_from_transition(transition: np.ndarray, period: float) -> np.ndarray | None:
+    """The generator ``Lambda`` with ``expm(Lambda T) = transition``: ``logm(transition) / T``
+    (Israel, Rosenthal & Wei 2001, Math. Finance 11, §2), or None where the principal logarithm
+    is not a valid generator (complex, or a negative off-diagonal rate beyond rounding): then
+    no continuous-time chain sampled at ``T`` has this transition matrix."""
+    with np.errstate(all="ignore"):
+        try:
+            G = logm(transition)
+        except (ValueError, np.linalg.LinAlgError):
+            return None
+    if not np.all(np.isfinite(G)) or np.max(np.abs(np.imag(G))) > 1e-9:
+        return None
+    G = np.real(G) / period
+    off = G - np.diag(np.diag(G))
+    scale = max(float(np.max(np.abs(G))), 1e-300)
+    if np.min(off) < -1e-9 * scale:
+        return None
+    off = np.maximum(off, 0.0)
+    return off - np.diag(off.sum(axis=1))

@@ -1,0 +1,51 @@
+"""The result of a fit: the fitted model, the log-likelihood trace and the standard errors."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..system import SwitchedLinearSystem
+
+__all__ = ["FitResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """What :func:`switchest.learn.fit` returns.
+
+    Attributes
+    ----------
+    system : SwitchedLinearSystem
+        The fitted system (the parameters not estimated are those given).
+    transition : ndarray, shape (L, L)
+        The fitted (or given) transition matrix, ``transition[i, j]`` = P(mode j at k+1 | mode
+        i at k).
+    loglik : ndarray, shape (iterations,)
+        ``loglik[i]``: the log-likelihood of the data under the parameters of iteration ``i``
+        (``i = 0`` the starting ones); the last entry is that of ``system``, ``transition``.
+    converged : bool
+        Whether the relative change of the log-likelihood fell below ``tol`` before
+        ``max_iter`` iterations.
+    iterations : int
+        Number of E-steps run (``loglik.size``).
+    se : Mapping of str to ndarray
+        Standard error of each estimated parameter, with the parameter's shape (``"transition"``
+        ``(L, L)``, ``"Q"`` ``(L, n, n)``, ``"R"`` ``(L, m, m)``, ...); NaN where none exists (a
+        component held at zero, a mode never visited, the regression matrices ``A``, ``B``,
+        ``C``, a singular information matrix).
+    rates : ndarray, shape (L, L), or None
+        For a continuous-time system sampled periodically, the generator of a continuous-time
+        Markov chain whose transition over one period is ``transition`` (None where no valid
+        generator exists: :func:`switchest.learn.rates_from_transition`).
+    """
+
+    system: SwitchedLinearSystem
+    transition: np.ndarray
+    loglik: np.ndarray
+    converged: bool
+    iterations: int
+    se: Mapping[str, np.ndarray]
+    rates: np.ndarray | None = None

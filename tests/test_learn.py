@@ -1,0 +1,183 @@
+"""Fitting a switched system by EM (switchest.learn.fit) on data simulated from known models.
+
+Statistical checks use fixed seeds and tolerances of 3 reported standard errors (a 3-sigma band
+for each entry); a parameter held at zero has NaN standard error and is checked to stay zero.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from switchest.estimators import IMMFilter
+from switchest.estimators._compiled import kalman_run
+from switchest.estimators.smoothing import smooth_mode_matched
+from switchest.learn import fit, rates_from_transition
+from switchest.models.catalog import catalog
+from switchest.signals import schedule
+from switchest.simulate import simulate
+from switchest.switching import MarkovAtSamples
+from switchest.system import SwitchedLinearSystem
+
+A3 = np.array([[[0.9, 0.1], [0.0, 0.8]], [[0.5, -0.3], [0.2, 0.7]], [[1.0, 0.0], [0.1, 0.6]]])
+C3 = np.array([[[1.0, 0.0]], [[1.0, 1.0]], [[0.0, 1.0]]])
+Q3 = np.array([np.diag([0.1, 0.05]), np.diag([0.3, 0.1]), np.diag([0.05, 0.2])])
+R3 = np.array([[[0.2]], [[0.5]], [[0.1]]])
+P3 = np.array([[0.9, 0.07, 0.03], [0.1, 0.8, 0.1], [0.05, 0.15, 0.8]])  # asymmetric
+
+
+def jump_system(Q=Q3, R=R3):
+    return SwitchedLinearSystem.discrete(A3, None, C3, Q, R, dt=1.0)
+
+
+def within(fitted, truth, se, k=3.0):
+    """Every entry with a standard error within ``k`` of them of the truth; the others equal."""
+    has = np.isfinite(se)
+    assert np.all(np.abs(fitted - truth)[has] <= k * se[has]), (fitted, truth, se)
+    np.testing.assert_allclose(fitted[~has], truth[~has], rtol=0, atol=1e-12)
+
+
+def test_lag_one_moments_match_the_dense_joint_gaussian():
+    rng = np.random.default_rng(0)
+    n, K = 2, 6
+    F, G, Qd = rng.normal(size=(1, n, n)) * 0.5, np.zeros((1, n, 0)), 0.3 * np.eye(n)[None]
+    C, R = rng.normal(size=(1, 1, n)), 0.5 * np.eye(1)[None]
+    y, u, trans = rng.normal(size=(1, K, 1)), np.zeros((1, K, 0)), np.zeros((1, K), np.int64)
+    out = kalman_run(y, u, F, G, Qd, trans, C, R, trans, np.zeros(n), np.eye(n))
+    s = smooth_mode_matched(out.x[:, :, None], out.P[:, :, None], np.ones((1, K, 1)), u, F, G,
+                            Qd, trans[:, :, None], np.ones((1, 1)), lagged=True)
+    cov = np.zeros((K, K, n, n))  # prior Cov(x_k, x_l) of the chain
+    cov[0, 0] = np.eye(n)
+    for k in range(1, K):
+        cov[k, k] = F[0] @ cov[k - 1, k - 1] @ F[0].T + Qd[0]
+        for j in range(k):
+            cov[k, j] = F[0] @ cov[k - 1, j]
+            cov[j, k] = cov[k, j].T
+    Sx = cov.transpose(0, 2, 1, 3).reshape(K * n, K * n)
+    H = np.kron(np.eye(K), C[0])
+    gain = Sx @ H.T @ np.linalg.inv(H @ Sx @ H.T + 0.5 * np.eye(K))
+    mean = (gain @ y[0].ravel()).reshape(K, n)
+    post = (Sx - gain @ H @ Sx).reshape(K, n, K, n)
+    for k in range(K - 1):  # compiled vs dense algebra: rounding only
+        np.testing.assert_allclose(s.lag_x[0, k, 0], mean[k], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(s.lag_P[0, k, 0], post[k, :, k], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(s.lag_cross[0, k, 0], post[k + 1, :, k], rtol=1e-9,
+                                   atol=1e-12)
+    np.testing.assert_allclose(s.pair_prob, 1.0)
+
+
+@pytest.fixture(scope="module")
+def jump_fit():
+    t = np.arange(2000.0)
+    traj = simulate(jump_system(), MarkovAtSamples(P3, initial=0), t,
+                    (np.zeros(2), np.eye(2)), rng=1)
+    start = jump_system(Q=2 * Q3, R=0.5 * R3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no warning on identifiable data
+        res = fit(start, traj.y[0], t=t, x0=np.zeros(2), P0=np.eye(2), modes=traj.mode[0],
+                  max_iter=60, tol=1e-9)
+    return traj, res
+
+
+def test_three_mode_jump_system_known_modes_within_three_standard_errors(jump_fit):
+    _, res = jump_fit
+    within(res.transition, P3, res.se["transition"])
+    within(res.system.Q, Q3, res.se["Q"])
+    within(res.system.R, R3, res.se["R"])
+
+
+def test_known_modes_log_likelihood_never_decreases(jump_fit):
+    _, res = jump_fit
+    steps = np.diff(res.loglik)
+    assert np.all(steps >= -1e-9 * np.abs(res.loglik[:-1])), steps.min()
+    assert res.loglik[-1] > res.loglik[0] + 10  # it did climb from the wrong start
+
+
+def test_imm_with_fitted_parameters_is_as_good_as_with_the_true_ones(jump_fit):
+    traj, res = jump_fit
+    test = simulate(jump_system(), MarkovAtSamples(P3, initial=0), np.arange(400.0),
+                    (np.zeros(2), np.eye(2)), trials=20, rng=7)
+
+    def sq_errors(system, transition):
+        est = IMMFilter(system, transition, np.zeros(2), np.eye(2)).run(test.y)
+        return np.sum((est.x - test.x) ** 2, axis=-1).mean(axis=1)  # per trial
+
+    diff = sq_errors(res.system, res.transition) - sq_errors(jump_system(), P3)
+    # paired trials: the mean difference within 3 of its standard error (or 2 % of the MSE)
+    assert abs(diff.mean()) <= 3 * diff.std(ddof=1) / np.sqrt(diff.size) + 1e-3
+
+
+def test_vehicle_shared_continuous_intensity_within_three_standard_errors():
+    spec = catalog()["shankar-vehicle"]
+    sys = spec.system
+    t = np.arange(0.0, 60.0, 0.5)
+    signal = schedule([10.0, 25.0, 40.0], [0, 1, 2, 0])
+    traj = simulate(sys, signal, t, (np.zeros(4), 0.01 * np.eye(4)), np.ones(1), trials=20,
+                    rng=3)
+    start = SwitchedLinearSystem.continuous(sys.A, sys.B, sys.C, 3 * sys.Q, 0.3 * sys.R)
+    res = fit(start, traj.y, np.ones(1), t, x0=np.zeros(4), P0=0.01 * np.eye(4),
+              modes=traj.mode, estimate=("Q", "R"), max_iter=80, tol=1e-8)
+    assert np.all(np.diff(res.loglik) >= -1e-9 * np.abs(res.loglik[:-1]))
+    within(res.system.Q, sys.Q, res.se["Q"])
+    within(res.system.R, sys.R, res.se["R"])
+    assert np.all(res.system.Q == res.system.Q[:1])  # the model shares Q: so does the fit
+
+
+def test_boost_converter_warns_of_its_unobservable_mode_and_fits_R():
+    spec = catalog()["shankar-boost"]
+    sys = spec.system
+    t = np.arange(0.0, 0.2, 5e-4)
+    # switches at the samples (the known-modes model); the catalog's dwell switching falls
+    # inside intervals of a converter whose dynamics are faster than the sampling
+    chain = MarkovAtSamples(np.array([[0.6, 0.4], [0.4, 0.6]]), initial=0)
+    traj = simulate(sys, chain, t, spec.initial, np.array([100.0]), trials=4, rng=5)
+    start = SwitchedLinearSystem.continuous(sys.A, sys.B, sys.C, sys.Q, 2 * sys.R)
+    with pytest.warns(RuntimeWarning, match=r"mode 0: the pair \(C, A\) is unobservable"):
+        fit(start, traj.y[:1, :50], np.array([100.0]), t[:50], x0=spec.initial[0],
+            P0=spec.initial[1], modes=traj.mode[:1, :50], estimate=("Q",), max_iter=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # Q is not estimated: no observability warning
+        res = fit(start, traj.y, np.array([100.0]), t, x0=spec.initial[0], P0=spec.initial[1],
+                  modes=traj.mode, estimate=("R",), max_iter=30, tol=1e-8)
+    within(res.system.R, sys.R, res.se["R"])
+
+
+def test_a_mode_never_visited_is_named_and_kept():
+    t = np.arange(300.0)
+    P = np.array([[0.9, 0.1, 0.0], [0.1, 0.9, 0.0], [0.5, 0.5, 0.0]])
+    traj = simulate(jump_system(), MarkovAtSamples(P, initial=0), t, (np.zeros(2), np.eye(2)),
+                    rng=2)
+    start = jump_system(Q=2 * Q3)
+    with pytest.warns(RuntimeWarning, match="mode 2 was never visited"):
+        res = fit(start, traj.y[0], t=t, x0=np.zeros(2), P0=np.eye(2), modes=traj.mode[0],
+                  max_iter=5)
+    np.testing.assert_array_equal(res.system.Q[2], start.Q[2])
+    assert np.all(np.isnan(res.se["transition"][2]))
+
+
+def test_rates_from_transition_inverts_expm():
+    from scipy.linalg import expm
+    rates = np.array([[-2.0, 1.5, 0.5], [1.0, -1.0, 0.0], [0.3, 0.7, -1.0]])
+    np.testing.assert_allclose(rates_from_transition(expm(0.1 * rates), 0.1), rates,
+                               rtol=1e-8, atol=1e-10)
+    assert rates_from_transition(np.array([[0.0, 1.0], [1.0, 0.0]]), 1.0) is None
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"estimate": "Q"}, "collection of names"),
+    ({"estimate": ("Q", "D")}, "estimate must name"),
+    ({"modes": np.full(50, 3)}, r"modes must be in 0\.\.2"),
+    ({"y": np.zeros((50, 2))}, r"y must have shape \(K, m\)"),
+])
+def test_bad_arguments_are_refused_by_name(kwargs, match):
+    args = {"y": np.zeros((50, 1)), "x0": np.zeros(2), "P0": np.eye(2), "transition": P3}
+    args.update(kwargs)
+    with pytest.raises((ValueError, TypeError), match=match):
+        fit(jump_system(), **args)
+
+
+def test_continuous_A_is_refused():
+    sys = catalog()["shankar-vehicle"].system
+    with pytest.raises(ValueError, match="'A' and 'B' can be fitted only"):
+        fit(sys, np.zeros((5, 2)), t=np.arange(5.0), x0=np.zeros(4), P0=np.eye(4),
+            modes=np.zeros(5, int), estimate=("A",))
