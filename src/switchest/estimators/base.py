@@ -22,7 +22,15 @@ from typing import Any
 
 import numpy as np
 
-from .._checks import check_finite, check_memory, check_symmetric_psd, float_array, int_array
+from .._checks import (
+    check_finite,
+    check_memory,
+    check_probability_vector,
+    check_row_stochastic,
+    check_symmetric_psd,
+    float_array,
+    int_array,
+)
 from ..system import SwitchedLinearSystem
 
 __all__ = ["Estimate", "Estimator"]
@@ -128,6 +136,19 @@ class Estimator(ABC):
         self.system = system
         self.x0 = x0
         self.P0 = check_symmetric_psd(P0, "P0")
+
+    def _set_mode_prior(self, transition, mode_prob0) -> None:
+        """Validate and keep the mode model of the multiple-model filters: ``transition``
+        ``(L, L)`` (``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows summing to 1)
+        and ``mode_prob0`` ``(L,)`` (uniform when None), with their logarithms
+        (``-inf`` for an impossible switch)."""
+        L = self.system.n_modes
+        self.transition = check_row_stochastic(transition, "transition", n=L)
+        p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
+        self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
+        with np.errstate(divide="ignore"):
+            self._log_transition = np.log(self.transition)
+            self._log_p0 = np.log(self.mode_prob0)
 
     def _prior_copies(self, shape) -> tuple[np.ndarray, np.ndarray]:
         """The prior ``x0``, ``P0`` replicated over ``shape`` (trials, or trials and modes) as

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_memory, check_probability_vector, check_row_stochastic, positive_int
+from .._checks import check_memory, positive_int
 from .._linalg import log_normalize, mixture_moments
 from ..discretize import mode_steps, sample_mode_steps
 from ._compiled import GATED, kalman_run, kalman_step, raise_for_status, warn_for_repairs
@@ -108,14 +108,8 @@ class ExactMixtureFilter(Estimator):
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None,
                  max_sequences: int = 2**16):
         self._set_prior(system, x0, P0)
-        L = system.n_modes
-        self.transition = check_row_stochastic(transition, "transition", n=L)
-        p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
-        self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
+        self._set_mode_prior(transition, mode_prob0)
         self.max_sequences = positive_int(max_sequences, "max_sequences")
-        with np.errstate(divide="ignore"):
-            self._log_transition = np.log(self.transition)
-            self._log_p0 = np.log(self.mode_prob0)
 
     # ------------------------------------------------------------------ streaming
     def init(self, batch_shape=()) -> ExactMixtureState:

@@ -26,8 +26,6 @@ import numpy as np
 
 from .._checks import (
     check_memory,
-    check_probability_vector,
-    check_row_stochastic,
     positive_scalar,
 )
 from ..discretize import mode_steps, sample_mode_steps
@@ -135,13 +133,7 @@ class ModeBankFilter(Estimator):
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None, gate: float | None = None):
         self._set_prior(system, x0, P0)
         self.gate = None if gate is None else positive_scalar(gate, "gate")
-        L = system.n_modes
-        self.transition = check_row_stochastic(transition, "transition", n=L)
-        p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
-        self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
-        with np.errstate(divide="ignore"):
-            self._log_transition = np.log(self.transition)
-            self._log_p0 = np.log(self.mode_prob0)
+        self._set_mode_prior(transition, mode_prob0)
         self._gate = math.inf if self.gate is None else self.gate
 
     # ------------------------------------------------------------------ the kernels

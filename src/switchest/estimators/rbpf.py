@@ -47,8 +47,6 @@ import numpy as np
 from .._checks import (
     as_rng,
     check_memory,
-    check_probability_vector,
-    check_row_stochastic,
     float_array,
     positive_int,
     positive_scalar,
@@ -143,10 +141,7 @@ class RBPFilter(Estimator):
                  rng=None, resample: str = "systematic", ess_threshold: float = 0.5,
                  proposal: str = "prior"):
         self._set_prior(system, x0, P0)
-        L = system.n_modes
-        self.transition = check_row_stochastic(transition, "transition", n=L)
-        p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
-        self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
+        self._set_mode_prior(transition, mode_prob0)
         self.particles = positive_int(particles, "particles")
         self.resample = _one_of(resample, "resample", tuple(RESAMPLING))
         threshold = positive_scalar(ess_threshold, "ess_threshold", allow_zero=True)
