@@ -26,6 +26,7 @@ from pathlib import Path
 import bench_engine
 import bench_imm
 import bench_imm_ev1
+import bench_learn
 import bench_mode_kalman
 import bench_multiple_model
 import bench_reproduce
@@ -50,6 +51,7 @@ BENCHMARKS = [
     ("Multiple-model filters: GPB, smoothing, particles against the exact posterior",
      bench_multiple_model),
     ("IMM-EV1 scaling", bench_imm_ev1),
+    ("Learning: EM error against the data size", bench_learn),
     ("Simulation", bench_simulate),
     ("Paper reproductions at full size", bench_reproduce),
     ("Start-up from the on-disk cache", bench_startup),

@@ -67,7 +67,8 @@ _TOP_LEVEL_HOME = {  # the module whose page documents each name ``switchest`` r
 _SECTIONS = (("class", "Classes"), ("function", "Functions"), ("exception", "Exceptions"),
              ("data", "Data"))
 
-CLI_COMMANDS = ("", "demo", "list", "run", "reproduce", "estimate", "simulate", "check", "report")
+CLI_COMMANDS = ("", "demo", "list", "run", "reproduce", "estimate", "simulate", "fit", "check",
+                "report")
 """``switchest --help`` and each command's --help, included by cli.rst."""
 
 PAPERS = {"Shankar": "shankar", "Zhang": "zhang", "Lee": "lee", "Wang": "wang",

@@ -34,11 +34,14 @@ from rich.markup import escape
 from . import __version__
 
 if TYPE_CHECKING:
+    import numpy as np
     from rich.table import Table
 
     from .certify import Check
     from .experiments import Store
+    from .learn import FitResult
     from .modelfile import ModelSpec
+    from .system import SwitchedLinearSystem
 
 DEMO_MAX_SAMPLES = 10**6
 """Most trials x samples ``switchest demo`` simulates and filters (about 0.3 GB)."""
@@ -562,6 +565,144 @@ def _cmd_check(args: argparse.Namespace, console: Console) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------- fit
+_FIT_PARAMETERS = ("transition", "A", "B", "C", "Q", "R")
+"""What ``switchest fit --estimate`` may name: :func:`switchest.learn.fit`'s ``estimate``
+names, repeated so that building the parser does not import the learner (tests/test_learn_cli.py
+holds them equal)."""
+
+
+def _fit_parameters(text: str) -> tuple[str, ...]:
+    """``--estimate``: comma-separated names among :data:`_FIT_PARAMETERS`."""
+    names = tuple(name.strip() for name in text.split(","))
+    unknown = [name for name in names if name not in _FIT_PARAMETERS]
+    if unknown:
+        raise argparse.ArgumentTypeError(
+            f"unknown parameter(s) {', '.join(repr(n) for n in unknown)}; expected "
+            f"comma-separated names among {', '.join(_FIT_PARAMETERS)}")
+    return tuple(dict.fromkeys(names))
+
+
+def _fit_table(start: SwitchedLinearSystem, start_transition: np.ndarray | None,
+               result: FitResult) -> Table:
+    """The fitted parameters beside their standard errors and starting values: every entry of
+    the transition matrix, the upper triangle of each fitted noise block (entries held at zero
+    left out), every entry of a fitted ``A``, ``B``, ``C``; a matrix the modes share once."""
+    import numpy as np
+    from rich.table import Table
+
+    table = Table(title="fitted parameters", title_justify="left", caption_justify="left",
+                  caption="± : standard error (— where none exists: a mode never visited, the "
+                          "regression matrices A, B, C); noise entries held at zero not shown")
+    table.add_column("parameter", overflow="fold")
+    for col in ("fitted", "±", "start"):
+        table.add_column(col, justify="right", overflow="fold")
+
+    def number(value, digits: str = ".6g") -> str:
+        return "—" if value is None or not np.isfinite(value) else format(value, digits)
+
+    se = result.se
+    if "transition" in se:
+        L = result.transition.shape[0]
+        for i in range(L):
+            for j in range(L):
+                table.add_row(f"transition {i}→{j}", number(result.transition[i, j]),
+                              number(se["transition"][i, j], ".2g"),
+                              number(None if start_transition is None else
+                                     start_transition[i, j]))
+    for name in ("A", "B", "C", "Q", "R"):
+        if name not in se:
+            continue
+        fitted, first = getattr(result.system, name), getattr(start, name)
+        one = fitted.shape[0] > 1 and bool(np.all(fitted == fitted[:1]))
+        for j in [0] if one else range(fitted.shape[0]):
+            where = "all modes" if one else f"mode {j}"
+            if name in "QR":
+                idx = np.flatnonzero(np.diag(first[j]) > 0)  # fit holds the others at zero
+                entries = [(a, b) for a in idx for b in idx if a <= b]
+            else:
+                entries = list(np.ndindex(fitted.shape[1:]))
+            for a, b in entries:
+                table.add_row(f"{name} {where} [{a},{b}]", number(fitted[j, a, b]),
+                              number(se[name][j, a, b], ".2g"), number(first[j, a, b]))
+    return table
+
+
+def _print_fit_warnings(caught: list, trace: np.ndarray) -> None:
+    """Print the fit's RuntimeWarnings (unvisited or unobservable modes, likelihood drops) as
+    one line each on stderr, as ``estimate`` prints its ImplausibleEstimateWarning; of the
+    drops of the log-likelihood (one warning per iteration) the first, then one line counting
+    the others from the trace. Other warnings go to :func:`warnings.showwarning`."""
+    import numpy as np
+
+    errors = Console(stderr=True, soft_wrap=True, highlight=False)
+    drops = 0
+    for warning in caught:
+        if not issubclass(warning.category, RuntimeWarning):
+            warnings.showwarning(warning.message, warning.category, warning.filename,
+                                 warning.lineno)
+        elif "log-likelihood decreased" in str(warning.message) and drops:
+            drops += 1
+        else:
+            drops += "log-likelihood decreased" in str(warning.message)
+            _say(errors, "warning", str(warning.message))
+    if drops > 1:
+        best = int(np.argmax(trace))
+        _say(errors, "warning", f"the log-likelihood decreased at {drops - 1} more iterations; "
+                                f"its largest value {trace[best]:.10g} was at iteration {best}, "
+                                f"the last is {trace[-1]:.10g} (--plot draws the trace)")
+
+
+def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
+    import numpy as np
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from .learn import fit
+    from .learn.model_files import fitted_model, read_trials, start_transition
+    from .modelfile import load_model, save_model
+
+    out = _output_file(Path(args.out), "--out", ("toml",))
+    plot = args.plot and _output_file(Path(args.plot), "--plot", ("png", "pdf", "svg"))
+    spec = load_model(args.model)
+    if spec.initial is None:
+        raise ValueError(f"{args.model}: the model file needs an [initial] table (mean, cov): "
+                         "the prior of the state at the first sample, which fit holds fixed")
+    data = read_trials(args.data, spec, args.trial)
+    start = start_transition(spec, data["t"])
+    columns = (TextColumn("EM"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("log-likelihood {task.fields[loglik]}"), TimeElapsedColumn())
+    with (_compile_notice(), warnings.catch_warnings(record=True) as caught,
+          Progress(*columns, console=console, transient=True,
+                   disable=not console.is_terminal) as bar):
+        warnings.simplefilter("always", RuntimeWarning)
+        task = bar.add_task("EM", total=args.max_iter, loglik="…")
+        result = fit(spec.system, data["y"], data["u"], data["t"], transition=start,
+                     x0=spec.initial[0], P0=spec.initial[1], modes=data["mode"],
+                     estimate=args.estimate, max_iter=args.max_iter, tol=args.tol, rng=0,
+                     progress=lambda i, loglik: bar.update(task, completed=i + 1,
+                                                           loglik=f"{loglik:.10g}"))
+    _print_fit_warnings(caught, result.loglik)
+    fitted, note = fitted_model(spec, result, args.estimate, Path(args.data))
+    save_model(fitted, out)
+    trace = result.loglik
+    modes = "known modes (mode column)" if data["mode"] is not None else "unknown modes"
+    stop = ("converged" if result.converged else
+            f"[yellow]stopped at --max-iter {args.max_iter} without converging[/yellow]")
+    runs = f"{data['trials']} trials x " if data["trials"] > 1 else ""
+    console.print(f"EM on {runs}{data['t'].size} samples, {modes}: {result.iterations} "
+                  f"iterations, {stop}; log-likelihood {trace[0]:.10g} → {trace[-1]:.10g}")
+    console.print(_fit_table(spec.system, start, result))
+    console.print(f"switching model: {escape(note)}")
+    console.print(f"fitted model: [bold]{escape(str(out))}[/bold]")
+    if plot is not None:
+        from .plotting import curves
+
+        curves(plot, np.arange(trace.size), {"log-likelihood": trace}, xlabel="EM iteration",
+               ylabel="log-likelihood", title=f"{Path(args.model).name}: EM, {modes}")
+        console.print(f"figure: {escape(str(plot))}")
+    return 0
+
+
 # ---------------------------------------------------------------------- the parser and main
 def _parser() -> _Parser:
     parser = _Parser(prog="switchest", description="Estimation in switched linear systems.")
@@ -656,6 +797,24 @@ def _parser() -> _Parser:
                        help="constant input, comma-separated (default: zero)")
     p_sim.add_argument("--seed", type=_seed, default=0)
     p_sim.add_argument("--out", required=True, help="CSV of t, u, y, mode and the true x")
+    p_fit = command("fit", _cmd_fit,
+                    help="fit the transition matrix and noises of a model file to data (EM)")
+    p_fit.add_argument("--model", required=True, type=_existing_file,
+                       help="TOML model file: the starting point, and its [initial] prior")
+    p_fit.add_argument("--data", required=True, type=_existing_file,
+                       help="measurement CSV (as for estimate); with a mode column the modes "
+                            "are known (exact EM), otherwise estimated (approximate E-step)")
+    p_fit.add_argument("--estimate", type=_fit_parameters, default=("transition", "Q", "R"),
+                       help="what to fit, comma-separated among transition, A, B (discrete "
+                            "time), C, Q, R (default: transition,Q,R)")
+    p_fit.add_argument("--max-iter", type=_positive, default=200, help="most EM iterations")
+    p_fit.add_argument("--tol", type=_window, default=1e-6,
+                       help="stop when the log-likelihood changes by at most this fraction")
+    p_fit.add_argument("--trial", type=_seed, default=None,
+                       help="fit one trial of a CSV with a trial column (default: all at once)")
+    p_fit.add_argument("--out", required=True, help="fitted TOML model file")
+    p_fit.add_argument("--plot", default=None,
+                       help="figure of the log-likelihood trace (.png, .pdf, .svg)")
     p_check = command("check", _cmd_check, help="certify what switchest can about a model file")
     p_check.add_argument("--model", required=True, type=_existing_file, help="TOML model file")
     p_report = command("report", _cmd_report, help="write the HTML report of a results store")
