@@ -200,7 +200,7 @@ def test_the_filters_match_the_oracle_at_irregular_times_of_a_continuous_system(
     transition = np.array([[0.8, 0.15, 0.05], [0.1, 0.7, 0.2], [0.3, 0.0, 0.7]])
     x0, P0, mu0 = np.ones(3), 2.0 * np.eye(3), np.array([0.5, 0.2, 0.3])
     est = cls(system, transition, x0, P0, mode_prob0=mu0)
-    out, modes = est.run(y, u, t), est._run_modes(y, u, t)
+    out, modes = est.run(y, u, t), est.run_modes(y, u, t)
     # the table, built here independently: one entry per mode and step, in order of the steps
     K, L = t.size, 3
     steps = np.diff(t)
@@ -261,7 +261,7 @@ def test_with_the_identity_transition_gpb2_and_the_imm_are_the_static_bank():
     t, y, u = record(rng, system)
     x0, P0, mu0 = np.ones(3), np.eye(3), np.array([0.5, 0.2, 0.3])
     x_ref, P_ref, mu_ref = static_bank(system, y, u, t, x0, P0, mu0)
-    modes = GPB2Filter(system, np.eye(3), x0, P0, mode_prob0=mu0)._run_modes(y, u, t)
+    modes = GPB2Filter(system, np.eye(3), x0, P0, mode_prob0=mu0).run_modes(y, u, t)
     with np.errstate(divide="ignore"):
         log_identity = np.log(np.eye(3))
     imm = imm_run(y, u, modes.F, modes.G, modes.Qd, modes.trans, system.C, system.R,
@@ -282,7 +282,7 @@ def test_with_the_identity_transition_gpb1_is_not_the_static_bank():
     system = continuous_system(rng)
     t, y, u = record(rng, system, N=2)
     x0, P0, mu0 = np.ones(3), np.eye(3), np.array([0.5, 0.2, 0.3])
-    modes = GPB1Filter(system, np.eye(3), x0, P0, mode_prob0=mu0)._run_modes(y, u, t)
+    modes = GPB1Filter(system, np.eye(3), x0, P0, mode_prob0=mu0).run_modes(y, u, t)
     x_ref, _, mu_ref = static_bank(system, y, u, t, x0, P0, mu0)
     assert_close(modes.x_modes[:, 0], x_ref[:, 0])  # the first sample: both update the prior
     assert_close(modes.mode_prob[:, 0], mu_ref[:, 0])
@@ -337,7 +337,7 @@ def test_a_long_run_keeps_probabilities_normalized_and_covariances_symmetric_psd
     K = 5000
     y = rng.standard_normal((2, K, 1))
     y[0, 2500] = 1e300  # an outlier mid-run: its likelihood overflows, the sample is dropped
-    modes = cls(system, [[0.99, 0.01], [0.02, 0.98]], np.zeros(2), np.eye(2))._run_modes(y)
+    modes = cls(system, [[0.99, 0.01], [0.02, 0.98]], np.zeros(2), np.eye(2)).run_modes(y)
     est = modes.estimate
     assert np.all(np.isfinite(est.x)) and est.outlier[0, 2500]
     np.testing.assert_allclose(est.mode_prob.sum(axis=-1), 1.0, rtol=0, atol=1e-12)

@@ -31,7 +31,7 @@ from .._checks import (
 from ..discretize import mode_steps, sample_mode_steps
 from ._compiled import GATED, IMMOutput, raise_for_status, warn_for_repairs
 from .base import Estimate, Estimator
-from .smoothing import smooth_mode_matched
+from .smoothing import smooth_filtered
 
 __all__ = ["IMMState", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"]
 
@@ -199,7 +199,7 @@ class ModeBankFilter(Estimator):
         return self._unflatten(self._estimate(self._kernel_run(y2, u2, F, G, Qd, trans, False)),
                                batch)
 
-    def _run_modes(self, y, u=None, t=None) -> ModeMatchedRun:
+    def run_modes(self, y, u=None, t=None) -> ModeMatchedRun:
         """:meth:`run`, also returning the mode-matched Gaussians after each sample's update,
         the prepared inputs and the transition table (:class:`ModeMatchedRun`, batch axes
         flattened): what a smoother over the modes needs."""
@@ -236,9 +236,9 @@ class ModeBankFilter(Estimator):
         smoother is not exact; :class:`~switchest.estimators.ExactMixtureFilter` is, for short
         records.
         """
-        fwd = self._run_modes(y, u, t)
-        s = smooth_mode_matched(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
-                                fwd.Qd, fwd.trans, fwd.transition)
+        fwd = self.run_modes(y, u, t)
+        s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
+                            fwd.Qd, fwd.trans, fwd.transition)
         _warn_if_diverged(fwd.estimate, s)
         return self._unflatten(Estimate(x=s.x, P=s.P, mode_prob=s.mode_prob, mode=s.mode),
                                fwd.batch)

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import (
+    _SYM_RTOL,
     check_bool,
     check_finite,
     check_row_stochastic,
@@ -33,9 +34,12 @@ from .._checks import (
     int_array,
 )
 from ._compiled import raise_for_status, warn_for_repairs
-from ._compiled.smoother import kim_smooth
+from ._compiled.smoother import kim_smooth, screen_psd
 
-__all__ = ["SmoothedModes", "smooth_mode_matched"]
+__all__ = ["SmoothedModes", "smooth_filtered", "smooth_mode_matched"]
+
+_PSD_RTOL = 1e-12  # check_symmetric_psd's tolerance: smallest eigenvalue >= -1e-12 max |P|
+_SCREENED = 32  # states up to which a Cholesky factorization screens covariances (_covariances)
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,18 +133,32 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
     if K == 0 or L == 0 or n == 0 or 0 in batch:
         raise ValueError(f"x_modes must hold at least one trial, sample, mode and state, got "
                          f"shape {x_modes.shape}")
-    P_modes = check_symmetric_psd(P_modes, "P_modes")
+    P_modes = _covariances(P_modes, "P_modes")
     mode_prob = _probabilities(mode_prob, (*batch, K, L))
     transition = check_row_stochastic(transition, "transition", n=L)
     F, G, Qd = _table(F, G, Qd, n)
     u = _inputs(u, batch, K, G.shape[2])
     trans = _transitions(trans, batch, K, L, F.shape[0])
     N = math.prod(batch)
+    out = smooth_filtered(x_modes.reshape(N, K, L, n), P_modes.reshape(N, K, L, n, n),
+                          mode_prob.reshape(N, K, L), u, F, G, Qd, trans, transition,
+                          lagged=check_bool(lagged, "lagged"))
+    return SmoothedModes(*(None if a is None else a.reshape(*batch, *a.shape[1:])
+                           for a in (getattr(out, f) for f in SmoothedModes.__dataclass_fields__)))
+
+
+def smooth_filtered(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transition, *,
+                    lagged: bool = False) -> SmoothedModes:
+    """:func:`smooth_mode_matched` of arrays a filter of switchest produced and checked, with
+    one batch axis: ``(N, K, L, n)``, ``(N, K, L, n, n)``, ``(N, K, L)``, ``u (N, K, l)``,
+    ``trans (N or 1, K, L)`` (or ``(K, L)``); no argument is validated again (the smoother of
+    :meth:`~switchest.estimators.mode_bank.ModeBankFilter.smooth` calls it on its own forward
+    pass). Raises and warns as :func:`smooth_mode_matched`."""
     with np.errstate(divide="ignore"):
         log_prob, log_transition = np.log(mode_prob), np.log(transition)
-    out = kim_smooth(x_modes.reshape(N, K, L, n), P_modes.reshape(N, K, L, n, n),
-                     log_prob.reshape(N, K, L), u, F, G, Qd, trans, log_transition,
-                     lagged=check_bool(lagged, "lagged"))
+    trans = trans[None] if trans.ndim == 2 else trans
+    out = kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition,
+                     lagged=lagged)
     try:
         raise_for_status(out.status)
     except np.linalg.LinAlgError as err:
@@ -151,13 +169,39 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
     fields = (out.x, out.P, out.mode_prob, out.mode, out.x_modes, out.P_modes)
     if lagged:
         fields += (out.pair_prob, out.lag_x, out.lag_P, out.lag_cross)
-    return SmoothedModes(*(a.reshape(*batch, *a.shape[1:]) for a in fields))
+    return SmoothedModes(*fields)
 
 
 def _finite(value, name: str) -> np.ndarray:
     arr = float_array(value, name)
     check_finite(arr, name)
     return arr
+
+
+def _covariances(P: np.ndarray, name: str) -> np.ndarray:
+    """:func:`switchest._checks.check_symmetric_psd` of a finite stack ``P (..., n, n)``: the
+    same verdict, message and symmetrized result, with eigenvalues only where needed.
+
+    The matrices whose factorization with half the tolerance added to their diagonal succeeds
+    (:func:`~switchest.estimators._compiled.smoother.screen_psd`) have their smallest
+    eigenvalue above ``-(1/2 + n (n + 1) u / 1e-12) 1e-12 max |P|``, within the tolerance for
+    ``n <= 32`` (``u`` the unit roundoff): only the others have their eigenvalues computed.
+    """
+    n = P.shape[-1]
+    if n > _SCREENED:
+        return check_symmetric_psd(P, name)
+    flat = np.ascontiguousarray(P).reshape(-1, n, n)
+    sym, failed = np.empty_like(flat), np.empty(flat.shape[0], dtype=np.bool_)
+    scale, asym = screen_psd(flat, 0.5 * _PSD_RTOL, sym, failed)
+    if asym > _SYM_RTOL * scale:
+        raise ValueError(f"{name} must be symmetric positive semidefinite, got asymmetry "
+                         f"{asym:.3g}")
+    if failed.any():
+        lowest = float(np.linalg.eigvalsh(sym[failed]).min())
+        if lowest < -_PSD_RTOL * scale:
+            raise ValueError(f"{name} must be symmetric positive semidefinite, got eigenvalue "
+                             f"{lowest:.3g}")
+    return sym.reshape(P.shape)
 
 
 def _probabilities(value, shape) -> np.ndarray:

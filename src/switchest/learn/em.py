@@ -27,7 +27,7 @@ from ..discretize import sample_mode_steps
 from ..system import SwitchedLinearSystem
 from .data import Record, record
 from .dynamics_step import fit_AB, fit_C
-from .expectation import expectation, log_likelihood
+from .expectation import MAX_SEQUENCES, expectation, log_likelihood
 from .markov_step import fit_transition, rates_from_transition, transition_se
 from .noise_step import fit_Q, fit_R, shared
 from .result import FitResult
@@ -40,7 +40,7 @@ _PARAMETERS = ("transition", "A", "B", "C", "Q", "R")
 
 def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0, P0,
         modes=None, estimate: Iterable[str] = ("transition", "Q", "R"), max_iter: int = 200,
-        tol: float = 1e-6, rng=None,
+        tol: float = 1e-6, rng=None, e_step: str = "kim",
         progress: Callable[[int, float], object] | None = None) -> FitResult:
     """Fit the transition matrix and the noise covariances (and optionally ``A``, ``B``, ``C``)
     of a switched linear system to measurements, by expectation-maximization.
@@ -69,8 +69,9 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         The known mode at each sample (mode ``r_k`` drives the interval into ``k + 1`` and the
         measurement at ``k``, as ``switchest.simulate`` draws them). With them the E-step is
         exact and the log-likelihood never decreases; without them the GPB2 filter and Kim's
-        smoother give an approximate E-step (mode ``r_{k+1}`` drives the interval into
-        ``k + 1``, the convention of the IMM and GPB filters).
+        smoother give an approximate E-step, or enumeration an exact one (``e_step``); mode
+        ``r_{k+1}`` drives the interval into ``k + 1``, the convention of the IMM and GPB
+        filters, and the first mode has the uniform prior.
     estimate : iterable of str
         What to fit, among ``"transition"``, ``"Q"``, ``"R"``, ``"C"`` and, for a
         discrete-time system, ``"A"``, ``"B"``.
@@ -81,6 +82,15 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     rng : numpy.random.Generator, int or None
         Draws the starting transition matrix when none is given with unknown modes (unused
         otherwise).
+    e_step : {"kim", "exact"}
+        The E-step of unknown modes (with known modes it is exact whatever this says):
+        ``"kim"``, the GPB2 filter and Kim's smoother (approximate, any record length);
+        ``"exact"``, the enumeration of all ``L^K`` mode sequences of each trial (the Kalman
+        filter and RTS smoother of each, weighted by its posterior probability): the exact
+        E-step, so the exact log-likelihood (that of
+        :class:`~switchest.estimators.ExactMixtureFilter`, which ``loglik`` then reports)
+        never decreases; for short records only (``L^K`` up to
+        :data:`~switchest.learn.expectation.MAX_SEQUENCES` = 65536, refused beyond).
     progress : callable, optional
         Called as ``progress(iteration, loglik)`` after each E-step.
 
@@ -95,8 +105,9 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         is below one sample (unknown modes), whose parameters keep their starting values; a mode
         whose pair ``(C, A)`` is unobservable, whose ``Q`` is not identifiable from ``y``. Also
         when the log-likelihood decreases from one iteration to the next (naming the
-        iteration and the drop): with unknown modes the E-step is approximate (the exact
-        posterior is a mixture of ``L^K`` Gaussians), so EM's monotonicity is not guaranteed.
+        iteration and the drop): with unknown modes Kim's E-step is approximate (the exact
+        posterior is a mixture of ``L^K`` Gaussians), so EM's monotonicity is not guaranteed
+        (``e_step="exact"`` restores it on short records).
 
     Notes
     -----
@@ -118,6 +129,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     max_iter = positive_int(max_iter, "max_iter")
     tol = positive_scalar(tol, "tol")
     L = system.n_modes
+    exact = _exact(e_step, data, L)
     transition = _start_transition(transition, data, L, rng)
     _warn_unobservable(system, wanted)
     steps = np.unique(np.diff(data.t))
@@ -126,18 +138,18 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     converged = False
     visits = np.zeros(L)
     for it in range(max_iter):
-        mom = expectation(system, transition, x0, P0, data)
+        mom = expectation(system, transition, x0, P0, data, exact=exact)
         trace.append(mom.loglik)
         if progress is not None:
             progress(it, mom.loglik)
-        if it and _stalled(trace, tol, it):
+        if it and _stalled(trace, tol, it, approximate=data.modes is None and not exact):
             converged = True
             break
         if it == max_iter - 1:
             break
         system, transition, visits = _maximize(system, transition, data, steps, mom, wanted,
                                                warned)
-    se = _standard_errors(system, transition, x0, P0, data, wanted, mom)
+    se = _standard_errors(system, transition, x0, P0, data, wanted, mom, exact)
     period = np.diff(data.t)
     rates = (rates_from_transition(transition, float(period[0]))
              if system.is_continuous and np.ptp(period) <= 1e-9 * period.max() else None)
@@ -160,6 +172,17 @@ def _estimate(estimate, system: SwitchedLinearSystem) -> tuple[str, ...]:
     if "B" in wanted and system.n_inputs == 0:
         raise ValueError("estimate: 'B' given but the system has no input")
     return wanted
+
+
+def _exact(e_step, data: Record, L: int) -> bool:
+    """Whether the E-step of unknown modes enumerates the mode sequences (``e_step``)."""
+    if e_step not in ("kim", "exact"):
+        raise ValueError(f"e_step must be 'kim' or 'exact', got {e_step!r}")
+    K = data.shape[1]
+    if e_step == "exact" and data.modes is None and L**K > MAX_SEQUENCES:
+        raise ValueError(f"e_step='exact' enumerates L^K = {L}^{K} mode sequences per trial, "
+                         f"more than {MAX_SEQUENCES}; use e_step='kim' or shorter records")
+    return e_step == "exact"
 
 
 def _start_transition(transition, data: Record, L: int, rng) -> np.ndarray:
@@ -190,15 +213,19 @@ def _warn_unobservable(system: SwitchedLinearSystem, wanted) -> None:
                       RuntimeWarning, stacklevel=3)
 
 
-def _stalled(trace: list[float], tol: float, it: int) -> bool:
-    """Convergence test; warns where the log-likelihood decreased."""
+def _stalled(trace: list[float], tol: float, it: int, *, approximate: bool) -> bool:
+    """Convergence test; warns where the log-likelihood decreased (with an ``approximate``
+    E-step, Kim's, that is possible; with an exact one it is a numerical loss of digits or a
+    partial M-step, e.g. ``C`` with partly missing samples)."""
     new, old = trace[-1], trace[-2]
     drop = old - new
     if drop > 1e-9 * max(1.0, abs(old)):
+        why = ("with unknown modes Kim's E-step is approximate and monotonicity is not "
+               "guaranteed (e_step='exact' is, on short records)" if approximate else
+               "the E-step is exact, so an M-step did not maximize (e.g. C with partly "
+               "missing samples) or digits were lost")
         warnings.warn(f"EM iteration {it}: the log-likelihood decreased by {drop:.6g} (from "
-                      f"{old:.10g} to {new:.10g}); with unknown modes the E-step is "
-                      "approximate and monotonicity is not guaranteed", RuntimeWarning,
-                      stacklevel=3)
+                      f"{old:.10g} to {new:.10g}); {why}", RuntimeWarning, stacklevel=3)
     return abs(new - old) <= tol * max(abs(old), 1e-300)
 
 
@@ -241,14 +268,15 @@ def _rebuild(system, A, B, C, Q, R) -> SwitchedLinearSystem:
     return SwitchedLinearSystem.discrete(A, B, C, Q, R, dt=system.dt)
 
 
-def _standard_errors(system, transition, x0, P0, data, wanted, mom) -> dict[str, np.ndarray]:
+def _standard_errors(system, transition, x0, P0, data, wanted, mom, exact
+                     ) -> dict[str, np.ndarray]:
     se = {}
     if "transition" in wanted:
         se["transition"] = transition_se(transition, mom.pairs.sum(axis=1))
     noise = [name for name in ("Q", "R") if name in wanted]
     if noise:
         se.update(noise_standard_errors(
-            system, noise, lambda s: log_likelihood(s, transition, x0, P0, data)))
+            system, noise, lambda s: log_likelihood(s, transition, x0, P0, data, exact=exact)))
     for name in ("A", "B", "C"):
         if name in wanted:
             se[name] = np.full(getattr(system, name).shape, np.nan)

@@ -55,6 +55,8 @@ __all__ = [
     "residual",
     "innovation",
     "innovation_mean",
+    "factor",
+    "solve_rows",
     "correct",
     "correct_mean",
     "joseph_lost",
@@ -314,11 +316,7 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
                         PCt[i, a, b] += P[i, j, b] * C[a, j, b]
                 for b in range(nb):
                     PCt[i, a, b] *= obs[a, b]
-        finite, positive = True, True
-        for b in range(nb):
-            log_det[b] = 0.0
-            det[b] = 1.0
-        for a in range(m):  # S, lower triangle, into chol; then its diagonal D
+        for a in range(m):  # S, lower triangle, into chol
             for c in range(a + 1):
                 for b in range(nb):
                     chol[a, c, b] = R[a, c, b] * obs[c, b]
@@ -328,35 +326,14 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
                 unit = 1.0 if a == c else 0.0
                 for b in range(nb):
                     chol[a, c, b] = chol[a, c, b] * obs[a, b] + unit * (1.0 - obs[a, b])
+        for b in range(nb):
+            log_det[b] = 0.0
+        for a in range(m):  # log det D, before the factorization overwrites the diagonal
             for b in range(nb):
-                d = chol[a, a, b]
-                finite &= math.isfinite(d)
-                positive &= d > 0.0
-                scale[a, b] = 1.0 / math.sqrt(d)
-                log_det[b] += math.log(d)
+                log_det[b] += math.log(chol[a, a, b])
+        finite, positive = factor(chol, scale, nb, det, pivot)
         if not finite:
             return NOT_FINITE
-        for a in range(m):  # D^-1/2 S D^-1/2: |S_ac| <= sqrt(S_aa S_cc), so nothing overflows
-            for c in range(a + 1):
-                for b in range(nb):
-                    chol[a, c, b] = chol[a, c, b] * scale[a, b] * scale[c, b]
-        for j in range(m):  # Cholesky, column by column
-            for b in range(nb):
-                pivot[b] = chol[j, j, b]
-            for p in range(j):
-                for b in range(nb):
-                    pivot[b] -= chol[j, p, b] * chol[j, p, b]
-            for b in range(nb):
-                positive &= pivot[b] > 0.0
-                root = math.sqrt(pivot[b])
-                chol[j, j, b] = root
-                det[b] *= pivot[b]
-            for i in range(j + 1, m):
-                for p in range(j):
-                    for b in range(nb):
-                        chol[i, j, b] -= chol[i, p, b] * chol[j, p, b]
-                for b in range(nb):
-                    chol[i, j, b] /= chol[j, j, b]
         whiten(e, chol, scale, nb, z, nis)
         for b in range(nb):
             loglik[b] = -0.5 * (nis[b] + log_det[b] + math.log(det[b]) + n_obs[b] * _LOG_2PI)
@@ -372,6 +349,60 @@ def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, logli
             if bad[b] and not repair(P, b, False, report):
                 return NOT_POSITIVE_DEFINITE
         repaired = True
+
+
+@inline
+def factor(chol, scale, nb, det, pivot):
+    """Equilibrated Cholesky factorization, in place, of each lane's symmetric ``S (m, m)``
+    held in the lower triangle of ``chol (m, m, B)`` (the factorization of :func:`innovation`).
+
+    ``S`` is equilibrated by its diagonal ``D``, ``D^-1/2 S D^-1/2 = L L'`` (Golub & Van Loan,
+    "Matrix Computations", 4th ed., Algorithm 4.2.2, column by column), so entries of 1e300 or
+    1e-300 neither overflow nor underflow (``|S_ac| <= sqrt(S_aa S_cc)``). Written: ``L`` in
+    the lower triangle of ``chol`` (the upper one is not read), ``scale = D^-1/2 (m, B)`` and
+    ``det (B,) = prod L_aa^2``, in ``(0, 1]`` for a positive definite ``S`` and NaN or 0 where a
+    lane's factorization failed; ``pivot (B,)`` is scratch.
+
+    Returns
+    -------
+    finite, positive : bool
+        Whether every lane's diagonal of ``S`` is finite (if not, nothing else is done), and
+        whether every lane's ``S`` is positive definite (its diagonal and pivots positive).
+    """
+    m = chol.shape[0]
+    finite, positive = True, True
+    for a in range(m):
+        for b in range(nb):
+            d = chol[a, a, b]
+            finite &= math.isfinite(d)
+            positive &= d > 0.0
+            scale[a, b] = 1.0 / math.sqrt(d)
+    if not finite:
+        return finite, positive
+    for b in range(nb):
+        det[b] = 1.0
+    for a in range(m):  # D^-1/2 S D^-1/2: |S_ac| <= sqrt(S_aa S_cc), so nothing overflows
+        for c in range(a + 1):
+            for b in range(nb):
+                chol[a, c, b] = chol[a, c, b] * scale[a, b] * scale[c, b]
+    for j in range(m):  # Cholesky, column by column
+        for b in range(nb):
+            pivot[b] = chol[j, j, b]
+        for p in range(j):
+            for b in range(nb):
+                pivot[b] -= chol[j, p, b] * chol[j, p, b]
+        for b in range(nb):
+            positive &= pivot[b] > 0.0
+            root = math.sqrt(pivot[b])
+            chol[j, j, b] = root
+            det[b] *= pivot[b]
+        for i in range(j + 1, m):
+            for p in range(j):
+                for b in range(nb):
+                    chol[i, j, b] -= chol[i, p, b] * chol[j, p, b]
+            for b in range(nb):
+                chol[i, j, b] /= chol[j, j, b]
+    return finite, positive
 
 
 @jit
@@ -407,6 +438,38 @@ def _solve(chol, scale, v, nb):
         for b in range(nb):
             v[a, b] /= chol[a, a, b]
     back_substitute(chol, scale, v, nb)
+
+
+@jit
+def solve_rows(chol, scale, V, nb, inv):
+    """``V[r] <- S^-1 V[r]`` per lane for every row ``r`` of ``V (q, m, B)``, with
+    ``S = D^1/2 L L' D^1/2`` as :func:`factor` left it: forward and back substitution (Golub &
+    Van Loan, "Matrix Computations", 4th ed., §3.1) as :func:`_solve`'s, multiplying by the
+    reciprocals of ``L``'s diagonal, ``inv (m, B)`` (written), taken once for all ``q`` rows
+    (a division costs several multiplications)."""
+    q, m = V.shape[0], V.shape[1]
+    for a in range(m):
+        for b in range(nb):
+            inv[a, b] = 1.0 / chol[a, a, b]
+    for r in range(q):
+        v = V[r]
+        for a in range(m):  # forward: L w = D^-1/2 v
+            for b in range(nb):
+                v[a, b] *= scale[a, b]
+            for c in range(a):
+                for b in range(nb):
+                    v[a, b] -= chol[a, c, b] * v[c, b]
+            for b in range(nb):
+                v[a, b] *= inv[a, b]
+        for a in range(m - 1, -1, -1):  # back: D^-1/2 L'^-1 w
+            for c in range(a + 1, m):
+                for b in range(nb):
+                    v[a, b] -= chol[c, a, b] * v[c, b]
+            for b in range(nb):
+                v[a, b] *= inv[a, b]
+        for a in range(m):
+            for b in range(nb):
+                v[a, b] *= scale[a, b]
 
 
 @jit

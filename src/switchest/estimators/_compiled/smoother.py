@@ -31,7 +31,16 @@ the lag-one cross-covariance ``Cov(x_{k+1}, x_k | r_{k+1} = i, Y) = P_i(k+1|K) J
 covariance of the pairs' means is accumulated by West's incremental rule (West 1979, Comm. ACM
 22) so that no second moment is differenced.
 
-One RTS step is a Kalman update of ``x_j(k|k)`` by the pseudo-measurement
+Each pair's RTS step is taken in its direct form (:func:`rts_direct`): ``P_pred`` from the
+filters' prediction, its equilibrated Cholesky factor (:func:`.linalg.factor`), the rows of ``J``
+by triangular solves (:func:`.linalg.solve_rows`), ``x_ji = x_j + J e`` and
+``P_ji = P_j + J (P_i(k+1|K) - P_pred) J'`` (its upper triangle, mirrored): about half the loops
+of the form below. The lanes that form cannot take, a ``P_pred`` that does not factor or a
+``P_ji`` that lost its digits (:func:`.linalg.joseph_lost` against ``P_j``), are redone by
+:func:`rts_step`, the form below, so degenerate cases are handled as they always were. A pair
+of weight zero in every lane of a block is not computed.
+
+That form (:func:`rts_step`) is a Kalman update of ``x_j(k|k)`` by the pseudo-measurement
 ``x_{k+1} = F_i x_k + G_i u_k + w``, ``w ~ N(0, Qd_i)``: conditioned on ``x_{k+1}`` the state
 is Gaussian with mean ``x_j + J (x_{k+1} - x_pred)`` and covariance
 ``P_j - J P_pred J' = (I - J F_i) P_j (I - J F_i)' + J Qd_i J'`` (Joseph's form), and averaging
@@ -67,11 +76,13 @@ import numpy as np
 
 from ..._checks import positive_int
 from .arrays import checked
-from .bank import LANES, lane_index
+from .bank import lane_index
 from .linalg import (
+    NOT_FINITE,
     OK,
     combine,
     correct,
+    factor,
     gather_matrices,
     gather_modes,
     gather_rows,
@@ -84,11 +95,16 @@ from .linalg import (
     predict,
     scatter_modes,
     scatter_rows,
+    solve_rows,
     symmetric_sum,
     write_lane,
 )
 
-__all__ = ["KimOutput", "kim_smooth"]
+__all__ = ["KimOutput", "kim_smooth", "screen_psd", "LANES"]
+
+LANES = 64  # trials per block: the backward pass runs ~500 short loops over the lanes per pair,
+# each with a fixed cost (alias checks, remainders); at 16 lanes (the filters' block) that cost
+# doubled its time on the vehicle (n = 4, L = 3), at 64 and 128 it is amortized
 
 
 class KimOutput(NamedTuple):
@@ -209,15 +225,16 @@ def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes
     log_w, w = np.empty((L, B)), np.empty((L, B))
     total, best, idx = np.empty(B), np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64)
     xc, Pc, ul = np.empty((n, B)), np.empty((n, n, B)), np.empty((n_in, B))
-    Fl, Gl, Ql = np.empty((n, n, B)), np.empty((n, n_in, B)), np.empty((n, n, B))
+    Fl, Gl, Ql = np.empty((L, n, n, B)), np.empty((L, n, n_in, B)), np.empty((L, n, n, B))
     eye, zero = np.zeros((n, n, B)), np.zeros((n, n, B))  # C = I, R = 0: S = P_pred
     for r in range(n):
         for b in range(B):
             eye[r, r, b] = 1.0
     obs, n_obs = np.ones((n, B)), np.full(B, float(n))
-    use = np.ones(B, dtype=np.bool_)
-    scratch = rts_scratch(n, B)
-    gain = scratch[13]  # J of the last rts_step
+    use, redo = np.ones(B, dtype=np.bool_), np.zeros(B, dtype=np.bool_)
+    scratch, direct = rts_scratch(n, B), direct_scratch(n, B)
+    gain = np.empty((n, n, B))  # J of the last pair
+    x_redo, P_redo = np.empty((n, B)), np.empty((n, n, B))
     # per mode i at k + 1: weight, mean, scatter of the pairs' x_ji, mean P_ji and mean gain
     acc_w, acc_x = np.empty((L, B)), np.empty((L, n, B))
     acc_M, acc_P, acc_J = np.empty((L, n, n, B)), np.empty((L, n, n, B)), np.empty((L, n, n, B))
@@ -246,21 +263,33 @@ def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes
                 acc_M[:] = 0.0
                 acc_P[:] = 0.0
                 acc_J[:] = 0.0
+            for i in range(L):  # mode i's transition into k + 1, shared by the pairs (., i)
+                lane_index(trans, i0, nb, k + 1, i, idx)
+                gather_matrices(F, idx, nb, Fl[i])
+                gather_matrices(G, idx, nb, Gl[i])
+                gather_matrices(Qd, idx, nb, Ql[i])
             for j in range(L):
                 for i in range(L):
-                    lane_index(trans, i0, nb, k + 1, i, idx)
-                    gather_matrices(F, idx, nb, Fl)
-                    gather_matrices(G, idx, nb, Gl)
-                    gather_matrices(Qd, idx, nb, Ql)
-                    status = rts_step(xf[j], Pf[j], xn[i], Pn[i], Fl, Gl, ul, Ql, eye, zero,
-                                      obs, n_obs, use, nb, x_pair[i], P_pair[i], report, scratch)
+                    for b in range(nb):  # log mu_ji(k|K) = log mu_i(k+1|K) + back[i, j]
+                        log_w[i, b] = lpn[i, b] + back[i, j, b]
+                    if _impossible(lpn[i], back[i, j], nb):  # weight 0 in every lane
+                        _copy_pair(xf[j], Pf[j], nb, x_pair[i], P_pair[i], gain)
+                        continue
+                    status = rts_direct(xf[j], Pf[j], xn[i], Pn[i], Fl[i], Gl[i], ul, Ql[i],
+                                        use, nb, x_pair[i], P_pair[i], gain, redo, direct)
                     if status != OK:
                         return status
+                    if _any(redo, nb):  # the lanes the direct form cannot take: Joseph's form
+                        status = rts_step(xf[j], Pf[j], xn[i], Pn[i], Fl[i], Gl[i], ul, Ql[i],
+                                          eye, zero, obs, n_obs, redo, nb, x_redo, P_redo,
+                                          report, scratch)
+                        if status != OK:
+                            return status
+                        _take_lanes(x_redo, P_redo, scratch[13], redo, nb, x_pair[i],
+                                    P_pair[i], gain)
                     if lagged:
                         _accumulate(x_pair[i], P_pair[i], gain, back[i, j], nb, acc_w[i],
                                     acc_x[i], acc_M[i], acc_P[i], acc_J[i], delta)
-                    for b in range(nb):  # log mu_ji(k|K) = log mu_i(k+1|K) + back[i, j]
-                        log_w[i, b] = lpn[i, b] + back[i, j, b]
                 log_normalize(log_w, w, total, nb)  # total: log mu_j(k|K)
                 combine(x_pair, P_pair, w, log_w, nb, xk[j], Pk[j], best)
                 for b in range(nb):
@@ -342,6 +371,131 @@ def rts_step(xj, Pj, x_next, P_next, F, G, u, Qd, eye, zero, obs, n_obs, use, nb
 
 
 @jit
+def direct_scratch(n, B):
+    """The work arrays of :func:`rts_direct` for ``n`` states and ``B`` lanes, in its order:
+    ``x_pred, P_pred, F P, e, chol, scale, work (2, B), D, T, root, lost``."""
+    return (np.empty((n, B)), np.empty((n, n, B)), np.empty((n, n, B)), np.empty((n, B)),
+            np.zeros((n, n, B)), np.empty((n, B)), np.empty((2, B)), np.empty((n, n, B)),
+            np.empty((n, n, B)), np.empty((n, B)), np.zeros(B, dtype=np.bool_))
+
+
+@jit
+def rts_direct(xj, Pj, x_next, P_next, F, G, u, Qd, use, nb, x, P, gain, redo, scratch):
+    """One RTS step per lane in its direct form, into ``x``, ``P`` and ``gain = J``: mode
+    ``j``'s filtered ``xj``, ``Pj`` at ``k`` smoothed through the transition ``F``, ``G``,
+    ``Qd`` (with input ``u``) towards the smoothed ``x_next``, ``P_next`` at ``k + 1``
+    (Rauch, Tung & Striebel 1965; Särkkä 2013, Theorem 8.2):
+    ``J = P_j F' P_pred^-1``, ``x = x_j + J (x_next - x_pred)``,
+    ``P = P_j + J (P_next - P_pred) J'``.
+
+    ``x_pred``, ``P_pred`` and ``F P_j`` come from :func:`.linalg.predict`; ``P_pred`` is
+    factored as the filters factor an innovation covariance (:func:`.linalg.factor`) and each
+    row of ``J``, ``P_pred^-1`` times a column of ``F P_j``, is two triangular solves
+    (:func:`.linalg.solve_rows`); ``P`` is exactly symmetric (:func:`.linalg.symmetric_sum`).
+    ``redo`` marks the lanes this form cannot take, for :func:`rts_step`: a ``P_pred`` that is
+    not positive definite to working precision, or a ``P`` that lost its digits
+    (:func:`.linalg.joseph_lost` against ``P_j``: a variance below ``eps`` times the filtered
+    one, a correlation beyond one, a NaN). ``use`` is all true; ``scratch`` the work arrays
+    (:func:`direct_scratch`). Returns ``OK``, or ``NOT_FINITE`` if a lane's ``P_pred`` has a
+    non-finite diagonal (it overflowed).
+    """
+    xp, Pp, FP, e, chol, scale, work, D, T, root, lost = scratch
+    n = xj.shape[0]
+    for r in range(n):
+        for b in range(nb):
+            xp[r, b] = xj[r, b]
+        for c in range(n):
+            for b in range(nb):
+                Pp[r, c, b] = Pj[r, c, b]
+    predict(xp, Pp, F, G, u, Qd, nb, FP, e)  # x_pred, P_pred; FP = F P_j
+    for r in range(n):  # P_pred's lower triangle, factored in place
+        for c in range(r + 1):
+            for b in range(nb):
+                chol[r, c, b] = Pp[r, c, b]
+    finite, _ = factor(chol, scale, nb, work[0], work[1])
+    if not finite:
+        return NOT_FINITE
+    for b in range(nb):  # a failed pivot leaves NaN or 0 in the product of the pivots
+        redo[b] = not work[0, b] > 0.0
+    for r in range(n):  # row r of J: P_pred^-1 (column r of F P_j), P_pred symmetric
+        for a in range(n):
+            for b in range(nb):
+                gain[r, a, b] = FP[a, r, b]
+    solve_rows(chol, scale, gain, nb, root)
+    for a in range(n):
+        for b in range(nb):
+            e[a, b] = x_next[a, b] - xp[a, b]
+    for r in range(n):  # x = x_j + J (x_next - x_pred)
+        for b in range(nb):
+            x[r, b] = xj[r, b]
+        for a in range(n):
+            for b in range(nb):
+                x[r, b] += gain[r, a, b] * e[a, b]
+    for r in range(n):  # D = P_next - P_pred
+        for c in range(n):
+            for b in range(nb):
+                D[r, c, b] = P_next[r, c, b] - Pp[r, c, b]
+    for r in range(n):  # T = J D
+        for c in range(n):
+            for b in range(nb):
+                T[r, c, b] = 0.0
+            for a in range(n):
+                for b in range(nb):
+                    T[r, c, b] += gain[r, a, b] * D[a, c, b]
+    symmetric_sum(Pj, T, gain, nb, P)  # P = P_j + J D J'
+    if joseph_lost(P, Pj, use, nb, root, lost):
+        for b in range(nb):
+            redo[b] |= lost[b]
+    return OK
+
+
+@jit
+def _any(flag, nb):
+    """Whether ``flag[b]`` is true for a lane ``b < nb``."""
+    for b in range(nb):
+        if flag[b]:
+            return True
+    return False
+
+
+@jit
+def _impossible(log_next, log_back, nb):
+    """Whether the pair's weight ``log mu_i(k+1|K) + back[i, j]`` is ``-inf`` in every lane."""
+    for b in range(nb):
+        if log_next[b] + log_back[b] > -math.inf:
+            return False
+    return True
+
+
+@jit
+def _copy_pair(xj, Pj, nb, x, P, gain):
+    """A pair of weight zero: ``x``, ``P`` get the filtered ``xj``, ``Pj`` (finite, so that a
+    zero weight cancels them exactly) and ``gain`` zero."""
+    n = xj.shape[0]
+    for r in range(n):
+        for b in range(nb):
+            x[r, b] = xj[r, b]
+        for c in range(n):
+            for b in range(nb):
+                P[r, c, b] = Pj[r, c, b]
+                gain[r, c, b] = 0.0
+
+
+@jit
+def _take_lanes(x_from, P_from, gain_from, take, nb, x, P, gain):
+    """The lanes ``b`` with ``take[b]`` of ``x_from``, ``P_from``, ``gain_from`` into ``x``,
+    ``P``, ``gain``."""
+    n = x.shape[0]
+    for b in range(nb):
+        if take[b]:
+            for r in range(n):
+                x[r, b] = x_from[r, b]
+                for c in range(n):
+                    P[r, c, b] = P_from[r, c, b]
+                    gain[r, c, b] = gain_from[r, c, b]
+
+
+@jit
 def _accumulate(x, P, gain, log_w, nb, acc_w, acc_x, acc_M, acc_P, acc_J, delta):
     """Add one pair ``(j, i)`` of weight ``exp(log_w)`` (``P(r_k = j | r_{k+1} = i, y_0..k)``)
     to mode ``i``'s running moments of ``x_k``: weight, mean and scatter of the means by West's
@@ -407,3 +561,48 @@ def _write(x, P, prob, log_prob, i0, nb, k, xc, Pc, best, x_out, P_out, prob_out
     for b in range(nb):
         mode_out[i0 + b, k] = best[b]
         write_lane(xc, Pc, b, i0 + b, k, x_out, P_out)
+
+
+@jit
+def screen_psd(A, relative_shift, sym, failed):
+    """Symmetrize a stack ``A (M, n, n)`` and certify its matrices positive semidefinite to
+    within a shift, as far as a Cholesky factorization can, without eigenvalues.
+
+    ``scale = max |A|`` (at least the smallest normal float), ``sym = (A + A') / 2``, and
+    ``failed[s]`` set where the Cholesky factorization of ``sym[s] + relative_shift scale I``
+    (Golub & Van Loan, "Matrix Computations", 4th ed., Algorithm 4.2.2) meets a pivot that is
+    not positive. Where it succeeds, the computed factor is the exact one of
+    ``sym[s] + shift I + E`` with ``|E| <= gamma_{n+1} |R'| |R|`` (Higham, "Accuracy and
+    Stability of Numerical Algorithms", 2nd ed., Theorem 10.3), so the smallest eigenvalue of
+    ``sym[s]`` is at least ``-shift - n gamma_{n+1} (scale + shift)``. Returns
+    ``(scale, max |A - A'|)``.
+    """
+    M, n = A.shape[0], A.shape[1]
+    scale = 2.2250738585072014e-308  # numpy.finfo(float).tiny
+    for s in range(M):
+        for i in range(n):
+            for j in range(n):
+                scale = max(scale, abs(A[s, i, j]))
+    shift = relative_shift * scale
+    R = np.empty((n, n))
+    asym = 0.0
+    for s in range(M):
+        for i in range(n):
+            for j in range(n):
+                asym = max(asym, abs(A[s, i, j] - A[s, j, i]))
+                sym[s, i, j] = 0.5 * (A[s, i, j] + A[s, j, i])
+        failed[s] = False
+        for j in range(n):
+            pivot = sym[s, j, j] + shift
+            for p in range(j):
+                pivot -= R[j, p] * R[j, p]
+            if not pivot > 0.0:
+                failed[s] = True
+                break
+            R[j, j] = math.sqrt(pivot)
+            for i in range(j + 1, n):
+                v = sym[s, i, j]
+                for p in range(j):
+                    v -= R[i, p] * R[j, p]
+                R[i, j] = v / R[j, j]
+    return scale, asym
