@@ -48,7 +48,7 @@ from .linalg import (
     write_modes,
 )
 
-__all__ = ["LANES", "MIX", "COLLAPSE", "filter_bank", "lane_index", "copy_rows"]
+__all__ = ["LANES", "MIX", "COLLAPSE", "filter_bank", "lane_index", "copy_rows", "report_sample"]
 
 LANES = 16  # trials per block: four AVX2 registers of float64 per row of lanes
 
@@ -72,6 +72,29 @@ def copy_rows(src, dst, nb):
     for j in range(src.shape[0]):
         for b in range(nb):
             dst[j, b] = src[j, b]
+
+
+@jit
+def report_sample(x, P, prob, log_prob, total, flag, n_obs, i0, nb, k, modes_wanted, xc, Pc,
+                  best, x_out, P_out, prob_out, mode_out, loglik_out, flag_out, x_modes_out,
+                  P_modes_out):
+    """Write sample ``k`` of the block's trials: the combined output of the mode-matched
+    Gaussians ``x (L, n, B)``, ``P`` with probabilities ``prob`` (Bar-Shalom, Li & Kirubarajan
+    §11.6.6; ``xc``, ``Pc``, ``best`` scratch), the most probable mode, the log-likelihood
+    ``total`` (0 where nothing was observed or the sample was gated), the flag, the mode
+    probabilities and, if ``modes_wanted``, the mode-matched Gaussians themselves."""
+    combine(x, P, prob, log_prob, nb, xc, Pc, best)
+    for b in range(nb):
+        i = i0 + b
+        mode_out[i, k] = best[b]
+        seen = flag[b] != GATED and n_obs[b] > 0
+        loglik_out[i, k] = total[b] if seen else 0.0
+        flag_out[i, k] = flag[b]
+        for j in range(prob.shape[0]):
+            prob_out[i, k, j] = prob[j, b]
+        write_lane(xc, Pc, b, i, k, x_out, P_out)
+        if modes_wanted:
+            write_modes(x, P, b, i, k, x_modes_out, P_modes_out)
 
 
 @jit
@@ -230,18 +253,9 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
                     information_or_repair(P[j], prior, Cl[j], Rl[j], obs, n_obs, lost, nb, report)
             log_normalize(a, prob, total, nb)  # log mu_j = log c_j + log Lambda_j, normalized
             copy_rows(a, log_prob, nb)
-            combine(x, P, prob, log_prob, nb, xc, Pc, best)
-            for b in range(nb):
-                i = i0 + b
-                mode_out[i, k] = best[b]
-                seen = flag[b] != GATED and n_obs[b] > 0
-                loglik_out[i, k] = total[b] if seen else 0.0
-                flag_out[i, k] = flag[b]
-                for j in range(n_modes):
-                    prob_out[i, k, j] = prob[j, b]
-                write_lane(xc, Pc, b, i, k, x_out, P_out)
-                if modes_wanted:
-                    write_modes(x, P, b, i, k, x_modes_out, P_modes_out)
+            report_sample(x, P, prob, log_prob, total, flag, n_obs, i0, nb, k, modes_wanted, xc,
+                          Pc, best, x_out, P_out, prob_out, mode_out, loglik_out, flag_out,
+                          x_modes_out, P_modes_out)
         scatter_rows(log_prob, i0, nb, log_prob_last)
         scatter_modes(x, P, i0, nb, x_last, P_last)
     return OK

@@ -32,14 +32,13 @@ import numpy as np
 
 from ..._checks import positive_int
 from .arrays import check_gate, checked
-from .bank import LANES, copy_rows, lane_index
+from .bank import LANES, copy_rows, lane_index, report_sample
 from .imm import IMMOutput
 from .linalg import (
     ACCEPTED,
     GATED,
     OK,
     PARTLY_GATED,
-    combine,
     correct,
     gather_matrices,
     gather_modes,
@@ -56,8 +55,6 @@ from .linalg import (
     predict,
     scatter_modes,
     scatter_rows,
-    write_lane,
-    write_modes,
 )
 
 __all__ = ["gpb2_bank", "gpb2_run", "gpb2_step"]
@@ -270,18 +267,9 @@ def gpb2_bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_p
                     _copy_gaussian(xp[j, 0], Pp[j, 0], nb, x[j], P[j])
             log_normalize(log_mu, prob, total, nb)
             copy_rows(log_mu, log_prob, nb)
-            combine(x, P, prob, log_prob, nb, xc, Pc, best)
-            for b in range(nb):
-                i = i0 + b
-                mode_out[i, k] = best[b]
-                seen = flag[b] != GATED and n_obs[b] > 0
-                loglik_out[i, k] = total[b] if seen else 0.0
-                flag_out[i, k] = flag[b]
-                for j in range(n_modes):
-                    prob_out[i, k, j] = prob[j, b]
-                write_lane(xc, Pc, b, i, k, x_out, P_out)
-                if modes_wanted:
-                    write_modes(x, P, b, i, k, x_modes_out, P_modes_out)
+            report_sample(x, P, prob, log_prob, total, flag, n_obs, i0, nb, k, modes_wanted, xc,
+                          Pc, best, x_out, P_out, prob_out, mode_out, loglik_out, flag_out,
+                          x_modes_out, P_modes_out)
         scatter_rows(log_prob, i0, nb, log_prob_last)
         scatter_modes(x, P, i0, nb, x_last, P_last)
     return OK
