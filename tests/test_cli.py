@@ -159,6 +159,34 @@ def test_simulate_then_estimate_from_the_shell(tmp_path, capsys):
     assert "--input must be comma-separated numbers" in capsys.readouterr().err
 
 
+def test_the_multiple_model_methods_from_the_shell(tmp_path, capsys):
+    """GPB2 smoothed and the particle filter on simulated data of the vehicle; each estimate
+    table is complete, the particle filter's is reproducible from its seed, and the options
+    a method does not take are refused by name."""
+    model = Path(__file__).resolve().parents[1] / "examples" / "models" / "shankar-vehicle.toml"
+    data = tmp_path / "d.csv"
+    assert main(["simulate", "--model", str(model), "--duration", "30", "--input", "1",
+                 "--seed", "2", "--out", str(data)]) == 0
+    args = ["estimate", "--model", str(model), "--data", str(data), "--stay", "0.9"]
+    tables = {}
+    for name, extra in (("gpb2-smoothed", ["--method", "gpb2", "--smooth"]),
+                        ("rbpf", ["--method", "rbpf", "--particles", "200", "--seed", "4"]),
+                        ("rbpf-again", ["--method", "rbpf", "--particles", "200", "--seed", "4"])):
+        out = tmp_path / f"{name}.csv"
+        assert main([*args, *extra, "--out", str(out)]) == 0, name
+        tables[name] = pd.read_csv(out)
+    for table in tables.values():
+        assert {"t", "x0", "std_x0", "mode", "p_mode0"} <= set(table.columns)
+        assert np.all(np.isfinite(table[["x0", "x1", "x2", "x3"]].to_numpy()))
+    pd.testing.assert_frame_equal(tables["rbpf"], tables["rbpf-again"])
+    capsys.readouterr()
+    assert main([*args, "--method", "kalman", "--smooth", "--out", str(tmp_path / "k.csv")]) == 2
+    assert "smooth applies to method 'imm' or 'gpb1' or 'gpb2' only" in capsys.readouterr().err
+    assert main([*args, "--method", "imm", "--particles", "9", "--out",
+                 str(tmp_path / "i.csv")]) == 2
+    assert "particles applies to method 'rbpf' only" in capsys.readouterr().err
+
+
 def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatch):
     """In a pipe or a log (80 columns) no column is squeezed away: every row still starts with
     its label, and no line is wider than the terminal."""

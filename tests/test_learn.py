@@ -4,6 +4,7 @@ Statistical checks use fixed seeds and tolerances of 3 reported standard errors 
 for each entry); a parameter held at zero has NaN standard error and is checked to stay zero.
 """
 
+import re
 import warnings
 
 import numpy as np
@@ -132,9 +133,13 @@ def test_boost_converter_warns_of_its_unobservable_mode_and_fits_R():
     chain = MarkovAtSamples(np.array([[0.6, 0.4], [0.4, 0.6]]), initial=0)
     traj = simulate(sys, chain, t, spec.initial, np.array([100.0]), trials=4, rng=5)
     start = SwitchedLinearSystem.continuous(sys.A, sys.B, sys.C, sys.Q, 2 * sys.R)
-    with pytest.warns(RuntimeWarning, match=r"mode 0: the pair \(C, A\) is unobservable"):
+    with pytest.warns(RuntimeWarning) as caught:
         fit(start, traj.y[:1, :50], np.array([100.0]), t[:50], x0=spec.initial[0],
             P0=spec.initial[1], modes=traj.mode[:1, :50], estimate=("Q",), max_iter=2)
+    said = [str(w.message) for w in caught]
+    assert any(re.match(r"mode 0: the pair \(C, A\) is unobservable", m) for m in said)
+    # and mode 0's Q, unidentifiable, leaves the observed information singular: no SE for it
+    assert any("observed information of Q" in m for m in said)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # Q is not estimated: no observability warning
         res = fit(start, traj.y, np.array([100.0]), t, x0=spec.initial[0], P0=spec.initial[1],
@@ -148,9 +153,12 @@ def test_a_mode_never_visited_is_named_and_kept():
     traj = simulate(jump_system(), MarkovAtSamples(P, initial=0), t, (np.zeros(2), np.eye(2)),
                     rng=2)
     start = jump_system(Q=2 * Q3)
-    with pytest.warns(RuntimeWarning, match="mode 2 was never visited"):
+    with pytest.warns(RuntimeWarning) as caught:
         res = fit(start, traj.y[0], t=t, x0=np.zeros(2), P0=np.eye(2), modes=traj.mode[0],
                   max_iter=5)
+    said = [str(w.message) for w in caught]
+    assert any(m.startswith("mode 2 was never visited") for m in said)
+    assert any("observed information of Q" in m for m in said)  # mode 2's Q: no information
     np.testing.assert_array_equal(res.system.Q[2], start.Q[2])
     assert np.all(np.isnan(res.se["transition"][2]))
 

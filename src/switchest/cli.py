@@ -47,7 +47,8 @@ DEMO_MAX_SAMPLES = 10**6
 """Most trials x samples ``switchest demo`` simulates and filters (about 0.3 GB)."""
 
 _DEMO_BYTES_PER_SAMPLE = 300  # peak memory per trial and sample of the demo: 230-330 B measured
-_METHODS = ("kalman", "switch-time", "imm", "imm-ev1", "min-distance", "rsls", "impulsive")
+_METHODS = ("kalman", "switch-time", "imm", "gpb1", "gpb2", "rbpf", "imm-ev1", "min-distance",
+            "rsls", "impulsive")
 """The registered method names (``switchest.estimators.registry.METHOD_NAMES``, which
 ``switchest.tabular.METHODS`` is), repeated so that building the parser imports neither the
 registry nor tabular (numpy, scipy, pandas, numba, the estimators); tests/test_cli.py holds them
