@@ -258,3 +258,16 @@ def test_the_result_type():
     out = smooth_mode_matched(**args)
     assert isinstance(out, SmoothedModes)
     assert out.mode.dtype.kind == "i"
+
+
+def test_without_the_mode_matched_outputs_the_rest_is_the_same():
+    """``modes_out=False`` (what ``ModeBankFilter.smooth`` asks for) saves writing the smoothed
+    mode-matched posteriors and changes nothing else."""
+    from switchest.estimators.smoothing import smooth_filtered
+
+    args, _ = filtered_case(4, 3)
+    full = smooth_mode_matched(**args)
+    lean = smooth_filtered(**args, modes_out=False)
+    assert lean.x_modes is None and lean.P_modes is None
+    for name in ("x", "P", "mode_prob", "mode"):
+        np.testing.assert_array_equal(getattr(lean, name), getattr(full, name), err_msg=name)

@@ -238,7 +238,7 @@ class ModeBankFilter(Estimator):
         """
         fwd = self.run_modes(y, u, t)
         s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
-                            fwd.Qd, fwd.trans, fwd.transition)
+                            fwd.Qd, fwd.trans, fwd.transition, modes_out=False)
         _warn_if_diverged(fwd.estimate, s)
         return self._unflatten(Estimate(x=s.x, P=s.P, mode_prob=s.mode_prob, mode=s.mode),
                                fwd.batch)

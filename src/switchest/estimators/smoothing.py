@@ -58,7 +58,7 @@ class SmoothedModes:
         Most probable smoothed mode (the first on a tie).
     x_modes, P_modes : ndarray, shapes (..., K, L, n), (..., K, L, n, n)
         Mode-matched smoothed posteriors; a mode of smoothed probability zero keeps its
-        filtered posterior.
+        filtered posterior (None from :func:`smooth_filtered` without ``modes_out``).
     pair_prob : ndarray, shape (..., K-1, L, L), or None
         With ``lagged=True``: ``pair_prob[..., k, j, i] = P(r_k = j, r_{k+1} = i | Y)``, Kim's
         ``mu_ji(k|K)``.
@@ -74,8 +74,8 @@ class SmoothedModes:
     P: np.ndarray
     mode_prob: np.ndarray
     mode: np.ndarray
-    x_modes: np.ndarray
-    P_modes: np.ndarray
+    x_modes: np.ndarray | None
+    P_modes: np.ndarray | None
     pair_prob: np.ndarray | None = None
     lag_x: np.ndarray | None = None
     lag_P: np.ndarray | None = None
@@ -148,17 +148,18 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
 
 
 def smooth_filtered(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transition, *,
-                    lagged: bool = False) -> SmoothedModes:
+                    lagged: bool = False, modes_out: bool = True) -> SmoothedModes:
     """:func:`smooth_mode_matched` of arrays a filter of switchest produced and checked, with
     one batch axis: ``(N, K, L, n)``, ``(N, K, L, n, n)``, ``(N, K, L)``, ``u (N, K, l)``,
     ``trans (N or 1, K, L)`` (or ``(K, L)``); no argument is validated again (the smoother of
     :meth:`~switchest.estimators.mode_bank.ModeBankFilter.smooth` calls it on its own forward
-    pass). Raises and warns as :func:`smooth_mode_matched`."""
+    pass). Raises and warns as :func:`smooth_mode_matched`; without ``modes_out`` the
+    smoothed mode-matched posteriors are not written (``x_modes``, ``P_modes`` None)."""
     with np.errstate(divide="ignore"):
         log_prob, log_transition = np.log(mode_prob), np.log(transition)
     trans = trans[None] if trans.ndim == 2 else trans
     out = kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition,
-                     lagged=lagged)
+                     lagged=lagged, modes_out=modes_out)
     try:
         raise_for_status(out.status)
     except np.linalg.LinAlgError as err:

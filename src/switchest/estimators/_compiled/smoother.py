@@ -151,7 +151,7 @@ class KimOutput(NamedTuple):
 
 
 def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *,
-               lanes: int = LANES, lagged: bool = False) -> KimOutput:
+               lanes: int = LANES, lagged: bool = False, modes_out: bool = True) -> KimOutput:
     """Kim's fixed-interval smoother of ``N`` trials over ``K`` samples (module docstring).
 
     Parameters
@@ -175,6 +175,9 @@ def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *
     lagged : bool
         Also report the pairwise mode probabilities and the lag-one moments of each interval
         (``pair_prob``, ``lag_x``, ``lag_P``, ``lag_cross``; module docstring).
+    modes_out : bool
+        Whether to report the smoothed mode-matched posteriors (``x_modes``, ``P_modes``;
+        None otherwise, and their writing is saved).
     """
     sizes: dict[str, int] = {}
     x_modes, P_modes, log_prob, u, F, G, Qd, log_transition = checked(
@@ -185,9 +188,10 @@ def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *
     if sizes["T"] not in (1, N):
         raise ValueError(f"trans must have shape (N or 1, K, L) = ({N} or 1, {K}, {L}), "
                          f"got {trans.shape}")
+    size = (N, K, L) if modes_out else (0, K, L)  # zero trials: the kernel writes none
     out = KimOutput(np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K, L)),
-                    np.empty((N, K), dtype=np.int64), np.empty_like(x_modes),
-                    np.empty_like(P_modes), OK)
+                    np.empty((N, K), dtype=np.int64), np.empty((*size, n)),
+                    np.empty((*size, n, n)), OK)
     report = np.empty(2)
     J = K - 1 if lagged else 0  # intervals reported (none unless asked)
     lag = (np.zeros((N, J, L, L)), np.zeros((N, J, L, n)), np.zeros((N, J, L, n, n)),
@@ -197,6 +201,8 @@ def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *
                           out.x_modes, out.P_modes, report, bool(lagged), *lag)
     out = out._replace(status=int(status), repaired=int(report[0]),
                        smallest_eigenvalue=float(report[1]))
+    if not modes_out:
+        out = out._replace(x_modes=None, P_modes=None)
     return out._replace(pair_prob=lag[0], lag_x=lag[1], lag_P=lag[2],
                         lag_cross=lag[3]) if lagged else out
 
@@ -555,7 +561,8 @@ def _write(x, P, prob, log_prob, i0, nb, k, xc, Pc, best, x_out, P_out, prob_out
            x_s, P_s):
     """Sample ``k`` of the block's trials: the mode-matched ``x (L, n, B)``, ``P``, their
     probabilities and the combined moments (:func:`.linalg.combine`) into the outputs."""
-    scatter_modes(x, P, i0, nb, x_s[:, k], P_s[:, k])
+    if x_s.shape[0] > 0:  # the mode-matched outputs, where asked for
+        scatter_modes(x, P, i0, nb, x_s[:, k], P_s[:, k])
     scatter_rows(prob, i0, nb, prob_out[:, k])
     combine(x, P, prob, log_prob, nb, xc, Pc, best)
     for b in range(nb):
