@@ -21,6 +21,9 @@ _STYLE = {"figure.dpi": 110, "axes.grid": True, "grid.alpha": 0.3, "axes.spines.
           "axes.spines.right": False, "font.size": 9}
 
 
+_LONG_LABEL = 30  # characters: a legend of longer labels goes below the panels
+
+
 def curves(
     path: str | Path,
     x: np.ndarray,
@@ -47,7 +50,10 @@ def curves(
     with plt.rc_context(_STYLE):
         cols = min(panels, 2)
         rows = -(-panels // cols)
-        fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.2 * rows), squeeze=False)
+        below = max(len(label) for label in series) > _LONG_LABEL  # the legend under the axes
+        entries = len(series) + len(paper or {})
+        fig, axes = plt.subplots(rows, cols, squeeze=False, figsize=(
+            4.6 * cols, 3.2 * rows + (0.2 * entries + 0.4 if below else 0.0)))
         flat = axes.ravel()
         for ax in flat[panels:]:
             ax.set_visible(False)
@@ -71,10 +77,16 @@ def curves(
             ax.set_ylabel(ylabels[p])
             if logy:
                 ax.set_yscale("log")
-        flat[panels - 1].legend(fontsize=7, frameon=False)
+        rect = None
+        if below:  # centred under the panels, never over a curve or a label
+            handles, labels = flat[panels - 1].get_legend_handles_labels()
+            fig.legend(handles, labels, fontsize=7, frameon=False, loc="lower center")
+            rect = (0.0, (0.2 * entries + 0.3) / fig.get_figheight(), 1.0, 1.0)
+        else:
+            flat[panels - 1].legend(fontsize=7, frameon=False)
         if title:
             fig.suptitle(title)
-        return _save(fig, path)
+        return _save(fig, path, rect)
 
 
 def bars(
@@ -193,9 +205,9 @@ def measured_states(C: np.ndarray, y: np.ndarray) -> dict[int, np.ndarray]:
     return measured
 
 
-def _save(fig, path: str | Path) -> Path:
-    """Lay out, write and close ``fig``."""
-    fig.tight_layout()
+def _save(fig, path: str | Path, rect: tuple[float, ...] | None = None) -> Path:
+    """Lay out (within ``rect`` of the figure, default all of it), write and close ``fig``."""
+    fig.tight_layout(rect=rect)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
