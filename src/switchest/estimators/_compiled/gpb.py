@@ -39,6 +39,7 @@ from .linalg import (
     GATED,
     OK,
     PARTLY_GATED,
+    copy_gaussian,
     correct,
     gather_matrices,
     gather_modes,
@@ -58,18 +59,6 @@ from .linalg import (
 )
 
 __all__ = ["gpb2_bank", "gpb2_run", "gpb2_step"]
-
-
-@inline
-def _copy_gaussian(x, P, nb, x_to, P_to):
-    """``x_to = x``, ``P_to = P`` in the ``nb`` lanes of ``x (n, B)``, ``P (n, n, B)``."""
-    n = x.shape[0]
-    for r in range(n):
-        for b in range(nb):
-            x_to[r, b] = x[r, b]
-        for c in range(n):
-            for b in range(nb):
-                P_to[r, c, b] = P[r, c, b]
 
 
 @jit
@@ -233,13 +222,13 @@ def gpb2_bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_p
                     gather_matrices(G, idx, nb, Gl)
                     gather_matrices(Qd, idx, nb, Ql)
                     for i in range(n_modes):  # pair (i at k-1, j at k): log mu_i + log pi_ij
-                        _copy_gaussian(x[i], P[i], nb, xp[j, i], Pp[j, i])
+                        copy_gaussian(x[i], P[i], nb, xp[j, i], Pp[j, i])
                         predict(xp[j, i], Pp[j, i], Fl, Gl, ul, Ql, nb, AP, xs)
                         for b in range(nb):
                             prior_w[j, i, b] = log_prob[i, b] + log_transition[i, j]
             else:
                 for j in range(n_modes):  # the prior of mode j: log mu_j(0)
-                    _copy_gaussian(x[j], P[j], nb, xp[j, 0], Pp[j, 0])
+                    copy_gaussian(x[j], P[j], nb, xp[j, 0], Pp[j, 0])
                     for b in range(nb):
                         prior_w[j, 0, b] = log_prob[j, b]
             for j in range(n_modes):
@@ -264,7 +253,7 @@ def gpb2_bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_p
                 else:
                     for b in range(nb):
                         log_mu[j, b] = a[j, 0, b]
-                    _copy_gaussian(xp[j, 0], Pp[j, 0], nb, x[j], P[j])
+                    copy_gaussian(xp[j, 0], Pp[j, 0], nb, x[j], P[j])
             log_normalize(log_mu, prob, total, nb)
             copy_rows(log_mu, log_prob, nb)
             report_sample(x, P, prob, log_prob, total, flag, n_obs, i0, nb, k, modes_wanted, xc,

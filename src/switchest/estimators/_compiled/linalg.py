@@ -51,6 +51,7 @@ __all__ = [
     "observe",
     "predict_mean",
     "predict",
+    "copy_gaussian",
     "symmetric_sum",
     "residual",
     "innovation",
@@ -214,6 +215,18 @@ def predict(x, P, F, G, u, Qd, nb, FP, xs):
                 for b in range(nb):
                     FP[i, j, b] += F[i, k, b] * P[k, j, b]
     symmetric_sum(Qd, FP, F, nb, P)
+
+
+@inline
+def copy_gaussian(x, P, nb, x_to, P_to):
+    """``x_to = x``, ``P_to = P`` in the first ``nb`` lanes of ``x (n, B)``, ``P (n, n, B)``."""
+    n = x.shape[0]
+    for r in range(n):
+        for b in range(nb):
+            x_to[r, b] = x[r, b]
+        for c in range(n):
+            for b in range(nb):
+                P_to[r, c, b] = P[r, c, b]
 
 
 @inline

@@ -33,6 +33,7 @@ from .linalg import (
     ACCEPTED,
     GATED,
     OK,
+    copy_gaussian,
     correct,
     gather_matrices,
     information_or_repair,
@@ -177,18 +178,6 @@ def _fill_index(value, nb, out):
 
 
 @jit
-def _copy_lanes(x, P, nb, x_to, P_to):
-    """``x_to, P_to = x, P`` over the first ``nb`` lanes."""
-    n = x.shape[0]
-    for r in range(n):
-        for b in range(nb):
-            x_to[r, b] = x[r, b]
-        for c in range(n):
-            for b in range(nb):
-                P_to[r, c, b] = P[r, c, b]
-
-
-@jit
 def _filter_lanes(x, P, yl, Cl, Rl, obs, n_obs, nb, loglik, use, work, report):
     """The Kalman measurement update of every lane, with its predictive log-likelihood.
 
@@ -260,7 +249,7 @@ def _optimal_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans_row, C, R,
     Fl, Gl, Ql, Cl, Rl, AP, xs = mats
     n_modes = C.shape[0]
     for r in range(n_modes):
-        _copy_lanes(x, P, nb, xc[r], Pc[r])
+        copy_gaussian(x, P, nb, xc[r], Pc[r])
         if predicting:
             _fill_index(trans_row[r], nb, idx)
             gather_matrices(F, idx, nb, Fl)

@@ -81,6 +81,7 @@ from .linalg import (
     NOT_FINITE,
     OK,
     combine,
+    copy_gaussian,
     correct,
     factor,
     gather_matrices,
@@ -407,12 +408,7 @@ def rts_direct(xj, Pj, x_next, P_next, F, G, u, Qd, use, nb, x, P, gain, redo, s
     """
     xp, Pp, FP, e, chol, scale, work, D, T, root, lost = scratch
     n = xj.shape[0]
-    for r in range(n):
-        for b in range(nb):
-            xp[r, b] = xj[r, b]
-        for c in range(n):
-            for b in range(nb):
-                Pp[r, c, b] = Pj[r, c, b]
+    copy_gaussian(xj, Pj, nb, xp, Pp)
     predict(xp, Pp, F, G, u, Qd, nb, FP, e)  # x_pred, P_pred; FP = F P_j
     for r in range(n):  # P_pred's lower triangle, factored in place
         for c in range(r + 1):
@@ -477,13 +473,10 @@ def _impossible(log_next, log_back, nb):
 def _copy_pair(xj, Pj, nb, x, P, gain):
     """A pair of weight zero: ``x``, ``P`` get the filtered ``xj``, ``Pj`` (finite, so that a
     zero weight cancels them exactly) and ``gain`` zero."""
-    n = xj.shape[0]
-    for r in range(n):
-        for b in range(nb):
-            x[r, b] = xj[r, b]
-        for c in range(n):
+    copy_gaussian(xj, Pj, nb, x, P)
+    for r in range(xj.shape[0]):
+        for c in range(gain.shape[1]):
             for b in range(nb):
-                P[r, c, b] = Pj[r, c, b]
                 gain[r, c, b] = 0.0
 
 
