@@ -30,6 +30,8 @@ __all__ = [
     "positive_int",
     "check_bool",
     "check_mode",
+    "check_timing",
+    "TIMINGS",
     "memory_limit",
     "check_memory",
 ]
@@ -309,6 +311,21 @@ def check_mode(value, n_modes: int, name: str) -> int:
     if not 0 <= value < n_modes:
         raise ValueError(f"{name} must be a mode index in 0..{n_modes - 1}, got {value}")
     return int(value)
+
+
+# When the mode of sample k acts, for the multiple-model filters: "sample" (the package's
+# convention: it governs y_k and the interval [t_k, t_{k+1})) or "interval" (Bar-Shalom's: it
+# governs y_k and the interval into t_k). See docs/conventions.rst.
+TIMINGS = ("sample", "interval")
+
+
+def check_timing(value, name: str = "timing") -> str:
+    """Return ``value`` if it is one of :data:`TIMINGS`."""
+    if not isinstance(value, str):
+        raise TypeError(f"{name} must be one of {TIMINGS}, got {type(value).__name__}")
+    if value not in TIMINGS:
+        raise ValueError(f"{name} must be one of {TIMINGS}, got {value!r}")
+    return value
 
 
 @lru_cache(maxsize=1)

@@ -5,7 +5,9 @@ written for clarity, not speed, with LAPACK (``numpy.linalg``) where the kernels
 loops (the innovation covariance equilibrated by its diagonal as theirs, so both factor the
 same matrices), and the observed components selected by boolean indexing. The
 semantics are those the kernels document (Shankar et al. eqs (6)-(10); Blom & Bar-Shalom 1988;
-Bar-Shalom, Li & Kirubarajan §11.6.6).
+Bar-Shalom, Li & Kirubarajan §11.6.6), the IMM in both timings of docs/conventions.rst:
+``"sample"`` (each mode-matched posterior predicted through its own transition, then mixed)
+and ``"interval"`` (mixed, then mode ``j``'s mixture predicted through mode ``j``'s).
 """
 
 from __future__ import annotations
@@ -178,16 +180,28 @@ def imm_mix(x, P, log_prob, log_transition):
     return xm, Pm, log_c
 
 
+def predict_modes(x, P, F, G, u, Qd, tr):
+    """Mode ``j``'s Gaussian ``x[j]``, ``P[j]`` predicted through its transition ``tr[j]``."""
+    pred = [predict(x[j], P[j], F[tr[j]], G[tr[j]], u, Qd[tr[j]]) for j in range(len(x))]
+    return np.stack([p[0] for p in pred]), np.stack([p[1] for p in pred])
+
+
 def imm_trial_step(x, P, log_prob, y, u, F, G, Qd, tr, C, R, log_transition, predict_first,
-                   gate):
+                   gate, timing="sample"):
     """One IMM cycle of one trial: ``x, P, log_prob, loglik, flag``; the log-likelihood is 0
-    when nothing was observed or every mode gated the measurement."""
+    when nothing was observed or every mode gated the measurement. ``timing="sample"``:
+    predict every posterior through its own transition, then mix; ``"interval"``: mix, then
+    predict."""
     L = log_prob.size
     x, P = x.copy(), P.copy()
-    if predict_first:
+    if predict_first and timing == "sample":
+        x, P = predict_modes(x, P, F, G, u, Qd, tr)
         x, P, log_c = imm_mix(x, P, log_prob, log_transition)
-        for j in range(L):
-            x[j], P[j] = predict(x[j], P[j], F[tr[j]], G[tr[j]], u, Qd[tr[j]])
+    elif predict_first and timing == "interval":
+        x, P, log_c = imm_mix(x, P, log_prob, log_transition)
+        x, P = predict_modes(x, P, F, G, u, Qd, tr)
+    elif predict_first:
+        raise ValueError(f"timing {timing!r}")
     else:
         log_c = log_prob.copy()
     inns = []
@@ -220,7 +234,8 @@ def imm_combine(x, P, log_prob):
     return xc, Pc, mu, int(np.argmax(log_prob))
 
 
-def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, gate=np.inf):
+def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, gate=np.inf,
+            timing="sample"):
     """Every trial and sample, as the compiled ``imm_run``."""
     N, K, _ = y.shape
     L, n = log_prob0.size, x0.size
@@ -232,7 +247,7 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, gate
         for k in range(K):
             x, P, lp, out["loglik"][i, k], out["flag"][i, k] = imm_trial_step(
                 x, P, lp, y[i, k], u[i, k - 1 if k else 0], F, G, Qd, trans[k], C, R,
-                log_transition, k > 0, gate)
+                log_transition, k > 0, gate, timing)
             (out["x"][i, k], out["P"][i, k], out["mode_prob"][i, k],
              out["mode"][i, k]) = imm_combine(x, P, lp)
     return out

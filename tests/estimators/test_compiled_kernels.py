@@ -33,6 +33,7 @@ from switchest.estimators._compiled.linalg import NOT_FINITE, NOT_POSITIVE_DEFIN
 from switchest.system import SwitchedLinearSystem
 
 RTOL = 1e-9
+TIMINGS = ("sample", "interval")  # the IMM's interaction after or before the prediction
 # (n states, m outputs, l inputs, L modes, M table entries)
 CASES = [(1, 1, 0, 1, 1), (2, 3, 1, 2, 3), (4, 2, 2, 3, 4), (3, 1, 1, 3, 2), (4, 3, 0, 2, 5)]
 
@@ -340,22 +341,34 @@ def test_steady_state_run_and_step_match_the_oracle(gate):
 
 
 # ---------------------------------------------------------------- IMM
+@pytest.mark.parametrize("timing", TIMINGS)
 @pytest.mark.parametrize("case", CASES)
-def test_imm_run_matches_the_oracle(case):
+def test_imm_run_matches_the_oracle(case, timing):
     p = imm_problem(20 + sum(case), *case)
-    assert_imm_equal(imm_run(*imm_args(p)), oracle_imm_run(*imm_args(p)))
+    assert_imm_equal(imm_run(*imm_args(p), timing=timing),
+                     oracle_imm_run(*imm_args(p), timing=timing))
 
 
-def test_imm_gating_matches_the_oracle_and_a_gated_sample_equals_a_missing_one():
+def test_the_two_timings_differ_where_the_modes_differ_in_their_transitions():
+    # the oracle comparisons above would pass for a kernel that ignored its timing if the two
+    # coincided on these problems: they do not (a 1e-3 difference is 1e6 times RTOL)
+    p = imm_problem(22, 3, 2, 1, 3, 4)
+    sample, interval = (imm_run(*imm_args(p), timing=timing) for timing in TIMINGS)
+    assert np.abs(sample.x - interval.x).max() > 1e-3
+    assert np.abs(sample.mode_prob - interval.mode_prob).max() > 1e-3
+
+
+@pytest.mark.parametrize("timing", TIMINGS)
+def test_imm_gating_matches_the_oracle_and_a_gated_sample_equals_a_missing_one(timing):
     p = imm_problem(21, 3, 2, 1, 3, 3, missing=False)
     gate = 3.0
-    out = imm_run(*imm_args(p), gate=gate)
-    assert_imm_equal(out, oracle_imm_run(*imm_args(p), gate=gate))
+    out = imm_run(*imm_args(p), gate=gate, timing=timing)
+    assert_imm_equal(out, oracle_imm_run(*imm_args(p), gate=gate, timing=timing))
     gated = out.flag == GATED
     assert gated.any() and (out.flag == PARTLY_GATED).any()
     assert_close(out.mode_prob.sum(axis=-1), np.ones(out.flag.shape))  # no NaN, no [0, 0]
     holes = dict(p, y=np.where(gated[..., None], np.nan, p["y"]))
-    nan_run = imm_run(*imm_args(holes), gate=gate)
+    nan_run = imm_run(*imm_args(holes), gate=gate, timing=timing)
     for name in ("x", "P", "mode_prob", "loglik"):
         assert_close(getattr(out, name), getattr(nan_run, name))
 
@@ -373,15 +386,21 @@ def test_imm_outlier_is_dropped_and_the_filter_goes_on():
         assert_close(getattr(out, name), getattr(nan_run, name))
 
 
-def test_imm_with_one_mode_is_the_kalman_filter():
+def test_imm_with_one_mode_is_the_kalman_filter_in_both_timings():
+    # one mode: the interaction is a copy, so both orders run the same operations (equal to
+    # the last bit), and the Kalman kernel runs the same equations of linalg (its trials
+    # grouped by shared covariance): 1e-12 of each array's scale leaves room for that grouping
+    # only, observed ~1e-16
     p = imm_problem(23, 3, 2, 1, 1, 3)
-    imm = imm_run(*imm_args(p))
+    sample, interval = (imm_run(*imm_args(p), timing=timing) for timing in TIMINGS)
+    for name in ("x", "P", "mode_prob", "loglik", "flag"):
+        np.testing.assert_array_equal(getattr(sample, name), getattr(interval, name))
     K = p["y"].shape[1]
     kal = kalman_run(*kalman_args(dict(p, trans=np.tile(p["trans"][:, 0], (4, 1)),
                                        mode=np.zeros((4, K), dtype=int))))
-    assert_close(imm.x, kal.x)
-    assert_close(imm.P, kal.P)
-    assert_close(imm.loglik, kal.loglik)
+    assert_close(sample.x, kal.x, rtol=1e-12)
+    assert_close(sample.P, kal.P, rtol=1e-12)
+    assert_close(sample.loglik, kal.loglik, rtol=1e-12)
 
 
 def test_imm_a_problem_scaled_by_1e50():
@@ -396,9 +415,10 @@ def test_imm_a_problem_scaled_by_1e50():
     assert_close(big.mode_prob, out.mode_prob)
 
 
-def test_imm_step_equals_run():
+@pytest.mark.parametrize("timing", TIMINGS)
+def test_imm_step_equals_run(timing):
     p = imm_problem(25, 3, 2, 1, 3, 4)
-    run = imm_run(*imm_args(p), gate=8.0)
+    run = imm_run(*imm_args(p), gate=8.0, timing=timing)
     N, K, n = run.x.shape
     L = p["log_prob0"].size
     x, P = np.tile(p["x0"], (N, L, 1)), np.tile(p["P0"], (N, L, 1, 1))
@@ -406,7 +426,8 @@ def test_imm_step_equals_run():
     for k in range(K):
         step, (x, P, log_prob) = imm_step(
             x, P, log_prob, p["y"][:, k], p["u"][:, max(k - 1, 0)], p["F"], p["G"], p["Qd"],
-            p["trans"][k], p["C"], p["R"], p["log_transition"], predict_first=k > 0, gate=8.0)
+            p["trans"][k], p["C"], p["R"], p["log_transition"], predict_first=k > 0, gate=8.0,
+            timing=timing)
         # the same compiled kernel on the same numbers: equal to the last bit in practice
         for name in ("x", "P", "mode_prob", "loglik"):
             assert_close(getattr(step, name)[:, 0], getattr(run, name)[:, k], rtol=1e-14)
@@ -415,7 +436,8 @@ def test_imm_step_equals_run():
         np.testing.assert_array_equal(step.flag[:, 0], run.flag[:, k])
 
 
-def test_imm_mixing_of_an_all_but_unreachable_mode_stays_in_the_log_domain():
+@pytest.mark.parametrize("timing", TIMINGS)
+def test_imm_mixing_of_an_all_but_unreachable_mode_stays_in_the_log_domain(timing):
     # mode 2 is reached only from modes 1 and 2, whose probabilities exp(-800) underflow to 0:
     # its predicted probability c_2 ~ exp(-800) must come out finite, not log(0) = -inf
     p = imm_problem(26, 2, 2, 1, 3, 2, N=3, K=2)
@@ -425,25 +447,27 @@ def test_imm_mixing_of_an_all_but_unreachable_mode_stays_in_the_log_domain():
     log_prob = np.tile(p["log_prob0"], (3, 1))
     _, (x1, _, log_prob1) = imm_step(x0, P0, log_prob, p["y"][:, 1], p["u"][:, 0], p["F"],
                                      p["G"], p["Qd"], p["trans"][1], p["C"], p["R"],
-                                     p["log_transition"], predict_first=True)
+                                     p["log_transition"], predict_first=True, timing=timing)
     ref = oracle_imm_trial_step(x0[0], P0[0], log_prob[0], p["y"][0, 1], p["u"][0, 0], p["F"],
                                 p["G"], p["Qd"], p["trans"][1], p["C"], p["R"],
-                                p["log_transition"], True, np.inf)
+                                p["log_transition"], True, np.inf, timing)
     assert -2000.0 < log_prob1[0, 2] < -700.0
     assert_close(log_prob1[0], ref[2])  # ~800 in scale: agreement to ~1e-6 absolute
     assert_close(x1[0], ref[0])
 
 
-def test_imm_a_diffuse_prior_takes_the_information_form_lane_by_lane():
+@pytest.mark.parametrize("timing", TIMINGS)
+def test_imm_a_diffuse_prior_takes_the_information_form_lane_by_lane(timing):
     # P0 = 1e300 I, C invertible (m = n): Joseph's form loses every digit of the first
     # posterior (K C = I to eps), which the kernel detects lane by lane and replaces by the
     # information form, as the oracle does; the posterior (P0^-1 + C' R^-1 C)^-1 is then as
     # well conditioned as R, so RTOL holds (observed ~1e-12). Trials 0 and 2 are diffuse,
     # 1 and 3 not: one block of lanes takes both paths.
     p = imm_problem(40, 2, 2, 1, 2, 3, missing=False)
-    out = imm_run(*imm_args(dict(p, P0=1e300 * np.eye(2))))
+    out = imm_run(*imm_args(dict(p, P0=1e300 * np.eye(2))), timing=timing)
     assert out.repaired == 0
-    assert_imm_equal(out, oracle_imm_run(*imm_args(dict(p, P0=1e300 * np.eye(2)))))
+    assert_imm_equal(out, oracle_imm_run(*imm_args(dict(p, P0=1e300 * np.eye(2))),
+                                         timing=timing))
     N, L = p["y"].shape[0], p["log_prob0"].size
     P = np.tile(p["P0"], (N, L, 1, 1))
     P[::2] = 1e300 * np.eye(2)
@@ -521,10 +545,11 @@ def vehicle_case():
     return system, transition, traj, y
 
 
-def test_the_kernels_reproduce_the_package_filters():
+@pytest.mark.parametrize("timing", TIMINGS)
+def test_the_kernels_reproduce_the_package_filters(timing):
     # IMMFilter.run is the kernel: its transition table (one entry per mode and distinct step,
-    # irregular times here) and its outputs must equal the oracle's; ModeKalmanFilter (still on
-    # the numpy core) must equal kalman_run
+    # irregular times here) and its outputs must equal the oracle's in its timing;
+    # ModeKalmanFilter (still on the numpy core) must equal kalman_run
     system, transition, traj, y = vehicle_case()
     x0, P0 = np.zeros(4), np.eye(4)
     L, K = 3, traj.t.size
@@ -536,8 +561,8 @@ def test_the_kernels_reproduce_the_package_filters():
     ref = oracle_imm_run(y, traj.u, np.concatenate([s.F for s in table]),
                          np.concatenate([s.G for s in table]),
                          np.concatenate([s.Qd for s in table]), trans, system.C, system.R,
-                         np.log(transition), x0, P0, np.full(L, -np.log(L)))
-    out = IMMFilter(system, transition, x0, P0).run(y, traj.u, t)
+                         np.log(transition), x0, P0, np.full(L, -np.log(L)), timing=timing)
+    out = IMMFilter(system, transition, x0, P0, timing=timing).run(y, traj.u, t)
     for name in ("x", "P", "mode_prob", "loglik"):
         assert_close(getattr(out, name), ref[name])
     np.testing.assert_array_equal(out.outlier, ref["flag"] == GATED)
@@ -570,3 +595,11 @@ def test_the_kernels_refuse_inconsistent_arrays():
     q = imm_problem(30, 2, 2, 1, 2, 3, N=2, K=4)
     with pytest.raises(ValueError, match=r"log_prob0 must have shape \(L\) = \(L=2\), got \(3,\)"):
         imm_run(*imm_args(dict(q, log_prob0=np.zeros(3))))
+    with pytest.raises(ValueError, match=r"timing must be one of \('sample', 'interval'\), "
+                                         r"got 'samples'"):
+        imm_run(*imm_args(q), timing="samples")
+    with pytest.raises(TypeError, match=r"timing must be one of \('sample', 'interval'\), "
+                                        r"got bool"):
+        imm_step(np.zeros((2, 2, 2)), np.tile(np.eye(2), (2, 2, 1, 1)), np.zeros((2, 2)),
+                 q["y"][:, 0], q["u"][:, 0], q["F"], q["G"], q["Qd"], q["trans"][0], q["C"],
+                 q["R"], q["log_transition"], predict_first=True, timing=True)

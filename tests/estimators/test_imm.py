@@ -1,4 +1,6 @@
-"""IMM against FilterPy step for step, its missing-data behaviour and long-run numerics."""
+"""IMM against FilterPy step for step (Bar-Shalom's ``"interval"`` timing, FilterPy's), its
+missing-data behaviour, long-run numerics, and the ``"sample"`` timing against the
+``"interval"`` one on data simulated with switches at the samples."""
 
 import numpy as np
 import pytest
@@ -6,8 +8,10 @@ from numpy_oracle import imm_combine, imm_mix
 
 from switchest import SwitchedLinearSystem
 from switchest import signals as sg
-from switchest.estimators import IMMFilter
+from switchest.estimators import GPB2Filter, IMMFilter
+from switchest.estimators.smoothing import smooth_filtered
 from switchest.simulate import simulate
+from switchest.switching import MarkovAtSamples
 
 filterpy = pytest.importorskip("filterpy")
 from filterpy.kalman import IMMEstimator, KalmanFilter  # noqa: E402
@@ -44,7 +48,7 @@ def test_matches_filterpy_step_for_step():
     t = np.arange(40.0)
     traj = simulate(sys, sg.markov_at_samples(TRANSITION, t, rng=1, initial=0), t, x0,
                     u=rng.standard_normal((40, 1)), rng=2)
-    ours = IMMFilter(sys, TRANSITION, x0, P0, mode_prob0=mu0)
+    ours = IMMFilter(sys, TRANSITION, x0, P0, mode_prob0=mu0, timing="interval")  # FilterPy's
     state = ours.init((1,))
     # sample 0 is an update of every mode-matched filter from the prior; FilterPy weights that
     # first update by cbar = mu0 @ M, so give it cbar = mu0 to state the same prior at sample 0
@@ -66,9 +70,10 @@ def test_matches_filterpy_step_for_step():
 
 
 def test_missing_measurement_gives_the_predicted_mode_probabilities_and_mixed_prediction():
+    # written out in Bar-Shalom's order, mix then predict: the "interval" timing
     rng = np.random.default_rng(3)
     sys = random_discrete(rng)
-    est = IMMFilter(sys, TRANSITION, np.zeros(3), np.eye(3))
+    est = IMMFilter(sys, TRANSITION, np.zeros(3), np.eye(3), timing="interval")
     state = est.step(est.init((2,)), rng.standard_normal((2, 2)), dt=None)
     mu = np.exp(state.log_prob)
     u = np.ones((2, 1))
@@ -104,7 +109,7 @@ def test_filterpy_update_none_differs_and_ours_does_not_reuse_the_old_innovation
     theirs.predict(np.zeros(1))
     cbar = theirs.mu @ TRANSITION
     theirs.update(None)
-    ours = IMMFilter(sys, TRANSITION, x0, P0, mode_prob0=mu0)
+    ours = IMMFilter(sys, TRANSITION, x0, P0, mode_prob0=mu0, timing="interval")
     s = ours.step(ours.init((1,)), y[None], dt=None)
     s = ours.step(s, np.full((1, 2), np.nan), np.zeros((1, 1)), dt=1.0)
     np.testing.assert_allclose(np.exp(s.log_prob[0]), cbar, rtol=1e-12)
@@ -135,6 +140,89 @@ def test_imm_identifies_well_separated_modes():
     traj = simulate(sys, lambda r: sg.markov_at_samples(P, t, rng=r, initial=0), t, np.zeros(2),
                     u=[2.0], trials=20, rng=1)
     out = IMMFilter(sys, P, np.zeros(2), 1e-4 * np.eye(2)).run(traj.y, [2.0], t)
-    # the mode of interval k-1 shows in y_k: compare with the mode one sample earlier
+    # the modes differ in B only, so y_k shows the mode of the interval into k, s_{k-1}; the
+    # filter's mode at k is the most probable s_k, which with this symmetric sticky chain is
+    # the most probable s_{k-1}: compare with the mode one sample earlier
     acc = np.mean(out.mode[:, 2:] == traj.mode[:, 1:-1])
     assert acc > 0.95
+
+
+def test_one_mode_both_timings_are_the_same_filter_streamed_and_smoothed():
+    rng = np.random.default_rng(8)
+    sys = SwitchedLinearSystem.discrete(random_discrete(rng).A[:1], C=[[1.0, 0.0, 0.5]],
+                                        Q=0.1 * np.eye(3), R=[[0.2]], dt=1.0)
+    y, u = rng.standard_normal((2, 15, 1)), None
+    sample, interval = (IMMFilter(sys, [[1.0]], np.zeros(3), np.eye(3), timing=timing)
+                        for timing in ("sample", "interval"))
+    a, b = sample.run(y), interval.run(y)
+    for name in ("x", "P", "loglik"):  # the interaction of one mode is a copy: same operations
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    sa, sb = sample.init((2,)), interval.init((2,))
+    for k in range(y.shape[1]):
+        dt = None if k == 0 else 1.0
+        sa, sb = sample.step(sa, y[:, k], u, dt=dt), interval.step(sb, y[:, k], u, dt=dt)
+        np.testing.assert_array_equal(sa.combined_x, sb.combined_x)
+        np.testing.assert_array_equal(sa.combined_P, sb.combined_P)
+    # Kim's smoother of one mode is the RTS smoother in either timing (1e-12 of the scale:
+    # the two timings' smoothers may order the same operations differently)
+    ka, kb = sample.smooth(y), interval.smooth(y)
+    np.testing.assert_allclose(ka.x, kb.x, rtol=0, atol=1e-12 * np.abs(kb.x).max())
+    np.testing.assert_allclose(ka.P, kb.P, rtol=0, atol=1e-12 * np.abs(kb.P).max())
+
+
+@pytest.mark.parametrize("timing", ["sample", "interval"])
+def test_smooth_runs_kims_smoother_in_the_filters_timing(timing):
+    rng = np.random.default_rng(9)
+    sys = random_discrete(rng)
+    y, u = rng.standard_normal((2, 12, 2)), rng.standard_normal((2, 12, 1))
+    est = IMMFilter(sys, TRANSITION, np.zeros(3), np.eye(3), timing=timing)
+    fwd = est.run_modes(y, u)
+    ref = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G, fwd.Qd,
+                          fwd.trans, fwd.transition, modes_out=False, timing=timing)
+    out = est.smooth(y, u)
+    for name in ("x", "P", "mode_prob", "mode"):  # the same computation: equal to the last bit
+        np.testing.assert_array_equal(getattr(out, name), getattr(ref, name))
+
+
+# ---------------------------------------------------------------- "sample" against "interval"
+def sample_timing_data(trials, samples, seed):
+    """Two modes that differ in their dynamics AND in what they observe, sticky switching at
+    the samples drawn by ``simulate``: the ``"sample"`` timing is the true model.
+
+    Both differences are needed: with one ``C`` and ``R`` the two timings are one model up to
+    a shift of the mode labels by one sample (``s'_k = s_{k-1}``, a chain with the same
+    ``transition``; with a uniform prior and a doubly stochastic ``transition`` even the first
+    sample agrees), so no filter of one can beat the other's in likelihood."""
+    A = np.array([[[0.95, 0.3], [0.0, 0.9]], [[0.6, -0.6], [0.6, 0.6]]])
+    C = np.array([[[1.0, 0.0]], [[0.0, 1.0]]])
+    sys = SwitchedLinearSystem.discrete(A, C=C, Q=0.05 * np.eye(2), R=[[0.1]], dt=1.0)
+    transition = np.array([[0.9, 0.1], [0.1, 0.9]])
+    t = np.arange(float(samples))
+    traj = simulate(sys, MarkovAtSamples(transition), t, (np.zeros(2), np.eye(2)),
+                    trials=trials, rng=seed)
+    return sys, transition, traj
+
+
+@pytest.mark.parametrize("cls", [IMMFilter, GPB2Filter])
+def test_on_switches_at_the_samples_the_sample_timing_wins(cls):
+    """Per trial, the mean log-likelihood ``mean_k log p(y_k | y_0..k-1)`` and the state RMSE of
+    the ``"sample"`` timing against the ``"interval"`` one, on N = 400 independent trials of 50
+    samples. The paired differences must favour "sample" by more than 4 standard errors of
+    their mean (sd / sqrt(N), the trials independent): a one-sided z-test that a filter no
+    better than the other passes with probability about 3e-5.
+
+    Observed (seed 0): z = 8.3 (IMM) and 10.2 (GPB2) for the log-likelihood, 10.7 and 11.4 for
+    the RMSE. Over seeds 0-9 the smallest z was 3.6 (the IMM's log-likelihood: its per-trial
+    differences are heavy-tailed, a trial where either filter locks onto the wrong mode for a
+    while costing tens of nats), the others at least 8; the exact mixture
+    (ExactMixtureFilter, 11 samples) gains 0.055 nats per sample from the right timing on
+    this model, the IMM and GPB2 0.05."""
+    N = 400
+    sys, transition, traj = sample_timing_data(N, 50, seed=0)
+    loglik, rmse = {}, {}
+    for timing in ("sample", "interval"):
+        out = cls(sys, transition, np.zeros(2), np.eye(2), timing=timing).run(traj.y, t=traj.t)
+        loglik[timing] = out.loglik.mean(axis=1)
+        rmse[timing] = np.sqrt(np.mean(np.sum((out.x - traj.x) ** 2, axis=-1), axis=1))
+    for gain in (loglik["sample"] - loglik["interval"], rmse["interval"] - rmse["sample"]):
+        assert gain.mean() > 4.0 * gain.std(ddof=1) / np.sqrt(N)

@@ -3,15 +3,25 @@
 
 Both approximate the posterior of a jump-Markov linear system, a mixture of ``L^k`` Gaussians
 after ``k`` samples (one per mode sequence), by a mixture of fewer, switches happening at the
-sample instants:
+sample instants. The ``timing`` (docs/conventions.rst;
+:class:`~switchest.estimators.mode_bank.ModeBankFilter`) says which interval the mode ``s_k``
+of sample ``k`` governs besides ``y_k``: the one after it (``"sample"``, the default:
+``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``) or the one into it (``"interval"``, Bar-Shalom's:
+``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``); so which mode's transition a prediction takes.
 
-- GPB1 keeps one Gaussian: ``L`` Kalman filters, one per mode at sample ``k``, all predicted
-  from the one Gaussian with the moments of the previous sample's mixture; mode probabilities
-  ``mu_j(k) ∝ Lambda_j(k) sum_i pi_ij mu_i(k-1)``. It is the IMM's bank with the interaction
-  replaced by that collapse (:func:`~switchest.estimators._compiled.imm_run` with
+- GPB1 keeps one Gaussian: ``L`` Kalman filters, one per mode at sample ``k``; mode
+  probabilities ``mu_j(k) ∝ Lambda_j(k) c_j``, ``c_j = sum_i pi_ij mu_i(k-1)``. ``"sample"``:
+  each mode-matched posterior ``i`` of sample ``k - 1`` is predicted through mode ``i``'s
+  transition and the ``L`` predictions are collapsed into one Gaussian (the moments of
+  ``sum_i mu_i(k-1) N(x_i(k|k-1), P_i(k|k-1))``) from which every mode ``j`` updates.
+  ``"interval"`` (§11.6.4): the posteriors are collapsed first and mode ``j`` predicts the one
+  Gaussian through its own transition. It is the IMM's bank with the interaction replaced by
+  that collapse (:func:`~switchest.estimators._compiled.imm_run` with
   ``interaction="collapse"``).
 - GPB2 keeps one Gaussian per mode: ``L^2`` Kalman filters, one per pair (mode ``i`` at
-  ``k - 1``, mode ``j`` at ``k``), predicted from mode ``i``'s Gaussian with mode ``j``'s model,
+  ``k - 1``, mode ``j`` at ``k``), predicted from mode ``i``'s Gaussian through mode ``i``'s
+  transition (``"sample"``: one prediction per ``i``, shared by its pairs) or mode ``j``'s
+  (``"interval"``, §11.6.5), updated with ``C_j``, ``R_j``,
   ``mu_ij(k) ∝ Lambda_ij(k) pi_ij mu_i(k-1)``; each mode's pairs are merged into one Gaussian
   (:mod:`switchest.estimators._compiled.gpb`).
 
@@ -42,11 +52,15 @@ class GPB1Filter(ModeBankFilter):
     """First-order generalized pseudo-Bayesian filter (Bar-Shalom, Li & Kirubarajan §11.6.4),
     batched over trials and modes.
 
-    Before each prediction every mode-matched Kalman filter restarts from one Gaussian, the
-    moments of the mixture ``sum_i mu_i N(x_i, P_i)`` of the previous sample; mode ``j``
-    predicts with its model and updates with its ``C``, ``R``, and
-    ``mu_j(k) ∝ Lambda_j(k) sum_i pi_ij mu_i(k-1)``. The output is the moments of the mixture
-    over the modes.
+    Every mode-matched Kalman filter restarts from one Gaussian and updates with its ``C``,
+    ``R``; ``mu_j(k) ∝ Lambda_j(k) sum_i pi_ij mu_i(k-1)``. The one Gaussian, in the
+    ``"sample"`` timing (default): the moments of ``sum_i mu_i(k-1) N(x_i(k|k-1),
+    P_i(k|k-1))``, each mode-matched posterior ``i`` predicted through mode ``i``'s transition
+    (the model ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``y_k = C(s_k) x_k + v_k``); in the
+    ``"interval"`` timing (§11.6.4; ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``,
+    ``y_k = C(s_k) x_k + v``): the moments of the mixture ``sum_i mu_i N(x_i, P_i)`` of the
+    previous sample, then predicted through mode ``j``'s transition. The output is the moments
+    of the mixture over the modes.
 
     Parameters
     ----------
@@ -61,6 +75,11 @@ class GPB1Filter(ModeBankFilter):
         Largest normalized innovation squared a mode-matched filter accepts (keyword-only);
         ``None`` rejects only measurements whose innovation overflows. A sample every mode
         rejects is treated as missing and flagged in ``Estimate.outlier``.
+    timing : {"sample", "interval"}
+        Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only): the
+        one after it (``"sample"``, default) or the one into it (``"interval"``, Bar-Shalom's);
+        the models and the derivation are in
+        :class:`~switchest.estimators.mode_bank.ModeBankFilter`.
 
     Notes
     -----
@@ -75,13 +94,13 @@ class GPB1Filter(ModeBankFilter):
         sys = self.system
         return imm_run(y, u, F, G, Qd, trans, sys.C, sys.R, self._log_transition, self.x0,
                        self.P0, self._log_p0, gate=self._gate, interaction="collapse",
-                       modes_out=modes_out)
+                       timing=self.timing, modes_out=modes_out)
 
     def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first):
         sys = self.system
         return imm_step(x, P, log_prob, y, u, F, G, Qd, trans, sys.C, sys.R,
                         self._log_transition, predict_first=predict_first, gate=self._gate,
-                        interaction="collapse")
+                        interaction="collapse", timing=self.timing)
 
 
 class GPB2Filter(ModeBankFilter):
@@ -89,8 +108,12 @@ class GPB2Filter(ModeBankFilter):
     batched over trials, modes and pairs of modes.
 
     ``L^2`` Kalman filters, one per pair (mode ``i`` at ``k - 1``, mode ``j`` at ``k``), each
-    predicted from mode ``i``'s Gaussian with mode ``j``'s model and updated with mode ``j``'s
-    ``C``, ``R``; ``mu_ij(k) ∝ Lambda_ij(k) pi_ij mu_i(k-1)``. Mode ``j``'s pairs are merged
+    predicted from mode ``i``'s Gaussian and updated with mode ``j``'s ``C``, ``R``;
+    ``mu_ij(k) ∝ Lambda_ij(k) pi_ij mu_i(k-1)``. The prediction goes through mode ``i``'s
+    transition in the ``"sample"`` timing (default; ``x_{k+1} = F(s_k) x_k + G(s_k) u_k +
+    w_k``, ``y_k = C(s_k) x_k + v_k``: computed once per ``i``), through mode ``j``'s in the
+    ``"interval"`` timing (§11.6.5; ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``,
+    ``y_k = C(s_k) x_k + v``). Mode ``j``'s pairs are merged
     into one Gaussian: ``mu_j = sum_i mu_ij``, ``x_j = sum_i mu_{i|j} x_ij``,
     ``P_j = sum_i mu_{i|j} (P_ij + (x_ij - x_j)(x_ij - x_j)')`` with
     ``mu_{i|j} = mu_ij / mu_j``. The output is the moments of the mixture over the modes. At
@@ -109,6 +132,10 @@ class GPB2Filter(ModeBankFilter):
         Largest normalized innovation squared a pair's filter accepts (keyword-only); ``None``
         rejects only measurements whose innovation overflows. A sample every pair rejects is
         treated as missing and flagged in ``Estimate.outlier``.
+    timing : {"sample", "interval"}
+        Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only): the
+        one after it (``"sample"``, default) or the one into it (``"interval"``, Bar-Shalom's);
+        see :class:`~switchest.estimators.mode_bank.ModeBankFilter`.
 
     Notes
     -----
@@ -120,9 +147,11 @@ class GPB2Filter(ModeBankFilter):
     def _kernel_run(self, y, u, F, G, Qd, trans, modes_out):
         sys = self.system
         return gpb2_run(y, u, F, G, Qd, trans, sys.C, sys.R, self._log_transition, self.x0,
-                        self.P0, self._log_p0, gate=self._gate, modes_out=modes_out)
+                        self.P0, self._log_p0, gate=self._gate, timing=self.timing,
+                        modes_out=modes_out)
 
     def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first):
         sys = self.system
         return gpb2_step(x, P, log_prob, y, u, F, G, Qd, trans, sys.C, sys.R,
-                         self._log_transition, predict_first=predict_first, gate=self._gate)
+                         self._log_transition, predict_first=predict_first, gate=self._gate,
+                         timing=self.timing)

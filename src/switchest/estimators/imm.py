@@ -1,9 +1,12 @@
 """The interacting multiple model filter (Blom & Bar-Shalom, 1988).
 
-One Kalman filter per mode; before each prediction their estimates are mixed
-with the mode transition probabilities, after each update the mode
-probabilities are re-weighted by the filters' likelihoods. Switches are assumed
-to happen at the sample instants. Mode probabilities are kept as log-weights.
+One Kalman filter per mode; at each sample their estimates are mixed with the
+mode transition probabilities, after each update the mode probabilities are
+re-weighted by the filters' likelihoods. Switches are assumed to happen at the
+sample instants; the ``timing`` says which interval the mode of a sample governs
+(docs/conventions.rst) and so whether the mixing falls after the prediction
+(``"sample"``, the default) or before it (``"interval"``, Blom & Bar-Shalom's
+original). Mode probabilities are kept as log-weights.
 
 Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
 :mod:`switchest.estimators._compiled` (``imm_run``, ``imm_step``), which holds the one
@@ -47,9 +50,34 @@ class IMMFilter(ModeBankFilter):
         accepts (keyword-only); e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None``
         rejects only measurements whose innovation overflows. A sample every mode
         rejects is treated as missing and flagged in ``Estimate.outlier``.
+    timing : {"sample", "interval"}
+        Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k``
+        (keyword-only; docs/conventions.rst):
+
+        - ``"sample"`` (default; the model :func:`switchest.simulate` draws with switches
+          at the samples; Costa, Fragoso & Marques 2005, eq. (3.1)):
+          ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``w_k ~ N(0, Qd(s_k))``,
+          ``y_k = C(s_k) x_k + v_k``, ``v_k ~ N(0, R(s_k))``. Each mode-matched posterior
+          ``i`` of sample ``k - 1`` is predicted through mode ``i``'s transition, then the
+          predictions are mixed into mode ``j``'s prior with the weights
+          ``mu_{i|j} = pi_ij mu_i / c_j``, ``c_j = sum_i pi_ij mu_i``.
+        - ``"interval"`` (Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan 2001,
+          §11.6.6; FilterPy's ``IMMEstimator``): ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} +
+          w``, ``y_k = C(s_k) x_k + v``. The posteriors are mixed with the same weights,
+          then mode ``j``'s mixture is predicted through mode ``j``'s transition.
+
+        Both update mode ``j`` with ``C_j``, ``R_j``. With one mode they are the same
+        (Kalman) filter.
 
     Notes
     -----
+    Derivation of the ``"sample"`` ordering: ``x_k`` is independent of ``s_k`` given
+    ``(s_{k-1}, x_{k-1})``, so ``p(x_k | s_k = j, Y_{k-1}) = sum_i P(s_{k-1} = i | s_k = j,
+    Y_{k-1}) p(x_k | s_{k-1} = i, Y_{k-1})``, with ``P(s_{k-1} = i | s_k = j, Y_{k-1}) =
+    mu_{i|j}`` and ``p(x_k | s_{k-1} = i, Y_{k-1})`` mode ``i``'s Kalman prediction from
+    its posterior (Gaussian given mode-matched posteriors). Moment-matching that mixture is
+    Blom & Bar-Shalom's approximation, applied after the prediction instead of before it.
+
     ``smooth(y, u, t)`` gives the fixed-interval smoothed estimates and mode probabilities:
     Kim's (1994) backward recursion on the IMM's mode-matched posteriors, as Murphy (1998,
     "Switching Kalman filters", §3-4) applies it to collapsing filters
@@ -59,9 +87,11 @@ class IMMFilter(ModeBankFilter):
     def _kernel_run(self, y, u, F, G, Qd, trans, modes_out):
         sys = self.system
         return imm_run(y, u, F, G, Qd, trans, sys.C, sys.R, self._log_transition, self.x0,
-                       self.P0, self._log_p0, gate=self._gate, modes_out=modes_out)
+                       self.P0, self._log_p0, gate=self._gate, timing=self.timing,
+                       modes_out=modes_out)
 
     def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first):
         sys = self.system
         return imm_step(x, P, log_prob, y, u, F, G, Qd, trans, sys.C, sys.R,
-                        self._log_transition, predict_first=predict_first, gate=self._gate)
+                        self._log_transition, predict_first=predict_first, gate=self._gate,
+                        timing=self.timing)

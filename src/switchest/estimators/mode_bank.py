@@ -1,7 +1,7 @@
 """Filters on a bank of mode-matched Kalman filters: the IMM, GPB1 and GPB2.
 
-They share their configuration (``system, transition, x0, P0, *, mode_prob0, gate``), their
-state (:class:`IMMState`: one Gaussian and one log-probability per mode, and the combined
+They share their configuration (``system, transition, x0, P0, *, mode_prob0, gate, timing``),
+their state (:class:`IMMState`: one Gaussian and one log-probability per mode, and the combined
 estimate), their streaming ``step``, their ``run`` and a fixed-interval smoother, and differ
 only in the compiled kernel that takes one sample: the IMM's interaction (Blom & Bar-Shalom,
 1988), GPB1's collapse (Bar-Shalom, Li & Kirubarajan §11.6.4) or GPB2's pairs of modes
@@ -10,8 +10,10 @@ only in the compiled kernel that takes one sample: the IMM's interaction (Blom &
 ``smooth`` runs Kim's (1994) backward recursion on the filter's mode-matched posteriors
 (:func:`switchest.estimators.smoothing.smooth_mode_matched`).
 
-Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k); mode
-``j`` at sample ``k`` governs the interval into ``k`` and the measurement there.
+Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k). The mode
+``s_k`` of sample ``k`` governs the measurement there and, by the ``timing``
+(docs/conventions.rst), the interval after ``k`` (``"sample"``, the default) or the one into it
+(``"interval"``, Bar-Shalom's).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import numpy as np
 
 from .._checks import (
     check_memory,
+    check_timing,
     positive_scalar,
 )
 from ..discretize import mode_steps, sample_mode_steps
@@ -128,22 +131,54 @@ class ModeBankFilter(Estimator):
         e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None`` rejects only measurements whose
         innovation overflows. A sample every filter rejects is treated as missing and flagged
         in ``Estimate.outlier``.
+    timing : {"sample", "interval"}
+        Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k`` (keyword-only;
+        docs/conventions.rst). ``"sample"`` (default; :func:`switchest.simulate` with switches
+        at the samples; Costa, Fragoso & Marques 2005, eq. (3.1)): the one after it,
+        ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``w_k ~ N(0, Qd(s_k))``,
+        ``y_k = C(s_k) x_k + v_k``, ``v_k ~ N(0, R(s_k))``. ``"interval"`` (Bar-Shalom, Li &
+        Kirubarajan 2001, §11.6; FilterPy's ``IMMEstimator``): the one into it,
+        ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``, ``y_k = C(s_k) x_k + v``. ``F, G, Qd``
+        are the exact discretization of a mode over the interval. With one mode the two are
+        the same filter.
+
+    Notes
+    -----
+    In the ``"sample"`` timing ``x_k`` does not depend on ``s_k`` given ``s_{k-1}`` and
+    ``x_{k-1}``, so the prior of mode ``j`` at sample ``k`` is the mixture
+
+    ``p(x_k | s_k = j, Y_{k-1}) = sum_i P(s_{k-1} = i | s_k = j, Y_{k-1}) p(x_k | s_{k-1} = i,
+    Y_{k-1})``
+
+    with ``P(s_{k-1} = i | s_k = j, Y_{k-1}) = pi_ij mu_i(k-1) / c_j``,
+    ``c_j = sum_i pi_ij mu_i(k-1)``, and ``p(x_k | s_{k-1} = i, Y_{k-1})`` mode ``i``'s Kalman
+    prediction through its own transition. The filters therefore predict first and interact
+    after: the IMM moment-matches that mixture (the approximation of Blom & Bar-Shalom, 1988,
+    applied after the prediction instead of before it); GPB1 collapses the ``L`` predictions
+    with weights ``mu_i(k-1)``; GPB2 predicts pair (``i``, ``j``) through mode ``i``'s
+    transition. In the ``"interval"`` timing they interact first and predict mode ``j``'s
+    restarted prior through mode ``j``'s transition (Bar-Shalom, Li & Kirubarajan §11.6.4-6).
+    The updates (mode ``j`` with ``C_j``, ``R_j``), the weighting of the hypotheses by their
+    likelihoods and the output are the same in both.
     """
 
-    def __init__(self, system, transition, x0, P0, *, mode_prob0=None, gate: float | None = None):
+    def __init__(self, system, transition, x0, P0, *, mode_prob0=None, gate: float | None = None,
+                 timing: str = "sample"):
         self._set_prior(system, x0, P0)
         self.gate = None if gate is None else positive_scalar(gate, "gate")
         self._set_mode_prior(transition, mode_prob0)
+        self.timing = check_timing(timing)
         self._gate = math.inf if self.gate is None else self.gate
 
     # ------------------------------------------------------------------ the kernels
     @abstractmethod
     def _kernel_run(self, y, u, F, G, Qd, trans, modes_out: bool) -> IMMOutput:
-        """The compiled filter over a prepared record."""
+        """The compiled filter over a prepared record, in ``self.timing``."""
 
     @abstractmethod
     def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first: bool):
-        """One compiled sample from the mode-matched state: ``(IMMOutput, (x, P, log_prob))``."""
+        """One compiled sample from the mode-matched state, in ``self.timing``:
+        ``(IMMOutput, (x, P, log_prob))``."""
 
     # ------------------------------------------------------------------ the protocol
     def init(self, batch_shape=()) -> IMMState:
@@ -157,7 +192,9 @@ class ModeBankFilter(Estimator):
 
     def step(self, state: IMMState, y, u=None, *, dt=None) -> IMMState:
         """Predict over ``dt`` (skipped when ``None``: the first sample) and update with
-        ``y (..., m)``; one sample of the compiled kernel ``run`` loops over.
+        ``y (..., m)``; one sample of the compiled kernel ``run`` loops over, in the filter's
+        ``timing`` (with ``dt`` at the first sample, each mode predicts from the prior through
+        its own transition in either timing: the prior is the same Gaussian for every mode).
 
         ``state`` is an :class:`~switchest.estimators.imm.IMMState`: the mode-matched
         Gaussians (GPB2: merged), log mode probabilities and the combined estimate.
@@ -230,15 +267,18 @@ class ModeBankFilter(Estimator):
         backward recursion (Kim 1994, §2.2; for collapsing filters as Murphy 1998, §3-4)
         then weighs every pair (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) by
         ``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` and moves mode
-        ``j``'s filtered posterior by a Rauch-Tung-Striebel step through mode ``i``'s
-        transition (:func:`~switchest.estimators.smoothing.smooth_mode_matched`). The last
+        ``j``'s filtered posterior by a Rauch-Tung-Striebel step through the transition into
+        ``k + 1`` of the mode that governs it in the filter's ``timing``: mode ``j``'s
+        (``"sample"``) or mode ``i``'s (``"interval"``)
+        (:func:`~switchest.estimators.smoothing.smooth_mode_matched`). The last
         sample's smoothed estimate is the filtered one. Like the filter it approximates, the
         smoother is not exact; :class:`~switchest.estimators.ExactMixtureFilter` is, for short
         records.
         """
         fwd = self.run_modes(y, u, t)
         s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
-                            fwd.Qd, fwd.trans, fwd.transition, modes_out=False)
+                            fwd.Qd, fwd.trans, fwd.transition, modes_out=False,
+                            timing=self.timing)
         _warn_if_diverged(fwd.estimate, s)
         return self._unflatten(Estimate(x=s.x, P=s.P, mode_prob=s.mode_prob, mode=s.mode),
                                fwd.batch)

@@ -48,11 +48,12 @@ from .linalg import (
     write_modes,
 )
 
-__all__ = ["LANES", "MIX", "COLLAPSE", "filter_bank", "lane_index", "copy_rows", "report_sample"]
+__all__ = ["LANES", "MIX", "COLLAPSE", "filter_bank", "lane_index", "gather_transition",
+           "copy_rows", "report_sample"]
 
 LANES = 16  # trials per block: four AVX2 registers of float64 per row of lanes
 
-# the interaction of filter_bank's mode-matched filters before each prediction
+# the interaction of filter_bank's mode-matched filters at each sample after the first
 MIX = 0  # the IMM's: mode j restarts from the mixture with weights mu_{i|j}
 COLLAPSE = 1  # GPB1's: every mode restarts from the one Gaussian of all modes' mixture
 
@@ -64,6 +65,40 @@ def lane_index(index, i0, nb, k, j, out):
     for b in range(nb):
         i = i0 + b if index.shape[0] > 1 else 0
         out[b] = index[i, k if index.shape[1] > 1 else 0, j]
+
+
+@jit
+def gather_transition(F, G, Qd, trans, i0, nb, k, j, idx, Fl, Gl, Ql):
+    """Each lane's exact transition of mode ``j`` into sample ``k``, ``trans[trial, k, j]``
+    (:func:`lane_index`) of the table ``F, G, Qd``, into ``Fl (n, n, B)``, ``Gl (n, l, B)``,
+    ``Ql (n, n, B)``; ``idx (B,)`` is scratch."""
+    lane_index(trans, i0, nb, k, j, idx)
+    gather_matrices(F, idx, nb, Fl)
+    gather_matrices(G, idx, nb, Gl)
+    gather_matrices(Qd, idx, nb, Ql)
+
+
+@jit
+def _predict_modes(x, P, F, G, Qd, trans, i0, nb, k, ul, idx, Fl, Gl, Ql, AP, xs):
+    """Every mode-matched Gaussian ``x[j]``, ``P[j]`` predicted into sample ``k`` through mode
+    ``j``'s own transition (:func:`gather_transition`, :func:`.linalg.predict`), in place."""
+    for j in range(x.shape[0]):
+        gather_transition(F, G, Qd, trans, i0, nb, k, j, idx, Fl, Gl, Ql)
+        predict(x[j], P[j], Fl, Gl, ul, Ql, nb, AP, xs)
+
+
+@jit
+def _interact(x, P, prob, log_prob, transition, log_transition, interaction, nb, log_c, w, xm,
+              Pm):
+    """The bank's interaction, in place on the mode-matched ``x (L, n, B)``, ``P``, weighted by
+    the mode probabilities ``prob`` of the previous sample: :func:`.linalg.mix` (``MIX``) or
+    :func:`.linalg.collapse` (``COLLAPSE``); with one mode only ``log_c = log_prob``."""
+    if x.shape[0] == 1:
+        copy_rows(log_prob, log_c, nb)
+    elif interaction == COLLAPSE:
+        collapse(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm)
+    else:
+        mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm)
 
 
 @jit
@@ -99,9 +134,9 @@ def report_sample(x, P, prob, log_prob, total, flag, n_obs, i0, nb, k, modes_wan
 
 @jit
 def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transition, x_init,
-                P_init, log_prob_init, interaction, predict_first, gate, lanes, x_out, P_out,
-                prob_out, mode_out, loglik_out, flag_out, x_modes_out, P_modes_out, x_last,
-                P_last, log_prob_last, report):
+                P_init, log_prob_init, interaction, sample_timing, predict_first, gate, lanes,
+                x_out, P_out, prob_out, mode_out, loglik_out, flag_out, x_modes_out, P_modes_out,
+                x_last, P_last, log_prob_last, report):
     """Filter ``N`` trials over ``K`` samples with ``L`` interacting mode-matched filters.
 
     Parameters
@@ -128,6 +163,13 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
         ``MIX``: the IMM's interaction (:func:`.linalg.mix`); ``COLLAPSE``: GPB1's
         (:func:`.linalg.collapse`). The predicted mode probabilities are
         ``c_j = sum_i pi_ij mu_i`` either way.
+    sample_timing : bool
+        The order of interaction and prediction into each sample ``k``. False (the
+        ``"interval"`` timing, Bar-Shalom, Li & Kirubarajan §11.6.6): interact, then predict
+        each mode's restarted prior through its own transition ``trans[k, j]``. True (the
+        ``"sample"`` timing): predict each mode-matched posterior ``i`` of sample ``k - 1``
+        through its own transition ``trans[k, i]``, then interact the predictions with the same
+        weights (``mu_{i|j} = pi_ij mu_i / c_j`` for the IMM, ``mu_i`` for GPB1).
     predict_first : bool
         Whether the first sample is mixed and predicted into (a streaming step) or only
         updated (the start of a record).
@@ -207,19 +249,13 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
             observe(yl, nb, obs, n_obs)
             if k > 0 or predict_first:
                 gather_samples(u, i0, nb, max(k - 1, 0), ul)
-                if n_modes > 1 and interaction == COLLAPSE:
-                    collapse(x, P, prob, log_prob, transition, log_transition, nb, log_c, w,
-                             xm, Pm)
-                elif n_modes > 1:
-                    mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm)
-                else:
-                    copy_rows(log_prob, log_c, nb)
-                for j in range(n_modes):
-                    lane_index(trans, i0, nb, k, j, idx)
-                    gather_matrices(F, idx, nb, Fl)
-                    gather_matrices(G, idx, nb, Gl)
-                    gather_matrices(Qd, idx, nb, Ql)
-                    predict(x[j], P[j], Fl, Gl, ul, Ql, nb, AP, xs)
+                if not sample_timing:  # "interval": interact, then predict
+                    _interact(x, P, prob, log_prob, transition, log_transition, interaction, nb,
+                              log_c, w, xm, Pm)
+                _predict_modes(x, P, F, G, Qd, trans, i0, nb, k, ul, idx, Fl, Gl, Ql, AP, xs)
+                if sample_timing:  # "sample": predict, then interact
+                    _interact(x, P, prob, log_prob, transition, log_transition, interaction, nb,
+                              log_c, w, xm, Pm)
             else:
                 copy_rows(log_prob, log_c, nb)
             if k == 0 or out_index.shape[1] > 1:

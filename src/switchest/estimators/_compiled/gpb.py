@@ -3,10 +3,14 @@ Kirubarajan 2001, §11.6.5).
 
 The state of a trial after sample ``k - 1`` is one Gaussian per mode, ``N(x_i, P_i)`` with
 probability ``mu_i``. Into sample ``k`` run ``L^2`` Kalman filters, one per pair (mode ``i``
-at ``k - 1``, mode ``j`` at ``k``): predicted from mode ``i``'s Gaussian with mode ``j``'s
-transition ``trans[k, j]`` of the table ``F, G, Qd`` and updated with ``C[j]``, ``R[j]``,
-with probability ``mu_ij ∝ Lambda_ij pi_ij mu_i``. Each mode's pairs are then merged into
-one Gaussian, ``mu_j = sum_i mu_ij``, ``mu_{i|j} = mu_ij / mu_j``,
+at ``k - 1``, mode ``j`` at ``k``): predicted from mode ``i``'s Gaussian and updated with
+``C[j]``, ``R[j]``, with probability ``mu_ij ∝ Lambda_ij pi_ij mu_i``. The prediction goes
+through the transition of the mode that governs the interval into ``k`` (the ``timing``,
+docs/conventions.rst): mode ``i``'s, ``trans[k, i]`` of the table ``F, G, Qd``, in the
+``"sample"`` timing (the same for every ``j``: computed once per ``i``), mode ``j``'s,
+``trans[k, j]``, in the ``"interval"`` timing (Bar-Shalom, Li & Kirubarajan §11.6.5). Each
+mode's pairs are then merged into one Gaussian, ``mu_j = sum_i mu_ij``,
+``mu_{i|j} = mu_ij / mu_j``,
 ``x_j = sum_i mu_{i|j} x_ij``, ``P_j = sum_i mu_{i|j} (P_ij + (x_ij - x_j)(x_ij - x_j)')``,
 and the output is the moments of the mixture over ``j`` (as the IMM's). Sample 0 has only
 the prior: ``L`` filters, mode ``j``'s from its prior Gaussian with probability ``mu_j(0)``
@@ -32,8 +36,8 @@ import numpy as np
 
 from ..._checks import positive_int
 from .arrays import check_gate, checked
-from .bank import LANES, copy_rows, lane_index, report_sample
-from .imm import IMMOutput
+from .bank import LANES, copy_rows, gather_transition, report_sample
+from .imm import IMMOutput, is_sample_timing
 from .linalg import (
     ACCEPTED,
     GATED,
@@ -132,8 +136,9 @@ def _log_sum_exp(a, b):
 
 @jit
 def gpb2_bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_init,
-              predict_first, gate, lanes, x_out, P_out, prob_out, mode_out, loglik_out, flag_out,
-              x_modes_out, P_modes_out, x_last, P_last, log_prob_last, report):
+              sample_timing, predict_first, gate, lanes, x_out, P_out, prob_out, mode_out,
+              loglik_out, flag_out, x_modes_out, P_modes_out, x_last, P_last, log_prob_last,
+              report):
     """GPB2 over ``N`` trials and ``K`` samples (Bar-Shalom, Li & Kirubarajan §11.6.5).
 
     Parameters
@@ -142,13 +147,18 @@ def gpb2_bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_p
         As in :func:`.bank.filter_bank`: measurements ``(N, K, m)`` (NaN components missing),
         inputs ``(N, K, l)`` (``u[:, k-1]`` held over the interval into sample ``k``), the
         table of exact transitions and ``trans (N or 1, K, L)``, the transition of mode ``j``
-        into sample ``k`` (used by every pair ending in mode ``j``).
+        into sample ``k``.
     C, R : (L, m, n), (L, m, m) float64
         Output matrix and measurement-noise covariance of each mode.
     log_transition : (L, L) float64
         ``log transition[i, j]``, ``-inf`` for an impossible switch.
     x_init, P_init, log_prob_init : (N, L, n), (N, L, n, n), (N, L) float64
         The merged Gaussian and log-probability of each mode before the first sample.
+    sample_timing : bool
+        Which transition the pair (``i`` at ``k - 1``, ``j`` at ``k``) is predicted through:
+        mode ``i``'s, ``trans[k, i]`` (True: the ``"sample"`` timing; one prediction per
+        ``i``, copied to its ``L`` pairs), or mode ``j``'s, ``trans[k, j]`` (False: the
+        ``"interval"`` timing, Bar-Shalom, Li & Kirubarajan §11.6.5).
     predict_first : bool
         Whether the first sample is predicted into through the ``L^2`` pairs (a streaming step)
         or only updated, ``L`` filters (the start of a record).
@@ -216,14 +226,17 @@ def gpb2_bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_p
             n_src = n_modes if paired else 1  # sources per mode: the modes at k-1, or the prior
             if paired:
                 gather_samples(u, i0, nb, max(k - 1, 0), ul)
+                if sample_timing:  # x_i(k|k-1) through mode i's transition, once per i
+                    for i in range(n_modes):
+                        gather_transition(F, G, Qd, trans, i0, nb, k, i, idx, Fl, Gl, Ql)
+                        predict(x[i], P[i], Fl, Gl, ul, Ql, nb, AP, xs)
                 for j in range(n_modes):
-                    lane_index(trans, i0, nb, k, j, idx)
-                    gather_matrices(F, idx, nb, Fl)
-                    gather_matrices(G, idx, nb, Gl)
-                    gather_matrices(Qd, idx, nb, Ql)
+                    if not sample_timing:  # every pair into j through mode j's transition
+                        gather_transition(F, G, Qd, trans, i0, nb, k, j, idx, Fl, Gl, Ql)
                     for i in range(n_modes):  # pair (i at k-1, j at k): log mu_i + log pi_ij
                         copy_gaussian(x[i], P[i], nb, xp[j, i], Pp[j, i])
-                        predict(xp[j, i], Pp[j, i], Fl, Gl, ul, Ql, nb, AP, xs)
+                        if not sample_timing:
+                            predict(xp[j, i], Pp[j, i], Fl, Gl, ul, Ql, nb, AP, xs)
                         for b in range(nb):
                             prior_w[j, i, b] = log_prob[i, b] + log_transition[i, j]
             else:
@@ -265,11 +278,14 @@ def gpb2_bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_p
 
 
 def gpb2_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
-             gate=math.inf, lanes: int = LANES, modes_out: bool = False) -> IMMOutput:
+             gate=math.inf, lanes: int = LANES, timing: str = "sample",
+             modes_out: bool = False) -> IMMOutput:
     """GPB2 filter of ``N`` trials over ``K`` samples (Bar-Shalom, Li & Kirubarajan §11.6.5).
 
     Arguments as :func:`.imm.imm_run` (``trans (K, L)``: the transition of mode ``j`` into
-    sample ``k``, row 0 unused; ``x0, P0``: the prior of every mode at the first sample).
+    sample ``k``, row 0 unused; ``x0, P0``: the prior of every mode at the first sample;
+    ``timing``: the pair (``i``, ``j``) predicts through mode ``i``'s transition in the
+    ``"sample"`` timing, through mode ``j``'s in the ``"interval"`` timing).
     Returns the combined estimate, ``mu_j``, the most probable mode, the log-likelihood and the
     flags as an :class:`.imm.IMMOutput`, with the merged Gaussians ``x_j``, ``P_j`` after each
     sample if ``modes_out``.
@@ -281,15 +297,17 @@ def gpb2_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
     N, L = sizes["N"], sizes["L"]
     output, _ = _gpb2(y, u, F, G, Qd, trans[None], C, R, log_transition,
                       np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
-                      np.tile(log_prob0, (N, 1)), False, check_gate(gate),
-                      positive_int(lanes, "lanes"), bool(modes_out))
+                      np.tile(log_prob0, (N, 1)), is_sample_timing(timing), False,
+                      check_gate(gate), positive_int(lanes, "lanes"), bool(modes_out))
     return output
 
 
 def gpb2_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
-              predict_first: bool, gate=math.inf) -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
-    """One sample of every trial: the ``L^2`` pairs predicted and updated, then merged (when
-    ``predict_first``; else the ``L`` modes updated), as :func:`.imm.imm_step`.
+              predict_first: bool, gate=math.inf,
+              timing: str = "sample") -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
+    """One sample of every trial: the ``L^2`` pairs predicted (in the ``timing`` of
+    :func:`gpb2_run`) and updated, then merged (when ``predict_first``; else the ``L`` modes
+    updated), as :func:`.imm.imm_step`.
 
     ``x (N, L, n)``, ``P (N, L, n, n)``, ``log_prob (N, L)`` are the merged Gaussians and log
     mode probabilities at the previous sample, ``y (N, m)``, ``u (N, l)``, ``trans (L,)`` the
@@ -301,11 +319,12 @@ def gpb2_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
         sizes, "x:NLn P:NLnn log_prob:NL y:Nm u:Nl F:Mnn G:Mnl Qd:Mnn trans:L<M C:Lmn R:Lmm "
         "log_transition:LL", x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition)
     return _gpb2(y[:, None], u[:, None], F, G, Qd, trans[None, None], C, R, log_transition,
-                 x, P, log_prob, bool(predict_first), check_gate(gate), LANES, False)
+                 x, P, log_prob, is_sample_timing(timing), bool(predict_first),
+                 check_gate(gate), LANES, False)
 
 
 def _gpb2(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_init,
-          predict_first, gate, lanes, modes_out):
+          sample_timing, predict_first, gate, lanes, modes_out):
     """:func:`gpb2_bank` on checked arrays: the :class:`.imm.IMMOutput` and the merged state
     ``(x, P, log_prob)`` after the last sample."""
     N, K, _ = y.shape
@@ -318,8 +337,8 @@ def _gpb2(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_
     last = np.empty_like(x_init), np.empty_like(P_init), np.empty_like(log_prob_init)
     report = np.empty(2)
     status = gpb2_bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init,
-                       log_prob_init, predict_first, gate, lanes, x, P, prob, mode, loglik, flag,
-                       x_modes, P_modes, *last, report)
+                       log_prob_init, sample_timing, predict_first, gate, lanes, x, P, prob,
+                       mode, loglik, flag, x_modes, P_modes, *last, report)
     modes = (x_modes, P_modes) if modes_out else (None, None)
     return (IMMOutput(x, P, prob, mode, loglik, flag, int(status), int(report[0]),
                       float(report[1]), *modes), last)

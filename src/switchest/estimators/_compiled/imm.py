@@ -6,10 +6,15 @@ run the one implementation of each equation (:mod:`.linalg`). Convention of swit
 ``transition[i, j]`` = P(mode j at k+1 | mode i at k), passed as its logarithm; mode
 probabilities are kept as log-weights.
 
-Mode ``j`` predicts into sample ``k`` with the transition ``trans[k, j]`` of the table
-``F (M, n, n)``, ``G (M, n, l)``, ``Qd (M, n, n)`` (irregular sample times give different
-entries per ``k``) and is updated with ``C[j]``, ``R[j]``. The input held over the interval
-into sample ``k`` is ``u[:, k-1]``; sample 0 is update only.
+Mode ``j``'s transition into sample ``k`` is ``trans[k, j]`` of the table ``F (M, n, n)``,
+``G (M, n, l)``, ``Qd (M, n, n)`` (irregular sample times give different entries per ``k``);
+mode ``j`` is updated with ``C[j]``, ``R[j]``. The input held over the interval into sample
+``k`` is ``u[:, k-1]``; sample 0 is update only. ``timing`` (docs/conventions.rst) says which
+mode's transition a mode-matched Gaussian takes into ``k``: in the ``"sample"`` timing (the
+default: the mode of sample ``k - 1`` governs the interval into ``k``) each posterior ``i`` of
+sample ``k - 1`` is predicted through ``trans[k, i]`` and the predictions are then mixed; in
+the ``"interval"`` timing (Bar-Shalom, Li & Kirubarajan §11.6.6) the posteriors are mixed and
+mode ``j``'s mixture is predicted through ``trans[k, j]``.
 
 Gating is decided mode by mode, a gated mode getting no weight at that sample (a truncated
 likelihood); a sample no mode can use counts as missing (:func:`.bank.filter_bank`).
@@ -26,11 +31,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..._checks import positive_int
+from ..._checks import check_timing, positive_int
 from .arrays import check_gate, checked
 from .bank import COLLAPSE, LANES, MIX, filter_bank
 
-__all__ = ["IMMOutput", "imm_run", "imm_step"]
+__all__ = ["IMMOutput", "imm_run", "imm_step", "is_sample_timing"]
 
 _INTERACTIONS = {"mix": MIX, "collapse": COLLAPSE}
 
@@ -82,7 +87,7 @@ class IMMOutput(NamedTuple):
 
 def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
             gate=math.inf, lanes: int = LANES, interaction: str = "mix",
-            modes_out: bool = False) -> IMMOutput:
+            timing: str = "sample", modes_out: bool = False) -> IMMOutput:
     """IMM filter of ``N`` trials over ``K`` samples (Bar-Shalom, Li & Kirubarajan §11.6.6),
     or GPB1 (``interaction="collapse"``, §11.6.4).
 
@@ -109,10 +114,14 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
     lanes : int
         Trials per SIMD block (the results do not depend on it).
     interaction : {"mix", "collapse"}
-        Before each prediction, mode ``j`` restarts from the IMM's mixture with weights
+        Into each sample, mode ``j`` restarts from the IMM's mixture with weights
         ``mu_{i|j} = pi_ij mu_i / c_j`` (``"mix"``) or, for GPB1, from the one Gaussian with
         the moments of all modes' mixture, ``mu_{i|j} = mu_i`` (``"collapse"``); the predicted
         mode probabilities ``c_j = sum_i pi_ij mu_i`` are the same.
+    timing : {"sample", "interval"}
+        Where the interaction falls (:func:`.bank.filter_bank`): after each mode-matched
+        posterior is predicted through its own transition (``"sample"``), or before mode
+        ``j``'s mixture is predicted through mode ``j``'s (``"interval"``, Bar-Shalom's).
     modes_out : bool
         Whether to return the mode-matched posteriors after each sample's update
         (``IMMOutput.x_modes``, ``P_modes``; None otherwise).
@@ -124,21 +133,22 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
     N, L = sizes["N"], sizes["L"]
     output, _ = _bank(y, u, F, G, Qd, trans[None], C, R, log_transition,
                       np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
-                      np.tile(log_prob0, (N, 1)), _interaction(interaction), False,
-                      check_gate(gate), positive_int(lanes, "lanes"), bool(modes_out))
+                      np.tile(log_prob0, (N, 1)), _interaction(interaction),
+                      is_sample_timing(timing), False, check_gate(gate),
+                      positive_int(lanes, "lanes"), bool(modes_out))
     return output
 
 
 def imm_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
-             predict_first: bool, gate=math.inf,
-             interaction: str = "mix") -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
-    """One sample of every trial: mix (or collapse) and predict (when ``predict_first``), then
-    update.
+             predict_first: bool, gate=math.inf, interaction: str = "mix",
+             timing: str = "sample") -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
+    """One sample of every trial: mix (or collapse) and predict, in the order of ``timing``
+    (when ``predict_first``), then update.
 
     ``x (N, L, n)``, ``P (N, L, n, n)``, ``log_prob (N, L)`` are the mode-matched posteriors
     at the previous sample, ``y (N, m)``, ``u (N, l)``, ``trans (L,)`` the transition of each
     mode into this sample; the rest as in :func:`imm_run`, whose compiled kernel runs this
-    one sample, with the same ``interaction``. Inputs are not modified.
+    one sample, with the same ``interaction`` and ``timing``. Inputs are not modified.
 
     Returns
     -------
@@ -153,8 +163,8 @@ def imm_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
         sizes, "x:NLn P:NLnn log_prob:NL y:Nm u:Nl F:Mnn G:Mnl Qd:Mnn trans:L<M C:Lmn R:Lmm "
         "log_transition:LL", x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition)
     return _bank(y[:, None], u[:, None], F, G, Qd, trans[None, None], C, R, log_transition,
-                 x, P, log_prob, _interaction(interaction), bool(predict_first),
-                 check_gate(gate), LANES, False)
+                 x, P, log_prob, _interaction(interaction), is_sample_timing(timing),
+                 bool(predict_first), check_gate(gate), LANES, False)
 
 
 def _interaction(name) -> int:
@@ -164,8 +174,14 @@ def _interaction(name) -> int:
     return _INTERACTIONS[name]
 
 
+def is_sample_timing(timing) -> bool:
+    """Whether ``timing`` (checked: "sample" or "interval") is the ``"sample"`` timing: the
+    kernels take it as a bool, numba compiling one signature for both."""
+    return check_timing(timing) == "sample"
+
+
 def _bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_init,
-          interaction, predict_first, gate, lanes, modes_out):
+          interaction, sample_timing, predict_first, gate, lanes, modes_out):
     """The bank kernel with every mode ``j`` on its own ``C[j]``, ``R[j]``; returns the
     :class:`IMMOutput` (with the mode-matched posteriors of every sample if ``modes_out``)
     and the mode-matched state ``(x, P, log_prob)`` after the last sample."""
@@ -180,8 +196,8 @@ def _bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_
     report = np.empty(2)
     status = filter_bank(y, u, F, G, Qd, trans, C, R, np.arange(L)[None, None],
                          np.exp(log_transition), log_transition, x_init, P_init, log_prob_init,
-                         interaction, predict_first, gate, lanes, x, P, prob, mode, loglik,
-                         flag, x_modes, P_modes, *last, report)
+                         interaction, sample_timing, predict_first, gate, lanes, x, P, prob,
+                         mode, loglik, flag, x_modes, P_modes, *last, report)
     modes = (x_modes, P_modes) if modes_out else (None, None)
     return (IMMOutput(x, P, prob, mode, loglik, flag, int(status), int(report[0]),
                       float(report[1]), *modes), last)
