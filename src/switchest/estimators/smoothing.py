@@ -5,16 +5,31 @@
 GPB2) reports after each sample: its mode-matched posteriors and mode probabilities. Murphy
 (1998, "Switching Kalman filters", tech. report, §3-4) shows how it applies to such filters.
 For every pair (mode ``j`` at sample ``k``, mode ``i`` at ``k+1``) mode ``j``'s filtered
-posterior takes a Rauch-Tung-Striebel step through mode ``i``'s transition towards mode
-``i``'s smoothed posterior. The pairs are weighted by
-``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` and merged over
-``i`` by moment matching. With one mode it is the RTS smoother (Rauch, Tung & Striebel 1965).
-The equations, and how a singular predicted covariance is handled, are in
-:mod:`switchest.estimators._compiled.smoother`; the backward loop runs there, compiled.
+posterior takes a Rauch-Tung-Striebel step towards mode ``i``'s smoothed posterior,
+``x_ji = x_j(k|k) + J (x_i(k+1|K) - F_m x_j(k|k) - G_m u_k)``,
+``P_ji = P_j(k|k) + J (P_i(k+1|K) - P_pred) J'``, ``P_pred = F_m P_j(k|k) F_m' + Qd_m``,
+``J = P_j(k|k) F_m' P_pred^-1``, through the transition of the mode ``m`` that governs the
+interval ``k -> k+1``, by the ``timing`` (docs/conventions.rst):
 
-Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k); mode
-``j`` at sample ``k+1`` governs the interval into ``k+1`` (transition ``trans[k+1, j]``, the
-IMM's), with the input ``u[k]`` held over it.
+- ``"sample"`` (the default, switchest's convention: the mode of sample ``k`` governs ``y_k``
+  and the interval after it, ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``; Costa, Fragoso &
+  Marques 2005, eq. (3.1)): ``m = j``, table entry ``trans[k+1, j]``. ``x_{k+1}`` depends on
+  ``s_k``, not on ``s_{k+1}``, so the step conditions on ``x_{k+1}`` through ``F_j``; the
+  prediction and the gain are the same for every ``i``, computed once per ``j``;
+- ``"interval"`` (Bar-Shalom, Li & Kirubarajan 2001, §11.6; Kim's own model: the mode of sample
+  ``k+1`` governs the interval into it): ``m = i``, table entry ``trans[k+1, i]``.
+
+In both the pairs are weighted by
+``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` (Kim's approximation
+``P(s_k = j | s_{k+1} = i, Y) ~ P(s_k = j | s_{k+1} = i, y_0..k)``) and merged over ``i`` by
+moment matching (Kim 1994 §2.2; Murphy 1998 §4). With one mode both timings are the RTS smoother
+(Rauch, Tung & Striebel 1965). The equations, their derivation in each timing and how a
+singular predicted covariance is handled are in :mod:`switchest.estimators._compiled.smoother`;
+the backward loop runs there, compiled.
+
+Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k);
+``trans[k+1, j]`` indexes mode ``j``'s exact transition over the interval into sample ``k+1``
+(in both timings), with the input ``u[k]`` held over it.
 """
 
 from __future__ import annotations
@@ -30,6 +45,7 @@ from .._checks import (
     check_finite,
     check_row_stochastic,
     check_symmetric_psd,
+    check_timing,
     float_array,
     int_array,
 )
@@ -82,8 +98,8 @@ class SmoothedModes:
     lag_cross: np.ndarray | None = None
 
 
-def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
-                        transition, *, lagged: bool = False) -> SmoothedModes:
+def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transition, *,
+                        timing: str = "sample", lagged: bool = False) -> SmoothedModes:
     """Kim's fixed-interval smoother of filtered mode-matched posteriors (Kim 1994, §2.2).
 
     Parameters
@@ -105,10 +121,18 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
         ``k + 1`` (row 0 unused); ``(K, L)`` or leading axes of length 1 share it across trials.
     transition : array_like, shape (L, L)
         ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows summing to 1.
+    timing : {"sample", "interval"}
+        Which mode governs the interval ``k -> k+1`` (module docstring), so which mode's
+        transition the pair (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) takes its RTS step
+        through: ``j``'s (``"sample"``, the default) or ``i``'s (``"interval"``). The filtered
+        posteriors should come from a filter of the same timing.
     lagged : bool
         Also return, for each interval ``k -> k+1``, the pairwise mode probabilities and the
         lag-one moments an expectation-maximization step needs (``pair_prob``, ``lag_x``,
-        ``lag_P``, ``lag_cross``; :mod:`switchest.estimators._compiled.smoother`).
+        ``lag_P``, ``lag_cross``; :mod:`switchest.estimators._compiled.smoother`). They are
+        conditioned on the mode of sample ``k+1``, which governs the interval in the
+        ``"interval"`` timing: with ``timing="sample"`` they are refused unless ``L = 1`` (where
+        the timings agree).
 
     Returns
     -------
@@ -116,11 +140,17 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
 
     Raises
     ------
+    ValueError, TypeError
+        For arguments of the wrong shape or values (each named), a ``timing`` other than
+        ``"sample"`` or ``"interval"``, or ``lagged`` with ``timing="sample"`` and several
+        modes.
     numpy.linalg.LinAlgError
         When a predicted covariance ``F P F' + Qd`` is not finite (it overflowed) or cannot be
         factored even after its repair. A covariance repaired to its rounding level (a singular
         ``F P F' + Qd``) issues a ``RuntimeWarning``.
     """
+    timing = check_timing(timing)
+    lagged = check_bool(lagged, "lagged")
     x_modes = _finite(x_modes, "x_modes")
     if x_modes.ndim < 3:
         raise ValueError(f"x_modes must have shape (..., K, L, n), got {x_modes.shape}")
@@ -142,24 +172,26 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans,
     N = math.prod(batch)
     out = smooth_filtered(x_modes.reshape(N, K, L, n), P_modes.reshape(N, K, L, n, n),
                           mode_prob.reshape(N, K, L), u, F, G, Qd, trans, transition,
-                          lagged=check_bool(lagged, "lagged"))
+                          timing=timing, lagged=lagged)
     return SmoothedModes(*(None if a is None else a.reshape(*batch, *a.shape[1:])
                            for a in (getattr(out, f) for f in SmoothedModes.__dataclass_fields__)))
 
 
 def smooth_filtered(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transition, *,
-                    lagged: bool = False, modes_out: bool = True) -> SmoothedModes:
+                    timing: str = "sample", lagged: bool = False,
+                    modes_out: bool = True) -> SmoothedModes:
     """:func:`smooth_mode_matched` of arrays a filter of switchest produced and checked, with
     one batch axis: ``(N, K, L, n)``, ``(N, K, L, n, n)``, ``(N, K, L)``, ``u (N, K, l)``,
-    ``trans (N or 1, K, L)`` (or ``(K, L)``); no argument is validated again (the smoother of
+    ``trans (N or 1, K, L)`` (or ``(K, L)``); no array is validated again (the smoother of
     :meth:`~switchest.estimators.mode_bank.ModeBankFilter.smooth` calls it on its own forward
-    pass). Raises and warns as :func:`smooth_mode_matched`; without ``modes_out`` the
-    smoothed mode-matched posteriors are not written (``x_modes``, ``P_modes`` None)."""
+    pass); ``timing`` is (by :func:`~switchest.estimators._compiled.smoother.kim_smooth`).
+    Raises and warns as :func:`smooth_mode_matched`; without ``modes_out`` the smoothed
+    mode-matched posteriors are not written (``x_modes``, ``P_modes`` None)."""
     with np.errstate(divide="ignore"):
         log_prob, log_transition = np.log(mode_prob), np.log(transition)
     trans = trans[None] if trans.ndim == 2 else trans
     out = kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition,
-                     lagged=lagged, modes_out=modes_out)
+                     timing=timing, lagged=lagged, modes_out=modes_out)
     try:
         raise_for_status(out.status)
     except np.linalg.LinAlgError as err:
