@@ -2,10 +2,11 @@
 
 The oracle the compiled kernel (:mod:`switchest.estimators._compiled.rbpf`) is checked against:
 the same algorithm (Doucet, Gordon & Krishnamurthy 2001, §III; Doucet, de Freitas, Murphy &
-Russell 2000, §3), written for clarity with the Kalman equations of :mod:`numpy_oracle`, and
-driven by the same uniforms, which it computes on its own (SplitMix64 in numpy's unsigned
-arithmetic, Steele, Lea & Flood 2014, §3) so that the two can be compared exactly. Discrete
-draws invert cumulative sums with ``numpy.searchsorted``.
+Russell 2000, §3) in either timing of the modes (docs/conventions.rst), written for clarity
+with the Kalman equations of :mod:`numpy_oracle`, and driven by the same uniforms, which it
+computes on its own (SplitMix64 in numpy's unsigned arithmetic, Steele, Lea & Flood 2014, §3)
+so that the two can be compared exactly. Discrete draws invert cumulative sums with
+``numpy.searchsorted``.
 """
 
 from __future__ import annotations
@@ -81,8 +82,12 @@ def log_sum_exp(a):
 
 
 def rbpf_trial(y, u, F, G, Qd, trans, C, R, transition, prob0, key, Np, proposal, scheme,
-               threshold, x0, P0):
-    """One trial ``y (K, m)``, ``u (K, l)``: dict of per-sample outputs as the kernel's."""
+               threshold, x0, P0, timing):
+    """One trial ``y (K, m)``, ``u (K, l)``: dict of per-sample outputs as the kernel's.
+
+    ``timing="sample"``: a particle is predicted into sample ``k`` through its mode at ``k-1``
+    (once, before its mode at ``k`` is drawn or its candidates are tried); ``"interval"``:
+    through its (candidate) mode at ``k``."""
     K, L, n = y.shape[0], C.shape[0], x0.size
     with np.errstate(divide="ignore"):
         log_T, log_p0 = np.log(transition), np.log(prob0)
@@ -96,14 +101,18 @@ def rbpf_trial(y, u, F, G, Qd, trans, C, R, transition, prob0, key, Np, proposal
         inc = np.empty(Np)
         step = [None] * Np  # per particle: per candidate (x, P, loglik) predicted and updated
         for p in range(Np):
-            cands = range(L) if proposal == "optimal" else [None]
             step[p] = {}
+            x_prev, P_prev = xs[p], Ps[p]
+            if k and timing == "sample":  # through the mode at k-1, before the draw
+                t = trans[k, mode[p]]
+                x_prev, P_prev = predict(x_prev, P_prev, F[t], G[t], u[k - 1], Qd[t])
+            cands = range(L)
             if proposal == "prior":
                 mode[p] = pick(transition[mode[p]] if k else prob0, U[p])
                 cands = [mode[p]]
             for r in cands:
-                x, P = xs[p], Ps[p]
-                if k:
+                x, P = x_prev, P_prev
+                if k and timing == "interval":  # through the (candidate) mode at k
                     t = trans[k, r]
                     x, P = predict(x, P, F[t], G[t], u[k - 1], Qd[t])
                 step[p][r] = kalman_update(x, P, y[k], C[r], R[r])
@@ -143,8 +152,9 @@ def rbpf_trial(y, u, F, G, Qd, trans, C, R, transition, prob0, key, Np, proposal
 
 
 def rbpf_run(y, u, F, G, Qd, trans, C, R, transition, prob0, keys, Np, proposal, scheme,
-             threshold, x0, P0):
+             threshold, x0, P0, timing):
     """Every trial of ``y (N, K, m)``, as the compiled ``rbpf_run``: dict of ``(N, K, ...)``."""
     trials = [rbpf_trial(y[i], u[i], F, G, Qd, trans, C, R, transition, prob0, keys[i], Np,
-                         proposal, scheme, threshold, x0, P0) for i in range(y.shape[0])]
+                         proposal, scheme, threshold, x0, P0, timing)
+              for i in range(y.shape[0])]
     return {f: np.stack([tr[f] for tr in trials]) for f in trials[0]}

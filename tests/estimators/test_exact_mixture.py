@@ -1,6 +1,7 @@
-"""The exact mixture filter and smoother against brute force over mode sequences, the Kalman
-filter and RTS smoother with one mode, its streaming form, its refusal of too many sequences,
-and Kim's smoother measured against it.
+"""The exact mixture filter and smoother against brute force over mode sequences in both
+timings of the modes, the Kalman filter and RTS smoother with one mode, its streaming form, its
+refusal of too many sequences, the "sample" timing on data with switches at the samples, and
+Kim's smoother measured against it.
 
 Tolerance: RTOL = 1e-9 relative to the largest entry of the oracle's array, the contract of
 the compiled kernels: both sides run a Kalman filter per sequence (compiled equilibrated
@@ -8,20 +9,25 @@ Cholesky loops against numpy's LAPACK) and sum the same Bayes weights in another
 observed agreement is ~1e-15.
 """
 
+import itertools
+
 import numpy as np
 import pytest
 from smoother_oracle import (
     exact_mixture,
     imm_modes,
+    mixture,
     random_system,
     rts_smooth,
     simulate_jump_markov,
     tables,
 )
 
+from switchest import SwitchedLinearSystem, simulate
 from switchest.estimators import Estimate, ModeKalmanFilter
 from switchest.estimators.exact_mixture import ExactMixtureFilter
 from switchest.estimators.smoothing import smooth_mode_matched
+from switchest.switching import MarkovAtSamples
 
 RTOL = 1e-9
 TRANSITIONS = {
@@ -54,15 +60,57 @@ def record(seed, L, K, N=2, domain="continuous"):
     return system, t, y, u, rng.standard_normal(2), 2.0 * np.eye(2), p0
 
 
+def brute_force_sample_timing(system, t, y, u, transition, x0, P0, mode_prob0):
+    """The exact filter and smoother in the "sample" timing by enumeration: every mode sequence
+    ``r`` (``itertools.product``), the Kalman filter along it by ModeKalmanFilter (whose
+    prediction into sample ``k`` takes the mode of sample ``k-1``: the "sample" timing), Bayes
+    over the sequences, and each sequence's RTS smoother (numpy, smoother_oracle.rts_smooth)
+    through the transition of ``r_k`` over the interval ``k -> k+1``. Returns ``(filtered,
+    smoothed)`` dicts as smoother_oracle.exact_mixture."""
+    (N, K, _), L, n = y.shape, system.n_modes, system.n_states
+    F, G, Qd, trans = tables(system, t)
+    kf = ModeKalmanFilter(system, x0, P0)
+    seqs = np.array(list(itertools.product(range(L), repeat=K)))
+    runs = [kf.run(y, u, t, modes=r) for r in seqs]
+    xs, Ps = np.stack([o.x for o in runs]), np.stack([o.P for o in runs])  # (S, N, K, ...)
+    with np.errstate(divide="ignore"):
+        log_prior = np.log(mode_prob0[seqs[:, 0]]) + np.log(
+            transition[seqs[:, :-1], seqs[:, 1:]]).sum(axis=1)
+    cum = log_prior[:, None, None] + np.cumsum(np.stack([o.loglik for o in runs]), axis=-1)
+    filt = {"x": np.empty((N, K, n)), "P": np.empty((N, K, n, n)),
+            "mode_prob": np.empty((N, K, L)), "loglik": np.empty((N, K))}
+    smooth = {"x": np.empty((N, K, n)), "P": np.empty((N, K, n, n)),
+              "mode_prob": np.empty((N, K, L))}
+    for i in range(N):
+        rts = [rts_smooth(xs[s, i], Ps[s, i], u[i], F, G, Qd,
+                          trans[np.arange(K), np.r_[r[0], r[:-1]]])  # into k: r_{k-1}'s
+               for s, r in enumerate(seqs)]
+        xr, Pr = np.stack([a[0] for a in rts]), np.stack([a[1] for a in rts])
+        previous = 0.0
+        for k in range(K):
+            filt["x"][i, k], filt["P"][i, k], w = mixture(cum[:, i, k], xs[:, i, k], Ps[:, i, k])
+            filt["mode_prob"][i, k] = [w[seqs[:, k] == j].sum() for j in range(L)]
+            top = cum[:, i, k].max()
+            total = top + np.log(np.exp(cum[:, i, k] - top).sum())
+            filt["loglik"][i, k], previous = total - previous, total
+            smooth["x"][i, k], smooth["P"][i, k], w = mixture(cum[:, i, -1], xr[:, k], Pr[:, k])
+            smooth["mode_prob"][i, k] = [w[seqs[:, k] == j].sum() for j in range(L)]
+    return filt, smooth
+
+
+@pytest.mark.parametrize("timing", ["sample", "interval"])
 @pytest.mark.parametrize("L, K, domain", [(2, 5, "continuous"), (3, 4, "continuous"),
                                           (2, 5, "discrete")])
-def test_equals_brute_force_over_mode_sequences(L, K, domain):
+def test_equals_brute_force_over_mode_sequences(L, K, domain, timing):
     system, t, y, u, x0, P0, p0 = record(L + K, L, K, domain=domain)
-    est = ExactMixtureFilter(system, TRANSITIONS[L], x0, P0, mode_prob0=p0)
+    est = ExactMixtureFilter(system, TRANSITIONS[L], x0, P0, mode_prob0=p0, timing=timing)
     filtered, smoothed = est.run(y, u, t), est.smooth(y, u, t)
-    F, G, Qd, trans = tables(system, t)
-    ref_f, ref_s = exact_mixture(y, u, F, G, Qd, trans, system.C, system.R, TRANSITIONS[L],
-                                 x0, P0, p0)
+    if timing == "sample":
+        ref_f, ref_s = brute_force_sample_timing(system, t, y, u, TRANSITIONS[L], x0, P0, p0)
+    else:  # the numpy oracle, predicting into sample k with the mode of sample k
+        F, G, Qd, trans = tables(system, t)
+        ref_f, ref_s = exact_mixture(y, u, F, G, Qd, trans, system.C, system.R,
+                                     TRANSITIONS[L], x0, P0, p0, timing="interval")
     for name in ("x", "P", "mode_prob", "loglik"):
         assert_close(getattr(filtered, name), ref_f[name])
     for name in ("x", "P", "mode_prob"):
@@ -75,9 +123,56 @@ def test_equals_brute_force_over_mode_sequences(L, K, domain):
     assert_close(smoothed.x[:, -1], filtered.x[:, -1], rtol=1e-12)
 
 
-def test_one_mode_is_the_kalman_filter_and_the_rts_smoother():
+def test_the_timings_are_different_models():
+    """With modes that differ in their dynamics the two timings give different posteriors (the
+    option is honoured), the same at the first sample (update only)."""
+    system, t, y, u, x0, P0, p0 = record(7, 2, 5)
+    out = {timing: ExactMixtureFilter(system, TRANSITIONS[2], x0, P0, mode_prob0=p0,
+                                      timing=timing).run(y, u, t)
+           for timing in ("sample", "interval")}
+    assert_close(out["sample"].x[:, 0], out["interval"].x[:, 0], rtol=1e-14)
+    assert not np.allclose(out["sample"].x[:, 1:], out["interval"].x[:, 1:], atol=1e-3)
+
+
+def rotating_and_damped():
+    """Two modes that differ in their dynamics (a slow rotation, a damped flip) and in what
+    they measure (one coordinate each). Modes that differ in ``A`` alone would not do: the
+    measurements of a "sample"-timing chain ``r`` are then those of an "interval"-timing chain
+    ``r'_k = r_{k-1}``, which is Markov with the same transition, so the two timings would give
+    nearly one likelihood (they differ only through the law of the first mode)."""
+    angle = 0.6
+    rotation = 0.98 * np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    return SwitchedLinearSystem.discrete(
+        np.array([rotation, np.diag([0.6, -0.6])]), np.zeros((2, 2, 1)),
+        np.array([[[1.0, 0.0]], [[0.0, 1.0]]]), Q=0.05 * np.eye(2), R=[[0.05]], dt=1.0)
+
+
+def test_the_sample_timing_fits_data_with_switches_at_the_samples():
+    """On records simulated by switchest.simulate with a Markov chain that switches at the
+    samples, the "sample" timing is the true model: the expected log-likelihood ratio against
+    the "interval" timing is a Kullback-Leibler divergence (>= 0), and its posterior mean is the
+    minimum mean-square error estimate. Paired over 300 records of 8 samples: the mean
+    log-likelihood per sample is higher by 0.10 (5.2 standard errors) and the mean squared
+    state error lower by 0.14 (5.9 standard errors) with seed 0; over seeds 0-5 both stay
+    above 4.8 standard errors. Asserted: 3 standard errors each."""
+    system, transition, p0 = rotating_and_damped(), np.array([[0.8, 0.2], [0.3, 0.7]]), [0.6, 0.4]
+    t = np.arange(8.0)
+    data = simulate(system, MarkovAtSamples(transition, initial=np.array(p0)), t,
+                    (np.zeros(2), np.eye(2)), trials=300, rng=0)
+    loglik, sq_error = {}, {}
+    for timing in ("sample", "interval"):
+        out = ExactMixtureFilter(system, transition, np.zeros(2), np.eye(2), mode_prob0=p0,
+                                 timing=timing).run(data.y, t=t)
+        loglik[timing] = out.loglik.mean(axis=1)
+        sq_error[timing] = np.sum((out.x - data.x) ** 2, axis=-1).mean(axis=1)
+    for gain in (loglik["sample"] - loglik["interval"], sq_error["interval"] - sq_error["sample"]):
+        assert gain.mean() > 3 * gain.std(ddof=1) / np.sqrt(gain.size)
+
+
+@pytest.mark.parametrize("timing", ["sample", "interval"])
+def test_one_mode_is_the_kalman_filter_and_the_rts_smoother(timing):
     system, t, y, u, x0, P0, _ = record(1, 1, 6)
-    est = ExactMixtureFilter(system, np.ones((1, 1)), x0, P0)
+    est = ExactMixtureFilter(system, np.ones((1, 1)), x0, P0, timing=timing)
     filtered, smoothed = est.run(y, u, t), est.smooth(y, u, t)
     kf = ModeKalmanFilter(system, x0, P0).run(y, u, t, modes=np.zeros(6, int))
     for name in ("x", "P", "loglik"):
@@ -88,6 +183,12 @@ def test_one_mode_is_the_kalman_filter_and_the_rts_smoother():
         assert_close(smoothed.x[i], xs)
         assert_close(smoothed.P[i], Ps)
     np.testing.assert_array_equal(smoothed.mode_prob, 1.0)
+    # one mode: the timings are one model, the same computation (1e-12 relative)
+    other = ExactMixtureFilter(system, np.ones((1, 1)), x0, P0,
+                               timing="interval" if timing == "sample" else "sample")
+    for name in ("x", "P"):
+        assert_close(getattr(other.run(y, u, t), name), getattr(filtered, name), rtol=1e-12)
+        assert_close(getattr(other.smooth(y, u, t), name), getattr(smoothed, name), rtol=1e-12)
 
 
 def test_a_single_sample():
@@ -103,9 +204,10 @@ def test_a_single_sample():
         assert_close(getattr(smoothed, name), ref_f[name])
 
 
-def test_streaming_step_equals_run():
+@pytest.mark.parametrize("timing", ["sample", "interval"])
+def test_streaming_step_equals_run(timing):
     system, t, y, u, x0, P0, p0 = record(3, 2, 5)
-    est = ExactMixtureFilter(system, TRANSITIONS[2], x0, P0, mode_prob0=p0)
+    est = ExactMixtureFilter(system, TRANSITIONS[2], x0, P0, mode_prob0=p0, timing=timing)
     whole = est.run(y, u, t)
     state = est.init((y.shape[0],))
     for k in range(t.size):
@@ -169,6 +271,9 @@ def test_refuses_more_sequences_than_max_sequences():
     ({"max_sequences": 0}, ValueError, "max_sequences must be a positive int"),
     ({"max_sequences": 2.5}, TypeError, "max_sequences must be an int"),
     ({"mode_prob0": [0.5, 0.6]}, ValueError, "mode_prob0 must sum to 1"),
+    ({"timing": "before"}, ValueError, r"timing must be one of \('sample', 'interval'\), "
+                                       r"got 'before'"),
+    ({"timing": None}, TypeError, "timing must be one of"),
 ])
 def test_bad_options_are_refused(kwargs, error, message):
     system, *_ = record(6, 2, 3)
@@ -178,18 +283,22 @@ def test_bad_options_are_refused(kwargs, error, message):
         ExactMixtureFilter(system, TRANSITIONS[2].T, np.zeros(2), np.eye(2))
 
 
-def test_kim_smoothed_estimates_are_closer_to_the_exact_smoothed_means_than_filtered_ones():
-    """On random two-mode systems (simulated from the IMM's own jump-Markov model), Kim's
-    smoother of the IMM's mode-matched posteriors lands closer to the exact smoothed mean than
-    the IMM's filtered estimate does, trial by trial, in mean squared distance over samples
-    0..K-2 (at K-1 the two coincide).
+@pytest.mark.parametrize("timing", ["sample", "interval"])
+def test_kim_smoothed_estimates_are_closer_to_the_exact_smoothed_means_than_filtered_ones(
+        timing):
+    """On random two-mode systems, simulated in the timing (switchest.simulate with switches at
+    the samples; smoother_oracle.simulate_jump_markov, the IMM's textbook model), Kim's smoother
+    of the numpy IMM's mode-matched posteriors, both in that timing, lands closer to the exact
+    smoothed mean than the IMM's filtered estimate does, trial by trial, in mean squared
+    distance over samples 0..K-2 (at K-1 the two coincide).
 
-    80 trials (4 systems of 20). Observed with seed 7: Kim closer on 96 % of the trials,
-    median ratio (Kim / filtered) 0.11; over seeds 0-11: 86-100 % and 0.05-0.26. Asserted: at
-    least 75 % of the trials (were Kim no better than even, 60 of 80 would have probability
-    below 1e-5) and a median ratio below 0.5. Not asserted: the ratio of the pooled means,
-    which a few trials where the IMM's collapse goes astray dominate (0.2-0.9 over seeds 0-9,
-    whose 40 systems include two with a ratio above 1)."""
+    80 trials (4 systems of 20). Observed with seed 7, Kim closer on 97.5 % ("sample") and 96 %
+    ("interval") of the trials, median ratio (Kim / filtered) 0.14 and 0.11; over seeds 0-11:
+    68-98 % and 0.09-0.45 ("sample"), 86-100 % and 0.05-0.26 ("interval"). Asserted: at least
+    65 % of the trials (were Kim no better than even, 52 of 80 would have probability below
+    0.5 %) and a median ratio below 0.5. Not asserted: the ratio of the pooled means, which a
+    few trials where the IMM's collapse goes astray dominate (0.2-0.9 "interval", 0.3-1.9
+    "sample" over seeds 0-11)."""
     rng = np.random.default_rng(7)
     transition, p0 = np.array([[0.9, 0.1], [0.2, 0.8]]), np.array([0.5, 0.5])
     N, K = 20, 10
@@ -198,14 +307,19 @@ def test_kim_smoothed_estimates_are_closer_to_the_exact_smoothed_means_than_filt
     for _ in range(4):
         system = random_system(rng, n=2, m=1, l=1, L=2, domain="discrete")
         x0, P0 = np.zeros(2), np.eye(2)
-        y = simulate_jump_markov(rng, system, transition, x0, P0, p0, N, K)
+        if timing == "sample":
+            y = simulate(system, MarkovAtSamples(transition, initial=p0), t, (x0, P0),
+                         trials=N, rng=rng).y
+        else:
+            y = simulate_jump_markov(rng, system, transition, x0, P0, p0, N, K)
         F, G, Qd, trans = tables(system, t)
         xm, Pm, pm, filtered = imm_modes(y, np.zeros((N, K, 1)), F, G, Qd, trans, system.C,
-                                         system.R, transition, x0, P0, p0)
-        kim = smooth_mode_matched(xm, Pm, pm, None, F, G, Qd, trans, transition)
-        exact = ExactMixtureFilter(system, transition, x0, P0, mode_prob0=p0).smooth(y, t=t)
+                                         system.R, transition, x0, P0, p0, timing=timing)
+        kim = smooth_mode_matched(xm, Pm, pm, None, F, G, Qd, trans, transition, timing=timing)
+        exact = ExactMixtureFilter(system, transition, x0, P0, mode_prob0=p0,
+                                   timing=timing).smooth(y, t=t)
         kim_d.append(np.mean(np.sum((kim.x - exact.x) ** 2, axis=-1)[:, :-1], axis=1))
         filtered_d.append(np.mean(np.sum((filtered - exact.x) ** 2, axis=-1)[:, :-1], axis=1))
     kim_d, filtered_d = np.concatenate(kim_d), np.concatenate(filtered_d)
-    assert np.mean(kim_d < filtered_d) >= 0.75
+    assert np.mean(kim_d < filtered_d) >= 0.65
     assert np.median(kim_d / filtered_d) < 0.5

@@ -1,8 +1,16 @@
 """The exact posterior of a jump-Markov linear system: a Gaussian per mode sequence.
 
-Modes switch at the samples as in the IMM: mode ``r_k`` at sample ``k`` governs the interval
-into ``k`` and the measurement at ``k``, ``P(r_k = j | r_{k-1} = i) = transition[i, j]``,
-``P(r_0 = j) = mode_prob0[j]``. Given a mode sequence ``r = (r_0, ..., r_{K-1})`` the system is
+The modes are a Markov chain that jumps at the samples, ``P(r_k = j | r_{k-1} = i) =
+transition[i, j]``, ``P(r_0 = j) = mode_prob0[j]``; mode ``r_k`` of sample ``k`` governs the
+measurement at ``k`` and, by the ``timing`` (docs/conventions.rst), the interval after ``k``
+(``"sample"``, the default: ``x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k``,
+``w_k ~ N(0, Qd(r_k))``, ``y_k = C(r_k) x_k + v_k``, ``v_k ~ N(0, R(r_k))``; Costa, Fragoso &
+Marques 2005, eq. (3.1)) or the interval into ``k`` (``"interval"``, Bar-Shalom, Li &
+Kirubarajan 2001, §11.6: ``x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w``,
+``y_k = C(r_k) x_k + v``), ``F, G, Qd`` the exact discretization of a mode over the interval.
+So a sequence predicts into sample ``k`` through ``r_{k-1}``'s transition in the ``"sample"``
+timing and through ``r_k``'s in the ``"interval"`` timing, and updates with ``C(r_k)``,
+``R(r_k)`` in both. Given a mode sequence ``r = (r_0, ..., r_{K-1})`` the system is
 linear Gaussian, so the posterior of the state is the mixture over the ``L^K`` sequences of
 the Kalman filter's (or RTS smoother's) Gaussian along each (Ackerson & Fu 1970; Bar-Shalom,
 Li & Kirubarajan §11.6.3, the optimal dynamic multiple model estimator). It is exponential in ``K``:
@@ -23,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_memory, positive_int
+from .._checks import check_memory, check_timing, positive_int
 from .._linalg import log_normalize, mixture_moments
 from ..discretize import mode_steps, sample_mode_steps
 from ._compiled import GATED, kalman_run, kalman_step, raise_for_status, warn_for_repairs
@@ -87,6 +95,10 @@ class ExactMixtureFilter(Estimator):
     max_sequences : int
         Most mode sequences (``L^K`` for ``K`` samples) a run or a stream may hold
         (keyword-only); more are refused with a ``ValueError``.
+    timing : {"sample", "interval"}
+        Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only; module
+        docstring): the one after it (``"sample"``, default) or the one into it
+        (``"interval"``, Bar-Shalom's).
 
     Notes
     -----
@@ -106,10 +118,11 @@ class ExactMixtureFilter(Estimator):
     """
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None,
-                 max_sequences: int = 2**16):
+                 max_sequences: int = 2**16, timing: str = "sample"):
         self._set_prior(system, x0, P0)
         self._set_mode_prior(transition, mode_prob0)
         self.max_sequences = positive_int(max_sequences, "max_sequences")
+        self.timing = check_timing(timing)
 
     # ------------------------------------------------------------------ streaming
     def init(self, batch_shape=()) -> ExactMixtureState:
@@ -131,8 +144,9 @@ class ExactMixtureFilter(Estimator):
         first sample, whose prefixes are the prior's), then update with ``y (..., m)``.
 
         A prefix ``r_0..k-1`` of weight ``w`` becomes ``L`` prefixes ``r_0..k-1, j`` of weight
-        ``w pi_{r_k-1, j} Lambda_k`` (normalized), each predicted with mode ``j``'s exact
-        transition and updated with its ``C_j``, ``R_j`` by the compiled Kalman kernel
+        ``w pi_{r_k-1, j} Lambda_k`` (normalized), each predicted with the exact transition of
+        mode ``r_k-1`` (``"sample"`` timing) or ``j`` (``"interval"``) and updated with
+        ``C_j``, ``R_j`` by the compiled Kalman kernel
         (:func:`~switchest.estimators._compiled.kalman_step`).
         """
         sys = self.system
@@ -141,11 +155,13 @@ class ExactMixtureFilter(Estimator):
         N, S = math.prod(batch), state.last_mode.size
         x, P = state.x.reshape(N, S, n), state.P.reshape(N, S, n, n)
         log_w, mode = state.log_weight.reshape(N, S), state.last_mode
+        moving = mode  # the mode whose transition each prefix takes into this sample
         if dt is not None:  # every prefix r_0..k-1 extended by each mode r_k = j
             self._refuse(S * L, f"{S} prefixes times L = {L} modes")
             parent, mode = np.repeat(np.arange(S), L), np.tile(np.arange(L), S)
             x, P = x[:, parent], P[:, parent]
             log_w = log_w[:, parent] + self._log_transition[state.last_mode[parent], mode]
+            moving = state.last_mode[parent] if self.timing == "sample" else mode
             S = mode.size
         y = np.asarray(y, dtype=float).reshape(N, m)
         u = np.zeros((N, l)) if u is None else np.broadcast_to(u, (*batch, l)).reshape(N, l)
@@ -153,7 +169,7 @@ class ExactMixtureFilter(Estimator):
             F, G, Qd = np.zeros((S, n, n)), np.zeros((S, n, l)), np.zeros((S, n, n))
         else:
             steps = mode_steps(sys, dt)
-            F, G, Qd = steps.F[mode], steps.G[mode], steps.Qd[mode]
+            F, G, Qd = steps.F[moving], steps.G[moving], steps.Qd[moving]
 
         def per_trial(a):  # (N, ...) -> one row per (trial, prefix): (N S, ...)
             return np.repeat(a, S, axis=0)
@@ -197,6 +213,8 @@ class ExactMixtureFilter(Estimator):
         most probable ``mode`` at each sample."""
         seq, batch = self._sequences(y, u, t)
         S, N, K, n = seq.x.shape
+        # each sequence is Kim's smoother with one mode, whose RTS step goes through the row's
+        # own transition into k + 1 (seq.trans, built for self.timing): the same in both timings
         rts = smooth_mode_matched(
             seq.x.reshape(S * N, K, 1, n), seq.P.reshape(S * N, K, 1, n, n),
             np.ones((S * N, K, 1)), seq.u, seq.F, seq.G, seq.Qd,
@@ -218,7 +236,10 @@ class ExactMixtureFilter(Estimator):
         modes = np.stack(np.unravel_index(np.arange(S), (L,) * K), axis=-1)  # (S, K)
         table, entry = sample_mode_steps(sys, t)
         F, G, Qd = table.F, table.G, table.Qd
-        trans = entry[np.arange(K), modes]  # sequence s predicts into sample k with its mode r_k
+        # sequence s predicts into sample k through r_{k-1} ("sample") or r_k ("interval");
+        # row 0 is not read (the first sample is update-only)
+        moving = np.roll(modes, 1, axis=1) if self.timing == "sample" else modes
+        trans = entry[np.arange(K), moving]
         rows = (S * N, K)
         ys = np.broadcast_to(y, (S, N, K, m)).reshape(*rows, m)
         us = np.broadcast_to(u, (S, N, K, l)).reshape(*rows, l)

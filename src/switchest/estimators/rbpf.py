@@ -4,13 +4,29 @@ Each particle carries a mode and the Kalman filter ``(x, P)`` conditional on its
 the modes are sampled, the continuous state is filtered exactly given them (Doucet, de
 Freitas, Murphy & Russell 2000, "Rao-Blackwellised particle filtering for dynamic Bayesian
 networks", §3; Doucet, Gordon & Krishnamurthy 2001, "Particle filters for state estimation of
-jump Markov linear systems", IEEE Trans. Signal Processing 49(3), §III). Switches happen at the
-sample instants, as in the IMM; the modes advance at every sample.
+jump Markov linear systems", IEEE Trans. Signal Processing 49(3), §III). The modes are a
+Markov chain that jumps at the sample instants and advances at every sample. Which interval
+the mode ``r_k`` of sample ``k`` governs is the ``timing`` (docs/conventions.rst):
 
-- ``proposal="prior"``: ``r_k ~ pi(r_{k-1}, .)``, Kalman prediction with ``r_k``, weight times
-  the predictive likelihood ``N(y_k; C x-, C P- C' + R)``, Joseph update.
+- ``"sample"`` (default; switchest's convention, that of :func:`switchest.simulate` with
+  switches at the samples and of Costa, Fragoso & Marques 2005, eq. (3.1)):
+  ``x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k``, ``w_k ~ N(0, Qd(r_k))``,
+  ``y_k = C(r_k) x_k + v_k``, ``v_k ~ N(0, R(r_k))``. A particle ``(r_{k-1}, N(x, P))`` is
+  predicted through ``r_{k-1}``'s transition, then ``r_k`` is drawn and the update uses
+  ``C(r_k)``, ``R(r_k)``.
+- ``"interval"`` (Bar-Shalom, Li & Kirubarajan 2001, §11.6):
+  ``x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w``, ``y_k = C(r_k) x_k + v``. ``r_k`` is drawn,
+  then the particle is predicted through ``r_k``'s transition and updated with ``C(r_k)``.
+
+With one mode the two are the Kalman filter. ``F, G, Qd`` are the exact discretization of a
+mode over the interval (:func:`switchest.discretize.mode_steps`); the proposals:
+
+- ``proposal="prior"``: ``r_k ~ pi(r_{k-1}, .)``, weight times the predictive likelihood
+  ``N(y_k; C(r_k) x-, C(r_k) P- C(r_k)' + R(r_k))``, Joseph update.
 - ``proposal="optimal"`` (Doucet, Gordon & Krishnamurthy 2001, §III): every candidate mode's
-  predictive likelihood ``Lambda_r``; ``r_k ∝ pi(r_{k-1}, r) Lambda_r``, weight times
+  predictive likelihood ``Lambda_r = N(y_k; C_r x-_r, C_r P-_r C_r' + R_r)`` (``x-, P-`` the
+  same for every candidate in the ``"sample"`` timing, predicted through the candidate's own
+  transition in the ``"interval"`` timing); ``r_k ∝ pi(r_{k-1}, r) Lambda_r``, weight times
   ``sum_r pi(r_{k-1}, r) Lambda_r``, the candidate's updated filter kept.
 
 At sample 0 the modes are drawn from ``mode_prob0`` (with the optimal proposal
@@ -47,6 +63,7 @@ import numpy as np
 from .._checks import (
     as_rng,
     check_memory,
+    check_timing,
     float_array,
     positive_int,
     positive_scalar,
@@ -130,6 +147,10 @@ class RBPFilter(Estimator):
     proposal : {"prior", "optimal"}
         Importance distribution of the modes: the transition prior, or the optimal one
         (Doucet, Gordon & Krishnamurthy 2001, §III).
+    timing : {"sample", "interval"}
+        Which interval the mode of sample ``k`` governs besides ``y_k`` (module docstring):
+        the one after it, ``[t_k, t_{k+1})`` (``"sample"``, default), or the one into it
+        (``"interval"``, Bar-Shalom's).
 
     Attributes
     ----------
@@ -139,7 +160,7 @@ class RBPFilter(Estimator):
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None, particles: int = 1000,
                  rng=None, resample: str = "systematic", ess_threshold: float = 0.5,
-                 proposal: str = "prior"):
+                 proposal: str = "prior", timing: str = "sample"):
         self._set_prior(system, x0, P0)
         self._set_mode_prior(transition, mode_prob0)
         self.particles = positive_int(particles, "particles")
@@ -149,6 +170,7 @@ class RBPFilter(Estimator):
             raise ValueError(f"ess_threshold must be in [0, 1], got {ess_threshold!r}")
         self.ess_threshold = threshold
         self.proposal = _one_of(proposal, "proposal", PROPOSALS)
+        self.timing = check_timing(timing)
         self.root_key = as_rng(rng).integers(2**64, dtype=np.uint64)
 
     def trial_keys(self, batch_shape=()) -> np.ndarray:
@@ -175,8 +197,10 @@ class RBPFilter(Estimator):
             outlier=np.zeros(batch, dtype=bool), ess=np.full(batch, float(Np)))
 
     def step(self, state: RBPFState, y, u=None, *, dt=None) -> RBPFState:
-        """Sample the modes, predict over ``dt`` and update every particle with ``y (..., m)``,
-        reweight and resample if due.
+        """Predict every particle over ``dt``, sample its mode (the prediction before the draw,
+        through the previous mode, in the ``"sample"`` timing; after it, through the new mode,
+        in the ``"interval"`` timing) and update it with ``y (..., m)``, reweight and resample
+        if due.
 
         ``dt`` is None at the first sample (modes drawn from ``mode_prob0``, update only) and
         the time since the previous sample after it. One sample of the compiled kernel
@@ -204,8 +228,9 @@ class RBPFilter(Estimator):
             state.x.reshape(N, Np, n), state.P.reshape(N, Np, n, n), state.mode.reshape(N, Np),
             state.log_weight.reshape(N, Np), y.reshape(N, -1), u, F, G, Qd, np.arange(L), sys.C,
             sys.R, self.transition, self.mode_prob0, state.keys.reshape(N), state.k,
-            predict_first=dt is not None, optimal=self.proposal == "optimal",
-            scheme=RESAMPLING[self.resample], threshold=self.ess_threshold)
+            predict_first=dt is not None, sample_timing=self.timing == "sample",
+            optimal=self.proposal == "optimal", scheme=RESAMPLING[self.resample],
+            threshold=self.ess_threshold)
         raise_for_status(out.status)
         warn_for_repairs(out)
         return RBPFState(
@@ -235,8 +260,9 @@ class RBPFilter(Estimator):
         table, trans = sample_mode_steps(sys, t)
         out = rbpf_run(y2, u2, table.F, table.G, table.Qd, trans, sys.C, sys.R, self.transition,
                        self.x0, self.P0, self.mode_prob0, self._keys(keys, batch).reshape(-1),
-                       particles=self.particles, optimal=self.proposal == "optimal",
-                       scheme=RESAMPLING[self.resample], threshold=self.ess_threshold)
+                       particles=self.particles, sample_timing=self.timing == "sample",
+                       optimal=self.proposal == "optimal", scheme=RESAMPLING[self.resample],
+                       threshold=self.ess_threshold)
         raise_for_status(out.status)
         warn_for_repairs(out)
         est = Estimate(x=out.x, P=out.P, mode_prob=out.mode_prob, mode=out.mode,

@@ -14,10 +14,15 @@ easy as 1, 2, 3"): uniform ``j`` of sample ``k`` of a trial is a pure function o
 index to continue. At sample ``k``, uniforms ``0 .. Np-1`` draw the particles' modes and
 ``Np .. 2 Np - 1`` the resampling positions.
 
-Convention of switchest: ``transition[i, j]`` = P(mode j at k+1 | mode i at k). Mode ``r``
-predicts into sample ``k`` with the transition ``trans[k, r]`` of the table ``F, G, Qd`` and is
-updated with ``C[r]``, ``R[r]``; the input held over the interval into sample ``k`` is
-``u[:, k-1]``.
+Convention of switchest: ``transition[i, j]`` = P(mode j at k+1 | mode i at k). ``trans[k, r]``
+is mode ``r``'s transition over the interval into sample ``k`` in the table ``F, G, Qd``; mode
+``r`` at sample ``k`` is updated with ``C[r]``, ``R[r]``; the input held over the interval into
+sample ``k`` is ``u[:, k-1]``. Which mode's transition a particle takes into sample ``k`` is the
+timing (docs/conventions.rst): with ``sample_timing`` its mode at ``k-1`` (the mode of a sample
+governs the interval after it, ``x_k = F(r_{k-1}) x_{k-1} + G(r_{k-1}) u_{k-1} + w``: the
+particle is predicted, then its mode at ``k`` drawn), else its mode at ``k`` (Bar-Shalom's
+timing, ``x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w``: the mode drawn, then the particle
+predicted with it).
 """
 
 from __future__ import annotations
@@ -201,27 +206,41 @@ def _filter_lanes(x, P, yl, Cl, Rl, obs, n_obs, nb, loglik, use, work, report):
 
 
 @jit
+def _predict_lanes(x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats):
+    """Kalman prediction of every lane ``p`` through the transition ``trans_row[mode[p]]`` of
+    its mode (Shankar et al. eqs (6)-(7), :func:`.linalg.predict`)."""
+    Fl, Gl, Ql, _, _, AP, xs = mats
+    for p in range(nb):
+        idx[p] = trans_row[mode[p]]
+    gather_matrices(F, idx, nb, Fl)
+    gather_matrices(G, idx, nb, Gl)
+    gather_matrices(Qd, idx, nb, Ql)
+    predict(x, P, Fl, Gl, ul, Ql, nb, AP, xs)
+
+
+@jit
 def _prior_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans_row, C, R, transition,
-                    prob0, key, k, predicting, nb, idx, mats, ll, use, inc, work, report):
+                    prob0, key, k, predicting, sample_timing, nb, idx, mats, ll, use, inc, work,
+                    report):
     """Sample each particle's mode from its prior and update its filter; ``inc`` gets the
     incremental log-weights.
 
-    ``r_k ~ pi(r_{k-1}, .)`` (``prob0`` at the first sample), Kalman prediction with ``r_k``,
-    ``inc = log N(y_k; C x-, C P- C' + R)`` (``-inf`` where not finite) and the Joseph update
-    (Doucet, Gordon & Krishnamurthy 2001, §III, with the prior as importance distribution;
-    Doucet, de Freitas, Murphy & Russell 2000, §3).
+    ``r_k ~ pi(r_{k-1}, .)`` (``prob0`` at the first sample), Kalman prediction through
+    ``r_{k-1}``'s transition before the draw (``sample_timing``) or through ``r_k``'s after
+    it, ``inc = log N(y_k; C_{r_k} x-, C_{r_k} P- C_{r_k}' + R_{r_k})`` (``-inf`` where not
+    finite) and the Joseph update (Doucet, Gordon & Krishnamurthy 2001, §III, with the prior as
+    importance distribution; Doucet, de Freitas, Murphy & Russell 2000, §3). In either timing
+    the weight is the likelihood of ``y_k`` given the particle's history up to ``r_k``, the
+    target-to-proposal ratio when the proposal is the prior.
     """
-    Fl, Gl, Ql, Cl, Rl, AP, xs = mats
+    _, _, _, Cl, Rl, _, _ = mats
+    if predicting and sample_timing:
+        _predict_lanes(x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats)
     for p in range(nb):
         row = transition[mode[p]] if predicting else prob0
         mode[p] = _pick(row, uniform(key, k, p))
-    if predicting:
-        for p in range(nb):
-            idx[p] = trans_row[mode[p]]
-        gather_matrices(F, idx, nb, Fl)
-        gather_matrices(G, idx, nb, Gl)
-        gather_matrices(Qd, idx, nb, Ql)
-        predict(x, P, Fl, Gl, ul, Ql, nb, AP, xs)
+    if predicting and not sample_timing:
+        _predict_lanes(x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats)
     gather_matrices(C, mode, nb, Cl)
     gather_matrices(R, mode, nb, Rl)
     status = _filter_lanes(x, P, yl, Cl, Rl, obs, n_obs, nb, ll[0], use[0], work, report)
@@ -232,13 +251,16 @@ def _prior_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans_row, C, R, t
 
 @jit
 def _optimal_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans_row, C, R,
-                      log_transition, log_prob0, key, k, predicting, nb, idx, mats, xc, Pc, ll,
-                      use, terms, pick, inc, work, report):
+                      log_transition, log_prob0, key, k, predicting, sample_timing, nb, idx,
+                      mats, xc, Pc, ll, use, terms, pick, inc, work, report):
     """Sample each particle's mode from the optimal importance distribution and keep that
     candidate's filter; ``inc`` gets the incremental log-weights.
 
-    For every candidate mode ``r`` each particle's filter is predicted with ``r`` and updated,
-    with predictive likelihood ``Lambda_r = N(y_k; C_r x-_r, C_r P-_r C_r' + R_r)``; then
+    For every candidate mode ``r`` each particle's filter is predicted and updated with
+    ``C_r``, ``R_r``, with predictive likelihood
+    ``Lambda_r = N(y_k; C_r x-_r, C_r P-_r C_r' + R_r)``. The prediction goes through
+    ``r_{k-1}``'s transition with ``sample_timing`` (once per particle, the same ``x-, P-`` for
+    every candidate), else through the candidate ``r``'s own; then
     ``r_k ~ pi(r_{k-1}, r) Lambda_r / sum_r pi(r_{k-1}, r) Lambda_r`` and
     ``inc = log sum_r pi(r_{k-1}, r) Lambda_r``, the ratio of target to proposal (Doucet,
     Gordon & Krishnamurthy 2001, §III); ``prob0`` replaces ``pi(r_{k-1}, .)`` at the first
@@ -248,9 +270,11 @@ def _optimal_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans_row, C, R,
     """
     Fl, Gl, Ql, Cl, Rl, AP, xs = mats
     n_modes = C.shape[0]
+    if predicting and sample_timing:
+        _predict_lanes(x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats)
     for r in range(n_modes):
         copy_gaussian(x, P, nb, xc[r], Pc[r])
-        if predicting:
+        if predicting and not sample_timing:
             _fill_index(trans_row[r], nb, idx)
             gather_matrices(F, idx, nb, Fl)
             gather_matrices(G, idx, nb, Gl)
@@ -324,8 +348,8 @@ def _resample(x, P, mode, anc, nb, x_to, P_to, mode_to):
 
 @jit
 def particle_filter(y, u, F, G, Qd, trans, C, R, transition, log_transition, prob0, log_prob0,
-                    keys, k0, predict_first, optimal, scheme, threshold, x_init, P_init,
-                    mode_init, logw_init, x_out, P_out, prob_out, mode_out, loglik_out,
+                    keys, k0, predict_first, sample_timing, optimal, scheme, threshold, x_init,
+                    P_init, mode_init, logw_init, x_out, P_out, prob_out, mode_out, loglik_out,
                     flag_out, ess_out, x_last, P_last, mode_last, logw_last, report):
     """Filter ``N`` trials over ``K`` samples with ``Np`` particles each.
 
@@ -353,6 +377,10 @@ def particle_filter(y, u, F, G, Qd, trans, C, R, transition, log_transition, pro
     predict_first : bool
         Whether the first sample is predicted into (a streaming step after the first) or is
         the first of the record (modes drawn from ``prob0``, update only).
+    sample_timing : bool
+        Whether a particle predicts into sample ``k`` through its mode at ``k-1`` (the
+        ``"sample"`` timing: predicted, then its new mode drawn) or through its mode at ``k``
+        (the ``"interval"`` timing: mode drawn, then predicted with it).
     optimal : bool
         The optimal importance distribution (:func:`_optimal_proposal`) or the prior
         (:func:`_prior_proposal`).
@@ -432,12 +460,13 @@ def particle_filter(y, u, F, G, Qd, trans, C, R, transition, log_transition, pro
             if optimal:
                 status = _optimal_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans[k], C,
                                            R, log_transition, log_prob0, keys[i], k0 + k,
-                                           predicting, Np, idx, mats, xc, Pc, ll, use, terms,
-                                           pick, inc, work, report)
+                                           predicting, sample_timing, Np, idx, mats, xc, Pc,
+                                           ll, use, terms, pick, inc, work, report)
             else:
                 status = _prior_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans[k], C,
-                                         R, transition, prob0, keys[i], k0 + k, predicting, Np,
-                                         idx, mats, ll, use, inc, work, report)
+                                         R, transition, prob0, keys[i], k0 + k, predicting,
+                                         sample_timing, Np, idx, mats, ll, use, inc, work,
+                                         report)
             if status != OK:
                 return status
             seen, alive = n_obs[0] > 0.0, False
@@ -524,7 +553,7 @@ class RBPFOutput(NamedTuple):
 
 
 def rbpf_run(y, u, F, G, Qd, trans, C, R, transition, x0, P0, prob0, keys, *, particles: int,
-             optimal: bool, scheme: int, threshold: float) -> RBPFOutput:
+             sample_timing: bool, optimal: bool, scheme: int, threshold: float) -> RBPFOutput:
     """RBPF of ``N`` trials over ``K`` samples (:func:`particle_filter`), every particle
     starting from the prior ``(x0, P0)`` at sample 0 with its mode drawn from ``prob0``.
 
@@ -543,7 +572,7 @@ def rbpf_run(y, u, F, G, Qd, trans, C, R, transition, x0, P0, prob0, keys, *, pa
         Prior of every particle's filter and mode probabilities at sample 0.
     keys : array_like of uint64, shape (N,)
         Each trial's random key.
-    particles, optimal, scheme, threshold
+    particles, sample_timing, optimal, scheme, threshold
         As :func:`particle_filter`.
     """
     sizes: dict[str, int] = {}
@@ -557,14 +586,15 @@ def rbpf_run(y, u, F, G, Qd, trans, C, R, transition, x0, P0, prob0, keys, *, pa
     last = (np.empty((0, Np, n)), np.empty((0, Np, n, n)), np.empty((0, Np), dtype=np.int64),
             np.empty((0, Np)))
     return _kernel(y, u, F, G, Qd, trans, C, R, transition, prob0, _keys(keys, N), 0, False,
-                   optimal, scheme, threshold, state, last)[0]
+                   sample_timing, optimal, scheme, threshold, state, last)[0]
 
 
 def rbpf_step(x, P, mode, log_weight, y, u, F, G, Qd, trans, C, R, transition, prob0, keys, k,
-              *, predict_first: bool, optimal: bool, scheme: int,
+              *, predict_first: bool, sample_timing: bool, optimal: bool, scheme: int,
               threshold: float) -> tuple[RBPFOutput, tuple[np.ndarray, ...]]:
-    """One sample ``k`` of every trial: sample the modes, predict (when ``predict_first``) and
-    update each particle's filter, reweight, resample if due.
+    """One sample ``k`` of every trial: predict (when ``predict_first``; before or after the
+    draw of the modes, by ``sample_timing``), sample the modes and update each particle's
+    filter, reweight, resample if due.
 
     ``x (N, Np, n)``, ``P (N, Np, n, n)``, ``mode (N, Np)``, ``log_weight (N, Np)`` are the
     particles after the previous sample, ``y (N, m)``, ``u (N, l)``, ``trans (L,)`` the
@@ -589,8 +619,8 @@ def rbpf_step(x, P, mode, log_weight, y, u, F, G, Qd, trans, C, R, transition, p
     last = (np.empty((N, Np, n)), np.empty((N, Np, n, n)), np.empty((N, Np), dtype=np.int64),
             np.empty((N, Np)))
     return _kernel(y[:, None], u[:, None], F, G, Qd, trans[None], C, R, transition, prob0,
-                   _keys(keys, N), int(k), bool(predict_first), optimal, scheme, threshold,
-                   (x, P, mode, log_weight), last)
+                   _keys(keys, N), int(k), bool(predict_first), sample_timing, optimal, scheme,
+                   threshold, (x, P, mode, log_weight), last)
 
 
 def _keys(keys, N: int) -> np.ndarray:
@@ -601,8 +631,9 @@ def _keys(keys, N: int) -> np.ndarray:
     return keys
 
 
-def _kernel(y, u, F, G, Qd, trans, C, R, transition, prob0, keys, k0, predict_first, optimal,
-            scheme, threshold, state, last) -> tuple[RBPFOutput, tuple[np.ndarray, ...]]:
+def _kernel(y, u, F, G, Qd, trans, C, R, transition, prob0, keys, k0, predict_first,
+            sample_timing, optimal, scheme, threshold, state,
+            last) -> tuple[RBPFOutput, tuple[np.ndarray, ...]]:
     """:func:`particle_filter` with its outputs allocated; returns them and ``last``."""
     N, K, _ = y.shape
     n, L = state[0].shape[2], C.shape[0]
@@ -613,19 +644,20 @@ def _kernel(y, u, F, G, Qd, trans, C, R, transition, prob0, keys, k0, predict_fi
     with np.errstate(divide="ignore"):  # log 0 = -inf: an impossible switch or first mode
         log_transition, log_prob0 = np.log(transition), np.log(prob0)
     status = particle_filter(y, u, F, G, Qd, trans, C, R, transition, log_transition, prob0,
-                             log_prob0, keys, k0, predict_first, bool(optimal), int(scheme),
-                             float(threshold), *state, x, P, prob, mode, loglik, flag, ess,
-                             *last, report)
+                             log_prob0, keys, k0, predict_first, bool(sample_timing),
+                             bool(optimal), int(scheme), float(threshold), *state, x, P, prob,
+                             mode, loglik, flag, ess, *last, report)
     return (RBPFOutput(x, P, prob, mode, loglik, flag, ess, int(status), int(report[0]),
                        float(report[1])), last)
 
 
 @register
 def _warm_up() -> None:
-    """Both proposals on tiny arrays of the dtypes and layouts :class:`RBPFilter` passes."""
+    """Both proposals on tiny arrays of the dtypes and layouts :class:`RBPFilter` passes (the
+    timing is a value of the same type: one signature serves both)."""
     eye = np.eye(1)[None]
     for optimal in (False, True):
         rbpf_run(np.zeros((1, 2, 1)), np.zeros((1, 2, 1)), eye, eye, eye,
                  np.zeros((2, 1), dtype=np.int64), eye, eye, np.eye(1), np.zeros(1), np.eye(1),
-                 np.ones(1), np.zeros(1, dtype=np.uint64), particles=2, optimal=optimal,
-                 scheme=0, threshold=0.5)
+                 np.ones(1), np.zeros(1, dtype=np.uint64), particles=2, sample_timing=True,
+                 optimal=optimal, scheme=0, threshold=0.5)
