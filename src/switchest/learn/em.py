@@ -68,10 +68,9 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     modes : array_like of int, shape (K,) or (N, K), optional
         The known mode at each sample (mode ``r_k`` drives the interval into ``k + 1`` and the
         measurement at ``k``, as ``switchest.simulate`` draws them). With them the E-step is
-        exact and the log-likelihood never decreases; without them the GPB2 filter and Kim's
-        smoother give an approximate E-step, or enumeration an exact one (``e_step``); mode
-        ``r_{k+1}`` drives the interval into ``k + 1``, the convention of the IMM and GPB
-        filters, and the first mode has the uniform prior.
+        exact and the log-likelihood never decreases; without them Kim's smoother gives an
+        approximate E-step, or enumeration an exact one (``e_step``), in the same timing
+        (the package's, docs/conventions.rst), and the first mode has the uniform prior.
     estimate : iterable of str
         What to fit, among ``"transition"``, ``"Q"``, ``"R"``, ``"C"`` and, for a
         discrete-time system, ``"A"``, ``"B"``.
@@ -84,7 +83,8 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         otherwise).
     e_step : {"kim", "exact"}
         The E-step of unknown modes (with known modes it is exact whatever this says):
-        ``"kim"``, the GPB2 filter and Kim's smoother (approximate, any record length);
+        ``"kim"``, the IMM on the chain of mode pairs and Kim's smoother
+        (:mod:`~switchest.learn.expectation`; approximate, any record length);
         ``"exact"``, the enumeration of all ``L^K`` mode sequences of each trial (the Kalman
         filter and RTS smoother of each, weighted by its posterior probability): the exact
         E-step, so the exact log-likelihood (that of

@@ -10,21 +10,28 @@ lag-one cross-covariances ``P_{k+1,k|K} = P_{k+1|K} J_k'`` (de Jong & MacKinnon 
 convention of ``ModeKalmanFilter`` and of ``switchest.simulate``: the signal is right
 continuous, a switch at ``t_{k+1}`` takes effect there).
 
-Unknown modes: the GPB2 filter (Bar-Shalom, Li & Kirubarajan §11.6.5) and Kim's smoother
-(Kim 1994, §2.2) give the smoothed mode probabilities ``gamma_k(j)``, the pairwise
-probabilities ``xi_k(j, i) = P(r_k = j, r_{k+1} = i | Y)`` and the mode-conditioned lag-one
-moments. Here mode ``r_{k+1}`` drives the interval into ``k + 1`` (the convention of the IMM
-and GPB filters the fitted model is meant for). The E-step is approximate: the exact posterior
-is a mixture of ``L^K`` Gaussians.
+Unknown modes: Kim's smoother (Kim 1994, §2.2) on the chain of consecutive mode pairs
+``s_k = (r_{k-1}, r_k)``. In the package's timing (``timing="sample"``, docs/conventions.rst)
+``r_k`` drives the interval ``k -> k+1``; the pair ``s_{k+1} = (r_k, r_{k+1})`` then holds both
+the mode that drives the interval into ``k + 1`` (``r_k``: ``F``, ``G``, ``Qd``) and the mode that
+sees sample ``k + 1`` (``r_{k+1}``: ``C``, ``R``), so the pair chain is a switched system of
+``L^2`` modes in Bar-Shalom's timing (``timing="interval"``), Markov with
+``P(s_{k+1} = (b, c) | s_k = (a, b')) = [b = b'] pi_bc``, and an exact rewriting of the model
+(the pairs GPB2 merges, Bar-Shalom, Li & Kirubarajan §11.6.5). The IMM on it
+(:class:`~switchest.estimators.IMMFilter`, one mode-matched filter per pair) and Kim's smoother
+give ``P(s_{k+1} | Y)``, that is ``xi_k(a, c) = P(r_k = a, r_{k+1} = c | Y)``, and the lag-one
+moments given ``s_{k+1}``, whose mixture over ``c`` is the moment given the driving mode
+``r_k = a``. The E-step is approximate: the exact posterior is a mixture of ``L^K`` Gaussians.
 
 Unknown modes, exact (``exact=True``, short records): the posterior enumerated over every mode
-sequence ``r`` (Ackerson & Fu 1970; Bar-Shalom, Li & Kirubarajan §11.6.3), in the convention
-of the GPB2 path. Each sequence's Kalman filter and RTS smoother with lag-one moments run as
-one trial of :class:`~switchest.estimators.ExactMixtureFilter`'s sequences and of
+sequence ``r`` (Ackerson & Fu 1970; Bar-Shalom, Li & Kirubarajan §11.6.3), in the package's
+timing (:class:`~switchest.estimators.ExactMixtureFilter` with ``timing="sample"``). Each
+sequence's Kalman filter and RTS smoother with lag-one moments run as one trial of
+:class:`~switchest.estimators.ExactMixtureFilter`'s sequences and of
 :func:`~switchest.estimators.smoothing.smooth_mode_matched` with one mode; the sequence's
 posterior is ``p(r | Y) ∝ p(r_0) prod_k pi_{r_k r_{k+1}} prod_k p(y_k | y_0..k-1, r)``. A
-moment given ``r_k = j`` (or, for an interval, ``r_{k+1} = j``) is the moment of the mixture
-of the sequences through ``j`` there, weighted by ``p(r | Y)`` (Gaussian-mixture moments:
+moment given ``r_k = j`` (for the interval ``k -> k+1`` too: ``r_k`` drives it) is the moment
+of the mixture of the sequences through ``j`` there, weighted by ``p(r | Y)`` (Gaussian-mixture moments:
 mean of the means, mean covariance plus the spread of the means; the cross-covariance of
 ``(x_{k+1}, x_k)`` as the off-diagonal block of their joint mixture). The expected
 complete-data log-likelihood then is exact, and EM never decreases the likelihood (Dempster,
@@ -39,7 +46,7 @@ import numpy as np
 
 from .._linalg import log_normalize, mixture_moments
 from ..discretize import Transition, sample_mode_steps
-from ..estimators import ExactMixtureFilter, GPB2Filter, ModeKalmanFilter
+from ..estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
 from ..estimators.smoothing import smooth_filtered, smooth_mode_matched
 from ..system import SwitchedLinearSystem
 from .data import Record
@@ -60,8 +67,8 @@ class Moments:
     ----------
     loglik : float
         Log-likelihood of the record under the parameters of the E-step (known modes:
-        ``log p(y | r) + sum_k log pi_{r_k r_{k+1}}``; unknown: the GPB2 filter's ``sum log
-        p(y_k | y_0..k-1)``, or with the exact E-step the exact ``log p(y)``, which
+        ``log p(y | r) + sum_k log pi_{r_k r_{k+1}}``; unknown: the pair chain's IMM's
+        ``sum log p(y_k | y_0..k-1)``, or with the exact E-step the exact ``log p(y)``, which
         :class:`~switchest.estimators.ExactMixtureFilter`'s ``loglik`` sums to).
     weight : ndarray, shape (N, K, L)
         ``P(r_k = j | Y)`` (one-hot for known modes).
@@ -114,10 +121,11 @@ def log_likelihood(system: SwitchedLinearSystem, transition, x0, P0, data: Recor
         out = ModeKalmanFilter(system, x0, P0).run(data.y, data.u, data.t, modes=data.modes)
         return float(out.loglik.sum()) + _mode_term(transition, data.modes)
     if exact:
-        flt = ExactMixtureFilter(system, transition, x0, P0, max_sequences=MAX_SEQUENCES)
+        flt = ExactMixtureFilter(system, transition, x0, P0, max_sequences=MAX_SEQUENCES,
+                                 timing="sample")
         return float(sum(flt.run(data.y[c], data.u[c], data.t).loglik.sum()
                          for c in _chunks(data, system.n_modes)))
-    out = GPB2Filter(system, transition, x0, P0).run(data.y, data.u, data.t)
+    out = _pair_filter(system, transition, x0, P0).run(data.y, data.u, data.t)
     return float(out.loglik.sum())
 
 
@@ -136,7 +144,7 @@ def _known(system, transition, x0, P0, data: Record) -> Moments:
     trans[:, 1:] = entry[np.arange(1, K), modes[:, :-1]]  # r_k drives the interval into k + 1
     s = smooth_mode_matched(out.x[:, :, None], out.P[:, :, None], np.ones((N, K, 1)), u,
                             table.F, table.G, table.Qd, trans[:, :, None], np.ones((1, 1)),
-                            lagged=True)
+                            lagged=True, timing="interval")  # one mode: the timings agree
     onehot = np.eye(L)[modes]  # (N, K, L)
 
     def modes_axis(a, k_axis_len):
@@ -153,17 +161,60 @@ def _known(system, transition, x0, P0, data: Record) -> Moments:
         cross=modes_axis(s.lag_cross, K - 1), table=table, entry=entry[1:], pairs=pairs)
 
 
+def _pair_filter(system: SwitchedLinearSystem, transition, x0, P0) -> IMMFilter:
+    """The IMM on the chain of consecutive mode pairs ``s_k = (r_{k-1}, r_k)``, pair
+    ``(a, b)`` at index ``a L + b`` (module docstring): its mode ``(a, b)`` moves through mode
+    ``a``'s ``A``, ``B``, ``Q`` and measures through mode ``b``'s ``C``, ``R``. Sample 0 is only
+    measured, so the pair there is ``(r_0, r_0)`` with ``r_0`` uniform."""
+    L = system.n_modes
+    a, b = np.divmod(np.arange(L * L), L)
+    parts = {"A": system.A[a], "B": system.B[a], "C": system.C[b], "Q": system.Q[a],
+             "R": system.R[b]}
+    pairs = (SwitchedLinearSystem.continuous(**parts) if system.is_continuous
+             else SwitchedLinearSystem.discrete(**parts, dt=system.dt))
+    chain = np.where(a[None, :] == b[:, None], transition[b][:, b], 0.0)
+    prior = np.where(a == b, 1.0 / L, 0.0)
+    return IMMFilter(pairs, chain, x0, P0, mode_prob0=prior, timing="interval")
+
+
 def _unknown(system, transition, x0, P0, data: Record) -> Moments:
-    flt = GPB2Filter(system, transition, x0, P0)
-    fwd = flt.run_modes(data.y, data.u, data.t)  # the smoother's input (ModeMatchedRun)
+    """Kim's E-step on the pair chain (module docstring)."""
+    N, K = data.shape
+    L = system.n_modes
+    fwd = _pair_filter(system, transition, x0, P0).run_modes(data.y, data.u, data.t)
     s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
-                        fwd.Qd, fwd.trans, fwd.transition, lagged=True)
-    table = Transition(fwd.F, fwd.G, fwd.Qd)
+                        fwd.Qd, fwd.trans, fwd.transition, lagged=True, timing="interval")
+    prob = s.mode_prob  # (N, K, L^2): P(s_k = (a, b) | Y)
+    a, b = np.divmod(np.arange(L * L), L)
+    weight = prob @ np.eye(L)[b]  # P(r_k = b | Y), (N, K, L)
+    x, P = _given(prob, weight, np.eye(L)[b], s.x_modes, s.P_modes)
+    # the interval k -> k+1, driven by r_k = a: the pairs (a, c) at k + 1, their joint moments
+    # of (x_{k+1}, x_k) (covariance [[P_{k+1|K}, C_k], [C_k', P_{k|K}]], C_k the lag-one cross)
+    n = system.n_states
+    step_weight = prob[:, 1:] @ np.eye(L)[a]
+    joint_x = np.concatenate([s.x_modes[:, 1:], s.lag_x], axis=-1)
+    joint_P = np.block([[s.P_modes[:, 1:], s.lag_cross],
+                        [np.swapaxes(s.lag_cross, -1, -2), s.lag_P]])
+    jx, jP = _given(prob[:, 1:], step_weight, np.eye(L)[a], joint_x, joint_P)
+    pairs = prob[:, 1:].sum(axis=(0, 1)).reshape(L, L)
+    table, entry = sample_mode_steps(system, data.t)
     return Moments(
-        loglik=float(fwd.estimate.loglik.sum()), weight=s.mode_prob, x=s.x_modes, P=s.P_modes,
-        step_weight=s.mode_prob[:, 1:],  # r_{k+1} drives the interval into k + 1
-        x1=s.x_modes[:, 1:], P1=s.P_modes[:, 1:], x0=s.lag_x, P0=s.lag_P, cross=s.lag_cross,
-        table=table, entry=fwd.trans[1:], pairs=s.pair_prob.sum(axis=(0, 1)))
+        loglik=float(fwd.estimate.loglik.sum()), weight=weight, x=x, P=P,
+        step_weight=step_weight, x1=jx[..., :n], P1=jP[..., :n, :n], x0=jx[..., n:],
+        P0=jP[..., n:, n:], cross=jP[..., :n, n:], table=table, entry=entry[1:], pairs=pairs)
+
+
+def _given(prob, weight, member, x, P):
+    """Moments given each mode: the mixture of the components (mode pairs, or mode sequences)
+    that hold it. ``prob (N, K', S)`` the components' probabilities, ``member (..., S, L)``
+    (broadcast against them) which components hold each mode, ``weight (N, K', L)`` the sums
+    ``P(mode | Y)``; a mode of weight zero gets the mixture of all components (it carries no
+    weight)."""
+    w = prob[..., :, None] * member  # (N, K', S, L)
+    none = weight <= 0.0
+    cond = np.where(none[:, :, None], prob[..., :, None],
+                    w / np.where(none, 1.0, weight)[:, :, None])
+    return mixture_moments(cond, x, P)
 
 
 def _chunks(data: Record, L: int) -> list[slice]:
@@ -182,39 +233,31 @@ def _enumerated(system, transition, x0, P0, data: Record) -> Moments:
     weight = fields.pop("weight")
     pair = fields.pop("pair")
     return Moments(loglik=float(fields.pop("loglik").sum()), weight=weight,
-                   step_weight=weight[:, 1:],  # r_{k+1} drives the interval into k + 1
+                   step_weight=weight[:, :-1],  # r_k drives the interval into k + 1
                    table=table, entry=entry[1:], pairs=pair.sum(axis=(0, 1)), **fields)
 
 
 def _enumerated_block(system, transition, x0, P0, y, u, t) -> dict[str, np.ndarray]:
     """Moments of one block of ``N`` trials, summed over the ``S = L^K`` sequences."""
-    flt = ExactMixtureFilter(system, transition, x0, P0, max_sequences=MAX_SEQUENCES)
+    flt = ExactMixtureFilter(system, transition, x0, P0, max_sequences=MAX_SEQUENCES,
+                             timing="sample")
     seq, _ = flt._sequences(y, u, t)  # every sequence's Kalman filter, one trial each
     S, N, K, n = seq.x.shape
     L = system.n_modes
     rts = smooth_mode_matched(  # the RTS smoother with lag-one moments of every sequence
         seq.x.reshape(S * N, K, 1, n), seq.P.reshape(S * N, K, 1, n, n), np.ones((S * N, K, 1)),
         seq.u, seq.F, seq.G, seq.Qd, seq.trans.reshape(S * N, K, 1), np.ones((1, 1)),
-        lagged=True)
+        lagged=True, timing="interval")  # one mode per sequence: the timings agree
     log_w, loglik = log_normalize(seq.cum[..., -1], axis=0)  # p(r | Y) (S, N), log p(Y) (N,)
     w = np.exp(log_w).T  # (N, S)
     onehot = np.eye(L)[seq.modes]  # (S, K, L)
     weight = np.einsum("ns,skj->nkj", w, onehot)
     pair = np.einsum("ns,skj,ski->nkji", w, onehot[:, :-1], onehot[:, 1:])
 
-    def given(w_k, weight_k, x, P):
-        """Moments of the mixture over the sequences through each mode, ``x (N, K', S, d)``:
-        weights ``w_k (N, K', S, L)`` normalized by ``weight_k (N, K', L)``; a mode no
-        sequence of positive weight passes gets the mixture of all (its weight is zero)."""
-        none = weight_k <= 0.0
-        cond = np.where(none[:, :, None], w[:, None, :, None],
-                        w_k / np.where(none, 1.0, weight_k)[:, :, None])
-        return mixture_moments(cond, x, P)
-
     smoothed_x = np.moveaxis(rts.x.reshape(S, N, K, n), 0, 2)  # (N, K, S, n)
     smoothed_P = np.moveaxis(rts.P.reshape(S, N, K, n, n), 0, 2)
-    through = w[:, None, :, None] * np.moveaxis(onehot, 0, 1)[None]  # (N, K, S, L)
-    x, P = given(through, weight, smoothed_x, smoothed_P)
+    through = np.moveaxis(onehot, 0, 1)[None]  # (1, K, S, L): the sequences through each mode
+    x, P = _given(w[:, None], weight, through, smoothed_x, smoothed_P)
     # the pair (x_{k+1}, x_k) of each sequence, jointly Gaussian: mean (x_{k+1|K}, x_{k|K}),
     # covariance [[P_{k+1|K}, C_k], [C_k', P_{k|K}]], C_k = Cov(x_{k+1}, x_k | r, Y)
     lag_x = np.moveaxis(rts.lag_x[:, :, 0].reshape(S, N, K - 1, n), 0, 2)
@@ -222,7 +265,8 @@ def _enumerated_block(system, transition, x0, P0, y, u, t) -> dict[str, np.ndarr
     cross = np.moveaxis(rts.lag_cross[:, :, 0].reshape(S, N, K - 1, n, n), 0, 2)
     joint_x = np.concatenate([smoothed_x[:, 1:], lag_x], axis=-1)
     joint_P = np.block([[smoothed_P[:, 1:], cross], [np.swapaxes(cross, -1, -2), lag_P]])
-    jx, jP = given(through[:, 1:], weight[:, 1:], joint_x, joint_P)
+    # the interval k -> k+1 is driven by r_k: the sequences through each mode at k
+    jx, jP = _given(w[:, None], weight[:, :-1], through[:, :-1], joint_x, joint_P)
     return {"loglik": loglik, "weight": weight, "pair": pair, "x": x, "P": P,
             "x1": jx[..., :n], "P1": jP[..., :n, :n], "x0": jx[..., n:], "P0": jP[..., n:, n:],
             "cross": jP[..., :n, n:]}

@@ -6,8 +6,8 @@ by central finite differences of the filter's summed log-likelihood (Efron & Hin
 Biometrika 65, "Assessing the accuracy of the maximum likelihood estimator: observed versus
 expected Fisher information"); the standard errors are the square roots of the diagonal of its
 inverse. With known modes the likelihood is exact (the Kalman filter along the modes); with
-unknown modes it is the GPB2 filter's approximation, and the standard errors are those of that
-approximate likelihood. Each step is ``1e-3`` of the entry's scale ``sqrt(V_aa V_bb)``: the
+unknown modes it is the approximation of the E-step (:mod:`~switchest.learn.expectation`),
+and the standard errors are those of that approximate likelihood. Each step is ``1e-3`` of the entry's scale ``sqrt(V_aa V_bb)``: the
 truncation error is ``O(1e-6)`` relative, far above the rounding of the summed likelihood.
 """
 
