@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from switchest import cli as cli_module
+from switchest._checks import TIMINGS
 from switchest.cli import main
 from switchest.estimators import METHOD_NAMES, get_method
 from switchest.modelfile import load_model, save_model
@@ -64,6 +65,7 @@ def test_the_parser_offers_the_registered_methods():
     """cli repeats the registry's names for --method, so that building the parser imports no
     estimators; tabular offers the registry's names too."""
     assert cli_module._METHODS == METHOD_NAMES == METHODS
+    assert cli_module._TIMINGS == TIMINGS
 
 
 def test_the_data_help_names_the_methods_that_need_the_mode_column(capsys):
@@ -185,6 +187,34 @@ def test_the_multiple_model_methods_from_the_shell(tmp_path, capsys):
     assert main([*args, "--method", "imm", "--particles", "9", "--out",
                  str(tmp_path / "i.csv")]) == 2
     assert "particles applies to method 'rbpf' only" in capsys.readouterr().err
+
+
+def test_timing_selects_the_interval_a_mode_governs(tmp_path, capsys):
+    """--timing: the default is the package's ("sample"), "interval" is another filter (the
+    vehicle's modes differ in their dynamics), and methods without modes to time refuse it."""
+    model = Path(__file__).resolve().parents[1] / "examples" / "models" / "shankar-vehicle.toml"
+    data = tmp_path / "d.csv"
+    assert main(["simulate", "--model", str(model), "--duration", "20", "--input", "1",
+                 "--seed", "3", "--out", str(data)]) == 0
+    args = ["estimate", "--model", str(model), "--data", str(data), "--stay", "0.9",
+            "--method", "imm"]
+    tables = {}
+    for name, extra in (("default", []), ("sample", ["--timing", "sample"]),
+                        ("interval", ["--timing", "interval"])):
+        out = tmp_path / f"{name}.csv"
+        assert main([*args, *extra, "--out", str(out)]) == 0, name
+        tables[name] = pd.read_csv(out)
+    pd.testing.assert_frame_equal(tables["default"], tables["sample"])
+    states = ["x0", "x1", "x2", "x3"]
+    assert np.abs(tables["interval"][states].to_numpy()
+                  - tables["sample"][states].to_numpy()).max() > 1e-6
+    capsys.readouterr()
+    assert main([*args[:-1], "kalman", "--timing", "interval", "--out",
+                 str(tmp_path / "k.csv")]) == 2
+    assert ("timing applies to method 'imm' or 'gpb1' or 'gpb2' or 'rbpf' only"
+            in capsys.readouterr().err)
+    assert main([*args, "--timing", "later", "--out", str(tmp_path / "x.csv")]) == 2
+    assert "invalid choice: 'later'" in capsys.readouterr().err
 
 
 def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatch):

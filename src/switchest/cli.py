@@ -53,6 +53,8 @@ _METHODS = ("kalman", "switch-time", "imm", "gpb1", "gpb2", "rbpf", "imm-ev1", "
 ``switchest.tabular.METHODS`` is), repeated so that building the parser imports neither the
 registry nor tabular (numpy, scipy, pandas, numba, the estimators); tests/test_cli.py holds them
 equal, and the help texts of ``--method`` and ``--data`` true to the registry."""
+_TIMINGS = ("sample", "interval")
+"""``switchest._checks.TIMINGS``, repeated for the same reason (tests/test_cli.py holds them equal)."""
 _COMPILING = "compiling the filter kernels (once after install; it can take a few minutes)…"
 
 
@@ -479,7 +481,8 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
                                refine=args.refine, stay=args.stay, v_max=args.v_max,
                                delta=args.delta, Delta=args.Delta,
                                switch_interval=args.switch_interval, smooth=args.smooth,
-                               particles=args.particles, seed=args.seed, trial=args.trial)
+                               particles=args.particles, seed=args.seed, timing=args.timing,
+                               trial=args.trial)
     for warning in caught:
         if issubclass(warning.category, ImplausibleEstimateWarning):
             _say(Console(stderr=True, soft_wrap=True, highlight=False), "warning",
@@ -783,6 +786,10 @@ def _parser() -> _Parser:
                        help="rbpf: number of particles (default 1000)")
     p_est.add_argument("--seed", type=_seed, default=None,
                        help="rbpf: seed of the particles' random numbers (default 0)")
+    p_est.add_argument("--timing", choices=_TIMINGS, default=None,
+                       help="imm, gpb1, gpb2, rbpf: which interval the mode of a sample governs: "
+                            "'sample' (default) the one after it, as simulate draws; 'interval' "
+                            "the one before it (Bar-Shalom's IMM)")
     p_est.add_argument("--trial", type=_seed, default=None,
                        help="which trial to estimate, in a CSV with a trial column")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")

@@ -16,7 +16,8 @@ The methods (:data:`METHODS`), what each needs and where it finds it:
     filter) and Shankar et al.'s Algorithm 1; modes unknown. The transition matrix
     comes from the switching model (:func:`transition_for`) or ``stay``. ``smooth``
     (``imm``, ``gpb1``, ``gpb2``) gives fixed-interval smoothed estimates instead of
-    filtered ones; ``particles`` and ``seed`` configure ``rbpf``.
+    filtered ones; ``particles`` and ``seed`` configure ``rbpf``; ``timing`` picks which
+    interval the mode of a sample governs (docs/conventions.rst).
 ``min-distance``
     Lee, Ping & Shim's mode estimation and switching detection
     (:class:`~switchest.estimators.MinimumDistanceDetector`) on a continuous-time
@@ -58,7 +59,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._checks import positive_scalar
+from ._checks import check_timing, positive_scalar
 from .analysis import decay_observer_gains
 from .default_designs import impulsive_gains, rsls_gains, transition_for
 from .estimators import METHOD_NAMES, Estimate, Method, get_method
@@ -92,7 +93,7 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
                    delta: float | None = None, Delta: float | None = None,
                    switch_interval: float | None = None, smooth: bool = False,
                    particles: int | None = None, seed: int | None = None,
-                   trial: int | None = None) -> pd.DataFrame:
+                   timing: str | None = None, trial: int | None = None) -> pd.DataFrame:
     """Run ``method`` on measured data; returns a table of estimates per sample.
 
     Parameters
@@ -122,6 +123,10 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     particles, seed : int, optional
         ``rbpf`` only: the number of particles (default 1000) and the seed of its random
         numbers (default 0).
+    timing : {"sample", "interval"}, optional
+        ``imm``, ``gpb1``, ``gpb2``, ``rbpf``: which interval the mode of a sample governs
+        (default ``"sample"``, the one after it; ``"interval"``, Bar-Shalom's, the one before
+        it: docs/conventions.rst).
     trial : int, optional
         The trial to estimate from a table of several (a ``trial`` column).
 
@@ -135,14 +140,17 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     entry = get_method(method)
     options = {"grid": grid, "refine": refine, "stay": stay, "v_max": v_max, "delta": delta,
                "Delta": Delta, "switch_interval": switch_interval, "smooth": smooth,
-               "particles": particles, "seed": seed}
-    for name in ("v_max", "delta", "Delta", "switch_interval", "smooth", "particles", "seed"):
+               "particles": particles, "seed": seed, "timing": timing}
+    for name in ("v_max", "delta", "Delta", "switch_interval", "smooth", "particles", "seed",
+                 "timing"):
         if options[name] is not None and options[name] is not False:  # no default elsewhere
             if name not in entry.options:
                 owners = " or ".join(repr(m) for m in METHODS if name in get_method(m).options)
                 raise ValueError(f"{name} applies to method {owners} only, got method {method!r}")
             if name in ("v_max", "delta", "Delta", "switch_interval"):
                 options[name] = positive_scalar(options[name], name)
+            if name == "timing":
+                check_timing(timing)
     meas = read_measurements(data, spec, trial=trial)
     modes = _modes(meas, method) if entry.needs_modes else None
     est = _RUNNERS[method](entry, spec, meas, options, modes)
@@ -202,6 +210,8 @@ def _filter(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) ->
     if "particles" in entry.options:
         chosen["particles"] = 1000 if options["particles"] is None else options["particles"]
         chosen["rng"] = 0 if options["seed"] is None else options["seed"]
+    if options["timing"] is not None:
+        chosen["timing"] = options["timing"]
     est = entry.estimator(spec.system, *args, *_prior(spec), **chosen)
     if options["smooth"]:
         return est.smooth(y, u, t)

@@ -75,15 +75,15 @@ _METHODS = (
     Method("switch-time", SwitchTimeKalmanFilter, "modes", "unused", ("grid", "refine"),
            "Kalman filter with the modes known at the samples and gridded maximum-likelihood "
            "switching times", "Shankar et al. (000), §III-§IV, eq. (23)"),
-    Method("imm", IMMFilter, None, "required", ("stay", "smooth"),
+    Method("imm", IMMFilter, None, "required", ("stay", "smooth", "timing"),
            "interacting multiple model filter; modes unknown", "Blom & Bar-Shalom (1988)"),
-    Method("gpb1", GPB1Filter, None, "required", ("stay", "smooth"),
+    Method("gpb1", GPB1Filter, None, "required", ("stay", "smooth", "timing"),
            "first-order generalized pseudo-Bayesian filter (one Gaussian kept); modes unknown",
            "Bar-Shalom, Li & Kirubarajan (2001), §11.6.4"),
-    Method("gpb2", GPB2Filter, None, "required", ("stay", "smooth"),
+    Method("gpb2", GPB2Filter, None, "required", ("stay", "smooth", "timing"),
            "second-order generalized pseudo-Bayesian filter (one Gaussian per mode, L^2 "
            "filters); modes unknown", "Bar-Shalom, Li & Kirubarajan (2001), §11.6.5"),
-    Method("rbpf", RBPFilter, None, "required", ("stay", "particles", "seed"),
+    Method("rbpf", RBPFilter, None, "required", ("stay", "particles", "seed", "timing"),
            "Rao-Blackwellized particle filter (modes sampled, a Kalman filter per particle); "
            "modes unknown", "Doucet, Gordon & Krishnamurthy (2001), §III"),
     Method("imm-ev1", IMMEV1Filter, None, "optional", ("grid", "stay"),
