@@ -185,7 +185,7 @@ def _contenders(system, transition, x0, P0, y, u, t, fp_trials):
     """IMMFilter on all trials, FilterPy on ``fp_trials`` of them, and two one-mode Kalman
     loops for scale; each a :class:`harness.Contender` with its trial-steps as units."""
     trials, steps = y.shape[:2]
-    imm = IMMFilter(system, transition, x0, P0)
+    imm = IMMFilter(system, transition, x0, P0, timing="interval")  # FilterPy's timing
     ctx_y = np.tile(y[0], (CONTEXT_STEPS // steps + 1, 1))[:CONTEXT_STEPS]
     ctx_u = np.ones((CONTEXT_STEPS, 1))
     fp_y, fp_u = y[:fp_trials], u[:fp_trials]
