@@ -6,6 +6,7 @@ for each entry); a parameter held at zero has NaN standard error and is checked 
 
 import re
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from switchest.estimators import IMMFilter
 from switchest.estimators._compiled import kalman_run
 from switchest.estimators.smoothing import smooth_mode_matched
 from switchest.learn import fit, rates_from_transition
+from switchest.learn.dynamics_step import fit_C
 from switchest.models.catalog import catalog
 from switchest.signals import schedule
 from switchest.simulate import simulate
@@ -189,3 +191,29 @@ def test_continuous_A_is_refused():
     with pytest.raises(ValueError, match="'A' and 'B' can be fitted only"):
         fit(sys, np.zeros((5, 2)), t=np.arange(5.0), x0=np.zeros(4), P0=np.eye(4),
             modes=np.zeros(5, int), estimate=("A",))
+
+
+@pytest.mark.parametrize("correlated", [False, True])
+def test_the_C_step_uses_every_observed_component_when_R_is_diagonal(correlated):
+    """Row a of C is regressed on the samples that observe component a when every R is
+    diagonal (the rows then separate), on the fully observed samples otherwise; checked
+    against the least-squares formula written out per row (1e-9: the same sums in another
+    order)."""
+    rng = np.random.default_rng(8)
+    N, K, n, m = 2, 150, 3, 2
+    x = rng.normal(size=(N, K, 1, n))
+    W = 0.1 * rng.normal(size=(N, K, 1, n, n))
+    P = W @ np.swapaxes(W, -1, -2)
+    y = np.einsum("ab,nkb->nka", np.array([[1.0, -0.5, 0.2], [0.3, 0.8, -1.0]]), x[:, :, 0])
+    y = y + 0.1 * rng.normal(size=y.shape)
+    y[rng.random((N, K, m)) < 0.3] = np.nan  # each component missing at its own samples
+    R = np.array([[[0.1, 0.04], [0.04, 0.2]]]) if correlated else np.array([np.diag([0.1, 0.2])])
+    mom = SimpleNamespace(weight=np.ones((N, K, 1)), x=x, P=P)
+    got = fit_C(np.zeros((1, m, n)), R, y, mom)
+    full = ~np.isnan(y).any(axis=-1)
+    for a in range(m):
+        use = full if correlated else ~np.isnan(y[..., a])
+        xs, Ps, ys = x[use][:, 0], P[use][:, 0], y[use][:, a]
+        want = np.linalg.solve(Ps.sum(axis=0) + xs.T @ xs, xs.T @ ys)
+        np.testing.assert_allclose(got[0, a], want, rtol=1e-9)
+    assert full.mean() < 0.6  # the two rules differ: many samples are partly observed

@@ -58,18 +58,29 @@ def fit_AB(A: np.ndarray, B: np.ndarray, u: np.ndarray, mom: Moments, *, with_B:
     return newA, newB
 
 
-def fit_C(C: np.ndarray, y: np.ndarray, mom: Moments) -> np.ndarray:
-    """New ``C (L, m, n)`` from the samples observed in full; a mode whose state moment is
-    singular keeps its ``C``."""
-    full = ~np.any(np.isnan(y), axis=-1)  # (N, K)
-    w = mom.weight * full[..., None]
-    yz = np.where(full[..., None], y, 0.0)
-    Syx = np.einsum("nkj,nka,nkjb->jab", w, yz, mom.x)
-    Sxx = np.einsum("nkj,nkjab->jab", w, mom.P + mom.x[..., :, None] * mom.x[..., None, :])
+def fit_C(C: np.ndarray, R: np.ndarray, y: np.ndarray, mom: Moments) -> np.ndarray:
+    """New ``C (L, m, n)``: the regression of the measurements on the smoothed state
+    (Shumway & Stoffer 1982, eq. (13)), ``C_j = (sum w y x') (sum w E[x x'])^-1`` per mode.
+
+    With every ``R_j`` diagonal the expected complete-data log-likelihood separates by output
+    component, so row ``a`` of ``C`` is fitted from every sample that observes component
+    ``a``. Otherwise the rows are coupled through ``R^-1`` wherever a sample misses some of its
+    components, and the exact step uses the samples observed in full only (with all rows
+    regressed on the same samples, least squares is the exact step whatever ``R``: Zellner
+    1962, seemingly unrelated regressions with identical regressors). A mode (or row) whose
+    state moment is singular keeps its ``C``.
+    """
+    seen = ~np.isnan(y)  # (N, K, m)
+    if not np.all(R == np.eye(R.shape[1]) * R):  # a correlated R: the fully observed samples
+        seen = np.broadcast_to(np.all(seen, axis=-1, keepdims=True), seen.shape)
+    Exx = mom.P + mom.x[..., :, None] * mom.x[..., None, :]  # (N, K, L, n, n)
+    Syx = np.einsum("nkj,nka,nkjb->jab", mom.weight, np.where(seen, y, 0.0), mom.x)
     new = C.copy()
-    for group in _groups(C):
-        xx = Sxx[group].sum(axis=0)
-        if np.linalg.cond(xx) > 1e12:
-            continue
-        new[group] = np.linalg.solve(xx, Syx[group].sum(axis=0).T).T
+    for a in range(C.shape[1]):
+        Sxx = np.einsum("nkj,nk,nkjab->jab", mom.weight, seen[..., a].astype(float), Exx)
+        for group in _groups(C):
+            xx = Sxx[group].sum(axis=0)
+            if np.linalg.cond(xx) > 1e12:
+                continue
+            new[group, a] = np.linalg.solve(xx, Syx[group, a].sum(axis=0))
     return new

@@ -248,7 +248,7 @@ def _maximize(system, transition, data: Record, steps, mom, wanted, warned):
         A = newA if "A" in wanted else A
         B = newB if "B" in wanted else B
     if "C" in wanted:
-        C = fit_C(C, data.y, mom)
+        C = fit_C(C, R, data.y, mom)
     system = _rebuild(system, A, B, C, Q, R)
     if "Q" in wanted:
         table = mom.table if not ("A" in wanted or "B" in wanted) else sample_mode_steps(
