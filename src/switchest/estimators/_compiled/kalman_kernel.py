@@ -49,6 +49,7 @@ from .linalg import (
     GATED,
     NOT_POSITIVE_DEFINITE,
     OK,
+    copy_lanes,
     correct,
     correct_mean,
     gather_matrices,
@@ -199,7 +200,7 @@ def kalman_filter(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_fir
             lost_any = False
             if not (repeat and _same_flags(use_g, use_last, n_groups)):
                 if repeat:  # the prediction skipped above: the prior, as the last sample's
-                    _copy_lanes(prior, n_groups, P)
+                    copy_lanes(prior, n_groups, P)
                 correct(xg, P, Cg, Rg, use_g, n_groups, PCt_g, chol_g, scale_g, zg, gain, T, FP,
                         prior)
                 lost_any = joseph_lost(P, prior, use_g, n_groups, root, lost)
@@ -215,7 +216,7 @@ def kalman_filter(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_fir
             # P = f(P) for this sample's map f: the next sample, with the same map, repeats it
             fixed = (k > 0 and predicting and n_groups == before and not lost_any
                      and report[0] == repairs and _same_lanes(P, P_last, n_groups))
-            _copy_lanes(P, n_groups, P_last)
+            copy_lanes(P, n_groups, P_last)
             _record(x, P, group, use, n_obs, loglik, nb, n_groups, k % CHUNK, x_buf, P_buf,
                     group_buf, loglik_buf, flag_buf)
             if k % CHUNK == CHUNK - 1 or k == K - 1:
@@ -386,15 +387,6 @@ def _same_lanes(P, Q, n_groups):
                 if P[r, c, j] != Q[r, c, j]:
                     return False
     return True
-
-
-@jit
-def _copy_lanes(source, n_groups, out):
-    """``out[:, :, j] = source[:, :, j]`` in every group's lane."""
-    for r in range(source.shape[0]):
-        for c in range(source.shape[1]):
-            for j in range(n_groups):
-                out[r, c, j] = source[r, c, j]
 
 
 @jit

@@ -52,6 +52,7 @@ __all__ = [
     "predict_mean",
     "predict",
     "copy_gaussian",
+    "copy_lanes",
     "symmetric_sum",
     "residual",
     "innovation",
@@ -227,6 +228,15 @@ def copy_gaussian(x, P, nb, x_to, P_to):
         for c in range(n):
             for b in range(nb):
                 P_to[r, c, b] = P[r, c, b]
+
+
+@jit
+def copy_lanes(source, nb, out):
+    """``out[:, :, b] = source[:, :, b]`` in the first ``nb`` lanes of ``(p, q, B)`` arrays."""
+    for r in range(source.shape[0]):
+        for c in range(source.shape[1]):
+            for b in range(nb):
+                out[r, c, b] = source[r, c, b]
 
 
 @inline

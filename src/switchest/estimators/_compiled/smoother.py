@@ -112,6 +112,7 @@ from .linalg import (
     OK,
     combine,
     copy_gaussian,
+    copy_lanes,
     correct,
     factor,
     gather_matrices,
@@ -342,7 +343,7 @@ def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes
                     for b in range(nb):  # P_pred not factored, or P_ji lost its digits
                         redo[i, b] = failed[b] or lost[b]
                     if lagged:
-                        _copy_gain(gain, nb, gain_pair[i])
+                        copy_lanes(gain, nb, gain_pair[i])
                     if not sample_timing and _any(redo[i], nb):  # Joseph's form, through F_i
                         status = _redo(xf[j], Pf[j], Fl[i], Gl[i], ul, Ql[i], xn, Pn, redo, i,
                                        i + 1, nb, x_pair, P_pair, gain_pair, report,
@@ -553,15 +554,6 @@ def _clear(flag, nb):
     """``flag[b] = False`` for the lanes ``b < nb``."""
     for b in range(nb):
         flag[b] = False
-
-
-@jit
-def _copy_gain(gain, nb, out):
-    """``out = gain`` in the first ``nb`` lanes of ``(n, n, B)``."""
-    for r in range(gain.shape[0]):
-        for c in range(gain.shape[1]):
-            for b in range(nb):
-                out[r, c, b] = gain[r, c, b]
 
 
 @jit
