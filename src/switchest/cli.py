@@ -54,7 +54,8 @@ _METHODS = ("kalman", "switch-time", "imm", "gpb1", "gpb2", "rbpf", "imm-ev1", "
 registry nor tabular (numpy, scipy, pandas, numba, the estimators); tests/test_cli.py holds them
 equal, and the help texts of ``--method`` and ``--data`` true to the registry."""
 _TIMINGS = ("sample", "interval")
-"""``switchest._checks.TIMINGS``, repeated for the same reason (tests/test_cli.py holds them equal)."""
+"""``switchest._checks.TIMINGS``, repeated for the same reason (tests/test_cli.py holds them
+equal)."""
 _COMPILING = "compiling the filter kernels (once after install; it can take a few minutes)…"
 
 

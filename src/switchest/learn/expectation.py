@@ -31,9 +31,9 @@ sequence's Kalman filter and RTS smoother with lag-one moments run as one trial 
 :func:`~switchest.estimators.smoothing.smooth_mode_matched` with one mode; the sequence's
 posterior is ``p(r | Y) ∝ p(r_0) prod_k pi_{r_k r_{k+1}} prod_k p(y_k | y_0..k-1, r)``. A
 moment given ``r_k = j`` (for the interval ``k -> k+1`` too: ``r_k`` drives it) is the moment
-of the mixture of the sequences through ``j`` there, weighted by ``p(r | Y)`` (Gaussian-mixture moments:
-mean of the means, mean covariance plus the spread of the means; the cross-covariance of
-``(x_{k+1}, x_k)`` as the off-diagonal block of their joint mixture). The expected
+of the mixture of the sequences through ``j`` there, weighted by ``p(r | Y)`` (Gaussian-mixture
+moments: mean of the means, mean covariance plus the spread of the means; the cross-covariance
+of ``(x_{k+1}, x_k)`` as the off-diagonal block of their joint mixture). The expected
 complete-data log-likelihood then is exact, and EM never decreases the likelihood (Dempster,
 Laird & Rubin 1977, Theorem 1). Cost: ``L^K`` Kalman filters and smoothers per trial.
 """

@@ -7,8 +7,9 @@ Biometrika 65, "Assessing the accuracy of the maximum likelihood estimator: obse
 expected Fisher information"); the standard errors are the square roots of the diagonal of its
 inverse. With known modes the likelihood is exact (the Kalman filter along the modes); with
 unknown modes it is the approximation of the E-step (:mod:`~switchest.learn.expectation`),
-and the standard errors are those of that approximate likelihood. Each step is ``1e-3`` of the entry's scale ``sqrt(V_aa V_bb)``: the
-truncation error is ``O(1e-6)`` relative, far above the rounding of the summed likelihood.
+and the standard errors are those of that approximate likelihood. Each step is ``1e-3`` of
+the entry's scale ``sqrt(V_aa V_bb)``: the truncation error is ``O(1e-6)`` relative, far above
+the rounding of the summed likelihood.
 """
 
 from __future__ import annotations
