@@ -135,7 +135,7 @@ def test_exact_e_step_equals_the_dense_joint_gaussian_over_every_sequence():
         np.testing.assert_allclose(mom.step_weight[i], ref["weight"][:-1], rtol=RTOL, atol=1e-15)
     np.testing.assert_allclose(mom.loglik, loglik, rtol=RTOL)
     np.testing.assert_allclose(mom.pairs, pairs, rtol=RTOL)
-    flt = ExactMixtureFilter(system, PI2, m0, S0).run(y, u)
+    flt = ExactMixtureFilter(system, PI2, m0, S0, timing="sample").run(y, u)
     np.testing.assert_allclose(mom.loglik, flt.loglik.sum(), rtol=RTOL)
 
 
@@ -155,7 +155,8 @@ def test_em_with_the_exact_e_step_never_lowers_the_exact_likelihood():
     steps = np.diff(res.loglik)
     assert np.all(steps >= -1e-9 * np.abs(res.loglik[:-1])), steps
     assert res.loglik[-1] > res.loglik[0] + 1.0  # it climbed from the wrong start
-    exact = ExactMixtureFilter(res.system, res.transition, np.zeros(2), np.eye(2))
+    exact = ExactMixtureFilter(res.system, res.transition, np.zeros(2), np.eye(2),
+                               timing="sample")
     # the trace is the exact likelihood (the last entry that of the returned parameters)
     np.testing.assert_allclose(res.loglik[-1], exact.run(traj.y, np.ones(1)).loglik.sum(),
                                rtol=RTOL)

@@ -789,8 +789,8 @@ def _parser() -> _Parser:
                        help="rbpf: seed of the particles' random numbers (default 0)")
     p_est.add_argument("--timing", choices=_TIMINGS, default=None,
                        help="imm, gpb1, gpb2, rbpf: which interval the mode of a sample governs: "
-                            "'sample' (default) the one after it, as simulate draws; 'interval' "
-                            "the one before it (Bar-Shalom's IMM)")
+                            "'interval' (default) the one before it (Bar-Shalom's IMM); 'sample' "
+                            "the one after it, as simulate draws (docs: Conventions)")
     p_est.add_argument("--trial", type=_seed, default=None,
                        help="which trial to estimate, in a CSV with a trial column")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")

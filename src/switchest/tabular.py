@@ -125,8 +125,8 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         numbers (default 0).
     timing : {"sample", "interval"}, optional
         ``imm``, ``gpb1``, ``gpb2``, ``rbpf``: which interval the mode of a sample governs
-        (default ``"sample"``, the one after it; ``"interval"``, Bar-Shalom's, the one before
-        it: docs/conventions.rst).
+        (default ``"interval"``, Bar-Shalom's, the one before it; ``"sample"``, the one after
+        it, as ``simulate`` draws: docs/conventions.rst).
     trial : int, optional
         The trial to estimate from a table of several (a ``trial`` column).
 

@@ -260,12 +260,12 @@ def monte_carlo():
     y = simulate(SYS_DT, MarkovAtSamples(TRANSITION_DT, initial=PROB0_DT), t,
                  (np.zeros(2), np.eye(2)), trials=MC_RECORDS, rng=2024).y
     exact = ExactMixtureFilter(SYS_DT, TRANSITION_DT, np.zeros(2), np.eye(2),
-                               mode_prob0=PROB0_DT).run(y)
+                               mode_prob0=PROB0_DT, timing="sample").run(y)
     errors, loglik_error = {}, {}
     for proposal in ("prior", "optimal"):
         for Np in (100, 10_000):
             est = RBPFilter(SYS_DT, TRANSITION_DT, np.zeros(2), np.eye(2), mode_prob0=PROB0_DT,
-                            particles=Np, rng=7, proposal=proposal)
+                            particles=Np, rng=7, proposal=proposal, timing="sample")
             out = est.run(y)
             errors[proposal, Np] = np.abs(out.mode_prob - exact.mode_prob)[..., 1].mean(axis=1)
             loglik_error[proposal, Np] = out.loglik.sum(axis=1) - exact.loglik.sum(axis=1)

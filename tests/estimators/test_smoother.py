@@ -159,7 +159,7 @@ def test_lagged_moments_are_refused_in_the_sample_timing_with_several_modes():
     in the "interval" timing only."""
     args, _ = filtered_case(13, 2, N=2, K=4)
     with pytest.raises(ValueError, match="lagged moments are defined for timing='interval'"):
-        smooth_mode_matched(**args, lagged=True)
+        smooth_mode_matched(**args, timing="sample", lagged=True)
     with pytest.raises(ValueError, match="lagged moments are defined for timing='interval'"):
         smooth_filtered(**args, timing="sample", lagged=True)
     lagged = smooth_mode_matched(**args, timing="interval", lagged=True)

@@ -3,11 +3,12 @@
 The modes are a Markov chain that jumps at the samples, ``P(r_k = j | r_{k-1} = i) =
 transition[i, j]``, ``P(r_0 = j) = mode_prob0[j]``; mode ``r_k`` of sample ``k`` governs the
 measurement at ``k`` and, by the ``timing`` (docs/conventions.rst), the interval after ``k``
-(``"sample"``, the default: ``x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k``,
+(``"sample"``: ``x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k``,
 ``w_k ~ N(0, Qd(r_k))``, ``y_k = C(r_k) x_k + v_k``, ``v_k ~ N(0, R(r_k))``; Costa, Fragoso &
 Marques 2005, eq. (3.1)) or the interval into ``k`` (``"interval"``, Bar-Shalom, Li &
 Kirubarajan 2001, §11.6: ``x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w``,
-``y_k = C(r_k) x_k + v``), ``F, G, Qd`` the exact discretization of a mode over the interval.
+``y_k = C(r_k) x_k + v``; the default), ``F, G, Qd`` the exact discretization of a mode over
+the interval.
 So a sequence predicts into sample ``k`` through ``r_{k-1}``'s transition in the ``"sample"``
 timing and through ``r_k``'s in the ``"interval"`` timing, and updates with ``C(r_k)``,
 ``R(r_k)`` in both. Given a mode sequence ``r = (r_0, ..., r_{K-1})`` the system is
@@ -97,8 +98,8 @@ class ExactMixtureFilter(Estimator):
         (keyword-only); more are refused with a ``ValueError``.
     timing : {"sample", "interval"}
         Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only; module
-        docstring): the one after it (``"sample"``, default) or the one into it
-        (``"interval"``, Bar-Shalom's).
+        docstring): the one after it (``"sample"``) or the one into it
+        (``"interval"``, the default, Bar-Shalom's).
 
     Notes
     -----
@@ -118,7 +119,7 @@ class ExactMixtureFilter(Estimator):
     """
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None,
-                 max_sequences: int = 2**16, timing: str = "sample"):
+                 max_sequences: int = 2**16, timing: str = "interval"):
         self._set_prior(system, x0, P0)
         self._set_mode_prior(transition, mode_prob0)
         self.max_sequences = positive_int(max_sequences, "max_sequences")

@@ -5,9 +5,10 @@ Both approximate the posterior of a jump-Markov linear system, a mixture of ``L^
 after ``k`` samples (one per mode sequence), by a mixture of fewer, switches happening at the
 sample instants. The ``timing`` (docs/conventions.rst;
 :class:`~switchest.estimators.mode_bank.ModeBankFilter`) says which interval the mode ``s_k``
-of sample ``k`` governs besides ``y_k``: the one after it (``"sample"``, the default:
-``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``) or the one into it (``"interval"``, Bar-Shalom's:
-``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``); so which mode's transition a prediction takes.
+of sample ``k`` governs besides ``y_k``: the one after it (``"sample"``:
+``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``) or the one into it (``"interval"``, Bar-Shalom's,
+the default: ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``); so which mode's transition a
+prediction takes.
 
 - GPB1 keeps one Gaussian: ``L`` Kalman filters, one per mode at sample ``k``; mode
   probabilities ``mu_j(k) ∝ Lambda_j(k) c_j``, ``c_j = sum_i pi_ij mu_i(k-1)``. ``"sample"``:
@@ -54,7 +55,7 @@ class GPB1Filter(ModeBankFilter):
 
     Every mode-matched Kalman filter restarts from one Gaussian and updates with its ``C``,
     ``R``; ``mu_j(k) ∝ Lambda_j(k) sum_i pi_ij mu_i(k-1)``. The one Gaussian, in the
-    ``"sample"`` timing (default): the moments of ``sum_i mu_i(k-1) N(x_i(k|k-1),
+    ``"sample"`` timing: the moments of ``sum_i mu_i(k-1) N(x_i(k|k-1),
     P_i(k|k-1))``, each mode-matched posterior ``i`` predicted through mode ``i``'s transition
     (the model ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``y_k = C(s_k) x_k + v_k``); in the
     ``"interval"`` timing (§11.6.4; ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``,
@@ -77,7 +78,7 @@ class GPB1Filter(ModeBankFilter):
         rejects is treated as missing and flagged in ``Estimate.outlier``.
     timing : {"sample", "interval"}
         Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only): the
-        one after it (``"sample"``, default) or the one into it (``"interval"``, Bar-Shalom's);
+        one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's, the default);
         the models and the derivation are in
         :class:`~switchest.estimators.mode_bank.ModeBankFilter`.
 
@@ -110,7 +111,7 @@ class GPB2Filter(ModeBankFilter):
     ``L^2`` Kalman filters, one per pair (mode ``i`` at ``k - 1``, mode ``j`` at ``k``), each
     predicted from mode ``i``'s Gaussian and updated with mode ``j``'s ``C``, ``R``;
     ``mu_ij(k) ∝ Lambda_ij(k) pi_ij mu_i(k-1)``. The prediction goes through mode ``i``'s
-    transition in the ``"sample"`` timing (default; ``x_{k+1} = F(s_k) x_k + G(s_k) u_k +
+    transition in the ``"sample"`` timing (``x_{k+1} = F(s_k) x_k + G(s_k) u_k +
     w_k``, ``y_k = C(s_k) x_k + v_k``: computed once per ``i``), through mode ``j``'s in the
     ``"interval"`` timing (§11.6.5; ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``,
     ``y_k = C(s_k) x_k + v``). Mode ``j``'s pairs are merged
@@ -134,7 +135,7 @@ class GPB2Filter(ModeBankFilter):
         treated as missing and flagged in ``Estimate.outlier``.
     timing : {"sample", "interval"}
         Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only): the
-        one after it (``"sample"``, default) or the one into it (``"interval"``, Bar-Shalom's);
+        one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's, the default);
         see :class:`~switchest.estimators.mode_bank.ModeBankFilter`.
 
     Notes

@@ -5,7 +5,7 @@ mode transition probabilities, after each update the mode probabilities are
 re-weighted by the filters' likelihoods. Switches are assumed to happen at the
 sample instants; the ``timing`` says which interval the mode of a sample governs
 (docs/conventions.rst) and so whether the mixing falls after the prediction
-(``"sample"``, the default) or before it (``"interval"``, Blom & Bar-Shalom's
+(``"sample"``) or before it (``"interval"``, the default: Blom & Bar-Shalom's
 original). Mode probabilities are kept as log-weights.
 
 Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
@@ -54,14 +54,14 @@ class IMMFilter(ModeBankFilter):
         Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k``
         (keyword-only; docs/conventions.rst):
 
-        - ``"sample"`` (default; the model :func:`switchest.simulate` draws with switches
+        - ``"sample"`` (the model :func:`switchest.simulate` draws with switches
           at the samples; Costa, Fragoso & Marques 2005, eq. (3.1)):
           ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``w_k ~ N(0, Qd(s_k))``,
           ``y_k = C(s_k) x_k + v_k``, ``v_k ~ N(0, R(s_k))``. Each mode-matched posterior
           ``i`` of sample ``k - 1`` is predicted through mode ``i``'s transition, then the
           predictions are mixed into mode ``j``'s prior with the weights
           ``mu_{i|j} = pi_ij mu_i / c_j``, ``c_j = sum_i pi_ij mu_i``.
-        - ``"interval"`` (Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan 2001,
+        - ``"interval"`` (the default; Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan 2001,
           §11.6.6; FilterPy's ``IMMEstimator``): ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} +
           w``, ``y_k = C(s_k) x_k + v``. The posteriors are mixed with the same weights,
           then mode ``j``'s mixture is predicted through mode ``j``'s transition.

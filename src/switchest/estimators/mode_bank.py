@@ -12,8 +12,8 @@ only in the compiled kernel that takes one sample: the IMM's interaction (Blom &
 
 Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k). The mode
 ``s_k`` of sample ``k`` governs the measurement there and, by the ``timing``
-(docs/conventions.rst), the interval after ``k`` (``"sample"``, the default) or the one into it
-(``"interval"``, Bar-Shalom's).
+(docs/conventions.rst), the interval after ``k`` (``"sample"``) or the one into it
+(``"interval"``, Bar-Shalom's, the default).
 """
 
 from __future__ import annotations
@@ -133,11 +133,11 @@ class ModeBankFilter(Estimator):
         in ``Estimate.outlier``.
     timing : {"sample", "interval"}
         Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k`` (keyword-only;
-        docs/conventions.rst). ``"sample"`` (default; :func:`switchest.simulate` with switches
+        docs/conventions.rst). ``"sample"`` (:func:`switchest.simulate` with switches
         at the samples; Costa, Fragoso & Marques 2005, eq. (3.1)): the one after it,
         ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``w_k ~ N(0, Qd(s_k))``,
-        ``y_k = C(s_k) x_k + v_k``, ``v_k ~ N(0, R(s_k))``. ``"interval"`` (Bar-Shalom, Li &
-        Kirubarajan 2001, §11.6; FilterPy's ``IMMEstimator``): the one into it,
+        ``y_k = C(s_k) x_k + v_k``, ``v_k ~ N(0, R(s_k))``. ``"interval"`` (the default;
+        Bar-Shalom, Li & Kirubarajan 2001, §11.6; FilterPy's ``IMMEstimator``): the one into it,
         ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``, ``y_k = C(s_k) x_k + v``. ``F, G, Qd``
         are the exact discretization of a mode over the interval. With one mode the two are
         the same filter.
@@ -160,10 +160,19 @@ class ModeBankFilter(Estimator):
     restarted prior through mode ``j``'s transition (Bar-Shalom, Li & Kirubarajan §11.6.4-6).
     The updates (mode ``j`` with ``C_j``, ``R_j``), the weighting of the hypotheses by their
     likelihoods and the output are the same in both.
+
+    Bar-Shalom's timing is the default because these filters approximate it better: in the
+    ``"sample"`` timing the IMM and GPB1 merge predictions through different dynamics before
+    the measurement that would tell them apart. With modes that differ only in ``A``, ``B``,
+    ``Q`` the two timings are one model with the chain shifted by a sample, and on the Markov
+    jump system of the bake-off (switches at the samples, 64 trials) the IMM's state RMSE was
+    0.180 in Bar-Shalom's timing against 0.202, its smoother's 0.163 against 0.311. Choose
+    ``"sample"`` when the modes also differ in ``C`` or ``R`` and switch at the samples
+    (docs/conventions.rst).
     """
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None, gate: float | None = None,
-                 timing: str = "sample"):
+                 timing: str = "interval"):
         self._set_prior(system, x0, P0)
         self.gate = None if gate is None else positive_scalar(gate, "gate")
         self._set_mode_prior(transition, mode_prob0)

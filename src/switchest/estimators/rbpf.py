@@ -8,7 +8,7 @@ jump Markov linear systems", IEEE Trans. Signal Processing 49(3), §III). The mo
 Markov chain that jumps at the sample instants and advances at every sample. Which interval
 the mode ``r_k`` of sample ``k`` governs is the ``timing`` (docs/conventions.rst):
 
-- ``"sample"`` (default; switchest's convention, that of :func:`switchest.simulate` with
+- ``"sample"`` (switchest's convention, that of :func:`switchest.simulate` with
   switches at the samples and of Costa, Fragoso & Marques 2005, eq. (3.1)):
   ``x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k``, ``w_k ~ N(0, Qd(r_k))``,
   ``y_k = C(r_k) x_k + v_k``, ``v_k ~ N(0, R(r_k))``. A particle ``(r_{k-1}, N(x, P))`` is
@@ -149,8 +149,8 @@ class RBPFilter(Estimator):
         (Doucet, Gordon & Krishnamurthy 2001, §III).
     timing : {"sample", "interval"}
         Which interval the mode of sample ``k`` governs besides ``y_k`` (module docstring):
-        the one after it, ``[t_k, t_{k+1})`` (``"sample"``, default), or the one into it
-        (``"interval"``, Bar-Shalom's).
+        the one after it, ``[t_k, t_{k+1})`` (``"sample"``), or the one into it
+        (``"interval"``, Bar-Shalom's, the default).
 
     Attributes
     ----------
@@ -160,7 +160,7 @@ class RBPFilter(Estimator):
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None, particles: int = 1000,
                  rng=None, resample: str = "systematic", ess_threshold: float = 0.5,
-                 proposal: str = "prior", timing: str = "sample"):
+                 proposal: str = "prior", timing: str = "interval"):
         self._set_prior(system, x0, P0)
         self._set_mode_prior(transition, mode_prob0)
         self.particles = positive_int(particles, "particles")

@@ -11,13 +11,13 @@ posterior takes a Rauch-Tung-Striebel step towards mode ``i``'s smoothed posteri
 ``J = P_j(k|k) F_m' P_pred^-1``, through the transition of the mode ``m`` that governs the
 interval ``k -> k+1``, by the ``timing`` (docs/conventions.rst):
 
-- ``"sample"`` (the default, switchest's convention: the mode of sample ``k`` governs ``y_k``
+- ``"sample"`` (switchest's convention for data: the mode of sample ``k`` governs ``y_k``
   and the interval after it, ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``; Costa, Fragoso &
   Marques 2005, eq. (3.1)): ``m = j``, table entry ``trans[k+1, j]``. ``x_{k+1}`` depends on
   ``s_k``, not on ``s_{k+1}``, so the step conditions on ``x_{k+1}`` through ``F_j``; the
   prediction and the gain are the same for every ``i``, computed once per ``j``;
-- ``"interval"`` (Bar-Shalom, Li & Kirubarajan 2001, §11.6; Kim's own model: the mode of sample
-  ``k+1`` governs the interval into it): ``m = i``, table entry ``trans[k+1, i]``.
+- ``"interval"`` (the default; Bar-Shalom, Li & Kirubarajan 2001, §11.6; Kim's own model: the
+  mode of sample ``k+1`` governs the interval into it): ``m = i``, table entry ``trans[k+1, i]``.
 
 In both the pairs are weighted by
 ``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` (Kim's approximation
@@ -99,7 +99,7 @@ class SmoothedModes:
 
 
 def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transition, *,
-                        timing: str = "sample", lagged: bool = False) -> SmoothedModes:
+                        timing: str = "interval", lagged: bool = False) -> SmoothedModes:
     """Kim's fixed-interval smoother of filtered mode-matched posteriors (Kim 1994, §2.2).
 
     Parameters
@@ -124,7 +124,7 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transit
     timing : {"sample", "interval"}
         Which mode governs the interval ``k -> k+1`` (module docstring), so which mode's
         transition the pair (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) takes its RTS step
-        through: ``j``'s (``"sample"``, the default) or ``i``'s (``"interval"``). The filtered
+        through: ``j``'s (``"sample"``) or ``i``'s (``"interval"``, the default). The filtered
         posteriors should come from a filter of the same timing.
     lagged : bool
         Also return, for each interval ``k -> k+1``, the pairwise mode probabilities and the
@@ -178,7 +178,7 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transit
 
 
 def smooth_filtered(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transition, *,
-                    timing: str = "sample", lagged: bool = False,
+                    timing: str = "interval", lagged: bool = False,
                     modes_out: bool = True) -> SmoothedModes:
     """:func:`smooth_mode_matched` of arrays a filter of switchest produced and checked, with
     one batch axis: ``(N, K, L, n)``, ``(N, K, L, n, n)``, ``(N, K, L)``, ``u (N, K, l)``,

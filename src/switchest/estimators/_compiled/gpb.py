@@ -278,7 +278,7 @@ def gpb2_bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_p
 
 
 def gpb2_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
-             gate=math.inf, lanes: int = LANES, timing: str = "sample",
+             gate=math.inf, lanes: int = LANES, timing: str = "interval",
              modes_out: bool = False) -> IMMOutput:
     """GPB2 filter of ``N`` trials over ``K`` samples (Bar-Shalom, Li & Kirubarajan §11.6.5).
 
@@ -304,7 +304,7 @@ def gpb2_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
 
 def gpb2_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
               predict_first: bool, gate=math.inf,
-              timing: str = "sample") -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
+              timing: str = "interval") -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
     """One sample of every trial: the ``L^2`` pairs predicted (in the ``timing`` of
     :func:`gpb2_run`) and updated, then merged (when ``predict_first``; else the ``L`` modes
     updated), as :func:`.imm.imm_step`.

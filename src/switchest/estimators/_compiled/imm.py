@@ -11,10 +11,10 @@ Mode ``j``'s transition into sample ``k`` is ``trans[k, j]`` of the table ``F (M
 mode ``j`` is updated with ``C[j]``, ``R[j]``. The input held over the interval into sample
 ``k`` is ``u[:, k-1]``; sample 0 is update only. ``timing`` (docs/conventions.rst) says which
 mode's transition a mode-matched Gaussian takes into ``k``: in the ``"sample"`` timing (the
-default: the mode of sample ``k - 1`` governs the interval into ``k``) each posterior ``i`` of
+mode of sample ``k - 1`` governs the interval into ``k``) each posterior ``i`` of
 sample ``k - 1`` is predicted through ``trans[k, i]`` and the predictions are then mixed; in
-the ``"interval"`` timing (Bar-Shalom, Li & Kirubarajan §11.6.6) the posteriors are mixed and
-mode ``j``'s mixture is predicted through ``trans[k, j]``.
+the ``"interval"`` timing (the default; Bar-Shalom, Li & Kirubarajan §11.6.6) the posteriors
+are mixed and mode ``j``'s mixture is predicted through ``trans[k, j]``.
 
 Gating is decided mode by mode, a gated mode getting no weight at that sample (a truncated
 likelihood); a sample no mode can use counts as missing (:func:`.bank.filter_bank`).
@@ -87,7 +87,7 @@ class IMMOutput(NamedTuple):
 
 def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
             gate=math.inf, lanes: int = LANES, interaction: str = "mix",
-            timing: str = "sample", modes_out: bool = False) -> IMMOutput:
+            timing: str = "interval", modes_out: bool = False) -> IMMOutput:
     """IMM filter of ``N`` trials over ``K`` samples (Bar-Shalom, Li & Kirubarajan §11.6.6),
     or GPB1 (``interaction="collapse"``, §11.6.4).
 
@@ -121,7 +121,8 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
     timing : {"sample", "interval"}
         Where the interaction falls (:func:`.bank.filter_bank`): after each mode-matched
         posterior is predicted through its own transition (``"sample"``), or before mode
-        ``j``'s mixture is predicted through mode ``j``'s (``"interval"``, Bar-Shalom's).
+        ``j``'s mixture is predicted through mode ``j``'s (``"interval"``, Bar-Shalom's, the
+        default).
     modes_out : bool
         Whether to return the mode-matched posteriors after each sample's update
         (``IMMOutput.x_modes``, ``P_modes``; None otherwise).
@@ -141,7 +142,7 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
 
 def imm_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
              predict_first: bool, gate=math.inf, interaction: str = "mix",
-             timing: str = "sample") -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
+             timing: str = "interval") -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
     """One sample of every trial: mix (or collapse) and predict, in the order of ``timing``
     (when ``predict_first``), then update.
 

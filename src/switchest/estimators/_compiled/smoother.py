@@ -183,7 +183,7 @@ class KimOutput(NamedTuple):
 
 
 def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *,
-               timing: str = "sample", lanes: int = LANES, lagged: bool = False,
+               timing: str = "interval", lanes: int = LANES, lagged: bool = False,
                modes_out: bool = True) -> KimOutput:
     """Kim's fixed-interval smoother of ``N`` trials over ``K`` samples (module docstring).
 
