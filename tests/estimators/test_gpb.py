@@ -373,8 +373,10 @@ def test_step_streaming_equals_run_and_runs_are_independent(cls, timing):
         np.testing.assert_array_equal(getattr(again, name), getattr(first, name))
     assert not np.allclose(other.x, first.x)
     # the record is noise, not the model's output: besides the planted outlier the gate drops
-    # a few samples (up to 6 of 60, GPB1 in the "sample" timing), but most must pass
-    assert first.outlier[2, 9] and first.outlier.mean() < 0.2
+    # a few samples, fewer than 1 in 10; GPB1 in the "sample" timing, whose modes all update
+    # from one collapsed prediction, drops 6 of 60 and is held to 1 in 5
+    bound = 0.2 if cls is GPB1Filter and timing == "sample" else 0.1
+    assert first.outlier[2, 9] and first.outlier.mean() < bound
     state = est.init((3,))
     for k in range(t.size):
         state = est.step(state, y[:, k], u[:, k - 1] if k else None,
