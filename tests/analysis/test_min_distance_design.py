@@ -10,7 +10,7 @@ no input reduce (3)-(4) to ``|x| > 0``; its pathological example
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 from scipy.linalg import expm
@@ -105,6 +105,9 @@ def _random_system(seed):
 
 @settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 10_000))
+@example(seed=435)  # observer far from normal (|A - L C| ~ 4.5e4, abscissa -3.8): every shift
+@example(seed=4014)  # of the old grid lay above 0, so no decaying bound was found
+@example(seed=664)  # a shift next to a sum of eigenvalues: singular Kronecker system
 def test_exponential_bounds_hold_on_an_independent_grid(seed):
     sys = _random_system(seed)
     k = lee_constants(sys, 0.5, 1.5, n_grid=401)

@@ -71,6 +71,8 @@ __all__ = [
 ]
 
 _N_SHIFTS = 161
+_N_DECAYING_SHIFTS = 41
+_MAX_RESIDUAL = 0.5  # largest |M P + P M' + I| of a Lyapunov solution kept as a bound
 _BOUND_TOL = 1e-8
 _MAX_EXPONENT = 700.0  # e^700 ~ 1e304: the largest growth factor a float64 holds
 
@@ -685,29 +687,61 @@ class _ShiftTable:
 def _shift_table(A: np.ndarray) -> _ShiftTable:
     """Lyapunov bounds for a log-spaced grid of shifts plus the logarithmic-norm bound.
 
+    The shifts run from the spectral abscissa up by ``10^-4 .. 10^3`` times the largest mode
+    norm and, for a Hurwitz ``A``, also across ``(abscissa, 0]``: far from normal, the first
+    grid starts above 0 and would hold no decaying bound at all.
+
     For shift ``r`` above every mode's spectral abscissa, ``P_i`` solves
     ``(A_i - rI)'P + P(A_i - rI) = -I``; mode i gives ``mu_i = sqrt(cond P_i)`` and
-    ``rate_i = r - 1/(2 lambda_max(P_i))``; the row is ``(max_i mu_i, max_i rate_i)``.
+    ``rate_i = r - (1 - |E_i|)/(2 lambda_max(P_i))``, where ``E_i`` is the residual of the
+    computed ``P_i`` (0 in exact arithmetic: the rate stays a bound for the ``P_i`` actually
+    computed); the row is ``(max_i mu_i, max_i rate_i)``. Shifts where some ``|E_i|`` reaches
+    1/2 (``P_i`` inaccurate or singular, next to a sum of eigenvalues) are dropped.
     The equations of all shifts and modes are solved at once in Kronecker form.
     """
     n = A.shape[-1]
     abscissa = float(np.linalg.eigvals(A).real.max())
     scale = max(1.0, float(np.max(np.linalg.norm(A, ord=2, axis=(1, 2)))))
     shifts = abscissa + scale * np.logspace(-4, 3, _N_SHIFTS)
+    if abscissa < 0:  # also shifts in (abscissa, 0): the decaying bounds (rate < 0) lie there,
+        # below the grid above when the matrix is far from normal (scale >> -abscissa)
+        shifts = np.union1d(shifts, abscissa * (1.0 - np.logspace(-4, 0, _N_DECAYING_SHIFTS)))
     # (A_i - rI)', (S, L, n, n)
     M = np.swapaxes(A, 1, 2)[None] - shifts[:, None, None, None] * np.eye(n)
     eye = np.eye(n)
     # M P + P M' = -I  <=>  (I kron M + M kron I) vec(P) = -vec(I)   (P symmetric)
     K = np.einsum("ac,slbd->slabcd", eye, M) + np.einsum("slac,bd->slabcd", M, eye)
     rhs = np.broadcast_to(-eye.reshape(n * n, 1), (*K.shape[:2], n * n, 1))
-    P = np.linalg.solve(K.reshape(*K.shape[:2], n * n, n * n), rhs)
-    lam = np.linalg.eigvalsh(symmetrize(P.reshape(*K.shape[:2], n, n)))  # (S, L, n)
-    certified = np.all(lam[..., 0] > 0, axis=1)  # round-off at extreme shifts can break P > 0
-    lam = lam[certified]
+    P = symmetrize(_solve_each(K.reshape(*K.shape[:2], n * n, n * n), rhs).reshape(M.shape))
+    # the residual E = M P + P M' + I of the computed P: with |E| < 1 the bound holds at the rate
+    # r - (1 - |E|) / (2 lambda_max(P)) (d/dt x'Px <= -(1 - |E|) |x|^2); near a sum of
+    # eigenvalues, where P is inaccurate, |E| grows and the shift is dropped
+    solved = np.all(np.isfinite(P), axis=(-2, -1))
+    P[~solved] = eye
+    residual = np.linalg.norm(M @ P + P @ np.swapaxes(M, -1, -2) + eye, ord=2, axis=(-2, -1))
+    residual[~solved] = np.inf
+    certified = np.all(residual < _MAX_RESIDUAL, axis=1)
+    lam = np.linalg.eigvalsh(P[certified])  # (S, L, n)
+    positive = np.all(lam[..., 0] > 0, axis=1)  # round-off at extreme shifts can break P > 0
+    lam, residual = lam[positive], residual[certified][positive]
     mu = np.sqrt(lam[..., -1] / lam[..., 0]).max(axis=1)
-    rate = (shifts[certified, None] - 0.5 / lam[..., -1]).max(axis=1)
+    rate = (shifts[certified][positive, None] - 0.5 * (1.0 - residual) / lam[..., -1]).max(axis=1)
     log_norm = float(np.linalg.eigvalsh(symmetrize(A))[:, -1].max())
     return _ShiftTable(mu=np.concatenate([[1.0], mu]), rate=np.concatenate([[log_norm], rate]))
+
+
+def _solve_each(systems: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``np.linalg.solve`` of a stack of systems; NaN for those that are singular."""
+    try:
+        return np.linalg.solve(systems, rhs)
+    except np.linalg.LinAlgError:  # one at least: each on its own
+        out = np.full(rhs.shape, np.nan)
+        for index in np.ndindex(systems.shape[:-2]):
+            try:
+                out[index] = np.linalg.solve(systems[index], rhs[index])
+            except np.linalg.LinAlgError:
+                continue
+        return out
 
 
 def _best_growth(table: _ShiftTable, Delta: np.ndarray):
