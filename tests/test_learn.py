@@ -110,6 +110,60 @@ def test_imm_with_fitted_parameters_is_as_good_as_with_the_true_ones(jump_fit):
     assert abs(diff.mean()) <= 3 * diff.std(ddof=1) / np.sqrt(diff.size) + 1e-3
 
 
+A2 = np.array([[[0.95, 0.2], [-0.2, 0.95]], [[0.5, 0.0], [0.3, 0.4]]])
+C2 = np.array([[[1.0, 0.0]], [[0.0, 1.0]]])
+Q2 = np.array([np.diag([0.05, 0.05]), np.diag([0.2, 0.1])])
+R2 = np.array([[[0.05]], [[0.1]]])
+P2 = np.array([[0.95, 0.05], [0.1, 0.9]])
+
+
+def test_unknown_modes_fit_ends_at_a_maximum_within_three_standard_errors():
+    """Kim's approximate EM, then the direct ascent of the same log-likelihood: the ascent's
+    trace never decreases and starts above every EM iterate, the information at its end is
+    positive definite (every standard error finite), and each entry is within 3 standard
+    errors of the truth."""
+    truth = SwitchedLinearSystem.discrete(A2, None, C2, Q2, R2, dt=1.0)
+    t = np.arange(1000.0)
+    traj = simulate(truth, MarkovAtSamples(P2, initial=0), t, (np.zeros(2), np.eye(2)), rng=3)
+    start = SwitchedLinearSystem.discrete(A2, None, C2, 2 * Q2, 0.5 * R2, dt=1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # EM's drops are in the trace, not warnings
+        res = fit(start, traj.y[0], t=t, transition=np.array([[0.8, 0.2], [0.2, 0.8]]),
+                  x0=np.zeros(2), P0=np.eye(2), max_iter=40, tol=1e-8)
+    assert res.converged and res.ascent_from is not None
+    em, ascent = res.loglik[:res.ascent_from], res.loglik[res.ascent_from:]
+    assert ascent.size and ascent[0] >= em.max()
+    assert np.all(np.diff(ascent) >= 0)
+    assert ascent[-1] > em.max() + 1  # EM stalled more than a log-unit below the maximum
+    for fitted, true, name in ((res.transition, P2, "transition"), (res.system.Q, Q2, "Q"),
+                               (res.system.R, R2, "R")):
+        assert np.all(np.isfinite(res.se[name]))
+        within(fitted, true, res.se[name])
+
+
+def test_ascent_parameters_round_trip():
+    """The ascent's unconstrained parameters give back the system and transition matrix they
+    were taken from: zero transition entries, shared matrices, noise-free components."""
+    from switchest.learn.ascent import _Layout
+
+    Q = np.array([[[0.3, 0.1, 0.0], [0.1, 0.2, 0.0], [0.0, 0.0, 0.0]]] * 2)  # shared, 3rd free
+    R = np.array([[[0.5]], [[0.2]]])
+    sys = SwitchedLinearSystem.discrete(np.eye(3)[None].repeat(2, 0), None,
+                                        np.ones((2, 1, 3)), Q, R, dt=1.0)
+    pi = np.array([[0.0, 1.0], [0.3, 0.7]])
+    layout = _Layout(sys, pi, ("transition", "Q", "R"))
+    theta = layout.pack(sys, pi)
+    assert theta.size == 1 + 3 + 2  # one logit (row 0 has no free entry), Q's block, two R
+    back, pi_back = layout.unpack(theta, pi)
+    np.testing.assert_allclose(pi_back, pi, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(back.Q, Q, rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(back.R, R, rtol=1e-14, atol=0)
+    moved, pi_moved = layout.unpack(theta + 0.1, pi)
+    np.testing.assert_allclose(pi_moved.sum(axis=1), 1.0, rtol=0, atol=1e-15)
+    assert pi_moved[0, 0] == 0.0 and np.all(moved.Q[:, 2] == 0) and np.all(moved.Q[:, :, 2] == 0)
+    assert np.all(moved.Q == moved.Q[:1])  # still shared
+
+
 def test_vehicle_shared_continuous_intensity_within_three_standard_errors():
     spec = catalog()["shankar-vehicle"]
     sys = spec.system

@@ -684,8 +684,9 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
         result = fit(spec.system, data["y"], data["u"], data["t"], transition=start,
                      x0=spec.initial[0], P0=spec.initial[1], modes=data["mode"],
                      estimate=args.estimate, max_iter=args.max_iter, tol=args.tol, rng=0,
-                     progress=lambda i, loglik: bar.update(task, completed=i + 1,
-                                                           loglik=f"{loglik:.10g}"))
+                     progress=lambda i, loglik: bar.update(
+                         task, completed=i + 1, total=max(args.max_iter, i + 1),
+                         loglik=f"{loglik:.10g}"))
     _print_fit_warnings(caught, result.loglik)
     fitted, note = fitted_model(spec, result, args.estimate, Path(args.data))
     save_model(fitted, out)
@@ -694,15 +695,19 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
     stop = ("converged" if result.converged else
             f"[yellow]stopped at --max-iter {args.max_iter} without converging[/yellow]")
     runs = f"{data['trials']} trials x " if data["trials"] > 1 else ""
+    how = ("" if result.ascent_from is None else
+           f" ({result.ascent_from} of EM, then direct ascent from its best)")
     console.print(f"EM on {runs}{data['t'].size} samples, {modes}: {result.iterations} "
-                  f"iterations, {stop}; log-likelihood {trace[0]:.10g} → {trace[-1]:.10g}")
+                  f"iterations{how}, {stop}; log-likelihood {trace[0]:.10g} → {trace[-1]:.10g}")
     console.print(_fit_table(spec.system, start, result))
     console.print(f"switching model: {escape(note)}")
     console.print(f"fitted model: [bold]{escape(str(out))}[/bold]")
     if plot is not None:
         from .plotting import curves
 
-        curves(plot, np.arange(trace.size), {"log-likelihood": trace}, xlabel="EM iteration",
+        curves(plot, np.arange(trace.size), {"log-likelihood": trace},
+               xlabel="iteration" + ("" if result.ascent_from is None else
+                                     f" (direct ascent from {result.ascent_from})"),
                ylabel="log-likelihood", title=f"{Path(args.model).name}: EM, {modes}")
         console.print(f"figure: {escape(str(plot))}")
     return 0

@@ -25,13 +25,14 @@ from .._checks import (
 from ..analysis.observability import mode_observability
 from ..discretize import sample_mode_steps
 from ..system import SwitchedLinearSystem
+from .ascent import ascend
 from .data import Record, record
 from .dynamics_step import fit_AB, fit_C
 from .expectation import MAX_SEQUENCES, expectation, log_likelihood
 from .markov_step import fit_transition, rates_from_transition, transition_se
 from .noise_step import fit_Q, fit_R, shared
 from .result import FitResult
-from .standard_errors import noise_standard_errors
+from .standard_errors import observed_standard_errors
 
 __all__ = ["fit"]
 
@@ -75,7 +76,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         What to fit, among ``"transition"``, ``"Q"``, ``"R"``, ``"C"`` and, for a
         discrete-time system, ``"A"``, ``"B"``.
     max_iter : int
-        Most E-steps.
+        Most E-steps (and, after an approximate EM, most iterations of the direct ascent).
     tol : float
         Stop when ``|loglik_i - loglik_{i-1}| <= tol |loglik_{i-1}|``.
     rng : numpy.random.Generator, int or None
@@ -84,7 +85,11 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     e_step : {"kim", "exact"}
         The E-step of unknown modes (with known modes it is exact whatever this says):
         ``"kim"``, the IMM on the chain of mode pairs and Kim's smoother
-        (:mod:`~switchest.learn.expectation`; approximate, any record length);
+        (:mod:`~switchest.learn.expectation`; approximate, any record length), after which
+        the fit continues from EM's best iterate by direct ascent of that IMM's
+        log-likelihood over the transition matrix, ``Q`` and ``R``
+        (:mod:`~switchest.learn.ascent`; not when ``A``, ``B`` or ``C`` are estimated), so it
+        ends at a maximum of the likelihood it reports;
         ``"exact"``, the enumeration of all ``L^K`` mode sequences of each trial (the Kalman
         filter and RTS smoother of each, weighted by its posterior probability): the exact
         E-step, so the exact log-likelihood (that of
@@ -92,7 +97,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         never decreases; for short records only (``L^K`` up to
         :data:`~switchest.learn.expectation.MAX_SEQUENCES` = 65536, refused beyond).
     progress : callable, optional
-        Called as ``progress(iteration, loglik)`` after each E-step.
+        Called as ``progress(iteration, loglik)`` after each E-step and ascent iteration.
 
     Returns
     -------
@@ -104,10 +109,13 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         Naming the mode: a mode never visited (known modes) or whose smoothed probability mass
         is below one sample (unknown modes), whose parameters keep their starting values; a mode
         whose pair ``(C, A)`` is unobservable, whose ``Q`` is not identifiable from ``y``. Also
-        when the log-likelihood decreases from one iteration to the next (naming the
-        iteration and the drop): with unknown modes Kim's E-step is approximate (the exact
-        posterior is a mixture of ``L^K`` Gaussians), so EM's monotonicity is not guaranteed
-        (``e_step="exact"`` restores it on short records).
+        when the log-likelihood decreases from one iteration to the next with an exact E-step
+        (naming the iteration and the drop), and once, counting the drops, when Kim's
+        approximate E-step (the exact posterior is a mixture of ``L^K`` Gaussians) lowered it
+        and no direct ascent followed (``A``, ``B`` or ``C`` estimated). Where the ascent
+        follows, EM's drops are in the trace and the ascent's part never decreases
+        (``FitResult.ascent_from``); ``e_step="exact"`` makes EM itself monotone on short
+        records.
 
     Notes
     -----
@@ -118,9 +126,10 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     holds until the next one). ``FitResult.rates`` gives the generator of a continuous-time
     chain matching the fitted per-sample ``transition`` (periodic sampling).
 
-    Standard errors: ``transition`` from the (expected) counts, ``Q`` and ``R`` from the
-    observed information (:mod:`~switchest.learn.standard_errors`), NaN for ``A``, ``B``,
-    ``C``.
+    Standard errors: from the observed information (:mod:`~switchest.learn.standard_errors`)
+    of ``Q``, ``R`` and, with unknown modes, jointly of the transition matrix; with known modes
+    the transition's from the counts (the same information, in closed form); NaN for ``A``,
+    ``B``, ``C``.
     """
     data = record(system, y, u, t, modes)
     wanted = _estimate(estimate, system)
@@ -133,28 +142,46 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     transition = _start_transition(transition, data, L, rng)
     _warn_unobservable(system, wanted)
     steps = np.unique(np.diff(data.t))
+    approximate = data.modes is None and not exact
     trace: list[float] = []
     warned: set[int] = set()
     converged = False
-    visits = np.zeros(L)
+    best = None  # (loglik, system, transition) of the best iterate of an approximate EM
     for it in range(max_iter):
         mom = expectation(system, transition, x0, P0, data, exact=exact)
         trace.append(mom.loglik)
         if progress is not None:
             progress(it, mom.loglik)
-        if it and _stalled(trace, tol, it, approximate=data.modes is None and not exact):
+        if best is None or mom.loglik > best[0]:
+            best = (mom.loglik, system, transition)
+        if it and _stalled(trace, tol, it, approximate=approximate):
             converged = True
             break
         if it == max_iter - 1:
             break
-        system, transition, visits = _maximize(system, transition, data, steps, mom, wanted,
-                                               warned)
+        system, transition = _maximize(system, transition, data, steps, mom, wanted, warned)
+    ascent_from = None
+    if approximate and not {"A", "B", "C"} & set(wanted):
+        def report(value):
+            trace.append(value)
+            if progress is not None:
+                progress(len(trace) - 1, value)
+
+        ascent_from = len(trace)
+        system, transition, converged = ascend(
+            best[1], best[2], wanted,
+            lambda s, pi: log_likelihood(s, pi, x0, P0, data), start_loglik=best[0],
+            max_iter=max_iter, tol=tol, report=report)
+        mom = None
+    elif approximate:
+        _warn_drops(trace)
     se = _standard_errors(system, transition, x0, P0, data, wanted, mom, exact)
     period = np.diff(data.t)
     rates = (rates_from_transition(transition, float(period[0]))
              if system.is_continuous and np.ptp(period) <= 1e-9 * period.max() else None)
     return FitResult(system=system, transition=transition, loglik=np.array(trace),
-                     converged=converged, iterations=len(trace), se=se, rates=rates)
+                     converged=converged, iterations=len(trace), se=se, rates=rates,
+                     ascent_from=ascent_from)
 
 
 def _estimate(estimate, system: SwitchedLinearSystem) -> tuple[str, ...]:
@@ -214,23 +241,34 @@ def _warn_unobservable(system: SwitchedLinearSystem, wanted) -> None:
 
 
 def _stalled(trace: list[float], tol: float, it: int, *, approximate: bool) -> bool:
-    """Convergence test; warns where the log-likelihood decreased (with an ``approximate``
-    E-step, Kim's, that is possible; with an exact one it is a numerical loss of digits or a
-    partial M-step, e.g. ``C`` with partly missing samples)."""
+    """Convergence test; with an exact E-step, warns where the log-likelihood decreased (a
+    numerical loss of digits or a partial M-step, e.g. ``C`` with partly missing samples). An
+    ``approximate`` E-step (Kim's) can lower it: :func:`_warn_drops` sums those up."""
     new, old = trace[-1], trace[-2]
     drop = old - new
-    if drop > 1e-9 * max(1.0, abs(old)):
-        why = ("with unknown modes Kim's E-step is approximate and monotonicity is not "
-               "guaranteed (e_step='exact' is, on short records)" if approximate else
-               "the E-step is exact, so an M-step did not maximize (e.g. C with partly "
-               "missing samples) or digits were lost")
+    if not approximate and drop > 1e-9 * max(1.0, abs(old)):
         warnings.warn(f"EM iteration {it}: the log-likelihood decreased by {drop:.6g} (from "
-                      f"{old:.10g} to {new:.10g}); {why}", RuntimeWarning, stacklevel=3)
+                      f"{old:.10g} to {new:.10g}); the E-step is exact, so an M-step did not "
+                      "maximize (e.g. C with partly missing samples) or digits were lost",
+                      RuntimeWarning, stacklevel=3)
     return abs(new - old) <= tol * max(abs(old), 1e-300)
 
 
+def _warn_drops(trace: list[float]) -> None:
+    """One warning for the iterations where Kim's approximate EM lowered its log-likelihood,
+    when no direct ascent followed (``A``, ``B`` or ``C`` estimated)."""
+    values = np.array(trace)
+    drops = np.diff(values) < -1e-9 * np.maximum(1.0, np.abs(values[:-1]))
+    if np.any(drops):
+        best = int(np.argmax(values))
+        warnings.warn(f"the log-likelihood of Kim's approximate E-step decreased at "
+                      f"{int(drops.sum())} EM iterations (monotonicity is not guaranteed with "
+                      f"unknown modes); its largest value {values[best]:.10g} was at iteration "
+                      f"{best}, the last is {values[-1]:.10g}", RuntimeWarning, stacklevel=3)
+
+
 def _maximize(system, transition, data: Record, steps, mom, wanted, warned):
-    """One round of conditional M-steps; returns the new system, transition and visits."""
+    """One round of conditional M-steps; returns the new system and transition."""
     mass = mom.weight.sum(axis=(0, 1))
     for j in np.flatnonzero(mass < 1.0):
         if int(j) not in warned:
@@ -239,9 +277,8 @@ def _maximize(system, transition, data: Record, steps, mom, wanted, warned):
                    f"has smoothed probability mass {mass[j]:.3g} < 1 sample")
             warnings.warn(f"mode {j} {how}: its parameters are not identifiable from the data "
                           "and keep their starting values", RuntimeWarning, stacklevel=4)
-    visits = mom.pairs.sum(axis=1)
     if "transition" in wanted:
-        transition, visits = fit_transition(mom.pairs, transition)
+        transition = fit_transition(mom.pairs, transition)[0]
     A, B, C, Q, R = system.A, system.B, system.C, system.Q, system.R
     if "A" in wanted or "B" in wanted:
         newA, newB = fit_AB(A, B, data.u, mom, with_B="B" in wanted and np.any(data.u))
@@ -259,7 +296,7 @@ def _maximize(system, transition, data: Record, steps, mom, wanted, warned):
     keep = (mass < 1.0)[:, None, None]  # unidentifiable modes keep their own matrices
     A, B, C, Q, R = (new if shared(old) else np.where(keep, old, new) for old, new in
                      zip((system.A, system.B, system.C, system.Q, system.R), (A, B, C, Q, R)))
-    return _rebuild(system, A, B, C, Q, R), transition, visits
+    return _rebuild(system, A, B, C, Q, R), transition
 
 
 def _rebuild(system, A, B, C, Q, R) -> SwitchedLinearSystem:
@@ -270,13 +307,18 @@ def _rebuild(system, A, B, C, Q, R) -> SwitchedLinearSystem:
 
 def _standard_errors(system, transition, x0, P0, data, wanted, mom, exact
                      ) -> dict[str, np.ndarray]:
+    """Standard errors of the fit: with known modes the transition's from the counts (its
+    observed information, separate from the noises'), with unknown modes jointly with ``Q``,
+    ``R`` from the observed information (:mod:`.standard_errors`)."""
     se = {}
-    if "transition" in wanted:
+    joint = [name for name in ("transition", "Q", "R") if name in wanted]
+    if data.modes is not None and "transition" in wanted:
         se["transition"] = transition_se(transition, mom.pairs.sum(axis=1))
-    noise = [name for name in ("Q", "R") if name in wanted]
-    if noise:
-        se.update(noise_standard_errors(
-            system, noise, lambda s: log_likelihood(s, transition, x0, P0, data, exact=exact)))
+        joint.remove("transition")
+    if joint:
+        se.update(observed_standard_errors(
+            system, transition, joint,
+            lambda s, pi: log_likelihood(s, pi, x0, P0, data, exact=exact)))
     for name in ("A", "B", "C"):
         if name in wanted:
             se[name] = np.full(getattr(system, name).shape, np.nan)

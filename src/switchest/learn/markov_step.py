@@ -4,8 +4,10 @@
 | Y)`` (Hamilton 1990, J. Econometrics 45, eq. (4.8); with known modes the counts of the
 observed transitions, the exact MLE of a Markov chain, Anderson & Goodman 1957, Ann. Math.
 Stat. 28, eq. (2.4)). Its standard error is the multinomial one, ``sqrt(pi_ji (1 - pi_ji) /
-n_j)`` with ``n_j`` the (expected) visits of ``j`` (Anderson & Goodman 1957, §3); with unknown
-modes the expected counts are treated as observed, which understates the uncertainty.
+n_j)`` with ``n_j`` the visits of ``j`` (Anderson & Goodman 1957, §3), for known modes; with
+unknown modes the expected counts would be treated as observed, which understates the
+uncertainty (the missing information of the modes), and :func:`switchest.learn.fit` takes the
+observed information instead (:mod:`.standard_errors`).
 """
 
 from __future__ import annotations

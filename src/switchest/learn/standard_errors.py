@@ -1,15 +1,27 @@
-"""Standard errors of the fitted noise covariances from the observed information.
+"""Standard errors of the fitted parameters from the observed information.
 
 The observed information is the negative Hessian of the log-likelihood at the optimum with
-respect to the free entries of ``Q`` and ``R`` (the upper triangle of each fitted block), taken
-by central finite differences of the filter's summed log-likelihood (Efron & Hinkley 1978,
-Biometrika 65, "Assessing the accuracy of the maximum likelihood estimator: observed versus
-expected Fisher information"); the standard errors are the square roots of the diagonal of its
-inverse. With known modes the likelihood is exact (the Kalman filter along the modes); with
-unknown modes it is the approximation of the E-step (:mod:`~switchest.learn.expectation`),
-and the standard errors are those of that approximate likelihood. Each step is ``1e-3`` of
-the entry's scale ``sqrt(V_aa V_bb)``: the truncation error is ``O(1e-6)`` relative, far above
-the rounding of the summed likelihood.
+respect to the free parameters, taken by central finite differences of the filter's summed
+log-likelihood (Efron & Hinkley 1978, Biometrika 65, "Assessing the accuracy of the maximum
+likelihood estimator: observed versus expected Fisher information"); the covariance of the
+estimate is its inverse. The free parameters:
+
+- of ``Q`` and ``R``, the upper triangle of each fitted block (its support), each step ``1e-3``
+  of the entry's scale ``sqrt(V_aa V_bb)``;
+- of the transition matrix (``transition=True``: with unknown modes), the nonzero off-diagonal
+  entries ``pi_ji``, ``i != j``, with the diagonal ``pi_jj = 1 - sum_{i != j} pi_ji`` dependent
+  (a zero entry stays zero under EM's M-step, so it is not free); each step ``1e-3`` of
+  ``min(pi_ji, pi_jj)``, so that the perturbed rows stay probabilities. The diagonal's standard
+  error follows by the delta method, ``Var pi_jj = 1' Sigma_j 1`` over the row's free entries.
+
+Truncation errors are ``O(1e-6)`` relative, far above the rounding of the summed likelihood.
+The transition and the noises are taken jointly: with unknown modes their estimates are
+correlated (the modes are told apart through the noises), and the marginal standard errors
+come from the inverse of the joint information. With known modes the transition's
+information separates from the noises' and equals the counts' (:mod:`.markov_step`), which
+:func:`switchest.learn.fit` uses there. With known modes the likelihood is exact (the Kalman
+filter along the modes); with unknown modes it is that of the E-step
+(:mod:`~switchest.learn.expectation`), and the standard errors are those of that likelihood.
 """
 
 from __future__ import annotations
@@ -22,7 +34,7 @@ import numpy as np
 from ..system import SwitchedLinearSystem
 from .noise_step import shared, support
 
-__all__ = ["noise_standard_errors"]
+__all__ = ["observed_standard_errors"]
 
 _REL_STEP = 1e-3
 
@@ -42,35 +54,61 @@ def _free(system: SwitchedLinearSystem, names) -> list[tuple[str, list[int], int
     return out
 
 
-def _with(system: SwitchedLinearSystem, free, theta) -> SwitchedLinearSystem:
-    mats = {"Q": system.Q.copy(), "R": system.R.copy()}
+def _free_transition(transition: np.ndarray) -> list[tuple[str, list[int], int, int]]:
+    """The free entries of the transition matrix: ``("transition", [j], j, i)`` for each
+    nonzero off-diagonal ``pi_ji`` (the diagonal of row ``j`` depends on them)."""
+    L = transition.shape[0]
+    return [("transition", [j], j, i) for j in range(L) for i in range(L)
+            if i != j and transition[j, i] > 0]
+
+
+def _step(system: SwitchedLinearSystem, transition: np.ndarray, entry) -> float:
+    """Finite-difference step of a free entry (module docstring)."""
+    name, group, a, b = entry
+    if name == "transition":
+        return _REL_STEP * min(transition[a, b], transition[a, a])
+    stack = getattr(system, name)
+    return _REL_STEP * float(np.sqrt(stack[group[0], a, a] * stack[group[0], b, b]))
+
+
+def _with(system: SwitchedLinearSystem, transition: np.ndarray, free, theta
+          ) -> tuple[SwitchedLinearSystem, np.ndarray]:
+    mats = {"Q": system.Q.copy(), "R": system.R.copy(), "transition": transition.copy()}
     for (name, group, a, b), value in zip(free, theta):
+        if name == "transition":
+            mats[name][a, a] += mats[name][a, b] - value  # the row still sums to one
+            mats[name][a, b] = value
+            continue
         mats[name][group, a, b] = value
         mats[name][group, b, a] = value
     build = SwitchedLinearSystem.continuous if system.is_continuous else (
         lambda A, B, C, Q, R: SwitchedLinearSystem.discrete(A, B, C, Q, R, dt=system.dt))
-    return build(system.A, system.B, system.C, mats["Q"], mats["R"])
+    return build(system.A, system.B, system.C, mats["Q"], mats["R"]), mats["transition"]
 
 
-def noise_standard_errors(system: SwitchedLinearSystem, names,
-                          loglik: Callable[[SwitchedLinearSystem], float]
-                          ) -> dict[str, np.ndarray]:
-    """Standard errors of the fitted ``Q`` and/or ``R`` (``names``) at ``system``, shaped like
-    the matrices, NaN outside the fitted blocks or where the information is not positive
-    definite (then a ``RuntimeWarning`` says so)."""
-    free = _free(system, names)
-    out = {name: np.full(getattr(system, name).shape, np.nan) for name in names}
+def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarray, names,
+                             loglik: Callable[[SwitchedLinearSystem, np.ndarray], float]
+                             ) -> dict[str, np.ndarray]:
+    """Standard errors of the fitted ``Q``, ``R`` and ``transition`` (those in ``names``) at
+    ``system``, ``transition``, from the observed information of ``loglik(system,
+    transition)``; shaped like the matrices, NaN outside the fitted blocks (and at a zero
+    transition entry) or everywhere when the information is not positive definite (then a
+    ``RuntimeWarning`` says so)."""
+    free = _free(system, [name for name in names if name != "transition"])
+    if "transition" in names:
+        free = _free_transition(transition) + free
+    out = {name: np.full((transition if name == "transition" else getattr(system, name)).shape,
+                         np.nan) for name in names}
     if not free:
         return out
-    theta = np.array([getattr(system, name)[g[0], a, b] for name, g, a, b in free])
-    h = np.array([_REL_STEP * np.sqrt(getattr(system, name)[g[0], a, a]
-                                      * getattr(system, name)[g[0], b, b])
-                  for name, g, a, b in free])
+    theta = np.array([transition[a, b] if name == "transition" else
+                      getattr(system, name)[g[0], a, b] for name, g, a, b in free])
+    h = np.array([_step(system, transition, entry) for entry in free])
     p = theta.size
 
     def f(delta):
         try:
-            return loglik(_with(system, free, theta + delta))
+            return loglik(*_with(system, transition, free, theta + delta))
         except ValueError:  # a step left the PSD cone: no curvature there
             return np.nan
 
@@ -84,12 +122,18 @@ def noise_standard_errors(system: SwitchedLinearSystem, names,
                                  + f(-e[i] - e[j])) / (4 * h[i] * h[j])
     info = -H
     if not np.all(np.isfinite(info)) or np.min(np.linalg.eigvalsh(info)) <= 0:
-        warnings.warn("the observed information of Q, R is not positive definite at the fit "
-                      "(a parameter is not identifiable, or the fit is not at a maximum): their "
-                      "standard errors are NaN", RuntimeWarning, stacklevel=3)
+        warnings.warn(f"the observed information of {', '.join(names)} is not positive definite "
+                      "at the fit (a parameter is not identifiable, or the fit is not at a "
+                      "maximum): their standard errors are NaN", RuntimeWarning, stacklevel=3)
         return out
-    se = np.sqrt(np.diag(np.linalg.inv(info)))
-    for (name, group, a, b), s in zip(free, se):
+    cov = np.linalg.inv(info)
+    for (name, group, a, b), s in zip(free, np.sqrt(np.diag(cov))):
+        if name == "transition":
+            out[name][a, b] = s
+            continue
         out[name][group, a, b] = s
         out[name][group, b, a] = s
+    for j in range(transition.shape[0] if "transition" in names else 0):
+        row = [q for q, (name, _, a, _) in enumerate(free) if name == "transition" and a == j]
+        out["transition"][j, j] = np.sqrt(cov[np.ix_(row, row)].sum()) if row else 0.0
     return out

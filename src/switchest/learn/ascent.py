@@ -1,0 +1,131 @@
+"""The end of a fit with unknown modes: direct ascent of the E-step's log-likelihood.
+
+With unknown modes, Kim's E-step (:mod:`~switchest.learn.expectation`) is approximate, and the
+fixed point of EM with it is not a maximum of the log-likelihood it reports (the pair chain's
+IMM): near the optimum its M-steps can lower that likelihood and stall away from the top, where
+the observed information is not even negative definite. :func:`ascend` therefore finishes the
+fit by maximizing that log-likelihood itself from EM's last point, over the estimated
+transition matrix and noise covariances, with L-BFGS-B (Byrd, Lu, Nocedal & Zhu 1995, SIAM J.
+Sci. Comput. 16; EM followed by quasi-Newton: Lange 1995, Statistica Sinica 5, and Jamshidian &
+Jennrich 1997, JRSS B 59). Its line search accepts only steps that raise the likelihood
+(sufficient increase), so this phase of the trace never decreases, and it stops at a
+stationary point, where :mod:`.standard_errors` takes the observed information.
+
+The parameters, unconstrained:
+
+- row ``j`` of the transition matrix: the logits ``log(pi_ji / pi_jr)`` of its nonzero entries
+  against its largest entry ``pi_jr`` (a zero entry stays zero, as under EM's M-step);
+- each fitted block of ``Q`` and ``R`` (per mode, or once for a matrix the modes share; on the
+  components of positive variance, :func:`.noise_step.support`): its Cholesky factor, the log
+  of the diagonal and the entries below it (the log-Cholesky parametrization, Pinheiro & Bates
+  1996, Stat. Comput. 6).
+
+Gradients are forward differences (scipy's default). Each logarithm and logit stays within
+:data:`SPAN` of its value at the start (``e^9``: about four orders of magnitude either way), so a
+variance heading to zero stops at a bound instead of leaving the positive definite cone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from scipy.optimize import minimize
+
+from ..system import SwitchedLinearSystem
+from .noise_step import shared, support
+
+__all__ = ["SPAN", "ascend"]
+
+SPAN = 9.0
+
+
+class _Layout:
+    """Where each free parameter lives: transition rows, then the noise blocks."""
+
+    def __init__(self, system: SwitchedLinearSystem, transition: np.ndarray, names):
+        self.system = system
+        self.rows = []  # (row j, reference column r, free columns)
+        if "transition" in names:
+            for j, row in enumerate(transition):
+                r = int(np.argmax(row))
+                cols = np.flatnonzero((row > 0) & (np.arange(row.size) != r))
+                if cols.size:
+                    self.rows.append((j, r, cols))
+        self.blocks = []  # (matrix name, modes, support)
+        for name in ("Q", "R"):
+            if name in names:
+                stack = getattr(system, name)
+                groups = [list(range(stack.shape[0]))] if shared(stack) else [
+                    [j] for j in range(stack.shape[0])]
+                self.blocks += [(name, g, support(stack[g[0]])) for g in groups
+                                if support(stack[g[0]]).size]
+
+    def pack(self, system: SwitchedLinearSystem, transition: np.ndarray) -> np.ndarray:
+        """The parameter vector of ``system``, ``transition``."""
+        parts = [np.log(transition[j, cols] / transition[j, r]) for j, r, cols in self.rows]
+        for name, modes, idx in self.blocks:
+            factor = np.linalg.cholesky(getattr(system, name)[modes[0]][np.ix_(idx, idx)])
+            parts += [np.log(np.diag(factor)), factor[np.tril_indices(idx.size, -1)]]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def unpack(self, theta: np.ndarray, transition: np.ndarray
+               ) -> tuple[SwitchedLinearSystem, np.ndarray]:
+        """The system and transition matrix of ``theta`` (other entries from the start)."""
+        pi = transition.copy()
+        at = 0
+        for j, r, cols in self.rows:
+            logits = np.zeros(cols.size + 1)
+            logits[1:] = theta[at:at + cols.size]
+            at += cols.size
+            weights = np.exp(logits - logits.max())
+            pi[j, r], pi[j, cols] = weights[0], weights[1:]
+            pi[j] /= pi[j].sum()
+        mats = {"Q": self.system.Q.copy(), "R": self.system.R.copy()}
+        for name, modes, idx in self.blocks:
+            k = idx.size
+            factor = np.diag(np.exp(theta[at:at + k]))
+            at += k
+            below = k * (k - 1) // 2
+            factor[np.tril_indices(k, -1)] = theta[at:at + below]
+            at += below
+            for j in modes:
+                mats[name][j][np.ix_(idx, idx)] = factor @ factor.T
+        s = self.system
+        build = (SwitchedLinearSystem.continuous if s.is_continuous else
+                 lambda A, B, C, Q, R: SwitchedLinearSystem.discrete(A, B, C, Q, R, dt=s.dt))
+        return build(s.A, s.B, s.C, mats["Q"], mats["R"]), pi
+
+
+def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
+           loglik: Callable[[SwitchedLinearSystem, np.ndarray], float], *, start_loglik: float,
+           max_iter: int, tol: float, report: Callable[[float], object]
+           ) -> tuple[SwitchedLinearSystem, np.ndarray, bool]:
+    """Maximize ``loglik(system, transition)`` over the estimated ``names`` among
+    ``"transition"``, ``"Q"``, ``"R"`` (module docstring) from the given point, at most
+    ``max_iter`` iterations, stopping when an iteration raises it by at most ``tol`` of its
+    value; ``start_loglik`` is its value at the start. ``report(loglik)`` is called after
+    every iteration. Returns the maximizer and
+    whether L-BFGS-B reported convergence."""
+    layout = _Layout(system, transition, names)
+    start = layout.pack(system, transition)
+    if start.size == 0:
+        return system, transition, True
+    floor = start_loglik
+
+    def objective(theta):
+        try:
+            value = loglik(*layout.unpack(theta, transition))
+        except (ValueError, np.linalg.LinAlgError):  # not positive definite in floating point
+            value = -np.inf
+        # below the start: a step the line search must reject, kept finite for it
+        return -value if np.isfinite(value) else -floor + 1e6 * max(1.0, abs(floor))
+
+    result = minimize(objective, start, method="L-BFGS-B",
+                      bounds=[(v - SPAN, v + SPAN) for v in start],
+                      callback=lambda intermediate_result: report(-intermediate_result.fun),
+                      options={"maxiter": max_iter, "ftol": tol})
+    if -result.fun < floor:  # never below EM's point (cannot happen with a monotone search)
+        return system, transition, False
+    fitted, pi = layout.unpack(result.x, transition)
+    return fitted, pi, bool(result.success)
