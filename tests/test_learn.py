@@ -121,7 +121,8 @@ def test_unknown_modes_fit_ends_at_a_maximum_within_three_standard_errors():
     """Kim's approximate EM, then the direct ascent of the same log-likelihood: the ascent's
     trace never decreases and starts above every EM iterate, the information at its end is
     positive definite (every standard error finite), and each entry is within 3 standard
-    errors of the truth."""
+    errors of the truth; the IMM with the fitted parameters estimates the state as well as
+    with the true ones, within sampling error."""
     truth = SwitchedLinearSystem.discrete(A2, None, C2, Q2, R2, dt=1.0)
     t = np.arange(1000.0)
     traj = simulate(truth, MarkovAtSamples(P2, initial=0), t, (np.zeros(2), np.eye(2)), rng=3)
@@ -139,6 +140,16 @@ def test_unknown_modes_fit_ends_at_a_maximum_within_three_standard_errors():
                                (res.system.R, R2, "R")):
         assert np.all(np.isfinite(res.se[name]))
         within(fitted, true, res.se[name])
+    test = simulate(truth, MarkovAtSamples(P2, initial=0), np.arange(300.0),
+                    (np.zeros(2), np.eye(2)), trials=20, rng=8)
+
+    def sq_errors(system, transition):
+        est = IMMFilter(system, transition, np.zeros(2), np.eye(2)).run(test.y)
+        return np.sum((est.x - test.x) ** 2, axis=-1).mean(axis=1)  # per trial
+
+    diff = sq_errors(res.system, res.transition) - sq_errors(truth, P2)
+    # paired trials: the IMM with the fitted parameters within 3 standard errors of the true
+    assert abs(diff.mean()) <= 3 * diff.std(ddof=1) / np.sqrt(diff.size) + 1e-3
 
 
 def test_ascent_parameters_round_trip():
