@@ -96,6 +96,32 @@ def test_known_modes_log_likelihood_never_decreases(jump_fit):
     assert res.loglik[-1] > res.loglik[0] + 10  # it did climb from the wrong start
 
 
+@pytest.mark.parametrize("regression", ["A", "C"])
+def test_regression_matrices_get_observed_information_standard_errors(jump_fit, regression):
+    """A with Q and R (or C with R) fitted from the known modes: within 3 of its standard
+    errors (the observed information, jointly with the noises) of the truth. (C with Q is
+    identified only through the prior P0, which fixes the state's scale: its information is
+    nearly singular.) With both A and C fitted the state's coordinates are not identified and
+    A, C get none."""
+    traj, _ = jump_fit
+    t, y, modes = np.arange(2000.0), traj.y[0], traj.mode[0]
+    start = SwitchedLinearSystem.discrete(A3 + 0.1 * (regression == "A"), None,
+                                          C3 + 0.2 * (regression == "C"),
+                                          Q3 * (2.0 if regression == "A" else 1.0), 0.5 * R3,
+                                          dt=1.0)  # Q not fitted with C: the true one
+    res = fit(start, y, t=t, x0=np.zeros(2), P0=np.eye(2), modes=modes,
+              estimate=(regression, "Q", "R") if regression == "A" else ("C", "R"),
+              max_iter=200, tol=1e-10)
+    fitted, truth = getattr(res.system, regression), {"A": A3, "C": C3}[regression]
+    assert np.all(np.isfinite(res.se[regression]))
+    within(fitted, truth, res.se[regression])
+    within(res.system.R, R3, res.se["R"])
+    both = fit(start, y[:300], t=t[:300], x0=np.zeros(2), P0=np.eye(2), modes=modes[:300],
+               estimate=("A", "C", "R"), max_iter=3)
+    assert np.all(np.isnan(both.se["A"])) and np.all(np.isnan(both.se["C"]))
+    assert np.all(np.isfinite(both.se["R"]))
+
+
 def test_imm_with_fitted_parameters_is_as_good_as_with_the_true_ones(jump_fit):
     traj, res = jump_fit
     test = simulate(jump_system(), MarkovAtSamples(P3, initial=0), np.arange(400.0),

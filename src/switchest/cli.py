@@ -597,8 +597,9 @@ def _fit_table(start: SwitchedLinearSystem, start_transition: np.ndarray | None,
     from rich.table import Table
 
     table = Table(title="fitted parameters", title_justify="left", caption_justify="left",
-                  caption="± : standard error (— where none exists: a mode never visited, the "
-                          "regression matrices A, B, C); noise entries held at zero not shown")
+                  caption="± : standard error (— where none exists: a mode never visited, "
+                          "A, B, C when both the dynamics and C are fitted, a maximum on the "
+                          "boundary); noise entries held at zero not shown")
     table.add_column("parameter", overflow="fold")
     for col in ("fitted", "±", "start"):
         table.add_column(col, justify="right", overflow="fold")

@@ -128,8 +128,10 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
 
     Standard errors: from the observed information (:mod:`~switchest.learn.standard_errors`)
     of ``Q``, ``R`` and, with unknown modes, jointly of the transition matrix; with known modes
-    the transition's from the counts (the same information, in closed form); NaN for ``A``,
-    ``B``, ``C``.
+    the transition's from the counts (the same information, in closed form); jointly with
+    ``A``, ``B`` or ``C`` when those are fitted, except that with both the dynamics and ``C``
+    fitted the state's coordinates are not identified: ``A``, ``B``, ``C`` then get NaN and the
+    others are conditional on them.
     """
     data = record(system, y, u, t, modes)
     wanted = _estimate(estimate, system)
@@ -307,11 +309,19 @@ def _rebuild(system, A, B, C, Q, R) -> SwitchedLinearSystem:
 
 def _standard_errors(system, transition, x0, P0, data, wanted, mom, exact
                      ) -> dict[str, np.ndarray]:
-    """Standard errors of the fit: with known modes the transition's from the counts (its
-    observed information, separate from the noises'), with unknown modes jointly with ``Q``,
-    ``R`` from the observed information (:mod:`.standard_errors`)."""
-    se = {}
-    joint = [name for name in ("transition", "Q", "R") if name in wanted]
+    """Standard errors of the fit from the observed information (:mod:`.standard_errors`),
+    jointly for the parameters fitted; with known modes the transition's from the counts (its
+    information separates from the others'). Where both the dynamics (``A`` or ``B``) and ``C``
+    are fitted, the state's coordinates are not identified (``x -> T x`` leaves the likelihood
+    unchanged): ``A``, ``B``, ``C`` get NaN and the others are conditional on them. ``B`` with
+    all inputs zero is not fitted: NaN."""
+    se = {name: np.full(getattr(system, name).shape, np.nan) for name in ("A", "B", "C")
+          if name in wanted}
+    regression = [name for name in ("A", "B", "C") if name in wanted
+                  and not (name == "B" and not np.any(data.u))]
+    if "C" in regression and len(regression) > 1:
+        regression = []
+    joint = [name for name in ("transition", *regression, "Q", "R") if name in wanted]
     if data.modes is not None and "transition" in wanted:
         se["transition"] = transition_se(transition, mom.pairs.sum(axis=1))
         joint.remove("transition")
@@ -319,7 +329,4 @@ def _standard_errors(system, transition, x0, P0, data, wanted, mom, exact
         se.update(observed_standard_errors(
             system, transition, joint,
             lambda s, pi: log_likelihood(s, pi, x0, P0, data, exact=exact)))
-    for name in ("A", "B", "C"):
-        if name in wanted:
-            se[name] = np.full(getattr(system, name).shape, np.nan)
     return se

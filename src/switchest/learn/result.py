@@ -40,8 +40,8 @@ class FitResult:
     se : Mapping of str to ndarray
         Standard error of each estimated parameter, with the parameter's shape (``"transition"``
         ``(L, L)``, ``"Q"`` ``(L, n, n)``, ``"R"`` ``(L, m, m)``, ...); NaN where none exists (a
-        component held at zero, a mode never visited, the regression matrices ``A``, ``B``,
-        ``C``, a singular information matrix).
+        component held at zero, a mode never visited, ``A``, ``B``, ``C`` when both the
+        dynamics and ``C`` are fitted, a singular information matrix).
     rates : ndarray, shape (L, L), or None
         For a continuous-time system sampled periodically, the generator of a continuous-time
         Markov chain whose transition over one period is ``transition`` (None where no valid

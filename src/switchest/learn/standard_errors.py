@@ -8,6 +8,8 @@ estimate is its inverse. The free parameters:
 
 - of ``Q`` and ``R``, the upper triangle of each fitted block (its support), each step ``1e-3``
   of the entry's scale ``sqrt(V_aa V_bb)``;
+- of ``A``, ``B`` and ``C``, every entry (per mode, or once for a matrix the modes share), each
+  step ``1e-3`` of the entry, or of ``1e-3`` of the matrix's largest entry for a smaller one;
 - of the transition matrix (``transition=True``: with unknown modes), the nonzero off-diagonal
   entries ``pi_ji``, ``i != j``, with the diagonal ``pi_jj = 1 - sum_{i != j} pi_ji`` dependent
   (a zero entry stays zero under EM's M-step, so it is not free); each step ``1e-3`` of
@@ -40,14 +42,18 @@ _REL_STEP = 1e-3
 
 
 def _free(system: SwitchedLinearSystem, names) -> list[tuple[str, list[int], int, int]]:
-    """The free entries: ``(matrix name, modes sharing it, a, b)`` with ``a <= b`` in the
-    matrix's support, per mode or once for a shared matrix."""
+    """The free entries: ``(matrix name, modes sharing it, a, b)``, per mode or once for a
+    shared matrix: for ``Q``, ``R`` those with ``a <= b`` in the matrix's support, for ``A``,
+    ``B``, ``C`` every entry."""
     out = []
     for name in names:
         stack = getattr(system, name)
         groups = [list(range(stack.shape[0]))] if shared(stack) else [[j] for j in
                                                                         range(stack.shape[0])]
         for group in groups:
+            if name in ("A", "B", "C"):
+                out += [(name, group, a, b) for a, b in np.ndindex(stack.shape[1:])]
+                continue
             idx = support(stack[group[0]])
             out += [(name, group, int(idx[a]), int(idx[b])) for a in range(idx.size)
                     for b in range(a, idx.size)]
@@ -68,32 +74,38 @@ def _step(system: SwitchedLinearSystem, transition: np.ndarray, entry) -> float:
     if name == "transition":
         return _REL_STEP * min(transition[a, b], transition[a, a])
     stack = getattr(system, name)
+    if name in ("A", "B", "C"):  # relative to the entry, or to the matrix for a small one
+        return _REL_STEP * max(abs(stack[group[0], a, b]), 1e-3 * np.abs(stack[group[0]]).max(),
+                               1e-12)
     return _REL_STEP * float(np.sqrt(stack[group[0], a, a] * stack[group[0], b, b]))
 
 
 def _with(system: SwitchedLinearSystem, transition: np.ndarray, free, theta
           ) -> tuple[SwitchedLinearSystem, np.ndarray]:
-    mats = {"Q": system.Q.copy(), "R": system.R.copy(), "transition": transition.copy()}
+    mats = {name: getattr(system, name).copy() for name in ("A", "B", "C", "Q", "R")}
+    mats["transition"] = transition.copy()
     for (name, group, a, b), value in zip(free, theta):
         if name == "transition":
             mats[name][a, a] += mats[name][a, b] - value  # the row still sums to one
             mats[name][a, b] = value
             continue
         mats[name][group, a, b] = value
-        mats[name][group, b, a] = value
-    build = SwitchedLinearSystem.continuous if system.is_continuous else (
-        lambda A, B, C, Q, R: SwitchedLinearSystem.discrete(A, B, C, Q, R, dt=system.dt))
-    return build(system.A, system.B, system.C, mats["Q"], mats["R"]), mats["transition"]
+        if name in ("Q", "R"):
+            mats[name][group, b, a] = value
+    pi = mats.pop("transition")
+    if system.is_continuous:
+        return SwitchedLinearSystem.continuous(**mats), pi
+    return SwitchedLinearSystem.discrete(**mats, dt=system.dt), pi
 
 
 def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarray, names,
                              loglik: Callable[[SwitchedLinearSystem, np.ndarray], float]
                              ) -> dict[str, np.ndarray]:
-    """Standard errors of the fitted ``Q``, ``R`` and ``transition`` (those in ``names``) at
-    ``system``, ``transition``, from the observed information of ``loglik(system,
-    transition)``; shaped like the matrices, NaN outside the fitted blocks (and at a zero
-    transition entry) or everywhere when the information is not positive definite (then a
-    ``RuntimeWarning`` says so)."""
+    """Standard errors of the fitted ``transition``, ``A``, ``B``, ``C``, ``Q`` and ``R`` (those
+    in ``names``) at ``system``, ``transition``, from the observed information of
+    ``loglik(system, transition)``; shaped like the matrices, NaN outside the fitted blocks (and
+    at a zero transition entry) or everywhere when the information is not positive definite
+    (then a ``RuntimeWarning`` says so)."""
     free = _free(system, [name for name in names if name != "transition"])
     if "transition" in names:
         free = _free_transition(transition) + free
@@ -132,7 +144,8 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
             out[name][a, b] = s
             continue
         out[name][group, a, b] = s
-        out[name][group, b, a] = s
+        if name in ("Q", "R"):
+            out[name][group, b, a] = s
     for j in range(transition.shape[0] if "transition" in names else 0):
         row = [q for q, (name, _, a, _) in enumerate(free) if name == "transition" and a == j]
         out["transition"][j, j] = np.sqrt(cov[np.ix_(row, row)].sum()) if row else 0.0
