@@ -85,3 +85,16 @@ def test_bad_types_and_steps():
     with pytest.raises(TypeError, match="missing D"):
         SwitchedLinearSystem.from_statespace(
             [SimpleNamespace(A=np.eye(1), B=np.eye(1), C=np.eye(1))])
+
+
+def test_replace_keeps_the_domain_and_checks_the_new_matrices():
+    sys = SwitchedLinearSystem.discrete(two_modes(), dt=0.25)
+    new = sys.replace(Q=2 * np.eye(sys.n_states))
+    assert new.domain == "discrete" and new.dt == 0.25
+    np.testing.assert_array_equal(new.Q, np.broadcast_to(2 * np.eye(sys.n_states), sys.Q.shape))
+    np.testing.assert_array_equal(new.A, sys.A)
+    assert SwitchedLinearSystem.continuous(two_modes()).replace(R=np.eye(2)).is_continuous
+    with pytest.raises(ValueError, match="Q must be symmetric"):
+        sys.replace(Q=-np.eye(sys.n_states))
+    with pytest.raises(TypeError, match=r"replace takes A, B, C, Q, R, got \['D'\]"):
+        sys.replace(D=0)

@@ -194,6 +194,18 @@ class SwitchedLinearSystem:
             fields[name] = arr
         return cls(**fields, domain=domain, dt=dt)
 
+    def replace(self, **matrices) -> SwitchedLinearSystem:
+        """The same system (domain, ``dt``) with some of ``A``, ``B``, ``C``, ``Q``, ``R``
+        replaced, checked as the constructors check them (noise-free outputs stay noise-free
+        unless ``R`` is given)."""
+        unknown = set(matrices) - {"A", "B", "C", "Q", "R"}
+        if unknown:
+            raise TypeError(f"replace takes A, B, C, Q, R, got {sorted(unknown)}")
+        fields = {name: matrices.get(name, getattr(self, name)) for name in "ABCQR"}
+        if "R" not in matrices and not self.has_measurement_noise:
+            fields["R"] = None
+        return self._build(**fields, domain=self.domain, dt=self.dt)
+
     # ------------------------------------------------------------------ sizes
     @property
     def n_modes(self) -> int:

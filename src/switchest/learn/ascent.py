@@ -91,10 +91,7 @@ class _Layout:
             at += below
             for j in modes:
                 mats[name][j][np.ix_(idx, idx)] = factor @ factor.T
-        s = self.system
-        build = (SwitchedLinearSystem.continuous if s.is_continuous else
-                 lambda A, B, C, Q, R: SwitchedLinearSystem.discrete(A, B, C, Q, R, dt=s.dt))
-        return build(s.A, s.B, s.C, mats["Q"], mats["R"]), pi
+        return self.system.replace(Q=mats["Q"], R=mats["R"]), pi
 
 
 def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,

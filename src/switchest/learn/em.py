@@ -288,7 +288,7 @@ def _maximize(system, transition, data: Record, steps, mom, wanted, warned):
         B = newB if "B" in wanted else B
     if "C" in wanted:
         C = fit_C(C, R, data.y, mom)
-    system = _rebuild(system, A, B, C, Q, R)
+    system = system.replace(A=A, B=B, C=C, Q=Q, R=R)
     if "Q" in wanted:
         table = mom.table if not ("A" in wanted or "B" in wanted) else sample_mode_steps(
             system, data.t)[0]
@@ -298,13 +298,7 @@ def _maximize(system, transition, data: Record, steps, mom, wanted, warned):
     keep = (mass < 1.0)[:, None, None]  # unidentifiable modes keep their own matrices
     A, B, C, Q, R = (new if shared(old) else np.where(keep, old, new) for old, new in
                      zip((system.A, system.B, system.C, system.Q, system.R), (A, B, C, Q, R)))
-    return _rebuild(system, A, B, C, Q, R), transition
-
-
-def _rebuild(system, A, B, C, Q, R) -> SwitchedLinearSystem:
-    if system.is_continuous:
-        return SwitchedLinearSystem.continuous(A, B, C, Q, R)
-    return SwitchedLinearSystem.discrete(A, B, C, Q, R, dt=system.dt)
+    return system.replace(A=A, B=B, C=C, Q=Q, R=R), transition
 
 
 def _standard_errors(system, transition, x0, P0, data, wanted, mom, exact

@@ -170,8 +170,7 @@ def _pair_filter(system: SwitchedLinearSystem, transition, x0, P0) -> IMMFilter:
     a, b = np.divmod(np.arange(L * L), L)
     parts = {"A": system.A[a], "B": system.B[a], "C": system.C[b], "Q": system.Q[a],
              "R": system.R[b]}
-    pairs = (SwitchedLinearSystem.continuous(**parts) if system.is_continuous
-             else SwitchedLinearSystem.discrete(**parts, dt=system.dt))
+    pairs = system.replace(**parts)
     chain = np.where(a[None, :] == b[:, None], transition[b][:, b], 0.0)
     prior = np.where(a == b, 1.0 / L, 0.0)
     return IMMFilter(pairs, chain, x0, P0, mode_prob0=prior, timing="interval")

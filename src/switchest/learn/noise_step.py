@@ -166,7 +166,7 @@ def intensity_maps(system: SwitchedLinearSystem, steps, modes, idx) -> np.ndarra
 
     def qd(vec):
         q = np.outer(vec, vec)
-        sysb = SwitchedLinearSystem.continuous(system.A, system.B, system.C, q, system.R)
+        sysb = system.replace(Q=q)
         return interval(sysb, steps[:, None], np.asarray(modes)[None, :, None]).Qd
 
     diag = {a: qd(np.eye(n)[idx[a]]) for a in range(idx.size)}

@@ -93,9 +93,7 @@ def _with(system: SwitchedLinearSystem, transition: np.ndarray, free, theta
         if name in ("Q", "R"):
             mats[name][group, b, a] = value
     pi = mats.pop("transition")
-    if system.is_continuous:
-        return SwitchedLinearSystem.continuous(**mats), pi
-    return SwitchedLinearSystem.discrete(**mats, dt=system.dt), pi
+    return system.replace(**mats), pi
 
 
 def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarray, names,
