@@ -17,6 +17,11 @@ estimate is its inverse. The free parameters:
   error follows by the delta method, ``Var pi_jj = 1' Sigma_j 1`` over the row's free entries.
 
 Truncation errors are ``O(1e-6)`` relative, far above the rounding of the summed likelihood.
+A fit on the boundary of the parameter space (a transition probability near zero, a singular
+``Q`` or ``R`` block: a maximum where the likelihood need not be flat) has no information
+there in the regular sense: those entries get NaN and are held fixed, and the others' standard
+errors come from the information of the rest (conditional on them; Self & Liang 1987, JASA 82,
+on the boundary's non-standard asymptotics).
 The transition and the noises are taken jointly: with unknown modes their estimates are
 correlated (the modes are told apart through the noises), and the marginal standard errors
 come from the inverse of the joint information. With known modes the transition's
@@ -39,6 +44,7 @@ from .noise_step import shared, support
 __all__ = ["observed_standard_errors"]
 
 _REL_STEP = 1e-3
+_BOUNDARY = 1e-4
 
 
 def _free(system: SwitchedLinearSystem, names) -> list[tuple[str, list[int], int, int]]:
@@ -102,8 +108,9 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
     """Standard errors of the fitted ``transition``, ``A``, ``B``, ``C``, ``Q`` and ``R`` (those
     in ``names``) at ``system``, ``transition``, from the observed information of
     ``loglik(system, transition)``; shaped like the matrices, NaN outside the fitted blocks (and
-    at a zero transition entry) or everywhere when the information is not positive definite
-    (then a ``RuntimeWarning`` says so)."""
+    at a zero transition entry), at the entries on the boundary (module docstring), or
+    everywhere when the information of the others is not positive definite (each case with a
+    ``RuntimeWarning`` that says so)."""
     free = _free(system, [name for name in names if name != "transition"])
     if "transition" in names:
         free = _free_transition(transition) + free
@@ -130,13 +137,22 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
         for j in range(i):
             H[i, j] = H[j, i] = (f(e[i] + e[j]) - f(e[i] - e[j]) - f(-e[i] + e[j])
                                  + f(-e[i] - e[j])) / (4 * h[i] * h[j])
-    info = -H
-    if not np.all(np.isfinite(info)) or np.min(np.linalg.eigvalsh(info)) <= 0:
+    edge = _on_boundary(system, transition, free)
+    inner = np.flatnonzero(~edge)
+    info = -H[np.ix_(inner, inner)]
+    if (inner.size == 0 or not np.all(np.isfinite(info))
+            or np.min(np.linalg.eigvalsh(info)) <= 0):
         warnings.warn(f"the observed information of {', '.join(names)} is not positive definite "
                       "at the fit (a parameter is not identifiable, or the fit is not at a "
                       "maximum): their standard errors are NaN", RuntimeWarning, stacklevel=3)
         return out
-    cov = np.linalg.inv(info)
+    if np.any(edge):
+        where = ", ".join(_label(free[q]) for q in np.flatnonzero(edge))
+        warnings.warn(f"the fit lies on the boundary of the parameter space at {where}: these "
+                      "have no standard error, and the others' are conditional on them",
+                      RuntimeWarning, stacklevel=3)
+    cov = np.full((p, p), np.nan)
+    cov[np.ix_(inner, inner)] = np.linalg.inv(info)
     for (name, group, a, b), s in zip(free, np.sqrt(np.diag(cov))):
         if name == "transition":
             out[name][a, b] = s
@@ -148,3 +164,29 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
         row = [q for q, (name, _, a, _) in enumerate(free) if name == "transition" and a == j]
         out["transition"][j, j] = np.sqrt(cov[np.ix_(row, row)].sum()) if row else 0.0
     return out
+
+
+def _on_boundary(system: SwitchedLinearSystem, transition: np.ndarray, free) -> np.ndarray:
+    """Which free entries sit on the boundary of the parameter space, where the likelihood
+    need not be flat: a transition probability (or its row's diagonal) below
+    :data:`_BOUNDARY`, an entry of a ``Q`` or ``R`` block whose smallest eigenvalue is below
+    :data:`_BOUNDARY` times the largest variance of that matrix in any mode (a singular
+    covariance)."""
+    edge = np.zeros(len(free), dtype=bool)
+    for q, (name, group, a, b) in enumerate(free):
+        if name == "transition":
+            edge[q] = min(transition[a, b], transition[a, a]) < _BOUNDARY
+        elif name in ("Q", "R"):
+            stack = getattr(system, name)
+            idx = support(stack[group[0]])
+            lowest = np.linalg.eigvalsh(stack[group[0]][np.ix_(idx, idx)])[0]
+            edge[q] = lowest < _BOUNDARY * np.diagonal(stack, axis1=1, axis2=2).max()
+    return edge
+
+
+def _label(entry) -> str:
+    name, group, a, b = entry
+    if name == "transition":
+        return f"transition {a}->{b}"
+    where = "all modes" if len(group) > 1 else f"mode {group[0]}"
+    return f"{name} {where} [{a},{b}]"
