@@ -697,7 +697,7 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
             f"[yellow]stopped at --max-iter {args.max_iter} without converging[/yellow]")
     runs = f"{data['trials']} trials x " if data["trials"] > 1 else ""
     how = ("" if result.ascent_from is None else
-           f" ({result.ascent_from} of EM, then direct ascent from its best)")
+           f" ({result.ascent_from} of EM, then direct ascent)")
     console.print(f"EM on {runs}{data['t'].size} samples, {modes}: {result.iterations} "
                   f"iterations{how}, {stop}; log-likelihood {trace[0]:.10g} → {trace[-1]:.10g}")
     console.print(_fit_table(spec.system, start, result))

@@ -85,11 +85,12 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     e_step : {"kim", "exact"}
         The E-step of unknown modes (with known modes it is exact whatever this says):
         ``"kim"``, the IMM on the chain of mode pairs and Kim's smoother
-        (:mod:`~switchest.learn.expectation`; approximate, any record length), after which
-        the fit continues from EM's best iterate by direct ascent of that IMM's
-        log-likelihood over the transition matrix, ``Q`` and ``R``
+        (:mod:`~switchest.learn.expectation`; approximate, any record length): EM stops at
+        the first step that lowers that IMM's log-likelihood (the step is rejected: EM with an
+        approximate E-step need not climb), and the fit continues from there by direct ascent
+        of the same log-likelihood over the transition matrix, ``Q`` and ``R``
         (:mod:`~switchest.learn.ascent`; not when ``A``, ``B`` or ``C`` are estimated), so it
-        ends at a maximum of the likelihood it reports;
+        ends at a maximum of the likelihood it reports and ``loglik`` never decreases;
         ``"exact"``, the enumeration of all ``L^K`` mode sequences of each trial (the Kalman
         filter and RTS smoother of each, weighted by its posterior probability): the exact
         E-step, so the exact log-likelihood (that of
@@ -97,7 +98,8 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         never decreases; for short records only (``L^K`` up to
         :data:`~switchest.learn.expectation.MAX_SEQUENCES` = 65536, refused beyond).
     progress : callable, optional
-        Called as ``progress(iteration, loglik)`` after each E-step and ascent iteration.
+        Called as ``progress(iteration, loglik)`` after each accepted E-step and ascent
+        iteration.
 
     Returns
     -------
@@ -110,12 +112,9 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         is below one sample (unknown modes), whose parameters keep their starting values; a mode
         whose pair ``(C, A)`` is unobservable, whose ``Q`` is not identifiable from ``y``. Also
         when the log-likelihood decreases from one iteration to the next with an exact E-step
-        (naming the iteration and the drop), and once, counting the drops, when Kim's
-        approximate E-step (the exact posterior is a mixture of ``L^K`` Gaussians) lowered it
-        and no direct ascent followed (``A``, ``B`` or ``C`` estimated). Where the ascent
-        follows, EM's drops are in the trace and the ascent's part never decreases
-        (``FitResult.ascent_from``); ``e_step="exact"`` makes EM itself monotone on short
-        records.
+        (naming the iteration and the drop: digits lost, or a partial M-step), and when Kim's
+        approximate E-step stopped EM with ``A``, ``B`` or ``C`` estimated (no ascent
+        follows, so the fit need not be a maximum).
 
     Notes
     -----
@@ -148,14 +147,18 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     trace: list[float] = []
     warned: set[int] = set()
     converged = False
-    best = None  # (loglik, system, transition) of the best iterate of an approximate EM
+    dropped = None  # the iteration whose approximate E-step found a lower likelihood
+    accepted = system, transition  # the parameters of trace[-1]
     for it in range(max_iter):
         mom = expectation(system, transition, x0, P0, data, exact=exact)
+        if approximate and trace and mom.loglik < trace[-1] - 1e-9 * max(1.0, abs(trace[-1])):
+            dropped = it  # Kim's EM lowered its likelihood: reject the step
+            system, transition = accepted
+            break
+        accepted = system, transition
         trace.append(mom.loglik)
         if progress is not None:
             progress(it, mom.loglik)
-        if best is None or mom.loglik > best[0]:
-            best = (mom.loglik, system, transition)
         if it and _stalled(trace, tol, it, approximate=approximate):
             converged = True
             break
@@ -171,12 +174,13 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
 
         ascent_from = len(trace)
         system, transition, converged = ascend(
-            best[1], best[2], wanted,
-            lambda s, pi: log_likelihood(s, pi, x0, P0, data), start_loglik=best[0],
-            max_iter=max_iter, tol=tol, report=report)
-        mom = None
-    elif approximate:
-        _warn_drops(trace)
+            system, transition, wanted, lambda s, pi: log_likelihood(s, pi, x0, P0, data),
+            start_loglik=trace[-1], max_iter=max_iter, tol=tol, report=report)
+    elif dropped is not None:
+        warnings.warn(f"EM iteration {dropped}: Kim's approximate E-step lowered the "
+                      f"log-likelihood, so EM stopped at the iteration before (log-likelihood "
+                      f"{trace[-1]:.10g}); with A, B or C estimated no direct ascent follows, and "
+                      "the fit need not be a maximum", RuntimeWarning, stacklevel=2)
     se = _standard_errors(system, transition, x0, P0, data, wanted, mom, exact)
     period = np.diff(data.t)
     rates = (rates_from_transition(transition, float(period[0]))
@@ -244,8 +248,8 @@ def _warn_unobservable(system: SwitchedLinearSystem, wanted) -> None:
 
 def _stalled(trace: list[float], tol: float, it: int, *, approximate: bool) -> bool:
     """Convergence test; with an exact E-step, warns where the log-likelihood decreased (a
-    numerical loss of digits or a partial M-step, e.g. ``C`` with partly missing samples). An
-    ``approximate`` E-step (Kim's) can lower it: :func:`_warn_drops` sums those up."""
+    numerical loss of digits or a partial M-step, e.g. ``C`` with partly missing samples); an
+    ``approximate`` one never gets here with a decrease (:func:`fit` rejects that step)."""
     new, old = trace[-1], trace[-2]
     drop = old - new
     if not approximate and drop > 1e-9 * max(1.0, abs(old)):
@@ -254,19 +258,6 @@ def _stalled(trace: list[float], tol: float, it: int, *, approximate: bool) -> b
                       "maximize (e.g. C with partly missing samples) or digits were lost",
                       RuntimeWarning, stacklevel=3)
     return abs(new - old) <= tol * max(abs(old), 1e-300)
-
-
-def _warn_drops(trace: list[float]) -> None:
-    """One warning for the iterations where Kim's approximate EM lowered its log-likelihood,
-    when no direct ascent followed (``A``, ``B`` or ``C`` estimated)."""
-    values = np.array(trace)
-    drops = np.diff(values) < -1e-9 * np.maximum(1.0, np.abs(values[:-1]))
-    if np.any(drops):
-        best = int(np.argmax(values))
-        warnings.warn(f"the log-likelihood of Kim's approximate E-step decreased at "
-                      f"{int(drops.sum())} EM iterations (monotonicity is not guaranteed with "
-                      f"unknown modes); its largest value {values[best]:.10g} was at iteration "
-                      f"{best}, the last is {values[-1]:.10g}", RuntimeWarning, stacklevel=3)
 
 
 def _maximize(system, transition, data: Record, steps, mom, wanted, warned):

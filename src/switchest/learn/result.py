@@ -30,13 +30,12 @@ class FitResult:
         Whether the relative change of the log-likelihood fell below ``tol`` before
         ``max_iter`` iterations (after a direct ascent: whether it reached a stationary point).
     iterations : int
-        Number of iterations run (``loglik.size``): E-steps, then those of the ascent.
+        Number of iterations in ``loglik``: accepted E-steps, then those of the ascent.
     ascent_from : int or None
         With unknown modes and Kim's E-step, the index of ``loglik`` where the direct ascent
-        (:mod:`~switchest.learn.ascent`) begins: it starts from the best EM iterate (value
-        ``loglik[:ascent_from].max()``), and ``loglik[ascent_from:]``, one entry per ascent
-        iteration, never decreases and stays above that value. None when the fit was EM
-        throughout.
+        (:mod:`~switchest.learn.ascent`) begins, from the last EM iterate (EM stops at the
+        first step that would lower the likelihood, and that step is not in ``loglik``). None
+        when the fit was EM throughout.
     se : Mapping of str to ndarray
         Standard error of each estimated parameter, with the parameter's shape (``"transition"``
         ``(L, L)``, ``"Q"`` ``(L, n, n)``, ``"R"`` ``(L, m, m)``, ...); NaN where none exists (a
