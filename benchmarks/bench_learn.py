@@ -13,9 +13,10 @@ squares; -0.5 expected).
 
 Known modes (a mode column: an exact E-step, Anderson & Goodman 1957 for the transition
 matrix, Shumway & Stoffer 1982 for Q, R) are the first table. The others fit with the modes
-unknown: Kim's smoother on the chain of mode pairs as E-step (approximate), then the direct
-ascent of the same likelihood from EM's best iterate (switchest.learn.ascent). Their columns
-count EM's and the ascent's likelihood drops separately, the entries without a standard error
+unknown: Kim's smoother on the chain of mode pairs as E-step (approximate; EM stops at the first
+step that would lower its likelihood), then the direct ascent of the same likelihood
+(switchest.learn.ascent). Their columns count the likelihood drops of the trace (none
+expected), the entries without a standard error
 (the information not positive definite: a maximum on the boundary, e.g. a variance at zero),
 and the mean log-likelihood of the fit above that of the true parameters (at a regular
 maximum-likelihood estimate twice it is chi-square with as many degrees of freedom as free
@@ -116,11 +117,10 @@ def one_fit(model: JumpSystem, K: int, seed: int, *, known: bool, max_iter: int,
                   x0=np.zeros(2), P0=np.eye(2), modes=modes, max_iter=max_iter, tol=TOL)
     seconds = time.perf_counter() - start
     falls = np.diff(res.loglik) < -1e-9 * np.abs(res.loglik[1:])
-    split = len(falls) if res.ascent_from is None else res.ascent_from - 1
+    em = res.iterations if res.ascent_from is None else res.ascent_from
     truth = log_likelihood(model.system(), model.transition, np.zeros(2), np.eye(2),
                            record(model.system(), traj.y[0], None, t, modes))
-    out = {"seconds": seconds, "iterations": (split + 1, res.iterations - split - 1),
-           "drops": (int(falls[:split].sum()), int(falls[split + 1:].sum())),
+    out = {"seconds": seconds, "iterations": (em, res.iterations - em), "drops": int(falls.sum()),
            "gain": res.loglik[-1] - truth, "warnings": len(caught)}
     truth = {"transition": model.transition, "Q": model.Q, "R": model.R}
     fitted = {"transition": res.transition, "Q": res.system.Q, "R": res.system.R}
@@ -155,18 +155,16 @@ def sweep(model: JumpSystem, sizes, seeds: int, *, known: bool, max_iter: int,
             row = [K, name, f"{errors[name][i]:.4f}", f"{rms(se):.4f}", f"{rms(err / se):.2f}",
                    f"{slopes[name]:.2f}" if i == 0 else "",
                    f"{em:.0f}" if known else f"{em:.0f} + {up:.0f}",
-                   f"{sum(r['drops'][0] for r in runs)}"]
+                   f"{sum(r['drops'] for r in runs)}"]
             if not known:
-                row += [f"{sum(r['drops'][1] for r in runs)}",
-                        f"{int(np.sum(~np.isfinite(se)))} of {se.size}"]
+                row.append(f"{int(np.sum(~np.isfinite(se)))} of {se.size}")
             rows.append((*row, f"{np.mean([r['gain'] for r in runs]):.2f}",
                          f"{np.mean([r['seconds'] for r in runs]):.2f}"))
     head = ["K", "parameter", "RMS error", "RMS std. error", "RMS z", "slope vs K"]
     if known:
         head += ["iterations (mean)", "loglik drops"]
     else:
-        head += ["iterations (EM + ascent, mean)", "EM drops", "ascent drops",
-                 "no std. error"]
+        head += ["iterations (EM + ascent, mean)", "loglik drops", "no std. error"]
     table = markdown_table([*head, "loglik - truth's (mean)", "fit (s, mean)"], rows)
     label = "known modes (exact E-step)" if known else "UNKNOWN modes (Kim's E-step, then ascent)"
     label += ", started at the truth" if from_truth else ""
@@ -176,7 +174,8 @@ def sweep(model: JumpSystem, sizes, seeds: int, *, known: bool, max_iter: int,
              "error over all K (-0.5 for the 1/sqrt(K) rate).",)
     if not known:
         notes += ("unknown modes: Kim's smoother on the chain of mode pairs as E-step (not "
-                  "exact), then direct ascent of that E-step's likelihood (at most as many "
+                  "exact; EM stops at the first step that would lower its likelihood), then "
+                  "direct ascent of that E-step's likelihood (at most as many "
                   "iterations again); standard errors from its observed information, jointly "
                   "for the transition, Q and R; 'no std. error': entries where that information "
                   "was not positive definite (a maximum on the boundary).",)
