@@ -102,27 +102,25 @@ def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
     ``"transition"``, ``"Q"``, ``"R"`` (module docstring) from the given point, at most
     ``max_iter`` iterations, stopping when an iteration raises it by at most ``tol`` of its
     value; ``start_loglik`` is its value at the start. ``report(loglik)`` is called after
-    every iteration. Returns the maximizer and
-    whether L-BFGS-B reported convergence."""
+    every iteration. Returns the maximizer and whether L-BFGS-B reported convergence."""
     layout = _Layout(system, transition, names)
     start = layout.pack(system, transition)
     if start.size == 0:
         return system, transition, True
-    floor = start_loglik
-
     def objective(theta):
         try:
             value = loglik(*layout.unpack(theta, transition))
         except (ValueError, np.linalg.LinAlgError):  # not positive definite in floating point
             value = -np.inf
         # below the start: a step the line search must reject, kept finite for it
-        return -value if np.isfinite(value) else -floor + 1e6 * max(1.0, abs(floor))
+        return (-value if np.isfinite(value) else
+                -start_loglik + 1e6 * max(1.0, abs(start_loglik)))
 
     result = minimize(objective, start, method="L-BFGS-B",
                       bounds=[(v - SPAN, v + SPAN) for v in start],
                       callback=lambda intermediate_result: report(-intermediate_result.fun),
                       options={"maxiter": max_iter, "ftol": tol})
-    if -result.fun < floor:  # never below EM's point (cannot happen with a monotone search)
+    if -result.fun < start_loglik:  # never below EM's point (cannot happen with a monotone search)
         return system, transition, False
     fitted, pi = layout.unpack(result.x, transition)
     return fitted, pi, bool(result.success)

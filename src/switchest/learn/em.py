@@ -159,7 +159,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         trace.append(mom.loglik)
         if progress is not None:
             progress(it, mom.loglik)
-        if it and _stalled(trace, tol, it, approximate=approximate):
+        if it and _stalled(trace, tol, it):
             converged = True
             break
         if it == max_iter - 1:
@@ -246,13 +246,14 @@ def _warn_unobservable(system: SwitchedLinearSystem, wanted) -> None:
                       RuntimeWarning, stacklevel=3)
 
 
-def _stalled(trace: list[float], tol: float, it: int, *, approximate: bool) -> bool:
-    """Convergence test; with an exact E-step, warns where the log-likelihood decreased (a
-    numerical loss of digits or a partial M-step, e.g. ``C`` with partly missing samples); an
-    ``approximate`` one never gets here with a decrease (:func:`fit` rejects that step)."""
+def _stalled(trace: list[float], tol: float, it: int) -> bool:
+    """Convergence test; warns where the log-likelihood decreased, which an exact E-step
+    (known modes, or ``e_step="exact"``) leaves to a numerical loss of digits or a partial
+    M-step, e.g. ``C`` with partly missing samples (:func:`fit` rejects the step that lowers
+    the likelihood of Kim's approximate E-step before it gets here)."""
     new, old = trace[-1], trace[-2]
     drop = old - new
-    if not approximate and drop > 1e-9 * max(1.0, abs(old)):
+    if drop > 1e-9 * max(1.0, abs(old)):
         warnings.warn(f"EM iteration {it}: the log-likelihood decreased by {drop:.6g} (from "
                       f"{old:.10g} to {new:.10g}); the E-step is exact, so an M-step did not "
                       "maximize (e.g. C with partly missing samples) or digits were lost",

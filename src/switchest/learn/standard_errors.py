@@ -10,22 +10,25 @@ estimate is its inverse. The free parameters:
   of the entry's scale ``sqrt(V_aa V_bb)``;
 - of ``A``, ``B`` and ``C``, every entry (per mode, or once for a matrix the modes share), each
   step ``1e-3`` of the entry, or of ``1e-3`` of the matrix's largest entry for a smaller one;
-- of the transition matrix (``transition=True``: with unknown modes), the nonzero off-diagonal
-  entries ``pi_ji``, ``i != j``, with the diagonal ``pi_jj = 1 - sum_{i != j} pi_ji`` dependent
-  (a zero entry stays zero under EM's M-step, so it is not free); each step ``1e-3`` of
-  ``min(pi_ji, pi_jj)``, so that the perturbed rows stay probabilities. The diagonal's standard
-  error follows by the delta method, ``Var pi_jj = 1' Sigma_j 1`` over the row's free entries.
+- of the transition matrix (with unknown modes: ``"transition"`` in ``names``), the nonzero
+  off-diagonal entries ``pi_ji``, ``i != j``, with the diagonal
+  ``pi_jj = 1 - sum_{i != j} pi_ji`` dependent (a zero entry stays zero under EM's M-step, so
+  it is not free); each step ``1e-3`` of ``min(pi_ji, pi_jj)``, so that the perturbed rows
+  stay probabilities. The diagonal's standard error follows by the delta method,
+  ``Var pi_jj = 1' Sigma_j 1`` over the row's free entries.
 
 Truncation errors are ``O(1e-6)`` relative, far above the rounding of the summed likelihood.
+
 A fit on the boundary of the parameter space (a transition probability near zero, a singular
 ``Q`` or ``R`` block: a maximum where the likelihood need not be flat) has no information
 there in the regular sense: those entries get NaN and are held fixed, and the others' standard
 errors come from the information of the rest (conditional on them; Self & Liang 1987, JASA 82,
 on the boundary's non-standard asymptotics).
-The transition and the noises are taken jointly: with unknown modes their estimates are
-correlated (the modes are told apart through the noises), and the marginal standard errors
+
+The parameters are taken jointly: with unknown modes the transition's estimates are correlated
+with the others' (the modes are told apart through them), and the marginal standard errors
 come from the inverse of the joint information. With known modes the transition's
-information separates from the noises' and equals the counts' (:mod:`.markov_step`), which
+information separates from the others' and equals the counts' (:mod:`.markov_step`), which
 :func:`switchest.learn.fit` uses there. With known modes the likelihood is exact (the Kalman
 filter along the modes); with unknown modes it is that of the E-step
 (:mod:`~switchest.learn.expectation`), and the standard errors are those of that likelihood.
