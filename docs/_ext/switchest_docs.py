@@ -50,6 +50,7 @@ API_MODULES = {
     "switchest.tabular": "any method on a measurement table",
     "switchest.estimators": "estimators",
     "switchest.analysis": "certificates and designs",
+    "switchest.learn": "learning a switched system from data",
     "switchest.metrics": "metrics",
     "switchest.experiments": "paper reproductions",
 }
