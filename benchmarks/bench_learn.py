@@ -118,10 +118,10 @@ def one_fit(model: JumpSystem, K: int, seed: int, *, known: bool, max_iter: int,
     seconds = time.perf_counter() - start
     falls = np.diff(res.loglik) < -1e-9 * np.abs(res.loglik[1:])
     em = res.iterations if res.ascent_from is None else res.ascent_from
-    truth = log_likelihood(model.system(), model.transition, np.zeros(2), np.eye(2),
-                           record(model.system(), traj.y[0], None, t, modes))
+    true_loglik = log_likelihood(model.system(), model.transition, np.zeros(2), np.eye(2),
+                                 record(model.system(), traj.y[0], None, t, modes))
     out = {"seconds": seconds, "iterations": (em, res.iterations - em), "drops": int(falls.sum()),
-           "gain": res.loglik[-1] - truth, "warnings": len(caught)}
+           "gain": res.loglik[-1] - true_loglik, "warnings": len(caught)}
     truth = {"transition": model.transition, "Q": model.Q, "R": model.R}
     fitted = {"transition": res.transition, "Q": res.system.Q, "R": res.system.R}
     for name in GROUPS:

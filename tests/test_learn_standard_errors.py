@@ -17,20 +17,24 @@ def _system(Q1):
                                          [[[0.5]], [[Q1]]], [[[0.2]], [[0.3]]], dt=1.0)
 
 
-def _loglik(system, pi, *, Q1, bowl):
-    """A Gaussian log-likelihood in the entries, maximal at the system's own values; mode 1's
-    Q enters with curvature ``bowl`` (positive: a boundary point, not a maximum, along it)."""
-    values = {"pi01": pi[0, 1] - PI[0, 1], "pi10": pi[1, 0] - PI[1, 0],
+def _loglik(system, pi, *, Q1, bowl, center=PI):
+    """A Gaussian log-likelihood in the entries, maximal at the system's own values and the
+    transition matrix ``center``; mode 1's Q enters with curvature ``bowl`` (positive: a
+    boundary point, not a maximum, along it)."""
+    values = {"pi01": pi[0, 1] - center[0, 1], "pi10": pi[1, 0] - center[1, 0],
               "Q0": system.Q[0, 0, 0] - 0.5, "R0": system.R[0, 0, 0] - 0.2,
               "R1": system.R[1, 0, 0] - 0.3}
     return (-0.5 * sum((v / SD[k]) ** 2 for k, v in values.items())
             + bowl * (system.Q[1, 0, 0] - Q1) ** 2)
 
 
-def test_interior_standard_errors_are_the_curvature():
+@pytest.mark.parametrize("center", [PI, np.array([[0.9, 0.1], [0.7, 0.3]])])
+def test_interior_standard_errors_are_the_curvature(center):
+    """Also with a row whose largest entry (the dependent one) is off the diagonal."""
     Q1 = 0.4
-    se = observed_standard_errors(_system(Q1), PI, ("transition", "Q", "R"),
-                                  lambda s, pi: _loglik(s, pi, Q1=Q1, bowl=-0.5 / 0.07**2))
+    se = observed_standard_errors(
+        _system(Q1), center, ("transition", "Q", "R"),
+        lambda s, pi: _loglik(s, pi, Q1=Q1, bowl=-0.5 / 0.07**2, center=center))
     np.testing.assert_allclose(se["transition"], [[0.02, 0.02], [0.05, 0.05]], rtol=1e-6)
     np.testing.assert_allclose(se["Q"].ravel(), [0.1, 0.07], rtol=1e-6)
     np.testing.assert_allclose(se["R"].ravel(), [0.03, 0.04], rtol=1e-6)

@@ -14,7 +14,8 @@ stationary point, where :mod:`.standard_errors` takes the observed information.
 The parameters, unconstrained:
 
 - row ``j`` of the transition matrix: the logits ``log(pi_ji / pi_jr)`` of its nonzero entries
-  against its largest entry ``pi_jr`` (a zero entry stays zero, as under EM's M-step);
+  against its largest entry ``pi_jr`` (:func:`.markov_step.free_rows`; a zero entry stays
+  zero, as under EM's M-step);
 - each fitted block of ``Q`` and ``R`` (per mode, or once for a matrix the modes share; on the
   components of positive variance, :func:`.noise_step.support`): its Cholesky factor, the log
   of the diagonal and the entries below it (the log-Cholesky parametrization, Pinheiro & Bates
@@ -33,7 +34,8 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ..system import SwitchedLinearSystem
-from .noise_step import shared, support
+from .markov_step import free_rows
+from .noise_step import groups, support
 
 __all__ = ["SPAN", "ascend"]
 
@@ -45,20 +47,13 @@ class _Layout:
 
     def __init__(self, system: SwitchedLinearSystem, transition: np.ndarray, names):
         self.system = system
-        self.rows = []  # (row j, reference column r, free columns)
-        if "transition" in names:
-            for j, row in enumerate(transition):
-                r = int(np.argmax(row))
-                cols = np.flatnonzero((row > 0) & (np.arange(row.size) != r))
-                if cols.size:
-                    self.rows.append((j, r, cols))
+        # (row j, reference column r, free columns)
+        self.rows = free_rows(transition) if "transition" in names else []
         self.blocks = []  # (matrix name, modes, support)
         for name in ("Q", "R"):
             if name in names:
                 stack = getattr(system, name)
-                groups = [list(range(stack.shape[0]))] if shared(stack) else [
-                    [j] for j in range(stack.shape[0])]
-                self.blocks += [(name, g, support(stack[g[0]])) for g in groups
+                self.blocks += [(name, g, support(stack[g[0]])) for g in groups(stack)
                                 if support(stack[g[0]]).size]
 
     def pack(self, system: SwitchedLinearSystem, transition: np.ndarray) -> np.ndarray:

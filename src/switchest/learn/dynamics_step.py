@@ -17,14 +17,9 @@ from __future__ import annotations
 import numpy as np
 
 from .expectation import Moments
-from .noise_step import shared
+from .noise_step import groups
 
 __all__ = ["fit_AB", "fit_C"]
-
-
-def _groups(*stacks) -> list[list[int]]:
-    L = stacks[0].shape[0]
-    return [list(range(L))] if all(shared(s) for s in stacks) else [[j] for j in range(L)]
 
 
 def fit_AB(A: np.ndarray, B: np.ndarray, u: np.ndarray, mom: Moments, *, with_B: bool
@@ -40,7 +35,7 @@ def fit_AB(A: np.ndarray, B: np.ndarray, u: np.ndarray, mom: Moments, *, with_B:
     S1x = np.einsum("nkj,nkjab->jab", w, mom.cross + mom.x1[..., :, None] * mom.x0[..., None, :])
     S1u = np.einsum("nkj,nkja,nkb->jab", w, mom.x1, uk)
     newA, newB = A.copy(), B.copy()
-    for group in _groups(A, B) if with_B else _groups(A):
+    for group in groups(A, B) if with_B else groups(A):
         zz = Sxx[group].sum(axis=0)
         xz = S1x[group].sum(axis=0)
         if with_B:
@@ -78,7 +73,7 @@ def fit_C(C: np.ndarray, R: np.ndarray, y: np.ndarray, mom: Moments) -> np.ndarr
     new = C.copy()
     for a in range(C.shape[1]):
         Sxx = np.einsum("nkj,nk,nkjab->jab", mom.weight, seen[..., a].astype(float), Exx)
-        for group in _groups(C):
+        for group in groups(C):
             xx = Sxx[group].sum(axis=0)
             if np.linalg.cond(xx) > 1e12:
                 continue

@@ -224,7 +224,7 @@ def _start_transition(transition, data: Record, L: int, rng) -> np.ndarray:
     if data.modes is not None:
         pairs = np.zeros((L, L))
         np.add.at(pairs, (data.modes[:, :-1], data.modes[:, 1:]), 1.0)
-        return fit_transition(pairs, np.full((L, L), 1.0 / L))[0]
+        return fit_transition(pairs, np.full((L, L), 1.0 / L))
     if L == 1:
         return np.ones((1, 1))
     mean = np.full((L, L), 0.1 / (L - 1))
@@ -272,7 +272,7 @@ def _maximize(system, transition, data: Record, steps, mom, wanted, warned):
             warnings.warn(f"mode {j} {how}: its parameters are not identifiable from the data "
                           "and keep their starting values", RuntimeWarning, stacklevel=4)
     if "transition" in wanted:
-        transition = fit_transition(mom.pairs, transition)[0]
+        transition = fit_transition(mom.pairs, transition)
     A, B, C, Q, R = system.A, system.B, system.C, system.Q, system.R
     if "A" in wanted or "B" in wanted:
         newA, newB = fit_AB(A, B, data.u, mom, with_B="B" in wanted and np.any(data.u))

@@ -15,17 +15,31 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import logm
 
-__all__ = ["fit_transition", "rates_from_transition", "transition_se"]
+__all__ = ["fit_transition", "free_rows", "rates_from_transition", "transition_se"]
 
 
-def fit_transition(pairs: np.ndarray, current: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """New transition matrix from (expected) counts ``pairs[j, i]`` and each row's count; a row
-    with less than one (expected) visit keeps its ``current`` value."""
+def fit_transition(pairs: np.ndarray, current: np.ndarray) -> np.ndarray:
+    """New transition matrix from (expected) counts ``pairs[j, i]``; a row with less than one
+    (expected) visit keeps its ``current`` value."""
     visits = pairs.sum(axis=1)
     new = current.copy()
     ok = visits >= 1.0
     new[ok] = pairs[ok] / visits[ok, None]
-    return new, visits
+    return new
+
+
+def free_rows(transition: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
+    """The free entries of a transition matrix, row by row: ``(j, r, cols)`` with ``r`` the
+    row's largest entry, which the others fix (the row sums to one), and ``cols`` its other
+    nonzero entries (a zero entry stays zero under EM's M-step, so it is not free); rows
+    without a free entry are left out."""
+    out = []
+    for j, row in enumerate(transition):
+        r = int(np.argmax(row))
+        cols = np.flatnonzero((row > 0) & (np.arange(row.size) != r))
+        if cols.size:
+            out.append((j, r, cols))
+    return out
 
 
 def transition_se(transition: np.ndarray, visits: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ from ..discretize import interval
 from ..system import SwitchedLinearSystem
 from .expectation import Moments
 
-__all__ = ["fit_R", "fit_Q", "step_residual_moments", "shared", "support"]
+__all__ = ["fit_R", "fit_Q", "groups", "step_residual_moments", "shared", "support"]
 
 
 def shared(stack: np.ndarray) -> bool:
@@ -46,10 +46,11 @@ def support(matrix: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.diag(matrix) > 0)
 
 
-def _groups(stack: np.ndarray) -> list[list[int]]:
-    """Modes fitted together: all of them when the model shares the matrix, else one each."""
-    L = stack.shape[0]
-    return [list(range(L))] if shared(stack) else [[j] for j in range(L)]
+def groups(*stacks: np.ndarray) -> list[list[int]]:
+    """Modes fitted together: all of them when the model shares every one of the matrices,
+    else one each."""
+    L = stacks[0].shape[0]
+    return [list(range(L))] if all(shared(s) for s in stacks) else [[j] for j in range(L)]
 
 
 def _place(block: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:
@@ -94,7 +95,7 @@ def fit_R(C: np.ndarray, R: np.ndarray, y: np.ndarray, mom: Moments) -> tuple[np
         total += np.einsum("sj,sjab->jab", w, E)
         weight += w.sum(axis=0)
     new = R.copy()
-    for group in _groups(R):
+    for group in groups(R):
         n_g = weight[group].sum()
         idx = support(R[group[0]])
         if n_g <= 0 or idx.size == 0:
@@ -141,7 +142,7 @@ def fit_Q(system: SwitchedLinearSystem, steps: np.ndarray, u, mom: Moments, tabl
     count, S = _step_sums(system, mom, u, table)
     Q, n = system.Q, system.n_states
     new = Q.copy()
-    for group in _groups(Q):
+    for group in groups(Q):
         idx = support(Q[group[0]])
         if count[:, group].sum() <= 0 or idx.size == 0:
             continue

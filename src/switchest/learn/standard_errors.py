@@ -11,11 +11,12 @@ estimate is its inverse. The free parameters:
 - of ``A``, ``B`` and ``C``, every entry (per mode, or once for a matrix the modes share), each
   step ``1e-3`` of the entry, or of ``1e-3`` of the matrix's largest entry for a smaller one;
 - of the transition matrix (with unknown modes: ``"transition"`` in ``names``), the nonzero
-  off-diagonal entries ``pi_ji``, ``i != j``, with the diagonal
-  ``pi_jj = 1 - sum_{i != j} pi_ji`` dependent (a zero entry stays zero under EM's M-step, so
-  it is not free); each step ``1e-3`` of ``min(pi_ji, pi_jj)``, so that the perturbed rows
-  stay probabilities. The diagonal's standard error follows by the delta method,
-  ``Var pi_jj = 1' Sigma_j 1`` over the row's free entries.
+  entries ``pi_ji`` of each row but its largest, ``pi_jr = 1 - sum_{i != r} pi_ji``, which
+  depends on them (:func:`.markov_step.free_rows`, as the ascent has them; a zero entry stays
+  zero under EM's M-step, so it is not free); each step ``1e-3`` of ``min(pi_ji, pi_jr)``, so
+  that the perturbed rows stay probabilities. The dependent entry's standard error follows by
+  the delta method, ``Var pi_jr = 1' Sigma_j 1`` over the row's free entries (the covariance
+  of the whole row does not depend on which entry is the dependent one).
 
 Truncation errors are ``O(1e-6)`` relative, far above the rounding of the summed likelihood.
 
@@ -42,7 +43,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ..system import SwitchedLinearSystem
-from .noise_step import shared, support
+from .markov_step import free_rows
+from .noise_step import groups, support
 
 __all__ = ["observed_standard_errors"]
 
@@ -57,9 +59,7 @@ def _free(system: SwitchedLinearSystem, names) -> list[tuple[str, list[int], int
     out = []
     for name in names:
         stack = getattr(system, name)
-        groups = [list(range(stack.shape[0]))] if shared(stack) else [[j] for j in
-                                                                        range(stack.shape[0])]
-        for group in groups:
+        for group in groups(stack):
             if name in ("A", "B", "C"):
                 out += [(name, group, a, b) for a, b in np.ndindex(stack.shape[1:])]
                 continue
@@ -70,18 +70,18 @@ def _free(system: SwitchedLinearSystem, names) -> list[tuple[str, list[int], int
 
 
 def _free_transition(transition: np.ndarray) -> list[tuple[str, list[int], int, int]]:
-    """The free entries of the transition matrix: ``("transition", [j], j, i)`` for each
-    nonzero off-diagonal ``pi_ji`` (the diagonal of row ``j`` depends on them)."""
-    L = transition.shape[0]
-    return [("transition", [j], j, i) for j in range(L) for i in range(L)
-            if i != j and transition[j, i] > 0]
+    """The free entries of the transition matrix: ``("transition", [r], j, i)`` for each
+    free ``pi_ji`` of :func:`.markov_step.free_rows`, with ``r`` the column of the row's
+    largest entry, which depends on them."""
+    return [("transition", [r], j, int(i)) for j, r, cols in free_rows(transition)
+            for i in cols]
 
 
 def _step(system: SwitchedLinearSystem, transition: np.ndarray, entry) -> float:
     """Finite-difference step of a free entry (module docstring)."""
     name, group, a, b = entry
-    if name == "transition":
-        return _REL_STEP * min(transition[a, b], transition[a, a])
+    if name == "transition":  # group[0]: the row's dependent (largest) entry
+        return _REL_STEP * min(transition[a, b], transition[a, group[0]])
     stack = getattr(system, name)
     if name in ("A", "B", "C"):  # relative to the entry, or to the matrix for a small one
         return _REL_STEP * max(abs(stack[group[0], a, b]), 1e-3 * np.abs(stack[group[0]]).max(),
@@ -95,7 +95,7 @@ def _with(system: SwitchedLinearSystem, transition: np.ndarray, free, theta
     mats["transition"] = transition.copy()
     for (name, group, a, b), value in zip(free, theta):
         if name == "transition":
-            mats[name][a, a] += mats[name][a, b] - value  # the row still sums to one
+            mats[name][a, group[0]] += mats[name][a, b] - value  # the row still sums to one
             mats[name][a, b] = value
             continue
         mats[name][group, a, b] = value
@@ -163,9 +163,11 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
         out[name][group, a, b] = s
         if name in ("Q", "R"):
             out[name][group, b, a] = s
-    for j in range(transition.shape[0] if "transition" in names else 0):
-        row = [q for q, (name, _, a, _) in enumerate(free) if name == "transition" and a == j]
-        out["transition"][j, j] = np.sqrt(cov[np.ix_(row, row)].sum()) if row else 0.0
+    if "transition" in names:  # each row's dependent entry, by the delta method
+        for j in range(transition.shape[0]):
+            row = [q for q, (name, _, a, _) in enumerate(free) if name == "transition" and a == j]
+            r = free[row[0]][1][0] if row else int(np.argmax(transition[j]))
+            out["transition"][j, r] = np.sqrt(cov[np.ix_(row, row)].sum()) if row else 0.0
     return out
 
 
@@ -175,15 +177,20 @@ def _on_boundary(system: SwitchedLinearSystem, transition: np.ndarray, free) -> 
     :data:`_BOUNDARY`, an entry of a ``Q`` or ``R`` block whose smallest eigenvalue is below
     :data:`_BOUNDARY` times the largest variance of that matrix in any mode (a singular
     covariance)."""
+    singular = {}  # (name, mode) of each Q, R block: whether it is singular
+    for name in ("Q", "R"):
+        stack = getattr(system, name)
+        largest = np.diagonal(stack, axis1=1, axis2=2).max()
+        for j, V in enumerate(stack):
+            idx = support(V)
+            singular[name, j] = bool(idx.size) and (
+                np.linalg.eigvalsh(V[np.ix_(idx, idx)])[0] < _BOUNDARY * largest)
     edge = np.zeros(len(free), dtype=bool)
     for q, (name, group, a, b) in enumerate(free):
-        if name == "transition":
-            edge[q] = min(transition[a, b], transition[a, a]) < _BOUNDARY
+        if name == "transition":  # the row's dependent entry is its largest: >= 1/L
+            edge[q] = transition[a, b] < _BOUNDARY
         elif name in ("Q", "R"):
-            stack = getattr(system, name)
-            idx = support(stack[group[0]])
-            lowest = np.linalg.eigvalsh(stack[group[0]][np.ix_(idx, idx)])[0]
-            edge[q] = lowest < _BOUNDARY * np.diagonal(stack, axis1=1, axis2=2).max()
+            edge[q] = singular[name, group[0]]
     return edge
 
 
