@@ -41,6 +41,7 @@ import warnings
 from collections.abc import Callable
 
 import numpy as np
+from scipy.linalg import cho_factor, cho_solve
 
 from ..system import SwitchedLinearSystem
 from .markov_step import free_rows
@@ -121,6 +122,8 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
                          np.nan) for name in names}
     if not free:
         return out
+    edge = _on_boundary(system, transition, free)
+    inner = np.flatnonzero(~edge)  # the Hessian of these only: the others are held fixed
     theta = np.array([transition[a, b] if name == "transition" else
                       getattr(system, name)[g[0], a, b] for name, g, a, b in free])
     h = np.array([_step(system, transition, entry) for entry in free])
@@ -133,18 +136,18 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
             return np.nan
 
     f0 = f(np.zeros(p))
-    H = np.empty((p, p))
     e = np.eye(p) * h
-    for i in range(p):
-        H[i, i] = (f(e[i]) - 2 * f0 + f(-e[i])) / h[i] ** 2
-        for j in range(i):
-            H[i, j] = H[j, i] = (f(e[i] + e[j]) - f(e[i] - e[j]) - f(-e[i] + e[j])
-                                 + f(-e[i] - e[j])) / (4 * h[i] * h[j])
-    edge = _on_boundary(system, transition, free)
-    inner = np.flatnonzero(~edge)
-    info = -H[np.ix_(inner, inner)]
-    if (inner.size == 0 or not np.all(np.isfinite(info))
-            or np.min(np.linalg.eigvalsh(info)) <= 0):
+    info = np.empty((inner.size, inner.size))  # minus the Hessian
+    for u, i in enumerate(inner):
+        info[u, u] = -(f(e[i]) - 2 * f0 + f(-e[i])) / h[i] ** 2
+        for v, j in enumerate(inner[:u]):
+            info[u, v] = info[v, u] = -(f(e[i] + e[j]) - f(e[i] - e[j]) - f(-e[i] + e[j])
+                                        + f(-e[i] - e[j])) / (4 * h[i] * h[j])
+    try:  # positive definite, and its inverse, by one Cholesky factorization
+        factor = cho_factor(info) if inner.size and np.all(np.isfinite(info)) else None
+    except np.linalg.LinAlgError:
+        factor = None
+    if factor is None:
         warnings.warn(f"the observed information of {', '.join(names)} is not positive definite "
                       "at the fit (a parameter is not identifiable, or the fit is not at a "
                       "maximum): their standard errors are NaN", RuntimeWarning, stacklevel=3)
@@ -155,7 +158,7 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
                       "have no standard error, and the others' are conditional on them",
                       RuntimeWarning, stacklevel=3)
     cov = np.full((p, p), np.nan)
-    cov[np.ix_(inner, inner)] = np.linalg.inv(info)
+    cov[np.ix_(inner, inner)] = cho_solve(factor, np.eye(inner.size))
     for (name, group, a, b), s in zip(free, np.sqrt(np.diag(cov))):
         if name == "transition":
             out[name][a, b] = s
