@@ -22,6 +22,7 @@ from switchest.estimators._compiled import (
     GATED,
     PARTLY_GATED,
     imm_run,
+    imm_run_per_trial,
     imm_step,
     kalman_run,
     kalman_steady_run,
@@ -434,6 +435,42 @@ def test_imm_step_equals_run(timing):
         assert_close(np.exp(log_prob), run.mode_prob[:, k], rtol=1e-14)
         np.testing.assert_array_equal(step.mode[:, 0], run.mode[:, k])
         np.testing.assert_array_equal(step.flag[:, 0], run.flag[:, k])
+
+
+@pytest.mark.parametrize("timing", TIMINGS)
+def test_imm_run_per_trial_gives_each_trial_the_numbers_of_its_own_model(timing):
+    # three models (tables, C, R, transition matrix) of the same sizes, two trials each, in
+    # one call: every trial as the oracle filters it under its own model alone
+    parts = [imm_problem(40 + s, 3, 2, 1, 3, 4, N=2, K=12) for s in range(3)]
+    shared = {key: parts[0][key] for key in ("x0", "P0", "log_prob0")}
+    for part in parts:
+        part.update(shared)
+    M, L, K = 4, 3, 12
+    trans = np.concatenate([np.broadcast_to(part["trans"] + s * M, (2, K, L))
+                            for s, part in enumerate(parts)])
+    out_index = np.repeat(np.arange(3)[:, None] * L + np.arange(L), 2, axis=0)
+    log_transition = np.repeat([part["log_transition"] for part in parts], 2, axis=0)
+    joined = {key: np.concatenate([part[key] for part in parts])
+              for key in ("y", "u", "F", "G", "Qd", "C", "R")}
+    out = imm_run_per_trial(joined["y"], joined["u"], joined["F"], joined["G"], joined["Qd"],
+                            trans, joined["C"], joined["R"], out_index, log_transition,
+                            timing=timing, **shared)
+    assert out.status == OK
+    for s, part in enumerate(parts):
+        ref = oracle_imm_run(*imm_args(part), timing=timing)
+        rows = slice(2 * s, 2 * s + 2)
+        for name in ("x", "P", "mode_prob", "loglik"):
+            assert_close(getattr(out, name)[rows], ref[name])
+        np.testing.assert_array_equal(out.flag[rows], ref["flag"])
+
+
+def test_imm_run_per_trial_names_a_model_index_out_of_range():
+    p = imm_problem(43, 2, 1, 1, 2, 3, N=2, K=4)
+    with pytest.raises(ValueError, match="out_index must index 0..1"):
+        imm_run_per_trial(p["y"], p["u"], p["F"], p["G"], p["Qd"],
+                          np.broadcast_to(p["trans"], (2, 4, 2)), p["C"], p["R"],
+                          np.array([[0, 1], [1, 2]]), np.stack([p["log_transition"]] * 2),
+                          p["x0"], p["P0"], p["log_prob0"])
 
 
 @pytest.mark.parametrize("timing", TIMINGS)

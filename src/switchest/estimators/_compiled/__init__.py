@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 
-from .imm import IMMOutput, imm_run, imm_step
+from .imm import IMMOutput, imm_run, imm_run_per_trial, imm_step
 from .kalman import KalmanOutput, kalman_run, kalman_steady_run, kalman_steady_step, kalman_step
 from .linalg import ACCEPTED, GATED, NOT_FINITE, NOT_POSITIVE_DEFINITE, OK, PARTLY_GATED
 
@@ -29,6 +29,7 @@ __all__ = [
     "IMMOutput",
     "KalmanOutput",
     "imm_run",
+    "imm_run_per_trial",
     "imm_step",
     "kalman_run",
     "kalman_steady_run",

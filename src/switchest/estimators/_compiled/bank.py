@@ -13,7 +13,9 @@ covariance run its equations once) on the same equations of :mod:`.linalg`, so e
 equation has one implementation.
 
 Trials are processed in blocks of ``lanes`` laid across SIMD lanes (:mod:`.linalg`); the
-results do not depend on the block size.
+results do not depend on the block size. Each trial may have a model of its own (its entries of
+the transition and output tables, its mode transition matrix): one record filtered under many
+candidate parameters fills the lanes as many trials do.
 """
 
 from __future__ import annotations
@@ -91,14 +93,28 @@ def _predict_modes(x, P, F, G, Qd, trans, i0, nb, k, ul, idx, Fl, Gl, Ql, AP, xs
 def _interact(x, P, prob, log_prob, transition, log_transition, interaction, nb, log_c, w, xm,
               Pm):
     """The bank's interaction, in place on the mode-matched ``x (L, n, B)``, ``P``, weighted by
-    the mode probabilities ``prob`` of the previous sample: :func:`.linalg.mix` (``MIX``) or
-    :func:`.linalg.collapse` (``COLLAPSE``); with one mode only ``log_c = log_prob``."""
+    the mode probabilities ``prob`` of the previous sample and each lane's transition matrix
+    ``transition (L, L, B)``: :func:`.linalg.mix` (``MIX``) or :func:`.linalg.collapse`
+    (``COLLAPSE``); with one mode only ``log_c = log_prob``."""
     if x.shape[0] == 1:
         copy_rows(log_prob, log_c, nb)
     elif interaction == COLLAPSE:
         collapse(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm)
     else:
         mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm)
+
+
+@jit
+def gather_transitions(transition, log_transition, i0, nb, pi, log_pi):
+    """Each lane's transition matrix and its logarithm, ``[trial]`` of ``transition (N or 1,
+    L, L)`` and ``log_transition`` for trial ``i0 + b`` (an axis of length 1 is shared), into
+    ``pi (L, L, B)``, ``log_pi``."""
+    for b in range(nb):
+        i = i0 + b if transition.shape[0] > 1 else 0
+        for r in range(transition.shape[1]):
+            for c in range(transition.shape[2]):
+                pi[r, c, b] = transition[i, r, c]
+                log_pi[r, c, b] = log_transition[i, r, c]
 
 
 @jit
@@ -155,8 +171,9 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
         Table of output matrices and measurement-noise covariances.
     out_index : (N or 1, K or 1, L) int64
         Which ``C``, ``R`` mode ``j`` uses at sample ``k`` of each trial.
-    transition, log_transition : (L, L) float64
-        Mode transition matrix and its logarithm (``transition[i, j]`` = P(j next | i now)).
+    transition, log_transition : (N or 1, L, L) float64
+        Mode transition matrix of each trial (shared if the first axis has length 1) and its
+        logarithm (``transition[trial, i, j]`` = P(j next | i now)).
     x_init, P_init, log_prob_init : (N, L, n), (N, L, n, n), (N, L) float64
         Mode-matched state of every trial before the first sample.
     interaction : int
@@ -229,6 +246,7 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
     gain, T = np.empty((n, m, B)), np.empty((n, m, B))
     AP, xs = np.empty((n, n, B)), np.empty((n, B))
     log_c, w = np.empty((n_modes, B)), np.empty((n_modes, n_modes, B))
+    pi, log_pi = np.empty((n_modes, n_modes, B)), np.empty((n_modes, n_modes, B))
     xm, Pm = np.empty((n_modes, n, B)), np.empty((n_modes, n, n, B))
     a, use = np.empty((n_modes, B)), np.empty((n_modes, B), dtype=np.bool_)
     total, flag, best = np.empty(B), np.empty(B, dtype=np.uint8), np.empty(B, dtype=np.int64)
@@ -241,6 +259,7 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
         nb = min(B, N - i0)
         gather_rows(log_prob_init, i0, nb, log_prob)
         gather_modes(x_init, P_init, i0, nb, x, P)
+        gather_transitions(transition, log_transition, i0, nb, pi, log_pi)
         for j in range(n_modes):
             for b in range(nb):
                 prob[j, b] = math.exp(log_prob[j, b])
@@ -250,12 +269,12 @@ def filter_bank(y, u, F, G, Qd, trans, C, R, out_index, transition, log_transiti
             if k > 0 or predict_first:
                 gather_samples(u, i0, nb, max(k - 1, 0), ul)
                 if not sample_timing:  # "interval": interact, then predict
-                    _interact(x, P, prob, log_prob, transition, log_transition, interaction, nb,
-                              log_c, w, xm, Pm)
+                    _interact(x, P, prob, log_prob, pi, log_pi, interaction, nb, log_c, w, xm,
+                              Pm)
                 _predict_modes(x, P, F, G, Qd, trans, i0, nb, k, ul, idx, Fl, Gl, Ql, AP, xs)
                 if sample_timing:  # "sample": predict, then interact
-                    _interact(x, P, prob, log_prob, transition, log_transition, interaction, nb,
-                              log_c, w, xm, Pm)
+                    _interact(x, P, prob, log_prob, pi, log_pi, interaction, nb, log_c, w, xm,
+                              Pm)
             else:
                 copy_rows(log_prob, log_c, nb)
             if k == 0 or out_index.shape[1] > 1:

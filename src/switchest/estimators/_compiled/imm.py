@@ -35,7 +35,7 @@ from ..._checks import check_timing, positive_int
 from .arrays import check_gate, checked
 from .bank import COLLAPSE, LANES, MIX, filter_bank
 
-__all__ = ["IMMOutput", "imm_run", "imm_step", "is_sample_timing"]
+__all__ = ["IMMOutput", "imm_run", "imm_run_per_trial", "imm_step", "is_sample_timing"]
 
 _INTERACTIONS = {"mix": MIX, "collapse": COLLAPSE}
 
@@ -132,11 +132,45 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
         sizes, "y:NKm u:NKl F:Mnn G:Mnl Qd:Mnn C:Lmn trans:KL<M R:Lmm log_transition:LL x0:n "
         "P0:nn log_prob0:L", y, u, F, G, Qd, C, trans, R, log_transition, x0, P0, log_prob0)
     N, L = sizes["N"], sizes["L"]
-    output, _ = _bank(y, u, F, G, Qd, trans[None], C, R, log_transition,
-                      np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
+    output, _ = _bank(y, u, F, G, Qd, trans[None], C, R, np.arange(L)[None, None],
+                      log_transition[None], np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
                       np.tile(log_prob0, (N, 1)), _interaction(interaction),
                       is_sample_timing(timing), False, check_gate(gate),
                       positive_int(lanes, "lanes"), bool(modes_out))
+    return output
+
+
+def imm_run_per_trial(y, u, F, G, Qd, trans, C, R, out_index, log_transition, x0, P0, log_prob0,
+                      *, gate=math.inf, timing: str = "interval") -> IMMOutput:
+    """The IMM of :func:`imm_run` with a model of its own for each trial: its transitions,
+    output matrices, noises and mode transition matrix (e.g. one record filtered under many
+    candidate parameters at once, the trials then filling the SIMD lanes).
+
+    Parameters
+    ----------
+    trans : array_like of int, shape (N, K, L)
+        ``trans[i, k, j]``: the entry of the table ``F``, ``G``, ``Qd`` that mode ``j`` of
+        trial ``i`` moves through into sample ``k`` (``[:, 0]`` unused).
+    C, R : array_like, shapes (M', m, n), (M', m, m)
+        Table of output matrices and measurement-noise covariances.
+    out_index : array_like of int, shape (N, L)
+        ``out_index[i, j]``: the entry of ``C``, ``R`` that mode ``j`` of trial ``i`` measures
+        through.
+    log_transition : array_like, shape (N, L, L)
+        Each trial's ``log transition[i, j]``.
+
+    The other arguments as in :func:`imm_run` (interaction ``"mix"``).
+    """
+    sizes: dict[str, int] = {}
+    y, u, F, G, Qd, C, R, trans, out_index, log_transition, x0, P0, log_prob0 = checked(
+        sizes, "y:NKm u:NKl F:Mnn G:Mnl Qd:Mnn C:Smn R:Smm trans:NKL<M out_index:NL<S "
+        "log_transition:NLL x0:n P0:nn log_prob0:L", y, u, F, G, Qd, C, R, trans, out_index,
+        log_transition, x0, P0, log_prob0)
+    N, L = sizes["N"], sizes["L"]
+    output, _ = _bank(y, u, F, G, Qd, trans, C, R, out_index[:, None], log_transition,
+                      np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
+                      np.tile(log_prob0, (N, 1)), MIX, is_sample_timing(timing), False,
+                      check_gate(gate), LANES, False)
     return output
 
 
@@ -163,9 +197,10 @@ def imm_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
     x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition = checked(
         sizes, "x:NLn P:NLnn log_prob:NL y:Nm u:Nl F:Mnn G:Mnl Qd:Mnn trans:L<M C:Lmn R:Lmm "
         "log_transition:LL", x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition)
-    return _bank(y[:, None], u[:, None], F, G, Qd, trans[None, None], C, R, log_transition,
-                 x, P, log_prob, _interaction(interaction), is_sample_timing(timing),
-                 bool(predict_first), check_gate(gate), LANES, False)
+    return _bank(y[:, None], u[:, None], F, G, Qd, trans[None, None], C, R,
+                 np.arange(sizes["L"])[None, None], log_transition[None], x, P, log_prob,
+                 _interaction(interaction), is_sample_timing(timing), bool(predict_first),
+                 check_gate(gate), LANES, False)
 
 
 def _interaction(name) -> int:
@@ -181,9 +216,10 @@ def is_sample_timing(timing) -> bool:
     return check_timing(timing) == "sample"
 
 
-def _bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_init,
-          interaction, sample_timing, predict_first, gate, lanes, modes_out):
-    """The bank kernel with every mode ``j`` on its own ``C[j]``, ``R[j]``; returns the
+def _bank(y, u, F, G, Qd, trans, C, R, out_index, log_transition, x_init, P_init,
+          log_prob_init, interaction, sample_timing, predict_first, gate, lanes, modes_out):
+    """The bank kernel (:func:`.bank.filter_bank`: ``trans``, ``out_index``,
+    ``log_transition`` shared by the trials where their first axis has length 1); returns the
     :class:`IMMOutput` (with the mode-matched posteriors of every sample if ``modes_out``)
     and the mode-matched state ``(x, P, log_prob)`` after the last sample."""
     N, K, _ = y.shape
@@ -195,8 +231,8 @@ def _bank(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_
     x_modes, P_modes = np.empty((*size, n)), np.empty((*size, n, n))
     last = np.empty_like(x_init), np.empty_like(P_init), np.empty_like(log_prob_init)
     report = np.empty(2)
-    status = filter_bank(y, u, F, G, Qd, trans, C, R, np.arange(L)[None, None],
-                         np.exp(log_transition), log_transition, x_init, P_init, log_prob_init,
+    status = filter_bank(y, u, F, G, Qd, trans, C, R, out_index, np.exp(log_transition),
+                         log_transition, x_init, P_init, log_prob_init,
                          interaction, sample_timing, predict_first, gate, lanes, x, P, prob,
                          mode, loglik, flag, x_modes, P_modes, *last, report)
     modes = (x_modes, P_modes) if modes_out else (None, None)

@@ -796,9 +796,9 @@ def mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm):
     The sums are taken over the probabilities ``prob = exp(log_prob)`` themselves (their
     largest is at least 1/L, so they need no shift): ``c_j = sum_i pi_ij mu_i``, without an
     exponential. A sum below 1e-250 (a mode all but unreachable, where the products may
-    underflow) is redone in the log domain. ``transition`` is ``exp(log_transition)``;
-    ``w (L, L, B)`` (``w[j]``: the weights of mixture j), ``xm (L, n, B)`` and
-    ``Pm (L, n, n, B)`` are scratch; ``log_c (L, B)`` is written.
+    underflow) is redone in the log domain. ``transition (L, L, B)`` is each lane's transition
+    matrix, ``exp(log_transition)``; ``w (L, L, B)`` (``w[j]``: the weights of mixture j),
+    ``xm (L, n, B)`` and ``Pm (L, n, n, B)`` are scratch; ``log_c (L, B)`` is written.
     """
     n_modes = x.shape[0]
     predicted_mode_probabilities(prob, log_prob, transition, log_transition, nb, log_c, w)
@@ -818,7 +818,8 @@ def predicted_mode_probabilities(prob, log_prob, transition, log_transition, nb,
     """Predicted mode probabilities ``log c_j = log sum_i pi_ij mu_i`` and the IMM's mixing
     weights ``w[j][i] = mu_{i|j} = pi_ij mu_i / c_j`` (Blom & Bar-Shalom, 1988; Bar-Shalom, Li &
     Kirubarajan §11.6.6), per lane, for ``L`` modes of probabilities ``prob (L, B)`` (and their
-    logarithms ``log_prob``): the first half of :func:`mix`, shared with :func:`collapse`.
+    logarithms ``log_prob``) and the lane's transition matrix ``transition (L, L, B)`` (and its
+    logarithm): the first half of :func:`mix`, shared with :func:`collapse`.
 
     The sums are taken over the probabilities themselves; one below 1e-250 is redone in the log
     domain (see :func:`mix`). A mode no predecessor reaches gets ``log c_j = -inf`` and zero
@@ -831,7 +832,7 @@ def predicted_mode_probabilities(prob, log_prob, transition, log_transition, nb,
             cj[b] = 0.0
         for i in range(n_modes):
             for b in range(nb):
-                wj[i, b] = transition[i, j] * prob[i, b]
+                wj[i, b] = transition[i, j, b] * prob[i, b]
                 cj[b] += wj[i, b]
         for b in range(nb):
             if cj[b] > _TINY_SUM:
@@ -893,7 +894,7 @@ def _log_weights(log_prob, log_transition, j, b, w):
     when every term is ``-inf``."""
     top = -math.inf
     for i in range(w.shape[0]):
-        w[i, b] = log_prob[i, b] + log_transition[i, j]
+        w[i, b] = log_prob[i, b] + log_transition[i, j, b]
         top = max(top, w[i, b])
     if top == -math.inf:
         for i in range(w.shape[0]):
