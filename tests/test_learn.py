@@ -199,6 +199,42 @@ def test_ascent_parameters_round_trip():
     assert np.all(moved.Q == moved.Q[:1])  # still shared
 
 
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning",
+                            "ignore:invalid value encountered:RuntimeWarning")
+@pytest.mark.parametrize("known", [False, True])
+def test_log_likelihoods_of_many_candidates_are_each_ones_own(known):
+    """The candidates' pair-chain IMMs in one compiled call (unknown modes; known modes: one
+    Kalman filter each) give each candidate's log_likelihood, with missing samples, two
+    trials, irregular times and more candidates than one call takes; a candidate whose filter
+    fails gets NaN."""
+    from switchest.learn.data import record
+    from switchest.learn.expectation import log_likelihood, log_likelihoods
+
+    def system(Q, R):  # continuous time, so that the samples may be irregular
+        return SwitchedLinearSystem.continuous(A3 - np.eye(2), None, C3, Q, R)
+
+    t = np.cumsum(np.r_[0.0, np.random.default_rng(4).choice([0.5, 1.0, 1.5], 59)])
+    traj = simulate(system(Q3, R3), MarkovAtSamples(P3, initial=0), t,
+                    (np.zeros(2), np.eye(2)), trials=2, rng=5)
+    y = traj.y.copy()
+    y[0, 5:9] = np.nan
+    data = record(system(Q3, R3), y, None, t, traj.mode if known else None)
+    rng = np.random.default_rng(6)
+    candidates = [(system(Q3 * rng.uniform(0.5, 2), R3 * rng.uniform(0.5, 2)),
+                   rng.dirichlet(np.ones(3) * 4, size=3)) for _ in range(40)]
+    unstable = A3 + 4 * np.eye(2)  # e^4 per unit time: its covariance, then its transition
+    for Q, error in ((1e300, np.linalg.LinAlgError), (1e307, ValueError)):  # overflow
+        bad = SwitchedLinearSystem.continuous(unstable, None, C3, Q * Q3, R3)
+        with pytest.raises(error, match="overflow"):
+            log_likelihood(bad, P3, np.zeros(2), np.eye(2), data)
+        candidates.insert(7, (bad, P3))
+    each = [log_likelihood(s, pi, np.zeros(2), np.eye(2), data) for s, pi in candidates
+            if s.Q.max() < 1e299]
+    together = log_likelihoods(candidates, np.zeros(2), np.eye(2), data)
+    assert np.all(np.isnan(together[7:9]))
+    np.testing.assert_allclose(np.delete(together, [7, 8]), each, rtol=1e-12, atol=0)
+
+
 def test_vehicle_shared_continuous_intensity_within_three_standard_errors():
     spec = catalog()["shankar-vehicle"]
     sys = spec.system

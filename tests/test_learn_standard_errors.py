@@ -28,13 +28,18 @@ def _loglik(system, pi, *, Q1, bowl, center=PI):
             + bowl * (system.Q[1, 0, 0] - Q1) ** 2)
 
 
+def _each(**kwargs):
+    """The batched form observed_standard_errors calls: candidates to their log-likelihoods."""
+    return lambda candidates: np.array([_loglik(s, pi, **kwargs) for s, pi in candidates])
+
+
 @pytest.mark.parametrize("center", [PI, np.array([[0.9, 0.1], [0.7, 0.3]])])
 def test_interior_standard_errors_are_the_curvature(center):
     """Also with a row whose largest entry (the dependent one) is off the diagonal."""
     Q1 = 0.4
     se = observed_standard_errors(
         _system(Q1), center, ("transition", "Q", "R"),
-        lambda s, pi: _loglik(s, pi, Q1=Q1, bowl=-0.5 / 0.07**2, center=center))
+        _each(Q1=Q1, bowl=-0.5 / 0.07**2, center=center))
     np.testing.assert_allclose(se["transition"], [[0.02, 0.02], [0.05, 0.05]], rtol=1e-6)
     np.testing.assert_allclose(se["Q"].ravel(), [0.1, 0.07], rtol=1e-6)
     np.testing.assert_allclose(se["R"].ravel(), [0.03, 0.04], rtol=1e-6)
@@ -44,7 +49,7 @@ def test_an_entry_on_the_boundary_is_held_fixed_and_named():
     Q1 = 1e-7  # mode 1's Q at zero, where the likelihood still rises towards the boundary
     with pytest.warns(RuntimeWarning, match=r"on the boundary .* at Q mode 1 \[0,0\]"):
         se = observed_standard_errors(_system(Q1), PI, ("transition", "Q", "R"),
-                                      lambda s, pi: _loglik(s, pi, Q1=Q1, bowl=1e9))
+                                      _each(Q1=Q1, bowl=1e9))
     assert np.isnan(se["Q"][1, 0, 0])
     np.testing.assert_allclose(se["Q"][0, 0, 0], 0.1, rtol=1e-6)
     np.testing.assert_allclose(se["transition"], [[0.02, 0.02], [0.05, 0.05]], rtol=1e-6)
@@ -55,5 +60,5 @@ def test_no_positive_definite_information_gives_no_standard_errors():
     Q1 = 0.4  # an interior saddle along mode 1's Q: not a maximum
     with pytest.warns(RuntimeWarning, match="not positive definite"):
         se = observed_standard_errors(_system(Q1), PI, ("Q", "R"),
-                                      lambda s, pi: _loglik(s, pi, Q1=Q1, bowl=1.0))
+                                      _each(Q1=Q1, bowl=1.0))
     assert np.all(np.isnan(se["Q"])) and np.all(np.isnan(se["R"]))

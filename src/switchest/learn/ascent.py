@@ -21,9 +21,12 @@ The parameters, unconstrained:
   of the diagonal and the entries below it (the log-Cholesky parametrization, Pinheiro & Bates
   1996, Stat. Comput. 6).
 
-Gradients are forward differences (scipy's default). Each logarithm and logit stays within
-:data:`SPAN` of its value at the start (``e^9``: about four orders of magnitude either way), so a
-variance heading to zero stops at a bound instead of leaving the positive definite cone.
+Gradients are central differences with steps ``eps^(1/3) max(1, |theta_i|)`` (error
+``O(h^2)``, against ``O(h)`` for forward differences), the ``2 p + 1`` likelihoods of each point
+evaluated together (:func:`.expectation.log_likelihoods`: the candidates fill the compiled
+filter's SIMD lanes). Each logarithm and logit stays within :data:`SPAN` of its value at the
+start (``e^9``: about four orders of magnitude either way), so a variance heading to zero stops
+at a bound instead of leaving the positive definite cone.
 """
 
 from __future__ import annotations
@@ -37,9 +40,10 @@ from ..system import SwitchedLinearSystem
 from .markov_step import free_rows
 from .noise_step import groups, support
 
-__all__ = ["SPAN", "ascend"]
+__all__ = ["SPAN", "ascend", "values_at"]
 
 SPAN = 9.0
+_STEP = np.finfo(float).eps ** (1 / 3)  # central differences: h^2 truncation vs eps / h rounding
 
 
 class _Layout:
@@ -90,28 +94,38 @@ class _Layout:
 
 
 def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
-           loglik: Callable[[SwitchedLinearSystem, np.ndarray], float], *, start_loglik: float,
-           max_iter: int, tol: float, report: Callable[[float], object]
+           logliks: Callable[[list], np.ndarray], *, start_loglik: float, max_iter: int,
+           tol: float, report: Callable[[float], object]
            ) -> tuple[SwitchedLinearSystem, np.ndarray, bool]:
-    """Maximize ``loglik(system, transition)`` over the estimated ``names`` among
-    ``"transition"``, ``"Q"``, ``"R"`` (module docstring) from the given point, at most
-    ``max_iter`` iterations, stopping when an iteration raises it by at most ``tol`` of its
-    value; ``start_loglik`` is its value at the start. ``report(loglik)`` is called after
+    """Maximize the log-likelihood over the estimated ``names`` among ``"transition"``,
+    ``"Q"``, ``"R"`` (module docstring) from the given point, at most ``max_iter`` iterations,
+    stopping when an iteration raises it by at most ``tol`` of its value. ``logliks`` maps a
+    list of ``(system, transition)`` candidates to their log-likelihoods (NaN where one has
+    none); ``start_loglik`` is the value at the start. ``report(loglik)`` is called after
     every iteration. Returns the maximizer and whether L-BFGS-B reported convergence."""
     layout = _Layout(system, transition, names)
     start = layout.pack(system, transition)
     if start.size == 0:
         return system, transition, True
-    def objective(theta):
-        try:
-            value = loglik(*layout.unpack(theta, transition))
-        except (ValueError, np.linalg.LinAlgError):  # not positive definite in floating point
-            value = -np.inf
-        # below the start: a step the line search must reject, kept finite for it
-        return (-value if np.isfinite(value) else
-                -start_loglik + 1e6 * max(1.0, abs(start_loglik)))
+    # below the start: a value the line search must reject, kept finite for it
+    floor = -start_loglik + 1e6 * max(1.0, abs(start_loglik))
 
-    result = minimize(objective, start, method="L-BFGS-B",
+    def objective(theta):
+        """Minus the log-likelihood and its gradient by central differences."""
+        h = _STEP * np.maximum(1.0, np.abs(theta))
+        shifts = np.concatenate([np.zeros((1, theta.size)), np.diag(h), -np.diag(h)])
+        values = -values_at(lambda point: layout.unpack(point, transition), theta + shifts,
+                            logliks)
+        if not np.isfinite(values[0]):
+            return floor, np.zeros(theta.size)
+        up, down = values[1:theta.size + 1], values[theta.size + 1:]
+        grad = (up - down) / (2 * h)
+        lame = ~np.isfinite(grad)  # a one-sided difference where one side has no value
+        grad[lame] = np.where(np.isfinite(up), (up - values[0]) / h, (values[0] - down) / h)[lame]
+        grad[~np.isfinite(grad)] = 0.0
+        return values[0], grad
+
+    result = minimize(objective, start, method="L-BFGS-B", jac=True,
                       bounds=[(v - SPAN, v + SPAN) for v in start],
                       callback=lambda intermediate_result: report(-intermediate_result.fun),
                       options={"maxiter": max_iter, "ftol": tol})
@@ -119,3 +133,20 @@ def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
         return system, transition, False
     fitted, pi = layout.unpack(result.x, transition)
     return fitted, pi, bool(result.success)
+
+
+def values_at(make: Callable, points, logliks: Callable[[list], np.ndarray]) -> np.ndarray:
+    """The log-likelihood of the candidate ``make(point)`` for each of ``points``, in one call
+    of ``logliks``; NaN where ``make`` finds no candidate (a covariance that is not positive
+    definite in floating point raises ``ValueError`` or ``LinAlgError``)."""
+    values = np.full(len(points), np.nan)
+    candidates, where = [], []
+    for q, point in enumerate(points):
+        try:
+            candidates.append(make(point))
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        where.append(q)
+    if candidates:
+        values[where] = logliks(candidates)
+    return values

@@ -28,7 +28,7 @@ from ..system import SwitchedLinearSystem
 from .ascent import ascend
 from .data import Record, record
 from .dynamics_step import fit_AB, fit_C
-from .expectation import MAX_SEQUENCES, expectation, log_likelihood
+from .expectation import MAX_SEQUENCES, expectation, log_likelihoods
 from .markov_step import fit_transition, rates_from_transition, transition_se
 from .noise_step import fit_Q, fit_R, shared
 from .result import FitResult
@@ -174,7 +174,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
 
         ascent_from = len(trace)
         system, transition, converged = ascend(
-            system, transition, wanted, lambda s, pi: log_likelihood(s, pi, x0, P0, data),
+            system, transition, wanted, lambda pts: log_likelihoods(pts, x0, P0, data),
             start_loglik=trace[-1], max_iter=max_iter, tol=tol, report=report)
     elif dropped is not None:
         warnings.warn(f"EM iteration {dropped}: Kim's approximate E-step lowered the "
@@ -314,5 +314,5 @@ def _standard_errors(system, transition, x0, P0, data, wanted, mom, exact
     if joint:
         se.update(observed_standard_errors(
             system, transition, joint,
-            lambda s, pi: log_likelihood(s, pi, x0, P0, data, exact=exact)))
+            lambda pts: log_likelihoods(pts, x0, P0, data, exact=exact)))
     return se

@@ -47,16 +47,19 @@ import numpy as np
 from .._linalg import log_normalize, mixture_moments
 from ..discretize import Transition, sample_mode_steps
 from ..estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
+from ..estimators._compiled import imm_run_per_trial, warn_for_repairs
+from ..estimators._compiled.linalg import OK
 from ..estimators.smoothing import smooth_filtered, smooth_mode_matched
 from ..system import SwitchedLinearSystem
 from .data import Record
 
-__all__ = ["MAX_SEQUENCES", "Moments", "expectation", "log_likelihood"]
+__all__ = ["MAX_SEQUENCES", "Moments", "expectation", "log_likelihood", "log_likelihoods"]
 
 MAX_SEQUENCES = 2**16
 """Most mode sequences ``L^K`` the exact E-step enumerates (per trial)."""
 
 _ROWS = 2**16  # (sequence, trial) rows per compiled run of the exact E-step
+_LANES = 64  # (candidate, trial) rows per compiled run of log_likelihoods' pair-chain IMMs
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +132,74 @@ def log_likelihood(system: SwitchedLinearSystem, transition, x0, P0, data: Recor
     return float(out.loglik.sum())
 
 
+def log_likelihoods(candidates, x0, P0, data: Record, *, exact: bool = False) -> np.ndarray:
+    """:func:`log_likelihood` of each ``(system, transition)`` of ``candidates`` (all with the
+    sizes of one model), NaN where its filter fails (a covariance that is not positive definite).
+
+    With unknown modes and Kim's E-step (the expensive case: ``L^2`` mode-matched filters per
+    sample) the pair-chain IMMs of the candidates run together in one compiled call, each
+    (candidate, trial) a trial under its own model
+    (:func:`~switchest.estimators._compiled.imm_run_per_trial`): the trials then fill the SIMD
+    lanes, where one record alone leaves all but one empty (about ten times the cost per
+    trial-step). The values are those of :func:`log_likelihood`, computed by the same kernel.
+    """
+    candidates = list(candidates)
+    if data.modes is not None or exact:
+        return np.array([_or_nan(log_likelihood, s, pi, x0, P0, data, exact=exact)
+                         for s, pi in candidates])
+    size = max(1, _LANES // data.shape[0])
+    return np.concatenate([_pair_log_likelihoods(candidates[a:a + size], x0, P0, data)
+                           for a in range(0, len(candidates), size)] or [np.zeros(0)])
+
+
+def _or_nan(function, *args, **kwargs) -> float:
+    """``function(*args, **kwargs)``, or NaN where a covariance is not positive definite."""
+    try:
+        return function(*args, **kwargs)
+    except (ValueError, np.linalg.LinAlgError):
+        return np.nan
+
+
+def _pair_log_likelihoods(candidates, x0, P0, data: Record) -> np.ndarray:
+    """The pair-chain IMM's log-likelihood of each candidate, in one compiled call (each
+    candidate's tables appended to one table); NaN for a candidate whose transitions overflow,
+    and one candidate at a time if that call fails."""
+    N, K = data.shape
+    values = np.full(len(candidates), np.nan)
+    chains, steps, where = [], [], []
+    for q, (system, transition) in enumerate(candidates):
+        chain = _pair_chain(system, transition)
+        try:
+            steps.append(sample_mode_steps(chain[0], data.t))
+        except ValueError:  # a transition beyond the floating-point range
+            continue
+        chains.append(chain)
+        where.append(q)
+    if not chains:
+        return values
+    S, L2 = len(chains), chains[0][1].shape[0]
+    offset = np.cumsum([0] + [table.F.shape[0] for table, _ in steps[:-1]])
+    trans = np.concatenate([np.broadcast_to(entry + off, (N, K, L2))
+                            for (_, entry), off in zip(steps, offset)])
+    with np.errstate(divide="ignore"):
+        log_chain = np.log([chain for _, chain, _ in chains])
+        log_prior = np.log(chains[0][2])
+    out = imm_run_per_trial(
+        np.tile(data.y, (S, 1, 1)), np.tile(data.u, (S, 1, 1)),
+        *(np.concatenate([getattr(table, name) for table, _ in steps])
+          for name in ("F", "G", "Qd")), trans,
+        np.concatenate([pairs.C for pairs, _, _ in chains]),
+        np.concatenate([pairs.R for pairs, _, _ in chains]),
+        np.repeat(np.arange(S)[:, None] * L2 + np.arange(L2), N, axis=0),
+        np.repeat(log_chain, N, axis=0), x0, P0, log_prior, timing="interval")
+    if out.status == OK:
+        warn_for_repairs(out)
+        values[where] = out.loglik.reshape(S, N * K).sum(axis=1)
+    else:
+        values[where] = [_or_nan(log_likelihood, *candidates[q], x0, P0, data) for q in where]
+    return values
+
+
 def _mode_term(transition, modes) -> float:
     """``sum_k log pi_{r_k r_{k+1}}`` of the known mode sequences (``-inf`` if impossible)."""
     with np.errstate(divide="ignore"):
@@ -162,18 +233,24 @@ def _known(system, transition, x0, P0, data: Record) -> Moments:
 
 
 def _pair_filter(system: SwitchedLinearSystem, transition, x0, P0) -> IMMFilter:
-    """The IMM on the chain of consecutive mode pairs ``s_k = (r_{k-1}, r_k)``, pair
-    ``(a, b)`` at index ``a L + b`` (module docstring): its mode ``(a, b)`` moves through mode
-    ``a``'s ``A``, ``B``, ``Q`` and measures through mode ``b``'s ``C``, ``R``. Sample 0 is only
-    measured, so the pair there is ``(r_0, r_0)`` with ``r_0`` uniform."""
+    """The IMM on the chain of consecutive mode pairs (:func:`_pair_chain`)."""
+    pairs, chain, prior = _pair_chain(system, transition)
+    return IMMFilter(pairs, chain, x0, P0, mode_prob0=prior, timing="interval")
+
+
+def _pair_chain(system: SwitchedLinearSystem, transition
+                ) -> tuple[SwitchedLinearSystem, np.ndarray, np.ndarray]:
+    """The chain of consecutive mode pairs ``s_k = (r_{k-1}, r_k)``, pair ``(a, b)`` at index
+    ``a L + b`` (module docstring): its system, whose mode ``(a, b)`` moves through mode
+    ``a``'s ``A``, ``B``, ``Q`` and measures through mode ``b``'s ``C``, ``R``, its transition
+    matrix and its prior at sample 0, which is only measured: the pair there is ``(r_0, r_0)``
+    with ``r_0`` uniform."""
     L = system.n_modes
     a, b = np.divmod(np.arange(L * L), L)
     parts = {"A": system.A[a], "B": system.B[a], "C": system.C[b], "Q": system.Q[a],
              "R": system.R[b]}
-    pairs = system.replace(**parts)
     chain = np.where(a[None, :] == b[:, None], transition[b][:, b], 0.0)
-    prior = np.where(a == b, 1.0 / L, 0.0)
-    return IMMFilter(pairs, chain, x0, P0, mode_prob0=prior, timing="interval")
+    return system.replace(**parts), chain, np.where(a == b, 1.0 / L, 0.0)
 
 
 def _unknown(system, transition, x0, P0, data: Record) -> Moments:

@@ -44,6 +44,7 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
 from ..system import SwitchedLinearSystem
+from .ascent import values_at
 from .markov_step import free_rows
 from .noise_step import groups, support
 
@@ -107,13 +108,14 @@ def _with(system: SwitchedLinearSystem, transition: np.ndarray, free, theta
 
 
 def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarray, names,
-                             loglik: Callable[[SwitchedLinearSystem, np.ndarray], float]
-                             ) -> dict[str, np.ndarray]:
+                             logliks: Callable[[list], np.ndarray]) -> dict[str, np.ndarray]:
     """Standard errors of the fitted ``transition``, ``A``, ``B``, ``C``, ``Q`` and ``R`` (those
-    in ``names``) at ``system``, ``transition``, from the observed information of
-    ``loglik(system, transition)``; shaped like the matrices, NaN outside the fitted blocks (and
-    at a zero transition entry), at the entries on the boundary (module docstring), or
-    everywhere when the information of the others is not positive definite (each case with a
+    in ``names``) at ``system``, ``transition``, from the observed information of the
+    log-likelihood; ``logliks`` maps a list of ``(system, transition)`` candidates to their
+    log-likelihoods (NaN where one has none), and is called once, with every point of the
+    finite-difference Hessian. Shaped like the matrices, NaN outside the fitted blocks (and at
+    a zero transition entry), at the entries on the boundary (module docstring), or everywhere
+    when the information of the others is not positive definite (each case with a
     ``RuntimeWarning`` that says so)."""
     free = _free(system, [name for name in names if name != "transition"])
     if "transition" in names:
@@ -129,20 +131,21 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
     h = np.array([_step(system, transition, entry) for entry in free])
     p = theta.size
 
-    def f(delta):
-        try:
-            return loglik(*_with(system, transition, free, theta + delta))
-        except ValueError:  # a step left the PSD cone: no curvature there
-            return np.nan
-
-    f0 = f(np.zeros(p))
     e = np.eye(p) * h
+    # the points of the central differences: 0, then +-e_i, then +-e_i +-e_j (j before i)
+    steps = [np.zeros(p)] + [sign * e[i] for i in inner for sign in (1, -1)]
+    pairs = [(u, v) for u in range(inner.size) for v in range(u)]
+    steps += [si * e[inner[u]] + sj * e[inner[v]] for u, v in pairs
+              for si, sj in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
+    f = values_at(lambda step: _with(system, transition, free, theta + step), steps,
+                  logliks)
+    f0, axis, cross = f[0], f[1:1 + 2 * inner.size].reshape(-1, 2), f[1 + 2 * inner.size:]
     info = np.empty((inner.size, inner.size))  # minus the Hessian
     for u, i in enumerate(inner):
-        info[u, u] = -(f(e[i]) - 2 * f0 + f(-e[i])) / h[i] ** 2
-        for v, j in enumerate(inner[:u]):
-            info[u, v] = info[v, u] = -(f(e[i] + e[j]) - f(e[i] - e[j]) - f(-e[i] + e[j])
-                                        + f(-e[i] - e[j])) / (4 * h[i] * h[j])
+        info[u, u] = -(axis[u, 0] - 2 * f0 + axis[u, 1]) / h[i] ** 2
+    for (u, v), four in zip(pairs, cross.reshape(-1, 4)):
+        info[u, v] = info[v, u] = -(four[0] - four[1] - four[2] + four[3]) / (
+            4 * h[inner[u]] * h[inner[v]])
     try:  # positive definite, and its inverse, by one Cholesky factorization
         factor = cho_factor(info) if inner.size and np.all(np.isfinite(info)) else None
     except np.linalg.LinAlgError:
