@@ -188,15 +188,43 @@ def test_ascent_parameters_round_trip():
     pi = np.array([[0.0, 1.0], [0.3, 0.7]])
     layout = _Layout(sys, pi, ("transition", "Q", "R"))
     theta = layout.pack(sys, pi)
-    assert theta.size == 1 + 3 + 2  # one logit (row 0 has no free entry), Q's block, two R
-    back, pi_back = layout.unpack(theta, pi)
+    assert theta.size == 1 + 3 + 2  # one probability (row 0 has no free entry), Q's block, two R
+    back, pi_back = layout.unpack(theta)
     np.testing.assert_allclose(pi_back, pi, rtol=0, atol=1e-15)
     np.testing.assert_allclose(back.Q, Q, rtol=1e-14, atol=1e-15)
     np.testing.assert_allclose(back.R, R, rtol=1e-14, atol=0)
-    moved, pi_moved = layout.unpack(theta + 0.1, pi)
+    moved, pi_moved = layout.unpack(theta + 0.1)
     np.testing.assert_allclose(pi_moved.sum(axis=1), 1.0, rtol=0, atol=1e-15)
     assert pi_moved[0, 0] == 0.0 and np.all(moved.Q[:, 2] == 0) and np.all(moved.Q[:, :, 2] == 0)
     assert np.all(moved.Q == moved.Q[:1])  # still shared
+
+
+def test_ascent_reaches_a_maximum_on_the_boundary():
+    """A log-likelihood whose maximum over the simplex has pi_01 = 0 (its unconstrained one is
+    at -0.05) and Q of mode 1 singular (at -0.1): the ascent ends with both bounds active and
+    every other entry at its maximizer, in a few iterations."""
+    from switchest.learn.ascent import ascend
+
+    def system(Q0, Q1, R0, R1):
+        return SwitchedLinearSystem.discrete([[[0.9]], [[0.5]]], None, [[[1.0]], [[1.0]]],
+                                             [[[Q0]], [[Q1]]], [[[R0]], [[R1]]], dt=1.0)
+
+    def loglik(candidates):
+        return np.array([-((pi[0, 1] + 0.05) / 0.02) ** 2 - ((pi[1, 0] - 0.3) / 0.05) ** 2
+                         - ((s.Q[0, 0, 0] - 0.5) / 0.1) ** 2 - ((s.Q[1, 0, 0] + 0.1) / 0.1) ** 2
+                         - ((s.R[0, 0, 0] - 0.2) / 0.03) ** 2 - ((s.R[1, 0, 0] - 0.3) / 0.04) ** 2
+                         for s, pi in candidates])
+
+    start, pi = system(0.4, 0.2, 0.25, 0.35), np.array([[0.9, 0.1], [0.2, 0.8]])
+    trace = []
+    fitted, pi_fit, converged = ascend(start, pi, ("transition", "Q", "R"), loglik,
+                                       start_loglik=loglik([(start, pi)])[0], max_iter=60,
+                                       tol=1e-14, report=trace.append)
+    assert converged and len(trace) < 30 and np.all(np.diff(trace) >= 0)
+    assert pi_fit[0, 1] == 0.0 and fitted.Q[1, 0, 0] == 0.0  # the bounds, exactly
+    np.testing.assert_allclose([pi_fit[1, 0], fitted.Q[0, 0, 0], fitted.R[0, 0, 0],
+                                fitted.R[1, 0, 0]], [0.3, 0.5, 0.2, 0.3], rtol=1e-5)
+    np.testing.assert_allclose(pi_fit.sum(axis=1), 1.0, rtol=0, atol=1e-15)
 
 
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning",

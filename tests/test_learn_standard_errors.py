@@ -62,3 +62,16 @@ def test_no_positive_definite_information_gives_no_standard_errors():
         se = observed_standard_errors(_system(Q1), PI, ("Q", "R"),
                                       _each(Q1=Q1, bowl=1.0))
     assert np.all(np.isnan(se["Q"])) and np.all(np.isnan(se["R"]))
+
+
+def test_a_transition_the_fit_moved_to_zero_is_on_the_boundary():
+    """An entry nonzero at the start (``allowed``) and zero at the fit is named and held fixed;
+    its row's dependent entry is then fixed too (standard error 0), the other row unchanged."""
+    Q1, fitted = 0.4, np.array([[1.0, 0.0], [0.3, 0.7]])
+    with pytest.warns(RuntimeWarning, match=r"on the boundary .* at transition 0->1"):
+        se = observed_standard_errors(_system(Q1), fitted, ("transition", "Q", "R"),
+                                      _each(Q1=Q1, bowl=-0.5 / 0.07**2, center=fitted),
+                                      allowed=PI > 0)
+    assert np.isnan(se["transition"][0, 1]) and se["transition"][0, 0] == 0.0
+    np.testing.assert_allclose(se["transition"][1], [0.05, 0.05], rtol=1e-6)
+    np.testing.assert_allclose(se["R"].ravel(), [0.03, 0.04], rtol=1e-6)

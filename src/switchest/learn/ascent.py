@@ -11,22 +11,27 @@ Jennrich 1997, JRSS B 59). Its line search accepts only steps that raise the lik
 (sufficient increase), so this phase of the trace never decreases, and it stops at a
 stationary point, where :mod:`.standard_errors` takes the observed information.
 
-The parameters, unconstrained:
+The parameters, bounded (L-BFGS-B's box), so that a maximum on the boundary of the parameter
+space (a transition that never happens, a singular process noise) is reached in a few steps
+with the bound active, where a logarithm or logit would crawl towards ``-inf``:
 
-- row ``j`` of the transition matrix: the logits ``log(pi_ji / pi_jr)`` of its nonzero entries
-  against its largest entry ``pi_jr`` (:func:`.markov_step.free_rows`; a zero entry stays
-  zero, as under EM's M-step);
+- row ``j`` of the transition matrix: its nonzero entries other than its largest one,
+  ``pi_jr`` (:func:`.markov_step.free_rows`), each divided by its value at the start (so that
+  all start at 1 and their curvatures are alike) and at least 0, with ``pi_jr = 1 - sum``
+  (a point where that is negative is outside the simplex: no value); a zero entry stays zero,
+  as under EM's M-step;
 - each fitted block of ``Q`` and ``R`` (per mode, or once for a matrix the modes share; on the
-  components of positive variance, :func:`.noise_step.support`): its Cholesky factor, the log
-  of the diagonal and the entries below it (the log-Cholesky parametrization, Pinheiro & Bates
-  1996, Stat. Comput. 6).
+  components of positive variance, :func:`.noise_step.support`): its Cholesky factor ``F``
+  (``F F'`` is positive semidefinite wherever it goes), row ``a`` divided by the standard
+  deviation ``d_a`` of component ``a`` at the start, so every parameter starts at most 1 in
+  size. A diagonal entry lies in ``[0, e^SPAN]`` for ``Q`` (a singular process noise is a
+  model) and in ``[e^-SPAN, e^SPAN]`` for ``R`` (whose inverse the filter needs), an entry
+  below it in ``[-e^SPAN, e^SPAN]`` (:data:`SPAN` = 9: about four orders of magnitude).
 
 Gradients are central differences with steps ``eps^(1/3) max(1, |theta_i|)`` (error
-``O(h^2)``, against ``O(h)`` for forward differences), the ``2 p + 1`` likelihoods of each point
-evaluated together (:func:`.expectation.log_likelihoods`: the candidates fill the compiled
-filter's SIMD lanes). Each logarithm and logit stays within :data:`SPAN` of its value at the
-start (``e^9``: about four orders of magnitude either way), so a variance heading to zero stops
-at a bound instead of leaving the positive definite cone.
+``O(h^2)``, against ``O(h)`` for forward differences; one-sided where the other side has no
+value), the ``2 p + 1`` likelihoods of each point evaluated together
+(:func:`.expectation.log_likelihoods`: the candidates fill the compiled filter's SIMD lanes).
 """
 
 from __future__ import annotations
@@ -53,41 +58,61 @@ class _Layout:
         self.system = system
         # (row j, reference column r, free columns)
         self.rows = free_rows(transition) if "transition" in names else []
-        self.blocks = []  # (matrix name, modes, support)
+        self.start = transition  # the other entries, and the free ones' scales
+        self.blocks = []  # (matrix name, modes, support, the support's standard deviations)
         for name in ("Q", "R"):
             if name in names:
                 stack = getattr(system, name)
-                self.blocks += [(name, g, support(stack[g[0]])) for g in groups(stack)
-                                if support(stack[g[0]]).size]
+                for g in groups(stack):
+                    idx = support(stack[g[0]])
+                    if idx.size:
+                        scale = np.sqrt(np.diag(stack[g[0]])[idx])
+                        self.blocks.append((name, g, idx, scale))
 
     def pack(self, system: SwitchedLinearSystem, transition: np.ndarray) -> np.ndarray:
         """The parameter vector of ``system``, ``transition``."""
-        parts = [np.log(transition[j, cols] / transition[j, r]) for j, r, cols in self.rows]
-        for name, modes, idx in self.blocks:
+        parts = [transition[j, cols] / self.start[j, cols] for j, r, cols in self.rows]
+        for name, modes, idx, scale in self.blocks:
             factor = np.linalg.cholesky(getattr(system, name)[modes[0]][np.ix_(idx, idx)])
-            parts += [np.log(np.diag(factor)), factor[np.tril_indices(idx.size, -1)]]
+            factor /= scale[:, None]
+            parts += [np.diag(factor), factor[np.tril_indices(idx.size, -1)]]
         return np.concatenate(parts) if parts else np.zeros(0)
 
-    def unpack(self, theta: np.ndarray, transition: np.ndarray
-               ) -> tuple[SwitchedLinearSystem, np.ndarray]:
-        """The system and transition matrix of ``theta`` (other entries from the start)."""
-        pi = transition.copy()
+    def bounds(self) -> list[tuple[float, float]]:
+        """L-BFGS-B's box, in the order of :meth:`pack` (module docstring)."""
+        wide = float(np.exp(SPAN))
+        out = [(0.0, 1.0 / self.start[j, i]) for j, _, cols in self.rows for i in cols]
+        for name, _, idx, _ in self.blocks:
+            out += [(0.0 if name == "Q" else 1.0 / wide, wide)] * idx.size
+            out += [(-wide, wide)] * (idx.size * (idx.size - 1) // 2)
+        return out
+
+    def unpack(self, theta: np.ndarray) -> tuple[SwitchedLinearSystem, np.ndarray]:
+        """The system and transition matrix of ``theta`` (other entries from the start).
+
+        Raises
+        ------
+        ValueError
+            Where a row of the transition matrix would have a negative entry (outside the
+            simplex: the central differences step beyond the bounds).
+        """
+        pi = self.start.copy()
         at = 0
         for j, r, cols in self.rows:
-            logits = np.zeros(cols.size + 1)
-            logits[1:] = theta[at:at + cols.size]
+            pi[j, cols] = theta[at:at + cols.size] * self.start[j, cols]
             at += cols.size
-            weights = np.exp(logits - logits.max())
-            pi[j, r], pi[j, cols] = weights[0], weights[1:]
-            pi[j] /= pi[j].sum()
+            pi[j, r] = 1.0 - pi[j, cols].sum()
+            if pi[j, r] < 0.0 or np.any(pi[j, cols] < 0.0):
+                raise ValueError(f"row {j} of the transition matrix leaves the simplex")
         mats = {"Q": self.system.Q.copy(), "R": self.system.R.copy()}
-        for name, modes, idx in self.blocks:
+        for name, modes, idx, scale in self.blocks:
             k = idx.size
-            factor = np.diag(np.exp(theta[at:at + k]))
+            factor = np.diag(theta[at:at + k])
             at += k
             below = k * (k - 1) // 2
             factor[np.tril_indices(k, -1)] = theta[at:at + below]
             at += below
+            factor *= scale[:, None]
             for j in modes:
                 mats[name][j][np.ix_(idx, idx)] = factor @ factor.T
         return self.system.replace(Q=mats["Q"], R=mats["R"]), pi
@@ -114,8 +139,7 @@ def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
         """Minus the log-likelihood and its gradient by central differences."""
         h = _STEP * np.maximum(1.0, np.abs(theta))
         shifts = np.concatenate([np.zeros((1, theta.size)), np.diag(h), -np.diag(h)])
-        values = -values_at(lambda point: layout.unpack(point, transition), theta + shifts,
-                            logliks)
+        values = -values_at(layout.unpack, theta + shifts, logliks)
         if not np.isfinite(values[0]):
             return floor, np.zeros(theta.size)
         up, down = values[1:theta.size + 1], values[theta.size + 1:]
@@ -125,13 +149,12 @@ def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
         grad[~np.isfinite(grad)] = 0.0
         return values[0], grad
 
-    result = minimize(objective, start, method="L-BFGS-B", jac=True,
-                      bounds=[(v - SPAN, v + SPAN) for v in start],
+    result = minimize(objective, start, method="L-BFGS-B", jac=True, bounds=layout.bounds(),
                       callback=lambda intermediate_result: report(-intermediate_result.fun),
                       options={"maxiter": max_iter, "ftol": tol})
     if -result.fun < start_loglik:  # never below EM's point (cannot happen with a monotone search)
         return system, transition, False
-    fitted, pi = layout.unpack(result.x, transition)
+    fitted, pi = layout.unpack(result.x)
     return fitted, pi, bool(result.success)
 
 

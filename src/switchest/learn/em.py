@@ -90,7 +90,9 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         approximate E-step need not climb), and the fit continues from there by direct ascent
         of the same log-likelihood over the transition matrix, ``Q`` and ``R``
         (:mod:`~switchest.learn.ascent`; not when ``A``, ``B`` or ``C`` are estimated), so it
-        ends at a maximum of the likelihood it reports and ``loglik`` never decreases;
+        ends at a maximum of the likelihood it reports, possibly on the boundary (a
+        transition probability of 0, a singular ``Q``: those entries then have no standard
+        error), and ``loglik`` never decreases;
         ``"exact"``, the enumeration of all ``L^K`` mode sequences of each trial (the Kalman
         filter and RTS smoother of each, weighted by its posterior probability): the exact
         E-step, so the exact log-likelihood (that of
@@ -141,6 +143,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     L = system.n_modes
     exact = _exact(e_step, data, L)
     transition = _start_transition(transition, data, L, rng)
+    allowed = transition > 0  # the entries that may be nonzero: the start's zeros are held
     _warn_unobservable(system, wanted)
     steps = np.unique(np.diff(data.t))
     approximate = data.modes is None and not exact
@@ -181,7 +184,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
                       f"log-likelihood, so EM stopped at the iteration before (log-likelihood "
                       f"{trace[-1]:.10g}); with A, B or C estimated no direct ascent follows, and "
                       "the fit need not be a maximum", RuntimeWarning, stacklevel=2)
-    se = _standard_errors(system, transition, x0, P0, data, wanted, mom, exact)
+    se = _standard_errors(system, transition, x0, P0, data, wanted, mom, exact, allowed)
     period = np.diff(data.t)
     rates = (rates_from_transition(transition, float(period[0]))
              if system.is_continuous and np.ptp(period) <= 1e-9 * period.max() else None)
@@ -293,14 +296,14 @@ def _maximize(system, transition, data: Record, steps, mom, wanted, warned):
     return system.replace(A=A, B=B, C=C, Q=Q, R=R), transition
 
 
-def _standard_errors(system, transition, x0, P0, data, wanted, mom, exact
+def _standard_errors(system, transition, x0, P0, data, wanted, mom, exact, allowed
                      ) -> dict[str, np.ndarray]:
     """Standard errors of the fit from the observed information (:mod:`.standard_errors`),
-    jointly for the parameters fitted; with known modes the transition's from the counts (its
-    information separates from the others'). Where both the dynamics (``A`` or ``B``) and ``C``
-    are fitted, the state's coordinates are not identified (``x -> T x`` leaves the likelihood
-    unchanged): ``A``, ``B``, ``C`` get NaN and the others are conditional on them. ``B`` with
-    all inputs zero is not fitted: NaN."""
+    jointly for the parameters fitted (the transition's on the support ``allowed``); with known
+    modes the transition's from the counts (its information separates from the others').
+    Where both the dynamics (``A`` or ``B``) and ``C`` are fitted, the state's coordinates are
+    not identified (``x -> T x`` leaves the likelihood unchanged): ``A``, ``B``, ``C`` get NaN
+    and the others are conditional on them. ``B`` with all inputs zero is not fitted: NaN."""
     se = {name: np.full(getattr(system, name).shape, np.nan) for name in ("A", "B", "C")
           if name in wanted}
     regression = [name for name in ("A", "B", "C") if name in wanted
@@ -314,5 +317,5 @@ def _standard_errors(system, transition, x0, P0, data, wanted, mom, exact
     if joint:
         se.update(observed_standard_errors(
             system, transition, joint,
-            lambda pts: log_likelihoods(pts, x0, P0, data, exact=exact)))
+            lambda pts: log_likelihoods(pts, x0, P0, data, exact=exact), allowed=allowed))
     return se

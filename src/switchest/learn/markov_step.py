@@ -28,15 +28,18 @@ def fit_transition(pairs: np.ndarray, current: np.ndarray) -> np.ndarray:
     return new
 
 
-def free_rows(transition: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
+def free_rows(transition: np.ndarray, allowed: np.ndarray | None = None
+              ) -> list[tuple[int, int, np.ndarray]]:
     """The free entries of a transition matrix, row by row: ``(j, r, cols)`` with ``r`` the
     row's largest entry, which the others fix (the row sums to one), and ``cols`` its other
-    nonzero entries (a zero entry stays zero under EM's M-step, so it is not free); rows
+    nonzero entries (a zero entry stays zero under EM's M-step, so it is not free), or its
+    other entries where ``allowed`` (a fit's start, whose zeros were held) is nonzero; rows
     without a free entry are left out."""
+    support = transition if allowed is None else allowed
     out = []
     for j, row in enumerate(transition):
         r = int(np.argmax(row))
-        cols = np.flatnonzero((row > 0) & (np.arange(row.size) != r))
+        cols = np.flatnonzero((support[j] > 0) & (np.arange(row.size) != r))
         if cols.size:
             out.append((j, r, cols))
     return out

@@ -10,13 +10,15 @@ estimate is its inverse. The free parameters:
   of the entry's scale ``sqrt(V_aa V_bb)``;
 - of ``A``, ``B`` and ``C``, every entry (per mode, or once for a matrix the modes share), each
   step ``1e-3`` of the entry, or of ``1e-3`` of the matrix's largest entry for a smaller one;
-- of the transition matrix (with unknown modes: ``"transition"`` in ``names``), the nonzero
-  entries ``pi_ji`` of each row but its largest, ``pi_jr = 1 - sum_{i != r} pi_ji``, which
-  depends on them (:func:`.markov_step.free_rows`, as the ascent has them; a zero entry stays
-  zero under EM's M-step, so it is not free); each step ``1e-3`` of ``min(pi_ji, pi_jr)``, so
-  that the perturbed rows stay probabilities. The dependent entry's standard error follows by
-  the delta method, ``Var pi_jr = 1' Sigma_j 1`` over the row's free entries (the covariance
-  of the whole row does not depend on which entry is the dependent one).
+- of the transition matrix (with unknown modes: ``"transition"`` in ``names``), the entries
+  ``pi_ji`` of each row but its largest that were nonzero at the fit's start,
+  ``pi_jr = 1 - sum_{i != r} pi_ji``, which depends on them (:func:`.markov_step.free_rows`; a
+  zero entry of the start stays zero under EM's M-step and the ascent, so it is not free, while
+  one the fit moved to zero lies on the boundary); each step ``1e-3`` of ``min(pi_ji, pi_jr)``,
+  so that the perturbed rows stay probabilities. The dependent entry's standard error follows
+  by the delta method, ``Var pi_jr = 1' Sigma_j 1`` over the row's free entries off the
+  boundary (the covariance of the whole row does not depend on which entry is the dependent
+  one).
 
 Truncation errors are ``O(1e-6)`` relative, far above the rounding of the summed likelihood.
 
@@ -71,11 +73,12 @@ def _free(system: SwitchedLinearSystem, names) -> list[tuple[str, list[int], int
     return out
 
 
-def _free_transition(transition: np.ndarray) -> list[tuple[str, list[int], int, int]]:
+def _free_transition(transition: np.ndarray, allowed
+                     ) -> list[tuple[str, list[int], int, int]]:
     """The free entries of the transition matrix: ``("transition", [r], j, i)`` for each
-    free ``pi_ji`` of :func:`.markov_step.free_rows`, with ``r`` the column of the row's
-    largest entry, which depends on them."""
-    return [("transition", [r], j, int(i)) for j, r, cols in free_rows(transition)
+    free ``pi_ji`` of :func:`.markov_step.free_rows` (on the support ``allowed``), with ``r``
+    the column of the row's largest entry, which depends on them."""
+    return [("transition", [r], j, int(i)) for j, r, cols in free_rows(transition, allowed)
             for i in cols]
 
 
@@ -108,18 +111,20 @@ def _with(system: SwitchedLinearSystem, transition: np.ndarray, free, theta
 
 
 def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarray, names,
-                             logliks: Callable[[list], np.ndarray]) -> dict[str, np.ndarray]:
+                             logliks: Callable[[list], np.ndarray], *,
+                             allowed: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Standard errors of the fitted ``transition``, ``A``, ``B``, ``C``, ``Q`` and ``R`` (those
     in ``names``) at ``system``, ``transition``, from the observed information of the
     log-likelihood; ``logliks`` maps a list of ``(system, transition)`` candidates to their
     log-likelihoods (NaN where one has none), and is called once, with every point of the
-    finite-difference Hessian. Shaped like the matrices, NaN outside the fitted blocks (and at
-    a zero transition entry), at the entries on the boundary (module docstring), or everywhere
-    when the information of the others is not positive definite (each case with a
-    ``RuntimeWarning`` that says so)."""
+    finite-difference Hessian. ``allowed`` (the fit's start transition matrix) says which
+    transition entries may be nonzero (default: those of ``transition``). Shaped like the
+    matrices, NaN outside the fitted blocks (and at a zero entry of ``allowed``), at the
+    entries on the boundary (module docstring), or everywhere when the information of the
+    others is not positive definite (each case with a ``RuntimeWarning`` that says so)."""
     free = _free(system, [name for name in names if name != "transition"])
     if "transition" in names:
-        free = _free_transition(transition) + free
+        free = _free_transition(transition, allowed) + free
     out = {name: np.full((transition if name == "transition" else getattr(system, name)).shape,
                          np.nan) for name in names}
     if not free:
@@ -173,6 +178,7 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
         for j in range(transition.shape[0]):
             row = [q for q, (name, _, a, _) in enumerate(free) if name == "transition" and a == j]
             r = free[row[0]][1][0] if row else int(np.argmax(transition[j]))
+            row = [q for q in row if not edge[q]]  # those on the boundary are held fixed
             out["transition"][j, r] = np.sqrt(cov[np.ix_(row, row)].sum()) if row else 0.0
     return out
 
