@@ -16,8 +16,9 @@ matrix, Shumway & Stoffer 1982 for Q, R) are the first table. The others fit wit
 unknown: Kim's smoother on the chain of mode pairs as E-step (approximate; EM stops at the first
 step that would lower its likelihood), then the direct ascent of the same likelihood
 (switchest.learn.ascent). Their columns count the likelihood drops of the trace (none
-expected), the entries without a standard error
-(the information not positive definite: a maximum on the boundary, e.g. a variance at zero),
+expected), the entries without a standard error (on the boundary, e.g. a transition
+probability or a variance at zero, or all of them where the information of the others is not
+positive definite: a maximum the data do not pin down),
 and the mean log-likelihood of the fit above that of the true parameters (at a regular
 maximum-likelihood estimate twice it is chi-square with as many degrees of freedom as free
 parameters, so about half their number on average). The 3-mode system is also fitted from the
@@ -93,7 +94,7 @@ TWO = JumpSystem(
 
 PLANS = {
     "default": {"K": (500, 2000, 8000), "seeds": 5, "max_iter": 150,
-                "unknown_K": (500, 2000), "unknown_seeds": 2, "unknown_iter": 30,
+                "unknown_K": (500, 2000, 8000), "unknown_seeds": 2, "unknown_iter": 200,
                 "two_K": (1000, 4000), "two_seeds": 3},
     "quick": {"K": (500, 2000), "seeds": 2, "max_iter": 60,
               "unknown_K": (500,), "unknown_seeds": 1, "unknown_iter": 10,
@@ -177,8 +178,9 @@ def sweep(model: JumpSystem, sizes, seeds: int, *, known: bool, max_iter: int,
                   "exact; EM stops at the first step that would lower its likelihood), then "
                   "direct ascent of that E-step's likelihood (at most as many "
                   "iterations again); standard errors from its observed information, jointly "
-                  "for the transition, Q and R; 'no std. error': entries where that information "
-                  "was not positive definite (a maximum on the boundary).",)
+                  "for the transition, Q and R; 'no std. error': entries on the boundary "
+                  "(held fixed, named in a warning), or all where the information of the others "
+                  "was not positive definite.",)
     return Section(f"EM on {model.name}: {label}", table, notes)
 
 
