@@ -216,6 +216,7 @@ def test_modes_that_cannot_be_told_apart_fail_assumption_1():
     assert not a.assumption1.holds and a.assumption1.margin == 0
     assert a.assumption1.lhs == pytest.approx(0.0, abs=1e-12)  # omega_min(delta) = 0
     assert not a.holds
+    assert a.v_max_allowed == pytest.approx(0.0, abs=1e-12)  # no noise, not NaN
 
 
 def test_assumption_3_on_signals(demo):

@@ -443,9 +443,11 @@ def lee_assumptions(
     c4 = LeeCondition(holds=bool(lhs4 > rhs4), margin=float(lhs4 - rhs4), lhs=float(lhs4),
                       rhs=float(rhs4))
     a3 = _assumption3(signal, min_dwell, k.delta, k.Delta)
-    v3 = ((np.sqrt(k.omega_min_delta) * x_min - u_max * np.sqrt(k.N_u_delta))
-          / (2 * np.sqrt(k.delta)))
-    v4 = (np.sqrt(2 * k.omega_min_Delta) * x_min - u_max * np.sqrt(k.N_u_Delta)) / _noise_gain4(k)
+    # omega_min is a Gramian's smallest eigenvalue: >= 0 but for rounding (modes that cannot be
+    # told apart give -1e-17), where no noise is allowed
+    root_delta, root_Delta = (np.sqrt(max(w, 0.0)) for w in (k.omega_min_delta, k.omega_min_Delta))
+    v3 = (root_delta * x_min - u_max * np.sqrt(k.N_u_delta)) / (2 * np.sqrt(k.delta))
+    v4 = (np.sqrt(2) * root_Delta * x_min - u_max * np.sqrt(k.N_u_Delta)) / _noise_gain4(k)
     holds = a1.holds and c3.holds and c4.holds and (a3 is None or a3.holds)
     return LeeAssumptions(
         holds=bool(holds),
