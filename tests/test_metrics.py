@@ -16,6 +16,20 @@ def test_rmse_per_step_and_overall():
         rmse(est[0], truth)
 
 
+@pytest.mark.parametrize("scale", [1e-200, 1.0, 1e200])
+def test_rmse_neither_overflows_nor_underflows(scale):
+    """Errors of 1e200 (or 1e-200) give their RMSE, not inf (or 0); an infinite error gives
+    inf in its component only."""
+    rng = np.random.default_rng(1)
+    x, y = rng.normal(size=(2, 4, 6, 2))
+    direct = np.sqrt(np.mean((x - y) ** 2, axis=(0, 1)))
+    np.testing.assert_allclose(rmse(scale * x, scale * y).overall, scale * direct, rtol=1e-13)
+    x[1, 2, 0] = np.inf
+    out = rmse(scale * x, scale * y)
+    assert out.overall[0] == np.inf and out.per_step[2, 0] == np.inf
+    np.testing.assert_allclose(out.overall[1], scale * direct[1], rtol=1e-13)
+
+
 def test_mode_accuracy_and_switch_time_error():
     assert mode_accuracy([[0, 1, 1, 0]], [[0, 1, 0, 0]]) == 0.75
     assert mode_accuracy([[0, 1, 1, 0]], [[1, 1, 0, 0]], start=1) == pytest.approx(2 / 3)

@@ -6,6 +6,7 @@ where the estimate is NaN are excluded and counted, never silently averaged.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,11 +49,21 @@ def rmse(estimate, truth, *, start: int = 0) -> RMSE:
     if est.ndim == 2:
         est, ref = est[None], ref[None]
     start = _check_start(start, est.shape[1])
-    sq = (est - ref) ** 2
-    with np.errstate(invalid="ignore"):
-        per_step = np.sqrt(np.nanmean(sq, axis=0))
-        overall = np.sqrt(np.nanmean(sq[:, start:], axis=(0, 1)))
-    return RMSE(per_step=per_step, overall=overall)
+    err = est - ref
+    return RMSE(per_step=_rms(err, axis=(0,)), overall=_rms(err[:, start:], axis=(0, 1)))
+
+
+def _rms(err: np.ndarray, axis: tuple[int, ...]) -> np.ndarray:
+    """``sqrt(nanmean(err^2))`` over ``axis``, the errors divided by their largest magnitude
+    first so that their squares neither overflow (errors of 1e200) nor underflow; infinite
+    where an error is."""
+    with warnings.catch_warnings():  # an all-NaN slice: nanmean below says so
+        warnings.filterwarnings("ignore", "All-NaN slice", RuntimeWarning)
+        scale = np.nanmax(np.abs(err), axis=axis)
+    unit = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+    with np.errstate(invalid="ignore", over="ignore"):
+        out = unit * np.sqrt(np.nanmean((err / np.expand_dims(unit, axis)) ** 2, axis=axis))
+    return np.where(np.isinf(scale), np.inf, out)
 
 
 def mode_accuracy(estimated, true, *, start: int = 0) -> float:
