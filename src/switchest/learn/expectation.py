@@ -47,7 +47,7 @@ import numpy as np
 from .._linalg import log_normalize, mixture_moments
 from ..discretize import Transition, sample_mode_steps
 from ..estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
-from ..estimators._compiled import imm_run_per_trial, warn_for_repairs
+from ..estimators._compiled import imm_run_per_trial, kalman_run, warn_for_repairs
 from ..estimators._compiled.linalg import OK
 from ..estimators.smoothing import smooth_filtered, smooth_mode_matched
 from ..system import SwitchedLinearSystem
@@ -59,7 +59,7 @@ MAX_SEQUENCES = 2**16
 """Most mode sequences ``L^K`` the exact E-step enumerates (per trial)."""
 
 _ROWS = 2**16  # (sequence, trial) rows per compiled run of the exact E-step
-_LANES = 64  # (candidate, trial) rows per compiled run of log_likelihoods' pair-chain IMMs
+_LANES = 64  # (candidate, trial) rows per compiled run of log_likelihoods
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,67 +134,76 @@ def log_likelihood(system: SwitchedLinearSystem, transition, x0, P0, data: Recor
 
 def log_likelihoods(candidates, x0, P0, data: Record, *, exact: bool = False) -> np.ndarray:
     """:func:`log_likelihood` of each ``(system, transition)`` of ``candidates`` (all with the
-    sizes of one model), NaN where its filter fails (a covariance that is not positive definite).
+    sizes of one model), NaN where its filter fails (a transition or covariance beyond the
+    floating-point range).
 
-    With unknown modes and Kim's E-step (the expensive case: ``L^2`` mode-matched filters per
-    sample) the pair-chain IMMs of the candidates run together in one compiled call, each
-    (candidate, trial) a trial under its own model
-    (:func:`~switchest.estimators._compiled.imm_run_per_trial`): the trials then fill the SIMD
-    lanes, where one record alone leaves all but one empty (about ten times the cost per
-    trial-step). The values are those of :func:`log_likelihood`, computed by the same kernel.
+    The candidates' filters run together in one compiled call, each (candidate, trial) a trial
+    under its own model: the Kalman filters along known modes
+    (:func:`~switchest.estimators._compiled.kalman_run`), or with unknown modes the pair-chain
+    IMMs (:func:`~switchest.estimators._compiled.imm_run_per_trial`; ``L^2`` mode-matched
+    filters per sample). The trials then fill the SIMD lanes, where one record alone leaves all
+    but one empty (about ten times the cost per trial-step for the IMM). The values are those
+    of :func:`log_likelihood`, computed by the same kernels; the exact E-step's enumeration
+    runs one candidate at a time.
     """
     candidates = list(candidates)
-    if data.modes is not None or exact:
-        return np.array([_or_nan(log_likelihood, s, pi, x0, P0, data, exact=exact)
+    if exact and data.modes is None:
+        return np.array([_or_nan(log_likelihood, s, pi, x0, P0, data, exact=True)
                          for s, pi in candidates])
     size = max(1, _LANES // data.shape[0])
-    return np.concatenate([_pair_log_likelihoods(candidates[a:a + size], x0, P0, data)
+    return np.concatenate([_together(candidates[a:a + size], x0, P0, data)
                            for a in range(0, len(candidates), size)] or [np.zeros(0)])
 
 
 def _or_nan(function, *args, **kwargs) -> float:
-    """``function(*args, **kwargs)``, or NaN where a covariance is not positive definite."""
+    """``function(*args, **kwargs)``, or NaN where a transition or covariance overflows."""
     try:
         return function(*args, **kwargs)
     except (ValueError, np.linalg.LinAlgError):
         return np.nan
 
 
-def _pair_log_likelihoods(candidates, x0, P0, data: Record) -> np.ndarray:
-    """The pair-chain IMM's log-likelihood of each candidate, in one compiled call (each
-    candidate's tables appended to one table); NaN for a candidate whose transitions overflow,
-    and one candidate at a time if that call fails."""
+def _together(candidates, x0, P0, data: Record) -> np.ndarray:
+    """The log-likelihood of each candidate, all in one compiled call (each candidate's tables
+    appended to one table; with unknown modes, of its pair chain); NaN for a candidate whose
+    transitions overflow, and one candidate at a time if that call fails."""
     N, K = data.shape
-    values = np.full(len(candidates), np.nan)
-    chains, steps, where = [], [], []
-    for q, (system, transition) in enumerate(candidates):
-        chain = _pair_chain(system, transition)
+    known = data.modes is not None
+    models = [(s, pi, None) if known else _pair_chain(s, pi) for s, pi in candidates]
+    values = np.full(len(models), np.nan)
+    tables, entries, where = [], [], []
+    for q, (system, _, _) in enumerate(models):
         try:
-            steps.append(sample_mode_steps(chain[0], data.t))
+            table, entry = sample_mode_steps(system, data.t)
         except ValueError:  # a transition beyond the floating-point range
             continue
-        chains.append(chain)
+        tables.append(table)
+        entries.append(entry + sum(t.F.shape[0] for t in tables[:-1]))
         where.append(q)
-    if not chains:
+    if not where:
         return values
-    S, L2 = len(chains), chains[0][1].shape[0]
-    offset = np.cumsum([0] + [table.F.shape[0] for table, _ in steps[:-1]])
-    trans = np.concatenate([np.broadcast_to(entry + off, (N, K, L2))
-                            for (_, entry), off in zip(steps, offset)])
-    with np.errstate(divide="ignore"):
-        log_chain = np.log([chain for _, chain, _ in chains])
-        log_prior = np.log(chains[0][2])
-    out = imm_run_per_trial(
-        np.tile(data.y, (S, 1, 1)), np.tile(data.u, (S, 1, 1)),
-        *(np.concatenate([getattr(table, name) for table, _ in steps])
-          for name in ("F", "G", "Qd")), trans,
-        np.concatenate([pairs.C for pairs, _, _ in chains]),
-        np.concatenate([pairs.R for pairs, _, _ in chains]),
-        np.repeat(np.arange(S)[:, None] * L2 + np.arange(L2), N, axis=0),
-        np.repeat(log_chain, N, axis=0), x0, P0, log_prior, timing="interval")
+    S, L = len(where), models[0][0].n_modes
+    F, G, Qd = (np.concatenate([getattr(t, name) for t in tables]) for name in ("F", "G", "Qd"))
+    C, R = (np.concatenate([getattr(models[q][0], name) for q in where]) for name in ("C", "R"))
+    y, u = np.tile(data.y, (S, 1, 1)), np.tile(data.u, (S, 1, 1))
+    if known:  # each interval in the mode at its start (ModeKalmanFilter's table)
+        trans = np.concatenate([entry[np.arange(K), np.r_[0, data.modes[i, :-1]]][None]
+                                for entry in entries for i in range(N)])
+        mode = np.concatenate([data.modes + s * L for s in range(S)])
+        out = kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0)
+        extra = np.array([_mode_term(models[q][1], data.modes) for q in where])
+    else:
+        with np.errstate(divide="ignore"):
+            log_chain = np.log([models[q][1] for q in where])
+            log_prior = np.log(models[0][2])
+        out = imm_run_per_trial(y, u, F, G, Qd, np.concatenate(
+            [np.broadcast_to(entry, (N, K, L)) for entry in entries]), C, R,
+            np.repeat(np.arange(S)[:, None] * L + np.arange(L), N, axis=0),
+            np.repeat(log_chain, N, axis=0), x0, P0, log_prior, timing="interval")
+        extra = 0.0
     if out.status == OK:
         warn_for_repairs(out)
-        values[where] = out.loglik.reshape(S, N * K).sum(axis=1)
+        values[where] = out.loglik.reshape(S, N * K).sum(axis=1) + extra
     else:
         values[where] = [_or_nan(log_likelihood, *candidates[q], x0, P0, data) for q in where]
     return values
