@@ -12,8 +12,9 @@ Jennrich 1997, JRSS B 59). Its line search accepts only steps that raise the lik
 stationary point, where :mod:`.standard_errors` takes the observed information.
 
 The parameters, bounded (L-BFGS-B's box), so that a maximum on the boundary of the parameter
-space (a transition that never happens, a singular process noise) is reached in a few steps
-with the bound active, where a logarithm or logit would crawl towards ``-inf``:
+space (a transition that never happens, a singular process noise) is a point the search can
+reach, its bound then active, where in logarithms or logits it would lie at ``-inf`` (the
+search crawled towards it: a 3-mode fit at K = 8000 still moving after 300 iterations):
 
 - row ``j`` of the transition matrix: its nonzero entries other than its largest one,
   ``pi_jr`` (:func:`.markov_step.free_rows`), each divided by its value at the start (so that
