@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from harness import Section, markdown_table, print_sections, quick_flag, single_threaded_blas
 
+from switchest.estimators import IMMFilter
 from switchest.learn import fit
 from switchest.learn.data import record
 from switchest.learn.expectation import log_likelihood
@@ -45,6 +46,7 @@ from switchest.system import SwitchedLinearSystem
 
 GROUPS = ("transition", "Q", "R")
 TOL = 1e-7  # relative change of the log-likelihood at which EM stops
+TEST_TRIALS, TEST_STEPS, TEST_SEED = 40, 300, 77  # the IMM with fitted vs true parameters
 
 
 @dataclass(frozen=True)
@@ -123,12 +125,34 @@ def one_fit(model: JumpSystem, K: int, seed: int, *, known: bool, max_iter: int,
                                  record(model.system(), traj.y[0], None, t, modes))
     out = {"seconds": seconds, "iterations": (em, res.iterations - em), "drops": int(falls.sum()),
            "gain": res.loglik[-1] - true_loglik, "warnings": len(caught)}
+    out["state"] = imm_excess(model, res.system, res.transition)
     truth = {"transition": model.transition, "Q": model.Q, "R": model.R}
     fitted = {"transition": res.transition, "Q": res.system.Q, "R": res.system.R}
     for name in GROUPS:
         idx = model.free_entries(name)
         out[name] = (fitted[name][idx] - truth[name][idx], res.se[name][idx])
     return out
+
+
+def imm_excess(model: JumpSystem, system: SwitchedLinearSystem, transition: np.ndarray
+               ) -> tuple[float, float, float, float]:
+    """The IMM's state error with the fitted parameters less that with the true ones, on one
+    fresh test batch (paired trials): the mean over trials of the difference of their mean
+    squared errors and its standard error; the mean squared error with the true ones and its
+    standard error (over the trials: the sampling error of the MSE itself)."""
+    test = simulate(model.system(), MarkovAtSamples(model.transition, initial=0),
+                    np.arange(float(TEST_STEPS)), (np.zeros(2), np.eye(2)), trials=TEST_TRIALS,
+                    rng=TEST_SEED)
+
+    def mse(sys_, pi):
+        est = IMMFilter(sys_, pi, np.zeros(2), np.eye(2)).run(test.y)
+        return np.sum((est.x - test.x) ** 2, axis=-1).mean(axis=1)
+
+    true = mse(model.system(), model.transition)
+    diff = mse(system, transition) - true
+    root = np.sqrt(diff.size)
+    return (float(diff.mean()), float(diff.std(ddof=1) / root), float(true.mean()),
+            float(true.std(ddof=1) / root))
 
 
 def rms(values) -> float:
@@ -159,20 +183,31 @@ def sweep(model: JumpSystem, sizes, seeds: int, *, known: bool, max_iter: int,
                    f"{sum(r['drops'] for r in runs)}"]
             if not known:
                 row.append(f"{int(np.sum(~np.isfinite(se)))} of {se.size}")
-            rows.append((*row, f"{np.mean([r['gain'] for r in runs]):.2f}",
+            state = np.array([r["state"] for r in runs])  # (seeds, 4): imm_excess's
+            se = np.sqrt(np.sum(state[:, [1, 3]] ** 2, axis=0)) / len(runs)  # of the means
+            state = (f"{state[:, 0].mean():+.4f} ± {se[0]:.4f} (of {state[:, 2].mean():.3f} "
+                     f"± {se[1]:.3f})" if name == "transition" else "")
+            rows.append((*row, f"{np.mean([r['gain'] for r in runs]):.2f}", state,
                          f"{np.mean([r['seconds'] for r in runs]):.2f}"))
     head = ["K", "parameter", "RMS error", "RMS std. error", "RMS z", "slope vs K"]
     if known:
         head += ["iterations (mean)", "loglik drops"]
     else:
         head += ["iterations (EM + ascent, mean)", "loglik drops", "no std. error"]
-    table = markdown_table([*head, "loglik - truth's (mean)", "fit (s, mean)"], rows)
+    table = markdown_table([*head, "loglik - truth's (mean)", "IMM state MSE, fitted - true",
+                            "fit (s, mean)"], rows)
     label = "known modes (exact E-step)" if known else "UNKNOWN modes (Kim's E-step, then ascent)"
     label += ", started at the truth" if from_truth else ""
     notes = (f"{seeds} seeds per K, at most {max_iter} EM iterations, tol {TOL:g}; z = (fitted - "
              "true) / reported standard error, RMS over the entries and seeds with one (1 when "
              "the standard errors are right); slope: least-squares log-log slope of the RMS "
-             "error over all K (-0.5 for the 1/sqrt(K) rate).",)
+             "error over all K (-0.5 for the 1/sqrt(K) rate).",
+             f"IMM state MSE: the IMM with the fitted parameters against the IMM with the true "
+             f"ones on one test batch ({TEST_TRIALS} trials x {TEST_STEPS} samples), the mean "
+             "excess squared error of the state over the seeds ± its standard error (paired "
+             "trials: far below the MSE's own), and (of ...) the MSE with the true parameters "
+             "± its sampling error over the trials; the excess is what the parameters' "
+             "estimation error costs, and falls with K.")
     if not known:
         notes += ("unknown modes: Kim's smoother on the chain of mode pairs as E-step (not "
                   "exact; EM stops at the first step that would lower its likelihood), then "
