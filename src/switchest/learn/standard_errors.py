@@ -117,11 +117,12 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
     in ``names``) at ``system``, ``transition``, from the observed information of the
     log-likelihood; ``logliks`` maps a list of ``(system, transition)`` candidates to their
     log-likelihoods (NaN where one has none), and is called once, with every point of the
-    finite-difference Hessian. ``allowed`` (the fit's start transition matrix) says which
-    transition entries may be nonzero (default: those of ``transition``). Shaped like the
-    matrices, NaN outside the fitted blocks (and at a zero entry of ``allowed``), at the
-    entries on the boundary (module docstring), or everywhere when the information of the
-    others is not positive definite (each case with a ``RuntimeWarning`` that says so)."""
+    finite-difference Hessian. ``allowed`` (nonzero where the fit's start transition matrix
+    is) says which transition entries may be nonzero (default: those of ``transition``).
+    Shaped like the matrices, NaN outside the fitted blocks (and at a zero entry of
+    ``allowed``), at the entries on the boundary (module docstring), or everywhere when the
+    information of the others is not positive definite (each case with a ``RuntimeWarning``
+    that says so)."""
     free = _free(system, [name for name in names if name != "transition"])
     if "transition" in names:
         free = _free_transition(transition, allowed) + free
