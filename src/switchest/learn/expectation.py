@@ -165,41 +165,47 @@ def _or_nan(function, *args, **kwargs) -> float:
 
 def _together(candidates, x0, P0, data: Record) -> np.ndarray:
     """The log-likelihood of each candidate, all in one compiled call (each candidate's tables
-    appended to one table; with unknown modes, of its pair chain); NaN for a candidate whose
-    transitions overflow, and one candidate at a time if that call fails."""
+    appended to one table); NaN for a candidate whose transitions overflow, and one candidate
+    at a time if that call fails. With unknown modes each candidate's pair chain runs on its
+    own ``L`` modes' tables: pair ``(a, b)`` moves through mode ``a``'s entries and measures
+    through mode ``b``'s ``C``, ``R`` (:func:`_pair_chain`, without discretizing each mode
+    ``L`` times)."""
     N, K = data.shape
-    known = data.modes is not None
-    models = [(s, pi, None) if known else _pair_chain(s, pi) for s, pi in candidates]
-    values = np.full(len(models), np.nan)
-    tables, entries, where = [], [], []
-    for q, (system, _, _) in enumerate(models):
+    values = np.full(len(candidates), np.nan)
+    tables, entries, where, offset = [], [], [], 0
+    for q, (system, _) in enumerate(candidates):
         try:
             table, entry = sample_mode_steps(system, data.t)
         except ValueError:  # a transition beyond the floating-point range
             continue
         tables.append(table)
-        entries.append(entry + sum(t.F.shape[0] for t in tables[:-1]))
+        entries.append(entry + offset)
         where.append(q)
+        offset += table.F.shape[0]
     if not where:
         return values
-    S, L = len(where), models[0][0].n_modes
+    S, L = len(where), candidates[0][0].n_modes
     F, G, Qd = (np.concatenate([getattr(t, name) for t in tables]) for name in ("F", "G", "Qd"))
-    C, R = (np.concatenate([getattr(models[q][0], name) for q in where]) for name in ("C", "R"))
+    C, R = (np.concatenate([getattr(candidates[q][0], name) for q in where])
+            for name in ("C", "R"))
     y, u = np.tile(data.y, (S, 1, 1)), np.tile(data.u, (S, 1, 1))
-    if known:  # each interval in the mode at its start (ModeKalmanFilter's table)
-        trans = np.concatenate([entry[np.arange(K), np.r_[0, data.modes[i, :-1]]][None]
-                                for entry in entries for i in range(N)])
+    if data.modes is not None:  # each interval in the mode at its start (ModeKalmanFilter's)
+        before = np.concatenate([data.modes[:, :1], data.modes[:, :-1]], axis=1)  # (N, K)
+        trans = np.concatenate([entry[np.arange(K), before] for entry in entries])
         mode = np.concatenate([data.modes + s * L for s in range(S)])
         out = kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0)
-        extra = np.array([_mode_term(models[q][1], data.modes) for q in where])
+        extra = np.array([_mode_term(candidates[q][1], data.modes) for q in where])
     else:
+        a, b = np.divmod(np.arange(L * L), L)
+        chains = [_pair_markov(candidates[q][1]) for q in where]
         with np.errstate(divide="ignore"):
-            log_chain = np.log([models[q][1] for q in where])
-            log_prior = np.log(models[0][2])
-        out = imm_run_per_trial(y, u, F, G, Qd, np.concatenate(
-            [np.broadcast_to(entry, (N, K, L)) for entry in entries]), C, R,
-            np.repeat(np.arange(S)[:, None] * L + np.arange(L), N, axis=0),
-            np.repeat(log_chain, N, axis=0), x0, P0, log_prior, timing="interval")
+            log_chain = np.log([chain for chain, _ in chains])
+            log_prior = np.log(chains[0][1])
+        trans = np.concatenate([np.broadcast_to(entry[:, a], (N, K, L * L)) for entry in entries])
+        out = imm_run_per_trial(y, u, F, G, Qd, trans, C, R,
+                                np.repeat(np.arange(S)[:, None] * L + b, N, axis=0),
+                                np.repeat(log_chain, N, axis=0), x0, P0, log_prior,
+                                timing="interval")
         extra = 0.0
     if out.status == OK:
         warn_for_repairs(out)
@@ -258,8 +264,16 @@ def _pair_chain(system: SwitchedLinearSystem, transition
     a, b = np.divmod(np.arange(L * L), L)
     parts = {"A": system.A[a], "B": system.B[a], "C": system.C[b], "Q": system.Q[a],
              "R": system.R[b]}
+    return system.replace(**parts), *_pair_markov(transition)
+
+
+def _pair_markov(transition: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pair chain's transition matrix, ``P((b, c) | (a, b')) = [b = b'] pi_bc``, and its
+    prior at sample 0, ``(r_0, r_0)`` with ``r_0`` uniform (:func:`_pair_chain`)."""
+    L = transition.shape[0]
+    a, b = np.divmod(np.arange(L * L), L)
     chain = np.where(a[None, :] == b[:, None], transition[b][:, b], 0.0)
-    return system.replace(**parts), chain, np.where(a == b, 1.0 / L, 0.0)
+    return chain, np.where(a == b, 1.0 / L, 0.0)
 
 
 def _unknown(system, transition, x0, P0, data: Record) -> Moments:
