@@ -173,7 +173,8 @@ def test_unknown_modes_fit_ends_at_a_maximum_within_three_standard_errors():
 
     diff = sq_errors(res.system, res.transition) - sq_errors(truth, P2)
     # paired trials: the IMM with the fitted parameters within 3 standard errors of the true
-    assert abs(diff.mean()) <= 3 * diff.std(ddof=1) / np.sqrt(diff.size) + 1e-3
+    # (observed: 0.0030 against 3 x 0.0016, of an MSE of 0.37)
+    assert abs(diff.mean()) <= 3 * diff.std(ddof=1) / np.sqrt(diff.size)
 
 
 def test_ascent_parameters_round_trip():
