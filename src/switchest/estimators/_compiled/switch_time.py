@@ -418,7 +418,7 @@ def _grid_maximum(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws, lw, obsv, 
     return OK
 
 
-@jit
+@inline
 def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs, pk, report):
     """Brent's search of ``J_k`` over the grid cell around the grid maximum (beyond Shankar et
     al.), for each compacted switched lane: ``[tau - T/(2g), tau + T/(2g)]`` clipped to
@@ -443,7 +443,9 @@ def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs, pk, report):
     R)``) as in :func:`_likelihood`, a lane at a time: the equations of :func:`pull_back` and
     :func:`.linalg.innovation` (equilibrated Cholesky factor, eq. (8)) written out here, in
     one body, because passing arrays to a helper per probe costs more (their reference
-    counts) than the arithmetic of a small system. A lane whose factorization fails has its
+    counts) than the arithmetic of a small system; for the same reason this function is
+    inlined into the kernel (called with its forty arrays it cost the refined filter a quarter
+    of its time on the boost converter). A lane whose factorization fails has its
     ``P`` repaired (:func:`.linalg.repair`) and is factored once more.
 
     The grid instant is kept unless a probe beats it; a winning probe's transition is composed
