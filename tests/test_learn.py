@@ -228,6 +228,37 @@ def test_ascent_reaches_a_maximum_on_the_boundary():
     np.testing.assert_allclose(pi_fit.sum(axis=1), 1.0, rtol=0, atol=1e-15)
 
 
+def test_ascent_stopped_short_of_a_bound_ends_on_it():
+    """A maximum just beyond two bounds (pi_01 at -0.0005, Q of mode 1 at -0.001) of a
+    log-likelihood near -1000: with tol 1e-6 (1e-3 nats) L-BFGS-B alone stops with Q of mode
+    1 still about 1e-3 above zero, where the information is indefinite; the step onto the
+    bounds the gradient points at ends the fit on both, the trace still non-decreasing."""
+    from switchest.learn.ascent import ascend
+
+    def system(Q0, Q1, R0, R1):
+        return SwitchedLinearSystem.discrete([[[0.9]], [[0.5]]], None, [[[1.0]], [[1.0]]],
+                                             [[[Q0]], [[Q1]]], [[[R0]], [[R1]]], dt=1.0)
+
+    def loglik(candidates):
+        return np.array([-1000.0 - ((pi[0, 1] + 5e-4) / 0.02) ** 2
+                         - ((pi[1, 0] - 0.3) / 0.05) ** 2 - ((s.Q[0, 0, 0] - 0.5) / 0.1) ** 2
+                         - ((s.Q[1, 0, 0] + 1e-3) / 0.1) ** 2
+                         - ((s.R[0, 0, 0] - 0.2) / 0.03) ** 2 - ((s.R[1, 0, 0] - 0.3) / 0.04) ** 2
+                         for s, pi in candidates])
+
+    start, pi = system(0.4, 0.2, 0.25, 0.35), np.array([[0.9, 0.1], [0.2, 0.8]])
+    trace = []
+    fitted, pi_fit, converged = ascend(start, pi, ("transition", "Q", "R"), loglik,
+                                       start_loglik=loglik([(start, pi)])[0], max_iter=60,
+                                       tol=1e-6, report=trace.append)
+    assert converged and np.all(np.diff(trace) >= 0)
+    assert pi_fit[0, 1] == 0.0 and fitted.Q[1, 0, 0] == 0.0
+    # the others within what 1e-3 nats allows: |delta| <= sd sqrt(1e-3), sd 0.03 - 0.1
+    np.testing.assert_allclose([pi_fit[1, 0], fitted.Q[0, 0, 0], fitted.R[0, 0, 0],
+                                fitted.R[1, 0, 0]], [0.3, 0.5, 0.2, 0.3],
+                               atol=0.1 * np.sqrt(1e-3))
+
+
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning",
                             "ignore:invalid value encountered:RuntimeWarning")
 @pytest.mark.parametrize("known", [False, True])

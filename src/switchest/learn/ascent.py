@@ -9,7 +9,13 @@ transition matrix and noise covariances, with L-BFGS-B (Byrd, Lu, Nocedal & Zhu 
 Sci. Comput. 16; EM followed by quasi-Newton: Lange 1995, Statistica Sinica 5, and Jamshidian &
 Jennrich 1997, JRSS B 59). Its line search accepts only steps that raise the likelihood
 (sufficient increase), so this phase of the trace never decreases, and it stops at a
-stationary point, where :mod:`.standard_errors` takes the observed information.
+stationary point, where :mod:`.standard_errors` takes the observed information. It stops when
+an iteration gains less than ``tol``, which can leave a parameter on its way to a bound short
+of it (a 3-mode fit at K = 8000: two transition probabilities at 0.002 and 0.001, the
+information indefinite, every standard error NaN): the parameters whose gradient points at
+their lower bound are then tried on it (:func:`_onto_bounds`), and from a point that gains the
+search runs again (that fit: 1.96 log-units higher, both entries on the bound, standard errors
+for the rest).
 
 The parameters, bounded (L-BFGS-B's box), so that a maximum on the boundary of the parameter
 space (a transition that never happens, a singular process noise) is a point the search can
@@ -150,13 +156,59 @@ def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
         grad[~np.isfinite(grad)] = 0.0
         return values[0], grad
 
-    result = minimize(objective, start, method="L-BFGS-B", jac=True, bounds=layout.bounds(),
-                      callback=lambda intermediate_result: report(-intermediate_result.fun),
-                      options={"maxiter": max_iter, "ftol": tol})
+    box = np.array(layout.bounds())
+
+    def search(theta, iterations):
+        return minimize(objective, theta, method="L-BFGS-B", jac=True, bounds=box,
+                        callback=lambda intermediate_result: report(-intermediate_result.fun),
+                        options={"maxiter": iterations, "ftol": tol})
+
+    result = search(start, max_iter)
+    used = result.nit
+    while used < max_iter:  # each round raises the likelihood: it ends
+        moved = _onto_bounds(result.x, result.fun, result.jac, box[:, 0], layout.unpack, logliks)
+        if moved is None:
+            break
+        report(-moved[1])
+        result = search(moved[0], max_iter - used - 1)
+        used += 1 + result.nit
     if -result.fun < start_loglik:  # never below EM's point (cannot happen with a monotone search)
         return system, transition, False
     fitted, pi = layout.unpack(result.x)
     return fitted, pi, bool(result.success)
+
+
+def _onto_bounds(theta: np.ndarray, value: float, grad: np.ndarray, lower: np.ndarray,
+                 make: Callable, logliks: Callable[[list], np.ndarray]
+                 ) -> tuple[np.ndarray, float] | None:
+    """A point with the parameters the search left just above their lower bounds moved onto
+    them, where that lowers ``value`` (minus the log-likelihood at ``theta``); ``None`` where
+    no such move does.
+
+    L-BFGS-B stops when an iteration gains less than ``tol``: a parameter on its way to a
+    bound (a transition that never happens, a singular process noise) may stop short of it,
+    where the observed information is indefinite. Each parameter above its lower bound whose
+    gradient points at it is tried on the bound alone, then those that gained together; the
+    better of the best single move and the joint one is returned with its value.
+    """
+    toward = np.flatnonzero((grad > 0.0) & (theta > lower))
+    if toward.size == 0:
+        return None
+    points = np.repeat(theta[None], toward.size, axis=0)
+    points[np.arange(toward.size), toward] = lower[toward]
+    values = -values_at(make, points, logliks)
+    gained = values < value  # NaN (no value) gains nothing
+    if not gained.any():
+        return None
+    best = int(np.argmin(np.where(gained, values, np.inf)))
+    point, best_value = points[best], float(values[best])
+    if gained.sum() > 1:
+        joint = theta.copy()
+        joint[toward[gained]] = lower[toward[gained]]
+        joint_value = float(-values_at(make, [joint], logliks)[0])
+        if joint_value < best_value:
+            point, best_value = joint, joint_value
+    return point, best_value
 
 
 def values_at(make: Callable, points, logliks: Callable[[list], np.ndarray]) -> np.ndarray:
