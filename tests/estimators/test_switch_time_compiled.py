@@ -7,7 +7,7 @@ of the prediction and composes refinement probes from the offset table: the same
 another order, so the outputs agree to rounding. Tolerance: 1e-9 of each array's largest entry
 (observed agreement ~1e-14 over these <= 60 steps); switch offsets to 1e-9 of the interval.
 
-A refinement probe is quantized to T / 2^22. With the oracle's probes quantized the same way
+A refinement probe is quantized to T / 2^18. With the oracle's probes quantized the same way
 (``resolution``), the two follow the same path of Brent's search and agree to rounding as well.
 Against the exact oracle a search may part ways where two probes' likelihoods differ by less
 than the quantization changes them (the maximum within a quantum of a bracket's middle); both

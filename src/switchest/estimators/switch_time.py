@@ -141,7 +141,7 @@ class SwitchTimeKalmanFilter(Estimator):
         about ``2e-4 T`` (tolerance ``1e-4 T``,
         :data:`~switchest.estimators._compiled.switch_time.REFINE_TOLERANCE`) or after
         ``refine_iterations`` probes. The grid instant is kept unless a probe beats
-        it. Each probe is quantized to ``T / 2^22`` (2.4e-7 T) and its likelihood is
+        it. Each probe is quantized to ``T / 2^18`` (3.8e-6 T) and its likelihood is
         exact there: its transition is composed from three flows of a table
         (:func:`switchest.discretize.offset_table`), without a matrix exponential.
     likelihood : {"innovation", "printed"}

@@ -31,8 +31,8 @@ in four sections:
   ``i`` to ``j`` at ``q T / (N1 N0)`` (refinement only).
 
 The last two are the :class:`switchest.discretize.OffsetTable` of the step (``N1 = N0 =
-2^11``). A refinement probe at ``tau`` is quantized to ``(c N0 + q) T / (N1 N0)`` (2.4e-7 T,
-under 1/400 of the search's tolerance :data:`REFINE_TOLERANCE` ``T``) and composed from three
+2^9``). A refinement probe at ``tau`` is quantized to ``(c N0 + q) T / (N1 N0)`` (3.8e-6 T,
+under 1/25 of the search's tolerance :data:`REFINE_TOLERANCE` ``T``) and composed from three
 flows of the table, ``i`` over ``c T / N1``, the span ``c`` switching at ``q``, ``j`` over
 ``(N1 - 1 - c) T / N1``: no matrix exponential per probe. The last flow's ``C_j F``, ``C_j G``,
 ``C_j Qd C_j'`` are computed once per table (:func:`coarse_outputs`), so that a probe pulls the
