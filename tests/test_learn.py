@@ -257,6 +257,13 @@ def test_ascent_stopped_short_of_a_bound_ends_on_it():
     np.testing.assert_allclose([pi_fit[1, 0], fitted.Q[0, 0, 0], fitted.R[0, 0, 0],
                                 fitted.R[1, 0, 0]], [0.3, 0.5, 0.2, 0.3],
                                atol=0.1 * np.sqrt(1e-3))
+    for budget in range(1, len(trace) + 1):  # within any budget: the last point reported
+        trace = []
+        fitted, pi_fit, _ = ascend(start, pi, ("transition", "Q", "R"), loglik,
+                                   start_loglik=loglik([(start, pi)])[0], max_iter=budget,
+                                   tol=1e-6, report=trace.append)
+        assert 1 <= len(trace) <= budget
+        assert loglik([(fitted, pi_fit)])[0] == pytest.approx(trace[-1], rel=1e-12)
 
 
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning",

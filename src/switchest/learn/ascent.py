@@ -164,18 +164,21 @@ def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
                         options={"maxiter": iterations, "ftol": tol})
 
     result = search(start, max_iter)
-    used = result.nit
+    theta, value, converged, used = result.x, result.fun, result.success, result.nit
     while used < max_iter:  # each round raises the likelihood: it ends
-        moved = _onto_bounds(result.x, result.fun, result.jac, box[:, 0], layout.unpack, logliks)
+        moved = _onto_bounds(theta, value, result.jac, box[:, 0], layout.unpack, logliks)
         if moved is None:
             break
-        report(-moved[1])
-        result = search(moved[0], max_iter - used - 1)
-        used += 1 + result.nit
-    if -result.fun < start_loglik:  # never below EM's point (cannot happen with a monotone search)
+        (theta, value), converged, used = moved, False, used + 1
+        report(-value)
+        if used == max_iter:
+            break
+        result = search(theta, max_iter - used)
+        theta, value, converged, used = result.x, result.fun, result.success, used + result.nit
+    if -value < start_loglik:  # never below EM's point (cannot happen with a monotone search)
         return system, transition, False
-    fitted, pi = layout.unpack(result.x)
-    return fitted, pi, bool(result.success)
+    fitted, pi = layout.unpack(theta)
+    return fitted, pi, bool(converged)
 
 
 def _onto_bounds(theta: np.ndarray, value: float, grad: np.ndarray, lower: np.ndarray,
