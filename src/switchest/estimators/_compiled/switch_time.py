@@ -508,7 +508,8 @@ def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs, pk, report):
                 at = x_b + (tol1 if step >= 0.0 else -tol1)
             # ---- the probe: J_k at the table instant k (Shankar et al. §IV)
             k = min(max(int(math.floor(at / dt * total + 0.5)), 0), total)
-            j, s = k // N0, k % N0
+            j = k // N0
+            s = k - j * N0
             if j == n_coarse:  # at the end of the interval: the last span, switching at its end
                 j, s = n_coarse - 1, N0
             ra = coarse + row_a[c] * n_coarse + j
@@ -542,9 +543,7 @@ def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs, pk, report):
                             acc += EQ[a, h] * E[i, h]
                         Qo[a, i] = acc
                         Qo[i, a] = acc
-                for a in range(m):  # E <- E Phi
-                    for i in range(n):
-                        E[a, i] = EF[a, i]
+                E, EF = EF, E  # E <- E Phi
             J = -math.inf
             kind, repaired = first, False
             while kind < 2:  # the innovation of y - Go u through E (kind 0: with P; 1: without)
