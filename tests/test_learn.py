@@ -200,23 +200,32 @@ def test_ascent_parameters_round_trip():
     assert np.all(moved.Q == moved.Q[:1])  # still shared
 
 
+def _ascent_toy(pi01_max: float, q1_max: float, level: float = 0.0):
+    """A 2-mode system of scalar states and a quadratic log-likelihood (``level`` at its
+    maximum) over pi_01, pi_10, Q and R with its unconstrained maximum at ``pi_01 = pi01_max``,
+    ``Q_1 = q1_max`` (below their bounds when negative), pi_10 = 0.3, Q_0 = 0.5, R = (0.2,
+    0.3); returns the ascent's start ``(system, transition)`` and the log-likelihood."""
+    def system(Q0, Q1, R0, R1):
+        return SwitchedLinearSystem.discrete([[[0.9]], [[0.5]]], None, [[[1.0]], [[1.0]]],
+                                             [[[Q0]], [[Q1]]], [[[R0]], [[R1]]], dt=1.0)
+
+    def loglik(candidates):
+        return np.array([level - ((pi[0, 1] - pi01_max) / 0.02) ** 2
+                         - ((pi[1, 0] - 0.3) / 0.05) ** 2 - ((s.Q[0, 0, 0] - 0.5) / 0.1) ** 2
+                         - ((s.Q[1, 0, 0] - q1_max) / 0.1) ** 2
+                         - ((s.R[0, 0, 0] - 0.2) / 0.03) ** 2 - ((s.R[1, 0, 0] - 0.3) / 0.04) ** 2
+                         for s, pi in candidates])
+
+    return system(0.4, 0.2, 0.25, 0.35), np.array([[0.9, 0.1], [0.2, 0.8]]), loglik
+
+
 def test_ascent_reaches_a_maximum_on_the_boundary():
     """A log-likelihood whose maximum over the simplex has pi_01 = 0 (its unconstrained one is
     at -0.05) and Q of mode 1 singular (at -0.1): the ascent ends with both bounds active and
     every other entry at its maximizer, in a few iterations."""
     from switchest.learn.ascent import ascend
 
-    def system(Q0, Q1, R0, R1):
-        return SwitchedLinearSystem.discrete([[[0.9]], [[0.5]]], None, [[[1.0]], [[1.0]]],
-                                             [[[Q0]], [[Q1]]], [[[R0]], [[R1]]], dt=1.0)
-
-    def loglik(candidates):
-        return np.array([-((pi[0, 1] + 0.05) / 0.02) ** 2 - ((pi[1, 0] - 0.3) / 0.05) ** 2
-                         - ((s.Q[0, 0, 0] - 0.5) / 0.1) ** 2 - ((s.Q[1, 0, 0] + 0.1) / 0.1) ** 2
-                         - ((s.R[0, 0, 0] - 0.2) / 0.03) ** 2 - ((s.R[1, 0, 0] - 0.3) / 0.04) ** 2
-                         for s, pi in candidates])
-
-    start, pi = system(0.4, 0.2, 0.25, 0.35), np.array([[0.9, 0.1], [0.2, 0.8]])
+    start, pi, loglik = _ascent_toy(-0.05, -0.1)
     trace = []
     fitted, pi_fit, converged = ascend(start, pi, ("transition", "Q", "R"), loglik,
                                        start_loglik=loglik([(start, pi)])[0], max_iter=60,
@@ -235,18 +244,7 @@ def test_ascent_stopped_short_of_a_bound_ends_on_it():
     bounds the gradient points at ends the fit on both, the trace still non-decreasing."""
     from switchest.learn.ascent import ascend
 
-    def system(Q0, Q1, R0, R1):
-        return SwitchedLinearSystem.discrete([[[0.9]], [[0.5]]], None, [[[1.0]], [[1.0]]],
-                                             [[[Q0]], [[Q1]]], [[[R0]], [[R1]]], dt=1.0)
-
-    def loglik(candidates):
-        return np.array([-1000.0 - ((pi[0, 1] + 5e-4) / 0.02) ** 2
-                         - ((pi[1, 0] - 0.3) / 0.05) ** 2 - ((s.Q[0, 0, 0] - 0.5) / 0.1) ** 2
-                         - ((s.Q[1, 0, 0] + 1e-3) / 0.1) ** 2
-                         - ((s.R[0, 0, 0] - 0.2) / 0.03) ** 2 - ((s.R[1, 0, 0] - 0.3) / 0.04) ** 2
-                         for s, pi in candidates])
-
-    start, pi = system(0.4, 0.2, 0.25, 0.35), np.array([[0.9, 0.1], [0.2, 0.8]])
+    start, pi, loglik = _ascent_toy(-5e-4, -1e-3, level=-1000.0)
     trace = []
     fitted, pi_fit, converged = ascend(start, pi, ("transition", "Q", "R"), loglik,
                                        start_loglik=loglik([(start, pi)])[0], max_iter=60,
