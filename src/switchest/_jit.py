@@ -20,20 +20,42 @@ from pathlib import Path
 
 from numba import njit
 
-__all__ = ["jit"]
+__all__ = ["borrow", "jit"]
 
 _PACKAGE = Path(__file__).resolve().parent
 _SOURCES = ("_jit.py", "dyadic.py", "estimators/_compiled/*.py")
 """Files (globs relative to the package) whose code ends up in compiled functions."""
 _STAMP = "switchest-jit-sources.sha256"
 
-_njit = njit(cache=True, error_model="numpy")
+_njit = njit(cache=True, error_model="numpy", _nrt=True)
+_njit_borrowing = njit(cache=True, error_model="numpy", _nrt=False)
 
 
 def jit(function):
     """``function`` compiled by numba (``njit``, ``cache=True``, numpy's error model), its
     cache directory cleared first if the compiled sources changed since it was filled."""
-    dispatcher = _njit(function)
+    return _cached(_njit(function))
+
+
+def borrow(function):
+    """``function`` compiled as :func:`jit` does, but without numba's reference counting: for a
+    function that allocates no array and returns none, so that it only borrows its caller's.
+
+    A compiled function counts a reference to each array it is given on entry and releases it
+    on return, an atomic increment and decrement per array and call. numba removes the pair in
+    a function that calls no other, but keeps it in one that does: in the Kalman kernel's step
+    (:mod:`.estimators._compiled.kalman_kernel`), whose equations pass a dozen arrays on to
+    their parts, these counts took a quarter of the time. Compiled with numba's runtime off
+    (its ``_nrt`` option), such a function counts nothing, and numba refuses to compile any
+    code in it that needs the runtime (an allocation, a sort): the compile error names it.
+    Functions it calls keep their own settings.
+    """
+    return _cached(_njit_borrowing(function))
+
+
+def _cached(dispatcher):
+    """``dispatcher`` once its cache directory is cleared of functions compiled from other
+    sources (:func:`_refresh`)."""
     directory = getattr(getattr(dispatcher, "_cache", None), "_cache_path", None)
     if directory is not None:
         _refresh(directory)

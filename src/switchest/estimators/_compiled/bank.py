@@ -29,6 +29,7 @@ from .linalg import (
     GATED,
     OK,
     PARTLY_GATED,
+    borrow,
     collapse,
     combine,
     correct,
@@ -69,7 +70,7 @@ def lane_index(index, i0, nb, k, j, out):
         out[b] = index[i, k if index.shape[1] > 1 else 0, j]
 
 
-@jit
+@borrow
 def gather_transition(F, G, Qd, trans, i0, nb, k, j, idx, Fl, Gl, Ql):
     """Each lane's exact transition of mode ``j`` into sample ``k``, ``trans[trial, k, j]``
     (:func:`lane_index`) of the table ``F, G, Qd``, into ``Fl (n, n, B)``, ``Gl (n, l, B)``,
@@ -80,7 +81,7 @@ def gather_transition(F, G, Qd, trans, i0, nb, k, j, idx, Fl, Gl, Ql):
     gather_matrices(Qd, idx, nb, Ql)
 
 
-@jit
+@borrow
 def _predict_modes(x, P, F, G, Qd, trans, i0, nb, k, ul, idx, Fl, Gl, Ql, AP, xs):
     """Every mode-matched Gaussian ``x[j]``, ``P[j]`` predicted into sample ``k`` through mode
     ``j``'s own transition (:func:`gather_transition`, :func:`.linalg.predict`), in place."""
@@ -89,7 +90,7 @@ def _predict_modes(x, P, F, G, Qd, trans, i0, nb, k, ul, idx, Fl, Gl, Ql, AP, xs
         predict(x[j], P[j], Fl, Gl, ul, Ql, nb, AP, xs)
 
 
-@jit
+@borrow
 def _interact(x, P, prob, log_prob, transition, log_transition, interaction, nb, log_c, w, xm,
               Pm):
     """The bank's interaction, in place on the mode-matched ``x (L, n, B)``, ``P``, weighted by
@@ -125,7 +126,7 @@ def copy_rows(src, dst, nb):
             dst[j, b] = src[j, b]
 
 
-@jit
+@borrow
 def report_sample(x, P, prob, log_prob, total, flag, n_obs, i0, nb, k, modes_wanted, xc, Pc,
                   best, x_out, P_out, prob_out, mode_out, loglik_out, flag_out, x_modes_out,
                   P_modes_out):

@@ -43,6 +43,7 @@ from .linalg import (
     GATED,
     OK,
     PARTLY_GATED,
+    borrow,
     copy_gaussian,
     correct,
     gather_matrices,
@@ -96,7 +97,7 @@ def _gate_pairs(prior, loglik, nis, gate, n_src, nb, use, a, flag):
                     flag[b] = PARTLY_GATED
 
 
-@jit
+@borrow
 def _merge_weights(a, prior, nb, log_mu, w):
     """Mode ``j``'s merging weights over its ``L`` pairs, per lane, and its log-weight.
 

@@ -28,6 +28,7 @@ from .bank import LANES
 from .linalg import (
     OK,
     _moments,
+    borrow,
     correct,
     gather_matrices,
     gather_modes,
@@ -83,7 +84,7 @@ def _inflate(P, epsilon, width):
             P[r, r, b] += epsilon
 
 
-@jit
+@borrow
 def _hypothesis(x, P, source, F, G, Qd, entry, u, epsilon, y, C, R, obs, n_obs, nb, width, pred,
                 inn, report):
     """Predict in each lane the filter ``source[l]`` of its trial with transition ``entry[l]``
@@ -106,7 +107,7 @@ def _hypothesis(x, P, source, F, G, Qd, entry, u, epsilon, y, C, R, obs, n_obs, 
     return innovation(xs, Ps, y, C, R, obs, n_obs, width, *inn, report)
 
 
-@jit
+@borrow
 def _likelihoods(x, P, nb, width, y, u, obs, n_obs, F, G, Qd, H, Gy, S0, C, R, source, entry,
                  epsilon, gate, printed, zero, yh, pred, inn, report, J, use):
     """``J`` of every hypothesis, one per lane (``width`` lanes); ``use`` where it accepts the
@@ -249,7 +250,7 @@ def _from_lanes(xs, Ps, first, nb, xo, Po):
                 Po[r, c, b] = Ps[r, c, first + b]
 
 
-@jit
+@borrow
 def _predict_chosen(x, P, d, chosen, best_k, use, w, F, G, Qd, u, epsilon, y, C, R, obs, n_obs,
                     marginal, nb, source, entry, use_lanes, w_lanes, pred, inn, fix, report,
                     xg, Pg, x_new, P_new):
@@ -295,7 +296,7 @@ def _predict_chosen(x, P, d, chosen, best_k, use, w, F, G, Qd, u, epsilon, y, C,
     return OK
 
 
-@jit
+@borrow
 def _update_only(x, P, log_w, y, Cl, Rl, obs, n_obs, gate, nb, use, a, outlier, inn, fix,
                  report):
     """A sample without prediction (the first of a record): every mode's filter updated with

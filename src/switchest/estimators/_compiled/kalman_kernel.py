@@ -49,6 +49,7 @@ from .linalg import (
     GATED,
     NOT_POSITIVE_DEFINITE,
     OK,
+    borrow,
     copy_lanes,
     correct,
     correct_mean,
@@ -236,7 +237,7 @@ def lane_entries(index, i0, nb, k, held):
     return changed
 
 
-@jit
+@borrow
 def predict_means(trans, F, G, u, i0, nb, k, held, Fl, Gl, ul, x, xs):
     """Every trial's mean predicted into sample ``k``, ``x <- F x + G u`` (Shankar et al. eq.
     (6), :func:`.linalg.predict_mean`), with ``u[:, k-1]`` and the transition
@@ -276,7 +277,7 @@ def _open(slot, j, b, parent, source, i, P):
             P[r, c, j] = source[r, c, i]
 
 
-@jit
+@borrow
 def _group_equal(P_init, i0, nb, group, slot, P):
     """Group the block's trials by equal initial covariance (each compared with the previous
     trial's group and with the first group); returns the number of groups."""
@@ -298,7 +299,7 @@ def _group_equal(P_init, i0, nb, group, slot, P):
     return n_groups
 
 
-@jit
+@borrow
 def _same_sample(trans, mode, F, Qd, C, R, obs, i0, k, predicting, b, s):
     """Whether lanes ``b`` and ``s`` take sample ``k`` through the same covariance equations:
     the same observed components, equal ``C``, ``R`` and (when ``predicting``) ``F``, ``Qd``
@@ -314,7 +315,7 @@ def _same_sample(trans, mode, F, Qd, C, R, obs, i0, k, predicting, b, s):
         _same_entry(F, trans[i, k], trans[j, k]) and _same_entry(Qd, trans[i, k], trans[j, k]))
 
 
-@jit
+@borrow
 def _split_samples(trans, mode, F, Qd, C, R, obs, i0, nb, k, predicting, group, n_groups, slot,
                    P):
     """Move each trial whose sample differs from its group member's (:func:`_same_sample`) to a
@@ -350,7 +351,7 @@ def _copy_entry(table, i, out, j):
             out[r, c, j] = table[i, r, c]
 
 
-@jit
+@borrow
 def _gather_groups(trans, mode, F, Qd, C, R, obs, n_obs, i0, k, predicting, n_groups, slot, Fg,
                    Qg, Cg, Rg, obs_g, n_obs_g):
     """Each group's sample from its member trial: the observed components, and the matrices of
@@ -416,7 +417,7 @@ def _users(group, use, nb, j):
     return count
 
 
-@jit
+@borrow
 def _repair(P, j, indefinite_only, trials, report):
     """:func:`.linalg.repair` of group ``j``'s covariance, reported once per trial of the group
     (``trials``), as if each had been repaired; returns whether ``P`` changed."""
@@ -426,7 +427,7 @@ def _repair(P, j, indefinite_only, trials, report):
     return True
 
 
-@jit
+@borrow
 def _factor(xg, P, yg, Cg, Rg, obs_g, n_obs_g, n_groups, eg, PCt_g, chol_g, scale_g, zg, nis_g,
             loglik_g, work, bad, log_det_g, group, nb, report):
     """:func:`.linalg.innovation` of every group, for its covariance (the group's mean and
@@ -460,7 +461,7 @@ def _spread(source, group, nb, n_groups, out):
                 out[a, b] = source[a, group[b]]
 
 
-@jit
+@borrow
 def _split_gated(use, use_g, group, nb, n_groups, slot, P, prior):
     """Move the trials that did not use the measurement out of a group that did (its covariance
     was updated): to a new group with the covariance before the update (``prior``). Returns the

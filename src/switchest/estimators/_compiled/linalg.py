@@ -7,10 +7,12 @@ SIMD registers across trials; the matrices of a switched system are a few states
 short a loop to vectorize along.
 
 The functions work in place and allocate nothing; each is compiled once and called by the
-kernels (:mod:`.bank`), a block of trials per call, so a call costs nothing measurable.
-(Inlining them into the kernel, numba's ``inline="always"``, ran 10 % faster at 10 trials but
-took 36 instead of 20 CPU-s to compile once.) Only the smallest helpers, called per lane or
-within an equation (:func:`write_lane`, :func:`symmetric_sum`), are inlined. Divisions follow
+kernels (:mod:`.bank`), a block of trials per call, so a call costs little; those that call
+others are compiled by :func:`switchest._jit.borrow`, without the reference counts numba would
+otherwise take of every array on each call. (Inlining them into the kernel, numba's
+``inline="always"``, ran 10 % faster at 10 trials but took 36 instead of 20 CPU-s to compile
+once.) Only the smallest helpers, called per lane or within an equation (:func:`write_lane`,
+:func:`symmetric_sum`), are inlined. Divisions follow
 numpy's error model (no zero-division checks; every divisor is checked positive first).
 
 A missing component of ``y`` (NaN) is removed exactly by decoupling it: its row of ``C`` and
@@ -30,10 +32,11 @@ import math
 import numpy as np
 from numba import njit
 
-from ..._jit import jit
+from ..._jit import borrow, jit
 
 __all__ = [
     "jit",
+    "borrow",
     "inline",
     "OK",
     "NOT_POSITIVE_DEFINITE",
@@ -198,7 +201,7 @@ def predict_mean(x, F, G, u, nb, xs):
             x[i, b] = xs[i, b]
 
 
-@jit
+@borrow
 def predict(x, P, F, G, u, Qd, nb, FP, xs):
     """Time update ``x <- F x + G u``, ``P <- F P F' + Qd`` (Shankar et al. eqs (6)-(7)).
 
@@ -269,7 +272,7 @@ def residual(x, y, C, nb, e):
                 e[a, b] -= C[a, j, b] * x[j, b]
 
 
-@jit
+@borrow
 def observed_residual(x, y, C, obs, nb, e):
     """``e = y - C x`` (Shankar et al. eq. (8)) with each lane's unobserved components zeroed."""
     residual(x, y, C, nb, e)
@@ -296,7 +299,7 @@ def whiten(e, chol, scale, nb, z, nis):
             nis[b] += z[a, b] * z[a, b]
 
 
-@jit
+@borrow
 def innovation(x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis, loglik, work, bad,
                report=None):
     """Innovation of ``y`` against ``(x, P)`` over each lane's observed components.
@@ -428,7 +431,7 @@ def factor(chol, scale, nb, det, pivot):
     return finite, positive
 
 
-@jit
+@borrow
 def innovation_mean(x, y, C, obs, n_obs, chol, scale, log_det, nb, e, z, nis, loglik):
     """The per-lane half of :func:`innovation`, from a factorization of ``S`` computed elsewhere.
 
@@ -448,7 +451,7 @@ def innovation_mean(x, y, C, obs, n_obs, chol, scale, log_det, nb, e, z, nis, lo
         loglik[b] = -0.5 * (nis[b] + log_det[0, b] + log_det[1, b] + n_obs[b] * _LOG_2PI)
 
 
-@jit
+@borrow
 def _solve(chol, scale, v, nb):
     """``v <- S^-1 v`` per lane, with ``S = D^1/2 L L' D^1/2`` as :func:`innovation` left it."""
     m = v.shape[0]
@@ -511,7 +514,7 @@ def back_substitute(chol, scale, v, nb):
             v[a, b] *= scale[a, b]
 
 
-@jit
+@borrow
 def correct(x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP, prior):
     """Measurement update, in the lanes where ``use`` is true (Shankar et al. eqs (9)-(10)).
 
@@ -559,7 +562,7 @@ def correct(x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP, prior):
     symmetric_sum(AP, T, K, nb, P)  # P = A P + T K'
 
 
-@jit
+@borrow
 def correct_mean(x, z, PCt, chol, scale, use, nb):
     """The per-lane half of :func:`correct`: ``x <- x + P C' S^-1 e`` in the lanes where
     ``use`` is true (Shankar et al. eq. (9)), from ``z`` as :func:`innovation_mean` left it and
@@ -603,7 +606,7 @@ def joseph_lost(P, prior, use, nb, root, lost):
     return found
 
 
-@jit
+@borrow
 def information_or_repair(P, prior, C, R, obs, n_obs, lost, nb, report):
     """The posterior of each ``lost`` lane (:func:`joseph_lost`) that observed something, in
     information form (:func:`information_form`), or where that fails, repaired if indefinite
@@ -782,7 +785,7 @@ def log_normalize(a, prob, total, nb):
         total[b] = top + log_acc
 
 
-@jit
+@borrow
 def mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm):
     """IMM interaction, in place on the mode-matched ``x (L, n, B)``, ``P (L, n, n, B)``.
 
@@ -813,7 +816,7 @@ def mix(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm):
                     P[j, r, c, b] = Pm[j, r, c, b]
 
 
-@jit
+@borrow
 def predicted_mode_probabilities(prob, log_prob, transition, log_transition, nb, log_c, w):
     """Predicted mode probabilities ``log c_j = log sum_i pi_ij mu_i`` and the IMM's mixing
     weights ``w[j][i] = mu_{i|j} = pi_ij mu_i / c_j`` (Blom & Bar-Shalom, 1988; Bar-Shalom, Li &
@@ -843,7 +846,7 @@ def predicted_mode_probabilities(prob, log_prob, transition, log_transition, nb,
                 cj[b] = _log_weights(log_prob, log_transition, j, b, wj)
 
 
-@jit
+@borrow
 def collapse(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm, Pm):
     """GPB1 interaction, in place on the mode-matched ``x (L, n, B)``, ``P (L, n, n, B)``.
 
@@ -866,7 +869,7 @@ def collapse(x, P, prob, log_prob, transition, log_transition, nb, log_c, w, xm,
                     P[j, r, c, b] = Pm[0, r, c, b]
 
 
-@jit
+@borrow
 def merge(w, x, P, nb, xm, Pm):
     """Moments of the mixture ``sum_i w_i N(x_i, P_i)`` per lane, ``w (L, B)`` summing to one:
     ``xm = sum_i w_i x_i``, ``Pm = sum_i w_i (P_i + (x_i - xm)(x_i - xm)')`` (``xm (n, B)``,
@@ -933,7 +936,7 @@ def _moments(w, x, P, nb, xm, Pm):
                 Pm[c, r, b] = Pm[r, c, b]
 
 
-@jit
+@borrow
 def combine(x, P, prob, log_prob, nb, xc, Pc, best):
     """IMM output ``x = sum_j mu_j x_j``, ``P = sum_j mu_j (P_j + (x_j - x)(x_j - x)')``
     (Bar-Shalom, Li & Kirubarajan §11.6.6) with ``mu = prob``, into ``xc (n, B)``,

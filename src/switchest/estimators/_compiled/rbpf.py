@@ -38,6 +38,7 @@ from .linalg import (
     ACCEPTED,
     GATED,
     OK,
+    borrow,
     copy_gaussian,
     correct,
     gather_matrices,
@@ -182,7 +183,7 @@ def _fill_index(value, nb, out):
         out[b] = value
 
 
-@jit
+@borrow
 def _filter_lanes(x, P, yl, Cl, Rl, obs, n_obs, nb, loglik, use, work, report):
     """The Kalman measurement update of every lane, with its predictive log-likelihood.
 
@@ -205,7 +206,7 @@ def _filter_lanes(x, P, yl, Cl, Rl, obs, n_obs, nb, loglik, use, work, report):
     return OK
 
 
-@jit
+@borrow
 def _predict_lanes(x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats):
     """Kalman prediction of every lane ``p`` through the transition ``trans_row[mode[p]]`` of
     its mode (Shankar et al. eqs (6)-(7), :func:`.linalg.predict`)."""
@@ -218,7 +219,7 @@ def _predict_lanes(x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats):
     predict(x, P, Fl, Gl, ul, Ql, nb, AP, xs)
 
 
-@jit
+@borrow
 def _prior_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans_row, C, R, transition,
                     prob0, key, k, predicting, sample_timing, nb, idx, mats, ll, use, inc, work,
                     report):
@@ -249,7 +250,7 @@ def _prior_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans_row, C, R, t
     return status
 
 
-@jit
+@borrow
 def _optimal_proposal(x, P, mode, yl, ul, obs, n_obs, F, G, Qd, trans_row, C, R,
                       log_transition, log_prob0, key, k, predicting, sample_timing, nb, idx,
                       mats, xc, Pc, ll, use, terms, pick, inc, work, report):

@@ -110,6 +110,7 @@ from .bank import lane_index
 from .linalg import (
     NOT_FINITE,
     OK,
+    borrow,
     combine,
     copy_gaussian,
     copy_lanes,
@@ -378,7 +379,7 @@ def kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes
     return OK
 
 
-@jit
+@borrow
 def _redo(xj, Pj, F, G, u, Qd, x_next, P_next, redo, first, last, nb, x_pair, P_pair,
           gain_pair, report, conditional, scratch, pair):
     """The pairs ``(j, i)``, ``first <= i < last``, in Joseph's form, in their lanes marked in
@@ -416,7 +417,7 @@ def gain_scratch(n, B):
             np.empty((2, B)), np.empty((n, B)))
 
 
-@jit
+@borrow
 def rts_gain(xj, Pj, F, G, u, Qd, nb, xp, Pp, gain, failed, scratch):
     """The half of an RTS step in its direct form that does not depend on the smoothed
     posterior at ``k + 1``, per lane (Rauch, Tung & Striebel 1965; Särkkä 2013, Theorem 8.2):
@@ -460,7 +461,7 @@ def pair_scratch(n, B):
     return np.empty((n, B)), np.empty((n, n, B)), np.empty((n, n, B))
 
 
-@jit
+@borrow
 def rts_pair(xj, xp, base, sub, gain, x_next, P_next, nb, x, P, scratch):
     """The half of an RTS step that takes the smoothed ``x_next``, ``P_next`` at ``k + 1``, per
     lane, into ``x``, ``P``: ``x = x_j + J (x_next - x_pred)`` and
@@ -513,7 +514,7 @@ def joseph_scratch(n, B):
             np.ones((n, B)), np.full(B, float(n)))
 
 
-@jit
+@borrow
 def rts_joseph(xj, Pj, F, G, u, Qd, use, nb, xp, P, gain, report, scratch):
     """The conditional of an RTS step in Joseph's form, in the lanes where ``use`` is true:
     mode ``j``'s filtered ``xj``, ``Pj`` at ``k`` given ``x_{k+1}`` through the transition
@@ -574,7 +575,7 @@ def _impossible(log_next, log_back, nb):
     return True
 
 
-@jit
+@borrow
 def _copy_pair(xj, Pj, nb, x, P, gain):
     """A pair of weight zero: ``x``, ``P`` get the filtered ``xj``, ``Pj`` (finite, so that a
     zero weight cancels them exactly) and ``gain`` zero."""
@@ -654,7 +655,7 @@ def _copy_lane(x, P, b, x_to, P_to):
             P_to[r, c, b] = P[r, c, b]
 
 
-@jit
+@borrow
 def _write(x, P, prob, log_prob, i0, nb, k, xc, Pc, best, x_out, P_out, prob_out, mode_out,
            x_s, P_s):
     """Sample ``k`` of the block's trials: the mode-matched ``x (L, n, B)``, ``P``, their

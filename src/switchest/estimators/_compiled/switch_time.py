@@ -55,6 +55,7 @@ from .linalg import (
     NOT_POSITIVE_DEFINITE,
     OK,
     _moments,
+    borrow,
     correct,
     gather_matrices,
     gather_rows,
@@ -238,7 +239,7 @@ def _take_rows(src, lane, ns, dst):
             dst[a, c] = src[a, lane[c]]
 
 
-@jit
+@borrow
 def _take_matrices(src, lane, ns, dst):
     """``dst[a, e, c] = src[a, e, lane[c]]``: the compacted lanes of ``src (r, s, B)``."""
     for a in range(src.shape[0]):
@@ -253,14 +254,14 @@ def _put_rows(src, lane, ns, dst):
             dst[a, lane[c]] = src[a, c]
 
 
-@jit
+@borrow
 def _put_matrices(src, lane, ns, dst):
     """``dst[a, e, lane[c]] = src[a, e, c]``: compacted lanes of ``(r, s, B)`` arrays back."""
     for a in range(src.shape[0]):
         _put_rows(src[a], lane, ns, dst[a])
 
 
-@jit
+@borrow
 def _gather_transition(F, G, Qd, index, nb, Fl, Gl, Ql):
     """Each lane's transition ``(F, G, Qd)[index[b]]`` of the table, into ``Fl``, ``Gl``,
     ``Ql``."""
@@ -370,7 +371,7 @@ def _likelihood(x, P, y, u, obs, n_obs, R, E, Go, Qo, printed, gate, nb, ye, Re,
 
 
 # ---------------------------------------------------------------- switching instant
-@jit
+@borrow
 def _grid_maximum(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, ws, lw, obsv, gs, report):
     """Grid maximum of Shankar et al. eq. (23) for the compacted switched lanes; writes the
     transition of the chosen instant into their lanes of ``Fl``, ``Gl``, ``Ql`` and the instant
@@ -682,7 +683,7 @@ def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs, pk, report):
 
 
 # ---------------------------------------------------------------- measurement update
-@jit
+@borrow
 def _update(x, P, y, C, R, obs, n_obs, gate, nb, ws, cs, use, report):
     """Measurement update of every lane, as the bank does for one mode
     (:func:`.bank.filter_bank`): innovation (:func:`.linalg.innovation`, repairing), the gate
@@ -705,7 +706,7 @@ def _update(x, P, y, C, R, obs, n_obs, gate, nb, ws, cs, use, report):
     return OK
 
 
-@jit
+@borrow
 def _merge(sw, tables, gate, ns, d, lane, x, P, lik, flg, off, ws, cs, hyp, flow, xs, report):
     """The switching instant marginalized over the grid (beyond Shankar et al.), for the
     compacted switched lanes: every grid instant ``tau_i`` is predicted (eqs (6)-(7)) and
