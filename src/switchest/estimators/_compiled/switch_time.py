@@ -443,11 +443,14 @@ def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs, pk, report):
     ``J = log N(y - Go u; E x, E P E' + Qo + R)`` (or the paper's literal ``N(y; C x-(tau),
     R)``) as in :func:`_likelihood`, a lane at a time: the equations of :func:`pull_back` and
     :func:`.linalg.innovation` (equilibrated Cholesky factor, eq. (8)) written out here, in
-    one body, because passing arrays to a helper per probe costs more (their reference
-    counts) than the arithmetic of a small system; for the same reason this function is
-    inlined into the kernel (called with its forty arrays it cost the refined filter a quarter
-    of its time on the boost converter). A lane whose factorization fails has its
-    ``P`` repaired (:func:`.linalg.repair`) and is factored once more.
+    one body, for one lane at a time: those functions loop over lanes innermost, and a probe
+    has one lane. (Run on them instead, every switched lane probing in step, the refined
+    filter took 1.9 times as long on the boost converter: about 9 lanes are too few to fill
+    the SIMD registers, and each probe waits for the lane whose search runs longest.) This
+    function is inlined into the kernel: called with its forty arrays, each reference-counted
+    (before :func:`switchest._jit.borrow`), it cost the refined filter a quarter of its time.
+    A lane whose factorization fails has its ``P`` repaired (:func:`.linalg.repair`) and is
+    factored once more.
 
     The grid instant is kept unless a probe beats it; a winning probe's transition is composed
     exactly (pulled back from ``I``) into the lane's ``Fl``, ``Gl``, ``Ql``, its instant
