@@ -13,8 +13,8 @@ stationary point, where :mod:`.standard_errors` takes the observed information. 
 an iteration gains less than ``tol``, which can leave a parameter on its way to a bound short
 of it (a 3-mode fit at K = 8000: two transition probabilities at 0.002 and 0.001, the
 information indefinite, every standard error NaN): the parameters whose gradient points at
-their lower bound are then tried on it (:func:`_onto_bounds`), and from a point that gains the
-search runs again (that fit: 1.96 log-units higher, both entries on the bound, standard errors
+the boundary of the parameter space (0) are then tried on it (:func:`_onto_bounds`), and from
+a point that gains the search runs again (that fit: 1.96 log-units higher, both entries on the bound, standard errors
 for the rest).
 
 The parameters, bounded (L-BFGS-B's box), so that a maximum on the boundary of the parameter
@@ -166,7 +166,7 @@ def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
     result = search(start, max_iter)
     theta, value, converged, used = result.x, result.fun, result.success, result.nit
     while used < max_iter:  # each round raises the likelihood: it ends
-        moved = _onto_bounds(theta, value, result.jac, box[:, 0], layout.unpack, logliks)
+        moved = _onto_bounds(theta, value, result.jac, box[:, 0] == 0.0, layout.unpack, logliks)
         if moved is None:
             break
         (theta, value), converged, used = moved, False, used + 1
@@ -181,24 +181,26 @@ def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
     return fitted, pi, bool(converged)
 
 
-def _onto_bounds(theta: np.ndarray, value: float, grad: np.ndarray, lower: np.ndarray,
+def _onto_bounds(theta: np.ndarray, value: float, grad: np.ndarray, edge: np.ndarray,
                  make: Callable, logliks: Callable[[list], np.ndarray]
                  ) -> tuple[np.ndarray, float] | None:
-    """A point with the parameters the search left just above their lower bounds moved onto
-    them, where that lowers ``value`` (minus the log-likelihood at ``theta``); ``None`` where
+    """A point with parameters the search left above the boundary of the parameter space moved
+    onto it, where that lowers ``value`` (minus the log-likelihood at ``theta``); ``None`` where
     no such move does.
 
-    L-BFGS-B stops when an iteration gains less than ``tol``: a parameter on its way to a
-    bound (a transition that never happens, a singular process noise) may stop short of it,
-    where the observed information is indefinite. Each parameter above its lower bound whose
-    gradient points at it is tried on the bound alone, then those that gained together; the
-    better of the best single move and the joint one is returned with its value.
+    The boundary is where a parameter with ``edge`` (lower bound 0: a transition probability, a
+    process-noise variance) is 0; the other bounds of the box only keep the search finite, and
+    nothing is moved onto them. L-BFGS-B stops when an iteration gains less than ``tol``: a
+    parameter on its way to the boundary (a transition that never happens, a singular process
+    noise) may stop short of it, where the observed information is indefinite. Each such
+    parameter whose gradient points at 0 is tried there alone, then those that gained
+    together; the better of the best single move and the joint one is returned with its value.
     """
-    toward = np.flatnonzero((grad > 0.0) & (theta > lower))
+    toward = np.flatnonzero(edge & (grad > 0.0) & (theta > 0.0))
     if toward.size == 0:
         return None
     points = np.repeat(theta[None], toward.size, axis=0)
-    points[np.arange(toward.size), toward] = lower[toward]
+    points[np.arange(toward.size), toward] = 0.0
     values = -values_at(make, points, logliks)
     gained = values < value  # NaN (no value) gains nothing
     if not gained.any():
@@ -207,7 +209,7 @@ def _onto_bounds(theta: np.ndarray, value: float, grad: np.ndarray, lower: np.nd
     point, best_value = points[best], float(values[best])
     if gained.sum() > 1:
         joint = theta.copy()
-        joint[toward[gained]] = lower[toward[gained]]
+        joint[toward[gained]] = 0.0
         joint_value = float(-values_at(make, [joint], logliks)[0])
         if joint_value < best_value:
             point, best_value = joint, joint_value
