@@ -14,8 +14,8 @@ an iteration gains less than ``tol``, which can leave a parameter on its way to 
 of it (a 3-mode fit at K = 8000: two transition probabilities at 0.002 and 0.001, the
 information indefinite, every standard error NaN): the parameters whose gradient points at
 the boundary of the parameter space (0) are then tried on it (:func:`_onto_bounds`), and from
-a point that gains the search runs again (that fit: 1.96 log-units higher, both entries on the bound, standard errors
-for the rest).
+a point that gains the search runs again (that fit: 1.96 log-units higher, both entries on the
+bound, standard errors for the rest).
 
 The parameters, bounded (L-BFGS-B's box), so that a maximum on the boundary of the parameter
 space (a transition that never happens, a singular process noise) is a point the search can
