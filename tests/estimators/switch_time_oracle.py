@@ -4,7 +4,8 @@ A copy of the numpy implementation: each step predicts and updates the whole bat
 with :func:`switchest.estimators.kalman.kf_predict` and ``kf_update``, the grid transitions come
 from :func:`switchest.discretize.pairwise_grid` and every refinement probe from its own
 :func:`switchest.discretize.interval` (a block matrix exponential), the search of the cell
-written here from Brent's ``fmin`` (:func:`brent_maximize`), a lane at a time. One addition:
+written here from Brent's ``fmin`` with the compiled filter's edge step (:func:`brent_maximize`),
+a lane at a time. One addition:
 ``resolution``, the number of steps per interval to which a probe's instant is rounded before its
 transition is taken (``None``: exact); given the compiled filter's resolution, the two follow
 the same search path. ``tolerance`` (units of the interval) is the compiled filter's
@@ -155,13 +156,16 @@ class SwitchTimeOracle:
 
 def brent_maximize(f, a, b, x, fx, tol, max_probes):
     """Brent's method for a maximum of ``f`` on ``[a, b]`` from ``x`` with ``f(x) = fx``
-    (Brent 1973, ch. 5; Forsythe, Malcolm & Moler's ``fmin`` on ``-f``), at most
-    ``max_probes`` evaluations; returns how many were made.
+    (Brent 1973, ch. 5; Forsythe, Malcolm & Moler's ``fmin`` on ``-f``) with the compiled
+    filter's edge step, at most ``max_probes`` evaluations; returns how many were made.
 
-    Straight from ``fmin``: stop when ``|x - (a + b)/2| <= 2 tol1 - (b - a)/2`` with
+    From ``fmin``: stop when ``|x - (a + b)/2| <= 2 tol1 - (b - a)/2`` with
     ``tol1 = sqrt(eps) |x| + tol / 3``; else a parabola through ``x``, ``w``, ``v`` if it falls
     inside ``(a, b)`` and moves less than half the step before last, else a golden-section
     step ``c e`` (``c = (3 - sqrt 5) / 2``) into the larger part; never nearer than ``tol1``.
+    The edge step replaces a golden step where ``x``, ``w``, ``v`` lie in order toward an edge
+    of the starting interval that still bounds the bracket, more than ``2 tol1`` from ``x``:
+    that edge is probed (once), and if it is the best point, ``tol1`` inside it next.
     """
     c = 0.5 * (3.0 - math.sqrt(5.0))
     eps = math.sqrt(np.finfo(float).eps)
@@ -169,33 +173,45 @@ def brent_maximize(f, a, b, x, fx, tol, max_probes):
     v = w = x
     fv = fw = fx
     d = e = 0.0
+    edge_a, edge_b = a, b  # NaN once probed
+    inward = 0.0
     for count in range(max_probes):
         xm = 0.5 * (a + b)
         tol1 = eps * abs(x) + tol / 3.0
         tol2 = 2.0 * tol1
         if abs(x - xm) <= tol2 - 0.5 * (b - a):
             return count
-        parabola = False
-        if abs(e) > tol1:
-            r = (x - w) * (fx - fv)
-            q = (x - v) * (fx - fw)
-            p = (x - v) * q - (x - w) * r
-            q = 2.0 * (q - r)
-            if q > 0.0:
-                p = -p
-            q = abs(q)
-            r, e = e, d
-            if abs(p) < abs(0.5 * q * r) and q * (a - x) < p < q * (b - x):
-                parabola = True
-                d = p / q
-                if (x + d) - a < tol2 or b - (x + d) < tol2:
-                    d = tol1 if xm - x >= 0.0 else -tol1
-        if not parabola:
-            e = (a - x) if x >= xm else (b - x)
-            d = c * e
-        u = x + d if abs(d) >= tol1 else x + (tol1 if d >= 0.0 else -tol1)
+        edge = 0.0
+        if inward:
+            u, inward = x + inward * tol1, 0.0
+        else:
+            parabola = False
+            if abs(e) > tol1:
+                r = (x - w) * (fx - fv)
+                q = (x - v) * (fx - fw)
+                p = (x - v) * q - (x - w) * r
+                q = 2.0 * (q - r)
+                if q > 0.0:
+                    p = -p
+                q = abs(q)
+                r, e = e, d
+                if abs(p) < abs(0.5 * q * r) and q * (a - x) < p < q * (b - x):
+                    parabola = True
+                    d = p / q
+                    if (x + d) - a < tol2 or b - (x + d) < tol2:
+                        d = tol1 if xm - x >= 0.0 else -tol1
+            if not parabola and a == edge_a and x < w < v and x - a > tol2:
+                u, edge, edge_a = a, 1.0, math.nan
+            elif not parabola and b == edge_b and x > w > v and b - x > tol2:
+                u, edge, edge_b = b, -1.0, math.nan
+            else:
+                if not parabola:
+                    e = (a - x) if x >= xm else (b - x)
+                    d = c * e
+                u = x + d if abs(d) >= tol1 else x + (tol1 if d >= 0.0 else -tol1)
         fu = -f(u)
         if fu <= fx:
+            inward = edge
             if u >= x:
                 a = x
             else:

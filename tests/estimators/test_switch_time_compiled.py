@@ -239,6 +239,27 @@ def test_the_refined_instant_is_at_least_as_likely_as_the_grid_maximum(g):
     assert n_switched > 100
 
 
+def test_a_likelihood_rising_to_the_cells_edge_is_searched_to_the_edge():
+    # x' = 0 in mode 0 and x' = u = 1 in mode 1: a switch 0 -> 1 at tau leaves x + (T - tau) at
+    # the sample. y = x + T puts J_k's maximum at tau = 0, y = x at tau = T, the edges of the
+    # cell (g = 1), with J_k rising all the way from the middle instant. Brent's golden steps
+    # close in on an edge by 0.618 per probe (about 17 probes to reach it within 1e-4 T); the
+    # edge step probes the edge once the search heads for it: the third probe here.
+    system = SwitchedLinearSystem.continuous([[[0.0]], [[0.0]]], [[[0.0]], [[1.0]]], [[1.0]],
+                                             Q=[[1e-4]], R=[[1e-4]])
+    T, x = 1.0, np.array([[2.0], [2.0]])
+    P = np.full((2, 1, 1), 1e-4)
+    y, u = x + np.array([[T], [0.0]]), np.ones((2, 1))
+    state = SwitchTimeState(x, P, np.zeros(2), np.full(2, np.nan), np.zeros(2, dtype=bool))
+    for probes, reached in ((3, True), (2, False)):
+        est = SwitchTimeKalmanFilter(system, np.zeros(1), np.eye(1), grid=1, refine=True,
+                                     refine_iterations=probes)
+        tau = est.step(state, y, u, dt=T, mode=np.ones(2, int),
+                       prev_mode=np.zeros(2, int)).switch_offset
+        near = np.abs(tau - [0.0, T]) <= 2 * REFINE_TOLERANCE * T
+        assert np.all(near == reached), (probes, tau)
+
+
 @pytest.mark.parametrize("make", [boost_converter, three_mode_system])
 def test_offset_table_composes_the_exact_transition(make):
     system = make()

@@ -137,7 +137,9 @@ class SwitchTimeKalmanFilter(Estimator):
         Beyond the paper: polish the grid maximum by Brent's method (golden section
         and parabolic interpolation, Brent 1973 ch. 5) on the exact likelihood over
         the grid cell around it, ``[tau - T/(2g), tau + T/(2g)]``, started from the
-        grid instant; the search stops once the maximizer is bracketed to within
+        grid instant, with one addition: a search heading for an edge of the cell
+        probes that edge (see :func:`~switchest.estimators._compiled.switch_time._refine`);
+        the search stops once the maximizer is bracketed to within
         about ``2e-4 T`` (tolerance ``1e-4 T``,
         :data:`~switchest.estimators._compiled.switch_time.REFINE_TOLERANCE`) or after
         ``refine_iterations`` probes. The grid instant is kept unless a probe beats
@@ -148,8 +150,8 @@ class SwitchTimeKalmanFilter(Estimator):
         Which ``J_k`` to maximize, see :func:`switch_time_loglik`.
     refine_iterations : int
         The most probes of the search when ``refine=True`` (a cap: on the boost converter
-        of Shankar et al. a search stops at its tolerance after 7-12 probes, about 20 where
-        the maximum lies at an end of the cell).
+        of Shankar et al. a search stops at its tolerance after 7-12 probes, about 4 where
+        the maximum lies at an edge of the cell).
     switch_time : {"max", "marginal"}
         ``"max"``: the grid maximizer of eq. (23) (the paper). ``"marginal"``
         (beyond the paper): every grid instant is predicted and updated, and the
