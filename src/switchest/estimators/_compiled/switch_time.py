@@ -460,7 +460,11 @@ def _refine(sw, tables, opts, ns, d, lane, Fl, Gl, Ql, off, gs, pk, report):
     one body, for one lane at a time: those functions loop over lanes innermost, and a probe
     has one lane. (Run on them instead, every switched lane probing in step, the refined
     filter took 1.9 times as long on the boost converter: about 9 lanes are too few to fill
-    the SIMD registers, and each probe waits for the lane whose search runs longest.) This
+    the SIMD registers, and each probe waits for the lane whose search runs longest. Nor did
+    searches side by side pay, each in a slot that takes the next lane when its search ends,
+    the slots' probes evaluated together so that their chains of divisions, roots and
+    logarithms overlap: with the searches' state in arrays and the probe split into inlined
+    parts, the refined filter took 1.5 times as long, with one slot as with four.) This
     function is inlined into the kernel: called with its forty arrays, each reference-counted
     (before :func:`switchest._jit.borrow`), it cost the refined filter a quarter of its time.
     A lane whose factorization fails has its ``P`` repaired (:func:`.linalg.repair`) and is
