@@ -235,3 +235,30 @@ def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatc
     first_cells = [line.split("│")[1].strip() for line in out.splitlines()
                    if line.startswith("│")]
     assert sum(1 for cell in first_cells if len(cell) >= 4) >= 5  # labels, not slivers
+
+
+def test_a_compile_is_announced_and_timed_on_stderr_even_in_a_log(capsys):
+    """A compile inside the notice's block: a line before it and its duration after, also when
+    stderr is not a terminal (here, captured); nothing at all when nothing compiles."""
+    from numba import njit
+
+    @njit  # no on-disk cache: compiled in this process
+    def halve(x):
+        return 0.5 * x
+
+    with cli_module._compile_notice():
+        halve(1.0)
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == cli_module._COMPILING
+    assert re.fullmatch(r"compiled the filter kernels in (\d+ s|\d+ min \d\d s); later runs load "
+                        r"them from the on-disk cache", err[1]), err
+    assert len(err) == 2
+    with cli_module._compile_notice():
+        halve(2.0)  # compiled already
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize(("seconds", "text"), [(0.4, "0 s"), (59.4, "59 s"), (59.6, "1 min 00 s"),
+                                               (187.0, "3 min 07 s")])
+def test_compile_durations_read_in_seconds_then_minutes(seconds, text):
+    assert cli_module._minutes(seconds) == text

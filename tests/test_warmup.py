@@ -49,12 +49,14 @@ def test_a_compile_is_announced_once_and_a_compiled_function_not_at_all():
         return 3.0 * x
 
     heard = []
-    with warmup.on_first_compile(lambda: heard.append("first block")):
+    with warmup.on_first_compile(lambda: heard.append("first block")) as first:
         double(1.0)
         triple(1.0)
-    with warmup.on_first_compile(lambda: heard.append("second block")):
+    with warmup.on_first_compile(lambda: heard.append("second block")) as second:
         double(2.0)  # compiled for float64 already
     assert heard == ["first block"]
+    assert first.heard and first.seconds > 0.0
+    assert not second.heard and second.seconds == 0.0
 
 
 def test_warm_up_runs_what_kernel_modules_register_and_says_whether_it_compiled(monkeypatch):

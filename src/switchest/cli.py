@@ -184,17 +184,24 @@ def run_experiment(*args, **kwargs) -> list[tuple[dict, dict]]:
 
 @contextmanager
 def _compile_notice() -> Iterator[None]:
-    """Say so on stderr when numba starts to compile the filter kernels inside the block: once
-    after install (or an upgrade), never when they load from the on-disk cache. Only on a
-    terminal, as the progress bar."""
-    errors = Console(stderr=True, highlight=False)
-    if not errors.is_terminal:
-        yield
-        return
+    """Say on stderr when numba starts to compile the filter kernels inside the block, and, when
+    the block ends, how long compiling took: once after install (or an upgrade), never when
+    they load from the on-disk cache. On a terminal and in a log alike (plain text there), so
+    that a log shows what its first minutes went to."""
     from .estimators._compiled.warmup import on_first_compile
 
-    with on_first_compile(lambda: errors.print(f"[dim]{_COMPILING}[/dim]")):
+    errors = Console(stderr=True, highlight=False, soft_wrap=True)
+    with on_first_compile(lambda: errors.print(_COMPILING, style="dim")) as watch:
         yield
+    if watch.heard:
+        errors.print(f"compiled the filter kernels in {_minutes(watch.seconds)}; later runs "
+                     "load them from the on-disk cache", style="dim")
+
+
+def _minutes(seconds: float) -> str:
+    """A duration as ``"42 s"`` or ``"3 min 07 s"``."""
+    whole = round(seconds)
+    return f"{whole} s" if whole < 60 else f"{whole // 60} min {whole % 60:02d} s"
 
 
 def _store_path(args: argparse.Namespace) -> Path:

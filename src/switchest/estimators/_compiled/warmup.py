@@ -9,10 +9,11 @@ second.
   call, so what it compiles are the signatures the estimators use. The experiment runner calls
   it before it starts worker processes, which then inherit (fork) or load (spawn) the kernels
   instead of each compiling them.
-- :func:`on_first_compile` calls back when numba starts to compile. numba looks in the
-  on-disk cache first and compiles (broadcasting its ``numba:compile`` event) only when the
-  cache has no entry for the signature, for this source and this numba: the command line
-  announces the wait there, and says nothing when the cache is warm.
+- :func:`on_first_compile` calls back when numba starts to compile, and times the compiles.
+  numba looks in the on-disk cache first and compiles (broadcasting its ``numba:compile``
+  event) only when the cache has no entry for the signature, for this source and this numba:
+  the command line announces the wait there and says how long it took, and says nothing when
+  the cache is warm.
 
 A kernel module registers its warm-up when it is imported (``_compiled/__init__`` imports
 every kernel module, so all have registered before :func:`warm_up` runs)::
@@ -28,13 +29,14 @@ This module imports no kernel module at its top, so that they can import it.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 import numpy as np
 from numba.core.event import Listener, install_listener
 
-__all__ = ["on_first_compile", "register", "warm_up"]
+__all__ = ["CompileWatch", "on_first_compile", "register", "warm_up"]
 
 _WARM_UPS: list[Callable[[], object]] = []
 
@@ -56,27 +58,44 @@ def warm_up() -> bool:
     return bool(compiled)
 
 
-class _FirstCompile(Listener):
-    """Calls its callback at the start of the first compile it hears of."""
+class CompileWatch(Listener):
+    """Calls its callback at the start of the first compile it hears of, and adds up the wall
+    time spent compiling (a compile inside another counted once).
+
+    Attributes
+    ----------
+    heard : bool
+        Whether numba compiled anything while the watch listened.
+    seconds : float
+        Wall time of those compiles, in seconds.
+    """
 
     def __init__(self, callback: Callable[[], object]):
-        self._callback, self._heard = callback, False
+        self._callback, self._depth, self._started = callback, 0, 0.0
+        self.heard, self.seconds = False, 0.0
 
     def on_start(self, event) -> None:
-        if not self._heard:
-            self._heard = True
+        if not self.heard:
+            self.heard = True
             self._callback()
+        if self._depth == 0:
+            self._started = time.perf_counter()
+        self._depth += 1
 
     def on_end(self, event) -> None:
-        pass
+        self._depth -= 1
+        if self._depth == 0:
+            self.seconds += time.perf_counter() - self._started
 
 
 @contextmanager
-def on_first_compile(callback: Callable[[], object]) -> Iterator[None]:
+def on_first_compile(callback: Callable[[], object]) -> Iterator[CompileWatch]:
     """Call ``callback()`` when numba starts to compile something inside the block (once,
-    before the first compile; never if every kernel loads from the cache or memory)."""
-    with install_listener("numba:compile", _FirstCompile(callback)):
-        yield
+    before the first compile; never if every kernel loads from the cache or memory); the block
+    gets the :class:`CompileWatch`, whose ``seconds`` add up the compiles when it ends."""
+    watch = CompileWatch(callback)
+    with install_listener("numba:compile", watch):
+        yield watch
 
 
 # ---------------------------------------------------------------------- the kernels of imm, kalman
