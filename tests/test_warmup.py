@@ -2,6 +2,7 @@
 cache and compiles nothing; a compile is announced once, a load never."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -70,3 +71,50 @@ def test_warm_up_runs_what_kernel_modules_register_and_says_whether_it_compiled(
     assert warmup.warm_up() is True
     assert warmup.warm_up() is False
     assert calls == [2.0, 2.0]
+
+
+# Warm-ups that leave a mark of the process that ran them, for the test below (worker processes
+# find them by module and name, as they find the kernel modules' warm-ups).
+_MARKS = []
+
+
+def _mark_a():
+    (_MARKS[0] / f"a-{os.getpid()}").touch()
+
+
+def _mark_b():
+    (_MARKS[0] / f"b-{os.getpid()}").touch()
+
+
+def test_a_fresh_cache_is_compiled_by_worker_processes_once_then_loaded_here(tmp_path,
+                                                                              monkeypatch):
+    monkeypatch.setattr(warmup, "_WARM_UPS", [_mark_a, _mark_b])
+    monkeypatch.setattr(warmup, "_APART_DONE", [])
+    monkeypatch.setattr(warmup, "started_afresh", lambda: True)
+    monkeypatch.setattr(warmup, "cores", lambda: 2)
+    monkeypatch.setattr(sys.modules[__name__], "_MARKS", [tmp_path])
+    assert warmup.warm_up() is True  # the workers' compile is heard here
+    here = os.getpid()
+    marks = sorted(p.name for p in tmp_path.iterdir())
+    assert f"a-{here}" in marks and f"b-{here}" in marks  # then loaded (here: run) in this one
+    workers = {int(name.split("-")[1]) for name in marks} - {here}
+    assert len(marks) == 4 and 1 <= len(workers) <= 2, marks
+    for mark in tmp_path.iterdir():
+        mark.unlink()
+    assert warmup.warm_up() is False  # once per process: now every warm-up runs here only
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"a-{here}", f"b-{here}"]
+
+
+def test_without_worker_processes_the_warm_ups_run_here(tmp_path, monkeypatch):
+    def no_processes(*args, **kwargs):
+        raise OSError("no processes may be started here")
+
+    monkeypatch.setattr(warmup, "_WARM_UPS", [_mark_a, _mark_b])
+    monkeypatch.setattr(warmup, "_APART_DONE", [])
+    monkeypatch.setattr(warmup, "started_afresh", lambda: True)
+    monkeypatch.setattr(warmup, "cores", lambda: 2)
+    monkeypatch.setattr(warmup, "ProcessPoolExecutor", no_processes)
+    monkeypatch.setattr(sys.modules[__name__], "_MARKS", [tmp_path])
+    warmup.warm_up()
+    here = os.getpid()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"a-{here}", f"b-{here}"]

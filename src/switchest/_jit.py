@@ -20,12 +20,14 @@ from pathlib import Path
 
 from numba import njit
 
-__all__ = ["borrow", "jit"]
+__all__ = ["borrow", "jit", "started_afresh"]
 
 _PACKAGE = Path(__file__).resolve().parent
 _SOURCES = ("_jit.py", "dyadic.py", "estimators/_compiled/*.py")
 """Files (globs relative to the package) whose code ends up in compiled functions."""
 _STAMP = "switchest-jit-sources.sha256"
+_AFRESH: set[str] = set()
+"""The cache directories this process found without the current digest and emptied."""
 
 _njit = njit(cache=True, error_model="numpy", _nrt=True)
 _njit_borrowing = njit(cache=True, error_model="numpy", _nrt=False)
@@ -51,6 +53,13 @@ def borrow(function):
     Functions it calls keep their own settings.
     """
     return _cached(_njit_borrowing(function))
+
+
+def started_afresh() -> bool:
+    """Whether this process found a cache directory of compiled code without the stamp of the
+    current sources (the first run after an install, or after the sources changed) and started
+    it anew: its functions will be compiled, not loaded."""
+    return bool(_AFRESH)
 
 
 def _cached(dispatcher):
@@ -87,5 +96,6 @@ def _refresh(directory: str) -> None:
                 path.unlink(missing_ok=True)
         folder.mkdir(parents=True, exist_ok=True)
         stamp.write_text(digest)
+        _AFRESH.add(directory)
     except OSError:  # a directory this process may not write: left to numba as it is
         return

@@ -11,17 +11,21 @@ thread when a thread's outermost call enters and restores the sizes it found whe
 leaves; calls inside it only check a flag. Entering costs about 16 us (threadpoolctl's cached
 controller; ``threadpool_limits`` costs 1.6 ms, as it looks for the libraries each time), so it
 wraps whole public calls, never a per-step helper.
+
+:func:`cores` counts the cores this process may run on, for the pools of worker processes (the
+experiment runner's, and the first compile's in :mod:`switchest.estimators._compiled.warmup`).
 """
 
 from __future__ import annotations
 
+import os
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 from threadpoolctl import get_cached_controller
 
-__all__ = ["one_blas_thread"]
+__all__ = ["cores", "one_blas_thread"]
 
 _inside = threading.local()  # .active: this thread is inside a one_blas_thread call
 
@@ -44,3 +48,10 @@ def one_blas_thread() -> Iterator[None]:
             yield
     finally:
         _inside.active = False
+
+
+def cores() -> int:
+    """The number of cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1

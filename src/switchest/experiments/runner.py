@@ -34,6 +34,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from .._threads import cores
 from ..estimators._compiled.warmup import warm_up
 from .registry import Experiment, get
 from .store import Claimant, Store, StoredTask, process_token, task_key
@@ -400,18 +401,11 @@ class _Dask(_Backend):
 def _backend(scheduler: str | None, workers: int, tasks: int) -> _Backend:
     if scheduler is not None:
         return _Dask(scheduler)
-    size = min(workers, tasks, _cores())
+    size = min(workers, tasks, cores())
     if size == 1:
         return _InProcess()
     warm_up()  # the workers start with the compiled kernels rather than each compiling them
     return _Pool(size)
-
-
-def _cores() -> int:
-    """Cores this process may run on."""
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1
 
 
 def _check_scheduler_address(address: str) -> tuple[str, int] | None:
