@@ -93,7 +93,7 @@ def _compile_apart() -> None:
             with ProcessPoolExecutor(workers) as pool:
                 for _ in pool.map(_warm_up_named, names):
                     pass
-        except (OSError, BrokenProcessPool):
+        except (OSError, BrokenProcessPool):  # the warm-ups then compile in this process
             return
 
 
