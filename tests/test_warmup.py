@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 
+import pytest
 from numba import njit
 
 from switchest.estimators._compiled import warmup
@@ -73,7 +74,7 @@ def test_warm_up_runs_what_kernel_modules_register_and_says_whether_it_compiled(
     assert calls == [2.0, 2.0]
 
 
-# Warm-ups that leave a mark of the process that ran them, for the test below (worker processes
+# Warm-ups that leave a mark of the process that ran them, for the tests below (worker processes
 # find them by module and name, as they find the kernel modules' warm-ups).
 _MARKS = []
 
@@ -86,35 +87,39 @@ def _mark_b():
     (_MARKS[0] / f"b-{os.getpid()}").touch()
 
 
-def test_a_fresh_cache_is_compiled_by_worker_processes_once_then_loaded_here(tmp_path,
-                                                                              monkeypatch):
+@pytest.fixture
+def fresh_cache_on_two_cores(tmp_path, monkeypatch):
+    """The marking warm-ups registered, as if this process had just started its cache afresh
+    on two cores; returns the folder of the marks."""
     monkeypatch.setattr(warmup, "_WARM_UPS", [_mark_a, _mark_b])
     monkeypatch.setattr(warmup, "_APART_DONE", [])
     monkeypatch.setattr(warmup, "started_afresh", lambda: True)
     monkeypatch.setattr(warmup, "cores", lambda: 2)
     monkeypatch.setattr(sys.modules[__name__], "_MARKS", [tmp_path])
+    return tmp_path
+
+
+def test_a_fresh_cache_is_compiled_by_worker_processes_once_then_loaded_here(
+        fresh_cache_on_two_cores):
+    marks_dir = fresh_cache_on_two_cores
     assert warmup.warm_up() is True  # the workers' compile is heard here
     here = os.getpid()
-    marks = sorted(p.name for p in tmp_path.iterdir())
+    marks = sorted(p.name for p in marks_dir.iterdir())
     assert f"a-{here}" in marks and f"b-{here}" in marks  # then loaded (here: run) in this one
     workers = {int(name.split("-")[1]) for name in marks} - {here}
     assert len(marks) == 4 and 1 <= len(workers) <= 2, marks
-    for mark in tmp_path.iterdir():
+    for mark in marks_dir.iterdir():
         mark.unlink()
     assert warmup.warm_up() is False  # once per process: now every warm-up runs here only
-    assert sorted(p.name for p in tmp_path.iterdir()) == [f"a-{here}", f"b-{here}"]
+    assert sorted(p.name for p in marks_dir.iterdir()) == [f"a-{here}", f"b-{here}"]
 
 
-def test_without_worker_processes_the_warm_ups_run_here(tmp_path, monkeypatch):
+def test_without_worker_processes_the_warm_ups_run_here(fresh_cache_on_two_cores, monkeypatch):
     def no_processes(*args, **kwargs):
         raise OSError("no processes may be started here")
 
-    monkeypatch.setattr(warmup, "_WARM_UPS", [_mark_a, _mark_b])
-    monkeypatch.setattr(warmup, "_APART_DONE", [])
-    monkeypatch.setattr(warmup, "started_afresh", lambda: True)
-    monkeypatch.setattr(warmup, "cores", lambda: 2)
     monkeypatch.setattr(warmup, "ProcessPoolExecutor", no_processes)
-    monkeypatch.setattr(sys.modules[__name__], "_MARKS", [tmp_path])
     warmup.warm_up()
     here = os.getpid()
-    assert sorted(p.name for p in tmp_path.iterdir()) == [f"a-{here}", f"b-{here}"]
+    assert sorted(p.name for p in fresh_cache_on_two_cores.iterdir()) == [f"a-{here}",
+                                                                          f"b-{here}"]
