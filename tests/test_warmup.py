@@ -1,6 +1,7 @@
 """Warming the compiled kernels: after it, a new process loads every kernel from numba's on-disk
 cache and compiles nothing; a compile is announced once, a load never."""
 
+import concurrent.futures
 import json
 import os
 import subprocess
@@ -118,7 +119,7 @@ def test_without_worker_processes_the_warm_ups_run_here(fresh_cache_on_two_cores
     def no_processes(*args, **kwargs):
         raise OSError("no processes may be started here")
 
-    monkeypatch.setattr(warmup, "ProcessPoolExecutor", no_processes)
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_processes)
     warmup.warm_up()
     here = os.getpid()
     assert sorted(p.name for p in fresh_cache_on_two_cores.iterdir()) == [f"a-{here}",

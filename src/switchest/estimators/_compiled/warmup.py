@@ -33,8 +33,6 @@ from __future__ import annotations
 import importlib
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from contextlib import ExitStack, contextmanager
 
 import numpy as np
@@ -87,6 +85,10 @@ def _compile_apart() -> None:
     if _APART_DONE or workers < 2 or not started_afresh():
         return
     _APART_DONE.append(True)
+    # here, not at the top: every process that filters imports this module, few need a pool
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
     names = [f"{run.__module__}:{run.__qualname__}" for run in _WARM_UPS]
     with trigger_event(_APART):
         try:
