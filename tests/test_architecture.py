@@ -22,6 +22,7 @@ LAYERS = [
     {"metrics"},
     {"analysis"},  # certificates and designs: functions of a system and of gains
     {"default_designs"},  # the designs the methods take from a model file alone
+    {"engine"},  # the compiled time loops: arrays, not classes; imported by the estimators only
     {"estimators"},  # the filters, which may run designs from the analysis
     {"learn"},  # fitting a system to data: runs the filters and smoothers, and the analysis
     {"plotting"},
@@ -110,3 +111,16 @@ def test_the_readme_layout_names_every_module_in_layer_order():
         position[name] = layout.index(mark)
     ranked = sorted(names, key=position.get)
     assert [RANK[n] for n in ranked] == sorted(RANK[n] for n in ranked), ranked
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(SRC)))
+def test_only_the_estimators_import_the_engine(path):
+    """The engine knows arrays, not classes (it imports no estimator), and only the estimators
+    call it: the learning code, the tables, the experiments and the command line reach the
+    compiled loops through the estimators."""
+    own = top_level(path)
+    imported = {name for name in internal_imports(path) if name in ("engine", "estimators")}
+    if own == "engine":
+        assert "estimators" not in imported
+    elif own != "estimators":
+        assert "engine" not in imported

@@ -18,7 +18,8 @@ RTOL = 1e-12
 
 def assert_transitions_close(actual, expected):
     for a, b in zip((actual.F, actual.G, actual.Qd), (expected.F, expected.G, expected.Qd)):
-        np.testing.assert_allclose(a, b, rtol=0.0, atol=RTOL * max(np.abs(b).max(), 1e-300))
+        scale = max(np.abs(b).max(initial=0.0), 1e-300)  # initial: no interval, or no input
+        np.testing.assert_allclose(a, b, rtol=0.0, atol=RTOL * scale)
 
 
 def stiff_system():
@@ -41,6 +42,41 @@ def test_random_switches_match_discretize(make, T):
     assert table.depth >= 1
     assert_transitions_close(interval_transitions(table, modes, offsets),
                              interval(system, T, modes, offsets))
+
+
+def random_system(rng, n, l, L, scale, decay):
+    """L modes of n states and l inputs, ``||A||`` about ``scale``: rotations at that rate and
+    a decay at rate ``decay``, so that a large ``||A|| T`` neither overflows nor decays the
+    flow to where the oracle's expm keeps only a few digits (``exp(-50)``: 1e-12 relative)."""
+    K = rng.standard_normal((L, n, n))
+    A = scale * 0.5 * (K - np.swapaxes(K, 1, 2)) - decay * np.eye(n)
+    B = rng.standard_normal((L, n, l)) if l else None
+    H = rng.standard_normal((L, n, n))
+    return SwitchedLinearSystem.continuous(A, B, rng.standard_normal((L, 1, n)),
+                                           Q=H @ np.swapaxes(H, 1, 2), R=[[1.0]])
+
+
+@pytest.mark.parametrize("n, l, L, S, M, reach", [
+    (1, 0, 1, 0, 1, 1e-9),  # a single segment, ||A|| T far below the remainder's reach
+    (1, 1, 2, 1, 1000, 0.3),
+    (2, 2, 3, 4, 1000, 50.0),
+    (3, 0, 2, 2, 1, 300.0),  # ||A|| T far above 1 (a deep table), below 1e3 (conditioning)
+    (4, 1, 3, 3, 1000, 1.0),
+    (2, 1, 2, 2, 0, 1.0),  # no interval
+    (2, 1, 1, 1, 20, 0.0),  # A = 0: depth 0, the flow a polynomial (Taylor exact)
+])
+def test_random_shapes_match_discretize(n, l, L, S, M, reach):
+    rng = np.random.default_rng(n + 10 * l + 100 * S)
+    T = 0.7
+    system = random_system(rng, n, l, L, reach / T, min(reach, 1.0) / T)
+    modes = rng.integers(0, L, (M, S + 1))
+    offsets = np.sort(rng.uniform(0.0, T, (M, S)), axis=1)
+    if M >= 4 and S:
+        offsets[:4] = [np.zeros(S), np.full(S, T), np.full(S, 0.5 * T), np.linspace(0.0, T, S)]
+    tr = interval_transitions(dyadic_table(system, T), modes, offsets)
+    assert tr.F.shape == (M, n, n) and tr.G.shape == (M, n, l) and tr.Qd.shape == (M, n, n)
+    assert_transitions_close(tr, interval(system, T, modes, offsets))
+    np.testing.assert_array_equal(tr.Qd, np.swapaxes(tr.Qd, 1, 2))
 
 
 @settings(max_examples=40, deadline=None)

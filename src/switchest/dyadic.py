@@ -21,9 +21,12 @@ result is exact to rounding at the instant given, not at a quantized one.
 
 A switched interval is a sequence of such segments, composed the same way: the exact
 transition of :func:`switchest.discretize.interval` at a few dozen small matrix products
-instead of an ``expm`` of a ``(2n + l)``-square block. :func:`interval_transitions` does it in
-compiled code for many intervals at once (the clairvoyant filter's switched intervals, a
-switching-time search's probes).
+instead of an ``expm`` of a ``(2n + l)``-square block. :func:`interval_transitions` does it for
+many intervals at once (the clairvoyant filter's switched intervals, a switching-time search's
+probes), in numpy: each product is taken over all the intervals together, entry by entry, and
+Python loops only over the segments, the Taylor terms and the table's bits. An interval whose
+``q`` lacks a bit is composed with the identity there, which changes nothing: products by 1 and
+0 and sums with 0 round nothing.
 """
 
 from __future__ import annotations
@@ -33,10 +36,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
 
 from ._checks import check_finite, float_array, int_array, positive_scalar
-from ._jit import jit
 from .discretize import Transition, interval
 from .system import SwitchedLinearSystem
 
@@ -44,9 +45,6 @@ __all__ = ["DyadicTable", "dyadic_table", "interval_transitions"]
 
 ORDER = 5  # Taylor terms of the remainder's flow beyond the constant one
 _REMAINDER_REACH = 2.0**-10  # largest ||A|| r of a remainder
-# the small loops of a composition, inlined into it: a call passing arrays costs about as much
-# as their arithmetic on a few states (a call each ran the composition 20 % slower at n = 2)
-_inline = njit(cache=True, error_model="numpy", inline="always")
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,7 +91,6 @@ def _table(system: SwitchedLinearSystem, T: float) -> DyadicTable:
     h = T / 2.0 ** np.arange(depth + 1)
     modes = np.arange(system.n_modes)[:, None, None]
     tr = interval(system, h[None, :], modes)  # (L, D+1): Van Loan, the module's exponentials
-    # writeable C-contiguous copies: the one array type the kernel is compiled for
     arrays = (np.array(a, order="C") for a in (tr.F, tr.G, tr.Qd, system.A, system.B, system.Q))
     return DyadicTable(T, depth, *arrays)
 
@@ -130,138 +127,86 @@ def interval_transitions(table: DyadicTable, modes, offsets) -> Transition:
     check_finite(offsets, "offsets")
     if np.any(offsets < 0) or np.any(offsets > table.T) or np.any(np.diff(offsets) < 0):
         raise ValueError(f"offsets must be non-decreasing within [0, T] = [0, {table.T:g}]")
-    M, n, n_in = modes.shape[0], table.Phi.shape[2], table.Gamma.shape[3]
-    F, G, Qd = np.empty((M, n, n)), np.empty((M, n, n_in)), np.empty((M, n, n))
-    _intervals(table.Phi, table.Gamma, table.Qd, table.A, table.B, table.Q, table.T,
-               table.depth, modes, offsets, F, G, Qd)
-    return Transition(F, G, Qd)
+    F, G, W = _intervals(table, modes, offsets)
+    Qd = 0.5 * (W + np.swapaxes(W, 0, 1))  # symmetric to the last bit, as discretize returns it
+    return Transition(*(np.ascontiguousarray(np.moveaxis(a, -1, 0)) for a in (F, G, Qd)))
 
 
-@jit
-def _intervals(Phi, Gamma, Qd, A, B, Q, T, depth, modes, offsets, F_out, G_out, Qd_out):
-    """Compose every interval's segments (the module docstring's recursions)."""
+# The flows of all M intervals are held entry-major, ``F[a, c, i]`` for interval ``i``, and
+# multiplied by ``einsum`` over the last axis: for a few states a stacked ``matmul`` of
+# (M, n, n) matrices (a BLAS call per matrix) is several times slower.
+
+
+def _intervals(table, modes, offsets):
+    """``(F, G, W)``, shapes (n, n, M), (n, l, M), (n, n, M): every interval's segments composed
+    (the module docstring's recursions), ``W`` not yet symmetrized."""
     M, S1 = modes.shape
-    n, n_in = Phi.shape[2], Gamma.shape[3]
-    F, G, W = np.empty((n, n)), np.empty((n, n_in)), np.empty((n, n))
-    Fs, Gs, Ws = np.empty((n, n)), np.empty((n, n_in)), np.empty((n, n))
-    scratch = np.empty((3, n, max(n, n_in)))
-    for i in range(M):
-        _identity(F, G, W)
-        start = 0.0
-        for s in range(S1):
-            end = offsets[i, s] if s < S1 - 1 else T
-            _segment(Phi, Gamma, Qd, A, B, Q, T, depth, modes[i, s], max(end - start, 0.0),
-                     Fs, Gs, Ws, scratch)
-            _compose(F, G, W, Fs, Gs, Ws, scratch)
-            start = end
-        F_out[i] = F
-        G_out[i] = G
-        for r in range(n):  # symmetric to the last bit, as discretize returns it
-            for c in range(n):
-                Qd_out[i, r, c] = 0.5 * (W[r, c] + W[c, r])
+    K, n, n_in = table.Gamma.shape[1:]
+    generators = [np.moveaxis(a, 0, -1) for a in (table.A, table.B, table.Q)]
+    # the table's entries by bit, entry-major, each bit with an entry L appended: the identity
+    # flow (Phi = I, Gamma = 0, Qd = 0), for the intervals whose q lacks the bit. Composed with
+    # it a flow comes back as it was, exactly (products by 1 and 0, sums with 0); a product
+    # computed for every interval and then selected away could overflow past any real flow
+    identity = (np.broadcast_to(np.eye(n), (1, K, n, n)), np.zeros((1, K, n, n_in)),
+                np.zeros((1, K, n, n)))
+    entries = [np.moveaxis(np.concatenate([a, e]), 0, -1)
+               for a, e in zip((table.Phi, table.Gamma, table.Qd), identity)]
+    flow = None  # the identity: composed with the first segment, it gives that segment
+    start = np.zeros(M)
+    for s in range(S1):
+        end = offsets[:, s] if s < S1 - 1 else np.full(M, table.T)
+        segment = _segment(table, generators, entries, modes[:, s],
+                           np.maximum(end - start, 0.0))
+        flow = segment if flow is None else _compose(*flow, *segment)
+        start = end
+    return flow
 
 
-@jit
-def _identity(F, G, W):
-    F[:] = 0.0
-    G[:] = 0.0
-    W[:] = 0.0
-    for r in range(F.shape[0]):
-        F[r, r] = 1.0
-
-
-@jit
-def _segment(Phi, Gamma, Qd, A, B, Q, T, depth, mode, s, F, G, W, scratch):
-    """The flow of ``mode`` over a segment of length ``0 <= s <= T``: the Taylor series of the
-    remainder, then the table entries of the bits of ``q = floor(s 2^D / T)``."""
-    unit = T / 2.0**depth
-    q = min(int(s / unit), 2**depth)
-    _taylor(A[mode], B[mode], Q[mode], max(s - q * unit, 0.0), F, G, W, scratch)
+def _segment(table, generators, entries, mode, s):
+    """The flows of ``mode (M,)`` over segments of lengths ``0 <= s <= T`` (M,): the Taylor
+    series of the remainder, then the table entries of the bits of ``q = floor(s 2^D / T)``
+    (``generators``, ``entries``: those of :func:`_intervals`)."""
+    depth, L = table.depth, table.Phi.shape[0]
+    unit = table.T / 2.0**depth
+    q = np.minimum(np.trunc(s / unit), 2.0**depth).astype(np.int64)
+    flow = _taylor(*(np.take(a, mode, axis=-1) for a in generators),
+                   np.maximum(s - q * unit, 0.0))
     for k in range(depth + 1):
-        if (q >> (depth - k)) & 1:
-            _compose(F, G, W, Phi[mode, k], Gamma[mode, k], Qd[mode, k], scratch)
+        bit = ((q >> (depth - k)) & 1).astype(bool)
+        if bit.any():
+            which = np.where(bit, mode, L)
+            flow = _compose(*flow, *(np.take(a[k], which, axis=-1) for a in entries))
+    return flow
 
 
-@jit
-def _taylor(A, B, Q, r, F, G, W, scratch):
-    """``Phi(r)``, ``Gamma(r)``, ``Qd(r)`` of one mode by their Taylor series to ``ORDER``
-    (the module docstring), for ``||A|| r <= 2^-10``. ``scratch (3, n, n)``."""
-    n, n_in = A.shape[0], B.shape[1]
-    P, Mj, T = scratch[0], scratch[1], scratch[2]  # A^j r^j / j!, M_j r^j / j!, temporary
-    _identity(F, G, W)
-    for a in range(n):
-        for c in range(n):
-            P[a, c] = F[a, c]
-            Mj[a, c] = Q[a, c]
-            W[a, c] = Q[a, c] * r
-        for c in range(n_in):
-            G[a, c] = B[a, c] * r
+def _taylor(A, B, Q, r):
+    """``Phi(r)``, ``Gamma(r)``, ``Qd(r)`` by their Taylor series to ``ORDER`` (the module
+    docstring), for ``||A|| r <= 2^-10``; ``A, B, Q`` and the results entry-major, ``r (M,)``."""
+    F = P = np.broadcast_to(np.eye(A.shape[0])[:, :, None], A.shape)  # P: A^j r^j / j!
+    Mj = Q  # M_j r^j / j!
+    W, G = Q * r, B * r
     for j in range(1, ORDER + 1):
         f, g = r / j, r / (j + 1)
-        for a in range(n):  # P <- A P r / j
-            for c in range(n):
-                v = 0.0
-                for k in range(n):
-                    v += A[a, k] * P[k, c]
-                T[a, c] = v * f
-        for a in range(n):
-            for c in range(n):
-                P[a, c] = T[a, c]
-                F[a, c] += T[a, c]
-        for a in range(n):  # M <- (A M + M A') r / j
-            for c in range(n):
-                v = 0.0
-                for k in range(n):
-                    v += A[a, k] * Mj[k, c] + Mj[a, k] * A[c, k]
-                T[a, c] = v * f
-        for a in range(n):
-            for c in range(n):
-                Mj[a, c] = T[a, c]
-                W[a, c] += T[a, c] * g
-        for a in range(n):  # G += P B r / (j + 1)
-            for c in range(n_in):
-                v = 0.0
-                for k in range(n):
-                    v += P[a, k] * B[k, c]
-                G[a, c] += v * g
+        P = _product(A, P) * f
+        F = F + P
+        Mj = _lyapunov(A, Mj) * f
+        W = W + Mj * g
+        G = G + _product(P, B) * g
+    return F, G, W
 
 
-@jit
-def _compose(F, G, W, Fb, Gb, Wb, scratch):
-    """``(F, G, W)`` followed by ``(Fb, Gb, Wb)``, in place: ``F <- Fb F``,
-    ``G <- Fb G + Gb``, ``W <- Fb W Fb' + Wb``. ``scratch (3, n, n)``."""
-    n = F.shape[0]
-    T, U = scratch[0], scratch[1]
-    for a in range(n):
-        for c in range(n):
-            v, w = 0.0, 0.0
-            for k in range(n):
-                v += Fb[a, k] * F[k, c]
-                w += Fb[a, k] * W[k, c]
-            T[a, c] = v
-            U[a, c] = w
-    _copy(T, F)
-    _add_product(Gb, Fb, G, T)  # Fb G + Gb
-    _copy(T, G)
-    _add_product(Wb, U, Fb.T, W)  # (Fb W) Fb' + Wb
+def _compose(F, G, W, Fb, Gb, Wb):
+    """``(F, G, W)`` followed by ``(Fb, Gb, Wb)``: ``(Fb F, Fb G + Gb, Fb W Fb' + Wb)``."""
+    return (_product(Fb, F), _product(Fb, G, Gb),
+            _product(_product(Fb, W), np.swapaxes(Fb, 0, 1), Wb))
 
 
-@_inline
-def _add_product(start, X, Y, out):
-    """``out = start + X Y`` on the shape of ``start``, each entry summed onto ``start`` in
-    the order of the inner index (``out``, which may be larger, is neither ``X`` nor ``Y``)."""
-    rows, cols = start.shape
-    for a in range(rows):
-        for c in range(cols):
-            v = start[a, c]
-            for k in range(Y.shape[0]):
-                v += X[a, k] * Y[k, c]
-            out[a, c] = v
+def _product(X, Y, start=None):
+    """``start + X Y`` (or ``X Y``) entry-major: ``X (a, b, M)``, ``Y (b, c, M)``."""
+    out = np.einsum("abm,bcm->acm", X, Y)
+    return out if start is None else start + out
 
 
-@_inline
-def _copy(source, target):
-    """``target`` takes the leading block of ``source`` of its own shape."""
-    for a in range(target.shape[0]):
-        for c in range(target.shape[1]):
-            target[a, c] = source[a, c]
+def _lyapunov(A, Mj):
+    """``A Mj + Mj A'`` entry-major."""
+    return np.einsum("akm,kcm->acm", A, Mj) + np.einsum("akm,ckm->acm", Mj, A)

@@ -1,0 +1,48 @@
+"""Build switchest's engine: the C kernels of ``src/switchest/engine/c`` behind their Cython
+bindings (``src/switchest/engine/_*.pyx``), one extension module per family of filters.
+
+Each binding names the C files it is built from in its ``# distutils: sources`` line. The
+kernels are compiled with ``-O3`` for the building machine's processor (``-march=native``), as
+a source install runs where it was built; set ``SWITCHEST_PORTABLE=1`` to build for the
+architecture's baseline instead, for a wheel meant to run on other machines. Floating-point
+contraction stays off (``-ffp-contract=off``): each product and sum is rounded as written, as
+in the numpy oracles the tests compare against.
+"""
+
+import os
+from pathlib import Path
+
+import numpy
+from Cython.Build import cythonize
+from setuptools import Extension, setup
+
+ENGINE = Path("src/switchest/engine")
+PORTABLE = os.environ.get("SWITCHEST_PORTABLE", "0") not in ("", "0")
+FLAGS = ["-O3", "-std=c11", "-fno-math-errno", "-ffp-contract=off"]
+if not PORTABLE:
+    FLAGS.append("-march=native")
+
+extensions = [
+    Extension(
+        f"switchest.engine.{pyx.stem}",
+        [str(pyx)],
+        include_dirs=[str(ENGINE / "c"), numpy.get_include()],
+        define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+        extra_compile_args=FLAGS,
+    )
+    for pyx in sorted(ENGINE.glob("_*.pyx"))
+]
+
+setup(
+    ext_modules=cythonize(
+        extensions,
+        compiler_directives={
+            "language_level": 3,
+            "boundscheck": False,
+            "wraparound": False,
+            "initializedcheck": False,
+            "cdivision": True,
+        },
+        include_path=["src"],
+    )
+)

@@ -1,0 +1,105 @@
+"""A batch's trials split over threads: every core in one call, the same numbers on any count.
+
+The kernels release the GIL and treat trials independently, in blocks of lanes. A wrapper
+hands :func:`over_trials` a function that runs the kernel on a contiguous range of trials
+(slices of its per-trial arrays: a slice of the first axis of a C-contiguous array is itself
+C-contiguous, so no copy is made) and gets back the merged status and repair report. The
+ranges are whole lane blocks, so a trial meets the same block neighbours and the same
+arithmetic whatever the thread count.
+
+The thread count is a process-wide setting, like BLAS's: :func:`set_threads` (the
+experiment runner gives each of its worker processes its share of the cores, so that its
+processes and these threads do not oversubscribe the machine), else the environment variable
+``SWITCHEST_THREADS``, else every core this process may run on. A batch too small to gain
+from threads (fewer than two blocks, or fewer than :data:`MIN_WORK` trial-samples per thread)
+runs on the calling thread.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
+from .._threads import cores
+
+__all__ = ["MIN_WORK", "over_trials", "set_threads", "threads"]
+
+MIN_WORK = 20_000
+"""Fewest trial-samples worth a thread of their own (a dispatch costs tens of microseconds;
+a trial-sample of the IMM about 0.1-1 microseconds)."""
+
+_setting: int | None = None
+_pool: tuple[int, int, ThreadPoolExecutor] | None = None  # (pid, size, pool)
+_lock = threading.Lock()
+
+
+def set_threads(count: int | None) -> None:
+    """Run the engine's kernels on ``count`` threads in this process (None: the default,
+    ``SWITCHEST_THREADS`` or every core)."""
+    global _setting
+    if count is not None:
+        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+            raise ValueError(f"threads must be a positive integer or None, got {count!r}")
+    _setting = count
+
+
+def threads() -> int:
+    """The thread count the kernels use in this process (see the module docstring)."""
+    if _setting is not None:
+        return _setting
+    value = os.environ.get("SWITCHEST_THREADS", "")
+    if value:
+        try:
+            count = int(value)
+        except ValueError:
+            count = 0
+        if count < 1:
+            raise ValueError(f"SWITCHEST_THREADS must be a positive integer, got {value!r}")
+        return count
+    return cores()
+
+
+Report = tuple[int, int, float]
+"""A kernel call's outcome: ``(status, covariances repaired, smallest eigenvalue seen)``."""
+
+
+def over_trials(run_range: Callable[[int, int], Report], trials: int, samples: int, *,
+                block: int) -> Report:
+    """``run_range(begin, end)`` over ``0 .. trials`` in ranges of whole blocks of ``block``
+    trials, one range per thread, merged: the first failing range's status (in trial order),
+    the repairs summed, the smallest eigenvalue over all."""
+    count = _thread_count(trials, samples, block)
+    if count == 1:
+        return run_range(0, trials)
+    blocks = math.ceil(trials / block)
+    per = math.ceil(blocks / count)
+    bounds = [(i * per * block, min((i + 1) * per * block, trials)) for i in range(count)]
+    bounds = [(a, b) for a, b in bounds if a < b]
+    results = list(_executor(len(bounds) - 1).map(lambda ab: run_range(*ab), bounds[1:]))
+    results.insert(0, run_range(*bounds[0]))  # the calling thread takes the first range
+    status = next((s for s, _, _ in results if s != 0), 0)
+    return status, sum(r for _, r, _ in results), min(e for _, _, e in results)
+
+
+def _thread_count(trials: int, samples: int, block: int) -> int:
+    """How many threads a batch of ``trials x samples`` in blocks of ``block`` is worth."""
+    wanted = threads()
+    if wanted == 1:
+        return 1
+    by_blocks = math.ceil(trials / block)
+    by_work = (trials * max(samples, 1)) // MIN_WORK
+    return max(1, min(wanted, by_blocks, by_work))
+
+
+def _executor(size: int) -> ThreadPoolExecutor:
+    """This process's pool of at least ``size`` worker threads (made anew after a fork)."""
+    global _pool
+    with _lock:
+        pid = os.getpid()
+        if _pool is None or _pool[0] != pid or _pool[1] < size:
+            _pool = (pid, size, ThreadPoolExecutor(max_workers=size,
+                                                   thread_name_prefix="switchest-engine"))
+        return _pool[2]
