@@ -23,9 +23,11 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
+
 from .._threads import cores
 
-__all__ = ["MIN_WORK", "over_trials", "set_threads", "threads"]
+__all__ = ["MIN_WORK", "over_trials", "run_split", "set_threads", "threads"]
 
 MIN_WORK = 20_000
 """Fewest trial-samples worth a thread of their own (a dispatch costs tens of microseconds;
@@ -82,6 +84,25 @@ def over_trials(run_range: Callable[[int, int], Report], trials: int, samples: i
     results.insert(0, run_range(*bounds[0]))  # the calling thread takes the first range
     status = next((s for s, _, _ in results if s != 0), 0)
     return status, sum(r for _, r, _ in results), min(e for _, _, e in results)
+
+
+def run_split(kernel: Callable[..., int], args: list[tuple[object, bool]], *, trials: int,
+              samples: int, block: int) -> Report:
+    """``kernel(*args, report)`` over the trials, split by :func:`over_trials`.
+
+    ``args`` pairs each argument with whether it is per trial (an array whose first axis is
+    the ``trials``, sliced to each range: inputs and outputs alike) or shared (a table, a
+    setting, an array whose first axis of length 1 serves every trial). The kernel's last
+    argument is its report, ``(2,)``: the covariances it repaired and the smallest eigenvalue
+    one had; it returns its status.
+    """
+    def run_range(begin: int, end: int) -> Report:
+        report = np.empty(2)
+        status = kernel(*[value[begin:end] if per_trial else value for value, per_trial in args],
+                        report)
+        return int(status), int(report[0]), float(report[1])
+
+    return over_trials(run_range, trials, samples, block=block)
 
 
 def _thread_count(trials: int, samples: int, block: int) -> int:

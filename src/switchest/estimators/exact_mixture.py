@@ -35,7 +35,8 @@ import numpy as np
 from .._checks import check_memory, check_timing, positive_int
 from .._linalg import log_normalize, mixture_moments
 from ..discretize import mode_steps, sample_mode_steps
-from ._compiled import GATED, kalman_run, kalman_step, raise_for_status, warn_for_repairs
+from ..engine import GATED, raise_for_status, warn_for_repairs
+from ..engine.kalman import kalman_run, kalman_step
 from .base import Estimate, Estimator
 from .smoothing import smooth_mode_matched
 

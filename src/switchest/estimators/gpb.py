@@ -42,8 +42,8 @@ updated and gets weight zero; a sample no filter can use counts as missing and i
 
 from __future__ import annotations
 
-from ._compiled import imm_run, imm_step
-from ._compiled.gpb import gpb2_run, gpb2_step
+from ..engine.gpb import gpb2_run, gpb2_step
+from ..engine.imm import imm_run, imm_step
 from .mode_bank import ModeBankFilter
 
 __all__ = ["GPB1Filter", "GPB2Filter"]

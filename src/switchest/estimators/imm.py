@@ -27,7 +27,7 @@ rows sum to one.
 
 from __future__ import annotations
 
-from ._compiled import imm_run, imm_step
+from ..engine.imm import imm_run, imm_step
 from .mode_bank import IMMState, ModeBankFilter
 
 __all__ = ["IMMState", "IMMFilter"]

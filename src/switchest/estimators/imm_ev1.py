@@ -34,8 +34,8 @@ from .._checks import (
     positive_scalar,
 )
 from ..discretize import pairwise_grid, switch_grid
-from ._compiled import raise_for_status, warn_for_repairs
-from ._compiled.imm_ev1 import imm_ev1_run, imm_ev1_step
+from ..engine import raise_for_status, warn_for_repairs
+from ..engine.imm_ev1 import imm_ev1_run, imm_ev1_step
 from .base import Estimate, Estimator
 
 __all__ = ["IMMEV1State", "IMMEV1Filter"]

@@ -19,7 +19,8 @@ import numpy as np
 
 from .._checks import check_cores, float_array, positive_scalar
 from ..analysis.steady_state_kalman import steady_state_gain
-from ._compiled import GATED, kalman_step, raise_for_status, warn_for_repairs
+from ..engine import GATED, raise_for_status, warn_for_repairs
+from ..engine.kalman import kalman_step
 
 __all__ = ["kf_predict", "kf_update", "steady_state_gain"]
 

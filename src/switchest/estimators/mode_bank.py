@@ -32,7 +32,8 @@ from .._checks import (
     positive_scalar,
 )
 from ..discretize import mode_steps, sample_mode_steps
-from ._compiled import GATED, IMMOutput, raise_for_status, warn_for_repairs
+from ..engine import GATED, raise_for_status, warn_for_repairs
+from ..engine.imm import IMMOutput
 from .base import Estimate, Estimator
 from .smoothing import smooth_filtered
 

@@ -28,15 +28,8 @@ from .._checks import (
 from ..analysis.steady_state_kalman import steady_state_gain
 from ..discretize import mode_steps, segment_transitions
 from ..dyadic import dyadic_table, interval_transitions
-from ._compiled import (
-    GATED,
-    kalman_run,
-    kalman_steady_run,
-    kalman_steady_step,
-    kalman_step,
-    raise_for_status,
-    warn_for_repairs,
-)
+from ..engine import GATED, raise_for_status, warn_for_repairs
+from ..engine.kalman import kalman_run, kalman_steady_run, kalman_steady_step, kalman_step
 from .base import Estimate, Estimator
 
 __all__ = ["KalmanState", "ModeKalmanFilter"]

@@ -39,8 +39,8 @@ from ..discretize import (
     pairwise_grid_nbytes,
     switch_grid,
 )
-from ._compiled import GATED, raise_for_status, warn_for_repairs
-from ._compiled.switch_time import coarse_outputs, switch_time_run
+from ..engine import GATED, raise_for_status, warn_for_repairs
+from ..engine.switch_time import coarse_outputs, switch_time_run
 from .base import Estimate, Estimator
 from .kalman import kf_update
 

@@ -1,0 +1,79 @@
+# distutils: sources = src/switchest/engine/c/imm_ev1.c src/switchest/engine/c/linalg.c
+"""Binding of the IMM extended-Viterbi kernel (engine/c/imm_ev1.c): Shankar et al.'s
+Algorithm 1 with gridded switching times."""
+cimport numpy as cnp
+from libc.stdint cimport uint8_t
+from ._common cimport fptr, iptr, u8ptr, se_int, use_lapack
+cnp.import_array()
+use_lapack()
+
+cdef extern from "imm_ev1.h":
+    se_int se_viterbi_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
+                           se_int g, const double *y, const double *u, const se_int *table,
+                           const double *F, const double *G, const double *Qd,
+                           const double *H, const double *Gy, const double *S0,
+                           const double *tau, const double *C, const double *R,
+                           const double *log_transition, double epsilon,
+                           const double *x_init, const double *P_init,
+                           const double *log_w_init, const se_int *chosen_init,
+                           const double *offset_init, int predict_first, double gate,
+                           int printed, int marginal, int by_path, se_int lanes,
+                           double *x_out, double *P_out, double *prob_out, se_int *mode_out,
+                           double *offset_out, uint8_t *outlier_out, double *x_last,
+                           double *P_last, double *log_w_last, se_int *chosen_last,
+                           double *offset_last, double *report) nogil
+
+
+def viterbi_bank(cnp.ndarray y, cnp.ndarray u, cnp.ndarray table, cnp.ndarray F,
+                 cnp.ndarray G, cnp.ndarray Qd, cnp.ndarray H, cnp.ndarray Gy, cnp.ndarray S0,
+                 cnp.ndarray tau, cnp.ndarray C, cnp.ndarray R, cnp.ndarray log_transition,
+                 double epsilon, cnp.ndarray x_init, cnp.ndarray P_init,
+                 cnp.ndarray log_w_init, cnp.ndarray chosen_init, cnp.ndarray offset_init,
+                 bint predict_first, double gate, bint printed, bint marginal, bint by_path,
+                 se_int lanes, cnp.ndarray x_out, cnp.ndarray P_out, cnp.ndarray prob_out,
+                 cnp.ndarray mode_out, cnp.ndarray offset_out, cnp.ndarray outlier_out,
+                 cnp.ndarray x_last, cnp.ndarray P_last, cnp.ndarray log_w_last,
+                 cnp.ndarray chosen_last, cnp.ndarray offset_last, cnp.ndarray report):
+    """The IMM-EV1 over ``N`` trials and ``K`` samples: numba's ``viterbi_bank``'s arguments
+    (``outlier_out`` as uint8), checked and shaped by :mod:`switchest.engine.imm_ev1`;
+    returns the status."""
+    cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
+    cdef se_int L = x_init.shape[1], n = x_init.shape[2]
+    cdef se_int l = u.shape[2], g = tau.shape[1]
+    cdef const double* py = fptr(y)
+    cdef const double* pu = fptr(u)
+    cdef const se_int* ptable = iptr(table)
+    cdef const double* pF = fptr(F)
+    cdef const double* pG = fptr(G)
+    cdef const double* pQd = fptr(Qd)
+    cdef const double* pH = fptr(H)
+    cdef const double* pGy = fptr(Gy)
+    cdef const double* pS0 = fptr(S0)
+    cdef const double* ptau = fptr(tau)
+    cdef const double* pC = fptr(C)
+    cdef const double* pR = fptr(R)
+    cdef const double* plt = fptr(log_transition)
+    cdef const double* px0 = fptr(x_init)
+    cdef const double* pP0 = fptr(P_init)
+    cdef const double* pw0 = fptr(log_w_init)
+    cdef const se_int* pc0 = iptr(chosen_init)
+    cdef const double* po0 = fptr(offset_init)
+    cdef double* px = fptr(x_out)
+    cdef double* pP = fptr(P_out)
+    cdef double* pprob = fptr(prob_out)
+    cdef se_int* pmode = iptr(mode_out)
+    cdef double* poff = fptr(offset_out)
+    cdef uint8_t* pout = u8ptr(outlier_out)
+    cdef double* pxl = fptr(x_last)
+    cdef double* pPl = fptr(P_last)
+    cdef double* pwl = fptr(log_w_last)
+    cdef se_int* pcl = iptr(chosen_last)
+    cdef double* pol = fptr(offset_last)
+    cdef double* prep = fptr(report)
+    cdef se_int status
+    with nogil:
+        status = se_viterbi_bank(n, m, l, L, N, K, g, py, pu, ptable, pF, pG, pQd, pH, pGy,
+                                 pS0, ptau, pC, pR, plt, epsilon, px0, pP0, pw0, pc0, po0,
+                                 predict_first, gate, printed, marginal, by_path, lanes, px,
+                                 pP, pprob, pmode, poff, pout, pxl, pPl, pwl, pcl, pol, prep)
+    return status

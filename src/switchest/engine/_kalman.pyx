@@ -1,0 +1,105 @@
+# distutils: sources = src/switchest/engine/c/kalman.c src/switchest/engine/c/linalg.c
+"""Binding of the Kalman kernels (engine/c/kalman.c): the filter along given transitions, whose
+trials share their covariance in groups, and the fixed-gain filter.
+
+Each function takes the arguments of the numba kernel it replaces
+(:func:`switchest.estimators._compiled.kalman_kernel.kalman_filter`,
+:func:`switchest.estimators._compiled.kalman._steady_filter`), arrays already checked and
+converted by the wrapper (:mod:`switchest.engine.kalman`), reads the sizes from their shapes
+and runs the kernel without the GIL.
+"""
+cimport numpy as cnp
+from libc.stdint cimport uint8_t
+from ._common cimport fptr, iptr, u8ptr, se_int, use_lapack
+cnp.import_array()
+use_lapack()
+
+cdef extern from "kalman.h":
+    enum:
+        SE_KALMAN_LANES
+        SE_KALMAN_CHUNK
+    se_int se_kalman_filter(se_int n, se_int m, se_int l, se_int N, se_int K,
+                            const double *y, const double *u, const double *F,
+                            const double *G, const double *Qd, const se_int *trans,
+                            const double *C, const double *R, const se_int *mode,
+                            const double *x_init, const double *P_init, int predict_first,
+                            double gate, se_int lanes, double *x_out, double *P_out,
+                            double *loglik_out, uint8_t *flag_out, double *report) nogil
+    se_int se_steady_filter(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
+                            const double *y, const double *u, const double *F,
+                            const double *G, const se_int *trans, const double *C,
+                            const se_int *mode, const double *gain, const double *P_prior,
+                            const double *P_post, const double *whiten, const double *x_init,
+                            int predict_first, double gate, se_int lanes, double *x_out,
+                            double *P_out, double *loglik_out, uint8_t *flag_out) nogil
+
+LANES = SE_KALMAN_LANES  # trials per block: a group's covariance equations serve up to this many
+CHUNK = SE_KALMAN_CHUNK  # samples buffered per block before they are written out, trial by trial
+
+
+def kalman_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cnp.ndarray Qd,
+                  cnp.ndarray trans, cnp.ndarray C, cnp.ndarray R, cnp.ndarray mode,
+                  cnp.ndarray x_init, cnp.ndarray P_init, bint predict_first, double gate,
+                  se_int lanes, cnp.ndarray x_out, cnp.ndarray P_out, cnp.ndarray loglik_out,
+                  cnp.ndarray flag_out, cnp.ndarray report):
+    """Kalman filter of ``N`` trials over ``K`` samples (se_kalman_filter); returns the
+    status. Shapes as :func:`switchest.estimators._compiled.kalman_kernel.kalman_filter`."""
+    cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
+    cdef se_int n = x_init.shape[1], l = u.shape[2]
+    cdef const double *py = fptr(y)
+    cdef const double *pu = fptr(u)
+    cdef const double *pF = fptr(F)
+    cdef const double *pG = fptr(G)
+    cdef const double *pQd = fptr(Qd)
+    cdef const se_int *ptrans = iptr(trans)
+    cdef const double *pC = fptr(C)
+    cdef const double *pR = fptr(R)
+    cdef const se_int *pmode = iptr(mode)
+    cdef const double *px_init = fptr(x_init)
+    cdef const double *pP_init = fptr(P_init)
+    cdef double *px_out = fptr(x_out)
+    cdef double *pP_out = fptr(P_out)
+    cdef double *ploglik_out = fptr(loglik_out)
+    cdef uint8_t *pflag_out = u8ptr(flag_out)
+    cdef double *preport = fptr(report)
+    cdef se_int status
+    with nogil:
+        status = se_kalman_filter(n, m, l, N, K, py, pu, pF, pG, pQd, ptrans, pC, pR, pmode,
+                                  px_init, pP_init, predict_first, gate, lanes, px_out, pP_out,
+                                  ploglik_out, pflag_out, preport)
+    return status
+
+
+def steady_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G,
+                  cnp.ndarray trans, cnp.ndarray C, cnp.ndarray mode, cnp.ndarray gain,
+                  cnp.ndarray P_prior, cnp.ndarray P_post, cnp.ndarray whiten,
+                  cnp.ndarray x_init, bint predict_first, double gate, se_int lanes,
+                  cnp.ndarray x_out, cnp.ndarray P_out, cnp.ndarray loglik_out,
+                  cnp.ndarray flag_out):
+    """Fixed-gain filter of every trial (se_steady_filter); returns the status (``OK``, or
+    ``NO_MEMORY``; numba's ``_steady_filter`` returns nothing). Shapes as
+    :func:`switchest.estimators._compiled.kalman._steady_filter`."""
+    cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
+    cdef se_int n = x_init.shape[1], l = u.shape[2], L = P_prior.shape[0]
+    cdef const double *py = fptr(y)
+    cdef const double *pu = fptr(u)
+    cdef const double *pF = fptr(F)
+    cdef const double *pG = fptr(G)
+    cdef const se_int *ptrans = iptr(trans)
+    cdef const double *pC = fptr(C)
+    cdef const se_int *pmode = iptr(mode)
+    cdef const double *pgain = fptr(gain)
+    cdef const double *pP_prior = fptr(P_prior)
+    cdef const double *pP_post = fptr(P_post)
+    cdef const double *pwhiten = fptr(whiten)
+    cdef const double *px_init = fptr(x_init)
+    cdef double *px_out = fptr(x_out)
+    cdef double *pP_out = fptr(P_out)
+    cdef double *ploglik_out = fptr(loglik_out)
+    cdef uint8_t *pflag_out = u8ptr(flag_out)
+    cdef se_int status
+    with nogil:
+        status = se_steady_filter(n, m, l, L, N, K, py, pu, pF, pG, ptrans, pC, pmode, pgain,
+                                  pP_prior, pP_post, pwhiten, px_init, predict_first, gate,
+                                  lanes, px_out, pP_out, ploglik_out, pflag_out)
+    return status

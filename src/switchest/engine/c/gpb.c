@@ -1,0 +1,364 @@
+/* The compiled second-order generalized pseudo-Bayesian filter, GPB2 (Bar-Shalom, Li &
+ * Kirubarajan 2001, §11.6.5): the port of switchest/estimators/_compiled/gpb.py.
+ *
+ * The state of a trial after sample k - 1 is one Gaussian per mode, N(x_i, P_i) with
+ * probability mu_i. Into sample k run L^2 Kalman filters, one per pair (mode i at k - 1,
+ * mode j at k): predicted from mode i's Gaussian and updated with C[j], R[j], with
+ * probability mu_ij ∝ Lambda_ij pi_ij mu_i. The prediction goes through the transition of the
+ * mode that governs the interval into k (the timing, docs/conventions.rst): mode i's,
+ * trans[k, i] of the table F, G, Qd, in the "sample" timing (the same for every j: computed
+ * once per i), mode j's, trans[k, j], in the "interval" timing (Bar-Shalom, Li & Kirubarajan
+ * §11.6.5). Each mode's pairs are then merged into one Gaussian, mu_j = sum_i mu_ij,
+ * mu_{i|j} = mu_ij / mu_j, x_j = sum_i mu_{i|j} x_ij,
+ * P_j = sum_i mu_{i|j} (P_ij + (x_ij - x_j)(x_ij - x_j)'), and the output is the moments of
+ * the mixture over j (as the IMM's). Sample 0 has only the prior: L filters, mode j's from its
+ * prior Gaussian with probability mu_j(0) (the first sample of se_filter_bank).
+ *
+ * gpb2_run filters every trial over every sample, gpb2_step one sample (the streaming API;
+ * engine/gpb.py); both run se_gpb2_bank on the equations of linalg.c (prediction,
+ * innovation, Joseph-form correction with its information-form fallback, merging,
+ * combination), over blocks of trials laid across SIMD lanes. Convention of switchest:
+ * transition[i, j] = P(mode j at k+1 | mode i at k), passed as its logarithm; probabilities
+ * are log-weights.
+ *
+ * Gating is decided pair by pair, as se_filter_bank decides it mode by mode: a pair whose
+ * normalized innovation squared exceeds the gate, or whose likelihood is not finite, is not
+ * updated and gets weight 0 (SE_PARTLY_GATED); a sample no pair can use counts as missing (no
+ * update, mu_ij ∝ pi_ij mu_i, log-likelihood 0, SE_GATED).
+ */
+#include "gpb.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "bank.h"
+#include "linalg.h"
+
+/* The gating decision over every pair, before anything changes (as se_filter_bank takes it
+ * over modes).
+ *
+ * use[j, i]: pair (i, j)'s likelihood is finite and its normalized innovation squared within
+ * gate; a[j, i] = prior[j, i] + loglik[j, i] where used, -inf where not (prior: the
+ * log-weight log mu_i + log pi_ij before the measurement). If no pair has a finite a the
+ * sample counts as missing: no pair is used, a = prior, flag SE_GATED; else the flag is
+ * SE_PARTLY_GATED where a pair is not used. n_src sources per mode are in use (L, or 1 at the
+ * first sample). prior, loglik, nis, a (L, L, B), use (L, L, B) uint8, flag (B,) uint8. */
+static void se_gate_pairs(se_int L, se_int B, const double *restrict prior,
+                          const double *restrict loglik, const double *restrict nis,
+                          double gate, se_int n_src, se_int nb, uint8_t *restrict use,
+                          double *restrict a, uint8_t *restrict flag)
+{
+    for (se_int b = 0; b < nb; b++) {
+        double top = -INFINITY;
+        for (se_int j = 0; j < L; j++)
+            for (se_int i = 0; i < n_src; i++) {
+                const se_int at = (j * L + i) * B + b;
+                const int used = isfinite(loglik[at]) && nis[at] <= gate;
+                use[at] = (uint8_t)used;
+                a[at] = used ? prior[at] + loglik[at] : -INFINITY;
+                if (a[at] > top)
+                    top = a[at];
+            }
+        flag[b] = SE_ACCEPTED;
+        for (se_int j = 0; j < L; j++)
+            for (se_int i = 0; i < n_src; i++) {
+                const se_int at = (j * L + i) * B + b;
+                if (top == -INFINITY) { /* no pair can use it: the sample counts as missing */
+                    flag[b] = SE_GATED;
+                    use[at] = 0;
+                    a[at] = prior[at];
+                } else if (!use[at]) {
+                    flag[b] = SE_PARTLY_GATED;
+                }
+            }
+    }
+}
+
+/* log sum_i exp(a[i, b]) over the L rows of a (L, B), -inf when every term is -inf. */
+static inline double se_log_sum_exp(se_int L, se_int B, const double *restrict a, se_int b)
+{
+    double top = -INFINITY;
+    for (se_int i = 0; i < L; i++)
+        if (a[i * B + b] > top)
+            top = a[i * B + b];
+    if (top == -INFINITY)
+        return -INFINITY;
+    double acc = 0.0;
+    for (se_int i = 0; i < L; i++)
+        acc += exp(a[i * B + b] - top);
+    return top + log(acc);
+}
+
+/* Mode j's merging weights over its L pairs, per lane, and its log-weight.
+ *
+ * log_mu[b] = log sum_i exp(a[i, b]) (a (L, B): the pairs' log-weights log mu_ij, up to a
+ * common constant) and w[i, b] = mu_{i|j} = exp(a[i, b] - log_mu[b]) (Bar-Shalom, Li &
+ * Kirubarajan §11.6.5). A mode whose pairs all have weight 0 (every one gated) is merged with
+ * the weights the pairs had before the measurement, prior (L, B), and one that had none
+ * either (unreachable) with equal weights: its probability is 0 and its Gaussian only needs
+ * to be finite. log_mu (B,), w (L, B) written. */
+static void se_merge_weights(se_int L, se_int B, const double *restrict a,
+                             const double *restrict prior, se_int nb, double *restrict log_mu,
+                             double *restrict w)
+{
+    for (se_int b = 0; b < nb; b++) {
+        log_mu[b] = se_log_sum_exp(L, B, a, b);
+        double ref = log_mu[b];
+        const double *source = a;
+        if (ref == -INFINITY) {
+            ref = se_log_sum_exp(L, B, prior, b);
+            source = prior;
+        }
+        for (se_int i = 0; i < L; i++)
+            w[i * B + b] = ref > -INFINITY ? exp(source[i * B + b] - ref) : 1.0 / (double)L;
+    }
+}
+
+/* the scratch of se_gpb2_bank, the arrays of numba's np.empty (shapes as there) */
+typedef struct {
+    double *x, *P, *log_prob, *prob, *xp, *Pp, *Fl, *Gl, *Ql, *Cl, *Rl, *yl, *ul, *obs, *n_obs,
+        *e, *z, *scale, *PCt, *chol, *nis, *loglik, *prior_w, *a, *w, *log_mu, *work, *gain,
+        *T, *AP, *xs, *total, *xc, *Pc, *prior, *root;
+    se_int *idx, *best;
+    uint8_t *use, *flag, *bad, *lost;
+} gpb_scratch;
+
+static void gpb_carve(se_arena *ar, gpb_scratch *s, se_int n, se_int m, se_int l, se_int L,
+                      se_int B)
+{
+    const size_t d = sizeof(double);
+    const se_int LL = L * L;
+    s->x = se_carve(ar, L * n * B, d);
+    s->P = se_carve(ar, L * n * n * B, d);
+    s->log_prob = se_carve(ar, L * B, d);
+    s->prob = se_carve(ar, L * B, d);
+    s->xp = se_carve(ar, LL * n * B, d);
+    s->Pp = se_carve(ar, LL * n * n * B, d);
+    s->Fl = se_carve(ar, n * n * B, d);
+    s->Gl = se_carve(ar, n * l * B, d);
+    s->Ql = se_carve(ar, n * n * B, d);
+    s->Cl = se_carve(ar, L * m * n * B, d);
+    s->Rl = se_carve(ar, L * m * m * B, d);
+    s->yl = se_carve(ar, m * B, d);
+    s->ul = se_carve(ar, l * B, d);
+    s->obs = se_carve(ar, m * B, d);
+    s->n_obs = se_carve(ar, B, d);
+    s->e = se_carve(ar, LL * m * B, d);
+    s->z = se_carve(ar, LL * m * B, d);
+    s->scale = se_carve(ar, LL * m * B, d);
+    s->PCt = se_carve(ar, LL * n * m * B, d);
+    s->chol = se_carve(ar, LL * m * m * B, d);
+    s->nis = se_carve(ar, LL * B, d);
+    s->loglik = se_carve(ar, LL * B, d);
+    s->prior_w = se_carve(ar, LL * B, d);
+    s->a = se_carve(ar, LL * B, d);
+    s->w = se_carve(ar, L * B, d);
+    s->log_mu = se_carve(ar, L * B, d);
+    s->work = se_carve(ar, 3 * B, d);
+    s->gain = se_carve(ar, n * m * B, d);
+    s->T = se_carve(ar, n * m * B, d);
+    s->AP = se_carve(ar, n * n * B, d);
+    s->xs = se_carve(ar, n * B, d);
+    s->total = se_carve(ar, B, d);
+    s->xc = se_carve(ar, n * B, d);
+    s->Pc = se_carve(ar, n * n * B, d);
+    s->prior = se_carve(ar, n * n * B, d);
+    s->root = se_carve(ar, n * B, d);
+    s->idx = se_carve(ar, B, sizeof(se_int));
+    s->best = se_carve(ar, B, sizeof(se_int));
+    s->use = se_carve(ar, LL * B, 1);
+    s->flag = se_carve(ar, B, 1);
+    s->bad = se_carve(ar, B, 1);
+    s->lost = se_carve(ar, B, 1);
+}
+
+/* GPB2 over N trials and K samples (Bar-Shalom, Li & Kirubarajan §11.6.5).
+ *
+ * Parameters
+ * ----------
+ * y, u, F, G, Qd, trans
+ *     As in se_filter_bank: measurements (N, K, m) (NaN components missing), inputs
+ *     (N, K, l) (u[:, k-1] held over the interval into sample k), the table of exact
+ *     transitions and trans (N or 1, K, L), the transition of mode j into sample k.
+ * C, R : (L, m, n), (L, m, m) float64
+ *     Output matrix and measurement-noise covariance of each mode.
+ * log_transition : (L, L) float64
+ *     log transition[i, j], -inf for an impossible switch.
+ * x_init, P_init, log_prob_init : (N, L, n), (N, L, n, n), (N, L) float64
+ *     The merged Gaussian and log-probability of each mode before the first sample.
+ * sample_timing : bool
+ *     Which transition the pair (i at k - 1, j at k) is predicted through: mode i's,
+ *     trans[k, i] (True: the "sample" timing; one prediction per i, copied to its L pairs),
+ *     or mode j's, trans[k, j] (False: the "interval" timing, Bar-Shalom, Li & Kirubarajan
+ *     §11.6.5).
+ * predict_first : bool
+ *     Whether the first sample is predicted into through the L^2 pairs (a streaming step) or
+ *     only updated, L filters (the start of a record).
+ * gate : float
+ *     Largest normalized innovation squared a pair accepts.
+ * lanes : int
+ *     Trials per block (the results do not depend on it).
+ * x_out, P_out, prob_out, mode_out, loglik_out, flag_out
+ *     Written as by se_filter_bank: combined estimate, mode probabilities mu_j, most probable
+ *     mode, log-likelihood log sum_ij exp(a_ij) (0 when nothing was observed or the sample
+ *     was gated) and flag.
+ * x_modes_out, P_modes_out
+ *     Written when their first axis has length N (zero-size arrays otherwise): the merged
+ *     Gaussians x_j, P_j after each sample, (N, K, L, n), (N, K, L, n, n).
+ * x_last, P_last, log_prob_last
+ *     Written: the merged state after the last sample, shaped as x_init etc.
+ * report : (2,) float64
+ *     Written: covariances repaired and the smallest eigenvalue one had (inf if none).
+ *
+ * Returns
+ * -------
+ * status : int
+ *     SE_OK or the failure code of the innovation covariance that stopped the kernel;
+ *     SE_NO_MEMORY if the scratch could not be allocated (nothing written).
+ *
+ * The scratch has min(lanes, N) lanes (one block either way when lanes >= N).
+ */
+se_int se_gpb2_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, se_int trans_N,
+                    se_int trans_K, se_int modes_N, const double *restrict y,
+                    const double *restrict u, const double *restrict F,
+                    const double *restrict G, const double *restrict Qd,
+                    const se_int *restrict trans, const double *restrict C,
+                    const double *restrict R, const double *restrict log_transition,
+                    const double *restrict x_init, const double *restrict P_init,
+                    const double *restrict log_prob_init, int sample_timing, int predict_first,
+                    double gate, se_int lanes, double *restrict x_out, double *restrict P_out,
+                    double *restrict prob_out, se_int *restrict mode_out,
+                    double *restrict loglik_out, uint8_t *restrict flag_out,
+                    double *restrict x_modes_out, double *restrict P_modes_out,
+                    double *restrict x_last, double *restrict P_last,
+                    double *restrict log_prob_last, double *restrict report)
+{
+    const se_int B = lanes < N ? lanes : (N > 0 ? N : 1);
+    const int modes_wanted = modes_N == N;
+    se_int status = SE_OK;
+    report[0] = 0.0;
+    report[1] = INFINITY;
+
+    se_arena ar = {NULL, 0};
+    gpb_scratch s;
+    gpb_carve(&ar, &s, n, m, l, L, B);
+    char *block = se_arena_alloc(&ar);
+    if (!block)
+        return SE_NO_MEMORY;
+    ar.base = block;
+    ar.used = 0;
+    gpb_carve(&ar, &s, n, m, l, L, B);
+    memset(s.bad, 0, (size_t)B);
+
+/* pair (i, j)'s lane arrays: x (n, B), P (n, n, B) of xp, Pp (L, L, ...), j first */
+#define XP(j, i) (s.xp + ((j) * L + (i)) * n * B)
+#define PP(j, i) (s.Pp + ((j) * L + (i)) * n * n * B)
+#define PAIR(arr, j, i, size) (s.arr + ((j) * L + (i)) * (size) * B)
+
+    for (se_int i0 = 0; i0 < N; i0 += B) {
+        const se_int nb = B < N - i0 ? B : N - i0;
+        se_gather_rows(L, B, 1, log_prob_init, i0, nb, s.log_prob);
+        se_gather_modes(n, L, B, 1, x_init, P_init, i0, nb, s.x, s.P);
+        for (se_int j = 0; j < L; j++) {
+            for (se_int b = 0; b < nb; b++)
+                s.idx[b] = j;
+            se_gather_matrices(m, n, B, C, s.idx, nb, s.Cl + j * m * n * B);
+            se_gather_matrices(m, m, B, R, s.idx, nb, s.Rl + j * m * m * B);
+        }
+        for (se_int k = 0; k < K; k++) {
+            se_gather_samples(m, B, K, y, i0, nb, k, s.yl);
+            se_observe(m, B, s.yl, nb, s.obs, s.n_obs);
+            const int paired = k > 0 || predict_first;
+            /* sources per mode: the modes at k-1, or the prior */
+            const se_int n_src = paired ? L : 1;
+            if (paired) {
+                se_gather_samples(l, B, K, u, i0, nb, k > 0 ? k - 1 : 0, s.ul);
+                if (sample_timing) { /* x_i(k|k-1) through mode i's transition, once per i */
+                    for (se_int i = 0; i < L; i++) {
+                        se_gather_transition(n, l, L, B, trans_N, trans_K, F, G, Qd, trans, i0,
+                                             nb, k, i, s.idx, s.Fl, s.Gl, s.Ql);
+                        se_predict(n, l, B, s.x + i * n * B, s.P + i * n * n * B, s.Fl, s.Gl,
+                                   s.ul, s.Ql, nb, s.AP, s.xs);
+                    }
+                }
+                for (se_int j = 0; j < L; j++) {
+                    if (!sample_timing) /* every pair into j through mode j's transition */
+                        se_gather_transition(n, l, L, B, trans_N, trans_K, F, G, Qd, trans, i0,
+                                             nb, k, j, s.idx, s.Fl, s.Gl, s.Ql);
+                    /* pair (i at k-1, j at k): log mu_i + log pi_ij */
+                    for (se_int i = 0; i < L; i++) {
+                        se_copy_gaussian(n, B, s.x + i * n * B, s.P + i * n * n * B, nb,
+                                         XP(j, i), PP(j, i));
+                        if (!sample_timing)
+                            se_predict(n, l, B, XP(j, i), PP(j, i), s.Fl, s.Gl, s.ul, s.Ql, nb,
+                                       s.AP, s.xs);
+                        const double lt = log_transition[i * L + j];
+                        double *pw = s.prior_w + (j * L + i) * B;
+                        for (se_int b = 0; b < nb; b++)
+                            pw[b] = s.log_prob[i * B + b] + lt;
+                    }
+                }
+            } else {
+                for (se_int j = 0; j < L; j++) { /* the prior of mode j: log mu_j(0) */
+                    se_copy_gaussian(n, B, s.x + j * n * B, s.P + j * n * n * B, nb, XP(j, 0),
+                                     PP(j, 0));
+                    double *pw = s.prior_w + (j * L) * B;
+                    for (se_int b = 0; b < nb; b++)
+                        pw[b] = s.log_prob[j * B + b];
+                }
+            }
+            for (se_int j = 0; j < L; j++)
+                for (se_int i = 0; i < n_src; i++) {
+                    status = se_innovation(n, m, B, XP(j, i), PP(j, i), s.yl,
+                                           s.Cl + j * m * n * B, s.Rl + j * m * m * B, s.obs,
+                                           s.n_obs, nb, PAIR(e, j, i, m), PAIR(PCt, j, i, n * m),
+                                           PAIR(chol, j, i, m * m), PAIR(scale, j, i, m),
+                                           PAIR(z, j, i, m), PAIR(nis, j, i, 1),
+                                           PAIR(loglik, j, i, 1), s.work, s.bad, report);
+                    if (status != SE_OK)
+                        goto done;
+                }
+            se_gate_pairs(L, B, s.prior_w, s.loglik, s.nis, gate, n_src, nb, s.use, s.a,
+                          s.flag);
+            for (se_int j = 0; j < L; j++)
+                for (se_int i = 0; i < n_src; i++) { /* a_ij = log mu_i + log pi_ij + log Lambda_ij */
+                    const uint8_t *use = s.use + (j * L + i) * B;
+                    se_correct(n, m, B, XP(j, i), PP(j, i), s.Cl + j * m * n * B,
+                               s.Rl + j * m * m * B, use, nb, PAIR(PCt, j, i, n * m),
+                               PAIR(chol, j, i, m * m), PAIR(scale, j, i, m), PAIR(z, j, i, m),
+                               s.gain, s.T, s.AP, s.prior);
+                    if (se_joseph_lost(n, B, PP(j, i), s.prior, use, nb, s.root, s.lost)) /* rare */
+                        se_information_or_repair(n, m, B, PP(j, i), s.prior,
+                                                 s.Cl + j * m * n * B, s.Rl + j * m * m * B,
+                                                 s.obs, s.n_obs, s.lost, nb, report);
+                }
+            for (se_int j = 0; j < L; j++) { /* mu_j = sum_i mu_ij, x_j, P_j: the moments over i */
+                if (paired) {
+                    se_merge_weights(L, B, s.a + j * L * B, s.prior_w + j * L * B, nb,
+                                     s.log_mu + j * B, s.w);
+                    se_merge(n, L, B, s.w, XP(j, 0), PP(j, 0), nb, s.x + j * n * B,
+                             s.P + j * n * n * B);
+                } else {
+                    for (se_int b = 0; b < nb; b++)
+                        s.log_mu[j * B + b] = s.a[(j * L) * B + b];
+                    se_copy_gaussian(n, B, XP(j, 0), PP(j, 0), nb, s.x + j * n * B,
+                                     s.P + j * n * n * B);
+                }
+            }
+            se_log_normalize(L, B, s.log_mu, s.prob, s.total, nb);
+            se_copy_rows(L, B, s.log_mu, s.log_prob, nb);
+            se_report_sample(n, L, B, K, s.x, s.P, s.prob, s.log_prob, s.total, s.flag,
+                             s.n_obs, i0, nb, k, modes_wanted, s.xc, s.Pc, s.best, x_out,
+                             P_out, prob_out, mode_out, loglik_out, flag_out, x_modes_out,
+                             P_modes_out);
+        }
+        se_scatter_rows(L, B, 1, s.log_prob, i0, nb, log_prob_last);
+        se_scatter_modes(n, L, B, 1, s.x, s.P, i0, nb, x_last, P_last);
+    }
+#undef XP
+#undef PP
+#undef PAIR
+done:
+    free(block);
+    return status;
+}

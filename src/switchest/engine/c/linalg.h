@@ -1,0 +1,354 @@
+/* The Kalman and IMM equations over a block of trials laid across SIMD lanes: the port of
+ * switchest/estimators/_compiled/linalg.py (and of lane_index from _compiled/bank.py). The
+ * full documentation of each equation (paper and equation citations) is at its definition in
+ * linalg.c; here: the prototypes and the shapes.
+ *
+ * Conventions of every prototype
+ * ------------------------------
+ * - Name: "se_" + the Python name, a leading underscore dropped (_solve -> se_solve).
+ * - Arguments: first the sizes numba read from array shapes, as se_int, in the order
+ *       n, m, l, L, B, then any other extent (K, N, q, p ...),
+ *   then the Python arguments in the order of the Python signature (nb, i0, k, b, j ... as
+ *   se_int where they stand). n = states, m = outputs, l = inputs, L = modes, B = the lane
+ *   stride, the length of the last axis of EVERY lane array passed to that call (all lane
+ *   arrays of one call must have the same last-axis length B; a lane array of shape
+ *   (n, n, B) is addressed P[(r * n + c) * B + b]).
+ * - Booleans: int (arguments, return values); boolean arrays (use, bad, lost): uint8_t
+ *   (0/1); index arrays (index, best): se_int; everything else double.
+ * - A numba sub-array argument such as x[j] of x (L, n, B) is passed as the pointer
+ *   x + j * n * B.
+ * - Trial tables read at [i0 + b, ...] (gather / scatter / write): the extents after the
+ *   trial axis are passed among the sizes. The gather_rows / scatter_rows / gather_modes /
+ *   scatter_modes family also takes a K: the array is (N, K, ...) read at one sample; pass
+ *   K = 1 for an (N, ...) array, or, for numba's slice data[:, k] of an (N, K, ...) array
+ *   (the smoother's x_f[:, k]), the pointer at data[0, k] and that K.
+ * - Status codes (SE_OK, SE_NOT_POSITIVE_DEFINITE, SE_NOT_FINITE) and flags come from
+ *   se_common.h; the functions returning a status return se_int.
+ * - Nothing allocates on the heap except se_repair / se_information_form (via
+ *   se_information_or_repair and se_innovation with a report) for n or m beyond
+ *   SE_LINALG_STACK (their scratch lives on the stack below that; a failed malloc makes them
+ *   return 0, "not done").
+ */
+#ifndef SE_LINALG_H
+#define SE_LINALG_H
+
+#include <math.h>
+#include <stdint.h>
+
+#include "se_common.h"
+
+/* LAPACK's dsyevd (symmetric eigendecomposition) with the signature of
+ * scipy.linalg.cython_lapack's: every binding hands it over when it is imported, before any
+ * kernel runs (_common.pxd, use_lapack), and se_repair calls it. */
+typedef void se_dsyevd_fn(char *jobz, char *uplo, int *n, double *a, int *lda, double *w,
+                          double *work, int *lwork, int *iwork, int *liwork, int *info);
+void se_use_dsyevd(se_dsyevd_fn *dsyevd);
+
+/* the constants of _compiled/linalg.py */
+#define SE_LOG_2PI 1.8378770664093453           /* math.log(2 pi) = 0x1.d67f1c864beb4p+0 */
+#define SE_EPS 2.220446049250313e-16            /* numpy.finfo(float).eps */
+#define SE_CORRELATION_BOUND 1.0000000149011612 /* 1 + sqrt(eps) = 0x1.0000004p+0 */
+#define SE_TINY_SUM 1e-250 /* below it, a sum of probability products is redone in the log domain */
+
+/* largest n (and m) whose scratch in se_repair / se_information_form / se_cholesky is kept on
+ * the stack */
+#define SE_LINALG_STACK 24
+
+/* ---- gathering and scattering a block of trials ------------------------------------------ */
+
+/* out[a, b] = data[i0 + b, k, a]: data (N, K, m), out (m, B) (m is l for inputs) */
+void se_gather_samples(se_int m, se_int B, se_int K, const double *restrict data, se_int i0,
+                       se_int nb, se_int k, double *restrict out);
+
+/* out[:, b] = data[i0 + b]: data (N, K, q) read at [:, 0, :] (see K above), out (q, B) */
+void se_gather_rows(se_int q, se_int B, se_int K, const double *restrict data, se_int i0,
+                    se_int nb, double *restrict out);
+/* the same for int64 rows (imm_ev1's chosen) */
+void se_gather_rows_int(se_int q, se_int B, se_int K, const se_int *restrict data, se_int i0,
+                        se_int nb, se_int *restrict out);
+
+/* data[i0 + b] = src[:, b]: src (q, B), data (N, K, q) written at [:, 0, :] */
+void se_scatter_rows(se_int q, se_int B, se_int K, const double *restrict src, se_int i0,
+                     se_int nb, double *restrict data);
+void se_scatter_rows_int(se_int q, se_int B, se_int K, const se_int *restrict src, se_int i0,
+                         se_int nb, se_int *restrict data);
+
+/* x[j, :, b] = x_init[i0 + b, j], P[j, :, :, b] = P_init[i0 + b, j]:
+ * x_init (N, K, L, n), P_init (N, K, L, n, n) read at [:, 0] (K = 1: (N, L, n), (N, L, n, n));
+ * x (L, n, B), P (L, n, n, B) */
+void se_gather_modes(se_int n, se_int L, se_int B, se_int K, const double *restrict x_init,
+                     const double *restrict P_init, se_int i0, se_int nb, double *restrict x,
+                     double *restrict P);
+
+/* x_last[i0 + b, j] = x[j, :, b], P_last[i0 + b, j] = P[j, :, :, b]: se_gather_modes back;
+ * x (L, n, B), P (L, n, n, B), x_last (N, K, L, n), P_last (N, K, L, n, n) at [:, 0] */
+void se_scatter_modes(se_int n, se_int L, se_int B, se_int K, const double *restrict x,
+                      const double *restrict P, se_int i0, se_int nb, double *restrict x_last,
+                      double *restrict P_last);
+
+/* Lane b of x (n, B) and P (n, n, B) as sample k of trial i of the outputs
+ * x_out (N, K, n), P_out (N, K, n, n). */
+static inline void se_write_lane(se_int n, se_int B, se_int K, const double *restrict x,
+                                 const double *restrict P, se_int b, se_int i, se_int k,
+                                 double *restrict x_out, double *restrict P_out)
+{
+    double *xo = x_out + (i * K + k) * n;
+    double *Po = P_out + (i * K + k) * n * n;
+    for (se_int r = 0; r < n; r++) {
+        xo[r] = x[r * B + b];
+        for (se_int c = 0; c < n; c++)
+            Po[r * n + c] = P[(r * n + c) * B + b];
+    }
+}
+
+/* out[r, c, b] = table[index[b], r, c]: table (M, p, q), index (B,), out (p, q, B) */
+void se_gather_matrices(se_int p, se_int q, se_int B, const double *restrict table,
+                        const se_int *restrict index, se_int nb, double *restrict out);
+
+/* obs[a, b] = 1 where y[a, b] is observed (not NaN), else 0; n_obs[b] counts them.
+ * y (m, B), obs (m, B), n_obs (B,) */
+void se_observe(se_int m, se_int B, const double *restrict y, se_int nb, double *restrict obs,
+                double *restrict n_obs);
+
+/* ---- time update --------------------------------------------------------------------------- */
+
+/* x <- F x + G u: x (n, B), F (n, n, B), G (n, l, B), u (l, B), xs (n, B) scratch */
+void se_predict_mean(se_int n, se_int l, se_int B, double *restrict x, const double *restrict F,
+                     const double *restrict G, const double *restrict u, se_int nb,
+                     double *restrict xs);
+
+/* x <- F x + G u, P <- F P F' + Qd (exactly symmetric): x (n, B), P (n, n, B), F (n, n, B),
+ * G (n, l, B), u (l, B), Qd (n, n, B); FP (n, n, B), xs (n, B) scratch */
+void se_predict(se_int n, se_int l, se_int B, double *restrict x, double *restrict P,
+                const double *restrict F, const double *restrict G, const double *restrict u,
+                const double *restrict Qd, se_int nb, double *restrict FP, double *restrict xs);
+
+/* x_to = x, P_to = P in the first nb lanes: x, x_to (n, B), P, P_to (n, n, B) */
+static inline void se_copy_gaussian(se_int n, se_int B, const double *restrict x,
+                                    const double *restrict P, se_int nb, double *restrict x_to,
+                                    double *restrict P_to)
+{
+    for (se_int r = 0; r < n; r++) {
+        for (se_int b = 0; b < nb; b++)
+            x_to[r * B + b] = x[r * B + b];
+        for (se_int c = 0; c < n; c++)
+            for (se_int b = 0; b < nb; b++)
+                P_to[(r * n + c) * B + b] = P[(r * n + c) * B + b];
+    }
+}
+
+/* out[:, :, b] = source[:, :, b] in the first nb lanes: source, out (p, q, B) */
+void se_copy_lanes(se_int p, se_int q, se_int B, const double *restrict source, se_int nb,
+                   double *restrict out);
+
+/* out = base + X Y' per lane, for X, Y (n, q, B) whose sum is symmetric (Qd + (F P) F',
+ * A P + T K'): the upper triangle is computed, base's read, and mirrored, so out (n, n, B) is
+ * exactly symmetric. out may be base (hence no restrict on those two). */
+static inline void se_symmetric_sum(se_int n, se_int q, se_int B, const double *base,
+                                    const double *restrict X, const double *restrict Y,
+                                    se_int nb, double *out)
+{
+    for (se_int i = 0; i < n; i++) {
+        for (se_int j = i; j < n; j++) {
+            double *o = out + (i * n + j) * B;
+            const double *bs = base + (i * n + j) * B;
+            for (se_int b = 0; b < nb; b++)
+                o[b] = bs[b];
+            for (se_int k = 0; k < q; k++) {
+                const double *Xi = X + (i * q + k) * B;
+                const double *Yj = Y + (j * q + k) * B;
+                for (se_int b = 0; b < nb; b++)
+                    o[b] += Xi[b] * Yj[b];
+            }
+            double *t = out + (j * n + i) * B;
+            for (se_int b = 0; b < nb; b++)
+                t[b] = o[b];
+        }
+    }
+}
+
+/* ---- measurement update -------------------------------------------------------------------- */
+
+/* e = y - C x in every lane: x (n, B), y (m, B), C (m, n, B), e (m, B) (n is l for an input) */
+void se_residual(se_int n, se_int m, se_int B, const double *restrict x,
+                 const double *restrict y, const double *restrict C, se_int nb,
+                 double *restrict e);
+
+/* e = y - C x with each lane's unobserved components zeroed: obs (m, B), shapes as se_residual */
+void se_observed_residual(se_int n, se_int m, se_int B, const double *restrict x,
+                          const double *restrict y, const double *restrict C,
+                          const double *restrict obs, se_int nb, double *restrict e);
+
+/* z = L^-1 D^-1/2 e, nis = |z|^2: e (m, B), chol (m, m, B), scale (m, B), z (m, B), nis (B,) */
+void se_whiten(se_int m, se_int B, const double *restrict e, const double *restrict chol,
+               const double *restrict scale, se_int nb, double *restrict z,
+               double *restrict nis);
+
+/* Innovation of y against (x, P) over each lane's observed components, and S's factorization.
+ * x (n, B), P (n, n, B), y (m, B), C (m, n, B), R (m, m, B), obs (m, B), n_obs (B,);
+ * written: e (m, B), PCt (n, m, B), chol (m, m, B), scale (m, B), z (m, B), nis (B,),
+ * loglik (B,), work (3, B) scratch, bad (B,) uint8; report (2,) or NULL (numba's None: no
+ * repair). Returns SE_OK, SE_NOT_FINITE or SE_NOT_POSITIVE_DEFINITE (bad marks the lanes). */
+se_int se_innovation(se_int n, se_int m, se_int B, const double *restrict x, double *restrict P,
+                     const double *restrict y, const double *restrict C,
+                     const double *restrict R, const double *restrict obs,
+                     const double *restrict n_obs, se_int nb, double *restrict e,
+                     double *restrict PCt, double *restrict chol, double *restrict scale,
+                     double *restrict z, double *restrict nis, double *restrict loglik,
+                     double *restrict work, uint8_t *restrict bad, double *restrict report);
+
+/* Equilibrated Cholesky factorization in place of each lane's S in the lower triangle of
+ * chol (m, m, B); scale (m, B), det (B,) written, pivot (B,) scratch. numba returns the pair
+ * (finite, positive): here the return value is `finite` and *positive gets `positive`. */
+int se_factor(se_int m, se_int B, double *restrict chol, double *restrict scale, se_int nb,
+              double *restrict det, double *restrict pivot, int *positive);
+
+/* The per-lane half of se_innovation: x (n, B), y (m, B), C (m, n, B), obs (m, B), n_obs (B,),
+ * chol (m, m, B), scale (m, B), log_det (2, B); written e (m, B), z (m, B), nis, loglik (B,) */
+void se_innovation_mean(se_int n, se_int m, se_int B, const double *restrict x,
+                        const double *restrict y, const double *restrict C,
+                        const double *restrict obs, const double *restrict n_obs,
+                        const double *restrict chol, const double *restrict scale,
+                        const double *restrict log_det, se_int nb, double *restrict e,
+                        double *restrict z, double *restrict nis, double *restrict loglik);
+
+/* v <- S^-1 v per lane: chol (m, m, B), scale (m, B), v (m, B) */
+void se_solve(se_int m, se_int B, const double *restrict chol, const double *restrict scale,
+              double *restrict v, se_int nb);
+
+/* V[r] <- S^-1 V[r] for every row r of V (q, m, B); inv (m, B) written. (The smoother passes
+ * its gain (n, m, B): q = n.) */
+void se_solve_rows(se_int m, se_int B, se_int q, const double *restrict chol,
+                   const double *restrict scale, double *restrict V, se_int nb,
+                   double *restrict inv);
+
+/* v <- D^-1/2 L'^-1 v per lane: chol (m, m, B), scale (m, B), v (m, B) */
+void se_back_substitute(se_int m, se_int B, const double *restrict chol,
+                        const double *restrict scale, double *restrict v, se_int nb);
+
+/* Measurement update (Joseph form) in the lanes where use[b]: x (n, B), P (n, n, B),
+ * C (m, n, B), R (m, m, B), use (B,) uint8, PCt (n, m, B), chol (m, m, B), scale (m, B),
+ * z (m, B) (overwritten); K (n, m, B), T (n, m, B), AP (n, n, B) scratch; prior (n, n, B)
+ * written (P before the update). */
+void se_correct(se_int n, se_int m, se_int B, double *restrict x, double *restrict P,
+                const double *restrict C, const double *restrict R,
+                const uint8_t *restrict use, se_int nb, const double *restrict PCt,
+                const double *restrict chol, const double *restrict scale, double *restrict z,
+                double *restrict K, double *restrict T, double *restrict AP,
+                double *restrict prior);
+
+/* x <- x + P C' S^-1 e where use[b]: x (n, B), z (m, B) (overwritten with S^-1 e),
+ * PCt (n, m, B), chol (m, m, B), scale (m, B), use (B,) uint8 */
+void se_correct_mean(se_int n, se_int m, se_int B, double *restrict x, double *restrict z,
+                     const double *restrict PCt, const double *restrict chol,
+                     const double *restrict scale, const uint8_t *restrict use, se_int nb);
+
+/* Mark in lost (B,) uint8 the lanes where Joseph's form lost its digits; returns whether there
+ * is one. P, prior (n, n, B), use (B,) uint8, root (n, B) scratch. */
+int se_joseph_lost(se_int n, se_int B, const double *restrict P, const double *restrict prior,
+                   const uint8_t *restrict use, se_int nb, double *restrict root,
+                   uint8_t *restrict lost);
+
+/* Each lost lane that observed something in information form, else repaired if indefinite
+ * (counted in report (2,)): P, prior (n, n, B), C (m, n, B), R (m, m, B), obs (m, B),
+ * n_obs (B,), lost (B,) uint8 */
+void se_information_or_repair(se_int n, se_int m, se_int B, double *restrict P,
+                              const double *restrict prior, const double *restrict C,
+                              const double *restrict R, const double *restrict obs,
+                              const double *restrict n_obs, const uint8_t *restrict lost,
+                              se_int nb, double *restrict report);
+
+/* Equilibrated Cholesky factor of one symmetric A (n, n) (lower triangle read) into
+ * out (n, n) (lower, zero above); returns 0 if A is not positive definite or not finite. */
+int se_cholesky(se_int n, const double *restrict A, double *restrict out);
+
+/* Bm <- Lo^-1 Bm for a lower-triangular Lo (m, m) and Bm (m, q) (numba's B) */
+void se_forward(se_int m, se_int q, const double *restrict Lo, double *restrict Bm);
+
+/* Lane b of the posterior in information form: P, prior (n, n, B), C (m, n, B), R (m, m, B),
+ * obs (m, B); returns 0, leaving P alone, if prior or R is not positive definite. */
+int se_information_form(se_int n, se_int m, se_int B, double *restrict P,
+                        const double *restrict prior, const double *restrict C,
+                        const double *restrict R, const double *restrict obs, se_int b);
+
+/* Raise lane b's covariance's eigenvalues to n eps max|eig|: P (n, n, B), report (2,);
+ * returns whether P was changed. */
+int se_repair(se_int n, se_int B, double *restrict P, se_int b, int indefinite_only,
+              double *restrict report);
+
+/* ---- multiple models ----------------------------------------------------------------------- */
+
+/* log-sum-exp normalization over the modes per lane: a (L, B), prob (L, B), total (B,) */
+void se_log_normalize(se_int L, se_int B, double *restrict a, double *restrict prob,
+                      double *restrict total, se_int nb);
+
+/* IMM interaction in place: x (L, n, B), P (L, n, n, B), prob, log_prob (L, B),
+ * transition, log_transition (L, L, B); log_c (L, B) written; w (L, L, B), xm (L, n, B),
+ * Pm (L, n, n, B) scratch */
+void se_mix(se_int n, se_int L, se_int B, double *restrict x, double *restrict P,
+            const double *restrict prob, const double *restrict log_prob,
+            const double *restrict transition, const double *restrict log_transition, se_int nb,
+            double *restrict log_c, double *restrict w, double *restrict xm,
+            double *restrict Pm);
+
+/* log c_j and the mixing weights: prob, log_prob (L, B), transition, log_transition
+ * (L, L, B); log_c (L, B), w (L, L, B) written */
+void se_predicted_mode_probabilities(se_int L, se_int B, const double *restrict prob,
+                                     const double *restrict log_prob,
+                                     const double *restrict transition,
+                                     const double *restrict log_transition, se_int nb,
+                                     double *restrict log_c, double *restrict w);
+
+/* GPB1 interaction in place; arguments as se_mix */
+void se_collapse(se_int n, se_int L, se_int B, double *restrict x, double *restrict P,
+                 const double *restrict prob, const double *restrict log_prob,
+                 const double *restrict transition, const double *restrict log_transition,
+                 se_int nb, double *restrict log_c, double *restrict w, double *restrict xm,
+                 double *restrict Pm);
+
+/* Moments of a mixture: w (L, B), x (L, n, B), P (L, n, n, B); xm (n, B), Pm (n, n, B) */
+void se_merge(se_int n, se_int L, se_int B, const double *restrict w, const double *restrict x,
+              const double *restrict P, se_int nb, double *restrict xm, double *restrict Pm);
+
+/* Lane b of the mode-matched x (L, n, B), P (L, n, n, B) as sample k of trial i of
+ * x_out (N, K, L, n), P_out (N, K, L, n, n). */
+static inline void se_write_modes(se_int n, se_int L, se_int B, se_int K,
+                                  const double *restrict x, const double *restrict P, se_int b,
+                                  se_int i, se_int k, double *restrict x_out,
+                                  double *restrict P_out)
+{
+    for (se_int j = 0; j < L; j++) {
+        double *xo = x_out + ((i * K + k) * L + j) * n;
+        double *Po = P_out + ((i * K + k) * L + j) * n * n;
+        for (se_int r = 0; r < n; r++) {
+            xo[r] = x[(j * n + r) * B + b];
+            for (se_int c = 0; c < n; c++)
+                Po[r * n + c] = P[((j * n + r) * n + c) * B + b];
+        }
+    }
+}
+
+/* Lane b of mixture j in the log domain: log_prob (L, B), log_transition (L, L, B),
+ * w (L, B) (numba's w[j]); returns lse */
+double se_log_weights(se_int L, se_int B, const double *restrict log_prob,
+                      const double *restrict log_transition, se_int j, se_int b,
+                      double *restrict w);
+
+/* Mixture moments: w (L, B), x (L, n, B), P (L, n, n, B); xm (n, B), Pm (n, n, B) */
+void se_moments(se_int n, se_int L, se_int B, const double *restrict w, const double *restrict x,
+                const double *restrict P, se_int nb, double *restrict xm, double *restrict Pm);
+
+/* IMM output: x (L, n, B), P (L, n, n, B), prob, log_prob (L, B); xc (n, B), Pc (n, n, B),
+ * best (B,) se_int written */
+void se_combine(se_int n, se_int L, se_int B, const double *restrict x, const double *restrict P,
+                const double *restrict prob, const double *restrict log_prob, se_int nb,
+                double *restrict xc, double *restrict Pc, se_int *restrict best);
+
+/* ---- from _compiled/bank.py ---------------------------------------------------------------- */
+
+/* out[b]: entry [trial, k, j] of index (N or 1, K or 1, L) for trial i0 + b; an axis of length
+ * 1 is shared. N, K: index.shape[0], index.shape[1]; out (B,) */
+void se_lane_index(se_int L, se_int N, se_int K, const se_int *restrict index, se_int i0,
+                   se_int nb, se_int k, se_int j, se_int *restrict out);
+
+#endif

@@ -1,0 +1,178 @@
+"""Kalman filters along given transitions on the C engine: the whole loop over trials and samples.
+
+``kalman_run`` filters every trial over every sample inside compiled code; ``kalman_step``
+processes one sample of every trial (the streaming API). Both call the kernel of
+``c/kalman.c`` (binding :mod:`._kalman`), which runs the equations of ``c/linalg.c`` (the one
+implementation of each) once per group of trials that share their covariance.
+``kalman_steady_run`` and ``kalman_steady_step`` apply fixed gains.
+
+Transitions come as a table ``F (M, n, n)``, ``G (M, n, l)``, ``Qd (M, n, n)`` with an index
+``trans (N, K)``: entry ``k`` is the transition predicting into sample ``k`` (entry 0 is not
+used by ``kalman_run``: the first sample is update only). One index covers irregular sample
+times, believed modes and exact switches inside an interval; the caller builds the table of
+the distinct transitions. Output matrices come as ``C (L, m, n)``, ``R (L, m, m)`` with
+``mode (N, K)``. The input held over the interval into sample ``k`` is ``u[:, k-1]``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from .._checks import positive_int
+from ._arrays import check_gate, checked
+from ._kalman import CHUNK, LANES, kalman_filter, steady_filter  # noqa: F401 (CHUNK: re-exported)
+from ._parallel import run_split
+
+__all__ = ["KalmanOutput", "kalman_run", "kalman_step", "kalman_steady_run", "kalman_steady_step"]
+
+
+class KalmanOutput(NamedTuple):
+    """Posterior after each sample, for every trial.
+
+    Attributes
+    ----------
+    x : ndarray, shape (N, K, n) (``(N, n)`` from a step)
+    P : ndarray, shape (N, K, n, n) (``(N, n, n)`` from a step)
+    loglik : ndarray, shape (N, K) (``(N,)`` from a step)
+        Log-likelihood of each measurement given the past; 0 when nothing was observed or the
+        sample was gated; NaN for fixed gains (that filter has no likelihood).
+    flag : ndarray of uint8, shape (N, K) (``(N,)`` from a step)
+        ``ACCEPTED`` (0) or ``GATED`` (1): an outlier or a gated measurement, treated as
+        missing.
+    status : int
+        ``OK`` or the failure code that stopped the kernel (outputs then incomplete);
+        :func:`switchest.engine.raise_for_status` turns it into an exception.
+    repaired, smallest_eigenvalue
+        How many covariances were repaired to their rounding level, and the smallest
+        eigenvalue one had (``inf`` if none was): see :class:`.imm.IMMOutput`.
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    loglik: np.ndarray
+    flag: np.ndarray
+    status: int
+    repaired: int = 0
+    smallest_eigenvalue: float = math.inf
+
+
+def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, *, gate=math.inf,
+               lanes: int = LANES) -> KalmanOutput:
+    """Kalman filter of ``N`` trials over ``K`` samples (Shankar et al. eqs (6)-(10)).
+
+    Parameters
+    ----------
+    y : array_like, shape (N, K, m)
+        Measurements; a NaN component is missing (update with the observed ones only).
+    u : array_like, shape (N, K, l)
+        Inputs; ``u[:, k-1]`` is held over the interval into sample ``k``.
+    F, G, Qd : array_like, shapes (M, n, n), (M, n, l), (M, n, n)
+        Table of exact transitions ``x+ = F x + G u + w``, ``w ~ N(0, Qd)``.
+    trans : array_like of int, shape (N, K)
+        ``trans[:, k]`` indexes the transition into sample ``k``; ``trans[:, 0]`` is unused.
+    C, R : array_like, shapes (L, m, n), (L, m, m)
+        Output matrices and measurement-noise covariances.
+    mode : array_like of int, shape (N, K)
+        Which ``C``, ``R`` each sample uses.
+    x0, P0 : array_like, shapes (n,), (n, n)
+        Prior at the first sample.
+    gate : float
+        Largest normalized innovation squared ``e' S^-1 e`` accepted (``inf``: no gate);
+        a measurement beyond it, or with a non-finite likelihood, is treated as missing.
+    lanes : int
+        Trials per block: the trials of a block that share their covariance run its equations
+        once (``c/kalman.c``; the results do not depend on it).
+    """
+    sizes: dict[str, int] = {}
+    y, u, F, G, Qd, trans, C, R, mode, x0, P0 = checked(
+        sizes, "y:NKm u:NKl F:Mnn G:Mnl Qd:Mnn trans:NK<M C:Lmn R:Lmm mode:NK<L x0:n P0:nn",
+        y, u, F, G, Qd, trans, C, R, mode, x0, P0)
+    N = sizes["N"]
+    return _one_mode(y, u, F, G, Qd, trans, C, R, mode, np.repeat(x0[None], N, axis=0),
+                     np.repeat(P0[None], N, axis=0), False, check_gate(gate),
+                     positive_int(lanes, "lanes"))
+
+
+def kalman_step(x, P, y, u, F, G, Qd, C, R, *, predict_first: bool,
+                gate=math.inf) -> KalmanOutput:
+    """One sample of every trial: predict (when ``predict_first``) and update.
+
+    ``x (N, n)``, ``P (N, n, n)`` the posterior at the previous sample, ``y (N, m)``,
+    ``u (N, l)`` the input held over the interval, and per-trial ``F (N, n, n)``,
+    ``G (N, n, l)``, ``Qd (N, n, n)``, ``C (N, m, n)``, ``R (N, m, m)``; the equations and
+    ``gate`` as in :func:`kalman_run`, whose compiled kernel runs this one sample.
+    """
+    sizes: dict[str, int] = {}
+    x, P, y, u, F, G, Qd, C, R = checked(
+        sizes, "x:Nn P:Nnn y:Nm u:Nl F:Nnn G:Nnl Qd:Nnn C:Nmn R:Nmm", x, P, y, u, F, G, Qd, C, R)
+    own = np.arange(sizes["N"])[:, None]  # trial i uses entry i of the per-trial "tables"
+    out = _one_mode(y[:, None], u[:, None], F, G, Qd, own, C, R, own, x, P, bool(predict_first),
+                    check_gate(gate), LANES)
+    return KalmanOutput(out.x[:, 0], out.P[:, 0], out.loglik[:, 0], out.flag[:, 0], out.status,
+                        out.repaired, out.smallest_eigenvalue)
+
+
+def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, gate, lanes):
+    """The C kernel (``se_kalman_filter``) of every trial from ``x_init (N, n)``,
+    ``P_init (N, n, n)``, into new output arrays."""
+    N, K, _ = y.shape
+    n = x_init.shape[1]
+    x, P, loglik = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K))
+    flag = np.empty((N, K), dtype=np.uint8)
+    mine, shared = True, False  # per-trial arrays, sliced to each thread's trials; tables
+    outcome = run_split(kalman_filter, [
+        (y, mine), (u, mine), (F, shared), (G, shared), (Qd, shared), (trans, mine),
+        (C, shared), (R, shared), (mode, mine), (x_init, mine), (P_init, mine),
+        (predict_first, shared), (gate, shared), (min(lanes, N), shared),
+        (x, mine), (P, mine), (loglik, mine), (flag, mine)], trials=N, samples=K, block=lanes)
+    return KalmanOutput(x, P, loglik, flag, *outcome)
+
+
+def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x0, *,
+                      gate=math.inf, lanes: int = LANES) -> KalmanOutput:
+    """Kalman filter with fixed gains (Zhang & Natarajan eq. (6)), every trial and sample.
+
+    ``x_k|k = x_k|k-1 + K_i (y_k - C_i x_k|k-1)`` with the gain ``gain[i] (n, m)`` of the
+    mode ``i = mode[:, k]``; a sample with any component missing is not used at all. The
+    reported covariance is read from the tables ``P_post[i]`` after an update and
+    ``P_prior[i]`` otherwise, shape ``(L, n, n)``; ``loglik`` is NaN (the fixed-gain filter
+    has no likelihood).
+
+    ``whiten (L, m, m)`` holds ``W_i = L_i^-1`` for the steady innovation covariance
+    ``S_i = C_i P_prior[i] C_i' + R_i = L_i L_i'``: the normalized innovation squared is
+    ``e' S_i^-1 e = |W_i e|^2``. A measurement whose NIS exceeds ``gate`` or is not finite is
+    not used (flag ``GATED``). Other arguments as in :func:`kalman_run`.
+    """
+    sizes: dict[str, int] = {}
+    y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x0 = checked(
+        sizes, "y:NKm u:NKl F:Mnn G:Mnl trans:NK<M C:Lmn mode:NK<L gain:Lnm P_prior:Lnn "
+        "P_post:Lnn whiten:Lmm x0:n", y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x0)
+    N, K, n = sizes["N"], sizes["K"], sizes["n"]
+    x, P, loglik = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K))
+    flag = np.empty((N, K), dtype=np.uint8)
+    status = steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten,
+                           np.repeat(x0[None], N, axis=0), False, check_gate(gate),
+                           min(positive_int(lanes, "lanes"), N), x, P, loglik, flag)
+    return KalmanOutput(x, P, loglik, flag, int(status))
+
+
+def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, whiten, *,
+                       predict_first: bool, gate=math.inf) -> KalmanOutput:
+    """One sample of every trial with fixed gains, as :func:`kalman_steady_run` (whose kernel
+    runs it), with per-trial ``F``, ``G``, ``C``, ``gain (N, n, m)``, ``P_prior``,
+    ``P_post (N, n, n)``, ``whiten (N, m, m)``."""
+    sizes: dict[str, int] = {}
+    x, y, u, F, G, C, gain, P_prior, P_post, whiten = checked(
+        sizes, "x:Nn y:Nm u:Nl F:Nnn G:Nnl C:Nmn gain:Nnm P_prior:Nnn P_post:Nnn whiten:Nmm",
+        x, y, u, F, G, C, gain, P_prior, P_post, whiten)
+    N, n = sizes["N"], sizes["n"]
+    own = np.arange(N)[:, None]
+    x_out, P_out, loglik = np.empty((N, 1, n)), np.empty((N, 1, n, n)), np.empty((N, 1))
+    flag = np.empty((N, 1), dtype=np.uint8)
+    status = steady_filter(y[:, None], u[:, None], F, G, own, C, own, gain, P_prior, P_post,
+                           whiten, x, bool(predict_first), check_gate(gate), min(LANES, N),
+                           x_out, P_out, loglik, flag)
+    return KalmanOutput(x_out[:, 0], P_out[:, 0], loglik[:, 0], flag[:, 0], int(status))
