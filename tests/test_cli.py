@@ -1,6 +1,7 @@
 """The command line: the demo runs end to end and prints its comparison; estimate's options and
 errors."""
 
+import argparse
 import re
 import subprocess
 import sys
@@ -62,10 +63,13 @@ def test_estimate_help_lists_every_method_and_the_integrated_output(capsys):
 
 
 def test_the_parser_offers_the_registered_methods():
-    """cli repeats the registry's names for --method, so that building the parser imports no
-    estimators; tabular offers the registry's names too."""
-    assert cli_module._METHODS == METHOD_NAMES == METHODS
-    assert cli_module._TIMINGS == TIMINGS
+    """--method offers the registry's names, read from it (tabular offers them too), --timing
+    the package's timings."""
+    parser = cli_module._parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    choices = {a.dest: a.choices for a in commands.choices["estimate"]._actions}
+    assert tuple(choices["method"]) == METHOD_NAMES == METHODS
+    assert tuple(choices["timing"]) == TIMINGS
 
 
 def test_the_data_help_names_the_methods_that_need_the_mode_column(capsys):
@@ -78,7 +82,10 @@ def test_the_data_help_names_the_methods_that_need_the_mode_column(capsys):
 
 # what no command's --help may import: each takes from a tenth of a second to over a second
 _HEAVY = ("scipy", "numba", "pandas", "matplotlib", "cvxpy", "switchest.experiments",
-          "switchest.estimators", "switchest.tabular")
+          "switchest.engine", "switchest.tabular")
+# of the estimators, the parser reads the registry of the methods only (with the package and its
+# protocol, base, which imports numpy and the core that `import switchest` loads already)
+_REGISTRY = {"switchest.estimators", "switchest.estimators.base", "switchest.estimators.registry"}
 _HELP = """
 import sys
 from switchest.cli import main
@@ -94,11 +101,13 @@ print(" ".join(sys.modules))
                                      ["estimate"], ["check"], ["report"]])
 def test_help_imports_none_of_the_heavy_modules(command):
     """``switchest [command] --help`` answers at once: it imports neither the experiments, the
-    estimators, scipy, numba, pandas nor matplotlib (checked in a fresh interpreter)."""
+    estimators (but their registry), scipy, numba, pandas nor matplotlib (checked in a fresh
+    interpreter)."""
     done = subprocess.run([sys.executable, "-c", _HELP, *command, "--help"], capture_output=True,
                           text=True, check=True)
     loaded = set(done.stdout.splitlines()[-1].split())  # the line after the help
     assert not [m for m in _HEAVY if m in loaded], sorted(loaded)
+    assert {m for m in loaded if m.startswith("switchest.estimators")} <= _REGISTRY, sorted(loaded)
 
 
 def test_min_distance_options_override_the_model_file(lee_csv, tmp_path):
@@ -235,30 +244,3 @@ def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatc
     first_cells = [line.split("│")[1].strip() for line in out.splitlines()
                    if line.startswith("│")]
     assert sum(1 for cell in first_cells if len(cell) >= 4) >= 5  # labels, not slivers
-
-
-def test_a_compile_is_announced_and_timed_on_stderr_even_in_a_log(capsys):
-    """A compile inside the notice's block: a line before it and its duration after, also when
-    stderr is not a terminal (here, captured); nothing at all when nothing compiles."""
-    from numba import njit
-
-    @njit  # no on-disk cache: compiled in this process
-    def halve(x):
-        return 0.5 * x
-
-    with cli_module._compile_notice():
-        halve(1.0)
-    err = capsys.readouterr().err.splitlines()
-    assert err[0] == cli_module._COMPILING
-    assert re.fullmatch(r"compiled the filter kernels in (\d+ s|\d+ min \d\d s); later runs load "
-                        r"them from the on-disk cache", err[1]), err
-    assert len(err) == 2
-    with cli_module._compile_notice():
-        halve(2.0)  # compiled already
-    assert capsys.readouterr().err == ""
-
-
-@pytest.mark.parametrize(("seconds", "text"), [(0.4, "0 s"), (59.4, "59 s"), (59.6, "1 min 00 s"),
-                                               (187.0, "3 min 07 s")])
-def test_compile_durations_read_in_seconds_then_minutes(seconds, text):
-    assert cli_module._minutes(seconds) == text

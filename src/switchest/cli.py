@@ -7,11 +7,12 @@ exception is a bug in switchest: one line says so, exit code 1. With ``--debug``
 (before or after the command) the exception propagates with its traceback,
 except for errors in the command line itself. Ctrl-C exits with code 130; an
 interrupted ``run`` or ``reproduce`` says how many tasks are stored and the
-command that resumes it. Long runs show a progress bar with an ETA on a terminal, and the
-first run after install says so there while numba compiles the filter kernels.
+command that resumes it. Long runs show a progress bar with an ETA on a terminal.
 
 The commands import what they use when they run: the experiments, the estimators, pandas and
-matplotlib take seconds to import, and ``switchest --help`` needs none of them.
+matplotlib take seconds to import, and ``switchest --help`` needs none of them. The parser takes
+the methods of ``estimate`` (names, options, descriptions) from their registry
+(:mod:`switchest.estimators.registry`), which imports no estimator.
 """
 
 from __future__ import annotations
@@ -32,6 +33,8 @@ from rich.console import Console
 from rich.markup import escape
 
 from . import __version__
+from ._checks import TIMINGS
+from .estimators.registry import methods, methods_with
 
 if TYPE_CHECKING:
     import numpy as np
@@ -47,16 +50,6 @@ DEMO_MAX_SAMPLES = 10**6
 """Most trials x samples ``switchest demo`` simulates and filters (about 0.3 GB)."""
 
 _DEMO_BYTES_PER_SAMPLE = 300  # peak memory per trial and sample of the demo: 230-330 B measured
-_METHODS = ("kalman", "switch-time", "imm", "gpb1", "gpb2", "rbpf", "imm-ev1", "min-distance",
-            "rsls", "impulsive")
-"""The registered method names (``switchest.estimators.registry.METHOD_NAMES``, which
-``switchest.tabular.METHODS`` is), repeated so that building the parser imports neither the
-registry nor tabular (numpy, scipy, pandas, numba, the estimators); tests/test_cli.py holds them
-equal, and the help texts of ``--method`` and ``--data`` true to the registry."""
-_TIMINGS = ("sample", "interval")
-"""``switchest._checks.TIMINGS``, repeated for the same reason (tests/test_cli.py holds them
-equal)."""
-_COMPILING = "compiling the filter kernels (once after install; it can take a few minutes)…"
 
 
 class _UsageError(Exception):
@@ -180,28 +173,6 @@ def run_experiment(*args, **kwargs) -> list[tuple[dict, dict]]:
     from .experiments import run_experiment as run
 
     return run(*args, **kwargs)
-
-
-@contextmanager
-def _compile_notice() -> Iterator[None]:
-    """Say on stderr when numba starts to compile the filter kernels inside the block, and, when
-    the block ends, how long compiling took: once after install (or an upgrade), never when
-    they load from the on-disk cache. On a terminal and in a log alike (plain text there), so
-    that a log shows what its first minutes went to."""
-    from .estimators._compiled.warmup import on_first_compile
-
-    errors = Console(stderr=True, highlight=False, soft_wrap=True)
-    with on_first_compile(lambda: errors.print(_COMPILING, style="dim")) as watch:
-        yield
-    if watch.heard:
-        errors.print(f"compiled the filter kernels in {_minutes(watch.seconds)}; later runs "
-                     "load them from the on-disk cache", style="dim")
-
-
-def _minutes(seconds: float) -> str:
-    """A duration as ``"42 s"`` or ``"3 min 07 s"``."""
-    whole = round(seconds)
-    return f"{whole} s" if whole < 60 else f"{whole // 60} min {whole % 60:02d} s"
 
 
 def _store_path(args: argparse.Namespace) -> Path:
@@ -352,7 +323,6 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
         TimeRemainingColumn,
     )
 
-    from .estimators._compiled.warmup import warm_up
     from .experiments import get
 
     out = _output_folder(Path(args.out), "--out")
@@ -370,9 +340,6 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
             plans.append((experiment, experiment.params(quick=args.quick, **overrides)))
         except ValueError as exc:
             raise _UsageError(f"--trials {args.trials}: {exc}" if overrides else str(exc)) from None
-    if args.scheduler is None:  # compile here, before the progress bar and the workers start
-        with _compile_notice():
-            warm_up()
     for experiment, params in plans:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
@@ -455,9 +422,7 @@ def _cmd_report(args: argparse.Namespace, console: Console) -> int:
 # ---------------------------------------------------------------------- demo, list, estimate, check
 def _cmd_demo(args: argparse.Namespace, console: Console) -> int:
     _check_demo_size(args.trials, args.duration)
-    with _compile_notice():
-        table = demo(args.trials, args.duration, args.seed, console)
-    console.print(table)
+    console.print(demo(args.trials, args.duration, args.seed, console))
     return 0
 
 
@@ -483,7 +448,7 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
     out = _output_file(Path(args.out), "--out")
     plot = args.plot and _output_file(Path(args.plot), "--plot", ("png", "pdf", "svg"))
     spec = load_model(args.model)
-    with _compile_notice(), warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImplausibleEstimateWarning)
         table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
                                refine=args.refine, stay=args.stay, v_max=args.v_max,
@@ -684,7 +649,7 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
     start = start_transition(spec, data["t"])
     columns = (TextColumn("EM"), BarColumn(), MofNCompleteColumn(),
                TextColumn("log-likelihood {task.fields[loglik]}"), TimeElapsedColumn())
-    with (_compile_notice(), warnings.catch_warnings(record=True) as caught,
+    with (warnings.catch_warnings(record=True) as caught,
           Progress(*columns, console=console, transient=True,
                    disable=not console.is_terminal) as bar):
         warnings.simplefilter("always", RuntimeWarning)
@@ -722,6 +687,17 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
 
 
 # ---------------------------------------------------------------------- the parser and main
+def _help(text: str) -> str:
+    """``text`` as an argparse help string (its ``%`` escaped)."""
+    return text.replace("%", "%%")
+
+
+def _applies(option: str, text: str) -> str:
+    """The help of ``switchest estimate``'s ``option``: ``text`` after the registered methods
+    it applies to (:func:`~switchest.estimators.registry.methods_with`)."""
+    return _help(f"{', '.join(methods_with(option))}: {text}")
+
+
 def _parser() -> _Parser:
     parser = _Parser(prog="switchest", description="Estimation in switched linear systems.")
     parser.add_argument("--version", action="version", version=f"switchest {__version__}")
@@ -767,43 +743,43 @@ def _parser() -> _Parser:
     p_est = command("estimate", _cmd_estimate,
                     help="estimate states and modes from measured data (CSV)")
     p_est.add_argument("--model", required=True, type=_existing_file, help="TOML model file")
+    known = ", ".join(m.name for m in methods() if m.needs_modes)
     p_est.add_argument("--data", required=True, type=_existing_file,
                        help="CSV with columns t, u..., y... (empty or NaN y cells: missing "
-                            "samples) and mode (the known mode, needed by kalman, switch-time, "
-                            "rsls, impulsive); for rsls the y columns are the integrated output "
-                            "at fine instants t including every switching instant t0 + kT")
-    p_est.add_argument("--method", required=True, choices=_METHODS,
-                       help="kalman, switch-time (known modes); imm, gpb1, gpb2, rbpf, imm-ev1 "
-                            "(modes unknown); min-distance (Lee et al., uniform t); rsls (Wang "
-                            "et al., integrated output); impulsive (Etienne et al.)")
+                            f"samples) and mode (the known mode, needed by {known}); for rsls "
+                            "the y columns are the integrated output at fine instants t "
+                            "including every switching instant t0 + kT")
+    p_est.add_argument("--method", required=True, choices=[m.name for m in methods()],
+                       help=_help(" | ".join(f"{m.name}: {m.description}" for m in methods())))
     p_est.add_argument("--grid", type=_positive, default=5,
-                       help="switching-time grid points per interval")
+                       help=_applies("grid", "switching-time grid points per interval"))
     p_est.add_argument("--refine", action="store_true",
-                       help="refine the grid maximum (switch-time)")
+                       help=_applies("refine", "refine the grid maximum"))
     p_est.add_argument("--stay", type=_probability, default=None,
-                       help="per-sample probability of staying in a mode")
+                       help=_applies("stay", "per-sample probability of staying in a mode"))
     p_est.add_argument("--v-max", type=_window, default=None,
-                       help="min-distance: noise bound |v| <= v_max (default: the model's "
-                            "noise.v_max)")
+                       help=_applies("v_max", "noise bound |v| <= v_max (default: the model's "
+                                              "noise.v_max)"))
     p_est.add_argument("--delta", type=_window, default=None,
-                       help="min-distance: estimation window delta, a multiple of the time step "
-                            "(default: noise.delta)")
+                       help=_applies("delta", "estimation window delta, a multiple of the time "
+                                              "step (default: noise.delta)"))
     p_est.add_argument("--Delta", type=_window, default=None,
-                       help="min-distance: detection delay Delta (default: noise.Delta)")
+                       help=_applies("Delta", "detection delay Delta (default: noise.Delta)"))
     p_est.add_argument("--switch-interval", type=_window, default=None,
-                       help="rsls: switching interval T, modes change only at t0 + kT (default: "
-                            "sampling.period)")
+                       help=_applies("switch_interval", "switching interval T, modes change only "
+                                                        "at t0 + kT (default: sampling.period)"))
     p_est.add_argument("--smooth", action="store_true",
-                       help="imm, gpb1, gpb2: smoothed estimates given the whole record (Kim's "
-                            "smoother) instead of filtered ones")
+                       help=_applies("smooth", "smoothed estimates given the whole record (Kim's "
+                                               "smoother) instead of filtered ones"))
     p_est.add_argument("--particles", type=_positive, default=None,
-                       help="rbpf: number of particles (default 1000)")
+                       help=_applies("particles", "number of particles (default 1000)"))
     p_est.add_argument("--seed", type=_seed, default=None,
-                       help="rbpf: seed of the particles' random numbers (default 0)")
-    p_est.add_argument("--timing", choices=_TIMINGS, default=None,
-                       help="imm, gpb1, gpb2, rbpf: which interval the mode of a sample governs: "
-                            "'interval' (default) the one before it (Bar-Shalom's IMM); 'sample' "
-                            "the one after it, as simulate draws (docs: Conventions)")
+                       help=_applies("seed", "seed of the particles' random numbers (default 0)"))
+    p_est.add_argument("--timing", choices=TIMINGS, default=None,
+                       help=_applies("timing", "which interval the mode of a sample governs: "
+                                               "'interval' (default) the one before it "
+                                               "(Bar-Shalom's IMM); 'sample' the one after it, "
+                                               "as simulate draws (docs: Conventions)"))
     p_est.add_argument("--trial", type=_seed, default=None,
                        help="which trial to estimate, in a CSV with a trial column")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")

@@ -2,9 +2,11 @@
 
 The data are a measurement table (:mod:`switchest.measurements`: columns ``t``,
 ``u..``, ``y..`` and, for the methods that need it, ``mode``), read and checked by
-:func:`~switchest.measurements.read_measurements`. A transition matrix or gains the model file
-does not give come from :mod:`switchest.default_designs`. This module runs the method and
-tabulates its estimates. The readers and designs it uses stay importable from here.
+:func:`~switchest.measurements.read_measurements`. The method's row of the registry
+(:mod:`switchest.estimators.registry`) builds its estimator from the model file, a transition
+matrix or gains the file does not give coming from :mod:`switchest.default_designs`, and runs it;
+this module tabulates its estimates. The readers and designs it uses stay importable from
+here.
 
 The methods (:data:`METHODS`), what each needs and where it finds it:
 
@@ -59,14 +61,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._checks import check_timing, positive_scalar
-from .analysis import decay_observer_gains
 from .default_designs import impulsive_gains, rsls_gains, transition_for
-from .estimators import METHOD_NAMES, Estimate, Method, get_method
+from .estimators import METHOD_NAMES, Estimate, get_method
 from .measurements import mode_signal, read_measurements
 from .metrics import innovation_consistency
 from .modelfile import ModelSpec
-from .switching import MarkovAtSamples
 
 __all__ = [
     "METHODS",
@@ -81,11 +80,10 @@ __all__ = [
 
 METHODS = METHOD_NAMES
 """The method names, :data:`switchest.estimators.registry.METHOD_NAMES`."""
-_LEE_SETTINGS = {  # option -> (what it is, CLI flag)
-    "v_max": ("the noise bound |v(t)| <= v_max, Lee et al. eq. (2)", "--v-max"),
-    "delta": ("the estimation window, Lee et al. condition (3)", "--delta"),
-    "Delta": ("the detection delay, Lee et al. condition (4)", "--Delta"),
-}
+_WITHOUT_DEFAULT = ("v_max", "delta", "Delta", "switch_interval", "smooth", "particles", "seed",
+                    "timing")
+"""The options of :func:`estimate_table` that are refused for a method they do not apply to when
+set; ``grid``, ``refine`` (which have a default) and ``stay`` apply only where they are used."""
 
 
 def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: str, grid: int = 5,
@@ -141,20 +139,15 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     options = {"grid": grid, "refine": refine, "stay": stay, "v_max": v_max, "delta": delta,
                "Delta": Delta, "switch_interval": switch_interval, "smooth": smooth,
                "particles": particles, "seed": seed, "timing": timing}
-    for name in ("v_max", "delta", "Delta", "switch_interval", "smooth", "particles", "seed",
-                 "timing"):
-        if options[name] is not None and options[name] is not False:  # no default elsewhere
-            if name not in entry.options:
-                owners = " or ".join(repr(m) for m in METHODS if name in get_method(m).options)
-                raise ValueError(f"{name} applies to method {owners} only, got method {method!r}")
-            if name in ("v_max", "delta", "Delta", "switch_interval"):
-                options[name] = positive_scalar(options[name], name)
-            if name == "timing":
-                check_timing(timing)
+    entry.check_options(name for name in _WITHOUT_DEFAULT
+                        if options[name] is not None and options[name] is not False)
     meas = read_measurements(data, spec, trial=trial)
     modes = _modes(meas, method) if entry.needs_modes else None
-    est = _RUNNERS[method](entry, spec, meas, options, modes)
-    if method in _CHECKED:
+    estimator = entry.build(spec, meas["t"], **{
+        name: options[name] for name in entry.options
+        if name != "smooth" and options[name] is not None})
+    est = entry.run(estimator, meas["y"], meas["u"], meas["t"], modes=modes, smooth=smooth)
+    if entry.innovation_check:
         _warn_if_inconsistent(spec, meas, est, modes, method)
     return _table(meas["t"], est)
 
@@ -164,7 +157,6 @@ class ImplausibleEstimateWarning(UserWarning):
     the data (:func:`switchest.metrics.innovation_consistency`)."""
 
 
-_CHECKED = ("kalman", "switch-time")  # Kalman updates along the given modes: the NIS is exact
 _Z_LIMIT = 4.0  # |z| beyond which the mean NIS is implausible for a consistent filter
 
 
@@ -190,96 +182,12 @@ def _warn_if_inconsistent(spec: ModelSpec, meas: dict, est: Estimate, modes, met
                   ImplausibleEstimateWarning, stacklevel=3)
 
 
-# ------------------------------------------------------------------ one runner per method family
-def _filter(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
-    """The Kalman-type filters, ``entry.estimator(system, [transition,] x0, P0, **options)``.
-
-    A required transition matrix comes from the switching model (:func:`transition_for`) or
-    ``stay``; an optional one (Shankar et al.'s Algorithm 1 uses none) only when ``stay`` is
-    given or the switching model is a Markov chain.
-    """
-    t, y, u = meas["t"], meas["y"], meas["u"]
-    explicit = options["stay"] is not None or isinstance(spec.switching, MarkovAtSamples)
-    args = []
-    if entry.transition == "required" or (entry.transition == "optional" and explicit):
-        T = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-        args.append(transition_for(spec, T, stay=options["stay"]))
-    elif entry.transition == "optional":
-        args.append(None)
-    chosen = {name: options[name] for name in ("grid", "refine") if name in entry.options}
-    if "particles" in entry.options:
-        chosen["particles"] = 1000 if options["particles"] is None else options["particles"]
-        chosen["rng"] = 0 if options["seed"] is None else options["seed"]
-    if options["timing"] is not None:
-        chosen["timing"] = options["timing"]
-    est = entry.estimator(spec.system, *args, *_prior(spec), **chosen)
-    if options["smooth"]:
-        return est.smooth(y, u, t)
-    return est.run(y, u, t, **({} if modes is None else {"modes": modes}))
-
-
-def _min_distance(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
-    """Lee, Ping & Shim's detector with the model's bounds and windows.
-
-    Options override ``[noise]``. ``u_max`` (used only by the detector's assumption check) and the
-    observer gains (``observer_decay``,
-    :func:`~switchest.analysis.min_distance_design.decay_observer_gains`; otherwise the detector's
-    default) come from ``[noise]`` alone.
-    """
-    noise = spec.noise
-    settings = {name: options[name] for name in entry.options}
-    for name, value in settings.items():
-        if value is None:
-            if name not in noise:
-                what, flag = _LEE_SETTINGS[name]
-                raise ValueError(f"method 'min-distance' needs {name}, {what}: add {name} to the "
-                                 f"model file's [noise] table or pass {flag} ({name}= in Python)")
-            settings[name] = noise[name]
-    decay = noise.get("observer_decay")
-    gains = None if decay is None else decay_observer_gains(spec.system, decay)
-    detector = entry.estimator(spec.system, **settings, u_max=noise.get("u_max", 0.0),
-                               observer_gains=gains)
-    # refuses a non-uniform grid naming the sample
-    return detector.run(meas["y"], meas["u"], meas["t"])
-
-
-def _rsls(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
-    """Wang et al.'s observer on the integrated output, along the ``mode`` column."""
-    T = options["switch_interval"]
-    T = spec.sampling.get("period") if T is None else T
-    if T is None:
-        raise ValueError("method 'rsls' needs the switching interval T (Wang et al. Assumption 1): "
-                         "set sampling.period in the model file or pass --switch-interval "
-                         "(switch_interval= in Python)")
-    observer = entry.estimator(spec.system, rsls_gains(spec, T), T, *_prior(spec))
-    return observer.run(meas["y"], t=meas["t"], modes=modes)
-
-
-def _impulsive(entry: Method, spec: ModelSpec, meas: dict, options: dict, modes) -> Estimate:
-    """Etienne et al.'s impulsive observer along the switching signal of the ``mode`` column."""
-    signal = mode_signal(meas["t"], modes)
-    observer = entry.estimator(spec.system, impulsive_gains(spec, meas["t"]), *_prior(spec))
-    return observer.run(meas["y"], meas["u"], meas["t"], signals=signal)
-
-
-#: How estimate_table builds and runs each registered method (every name of METHODS).
-_RUNNERS = {"kalman": _filter, "switch-time": _filter, "imm": _filter, "gpb1": _filter,
-            "gpb2": _filter, "rbpf": _filter, "imm-ev1": _filter,
-            "min-distance": _min_distance, "rsls": _rsls, "impulsive": _impulsive}
-
-
 # ---------------------------------------------------------------------- shared pieces
 def _modes(meas: dict, method: str) -> np.ndarray:
     if "mode" not in meas:
         raise ValueError(f"method {method!r} needs the known modes: add a 'mode' column to the "
                          "data")
     return meas["mode"]
-
-
-def _prior(spec: ModelSpec) -> tuple[np.ndarray, np.ndarray]:
-    if spec.initial is None:
-        raise ValueError("the model file needs an [initial] table (mean, cov) to start the filter")
-    return spec.initial
 
 
 def _table(t: np.ndarray, est: Estimate) -> pd.DataFrame:

@@ -192,7 +192,7 @@ def step_args(p, state, k):
 def test_step_equals_numba_and_streams_what_run_reports(options):
     p = problem(21, 3, 2, 1, 3, 3, D=2, N=19, K=12)
     kw = dict(epsilon=1e-5, gate=15.0, **options)
-    N, L, n = p["y"].shape[0], p["C"].shape[0], p["x0"].size
+    N, L, _n = p["y"].shape[0], p["C"].shape[0], p["x0"].size
     state = (np.tile(p["x0"], (N, L, 1)), np.tile(p["P0"], (N, L, 1, 1)),
              np.tile(p["log_weight0"], (N, 1)), np.tile(np.arange(L), (N, 1)),
              np.full((N, L), np.nan))

@@ -224,7 +224,7 @@ def test_gather_scatter():
 
 
 def test_lane_index():
-    for n, m, l, L, B, nb, rng in cases():
+    for _n, _m, _l, L, B, nb, rng in cases():
         i0 = int(rng.integers(0, 3))
         K = 4
         for N1 in (1, i0 + nb):
@@ -238,7 +238,7 @@ def test_lane_index():
 
 
 def test_observe():
-    for n, m, l, L, B, nb, rng in cases():
+    for _n, m, _l, _L, B, nb, rng in cases():
         y = missing(rng, rng.standard_normal((m, B)), 0.4)
         oa, oc = pair(np.full((m, B), 7.0))
         na, nc = pair(np.full(B, 7.0))
@@ -252,7 +252,7 @@ def test_observe():
 
 
 def test_predict():
-    for n, m, l, L, B, nb, rng in cases():
+    for n, _m, l, _L, B, nb, rng in cases():
         for s in SCALES:
             r = math.sqrt(s)
             F = rng.standard_normal((n, n, B))
@@ -278,7 +278,7 @@ def test_predict():
 
 
 def test_symmetric_sum():
-    for n, m, l, L, B, nb, rng in cases():
+    for n, m, _l, _L, B, nb, rng in cases():
         q = m
         base = spd_lanes(rng, n, B)
         X, Y = rng.standard_normal((n, q, B)), rng.standard_normal((n, q, B))
@@ -296,7 +296,7 @@ def test_symmetric_sum():
 
 
 def test_residuals():
-    for n, m, l, L, B, nb, rng in cases():
+    for n, m, l, _L, B, nb, rng in cases():
         x, C = rng.standard_normal((n, B)), rng.standard_normal((m, n, B))
         y = missing(rng, rng.standard_normal((m, B)))
         obs = (~np.isnan(y)).astype(float)
@@ -324,7 +324,7 @@ def factored(rng, m, B, nb, scale=1.0):
 
 def test_factor():
     seen = defaultdict(int)
-    for n, m, l, L, B, nb, rng in cases():
+    for _n, m, _l, _L, B, nb, rng in cases():
         for kind in ("spd", "ill", "singular", "indefinite", "nonfinite"):
             for s in SCALES:
                 S = spd_lanes(rng, m, B, s, "spd" if kind == "nonfinite" else kind)
@@ -340,14 +340,14 @@ def test_factor():
                 if ra[0]:  # numba's positive is meaningful only when finite
                     assert ra[1] == rc[1], "positive"
                 seen[ra if ra[0] else (False,)] += 1
-                for name, got, ref in (("chol", cc, ca), ("scale", sc, sa), ("det", dc, da),
+                for _name, got, ref in (("chol", cc, ca), ("scale", sc, sa), ("det", dc, da),
                                        ("pivot", pc, pa)):
                     close("factor", got, ref)
     assert seen[(True, True)] and seen[(True, False)] and seen[(False,)], seen
 
 
 def test_solves():
-    for n, m, l, L, B, nb, rng in cases():
+    for n, m, _l, _L, B, nb, rng in cases():
         for s in SCALES:
             chol, scale = factored(rng, m, B, nb, s)
             e = rng.standard_normal((m, B)) * math.sqrt(s)
@@ -426,7 +426,7 @@ def check_innovation(res):
 
 
 def test_innovation():
-    for n, m, l, L, B, nb, rng in cases():
+    for n, m, _l, _L, B, nb, rng in cases():
         for s in SCALES:
             for kind in ("spd", "ill", "singular"):
                 args = innovation_inputs(rng, n, m, B, nb, s, kind)
@@ -438,7 +438,7 @@ def test_innovation():
 
 def test_innovation_failures():
     seen = defaultdict(int)
-    for n, m, l, L, B, nb, rng in cases():
+    for n, m, _l, _L, B, nb, rng in cases():
         b = int(rng.integers(0, nb))
         # an indefinite P, a small R: S indefinite in lane b; with report P is repaired
         x, P, y, C, R, obs, n_obs = innovation_inputs(rng, n, m, B, nb, 1.0, "spd", 0.0)
@@ -474,7 +474,7 @@ def test_innovation_failures():
 
 
 def test_innovation_mean_and_correct():
-    for n, m, l, L, B, nb, rng in cases():
+    for n, m, _l, _L, B, nb, rng in cases():
         for s in SCALES:
             for kind in ("spd", "ill"):
                 x, P, y, C, R, obs, n_obs = innovation_inputs(rng, n, m, B, nb, s, kind)
@@ -512,7 +512,7 @@ def test_innovation_mean_and_correct():
 
 def test_joseph_and_information_form():
     seen = defaultdict(int)
-    for n, m, l, L, B, nb, rng in cases():
+    for n, m, _l, _L, B, nb, rng in cases():
         for s in SCALES:
             # a diffuse prior and precise measurements: Joseph's form loses its digits
             x, P, y, C, R, obs, n_obs = innovation_inputs(rng, n, m, B, nb, s, "spd")
@@ -580,7 +580,7 @@ def test_joseph_and_information_form():
 
 
 def test_cholesky_forward():
-    for n, m, l, L, B, nb, rng in cases():
+    for n, m, _l, _L, _B, _nb, rng in cases():
         for s in SCALES + (1e300, 1e-300):
             for kind in ("spd", "ill", "singular", "indefinite", "nonfinite"):
                 A = spd_lanes(rng, n, 1, s, "spd" if kind == "nonfinite" else kind)[:, :, 0]
@@ -602,7 +602,7 @@ def test_cholesky_forward():
 
 def test_repair():
     seen = defaultdict(int)
-    for n, m, l, L, B, nb, rng in cases():
+    for n, _m, _l, _L, B, nb, rng in cases():
         for s in SCALES:
             for kind in ("spd", "singular", "indefinite", "ill", "nonfinite"):
                 P = spd_lanes(rng, n, B, s, "spd" if kind == "nonfinite" else kind)
@@ -643,7 +643,7 @@ def log_weights_lanes(rng, L, B, kind):
 
 
 def test_log_normalize():
-    for n, m, l, L, B, nb, rng in cases():
+    for _n, _m, _l, L, B, nb, rng in cases():
         for kind in ("plain", "spread", "some_inf", "all_inf", "huge"):
             a = log_weights_lanes(rng, L, B, kind)
             aa, ac = pair(a)
@@ -685,7 +685,7 @@ def mode_inputs(rng, n, L, B, s, kind):
 
 
 def test_mode_probabilities_mix_collapse():
-    for n, m, l, L, B, nb, rng in cases():
+    for n, _m, _l, L, B, nb, rng in cases():
         for s in SCALES:
             for kind in ("plain", "sparse", "tiny"):
                 x, P, prob, log_prob, T, logT = mode_inputs(rng, n, L, B, s, kind)
@@ -715,7 +715,7 @@ def test_mode_probabilities_mix_collapse():
 
 
 def test_moments_merge_combine():
-    for n, m, l, L, B, nb, rng in cases():
+    for n, _m, _l, L, B, nb, rng in cases():
         for s in SCALES:
             for kind in ("plain", "sparse"):
                 x, P, prob, log_prob, T, logT = mode_inputs(rng, n, L, B, s, kind)

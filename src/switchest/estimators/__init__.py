@@ -1,7 +1,7 @@
 """Estimators, all on one protocol: ``init -> step -> run -> Estimate``.
 
 :class:`Estimator` declares the protocol; :mod:`.registry` lists the methods a user selects
-by name (:data:`METHOD_NAMES`, :func:`get_method`).
+by name (:data:`METHOD_NAMES`, :func:`get_method`, :func:`methods`, :func:`methods_with`).
 
 The protocol comes with the package; every other name is imported from its module at its
 first use (PEP 562 ``__getattr__``), so that a program using one filter loads that filter's
@@ -30,7 +30,7 @@ _EXPORTS = {
     "mode_bank": ("IMMState", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"),
     "mode_kalman": ("ModeKalmanFilter",),
     "rbpf": ("RBPFState", "RBPFilter"),
-    "registry": ("METHOD_NAMES", "Method", "get_method"),
+    "registry": ("METHOD_NAMES", "Method", "get_method", "methods", "methods_with"),
     "rsls": ("RSLSObserver", "RSLSState", "fine_step_error_system"),
     "smoothing": ("SmoothedModes", "smooth_mode_matched"),
     "switch_time": ("SwitchTimeKalmanFilter", "switch_time_loglik"),

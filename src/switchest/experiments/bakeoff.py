@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis import joint_observability, lee_assumptions
-from ..estimators.min_distance import MinimumDistanceDetector, match_detections
+from ..estimators.min_distance import match_detections
 from ..estimators.mode_bank import SmootherDivergenceWarning
-from ..estimators.registry import Method, get_method
+from ..estimators.registry import get_method
 from ..modelfile import ModelSpec
 from ..models.catalog import catalog
 from ..models.lee import LEE_SCENARIO
@@ -34,7 +34,6 @@ from ..plotting import bars
 from ..simulate import simulate
 from ..switching import Dwell, MarkovContinuous, Schedule
 from ..system import SwitchedLinearSystem
-from ..tabular import transition_for
 from .registry import Experiment, Row, Summary, register
 from .scoring import blocks, merge_groups, rmse_and_se, score
 from .verdict import Z_95
@@ -45,11 +44,11 @@ class Contender:
     """One bake-off row: a registered method (:func:`~switchest.estimators.get_method`) with
     the options it runs with here.
 
-    ``options`` go to the estimator's constructor; ``true_instants`` also gives ``run`` the
-    true switching instants (the clairvoyant floor); ``smooth`` runs the estimator's
-    fixed-interval smoother instead of its filter (given the whole record: offline);
-    ``seeded`` gives the constructor ``rng``, a seed drawn from the task's generator (the
-    particle filter)."""
+    ``options`` go to the method's :meth:`~switchest.estimators.Method.build` (its user
+    options, or its estimator's constructor's); ``true_instants`` also gives ``run`` the true
+    switching instants (the clairvoyant floor); ``smooth`` runs the estimator's fixed-interval
+    smoother instead of its filter (given the whole record: offline); ``seeded`` gives it the
+    option ``seed``, drawn from the task's generator (the particle filter)."""
 
     key: str
     method: str
@@ -63,6 +62,13 @@ class Contender:
         get_method(self.method)  # a registered method, or a ValueError naming them
 
 
+FSK_NOISE_STD = 0.03  # measurement noise of the FSK case, per component
+FSK_V_MAX = 3 * FSK_NOISE_STD  # the noise bound the detector is told
+# Lee et al.'s detector with the lee-detection design (the FSK phasor is its system): windows
+# delta = 0.25 s, Delta = 1 s, gains L_i = A_i + 40 I (so A_i - L_i C = -40 I) and the noise
+# bound v_max = 3 sigma of the FSK case
+_DETECTOR = (("v_max", FSK_V_MAX), ("delta", LEE_SCENARIO.delta), ("Delta", LEE_SCENARIO.Delta),
+             ("u_max", LEE_SCENARIO.u_max), ("observer_gains", LEE_SCENARIO.observer_gains))
 _CONTENDERS = (
     Contender("clairvoyant", "kalman", "mode KF, true switch times", true_instants=True),
     Contender("kalman-at-samples", "kalman", "mode KF, switches at samples"),
@@ -79,14 +85,12 @@ _CONTENDERS = (
     Contender("imm-smoothed", "imm", "IMM smoothed (offline)", smooth=True),
     Contender("gpb2-smoothed", "gpb2", "GPB2 smoothed (offline)", smooth=True),
     Contender("imm-ev1", "imm-ev1", "IMM-EV1 (g = 5)", (("grid", 5),)),
-    Contender("min-distance", "min-distance", "min-distance detector (Lee)"),
+    Contender("min-distance", "min-distance", "min-distance detector (Lee)", _DETECTOR),
 )
 CONTENDERS = {c.key: c for c in _CONTENDERS}
 """The bake-off's rows by key, in the order they are shown."""
 METHODS = tuple(CONTENDERS)
 _LABELS = {c.key: c.label for c in _CONTENDERS}
-FSK_NOISE_STD = 0.03  # measurement noise of the FSK case, per component
-FSK_V_MAX = 3 * FSK_NOISE_STD  # the noise bound the detector is told
 
 
 def _markov_jump() -> ModelSpec:
@@ -164,17 +168,6 @@ def _tasks(p: dict) -> list[dict]:
     return out
 
 
-def _detector(system: SwitchedLinearSystem) -> MinimumDistanceDetector:
-    """Lee et al.'s detector with the lee-detection design (the FSK phasor is its system).
-
-    Windows ``delta = 0.25`` s, ``Delta = 1`` s, gains ``L_i = A_i + 40 I`` (so
-    ``A_i - L_i C = -40 I``) and the noise bound ``v_max = 3 sigma`` of the FSK case.
-    """
-    s = LEE_SCENARIO
-    return MinimumDistanceDetector(system, delta=s.delta, Delta=s.Delta, v_max=FSK_V_MAX,
-                                   u_max=s.u_max, observer_gains=s.observer_gains)
-
-
 def _run(cfg: dict, rng: np.random.Generator) -> dict:
     spec, u = cases()[cfg["case"]]
     t = spec.sample_times(min(cfg["duration"], spec.sampling["duration"]))
@@ -188,19 +181,18 @@ def _method(m: str, spec: ModelSpec, traj, u: np.ndarray, rng: np.random.Generat
     contender, t = CONTENDERS[m], traj.t
     entry = get_method(contender.method)
     start = time.perf_counter()
-    seed = int(rng.integers(2**63)) if contender.seeded else None
-    estimator = _estimator(entry, contender, spec, t, seed)
-    switching = {}
-    if entry.switching == "modes":
-        switching["modes"] = traj.mode
-        if contender.true_instants:
-            switching["segments"] = traj.segments()
-    elif entry.switching == "signals":
-        switching["signals"] = traj.signals
+    options = dict(contender.options)
+    if contender.seeded:
+        options["seed"] = int(rng.integers(2**63))
+    stay = _stay(spec)
+    if stay is not None and entry.transition == "required":
+        options["stay"] = stay
+    estimator = entry.build(spec, t, **options)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", SmootherDivergenceWarning)
-        est = (estimator.smooth if contender.smooth else estimator.run)(traj.y, u, t,
-                                                                        **switching)
+        est = entry.run(estimator, traj.y, u, t, modes=traj.mode, signals=traj.signals,
+                        segments=traj.segments() if contender.true_instants else None,
+                        smooth=contender.smooth)
     elapsed = time.perf_counter() - start
     diverged = any(issubclass(w.category, SmootherDivergenceWarning) for w in caught)
     first = max(1, t.size // 20)
@@ -242,22 +234,6 @@ def _rmse(tot: dict) -> tuple[float, float | None]:
     return float(rmse[0]), None if not np.isfinite(se[0]) else float(se[0])
 
 
-def _estimator(entry: Method, contender: Contender, spec: ModelSpec, t: np.ndarray,
-               seed: int | None = None):
-    """The contender's estimator: ``entry.estimator(system, [transition,] x0, P0, **options)``
-    by the registry's constructor convention (with ``rng=seed`` when given); Lee et al.'s
-    detector by its own design."""
-    if entry.name == "min-distance":
-        return _detector(spec.system)
-    args = []
-    if entry.transition == "required":
-        args.append(transition_for(spec, t[1] - t[0], stay=_stay(spec, t)))
-    elif entry.transition == "optional":
-        args.append(None)  # IMM-EV1's own default: switches are rare
-    options = dict(contender.options) | ({} if seed is None else {"rng": seed})
-    return entry.estimator(spec.system, *args, *spec.initial, **options)
-
-
 def _detections(est, traj, Delta: float) -> dict:
     """Declared switches matched to the true ones as in Lee et al. Theorem 2
     (:func:`~switchest.estimators.min_distance.match_detections`): ``delay_T`` sums the
@@ -270,9 +246,10 @@ def _detections(est, traj, Delta: float) -> dict:
             "false": m.false}
 
 
-def _stay(spec: ModelSpec, t: np.ndarray) -> float | None:
+def _stay(spec: ModelSpec) -> float | None:
     """A schedule implies no transition matrix; for the vehicle use its long dwell (0.9 per
-    sample)."""
+    sample), in the methods that require one (IMM-EV1 keeps its own default: switches are
+    rare)."""
     return 0.9 if isinstance(spec.switching, Schedule) else None
 
 
