@@ -192,8 +192,8 @@ def test_forked_workers_never_finalize_what_they_inherit(tmp_path, monkeypatch):
     marks.mkdir()
     original = runner._init_worker
 
-    def collecting(parent):  # a worker whose collector runs at once
-        original(parent)
+    def collecting(*args):  # a worker whose collector runs at once
+        original(*args)
         gc.collect()
 
     monkeypatch.setattr(runner, "_init_worker", collecting)

@@ -69,9 +69,9 @@ from .._checks import (
     positive_scalar,
 )
 from ..discretize import mode_steps, sample_mode_steps
-from ._compiled import GATED, raise_for_status, warn_for_repairs
-from ._compiled.rbpf import RESAMPLING, rbpf_run, rbpf_step
-from ._compiled.rbpf import trial_keys as split_keys
+from ..engine import GATED, raise_for_status, warn_for_repairs
+from ..engine.rbpf import RESAMPLING, rbpf_run, rbpf_step
+from ..engine.rbpf import trial_keys as split_keys
 from .base import Estimate, Estimator
 
 __all__ = ["RBPFState", "RBPFilter"]

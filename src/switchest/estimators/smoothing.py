@@ -49,8 +49,8 @@ from .._checks import (
     float_array,
     int_array,
 )
-from ._compiled import raise_for_status, warn_for_repairs
-from ._compiled.smoother import kim_smooth, screen_psd
+from ..engine import raise_for_status, warn_for_repairs
+from ..engine.smoother import kim_smooth, screen_psd
 
 __all__ = ["SmoothedModes", "smooth_filtered", "smooth_mode_matched"]
 

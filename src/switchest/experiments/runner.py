@@ -35,7 +35,6 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .._threads import cores
-from ..estimators._compiled.warmup import warm_up
 from .registry import Experiment, get
 from .store import Claimant, Store, StoredTask, process_token, task_key
 
@@ -43,8 +42,8 @@ __all__ = ["run_experiment", "execute_task", "stored_results", "run_tasks", "Run
            "MAX_WORKERS"]
 
 MAX_WORKERS = 256
-"""Most local worker processes a run accepts. Each is a Python process with its own compiled
-kernels (a few hundred MB), and the pool never exceeds the machine's cores, of which the
+"""Most local worker processes a run accepts. Each is a Python process of its own (a few
+hundred MB), and the pool never exceeds the machine's cores, of which the
 largest single machines have a few hundred; a larger number is a typo (``--workers 100000``),
 refused rather than quietly cut. Clusters go through ``scheduler``."""
 
@@ -331,7 +330,8 @@ class _Pool(_Backend):
 
     def __init__(self, size: int):
         self.capacity = size
-        self._pool = ProcessPoolExecutor(size, initializer=_init_worker, initargs=(os.getpid(),))
+        self._pool = ProcessPoolExecutor(size, initializer=_init_worker,
+                                         initargs=(os.getpid(), max(1, cores() // size)))
         # Start the workers now (a fork must not copy the heartbeat thread started next), with
         # every object of this process frozen: the garbage collector of a forked worker must
         # never close a SQLite connection it inherited (one the caller left unclosed, say), as
@@ -404,7 +404,6 @@ def _backend(scheduler: str | None, workers: int, tasks: int) -> _Backend:
     size = min(workers, tasks, cores())
     if size == 1:
         return _InProcess()
-    warm_up()  # the workers start with the compiled kernels rather than each compiling them
     return _Pool(size)
 
 
@@ -430,14 +429,17 @@ def _check_scheduler_address(address: str) -> tuple[str, int] | None:
     return host, port
 
 
-def _init_worker(parent: int) -> None:
-    """Set up a pool worker: ignore Ctrl-C and, on Linux, die with the process ``parent``.
+def _init_worker(parent: int, threads: int) -> None:
+    """Set up a pool worker: ignore Ctrl-C, run the filters' compiled loops on ``threads``
+    threads (the worker's share of the cores: :mod:`switchest.estimators.threads`) and, on
+    Linux, die with the process ``parent``.
 
     ``PR_SET_PDEATHSIG`` sends SIGKILL when the thread that started the worker ends,
     which is the one running the pool; if ``parent`` died before the request took
     effect, nothing would come, hence the check after it.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    os.environ["SWITCHEST_THREADS"] = str(threads)
     if sys.platform.startswith("linux"):
         libc = ctypes.CDLL(None, use_errno=True)
         if libc.prctl(_PR_SET_PDEATHSIG, ctypes.c_ulong(signal.SIGKILL)) != 0:

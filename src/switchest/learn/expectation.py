@@ -47,9 +47,8 @@ import numpy as np
 from .._linalg import log_normalize, mixture_moments
 from ..discretize import Transition, sample_mode_steps
 from ..estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
-from ..estimators._compiled import imm_run_per_trial, kalman_run, warn_for_repairs
-from ..estimators._compiled.linalg import OK
 from ..estimators.smoothing import smooth_filtered, smooth_mode_matched
+from ..estimators.tables import imm_logliks, kalman_logliks
 from ..system import SwitchedLinearSystem
 from .data import Record
 
@@ -139,8 +138,8 @@ def log_likelihoods(candidates, x0, P0, data: Record, *, exact: bool = False) ->
 
     The candidates' filters run together in one compiled call, each (candidate, trial) a trial
     under its own model: the Kalman filters along known modes
-    (:func:`~switchest.estimators._compiled.kalman_run`), or with unknown modes the pair-chain
-    IMMs (:func:`~switchest.estimators._compiled.imm_run_per_trial`; ``L^2`` mode-matched
+    (:func:`~switchest.estimators.tables.kalman_logliks`), or with unknown modes the pair-chain
+    IMMs (:func:`~switchest.estimators.tables.imm_logliks`; ``L^2`` mode-matched
     filters per sample). The trials then fill the SIMD lanes, where one record alone leaves all
     but one empty (about ten times the cost per trial-step for the IMM). The values are those
     of :func:`log_likelihood`, computed by the same kernels; the exact E-step's enumeration
@@ -193,7 +192,7 @@ def _together(candidates, x0, P0, data: Record) -> np.ndarray:
         before = np.concatenate([data.modes[:, :1], data.modes[:, :-1]], axis=1)  # (N, K)
         trans = np.concatenate([entry[np.arange(K), before] for entry in entries])
         mode = np.concatenate([data.modes + s * L for s in range(S)])
-        out = kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0)
+        loglik = kalman_logliks(y, u, F, G, Qd, trans, C, R, mode, x0, P0)
         extra = np.array([_mode_term(candidates[q][1], data.modes) for q in where])
     else:
         a, b = np.divmod(np.arange(L * L), L)
@@ -202,14 +201,13 @@ def _together(candidates, x0, P0, data: Record) -> np.ndarray:
             log_chain = np.log([chain for chain, _ in chains])
             log_prior = np.log(chains[0][1])
         trans = np.concatenate([np.broadcast_to(entry[:, a], (N, K, L * L)) for entry in entries])
-        out = imm_run_per_trial(y, u, F, G, Qd, trans, C, R,
-                                np.repeat(np.arange(S)[:, None] * L + b, N, axis=0),
-                                np.repeat(log_chain, N, axis=0), x0, P0, log_prior,
-                                timing="interval")
+        loglik = imm_logliks(y, u, F, G, Qd, trans, C, R,
+                             np.repeat(np.arange(S)[:, None] * L + b, N, axis=0),
+                             np.repeat(log_chain, N, axis=0), x0, P0, log_prior,
+                             timing="interval")
         extra = 0.0
-    if out.status == OK:
-        warn_for_repairs(out)
-        values[where] = out.loglik.reshape(S, N * K).sum(axis=1) + extra
+    if loglik is not None:
+        values[where] = loglik.reshape(S, N * K).sum(axis=1) + extra
     else:
         values[where] = [_or_nan(log_likelihood, *candidates[q], x0, P0, data) for q in where]
     return values

@@ -1,0 +1,172 @@
+# distutils: sources = src/switchest/engine/c/rbpf.c src/switchest/engine/c/linalg.c
+"""Binding of the Rao-Blackwellized particle filter (engine/c/rbpf.c): the kernel
+``particle_filter`` and the counter-based random stream (``uniform``, ``trial_keys``,
+``resampling_positions``, ``ancestors``), bit for bit those of the numba module."""
+cimport numpy as cnp
+from libc.stdint cimport uint8_t, uint64_t
+from ._common cimport fptr, iptr, u8ptr, se_int, use_lapack
+import numpy as np
+cnp.import_array()
+use_lapack()  # se_repair's eigendecompositions: scipy's LAPACK dsyevd, as numpy.linalg.eigh
+
+cdef extern from "rbpf.h":
+    double se_uniform(uint64_t key, se_int k, se_int j) nogil
+    void se_trial_keys(se_int count, uint64_t root, uint64_t *keys) nogil
+    void se_resampling_positions(uint64_t key, se_int k, se_int scheme, se_int nb,
+                                 double *pos) nogil
+    void se_ancestors(const double *w, const double *pos, se_int nb, se_int *out) nogil
+    se_int se_particle_filter(se_int n, se_int m, se_int l, se_int L, se_int Np, se_int N,
+                              se_int K, se_int S, se_int T, const double *y, const double *u,
+                              const double *F, const double *G, const double *Qd,
+                              const se_int *trans, const double *C, const double *R,
+                              const double *transition, const double *log_transition,
+                              const double *prob0, const double *log_prob0,
+                              const uint64_t *keys, se_int k0, int predict_first,
+                              int sample_timing, int optimal, se_int scheme, double threshold,
+                              const double *x_init, const double *P_init,
+                              const se_int *mode_init, const double *logw_init, double *x_out,
+                              double *P_out, double *prob_out, se_int *mode_out,
+                              double *loglik_out, uint8_t *flag_out, double *ess_out,
+                              double *x_last, double *P_last, se_int *mode_last,
+                              double *logw_last, double *report) nogil
+
+
+cdef inline const uint64_t* kptr(cnp.ndarray a) except NULL:
+    """The keys (read only): C-contiguous aligned uint64."""
+    if cnp.PyArray_TYPE(a) != cnp.NPY_UINT64 or not cnp.PyArray_ISCARRAY_RO(a):
+        raise TypeError("the engine takes C-contiguous uint64 key arrays")
+    return <const uint64_t*>cnp.PyArray_DATA(a)
+
+
+cdef inline int shaped(cnp.ndarray a, str name, tuple shape) except -1:
+    """Raise unless ``a`` has exactly ``shape`` (the kernel indexes without bounds checks)."""
+    cdef int d
+    if a.ndim != len(shape):
+        raise ValueError(f"{name} must have shape {shape}, got {(<object>a).shape}")
+    for d in range(a.ndim):
+        if a.shape[d] != shape[d]:
+            raise ValueError(f"{name} must have shape {shape}, got {(<object>a).shape}")
+    return 0
+
+
+def uniform(uint64_t key, se_int k, se_int j):
+    """Uniform ``j`` of sample ``k`` of the trial with ``key``, in ``[0, 1)``: the top 53 bits
+    of ``stream(stream(key, k), j)``, the sample's own SplitMix64 sequence."""
+    return se_uniform(key, k, j)
+
+
+def trial_keys(uint64_t root, se_int count):
+    """The keys of trials ``0 .. count-1`` derived from a ``root`` key (uint64): element ``i`` of
+    the SplitMix64 sequence started at ``root`` (Steele, Lea & Flood 2014, §3)."""
+    cdef cnp.ndarray keys = np.empty(count, dtype=np.uint64)
+    cdef uint64_t *pk = <uint64_t*>cnp.PyArray_DATA(keys)
+    with nogil:
+        se_trial_keys(count, root, pk)
+    return keys
+
+
+def resampling_positions(uint64_t key, se_int k, se_int scheme, se_int nb, cnp.ndarray pos):
+    """The ``nb`` sorted positions in ``[0, 1]`` of a resampling at sample ``k``, from uniforms
+    ``nb .. 2 nb - 1`` (Douc, Cappé & Moulines 2005, "Comparison of resampling schemes for
+    particle filtering", §2): systematic ``(p + U) / nb`` with one ``U``; stratified
+    ``(p + U_p) / nb``; multinomial the ``U_p`` sorted. Written into ``pos[:nb]``."""
+    cdef double *pp = fptr(pos)
+    if pos.ndim != 1 or nb < 0 or pos.shape[0] < nb:
+        raise ValueError(f"pos must be a vector of at least nb = {nb} entries, got {(<object>pos).shape}")
+    with nogil:
+        se_resampling_positions(key, k, scheme, nb, pp)
+
+
+def ancestors(cnp.ndarray w, cnp.ndarray pos, se_int nb, cnp.ndarray out):
+    """``out[p]``: the particle whose cumulative-weight interval holds position ``pos[p]``
+    (sorted, in ``[0, 1]``), the first ``j`` with ``w_0 + .. + w_j > pos[p] sum(w)``, at most the
+    last positive weight: the inversion every resampling scheme shares (Douc, Cappé & Moulines
+    2005, §2), merged in one pass over the sorted positions."""
+    cdef double *pw = fptr(w)
+    cdef double *pp = fptr(pos)
+    cdef se_int *po = iptr(out)
+    for name, a in (("w", w), ("pos", pos), ("out", out)):
+        if a.ndim != 1 or nb < 0 or a.shape[0] < nb:
+            raise ValueError(f"{name} must be a vector of at least nb = {nb} entries, "
+                             f"got {(<object>a).shape}")
+    with nogil:
+        se_ancestors(pw, pp, nb, po)
+
+
+def particle_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G,
+                    cnp.ndarray Qd, cnp.ndarray trans, cnp.ndarray C, cnp.ndarray R,
+                    cnp.ndarray transition, cnp.ndarray log_transition, cnp.ndarray prob0,
+                    cnp.ndarray log_prob0, cnp.ndarray keys, se_int k0, bint predict_first,
+                    bint sample_timing, bint optimal, se_int scheme, double threshold,
+                    cnp.ndarray x_init, cnp.ndarray P_init, cnp.ndarray mode_init,
+                    cnp.ndarray logw_init, cnp.ndarray x_out, cnp.ndarray P_out,
+                    cnp.ndarray prob_out, cnp.ndarray mode_out, cnp.ndarray loglik_out,
+                    cnp.ndarray flag_out, cnp.ndarray ess_out, cnp.ndarray x_last,
+                    cnp.ndarray P_last, cnp.ndarray mode_last, cnp.ndarray logw_last,
+                    cnp.ndarray report):
+    """Filter ``N`` trials over ``K`` samples with ``Np`` particles each (the kernel of
+    :mod:`switchest.engine.rbpf`; arguments and outputs as the numba kernel's
+    ``particle_filter``, sizes read from the shapes, which are checked). Returns the status."""
+    cdef const double *py = fptr(y)
+    cdef const double *pu = fptr(u)
+    cdef const double *pF = fptr(F)
+    cdef const double *pG = fptr(G)
+    cdef const double *pQd = fptr(Qd)
+    cdef const se_int *ptrans = iptr(trans)
+    cdef const double *pC = fptr(C)
+    cdef const double *pR = fptr(R)
+    cdef const double *ptransition = fptr(transition)
+    cdef const double *plog_transition = fptr(log_transition)
+    cdef const double *pprob0 = fptr(prob0)
+    cdef const double *plog_prob0 = fptr(log_prob0)
+    cdef const uint64_t *pkeys = kptr(keys)
+    cdef const double *px_init = fptr(x_init)
+    cdef const double *pP_init = fptr(P_init)
+    cdef const se_int *pmode_init = iptr(mode_init)
+    cdef const double *plogw_init = fptr(logw_init)
+    cdef double *px_out = fptr(x_out)
+    cdef double *pP_out = fptr(P_out)
+    cdef double *pprob_out = fptr(prob_out)
+    cdef se_int *pmode_out = iptr(mode_out)
+    cdef double *ploglik_out = fptr(loglik_out)
+    cdef uint8_t *pflag_out = u8ptr(flag_out)
+    cdef double *pess_out = fptr(ess_out)
+    cdef double *px_last = fptr(x_last)
+    cdef double *pP_last = fptr(P_last)
+    cdef se_int *pmode_last = iptr(mode_last)
+    cdef double *plogw_last = fptr(logw_last)
+    cdef double *preport = fptr(report)
+    if y.ndim != 3 or u.ndim != 3 or x_init.ndim != 3 or C.ndim != 3 or F.ndim != 3:
+        raise ValueError("y, u, x_init, C and F must have three axes")
+    cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
+    cdef se_int S = x_init.shape[0], Np = x_init.shape[1], n = x_init.shape[2]
+    cdef se_int L = C.shape[0], l = u.shape[2], M = F.shape[0], T = x_last.shape[0]
+    if S != 1 and S != N:
+        raise ValueError(f"x_init must have 1 or N = {N} rows, got {S}")
+    if T != 0 and T != N:
+        raise ValueError(f"x_last must have 0 or N = {N} rows, got {T}")
+    for name, a, shape in (
+            ("u", u, (N, K, l)), ("F", F, (M, n, n)), ("G", G, (M, n, l)), ("Qd", Qd, (M, n, n)),
+            ("trans", trans, (K, L)), ("C", C, (L, m, n)), ("R", R, (L, m, m)),
+            ("transition", transition, (L, L)), ("log_transition", log_transition, (L, L)),
+            ("prob0", prob0, (L,)), ("log_prob0", log_prob0, (L,)), ("keys", keys, (N,)),
+            ("P_init", P_init, (S, Np, n, n)), ("mode_init", mode_init, (S, Np)),
+            ("logw_init", logw_init, (S, Np)), ("x_out", x_out, (N, K, n)),
+            ("P_out", P_out, (N, K, n, n)), ("prob_out", prob_out, (N, K, L)),
+            ("mode_out", mode_out, (N, K)), ("loglik_out", loglik_out, (N, K)),
+            ("flag_out", flag_out, (N, K)), ("ess_out", ess_out, (N, K)),
+            ("x_last", x_last, (T, Np, n)), ("P_last", P_last, (T, Np, n, n)),
+            ("mode_last", mode_last, (T, Np)), ("logw_last", logw_last, (T, Np)),
+            ("report", report, (2,))):
+        shaped(a, name, shape)
+    if K > 0 and L == 0:
+        raise ValueError("particle_filter needs at least one mode")
+    cdef se_int status
+    with nogil:
+        status = se_particle_filter(n, m, l, L, Np, N, K, S, T, py, pu, pF, pG, pQd, ptrans, pC,
+                                    pR, ptransition, plog_transition, pprob0, plog_prob0, pkeys,
+                                    k0, predict_first, sample_timing, optimal, scheme, threshold,
+                                    px_init, pP_init, pmode_init, plogw_init, px_out, pP_out,
+                                    pprob_out, pmode_out, ploglik_out, pflag_out, pess_out,
+                                    px_last, pP_last, pmode_last, plogw_last, preport)
+    return status

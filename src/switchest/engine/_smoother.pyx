@@ -1,0 +1,147 @@
+# distutils: sources = src/switchest/engine/c/smoother.c src/switchest/engine/c/linalg.c
+"""Binding of Kim's backward pass and of the covariance screen (engine/c/smoother.c)."""
+cimport numpy as cnp
+from libc.stdint cimport uint8_t
+from ._common cimport fptr, iptr, se_int, use_lapack
+cnp.import_array()
+use_lapack()  # se_repair's eigendecompositions: scipy's LAPACK dsyevd, as numpy.linalg.eigh
+
+cdef extern from "smoother.h":
+    se_int se_kim_backward(se_int n, se_int l, se_int L, se_int N, se_int K, se_int T,
+                           se_int TK, se_int Ns, se_int J, const double *x_f,
+                           const double *P_f, const double *log_prob_f, const double *u,
+                           const double *F, const double *G, const double *Qd,
+                           const se_int *trans, const double *log_transition, se_int lanes,
+                           int sample_timing, double *x_out, double *P_out, double *prob_out,
+                           se_int *mode_out, double *x_s, double *P_s, double *report,
+                           int lagged, double *pair_out, double *lag_x, double *lag_P,
+                           double *lag_cross) nogil
+    se_int se_screen_psd(se_int M, se_int n, const double *A, double relative_shift,
+                         double *sym, uint8_t *failed, double *scale, double *asym) nogil
+
+cdef extern from "se_common.h":
+    enum:
+        SE_NO_MEMORY
+
+
+cdef inline const double* cfptr(cnp.ndarray a) except NULL:
+    """The data of a C-contiguous float64 array only read (it may be read-only)."""
+    if cnp.PyArray_TYPE(a) != cnp.NPY_DOUBLE or not cnp.PyArray_ISCARRAY_RO(a):
+        raise TypeError("the engine takes C-contiguous float64 arrays")
+    return <const double*>cnp.PyArray_DATA(a)
+
+
+cdef inline uint8_t* bptr(cnp.ndarray a) except NULL:
+    """The data of a C-contiguous writeable bool (or uint8) flag array."""
+    cdef int t = cnp.PyArray_TYPE(a)
+    if (t != cnp.NPY_BOOL and t != cnp.NPY_UINT8) or not cnp.PyArray_ISCARRAY(a):
+        raise TypeError("the engine takes C-contiguous writeable bool flag arrays")
+    return <uint8_t*>cnp.PyArray_DATA(a)
+
+
+cdef inline int shaped(cnp.ndarray a, int ndim, se_int s0, se_int s1, se_int s2, se_int s3,
+                       se_int s4) except -1:
+    """Raise ValueError unless ``a`` has ``ndim`` axes of the sizes given (-1: any)."""
+    cdef se_int want[5]
+    cdef int d
+    want[0] = s0
+    want[1] = s1
+    want[2] = s2
+    want[3] = s3
+    want[4] = s4
+    if cnp.PyArray_NDIM(a) != ndim:
+        raise ValueError("the smoother's arrays do not agree in shape")
+    for d in range(ndim):
+        if want[d] >= 0 and a.shape[d] != want[d]:
+            raise ValueError("the smoother's arrays do not agree in shape")
+    return 0
+
+
+def kim_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f, cnp.ndarray u,
+                 cnp.ndarray F, cnp.ndarray G, cnp.ndarray Qd, cnp.ndarray trans,
+                 cnp.ndarray log_transition, se_int lanes, bint sample_timing,
+                 cnp.ndarray x_out, cnp.ndarray P_out, cnp.ndarray prob_out,
+                 cnp.ndarray mode_out, cnp.ndarray x_s, cnp.ndarray P_s, cnp.ndarray report,
+                 bint lagged, cnp.ndarray pair_out, cnp.ndarray lag_x, cnp.ndarray lag_P,
+                 cnp.ndarray lag_cross):
+    """The backward recursion over every trial, in blocks of ``lanes`` trials (the numba
+    kernel's arguments, checked by :func:`switchest.engine.smoother.kim_smooth`); returns the
+    status code (``MemoryError`` if the scratch cannot be allocated, as numba's would raise)."""
+    shaped(x_f, 4, -1, -1, -1, -1, -1)
+    cdef se_int N = x_f.shape[0], K = x_f.shape[1], L = x_f.shape[2], n = x_f.shape[3]
+    shaped(u, 3, N, K, -1, -1, -1)
+    cdef se_int l = u.shape[2]
+    shaped(F, 3, -1, n, n, -1, -1)
+    cdef se_int M = F.shape[0]
+    shaped(trans, 3, -1, K, L, -1, -1)
+    cdef se_int T = trans.shape[0], TK = trans.shape[1]
+    shaped(x_s, 4, -1, K, L, n, -1)
+    cdef se_int Ns = x_s.shape[0]
+    shaped(pair_out, 4, N, -1, L, L, -1)
+    cdef se_int J = pair_out.shape[1]
+    shaped(P_f, 5, N, K, L, n, n)
+    shaped(log_prob_f, 3, N, K, L, -1, -1)
+    shaped(G, 3, M, n, l, -1, -1)
+    shaped(Qd, 3, M, n, n, -1, -1)
+    shaped(log_transition, 2, L, L, -1, -1, -1)
+    shaped(x_out, 3, N, K, n, -1, -1)
+    shaped(P_out, 4, N, K, n, n, -1)
+    shaped(prob_out, 3, N, K, L, -1, -1)
+    shaped(mode_out, 2, N, K, -1, -1, -1)
+    shaped(P_s, 5, Ns, K, L, n, n)
+    shaped(report, 1, 2, -1, -1, -1, -1)
+    shaped(lag_x, 4, N, J, L, n, -1)
+    shaped(lag_P, 5, N, J, L, n, n)
+    shaped(lag_cross, 5, N, J, L, n, n)
+    if (T != 1 and T != N) or (Ns != 0 and Ns != N) or (lagged and J != K - 1) or lanes < 1:
+        raise ValueError("the smoother's arrays do not agree in shape")
+    cdef const double *px_f = fptr(x_f)
+    cdef const double *pP_f = fptr(P_f)
+    cdef const double *plp = fptr(log_prob_f)
+    cdef const double *pu = fptr(u)
+    cdef const double *pF = fptr(F)
+    cdef const double *pG = fptr(G)
+    cdef const double *pQd = fptr(Qd)
+    cdef const se_int *ptrans = iptr(trans)
+    cdef const double *plt = fptr(log_transition)
+    cdef double *px_out = fptr(x_out)
+    cdef double *pP_out = fptr(P_out)
+    cdef double *pprob = fptr(prob_out)
+    cdef se_int *pmode = iptr(mode_out)
+    cdef double *px_s = fptr(x_s)
+    cdef double *pP_s = fptr(P_s)
+    cdef double *preport = fptr(report)
+    cdef double *ppair = fptr(pair_out)
+    cdef double *plag_x = fptr(lag_x)
+    cdef double *plag_P = fptr(lag_P)
+    cdef double *plag_cross = fptr(lag_cross)
+    cdef se_int status
+    with nogil:
+        status = se_kim_backward(n, l, L, N, K, T, TK, Ns, J, px_f, pP_f, plp, pu, pF, pG, pQd,
+                                 ptrans, plt, lanes, sample_timing, px_out, pP_out, pprob,
+                                 pmode, px_s, pP_s, preport, lagged, ppair, plag_x, plag_P,
+                                 plag_cross)
+    if status == SE_NO_MEMORY:  # numba's np.empty of the scratch raises it
+        raise MemoryError("kim_backward: no memory for the scratch of a block of lanes")
+    return status
+
+
+def screen_psd(cnp.ndarray A, double relative_shift, cnp.ndarray sym, cnp.ndarray failed):
+    """Symmetrize a stack ``A (M, n, n)`` into ``sym`` and mark in ``failed (M,)`` the
+    matrices whose Cholesky factorization shifted by ``relative_shift max |A|`` fails (engine
+    C; :func:`switchest.engine.smoother.screen_psd`); returns ``(scale, max |A - A'|)``."""
+    shaped(A, 3, -1, -1, -1, -1, -1)
+    cdef se_int M = A.shape[0], n = A.shape[1]
+    shaped(A, 3, M, n, n, -1, -1)
+    shaped(sym, 3, M, n, n, -1, -1)
+    shaped(failed, 1, M, -1, -1, -1, -1)
+    cdef const double *pA = cfptr(A)
+    cdef double *psym = fptr(sym)
+    cdef uint8_t *pfailed = bptr(failed)
+    cdef double scale = 0.0, asym = 0.0
+    cdef se_int status
+    with nogil:
+        status = se_screen_psd(M, n, pA, relative_shift, psym, pfailed, &scale, &asym)
+    if status == SE_NO_MEMORY:
+        raise MemoryError("screen_psd: no memory for the factor's scratch")
+    return scale, asym

@@ -1,0 +1,690 @@
+/* The compiled Rao-Blackwellized particle filter for jump-Markov linear systems (the port of
+ * switchest/estimators/_compiled/rbpf.py).
+ *
+ * Each particle carries a mode and the Kalman filter (x, P) conditional on its mode history
+ * (Doucet, de Freitas, Murphy & Russell 2000, §3; Doucet, Gordon & Krishnamurthy 2001, §III).
+ * The particles of one trial are laid across the SIMD lanes of linalg.c (x (n, Np),
+ * P (n, n, Np)), so that the Kalman equations run there, once for all particles; the kernel
+ * loops over trials and samples. rbpf_run filters whole records, rbpf_step one sample of every
+ * trial (the streaming API); both call se_particle_filter.
+ *
+ * Randomness is counter-based (Salmon, Moraes, Dror & Shaw 2011, "Parallel random numbers: as
+ * easy as 1, 2, 3"): uniform j of sample k of a trial is a pure function of the trial's 64-bit
+ * key, k and j (se_uniform), so a trial's result depends on its key alone (not on the batch it
+ * ran in), and a streaming step needs nothing but the key and the sample index to continue. At
+ * sample k, uniforms 0 .. Np-1 draw the particles' modes and Np .. 2 Np - 1 the resampling
+ * positions. The arithmetic is numba's: uint64 with wrap-around modulo 2^64, the sample and
+ * draw indices (int64) converted to uint64 after the + 1, and the top 53 bits of the result
+ * converted exactly to a double before the multiplication by 2^-53.
+ *
+ * Convention of switchest: transition[i, j] = P(mode j at k+1 | mode i at k). trans[k, r] is
+ * mode r's transition over the interval into sample k in the table F, G, Qd; mode r at sample
+ * k is updated with C[r], R[r]; the input held over the interval into sample k is u[:, k-1].
+ * Which mode's transition a particle takes into sample k is the timing (docs/conventions.rst):
+ * with sample_timing its mode at k-1 (the mode of a sample governs the interval after it,
+ * x_k = F(r_{k-1}) x_{k-1} + G(r_{k-1}) u_{k-1} + w: the particle is predicted, then its mode
+ * at k drawn), else its mode at k (Bar-Shalom's timing, x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1}
+ * + w: the mode drawn, then the particle predicted with it).
+ *
+ * Layout: the numba arrays keep their shapes and axis order; a lane array of shape (n, n, Np)
+ * is addressed P[(r * n + c) * Np + p]. The scratch of numba's np.empty calls is carved from
+ * one malloc at the kernel's start (struct arena), freed before every return.
+ */
+#include "rbpf.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "linalg.h"
+
+/* SplitMix64 (Steele, Lea & Flood 2014, "Fast splittable pseudorandom number generators",
+ * OOPSLA, §3): the golden-ratio increment and the two multipliers of its output mix */
+#define GOLDEN UINT64_C(0x9E3779B97F4A7C15)
+#define MIX1 UINT64_C(0xBF58476D1CE4E5B9)
+#define MIX2 UINT64_C(0x94D049BB133111EB)
+#define UNIT 0x1p-53 /* 2**-53: a 53-bit integer times this is a float64 in [0, 1) */
+
+/* SplitMix64's output function (Steele, Lea & Flood 2014, §3): a bijection of the 64-bit
+ * integers whose every output bit depends on every input bit. */
+static inline uint64_t mix64(uint64_t z)
+{
+    z = (z ^ (z >> 30)) * MIX1;
+    z = (z ^ (z >> 27)) * MIX2;
+    return z ^ (z >> 31);
+}
+
+/* Element index (0-based) of the SplitMix64 sequence started at key:
+ * mix64(key + (index + 1) * golden) (Steele, Lea & Flood 2014, §3), modulo 2^64.
+ * (numba: np.uint64(index + 1) of an int64, wrapping; here the + 1 is taken in uint64, the
+ * same bits without signed overflow.) */
+static inline uint64_t stream(uint64_t key, se_int index)
+{
+    return mix64(key + ((uint64_t)index + 1u) * GOLDEN);
+}
+
+/* Uniform j of sample k of the trial with key, in [0, 1): the top 53 bits of
+ * stream(stream(key, k), j), the sample's own SplitMix64 sequence. */
+static inline double uniform(uint64_t key, se_int k, se_int j)
+{
+    return (double)(stream(stream(key, k), j) >> 11) * UNIT;
+}
+
+double se_uniform(uint64_t key, se_int k, se_int j) { return uniform(key, k, j); }
+
+/* The keys of trials 0 .. count-1 derived from a root key (uint64): element i of the
+ * SplitMix64 sequence started at root (Steele, Lea & Flood 2014, §3). */
+void se_trial_keys(se_int count, uint64_t root, uint64_t *restrict keys)
+{
+    for (se_int i = 0; i < count; i++)
+        keys[i] = stream(root, i);
+}
+
+/* The index j drawn with probability weights[j] / sum(weights) by inversion of the cumulative
+ * sum: the first j whose running sum exceeds u * sum(weights), else the last positive weight
+ * (u * sum rounded up to the sum). A zero weight is never drawn. weights (L,) */
+static se_int pick(se_int L, const double *restrict weights, double u)
+{
+    double total = 0.0;
+    for (se_int j = 0; j < L; j++)
+        total += weights[j];
+    double target = u * total, acc = 0.0;
+    se_int last = 0;
+    for (se_int j = 0; j < L; j++) {
+        if (weights[j] > 0.0) {
+            last = j;
+            acc += weights[j];
+            if (acc > target)
+                return j;
+        }
+    }
+    return last;
+}
+
+/* a[0 .. n-1] sorted ascending in place (numba's ndarray.sort of the multinomial positions:
+ * any correct sort gives the same array, the uniforms holding no NaN): quicksort with a
+ * median-of-three pivot, recursing into the smaller part, insertion sort below 17 entries. */
+static void sort_doubles(double *a, se_int n)
+{
+    while (n > 16) {
+        se_int mid = (n - 1) / 2, last = n - 1;
+        double t;
+        if (a[mid] < a[0]) { t = a[0]; a[0] = a[mid]; a[mid] = t; }
+        if (a[last] < a[mid]) {
+            t = a[mid]; a[mid] = a[last]; a[last] = t;
+            if (a[mid] < a[0]) { t = a[0]; a[0] = a[mid]; a[mid] = t; }
+        }
+        double pivot = a[mid];
+        se_int i = -1, j = n; /* Hoare's partition: a[0 .. j] <= pivot <= a[j+1 .. n-1] */
+        for (;;) {
+            do i++; while (a[i] < pivot);
+            do j--; while (a[j] > pivot);
+            if (i >= j)
+                break;
+            t = a[i]; a[i] = a[j]; a[j] = t;
+        }
+        se_int left = j + 1; /* 1 <= left <= n - 1 */
+        if (left < n - left) {
+            sort_doubles(a, left);
+            a += left;
+            n -= left;
+        } else {
+            sort_doubles(a + left, n - left);
+            n = left;
+        }
+    }
+    for (se_int i = 1; i < n; i++) {
+        double v = a[i];
+        se_int j = i - 1;
+        while (j >= 0 && a[j] > v) {
+            a[j + 1] = a[j];
+            j--;
+        }
+        a[j + 1] = v;
+    }
+}
+
+/* The nb sorted positions in [0, 1] of a resampling at sample k, from uniforms nb .. 2 nb - 1
+ * (Douc, Cappé & Moulines 2005, "Comparison of resampling schemes for particle filtering",
+ * §2): systematic (p + U) / nb with one U; stratified (p + U_p) / nb; multinomial the U_p
+ * sorted. pos (nb,) */
+void se_resampling_positions(uint64_t key, se_int k, se_int scheme, se_int nb,
+                             double *restrict pos)
+{
+    if (scheme == SE_SYSTEMATIC) {
+        double shift = uniform(key, k, nb);
+        for (se_int p = 0; p < nb; p++)
+            pos[p] = ((double)p + shift) / (double)nb;
+    } else if (scheme == SE_STRATIFIED) {
+        for (se_int p = 0; p < nb; p++)
+            pos[p] = ((double)p + uniform(key, k, nb + p)) / (double)nb;
+    } else {
+        for (se_int p = 0; p < nb; p++)
+            pos[p] = uniform(key, k, nb + p);
+        sort_doubles(pos, nb);
+    }
+}
+
+/* out[p]: the particle whose cumulative-weight interval holds position pos[p] (sorted, in
+ * [0, 1]), the first j with w_0 + .. + w_j > pos[p] sum(w), at most the last positive weight:
+ * the inversion every resampling scheme shares (Douc, Cappé & Moulines 2005, §2), merged in one
+ * pass over the sorted positions. w, pos, out (nb,). (numba reads w[0] even for nb = 0, out of
+ * bounds; here nothing is read then.) */
+void se_ancestors(const double *restrict w, const double *restrict pos, se_int nb,
+                  se_int *restrict out)
+{
+    if (nb <= 0)
+        return;
+    double total = 0.0;
+    se_int last = 0;
+    for (se_int j = 0; j < nb; j++) {
+        total += w[j];
+        if (w[j] > 0.0)
+            last = j;
+    }
+    se_int j = 0;
+    double acc = w[0];
+    for (se_int p = 0; p < nb; p++) {
+        double target = pos[p] * total;
+        while (j < last && acc <= target) {
+            j++;
+            acc += w[j];
+        }
+        out[p] = j;
+    }
+}
+
+/* out[a, b] = vector[a] in every lane: a trial's measurement or input for each of its
+ * particles. vector (q,), out (q, B) */
+static void fill_lanes(se_int q, se_int B, const double *restrict vector, se_int nb,
+                       double *restrict out)
+{
+    for (se_int a = 0; a < q; a++)
+        for (se_int b = 0; b < nb; b++)
+            out[a * B + b] = vector[a];
+}
+
+/* out[b] = value in every lane. */
+static void fill_index(se_int value, se_int nb, se_int *restrict out)
+{
+    for (se_int b = 0; b < nb; b++)
+        out[b] = value;
+}
+
+/* The scratch arrays of the kernel (numba's tuples mats and work), every lane array with the
+ * lane stride Np. */
+typedef struct {
+    double *Fl, *Gl, *Ql, *Cl, *Rl, *AP, *xs; /* (n,n,B) (n,l,B) (n,n,B) (m,n,B) (m,m,B) (n,n,B) (n,B) */
+} mats_t;
+
+typedef struct {
+    double *e, *PCt, *chol, *scale, *z, *nis, *inn; /* (m,B) (n,m,B) (m,m,B) (m,B) (m,B) (B,) (3,B) */
+    uint8_t *bad;                                     /* (B,), zeroed */
+    double *gain, *T, *AP, *prior, *root;             /* (n,m,B) (n,m,B) (n,n,B) (n,n,B) (n,B) */
+    uint8_t *lost;                                    /* (B,) */
+} work_t;
+
+/* The Kalman measurement update of every lane, with its predictive log-likelihood.
+ *
+ * loglik = log N(y; C x, C P C' + R) over the observed components (0 with none), by
+ * se_innovation (Shankar et al. eq. (8)); the lanes whose likelihood is finite (use) are
+ * corrected in Joseph form (se_correct, Shankar et al. eqs (9)-(10)), in information form where
+ * that loses its digits, as the bank of filters does (bank.c). work holds the scratch arrays.
+ * Returns the status of the innovation.
+ * x (n, B), P (n, n, B), yl (m, B), Cl (m, n, B), Rl (m, m, B), obs (m, B), n_obs (B,);
+ * written loglik (B,), use (B,). */
+static se_int filter_lanes(se_int n, se_int m, se_int B, double *restrict x,
+                           double *restrict P, const double *restrict yl,
+                           const double *restrict Cl, const double *restrict Rl,
+                           const double *restrict obs, const double *restrict n_obs, se_int nb,
+                           double *restrict loglik, uint8_t *restrict use,
+                           const work_t *restrict work, double *restrict report)
+{
+    se_int status = se_innovation(n, m, B, x, P, yl, Cl, Rl, obs, n_obs, nb, work->e, work->PCt,
+                                  work->chol, work->scale, work->z, work->nis, loglik,
+                                  work->inn, work->bad, report);
+    if (status != SE_OK)
+        return status;
+    for (se_int b = 0; b < nb; b++)
+        use[b] = isfinite(loglik[b]) ? 1 : 0;
+    se_correct(n, m, B, x, P, Cl, Rl, use, nb, work->PCt, work->chol, work->scale, work->z,
+               work->gain, work->T, work->AP, work->prior);
+    if (se_joseph_lost(n, B, P, work->prior, use, nb, work->root, work->lost)) /* rare: lane by lane */
+        se_information_or_repair(n, m, B, P, work->prior, Cl, Rl, obs, n_obs, work->lost, nb,
+                                 report);
+    return SE_OK;
+}
+
+/* Kalman prediction of every lane p through the transition trans_row[mode[p]] of its mode
+ * (Shankar et al. eqs (6)-(7), se_predict). x (n, B), P (n, n, B), mode (B,), ul (l, B),
+ * F (M, n, n), G (M, n, l), Qd (M, n, n), trans_row (L,); idx (B,) and mats scratch. */
+static void predict_lanes(se_int n, se_int l, se_int B, double *restrict x, double *restrict P,
+                          const se_int *restrict mode, const double *restrict ul,
+                          const double *restrict F, const double *restrict G,
+                          const double *restrict Qd, const se_int *restrict trans_row,
+                          se_int nb, se_int *restrict idx, const mats_t *restrict mats)
+{
+    for (se_int p = 0; p < nb; p++)
+        idx[p] = trans_row[mode[p]];
+    se_gather_matrices(n, n, B, F, idx, nb, mats->Fl);
+    se_gather_matrices(n, l, B, G, idx, nb, mats->Gl);
+    se_gather_matrices(n, n, B, Qd, idx, nb, mats->Ql);
+    se_predict(n, l, B, x, P, mats->Fl, mats->Gl, ul, mats->Ql, nb, mats->AP, mats->xs);
+}
+
+/* Sample each particle's mode from its prior and update its filter; inc gets the incremental
+ * log-weights.
+ *
+ * r_k ~ pi(r_{k-1}, .) (prob0 at the first sample), Kalman prediction through r_{k-1}'s
+ * transition before the draw (sample_timing) or through r_k's after it,
+ * inc = log N(y_k; C_{r_k} x-, C_{r_k} P- C_{r_k}' + R_{r_k}) (-inf where not finite) and the
+ * Joseph update (Doucet, Gordon & Krishnamurthy 2001, §III, with the prior as importance
+ * distribution; Doucet, de Freitas, Murphy & Russell 2000, §3). In either timing the weight is
+ * the likelihood of y_k given the particle's history up to r_k, the target-to-proposal ratio
+ * when the proposal is the prior.
+ * ll, use: (1, B) (numba's ll[0], use[0]); inc (B,). */
+static se_int prior_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
+                             double *restrict x, double *restrict P, se_int *restrict mode,
+                             const double *restrict yl, const double *restrict ul,
+                             const double *restrict obs, const double *restrict n_obs,
+                             const double *restrict F, const double *restrict G,
+                             const double *restrict Qd, const se_int *restrict trans_row,
+                             const double *restrict C, const double *restrict R,
+                             const double *restrict transition, const double *restrict prob0,
+                             uint64_t key, se_int k, int predicting, int sample_timing,
+                             se_int nb, se_int *restrict idx, const mats_t *restrict mats,
+                             double *restrict ll, uint8_t *restrict use, double *restrict inc,
+                             const work_t *restrict work, double *restrict report)
+{
+    if (predicting && sample_timing)
+        predict_lanes(n, l, B, x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats);
+    for (se_int p = 0; p < nb; p++) {
+        const double *row = predicting ? transition + mode[p] * L : prob0;
+        mode[p] = pick(L, row, uniform(key, k, p));
+    }
+    if (predicting && !sample_timing)
+        predict_lanes(n, l, B, x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats);
+    se_gather_matrices(m, n, B, C, mode, nb, mats->Cl);
+    se_gather_matrices(m, m, B, R, mode, nb, mats->Rl);
+    se_int status = filter_lanes(n, m, B, x, P, yl, mats->Cl, mats->Rl, obs, n_obs, nb, ll, use,
+                                 work, report);
+    for (se_int p = 0; p < nb; p++)
+        inc[p] = use[p] ? ll[p] : -INFINITY;
+    return status;
+}
+
+/* Sample each particle's mode from the optimal importance distribution and keep that
+ * candidate's filter; inc gets the incremental log-weights.
+ *
+ * For every candidate mode r each particle's filter is predicted and updated with C_r, R_r,
+ * with predictive likelihood Lambda_r = N(y_k; C_r x-_r, C_r P-_r C_r' + R_r). The prediction
+ * goes through r_{k-1}'s transition with sample_timing (once per particle, the same x-, P- for
+ * every candidate), else through the candidate r's own; then
+ * r_k ~ pi(r_{k-1}, r) Lambda_r / sum_r pi(r_{k-1}, r) Lambda_r and
+ * inc = log sum_r pi(r_{k-1}, r) Lambda_r, the ratio of target to proposal (Doucet, Gordon &
+ * Krishnamurthy 2001, §III); prob0 replaces pi(r_{k-1}, .) at the first sample. A candidate
+ * whose likelihood is not finite gets Lambda_r = 0; a particle with no candidate left
+ * (inc = -inf) draws from pi(r_{k-1}, .) alone and keeps its predicted filter.
+ * xc (L, n, B), Pc (L, n, n, B), ll, use, terms (L, B), pick_w (L,) (numba's pick), inc (B,). */
+static se_int optimal_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
+                               double *restrict x, double *restrict P, se_int *restrict mode,
+                               const double *restrict yl, const double *restrict ul,
+                               const double *restrict obs, const double *restrict n_obs,
+                               const double *restrict F, const double *restrict G,
+                               const double *restrict Qd, const se_int *restrict trans_row,
+                               const double *restrict C, const double *restrict R,
+                               const double *restrict log_transition,
+                               const double *restrict log_prob0, uint64_t key, se_int k,
+                               int predicting, int sample_timing, se_int nb,
+                               se_int *restrict idx, const mats_t *restrict mats,
+                               double *restrict xc, double *restrict Pc, double *restrict ll,
+                               uint8_t *restrict use, double *restrict terms,
+                               double *restrict pick_w, double *restrict inc,
+                               const work_t *restrict work, double *restrict report)
+{
+    if (predicting && sample_timing)
+        predict_lanes(n, l, B, x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats);
+    for (se_int r = 0; r < L; r++) {
+        double *xr = xc + r * n * B, *Pr = Pc + r * n * n * B;
+        se_copy_gaussian(n, B, x, P, nb, xr, Pr);
+        if (predicting && !sample_timing) {
+            fill_index(trans_row[r], nb, idx);
+            se_gather_matrices(n, n, B, F, idx, nb, mats->Fl);
+            se_gather_matrices(n, l, B, G, idx, nb, mats->Gl);
+            se_gather_matrices(n, n, B, Qd, idx, nb, mats->Ql);
+            se_predict(n, l, B, xr, Pr, mats->Fl, mats->Gl, ul, mats->Ql, nb, mats->AP,
+                       mats->xs);
+        }
+        fill_index(r, nb, idx);
+        se_gather_matrices(m, n, B, C, idx, nb, mats->Cl);
+        se_gather_matrices(m, m, B, R, idx, nb, mats->Rl);
+        se_int status = filter_lanes(n, m, B, xr, Pr, yl, mats->Cl, mats->Rl, obs, n_obs, nb,
+                                     ll + r * B, use + r * B, work, report);
+        if (status != SE_OK)
+            return status;
+    }
+    for (se_int p = 0; p < nb; p++) { /* log pi(r_{k-1}, r) + log Lambda_r and their log-sum-exp */
+        const double *prev = predicting ? log_transition + mode[p] * L : log_prob0;
+        double top = -INFINITY;
+        for (se_int r = 0; r < L; r++) {
+            double t = use[r * B + p] ? prev[r] + ll[r * B + p] : -INFINITY;
+            terms[r * B + p] = t;
+            top = t > top ? t : top; /* numba's max(top, t): no NaN here */
+        }
+        double acc = 0.0;
+        for (se_int r = 0; r < L; r++)
+            acc += top > -INFINITY ? exp(terms[r * B + p] - top) : 0.0;
+        inc[p] = top > -INFINITY ? top + log(acc) : -INFINITY;
+    }
+    for (se_int p = 0; p < nb; p++) {
+        const double *prev = predicting ? log_transition + mode[p] * L : log_prob0;
+        for (se_int r = 0; r < L; r++) /* weights relative to the largest, or the prior's alone */
+            pick_w[r] = inc[p] > -INFINITY ? exp(terms[r * B + p] - inc[p]) : exp(prev[r]);
+        se_int chosen = pick(L, pick_w, uniform(key, k, p));
+        mode[p] = chosen;
+        const double *xs = xc + chosen * n * B, *Ps = Pc + chosen * n * n * B;
+        for (se_int a = 0; a < n; a++) {
+            x[a * B + p] = xs[a * B + p];
+            for (se_int c = 0; c < n; c++)
+                P[(a * n + c) * B + p] = Ps[(a * n + c) * B + p];
+        }
+    }
+    return SE_OK;
+}
+
+/* Mean xm = sum_b w_b x_b and covariance Pm = sum_b w_b (P_b + (x_b - xm)(x_b - xm)') of the
+ * mixture of the lanes' Gaussians with weights w: the RBPF's output (Doucet, Gordon &
+ * Krishnamurthy 2001, §III), a sum across lanes. Upper triangle computed, then mirrored.
+ * w (B,), x (n, B), P (n, n, B); xm (n,), Pm (n, n). */
+static void particle_moments(se_int n, se_int B, const double *restrict w,
+                             const double *restrict x, const double *restrict P, se_int nb,
+                             double *restrict xm, double *restrict Pm)
+{
+    for (se_int r = 0; r < n; r++) {
+        xm[r] = 0.0;
+        for (se_int b = 0; b < nb; b++)
+            xm[r] += w[b] * x[r * B + b];
+    }
+    for (se_int r = 0; r < n; r++) {
+        for (se_int c = r; c < n; c++) {
+            double acc = 0.0;
+            const double *Prc = P + (r * n + c) * B, *xr = x + r * B, *xcol = x + c * B;
+            for (se_int b = 0; b < nb; b++)
+                acc += w[b] * (Prc[b] + (xr[b] - xm[r]) * (xcol[b] - xm[c]));
+            Pm[r * n + c] = acc;
+            Pm[c * n + r] = acc;
+        }
+    }
+}
+
+/* x_to[:, p] = x[:, anc[p]] and likewise P, mode: each particle replaced by its ancestor, mode
+ * and filter. x, x_to (n, B), P, P_to (n, n, B), mode, anc, mode_to (B,) */
+static void resample(se_int n, se_int B, const double *restrict x, const double *restrict P,
+                     const se_int *restrict mode, const se_int *restrict anc, se_int nb,
+                     double *restrict x_to, double *restrict P_to, se_int *restrict mode_to)
+{
+    for (se_int r = 0; r < n; r++) {
+        for (se_int p = 0; p < nb; p++)
+            x_to[r * B + p] = x[r * B + anc[p]];
+        for (se_int c = 0; c < n; c++)
+            for (se_int p = 0; p < nb; p++)
+                P_to[(r * n + c) * B + p] = P[(r * n + c) * B + anc[p]];
+    }
+    for (se_int p = 0; p < nb; p++)
+        mode_to[p] = mode[anc[p]];
+}
+
+/* Filter N trials over K samples with Np particles each.
+ *
+ * Parameters
+ * ----------
+ * y : (N, K, m) float64
+ *     Measurements; NaN components are missing.
+ * u : (N, K, l) float64
+ *     Inputs; u[:, k-1] is held over the interval into sample k (u[:, 0] into sample 0 when
+ *     predict_first).
+ * F, G, Qd : (M, n, n), (M, n, l), (M, n, n) float64
+ *     Table of exact transitions.
+ * trans : (K, L) int64
+ *     trans[k, r]: the transition of mode r into sample k.
+ * C, R : (L, m, n), (L, m, m) float64
+ *     Output matrix and measurement-noise covariance of each mode.
+ * transition, log_transition : (L, L) float64
+ *     transition[i, j] = P(mode j at k+1 | mode i at k), and its logarithm.
+ * prob0, log_prob0 : (L,) float64
+ *     Mode probabilities at the first sample, and their logarithms.
+ * keys : (N,) uint64
+ *     Each trial's random key (se_uniform).
+ * k0 : int
+ *     Index of the first sample of this call in its trials' records (for the uniforms).
+ * predict_first : bool
+ *     Whether the first sample is predicted into (a streaming step after the first) or is the
+ *     first of the record (modes drawn from prob0, update only).
+ * sample_timing : bool
+ *     Whether a particle predicts into sample k through its mode at k-1 (the "sample" timing:
+ *     predicted, then its new mode drawn) or through its mode at k (the "interval" timing:
+ *     mode drawn, then predicted with it).
+ * optimal : bool
+ *     The optimal importance distribution (optimal_proposal) or the prior (prior_proposal).
+ * scheme : int
+ *     Resampling scheme (RESAMPLING).
+ * threshold : float
+ *     Resample when ESS < threshold Np (always when threshold >= 1).
+ * x_init, P_init, mode_init, logw_init : (S, Np, n), (S, Np, n, n), (S, Np), (S, Np), S = N or 1
+ *     Particles before the first sample (shared by every trial when the first axis is 1):
+ *     filters, modes and normalized log-weights.
+ * x_out, P_out, prob_out, mode_out, loglik_out, flag_out, ess_out
+ *     Written, per trial and sample: x = sum_p w_p x_p, its covariance
+ *     sum_p w_p (P_p + (x_p - x)(x_p - x)'), mode probabilities sum_{p: r_p = j} w_p, the most
+ *     probable mode (first on a tie), the log-likelihood of the measurement given the past (0
+ *     when nothing was observed or no particle could use it), the flag (GATED when no
+ *     particle's likelihood was finite: the sample was treated as missing) and the effective
+ *     sample size 1 / sum_p w_p^2 before resampling.
+ * x_last, P_last, mode_last, logw_last : (T, Np, ...), T = N or 0
+ *     Written when their first axis is N: the particles after the last sample.
+ * report : (2,) float64
+ *     Written: the number of covariances repaired (se_repair) and the smallest eigenvalue one
+ *     had (inf if none).
+ *
+ * Returns
+ * -------
+ * status : int
+ *     SE_OK, or the failure code of an innovation covariance that stopped the kernel
+ *     (SE_NO_MEMORY if the scratch space could not be allocated).
+ *
+ * Notes
+ * -----
+ * After the proposal (which samples the modes and updates the filters), the weights are
+ * w_p ∝ w_{p,k-1} exp(inc_p) in the log domain and the log-likelihood is
+ * log sum_p w_{p,k-1} exp(inc_p), the unbiased particle estimate of p(y_k | y_{0:k-1})
+ * (Doucet & Johansen 2011, "A tutorial on particle filtering and smoothing: fifteen years
+ * later", §4). A fully missing sample does not reweight. The outputs are taken, then the
+ * particles resampled when the effective sample size 1 / sum_p w_p^2 (Kong, Liu & Wong 1994)
+ * is below threshold Np, each copying its ancestor's mode and filter, with weights 1 / Np.
+ */
+se_int se_particle_filter(se_int n, se_int m, se_int l, se_int L, se_int Np, se_int N, se_int K,
+                          se_int S, se_int T, const double *restrict y,
+                          const double *restrict u, const double *restrict F,
+                          const double *restrict G, const double *restrict Qd,
+                          const se_int *restrict trans, const double *restrict C,
+                          const double *restrict R, const double *restrict transition,
+                          const double *restrict log_transition, const double *restrict prob0,
+                          const double *restrict log_prob0, const uint64_t *restrict keys,
+                          se_int k0, int predict_first, int sample_timing, int optimal,
+                          se_int scheme, double threshold, const double *restrict x_init,
+                          const double *restrict P_init, const se_int *restrict mode_init,
+                          const double *restrict logw_init, double *restrict x_out,
+                          double *restrict P_out, double *restrict prob_out,
+                          se_int *restrict mode_out, double *restrict loglik_out,
+                          uint8_t *restrict flag_out, double *restrict ess_out,
+                          double *restrict x_last, double *restrict P_last,
+                          se_int *restrict mode_last, double *restrict logw_last,
+                          double *restrict report)
+{
+    const se_int B = Np;
+    const se_int n_cand = optimal ? L : 1;   /* filters updated per particle: candidates, or one */
+    const se_int n_copies = optimal ? L : 0; /* the candidates' filters, kept until one is drawn */
+    const se_int m3 = 3;
+
+    /* the arena: the doubles, then the int64 arrays, then the booleans, each array starting on
+     * a 64-byte boundary (vector loads that never straddle a cache line, as numba's aligned
+     * allocations) */
+#define PAD(count) ((((size_t)(count)) + 7u) & ~(size_t)7u) /* 8 doubles or int64: 64 bytes */
+    const size_t nd = PAD(n * B) * 2 + PAD(n * n * B) * 2           /* x, P, x_to, P_to */
+                      + PAD(B) * 2 + PAD(1)                         /* logw, w, total */
+                      + PAD(m * B) * 2 + PAD(l * B) + PAD(B)        /* yl, obs, ul, n_obs */
+                      + PAD(B)                                      /* pos */
+                      + PAD(n * n * B) * 3 + PAD(n * l * B) + PAD(m * n * B) + PAD(m * m * B)
+                      + PAD(n * B)                                  /* mats */
+                      + PAD(m * B) * 3 + PAD(n * m * B) * 3 + PAD(m * m * B) + PAD(B)
+                      + PAD(m3 * B) + PAD(n * n * B) * 2 + PAD(n * B) /* work */
+                      + PAD(n_cand * B)                             /* ll */
+                      + PAD(n_copies * n * B) + PAD(n_copies * n * n * B) /* xc, Pc */
+                      + PAD(n_cand * B) + PAD(L) + PAD(B)           /* terms, pick, inc */
+                      + PAD(L) + PAD(n) + PAD(n * n);               /* prob, xm, Pm */
+    const size_t ni = PAD(B) * 4;                                   /* mode, mode_to, idx, anc */
+    const size_t nu = (size_t)(B + B + n_cand * B);                 /* bad, lost, use */
+    size_t bytes = nd * sizeof(double) + ni * sizeof(se_int) + nu + 64;
+    char *block = malloc(bytes);
+    if (block == NULL)
+        return SE_NO_MEMORY;
+    double *dp = (double *)(block + (64u - (uintptr_t)block % 64u) % 64u);
+#define TAKE(count) (dp += PAD(count), dp - PAD(count))
+    double *x = TAKE(n * B), *P = TAKE(n * n * B), *x_to = TAKE(n * B), *P_to = TAKE(n * n * B);
+    double *logw = TAKE(B), *w = TAKE(B), *total = TAKE(1);
+    double *yl = TAKE(m * B), *ul = TAKE(l * B), *obs = TAKE(m * B), *n_obs = TAKE(B);
+    double *pos = TAKE(B);
+    mats_t mats;
+    mats.Fl = TAKE(n * n * B);
+    mats.Gl = TAKE(n * l * B);
+    mats.Ql = TAKE(n * n * B);
+    mats.Cl = TAKE(m * n * B);
+    mats.Rl = TAKE(m * m * B);
+    mats.AP = TAKE(n * n * B);
+    mats.xs = TAKE(n * B);
+    work_t work;
+    work.e = TAKE(m * B);
+    work.PCt = TAKE(n * m * B);
+    work.chol = TAKE(m * m * B);
+    work.scale = TAKE(m * B);
+    work.z = TAKE(m * B);
+    work.nis = TAKE(B);
+    work.inn = TAKE(m3 * B);
+    work.gain = TAKE(n * m * B);
+    work.T = TAKE(n * m * B);
+    work.AP = TAKE(n * n * B);
+    work.prior = TAKE(n * n * B);
+    work.root = TAKE(n * B);
+    double *ll = TAKE(n_cand * B);
+    double *xc = TAKE(n_copies * n * B), *Pc = TAKE(n_copies * n * n * B);
+    double *terms = TAKE(n_cand * B), *pick_w = TAKE(L), *inc = TAKE(B);
+    double *prob = TAKE(L), *xm = TAKE(n), *Pm = TAKE(n * n);
+#undef TAKE
+    se_int *ip = (se_int *)dp;
+    se_int *mode = ip, *mode_to = ip + PAD(B), *idx = ip + 2 * PAD(B), *anc = ip + 3 * PAD(B);
+#undef PAD
+    uint8_t *up = (uint8_t *)(ip + ni);
+    work.bad = up;
+    work.lost = up + B;
+    uint8_t *use = up + 2 * B;
+    memset(work.bad, 0, (size_t)B); /* numba's np.zeros */
+
+    se_int status = SE_OK;
+    report[0] = 0.0;
+    report[1] = INFINITY;
+    const double uniform_log_weight = -log((double)Np);
+    for (se_int i = 0; i < N; i++) {
+        se_int s = S > 1 ? i : 0;
+        for (se_int p = 0; p < Np; p++) {
+            mode[p] = mode_init[s * Np + p];
+            logw[p] = logw_init[s * Np + p];
+            const double *xi = x_init + (s * Np + p) * n, *Pi = P_init + (s * Np + p) * n * n;
+            for (se_int r = 0; r < n; r++) {
+                x[r * B + p] = xi[r];
+                for (se_int c = 0; c < n; c++)
+                    P[(r * n + c) * B + p] = Pi[r * n + c];
+            }
+        }
+        for (se_int k = 0; k < K; k++) {
+            const int predicting = k > 0 || predict_first;
+            const se_int ik = i * K + k;
+            fill_lanes(m, B, y + ik * m, Np, yl);
+            se_observe(m, B, yl, Np, obs, n_obs);
+            fill_lanes(l, B, u + (i * K + (k > 0 ? k - 1 : 0)) * l, Np, ul);
+            if (optimal)
+                status = optimal_proposal(n, m, l, L, B, x, P, mode, yl, ul, obs, n_obs, F, G, Qd,
+                                          trans + k * L, C, R, log_transition, log_prob0,
+                                          keys[i], k0 + k, predicting, sample_timing, Np, idx,
+                                          &mats, xc, Pc, ll, use, terms, pick_w, inc, &work,
+                                          report);
+            else
+                status = prior_proposal(n, m, l, L, B, x, P, mode, yl, ul, obs, n_obs, F, G, Qd,
+                                        trans + k * L, C, R, transition, prob0, keys[i], k0 + k,
+                                        predicting, sample_timing, Np, idx, &mats, ll, use, inc,
+                                        &work, report);
+            if (status != SE_OK)
+                goto done;
+            /* numba reads n_obs[0] even without particles; here nothing is seen then */
+            const int seen = Np > 0 && n_obs[0] > 0.0;
+            int alive = 0;
+            for (se_int p = 0; p < Np; p++)
+                alive |= inc[p] > -INFINITY;
+            /* else no reweighting: nothing observed, or nothing usable */
+            const int usable = seen && alive;
+            for (se_int p = 0; p < Np; p++)
+                logw[p] += usable ? inc[p] : 0.0;
+            se_log_normalize(Np, 1, logw, w, total, 1); /* w_p ∝ w_{p,k-1} exp(inc_p); total = loglik */
+            se_int best = 0;
+            double sq = 0.0;
+            for (se_int j = 0; j < L; j++)
+                prob[j] = 0.0;
+            for (se_int p = 0; p < Np; p++) {
+                prob[mode[p]] += w[p];
+                sq += w[p] * w[p];
+            }
+            for (se_int j = 0; j < L; j++) {
+                prob_out[ik * L + j] = prob[j];
+                if (prob[j] > prob[best])
+                    best = j;
+            }
+            mode_out[ik] = best;
+            particle_moments(n, B, w, x, P, Np, xm, Pm);
+            for (se_int r = 0; r < n; r++) {
+                x_out[ik * n + r] = xm[r];
+                for (se_int c = 0; c < n; c++)
+                    P_out[(ik * n + r) * n + c] = Pm[r * n + c];
+            }
+            loglik_out[ik] = usable ? total[0] : 0.0;
+            flag_out[ik] = seen && !alive ? SE_GATED : SE_ACCEPTED;
+            const double ess = 1.0 / sq;
+            ess_out[ik] = ess;
+            if (threshold >= 1.0 || ess < threshold * (double)Np) {
+                se_resampling_positions(keys[i], k0 + k, scheme, Np, pos);
+                se_ancestors(w, pos, Np, anc);
+                resample(n, B, x, P, mode, anc, Np, x_to, P_to, mode_to);
+                double *t;
+                se_int *ti;
+                t = x; x = x_to; x_to = t;
+                t = P; P = P_to; P_to = t;
+                ti = mode; mode = mode_to; mode_to = ti;
+                for (se_int p = 0; p < Np; p++)
+                    logw[p] = uniform_log_weight;
+            }
+        }
+        if (T > 0) {
+            for (se_int p = 0; p < Np; p++) {
+                mode_last[i * Np + p] = mode[p];
+                logw_last[i * Np + p] = logw[p];
+                double *xo = x_last + (i * Np + p) * n, *Po = P_last + (i * Np + p) * n * n;
+                for (se_int r = 0; r < n; r++) {
+                    xo[r] = x[r * B + p];
+                    for (se_int c = 0; c < n; c++)
+                        Po[r * n + c] = P[(r * n + c) * B + p];
+                }
+            }
+        }
+    }
+done:
+    free(block);
+    return status;
+}

@@ -1,0 +1,49 @@
+"""Log-likelihoods of many models' trials in one call: filters over a table of transitions.
+
+Fitting a model (:mod:`switchest.learn`) compares candidate systems on the same record. Their
+filters run together when each (candidate, trial) pair is one trial of a batch whose
+transitions are indexed into one table: the trials then fill the compiled kernels' SIMD lanes,
+where one record alone would leave all but one empty. These functions run such a batch and
+return each sample's log-likelihood, or None when a covariance failed (a transition or a
+covariance beyond the floating-point range): the caller then tells the candidates apart.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..engine import OK, warn_for_repairs
+from ..engine.imm import imm_run_per_trial
+from ..engine.kalman import kalman_run
+
+__all__ = ["imm_logliks", "kalman_logliks"]
+
+
+def kalman_logliks(y, u, F, G, Qd, trans, C, R, mode, x0, P0) -> np.ndarray | None:
+    """Per-sample log-likelihoods ``(N, K)`` of Kalman filters along given transitions.
+
+    The arguments are :func:`switchest.engine.kalman.kalman_run`'s: trial ``i`` predicts into
+    sample ``k`` through table entry ``trans[i, k]`` and measures through ``C[mode[i, k]]``,
+    ``R[mode[i, k]]`` (Shankar et al. eqs (6)-(10)). None when a filter failed; repaired
+    covariances are reported by the package's ``RuntimeWarning``.
+    """
+    return _logliks(kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0))
+
+
+def imm_logliks(y, u, F, G, Qd, trans, C, R, out_index, log_transition, x0, P0,
+                log_prob0, *, timing: str) -> np.ndarray | None:
+    """Per-sample log-likelihoods ``(N, K)`` of IMM filters, each trial under its own model.
+
+    The arguments are :func:`switchest.engine.imm.imm_run_per_trial`'s: trial ``i``'s mode
+    ``j`` moves through table entry ``trans[i, k, j]`` and measures through
+    ``C[out_index[i, j]]``, its mode chain is ``log_transition[i]``. None when a filter failed.
+    """
+    return _logliks(imm_run_per_trial(y, u, F, G, Qd, trans, C, R, out_index, log_transition,
+                                      x0, P0, log_prob0, timing=timing))
+
+
+def _logliks(out) -> np.ndarray | None:
+    if out.status != OK:
+        return None
+    warn_for_repairs(out)
+    return out.loglik
