@@ -9,7 +9,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "switchest"
 
 # lower index = lower layer; a module may import only from layers at or below its own
 LAYERS = [
-    {"_checks", "_toml", "_jit", "_threads", "_lazy"},
+    {"_checks", "_toml", "_threads", "_lazy"},
     {"_linalg"},
     {"system"},
     {"signals"},

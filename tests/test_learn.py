@@ -11,8 +11,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from switchest.engine.kalman import kalman_run
 from switchest.estimators import IMMFilter
-from switchest.estimators._compiled import kalman_run
 from switchest.estimators.smoothing import smooth_mode_matched
 from switchest.learn import fit, rates_from_transition
 from switchest.learn.dynamics_step import fit_C

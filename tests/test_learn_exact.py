@@ -1,7 +1,7 @@
 """The exact E-step of unknown modes (enumeration of the mode sequences) against a dense joint
 Gaussian oracle, EM's monotonicity with it, Kim's E-step against it where the modes are
 identified, and Kim's lagged outputs with several modes against a numpy transcription of the
-smoother's formulas (Kim 1994 §2.2; :mod:`switchest.estimators._compiled.smoother`).
+smoother's formulas (Kim 1994 §2.2; :mod:`switchest.engine.smoother`).
 
 Tolerances: compiled or vectorized algebra against plain numpy of the same quantity, 1e-9
 relative (rounding of a few hundred flops on O(1) numbers, ~1e-14, with a wide margin).

@@ -13,7 +13,7 @@ controller; ``threadpool_limits`` costs 1.6 ms, as it looks for the libraries ea
 wraps whole public calls, never a per-step helper.
 
 :func:`cores` counts the cores this process may run on, for the pools of worker processes (the
-experiment runner's, and the first compile's in :mod:`switchest.estimators._compiled.warmup`).
+experiment runner's) and for the engine's threads (:mod:`switchest.engine._parallel`).
 """
 
 from __future__ import annotations

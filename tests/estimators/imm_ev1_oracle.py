@@ -2,7 +2,7 @@
 
 A self-contained copy of ``IMMEV1Filter`` (Shankar, Yang & Hespanha, Algorithm 1; extended
 Viterbi of Ho & Chen) as it ran on the numpy Kalman core before the compiled kernel of
-:mod:`switchest.estimators._compiled.imm_ev1` replaced it: every hypothesis (predecessor
+:mod:`switchest.engine.imm_ev1` replaced it: every hypothesis (predecessor
 ``j``, destination ``i``, grid point ``k``) predicted with its own transition (eqs (4)-(7),
 ``epsilon I`` added, §IV) and updated (eqs (8)-(10)) by :func:`kf_predict` and
 :func:`kf_update`, broadcast over trials, modes and grid points. The switching-time

@@ -1,6 +1,6 @@
 """Plain numpy versions of the compiled filters' equations, one trial and one sample at a time.
 
-The oracle the compiled kernels of :mod:`switchest.estimators._compiled` are checked against:
+The oracle the compiled kernels of :mod:`switchest.engine` are checked against:
 written for clarity, not speed, with LAPACK (``numpy.linalg``) where the kernels use explicit
 loops (the innovation covariance equilibrated by its diagonal as theirs, so both factor the
 same matrices), and the observed components selected by boolean indexing. The

@@ -1,6 +1,6 @@
 """A plain numpy Rao-Blackwellized particle filter, one trial and one particle at a time.
 
-The oracle the compiled kernel (:mod:`switchest.estimators._compiled.rbpf`) is checked against:
+The oracle the compiled kernel (:mod:`switchest.engine.rbpf`) is checked against:
 the same algorithm (Doucet, Gordon & Krishnamurthy 2001, §III; Doucet, de Freitas, Murphy &
 Russell 2000, §3) in either timing of the modes (docs/conventions.rst), written for clarity
 with the Kalman equations of :mod:`numpy_oracle`, and driven by the same uniforms, which it

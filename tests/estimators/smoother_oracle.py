@@ -1,5 +1,5 @@
 """Plain numpy smoothers and exact mixtures, one trial at a time: the oracles of the compiled
-smoother (``_compiled/smoother.py``) and of ``ExactMixtureFilter``.
+smoother (``engine/c/smoother.c``) and of ``ExactMixtureFilter``.
 
 Written for clarity, not speed, from the textbook formulas, with LAPACK's Cholesky
 (``scipy.linalg.cho_solve``) for the smoother gain and the covariance written as

@@ -21,7 +21,7 @@ from numpy_kalman import kf_predict, kf_update
 
 from switchest._linalg import log_normalize, mixture_moments
 from switchest.discretize import interval, mode_steps, pairwise_grid, switch_grid
-from switchest.estimators._compiled.switch_time import REFINE_TOLERANCE
+from switchest.engine.switch_time import REFINE_TOLERANCE
 
 
 class SwitchTimeOracle:

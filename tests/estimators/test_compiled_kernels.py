@@ -17,20 +17,17 @@ from numpy_oracle import kalman_run as oracle_kalman_run
 from numpy_oracle import kalman_steady_run as oracle_steady_run
 
 from switchest.discretize import interval, mode_steps
-from switchest.estimators import IMMFilter, ModeKalmanFilter
-from switchest.estimators._compiled import (
+from switchest.engine import (
     GATED,
+    NOT_FINITE,
+    NOT_POSITIVE_DEFINITE,
+    OK,
     PARTLY_GATED,
-    imm_run,
-    imm_run_per_trial,
-    imm_step,
-    kalman_run,
-    kalman_steady_run,
-    kalman_steady_step,
-    kalman_step,
     raise_for_status,
 )
-from switchest.estimators._compiled.linalg import NOT_FINITE, NOT_POSITIVE_DEFINITE, OK
+from switchest.engine.imm import imm_run, imm_run_per_trial, imm_step
+from switchest.engine.kalman import kalman_run, kalman_steady_run, kalman_steady_step, kalman_step
+from switchest.estimators import IMMFilter, ModeKalmanFilter
 from switchest.system import SwitchedLinearSystem
 
 RTOL = 1e-9

@@ -9,10 +9,6 @@ registered without one fails :func:`test_every_registered_method_has_a_case`).
 """
 
 import inspect
-import json
-import os
-import subprocess
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -506,37 +502,3 @@ def test_imm_ev1_takes_the_prior_by_position_or_by_keyword():
     by_position = IMMEV1Filter(SYS, None, X0, P0, grid=3).run(sc.y, sc.u, sc.t)
     by_keyword = IMMEV1Filter(SYS, x0=X0, P0=P0, grid=3).run(sc.y, sc.u, sc.t)
     np.testing.assert_array_equal(by_position.x, by_keyword.x)  # the same filter, same input
-
-
-# In a process with numba's allocation counts on (NUMBA_NRT_STATS, read as numba is imported):
-# each case's second run (the first compiles or loads), its estimate dropped, counted.
-_COUNT_ALLOCATIONS = """
-import gc, json, sys
-sys.path.insert(0, sys.argv[1])
-from numba.core.runtime import rtsys
-import test_conformance as tc
-counts = {}
-for name, case in tc.CASES.items():
-    est, sc = case.make(tc.system_of(case)), tc.data(name)
-    tc.run(name, est, sc)
-    gc.collect()
-    before = rtsys.get_allocation_stats()
-    tc.run(name, est, sc)
-    gc.collect()
-    after = rtsys.get_allocation_stats()
-    counts[name] = [b - a for a, b in zip(before, after)]
-print(json.dumps(counts))
-"""
-
-
-def test_compiled_code_frees_every_array_it_allocates():
-    # each kernel allocates its workspace and frees it on return, whichever of its helpers run
-    # without reference counts (switchest._jit.borrow)
-    done = subprocess.run([sys.executable, "-c", _COUNT_ALLOCATIONS, os.path.dirname(__file__)],
-                          capture_output=True, text=True, check=True,
-                          env={**os.environ, "NUMBA_NRT_STATS": "1"})
-    counts = json.loads(done.stdout)
-    assert set(counts) == set(CASES)
-    for name, (alloc, free, mi_alloc, mi_free) in counts.items():
-        assert (alloc, mi_alloc) == (free, mi_free), name
-    assert counts["imm"][0] > 0 and counts["switch-time-refine"][0] > 0  # counted at all

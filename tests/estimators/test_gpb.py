@@ -24,10 +24,10 @@ from numpy_oracle import imm_combine, imm_trial_step, innovation, predict
 
 from switchest import SwitchedLinearSystem
 from switchest.discretize import mode_steps
+from switchest.engine import GATED, OK, PARTLY_GATED
+from switchest.engine.gpb import gpb2_run
+from switchest.engine.imm import imm_run
 from switchest.estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
-from switchest.estimators._compiled import GATED, PARTLY_GATED, imm_run
-from switchest.estimators._compiled.gpb import gpb2_run
-from switchest.estimators._compiled.linalg import OK
 from switchest.estimators.gpb import GPB1Filter, GPB2Filter
 
 RTOL = 1e-9

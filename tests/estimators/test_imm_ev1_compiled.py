@@ -3,7 +3,7 @@
 The oracle is the filter as it ran before the kernel: every hypothesis (predecessor, destination,
 grid point) predicted and updated by the numpy Kalman core, then selected. The kernel scores
 the hypotheses without forming their predictions and predicts and updates the chosen ones only
-(Shankar et al., Algorithm 1; :mod:`switchest.estimators._compiled.imm_ev1`), so the two differ
+(Shankar et al., Algorithm 1; :mod:`switchest.engine.imm_ev1`), so the two differ
 in operation order only. Tolerance: every float output equals the oracle's to RTOL = 1e-9
 relative to the largest entry of the oracle's array (entrywise relative error means nothing for
 entries that cancel to ~0); each step is backward stable and these filters are stable, so the
@@ -23,9 +23,9 @@ from scipy.stats import chi2
 from switchest import SwitchedLinearSystem
 from switchest import signals as sg
 from switchest.discretize import pairwise_grid, switch_grid
+from switchest.engine import raise_for_status
+from switchest.engine.imm_ev1 import imm_ev1_run
 from switchest.estimators import IMMEV1Filter
-from switchest.estimators._compiled import raise_for_status
-from switchest.estimators._compiled.imm_ev1 import imm_ev1_run
 from switchest.models import BOOST_INPUT_VOLTAGE, BOOST_SAMPLE_PERIOD, boost_converter
 from switchest.simulate import simulate
 

@@ -13,8 +13,8 @@ from numpy_oracle import kalman_run as oracle_kalman_run
 from numpy_oracle import kalman_steady_run as oracle_steady_run
 
 from switchest.discretize import interval, mode_steps
+from switchest.engine import GATED
 from switchest.estimators import ModeKalmanFilter
-from switchest.estimators._compiled import GATED
 from switchest.estimators.mode_kalman import _steady_gains
 from switchest.models import boost_converter, boost_switching, vehicle_2d
 from switchest.signals import markov_continuous, periodic, schedule

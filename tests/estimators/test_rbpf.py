@@ -11,14 +11,14 @@ from rbpf_oracle import SCHEMES, rbpf_run, trial_keys, uniforms
 
 from switchest import SwitchedLinearSystem, simulate
 from switchest.discretize import mode_steps
-from switchest.estimators import ExactMixtureFilter, ModeKalmanFilter
-from switchest.estimators._compiled.rbpf import (
+from switchest.engine.rbpf import (
     RESAMPLING,
     ancestors,
     resampling_positions,
     uniform,
 )
-from switchest.estimators._compiled.rbpf import trial_keys as compiled_trial_keys
+from switchest.engine.rbpf import trial_keys as compiled_trial_keys
+from switchest.estimators import ExactMixtureFilter, ModeKalmanFilter
 from switchest.estimators.rbpf import RBPFilter
 from switchest.switching import MarkovAtSamples
 

@@ -28,7 +28,7 @@ from smoother_oracle import (
 )
 
 from switchest import simulate
-from switchest.estimators._compiled.smoother import kim_smooth as compiled_kim_smooth
+from switchest.engine.smoother import kim_smooth as compiled_kim_smooth
 from switchest.estimators.smoothing import SmoothedModes, smooth_filtered, smooth_mode_matched
 from switchest.switching import MarkovAtSamples
 

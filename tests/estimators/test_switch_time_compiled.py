@@ -26,9 +26,9 @@ from switchest.discretize import (
     offset_table_nbytes,
     switch_grid,
 )
+from switchest.engine.switch_time import REFINE_TOLERANCE, switch_time_run
 from switchest.estimators import SwitchTimeKalmanFilter
 from switchest.estimators import switch_time as switch_time_module
-from switchest.estimators._compiled.switch_time import REFINE_TOLERANCE, switch_time_run
 from switchest.estimators.switch_time import SwitchTimeState, switch_time_loglik
 from switchest.models import (
     BOOST_INPUT_VOLTAGE,

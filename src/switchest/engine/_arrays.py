@@ -2,8 +2,9 @@
 
 The kernels index their tables without bounds checks, so every array is checked here, once
 per call, before it reaches compiled code; each is converted to the one type the kernels are
-compiled for (writeable C-contiguous float64, int64 indices: numba compiles a kernel again
-for a read-only array, such as the cached transitions of :mod:`switchest.discretize`).
+written for (C-contiguous float64, int64 indices). An array that is already of that type is
+passed as it is; a read-only one (such as the cached transitions of
+:mod:`switchest.discretize`) is copied, as the bindings take writeable arrays.
 """
 
 from __future__ import annotations

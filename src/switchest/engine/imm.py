@@ -222,7 +222,7 @@ def _interaction(name) -> int:
 
 def is_sample_timing(timing) -> bool:
     """Whether ``timing`` (checked: "sample" or "interval") is the ``"sample"`` timing: the
-    kernels take it as a bool, numba compiling one signature for both."""
+    kernels take it as a bool."""
     return check_timing(timing) == "sample"
 
 

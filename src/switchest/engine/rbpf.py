@@ -115,8 +115,7 @@ def rbpf_run(y, u, F, G, Qd, trans, C, R, transition, x0, P0, prob0, keys, *, pa
     keys : array_like of uint64, shape (N,)
         Each trial's random key.
     particles, sample_timing, optimal, scheme, threshold
-        As :func:`particle_filter` (the numba kernel's documentation, kept at
-        ``se_particle_filter`` in c/rbpf.c).
+        As ``se_particle_filter`` in ``c/rbpf.c`` documents them.
     """
     sizes: dict[str, int] = {}
     y, u, F, G, Qd, trans, C, R, transition, x0, P0, prob0 = checked(

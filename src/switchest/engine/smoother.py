@@ -117,7 +117,7 @@ from ._smoother import screen_psd as _screen_psd
 
 __all__ = ["KimOutput", "kim_smooth", "screen_psd", "LANES"]
 
-OK = 0  # se_common.h SE_OK (linalg.OK of the numba kernels)
+OK = 0  # se_common.h SE_OK
 
 LANES = 64  # trials per block: the backward pass runs ~500 short loops over the lanes per pair,
 # each with a fixed cost (alias checks, remainders); at 16 lanes (the filters' block) that cost
@@ -244,7 +244,7 @@ def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *
 def _backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes, sample_timing,
               x_out, P_out, prob_out, mode_out, x_s, P_s, lagged, pair_out, lag_x, lag_P,
               lag_cross, report):
-    """:func:`._smoother.kim_backward` (the numba kernel's argument order) with its report
+    """:func:`._smoother.kim_backward` with its report
     last, as :func:`._parallel.run_split` calls a kernel."""
     return kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes,
                         sample_timing, x_out, P_out, prob_out, mode_out, x_s, P_s, report,

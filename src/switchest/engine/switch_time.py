@@ -60,7 +60,7 @@ __all__ = [
     "LANES",
 ]
 
-LANES = 16  # trials per block (numba's bank.LANES): four AVX2 registers of float64 per row
+LANES = 16  # trials per block: four AVX2 registers of float64 per row
 REFINE_TOLERANCE = 1e-4  # Brent's tolerance on the refined instant (tol = 1e-4 T, refine)
 
 

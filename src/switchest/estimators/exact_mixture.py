@@ -19,7 +19,7 @@ the yardstick the IMM, GPB and Kim smoother approximate, for short records only,
 beyond ``max_sequences``.
 
 The Kalman filters run in the filters' compiled kernel
-(:func:`~switchest.estimators._compiled.kalman_run`), every (sequence, trial) one trial of
+(:func:`~switchest.engine.kalman.kalman_run`), every (sequence, trial) one trial of
 it; the RTS smoother of each sequence is Kim's smoother with one mode
 (:func:`~switchest.estimators.smoothing.smooth_mode_matched`), so each equation has one
 implementation.
@@ -149,7 +149,7 @@ class ExactMixtureFilter(Estimator):
         ``w pi_{r_k-1, j} Lambda_k`` (normalized), each predicted with the exact transition of
         mode ``r_k-1`` (``"sample"`` timing) or ``j`` (``"interval"``) and updated with
         ``C_j``, ``R_j`` by the compiled Kalman kernel
-        (:func:`~switchest.estimators._compiled.kalman_step`).
+        (:func:`~switchest.engine.kalman.kalman_step`).
         """
         sys = self.system
         batch = state.log_weight.shape[:-1]

@@ -17,14 +17,14 @@ prediction takes.
   ``sum_i mu_i(k-1) N(x_i(k|k-1), P_i(k|k-1))``) from which every mode ``j`` updates.
   ``"interval"`` (§11.6.4): the posteriors are collapsed first and mode ``j`` predicts the one
   Gaussian through its own transition. It is the IMM's bank with the interaction replaced by
-  that collapse (:func:`~switchest.estimators._compiled.imm_run` with
+  that collapse (:func:`~switchest.engine.imm.imm_run` with
   ``interaction="collapse"``).
 - GPB2 keeps one Gaussian per mode: ``L^2`` Kalman filters, one per pair (mode ``i`` at
   ``k - 1``, mode ``j`` at ``k``), predicted from mode ``i``'s Gaussian through mode ``i``'s
   transition (``"sample"``: one prediction per ``i``, shared by its pairs) or mode ``j``'s
   (``"interval"``, §11.6.5), updated with ``C_j``, ``R_j``,
   ``mu_ij(k) ∝ Lambda_ij(k) pi_ij mu_i(k-1)``; each mode's pairs are merged into one Gaussian
-  (:mod:`switchest.estimators._compiled.gpb`).
+  (:mod:`switchest.engine.gpb`).
 
 The output of both is the moments of the mixture over the modes, as the IMM's; ``smooth`` (of
 :class:`~switchest.estimators.mode_bank.ModeBankFilter`) runs Kim's (1994) smoother on either.

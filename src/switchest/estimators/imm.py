@@ -9,7 +9,7 @@ sample instants; the ``timing`` says which interval the mode of a sample governs
 original). Mode probabilities are kept as log-weights.
 
 Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
-:mod:`switchest.estimators._compiled` (``imm_run``, ``imm_step``), which holds the one
+:mod:`switchest.engine.imm` (``imm_run``, ``imm_step``), which holds the one
 implementation of each equation: interaction (Blom & Bar-Shalom, 1988), mode-matched
 Kalman prediction and update (Joseph form; the information form where that loses its
 digits, a covariance beyond ``1/eps`` repaired with a ``RuntimeWarning``), and the

@@ -10,7 +10,7 @@ predicted covariance (§IV), and updates; its weight is
 normalized, kept in log domain.
 
 Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
-:mod:`switchest.estimators._compiled.imm_ev1` (``imm_ev1_run``, ``imm_ev1_step``), which
+:mod:`switchest.engine.imm_ev1` (``imm_ev1_run``, ``imm_ev1_step``), which
 holds the one implementation of each equation.
 
 Outliers: a hypothesis (predecessor, destination, grid point) whose filter rejects
@@ -158,7 +158,7 @@ class IMMEV1Filter(Estimator):
         predecessor selection, prediction and update; update only when ``dt`` is ``None``.
 
         One sample of the compiled kernel
-        (:func:`~switchest.estimators._compiled.imm_ev1.imm_ev1_step`), the one ``run``
+        (:func:`~switchest.engine.imm_ev1.imm_ev1_step`), the one ``run``
         loops over.
         """
         sys = self.system
@@ -196,7 +196,7 @@ class IMMEV1Filter(Estimator):
         absolute switching instant in ``(t_{k-1}, t_k)``, NaN where it has none.
 
         The whole record runs in the compiled kernel
-        (:func:`~switchest.estimators._compiled.imm_ev1.imm_ev1_run`), with the transitions
+        (:func:`~switchest.engine.imm_ev1.imm_ev1_run`), with the transitions
         of every hypothesis computed once per distinct sampling step.
         """
         y2, u2, t, batch = self._prepare(y, u, t)
@@ -234,7 +234,7 @@ class IMMEV1Filter(Estimator):
         return F, G, Qd, np.stack([switch_grid(h, g) for h in steps])
 
     def _options(self) -> dict:
-        """The kernel's options (:func:`~switchest.estimators._compiled.imm_ev1.imm_ev1_run`)."""
+        """The kernel's options (:func:`~switchest.engine.imm_ev1.imm_ev1_run`)."""
         return {"epsilon": self.epsilon, "gate": self._gate,
                 "printed": self.likelihood == "printed", "marginal": self.switch_time == "marginal",
                 "by_path": self.predecessor == "path"}

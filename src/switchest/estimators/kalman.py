@@ -3,7 +3,7 @@
 :func:`kf_predict` and :func:`kf_update` take any leading batch axes (trials, modes,
 hypotheses, grid points; the last one or two are the vector or matrix; shapes broadcast) and
 run one sample of the compiled Kalman kernel
-(:func:`switchest.estimators._compiled.kalman_step`) on the flattened stack: the one
+(:func:`switchest.engine.kalman.kalman_step`) on the flattened stack: the one
 implementation of each equation that every filter runs.
 
 ``steady_state_gain`` (the Riccati equation of one mode) is a design and lives in

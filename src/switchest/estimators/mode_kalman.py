@@ -97,7 +97,7 @@ class ModeKalmanFilter(Estimator):
         (``steady_state=True``); it defaults to ``dt`` (to ``system.dt`` for a
         discrete system) and must be given at a first sample of a continuous system.
         One sample of the compiled kernel that ``run`` loops over
-        (:func:`~switchest.estimators._compiled.kalman_step`).
+        (:func:`~switchest.engine.kalman.kalman_step`).
         """
         sys = self.system
         mode = np.asarray(mode)
@@ -175,7 +175,7 @@ class ModeKalmanFilter(Estimator):
 
     def _transitions(self, t, modes, seg):
         """The table of distinct exact transitions and the index of each trial's into each
-        sample (the layout of :func:`~switchest.estimators._compiled.kalman_run`).
+        sample (the layout of :func:`~switchest.engine.kalman.kalman_run`).
 
         Without segments an interval is predicted in the mode believed at its start: one
         entry per (distinct step, mode). With segments (``(modes (N, K-1, S+1), offsets)``)

@@ -43,12 +43,12 @@ and flagged in ``Estimate.outlier``.
 Randomness: ``rng`` gives one 64-bit root key when the filter is built; trial ``i`` (in the
 flattened batch) gets key ``i`` of the SplitMix64 sequence of the root
 (:meth:`RBPFilter.trial_keys`), and every uniform of that trial is a pure function of its key,
-the sample index and the draw's index (:func:`switchest.estimators._compiled.rbpf.uniform`,
+the sample index and the draw's index (``uniform`` of ``engine/c/rbpf.c``,
 counter-based: Salmon, Moraes, Dror & Shaw 2011). So a run is
 reproducible, a trial's result depends on its key alone, not on the batch it ran in (pass the
 keys it got, ``keys=``, to run it alone), and streaming with :meth:`RBPFilter.step` reproduces
 :meth:`RBPFilter.run`. Both call the compiled kernel of
-:mod:`switchest.estimators._compiled.rbpf`.
+:mod:`switchest.engine.rbpf`.
 
 Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k).
 """
@@ -204,7 +204,7 @@ class RBPFilter(Estimator):
 
         ``dt`` is None at the first sample (modes drawn from ``mode_prob0``, update only) and
         the time since the previous sample after it. One sample of the compiled kernel
-        (:func:`~switchest.estimators._compiled.rbpf.rbpf_step`), the one ``run`` loops over,
+        (:func:`~switchest.engine.rbpf.rbpf_step`), the one ``run`` loops over,
         with the same uniforms: stepping through a record reproduces ``run``.
         """
         sys = self.system

@@ -24,7 +24,7 @@ In both the pairs are weighted by
 ``P(s_k = j | s_{k+1} = i, Y) ~ P(s_k = j | s_{k+1} = i, y_0..k)``) and merged over ``i`` by
 moment matching (Kim 1994 §2.2; Murphy 1998 §4). With one mode both timings are the RTS smoother
 (Rauch, Tung & Striebel 1965). The equations, their derivation in each timing and how a
-singular predicted covariance is handled are in :mod:`switchest.estimators._compiled.smoother`;
+singular predicted covariance is handled are in :mod:`switchest.engine.smoother`;
 the backward loop runs there, compiled.
 
 Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k);
@@ -129,7 +129,7 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transit
     lagged : bool
         Also return, for each interval ``k -> k+1``, the pairwise mode probabilities and the
         lag-one moments an expectation-maximization step needs (``pair_prob``, ``lag_x``,
-        ``lag_P``, ``lag_cross``; :mod:`switchest.estimators._compiled.smoother`). They are
+        ``lag_P``, ``lag_cross``; :mod:`switchest.engine.smoother`). They are
         conditioned on the mode of sample ``k+1``, which governs the interval in the
         ``"interval"`` timing: with ``timing="sample"`` they are refused unless ``L = 1`` (where
         the timings agree).
@@ -184,7 +184,7 @@ def smooth_filtered(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transition,
     one batch axis: ``(N, K, L, n)``, ``(N, K, L, n, n)``, ``(N, K, L)``, ``u (N, K, l)``,
     ``trans (N or 1, K, L)`` (or ``(K, L)``); no array is validated again (the smoother of
     :meth:`~switchest.estimators.mode_bank.ModeBankFilter.smooth` calls it on its own forward
-    pass); ``timing`` is (by :func:`~switchest.estimators._compiled.smoother.kim_smooth`).
+    pass); ``timing`` is (by :func:`~switchest.engine.smoother.kim_smooth`).
     Raises and warns as :func:`smooth_mode_matched`; without ``modes_out`` the smoothed
     mode-matched posteriors are not written (``x_modes``, ``P_modes`` None)."""
     with np.errstate(divide="ignore"):
@@ -216,7 +216,7 @@ def _covariances(P: np.ndarray, name: str) -> np.ndarray:
     same verdict, message and symmetrized result, with eigenvalues only where needed.
 
     The matrices whose factorization with half the tolerance added to their diagonal succeeds
-    (:func:`~switchest.estimators._compiled.smoother.screen_psd`) have their smallest
+    (:func:`~switchest.engine.smoother.screen_psd`) have their smallest
     eigenvalue above ``-(1/2 + n (n + 1) u / 1e-12) 1e-12 max |P|``, within the tolerance for
     ``n <= 32`` (``u`` the unit roundoff): only the others have their eigenvalues computed.
     """

@@ -7,7 +7,7 @@ estimated by maximizing the likelihood of the new measurement over a grid of
 transition of the estimated instant (eqs (4)-(5), (6)-(10)).
 
 Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
-:mod:`switchest.estimators._compiled.switch_time`, which holds the one implementation of
+:mod:`switchest.engine.switch_time`, which holds the one implementation of
 the filter; :func:`switch_time_loglik` and :func:`marginalize_switch_time` are the
 numpy forms of its likelihood and merge, for other filters.
 """
@@ -138,10 +138,10 @@ class SwitchTimeKalmanFilter(Estimator):
         and parabolic interpolation, Brent 1973 ch. 5) on the exact likelihood over
         the grid cell around it, ``[tau - T/(2g), tau + T/(2g)]``, started from the
         grid instant, with one addition: a search heading for an edge of the cell
-        probes that edge (see :func:`~switchest.estimators._compiled.switch_time._refine`);
+        probes that edge (see ``refine`` in ``engine/c/switch_time.c``);
         the search stops once the maximizer is bracketed to within
         about ``2e-4 T`` (tolerance ``1e-4 T``,
-        :data:`~switchest.estimators._compiled.switch_time.REFINE_TOLERANCE`) or after
+        :data:`~switchest.engine.switch_time.REFINE_TOLERANCE`) or after
         ``refine_iterations`` probes. The grid instant is kept unless a probe beats
         it. Each probe is quantized to ``T / 2^18`` (3.8e-6 T) and its likelihood is
         exact there: its transition is composed from three flows of a table
@@ -228,7 +228,7 @@ class SwitchTimeKalmanFilter(Estimator):
         when they differ, then update with ``y (..., m)``.
 
         One sample of the compiled kernel that ``run`` loops over
-        (:func:`~switchest.estimators._compiled.switch_time.switch_time_run`); ``dt=None``
+        (:func:`~switchest.engine.switch_time.switch_time_run`); ``dt=None``
         (a first sample) updates only. ``mode`` and ``prev_mode`` (default ``mode``: no
         switch) broadcast over the batch.
         """
@@ -329,7 +329,7 @@ class SwitchTimeKalmanFilter(Estimator):
 
 def _tables(system, steps: tuple, g: int, refine: bool, inflation: float = 0.0):
     """The kernel's transition table for the distinct sampling ``steps`` (the layout of
-    :mod:`switchest.estimators._compiled.switch_time`): per step and mode the transition without
+    :mod:`switchest.engine.switch_time`): per step and mode the transition without
     a switch (:func:`~switchest.discretize.mode_steps`), per step, mode pair and grid instant the
     switched one (:func:`~switchest.discretize.pairwise_grid`, eq. (23)) and, with ``refine``,
     the offset tables (:func:`~switchest.discretize.offset_table`); the grid ``(D, g)`` and the
