@@ -6,7 +6,8 @@ kernels are compiled with ``-O3`` for the building machine's processor (``-march
 a source install runs where it was built; set ``SWITCHEST_PORTABLE=1`` to build for the
 architecture's baseline instead, for a wheel meant to run on other machines. Floating-point
 contraction stays off (``-ffp-contract=off``): each product and sum is rounded as written, as
-in the numpy oracles the tests compare against.
+in the numpy oracles the tests compare against. The modules compile side by side, one per
+core.
 """
 
 import os
@@ -34,6 +35,7 @@ extensions = [
 ]
 
 setup(
+    options={"build_ext": {"parallel": os.cpu_count() or 1}},  # the families side by side
     ext_modules=cythonize(
         extensions,
         compiler_directives={
@@ -44,5 +46,6 @@ setup(
             "cdivision": True,
         },
         include_path=["src"],
-    )
+        nthreads=os.cpu_count() or 1,
+    ),
 )

@@ -23,7 +23,7 @@ Order of operations, lined up exactly:
 How it is timed (issue 13): the contenders run interleaved, round by round —
 IMMFilter on all 500 trials, FilterPy on the first 20 trials, and for scale a bare
 numpy and a FilterPy single-mode Kalman loop (1 trial x 2 000 steps) — by CPU time
-(``time.process_time``) with BLAS limited to one thread, each warmed up first
+(``time.process_time``) with BLAS and switchest's engine at one thread, each warmed up first
 (:func:`harness.compare_interleaved`). FilterPy loops over trials, so its cost per
 trial-step does not depend on how many it filters; a subset keeps each round near
 two seconds. Reported per trial-step: the median and the min over the rounds, the
@@ -55,7 +55,7 @@ from harness import (
     format_seconds,
     markdown_table,
     print_sections,
-    single_threaded_blas,
+    single_threaded,
 )
 
 from switchest.discretize import mode_steps
@@ -269,8 +269,8 @@ def main(argv=None) -> None:
     parser.add_argument("--quick", action="store_true",
                         help=f"FilterPy on {QUICK_FILTERPY_TRIALS} trials, {QUICK_ROUNDS} rounds")
     args = parser.parse_args(argv)
-    with single_threaded_blas() as blas:
-        print(f"BLAS limited to one thread: {blas['single_threaded']}")
+    with single_threaded() as blas:
+        print(f"BLAS and engine at one thread: {blas['single_threaded']}")
         print_sections(run(quick=args.quick))
 
 

@@ -34,7 +34,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from harness import Section, markdown_table, print_sections, quick_flag, single_threaded_blas
+from harness import Section, markdown_table, print_sections, quick_flag, single_threaded
 
 from switchest.estimators import IMMFilter
 from switchest.learn import fit
@@ -232,8 +232,8 @@ def run(*, quick: bool = False) -> list[Section]:
 
 def main(argv=None) -> None:
     quick = quick_flag(__doc__.splitlines()[0], argv)
-    with single_threaded_blas() as blas:
-        print(f"BLAS limited to one thread: {blas['single_threaded']}")
+    with single_threaded() as blas:
+        print(f"BLAS and engine at one thread: {blas['single_threaded']}")
         print_sections(run(quick=quick))
 
 

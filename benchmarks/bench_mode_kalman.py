@@ -22,11 +22,11 @@ Contenders, on the same data:
 
 Timing: :func:`harness.compare_interleaved` — switchest, dynamax, switchest, ... by CPU
 time (``time.process_time``, all threads of the process, so JAX's own thread pool is
-charged), BLAS limited to one thread, JAX left at its default threading; each contender is
-warmed up first (jit compile and the discretization cache are not timed) and dynamax's
-call blocks on its result (``jax.block_until_ready``). Reported per trial-step: median and
-min over the rounds, the ratios of medians and of mins (switchest / dynamax; target at
-most 1.5), wall time for reference, and the 1-minute load average.
+charged), BLAS and switchest's engine at one thread, JAX left at its default threading;
+each contender is warmed up first (jit compile and the discretization cache are not timed)
+and dynamax's call blocks on its result (``jax.block_until_ready``). Reported per
+trial-step: median and min over the rounds, the ratios of medians and of mins (switchest /
+dynamax; target at most 1.5), wall time for reference, and the 1-minute load average.
 
 Agreement: the largest differences of the filtered means (absolute, and relative to the
 largest |x|: with u = 1 the position grows as t^2, so y - C x cancels digits at long
@@ -59,7 +59,7 @@ from harness import (
     markdown_table,
     print_sections,
     quick_flag,
-    single_threaded_blas,
+    single_threaded,
 )
 
 from switchest.discretize import mode_steps
@@ -208,10 +208,10 @@ def compare(shapes, rounds: int, *, quick: bool = False) -> list[Section]:
         (f"ModeKalmanFilter / dynamax per trial-step at most **{worst:.2f}** (medians and mins, "
          f"every shape): {verdict} issue 13's target of {TARGET_RATIO}x."),
         (f"{rounds} interleaved rounds per shape (ModeKalmanFilter, dynamax, ...) by CPU time "
-         "(`time.process_time`), BLAS at one thread, JAX at its default threads; jit "
-         "compilation and the discretization cache warmed up before timing; dynamax blocks "
-         f"on its result; a contender whose calls used up {BUDGET:.0f} CPU-s sits out the "
-         "remaining rounds."),
+         "(`time.process_time`), BLAS and switchest's engine at one thread, JAX at its "
+         "default threads; jit compilation and the discretization cache warmed up before "
+         f"timing; dynamax blocks on its result; a contender whose calls used up {BUDGET:.0f} "
+         "CPU-s sits out the remaining rounds."),
         ("the wall column is for reference only: on this shared machine it includes the time "
          "spent waiting for a core (wall exceeds CPU time when the load is above the core "
          "count)."),
@@ -277,8 +277,8 @@ def _scaling(quick: bool) -> Section:
 
 def main(argv=None) -> None:
     quick = quick_flag(__doc__.splitlines()[0], argv)
-    with single_threaded_blas() as blas:
-        print(f"BLAS limited to one thread: {blas['single_threaded']}; "
+    with single_threaded() as blas:
+        print(f"BLAS and engine at one thread: {blas['single_threaded']}; "
               f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
         print_sections(run(quick=quick))
 

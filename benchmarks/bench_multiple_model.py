@@ -14,8 +14,9 @@ assume (mode ``r_k`` drives the step into sample ``k`` and the measurement there
 
 Speed. The vehicle of Shankar et al. (n = 4, m = 2, L = 3, T = 0.5 s), 500 trials x 200
 samples: ``IMMFilter.run``, ``GPB1Filter.run``, ``GPB2Filter.run`` and the two smoothers
-interleaved by CPU time (BLAS at one thread). Issue 18's targets: GPB2 at most L = 3 times the
-IMM per trial-step; a smoother (its forward pass included) at most 3 times its filter.
+interleaved by CPU time (BLAS and switchest's engine at one thread). Issue 18's targets:
+GPB2 at most L = 3 times the IMM per trial-step; a smoother (its forward pass included) at
+most 3 times its filter.
 
 Run: ``python benchmarks/bench_multiple_model.py [--quick]`` (``--quick``: fewer systems and
 trials, 100 and 1 000 particles, 50 trials for the speed table).
@@ -36,7 +37,7 @@ from harness import (
     markdown_table,
     print_sections,
     quick_flag,
-    single_threaded_blas,
+    single_threaded,
 )
 
 from switchest.estimators import (
@@ -207,8 +208,8 @@ def run(*, quick: bool = False) -> list[Section]:
 
 def main(argv=None) -> None:
     quick = quick_flag(__doc__.splitlines()[0], argv)
-    with single_threaded_blas() as blas:
-        print(f"BLAS limited to one thread: {blas['single_threaded']}")
+    with single_threaded() as blas:
+        print(f"BLAS and engine at one thread: {blas['single_threaded']}")
         print_sections(run(quick=quick))
 
 

@@ -27,7 +27,7 @@ from harness import (
     markdown_table,
     print_sections,
     quick_flag,
-    single_threaded_blas,
+    single_threaded,
 )
 
 from switchest.models import vehicle_2d, vehicle_maneuver
@@ -107,8 +107,8 @@ def run(*, quick: bool = False) -> list[Section]:
 
 def main(argv=None) -> None:
     quick = quick_flag(__doc__.splitlines()[0], argv)
-    with single_threaded_blas() as blas:
-        print(f"BLAS limited to one thread: {blas['single_threaded']}")
+    with single_threaded() as blas:
+        print(f"BLAS and engine at one thread: {blas['single_threaded']}")
         print_sections(run(quick=quick))
 
 

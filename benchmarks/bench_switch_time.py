@@ -18,8 +18,8 @@ interval. Contenders, all on the same data:
 * ``IMM-EV1`` — ``IMMEV1Filter(grid=g)`` (Shankar et al. Algorithm 1): modes unknown.
 
 Timing: :func:`harness.compare_interleaved` per g — grid, refine, marginal, IMM-EV1,
-grid, ... by CPU time (``time.process_time``), BLAS limited to one thread, each contender
-warmed up first on a 2-trial, 10-sample slice (discretization caches, compilation); a
+grid, ... by CPU time (``time.process_time``), BLAS and switchest's engine at one thread,
+each contender warmed up first on a 2-trial, 10-sample slice (discretization caches); a
 contender whose calls have used up the CPU budget sits out the remaining rounds (the
 refined filter may then be timed once). Reported per trial-step: median and min over the
 rounds, the ratios of medians and of mins to ``grid``, wall time for reference, the
@@ -44,7 +44,7 @@ from harness import (
     markdown_table,
     print_sections,
     quick_flag,
-    single_threaded_blas,
+    single_threaded,
 )
 
 from switchest.estimators import IMMEV1Filter, SwitchTimeKalmanFilter
@@ -122,8 +122,8 @@ def run(*, quick: bool = False) -> list[Section]:
         notes.append(f"g = {g}: refine / grid = **{med:.2f}x** (medians), {low:.2f}x (mins) — "
                      f"{verdict} issue 13's target of {TARGET_REFINE:.0f}x")
     notes.append(f"{ROUNDS} interleaved rounds per grid by CPU time (`time.process_time`), BLAS "
-                 f"at one thread; a contender whose calls used up {budget:g} CPU-s sits out the "
-                 "remaining rounds (hence fewer samples for a slow one).")
+                 f"and engine at one thread; a contender whose calls used up {budget:g} CPU-s "
+                 "sits out the remaining rounds (hence fewer samples for a slow one).")
     notes.append("grid, refine and marginal are given the modes at the samples (Table I); "
                  "IMM-EV1 estimates them.")
     table = markdown_table(["g", "contender", *comparison_header("trial-step", "grid"),
@@ -135,8 +135,8 @@ def run(*, quick: bool = False) -> list[Section]:
 
 def main(argv=None) -> None:
     quick = quick_flag(__doc__.splitlines()[0], argv)
-    with single_threaded_blas() as blas:
-        print(f"BLAS limited to one thread: {blas['single_threaded']}; "
+    with single_threaded() as blas:
+        print(f"BLAS and engine at one thread: {blas['single_threaded']}; "
               f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
         print_sections(run(quick=quick))
 

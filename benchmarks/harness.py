@@ -6,13 +6,17 @@
   ratios of medians and of mins to a reference (:func:`comparison_rows` tabulates them);
 * :func:`best_time` — repeat a call and keep the best wall time (``time.perf_counter``),
   for sweeps of one implementation over sizes;
-* :func:`single_threaded_blas` — run the measurements with every loaded BLAS limited to
-  one thread (threadpoolctl) and report that it did;
+* :func:`single_threaded` — run the measurements with every loaded BLAS limited to one
+  thread (threadpoolctl) and switchest's engine at one thread (``set_threads(1)``), and report
+  that they were; :func:`engine_threads` sets another engine thread count for a block (a
+  thread-scaling measurement);
 * :func:`machine_info` — CPU count, load average, library versions and BLAS threads;
 * :class:`Section` and :func:`markdown_table` — what a benchmark returns and how it prints.
 
 Under CPU contention a threaded BLAS on 3x3..9x9 matrices has been measured to run a
-hundred times slower (DESIGN.md §4), so every measurement here runs single-threaded.
+hundred times slower (DESIGN.md §4), so every measurement here runs single-threaded. The
+engine's kernels split a batch over every core by default; the benchmarks pin them to one
+thread, so that a ratio to a single-threaded peer or yardstick compares like with like.
 
 Why interleaved CPU time: the machine is shared. Wall time charges a contender for the
 time other processes held the core; CPU time (user + system, all threads of this
@@ -40,6 +44,8 @@ import scipy
 import scipy.linalg  # load SciPy's own BLAS now, so the thread limit reaches it
 from threadpoolctl import threadpool_info, threadpool_limits
 
+from switchest.estimators import set_threads, threads
+
 __all__ = [
     "Comparison",
     "Contender",
@@ -50,6 +56,7 @@ __all__ = [
     "compare_interleaved",
     "comparison_header",
     "comparison_rows",
+    "engine_threads",
     "format_load",
     "format_seconds",
     "machine_info",
@@ -57,7 +64,7 @@ __all__ = [
     "package_versions",
     "print_sections",
     "quick_flag",
-    "single_threaded_blas",
+    "single_threaded",
 ]
 
 
@@ -256,23 +263,40 @@ def blas_report() -> list[dict[str, Any]]:
 
 
 @contextmanager
-def single_threaded_blas() -> Iterator[dict[str, Any]]:
-    """Limit every loaded BLAS to one thread for the duration of the block.
+def single_threaded() -> Iterator[dict[str, Any]]:
+    """Limit every loaded BLAS and switchest's engine to one thread for the block.
 
-    Yields a report ``{"before": [...], "inside": [...], "single_threaded": bool}``;
-    ``single_threaded`` is True when every library reported one thread inside the
-    limit. Import the code under test before entering: a library loaded later is
-    not limited.
+    Yields a report ``{"before": [...], "inside": [...], "engine_threads": int,
+    "single_threaded": bool}``: the BLAS libraries with their thread counts before and inside
+    the limit, the engine's thread count inside (``switchest.estimators.threads()``), and
+    whether every library reported one thread and the engine ran on one. Import the code
+    under test before entering: a BLAS loaded later is not limited (the engine's setting is
+    process-wide and holds for code imported later too). The engine's previous count is
+    restored on leaving.
     """
     before = blas_report()
-    with threadpool_limits(limits=1):
+    with threadpool_limits(limits=1), engine_threads(1):
         inside = blas_report()
         report = {
             "before": before,
             "inside": inside,
-            "single_threaded": bool(inside) and all(lib["threads"] == 1 for lib in inside),
+            "engine_threads": threads(),
+            "single_threaded": (bool(inside) and all(lib["threads"] == 1 for lib in inside)
+                                and threads() == 1),
         }
         yield report
+
+
+@contextmanager
+def engine_threads(count: int) -> Iterator[None]:
+    """Run switchest's engine on ``count`` threads inside the block
+    (``switchest.estimators.set_threads``), then restore the count it had."""
+    previous = threads()
+    set_threads(count)
+    try:
+        yield
+    finally:
+        set_threads(previous)
 
 
 def _cpu_model() -> str:
@@ -301,7 +325,8 @@ def package_versions(names: Sequence[str] = PEERS) -> dict[str, str]:
 
 
 def machine_info() -> dict[str, Any]:
-    """CPU, load, Python / NumPy / SciPy versions and the BLAS libraries with their threads."""
+    """CPU, load, Python / NumPy / SciPy versions, the BLAS libraries with their threads and
+    the engine's default thread count (and ``SWITCHEST_THREADS``, if set)."""
     try:
         usable = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
@@ -317,6 +342,8 @@ def machine_info() -> dict[str, Any]:
         "scipy": scipy.__version__,
         "peers": package_versions(),
         "blas": blas_report(),
+        "engine_threads_default": threads(),
+        "SWITCHEST_THREADS": os.environ.get("SWITCHEST_THREADS"),
     }
 
 

@@ -1,15 +1,19 @@
 """Run every switchest benchmark and write ``benchmarks/results.md``.
 
-All measurements run with BLAS limited to one thread (threadpoolctl). Comparisons of
-contenders (switchest vs FilterPy, vs dynamax, vs a numba yardstick; refine vs grid;
-few vs many trials) are interleaved by CPU time (``harness.compare_interleaved``);
-the sweeps of one implementation (IMM-EV1 scaling, simulation) keep the best wall
-time of repeats. The file records the machine (CPU count, load average before and
-after each benchmark, NumPy / SciPy and peer library versions, BLAS libraries and
-their threads) next to the markdown tables of every benchmark.
+All measurements run with BLAS limited to one thread (threadpoolctl) and switchest's engine at
+one thread (``set_threads(1)``; ``bench_engine.py``'s thread-scaling table sets two for its
+second contender). Comparisons of contenders (switchest vs FilterPy, vs dynamax, vs a numba
+yardstick; refine vs grid; few vs many trials) are interleaved by CPU time
+(``harness.compare_interleaved``); the sweeps of one implementation (IMM-EV1 scaling,
+simulation) keep the best wall time of repeats. The file records the machine (CPU count, load
+average before and after each benchmark, NumPy / SciPy and peer library versions, BLAS
+libraries and their threads, the engine's default threads) next to the markdown tables of
+every benchmark.
 
-Run: ``python benchmarks/run_all.py [--quick]`` (several minutes in full on two
-cores; ``--quick`` is a smoke run of about three minutes).
+Run: ``python benchmarks/run_all.py [--quick] [--reference PYTHON --reference-path SRC]``
+(several minutes in full on two cores; ``--quick`` is a smoke run of about three minutes). With
+a reference installation, ``bench_versus.py`` also runs (this checkout against it, workload by
+workload); without one it is skipped.
 """
 
 from __future__ import annotations
@@ -33,13 +37,14 @@ import bench_reproduce
 import bench_simulate
 import bench_startup
 import bench_switch_time
+import bench_versus
 from harness import (
     Section,
     format_seconds,
     machine_info,
     markdown_table,
     print_sections,
-    single_threaded_blas,
+    single_threaded,
 )
 
 HERE = Path(__file__).resolve().parent
@@ -54,8 +59,10 @@ BENCHMARKS = [
     ("Learning: EM error against the data size", bench_learn),
     ("Simulation", bench_simulate),
     ("Paper reproductions at full size", bench_reproduce),
-    ("Start-up from the on-disk cache", bench_startup),
+    ("Start-up of a process that filters", bench_startup),
+    ("This checkout against a reference installation", bench_versus),
 ]
+NEEDS_REFERENCE = {bench_versus}
 
 
 def _source_revision() -> str:
@@ -89,8 +96,12 @@ def _machine_section(info: dict, blas: dict, loads: list[tuple[str, str, str, st
          f"{info['platform']}"),
         "- peers and compilers: " + ", ".join(f"{k} {v}" for k, v in info["peers"].items()),
         f"- switchest source: {_source_revision()}",
-        ("- BLAS limited to one thread with `threadpoolctl.threadpool_limits(1)`: "
-         f"**{'yes' if blas['single_threaded'] else 'NO'}**"),
+        ("- BLAS limited to one thread with `threadpoolctl.threadpool_limits(1)` and "
+         "switchest's engine at one thread (`set_threads(1)`; by default it takes "
+         f"{info['engine_threads_default']}"
+         + (f", SWITCHEST_THREADS={info['SWITCHEST_THREADS']}" if info["SWITCHEST_THREADS"]
+            else "")
+         + f"): **{'yes' if blas['single_threaded'] else 'NO'}**"),
         f"- mode: {'--quick (reduced sizes)' if quick else 'full'}",
         "",
         libs,
@@ -109,17 +120,29 @@ def main(argv=None) -> None:
     parser.add_argument("--quick", action="store_true", help="reduced sizes for a smoke run")
     parser.add_argument("--output", type=Path, default=HERE / "results.md",
                         help="markdown file to write")
+    parser.add_argument("--reference", help="python interpreter of a reference installation "
+                        "for bench_versus.py (skipped without one)")
+    parser.add_argument("--reference-path", type=Path,
+                        help="directory put first on the reference's path (its src/)")
     args = parser.parse_args(argv)
+    if (args.reference is None) != (args.reference_path is None):
+        parser.error("--reference and --reference-path go together")
 
     info = machine_info()
     loads, body, failed = [], [], []
-    with single_threaded_blas() as blas:
-        print(f"BLAS limited to one thread: {blas['single_threaded']}", flush=True)
+    with single_threaded() as blas:
+        print(f"BLAS and engine at one thread: {blas['single_threaded']}", flush=True)
         for title, module in BENCHMARKS:
+            kwargs = {}
+            if module in NEEDS_REFERENCE:
+                if args.reference is None:
+                    print(f"{title}: skipped (no --reference given)", flush=True)
+                    continue
+                kwargs = {"reference": args.reference, "reference_path": args.reference_path}
             before = _load()
             start = time.perf_counter()
             try:
-                sections = module.run(quick=args.quick)
+                sections = module.run(quick=args.quick, **kwargs)
             except Exception as exc:  # noqa: BLE001 - report it, run the rest, exit non-zero
                 traceback.print_exc()
                 failed.append(title)

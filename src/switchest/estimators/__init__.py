@@ -34,7 +34,7 @@ _EXPORTS = {
     "rsls": ("RSLSObserver", "RSLSState", "fine_step_error_system"),
     "smoothing": ("SmoothedModes", "smooth_mode_matched"),
     "switch_time": ("SwitchTimeKalmanFilter", "switch_time_loglik"),
-    "threads": ("set_threads", "threads"),
+    "parallel": ("set_threads", "threads"),
 }
 __getattr__, __dir__ = deferred(__name__, globals(), _EXPORTS)
 __all__ = sorted(["Estimate", "Estimator", *(n for names in _EXPORTS.values() for n in names)],

@@ -431,7 +431,7 @@ def _check_scheduler_address(address: str) -> tuple[str, int] | None:
 
 def _init_worker(parent: int, threads: int) -> None:
     """Set up a pool worker: ignore Ctrl-C, run the filters' compiled loops on ``threads``
-    threads (the worker's share of the cores: :mod:`switchest.estimators.threads`) and, on
+    threads (the worker's share of the cores: :mod:`switchest.estimators.parallel`) and, on
     Linux, die with the process ``parent``.
 
     ``PR_SET_PDEATHSIG`` sends SIGKILL when the thread that started the worker ends,
