@@ -3,7 +3,7 @@
 The public API is re-exported here; this file defines nothing else but the lookup of the
 deferred names. The system, signal and simulation types come with the package; the subpackages
 and the names they define are imported at their first use (PEP 562 ``__getattr__``), so that
-``import switchest`` and the command line start without importing scipy, numba, cvxpy and
+``import switchest`` and the command line start without importing scipy, cvxpy and
 matplotlib.
 """
 
