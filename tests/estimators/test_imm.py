@@ -226,3 +226,28 @@ def test_on_switches_at_the_samples_the_sample_timing_wins(cls):
         rmse[timing] = np.sqrt(np.mean(np.sum((out.x - traj.x) ** 2, axis=-1), axis=1))
     for gain in (loglik["sample"] - loglik["interval"], rmse["interval"] - rmse["sample"]):
         assert gain.mean() > 4.0 * gain.std(ddof=1) / np.sqrt(N)
+
+
+@pytest.mark.parametrize("cls", [IMMFilter, GPB2Filter])
+def test_step_over_a_batch_of_two_axes_without_input_and_with_cached_tables(cls):
+    """``step`` over a batch ``(2, 3)`` with ``u=None`` (no input: zeros) is the step of the
+    flattened batch; the tables a filter keeps per step length do not leak between steps of
+    different lengths, and the caller's state is not modified."""
+    A = np.array([[[0.0, 1.0], [-1.0, -0.2]], [[0.0, 1.0], [-4.0, -0.5]]])
+    system = SwitchedLinearSystem.continuous(A, np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]]),
+                                             Q=0.01 * np.eye(2), R=[[0.05]])
+    est = cls(system, np.array([[0.95, 0.05], [0.05, 0.95]]), np.zeros(2), np.eye(2))
+    y = np.random.default_rng(5).normal(size=(4, 6, 1))
+    flat, grid = est.init((6,)), est.init((2, 3))
+    for k, dt in enumerate([None, 0.1, 0.25, 0.1]):
+        before = flat.P.copy()
+        flat = est.step(flat, y[k], dt=dt)
+        grid = est.step(grid, y[k].reshape(2, 3, 1), dt=dt)
+        np.testing.assert_array_equal(grid.combined_P.reshape(6, 2, 2), flat.combined_P)
+        np.testing.assert_array_equal(grid.log_prob.reshape(6, 2), flat.log_prob)
+    fresh = cls(system, est.transition, np.zeros(2), np.eye(2))
+    state = fresh.init((6,))
+    for k, dt in enumerate([None, 0.1, 0.25, 0.1]):
+        state = fresh.step(state, y[k], np.zeros(1), dt=dt)
+    np.testing.assert_array_equal(state.combined_x, flat.combined_x)
+    assert not np.shares_memory(before, flat.P)

@@ -3,8 +3,11 @@ thin Cython bindings (``_*.pyx``), built once by ``pip install``; nothing compil
 
 The engine knows arrays, not classes: only :mod:`switchest.estimators` imports it. Each family
 has a wrapper module here that checks and converts its arrays once per call
-(:mod:`._arrays`), allocates the outputs, splits the batch's trials over threads
-(:mod:`._parallel`) and calls its kernel, which loops over trials and samples without the GIL:
+(:mod:`._arrays`; the tables that do not change between calls once per filter, where a
+wrapper holds them: :class:`.imm.Bank`, :class:`.kalman.KalmanRun`), allocates the outputs,
+splits the batch's trials over threads (:mod:`._parallel`; the calling thread calls the kernel
+directly when it runs alone) and calls its kernel, which loops over trials and samples
+without the GIL:
 
 - :mod:`.kalman`: the Kalman filter along given transitions (one covariance recursion per
   group of trials that share it) and the fixed-gain filter;

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._checks import float_array, int_array
 
-__all__ = ["checked", "floats", "indices", "check_gate"]
+__all__ = ["all_ready", "checked", "floats", "indices", "check_gate", "replicated"]
 
 _FLOAT64, _INT64 = np.dtype(np.float64), np.dtype(np.int64)
 
@@ -53,7 +53,11 @@ def floats(value, name: str, axes: str, sizes: dict[str, int]) -> np.ndarray:
     """
     arr = _ready(value, _FLOAT64)
     if arr is None:
-        arr = np.require(float_array(value, name), requirements=["C_CONTIGUOUS", "WRITEABLE"])
+        if type(value) is np.ndarray and value.dtype is _FLOAT64:  # strided or read-only
+            arr = np.array(value, order="C")  # (float_array has nothing to convert)
+        else:
+            arr = np.require(float_array(value, name),
+                             requirements=["C_CONTIGUOUS", "WRITEABLE"])
     return _bind(arr, name, axes, sizes)
 
 
@@ -73,6 +77,29 @@ def indices(value, name: str, axes: str, sizes: dict[str, int], bound: str) -> n
                 f"got {lo}..{hi}"
             )
     return arr
+
+
+def all_ready(values, shapes) -> bool:
+    """Whether every one of ``values`` is already a float64 array of the kernels' type
+    (:func:`_ready`) of exactly its shape in ``shapes``: nothing to convert or check, the
+    fast path of a caller that would otherwise pass them through :func:`checked` (which it
+    still does when this is False, for the conversion or the error naming the argument)."""
+    for value, shape in zip(values, shapes):
+        if type(value) is not np.ndarray or value.dtype is not _FLOAT64 or value.shape != shape:
+            return False
+        flags = value.flags
+        if not (flags.c_contiguous and flags.writeable):
+            return False
+    return True
+
+
+def replicated(value: np.ndarray, lead: tuple[int, ...]) -> np.ndarray:
+    """A new C-contiguous float64 array ``(*lead, *value.shape)`` holding ``value`` at every
+    index of ``lead`` (what ``np.tile`` of a prior over trials and modes gives, at the cost of
+    one allocation and one copy)."""
+    out = np.empty((*lead, *value.shape))
+    out[...] = value
+    return out
 
 
 def check_gate(gate) -> float:

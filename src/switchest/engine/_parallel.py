@@ -27,7 +27,7 @@ import numpy as np
 
 from .._threads import cores
 
-__all__ = ["MIN_WORK", "over_trials", "run_split", "set_threads", "threads"]
+__all__ = ["MIN_WORK", "over_trials", "run_split", "run_values", "set_threads", "threads"]
 
 MIN_WORK = 20_000
 """Fewest trial-samples worth a thread of their own (a dispatch costs tens of microseconds;
@@ -80,8 +80,10 @@ def over_trials(run_range: Callable[[int, int], Report], trials: int, samples: i
     per = math.ceil(blocks / count)
     bounds = [(i * per * block, min((i + 1) * per * block, trials)) for i in range(count)]
     bounds = [(a, b) for a, b in bounds if a < b]
-    results = list(_executor(len(bounds) - 1).map(lambda ab: run_range(*ab), bounds[1:]))
-    results.insert(0, run_range(*bounds[0]))  # the calling thread takes the first range
+    pool = _executor(len(bounds) - 1)
+    others = [pool.submit(run_range, *ab) for ab in bounds[1:]]
+    # the calling thread takes the first range meanwhile, then waits for the others
+    results = [run_range(*bounds[0])] + [future.result() for future in others]
     status = next((s for s, _, _ in results if s != 0), 0)
     return status, sum(r for _, r, _ in results), min(e for _, _, e in results)
 
@@ -96,6 +98,11 @@ def run_split(kernel: Callable[..., int], args: list[tuple[object, bool]], *, tr
     argument is its report, ``(2,)``: the covariances it repaired and the smallest eigenvalue
     one had; it returns its status.
     """
+    if _thread_count(trials, samples, block) == 1:  # the calling thread: no slices to take
+        report = np.empty(2)
+        status = kernel(*[value for value, _ in args], report)
+        return int(status), int(report[0]), float(report[1])
+
     def run_range(begin: int, end: int) -> Report:
         report = np.empty(2)
         status = kernel(*[value[begin:end] if per_trial else value for value, per_trial in args],
@@ -103,6 +110,18 @@ def run_split(kernel: Callable[..., int], args: list[tuple[object, bool]], *, tr
         return int(status), int(report[0]), float(report[1])
 
     return over_trials(run_range, trials, samples, block=block)
+
+
+def run_values(kernel: Callable[..., int], values: tuple, per_trial: tuple[bool, ...], *,
+               trials: int, samples: int, block: int) -> Report:
+    """:func:`run_split` with the arguments and whether each is per trial given apart: on the
+    calling thread alone the kernel takes ``values`` as they are (no pairs to build)."""
+    if _thread_count(trials, samples, block) == 1:
+        report = np.empty(2)
+        status = kernel(*values, report)
+        return int(status), int(report[0]), float(report[1])
+    return run_split(kernel, list(zip(values, per_trial, strict=True)), trials=trials,
+                     samples=samples, block=block)
 
 
 def _thread_count(trials: int, samples: int, block: int) -> int:

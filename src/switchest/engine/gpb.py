@@ -36,10 +36,10 @@ import math
 import numpy as np
 
 from .._checks import positive_int
-from ._arrays import check_gate, checked
+from ._arrays import check_gate, checked, replicated
 from ._gpb import gpb2_bank
-from ._parallel import run_split
-from .imm import LANES, IMMOutput, is_sample_timing
+from ._parallel import run_values
+from .imm import LANES, IMMOutput, is_sample_timing, outputs
 
 __all__ = ["gpb2_run", "gpb2_step"]
 
@@ -63,8 +63,8 @@ def gpb2_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
         "P0:nn log_prob0:L", y, u, F, G, Qd, C, trans, R, log_transition, x0, P0, log_prob0)
     N, L = sizes["N"], sizes["L"]
     output, _ = _gpb2(y, u, F, G, Qd, trans[None], C, R, log_transition,
-                      np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
-                      np.tile(log_prob0, (N, 1)), is_sample_timing(timing), False,
+                      replicated(x0, (N, L)), replicated(P0, (N, L)),
+                      replicated(log_prob0, (N,)), is_sample_timing(timing), False,
                       check_gate(gate), positive_int(lanes, "lanes"), bool(modes_out))
     return output
 
@@ -96,21 +96,17 @@ def _gpb2(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_
     :class:`.imm.IMMOutput` and the merged state ``(x, P, log_prob)`` after the last sample."""
     N, K, _ = y.shape
     L, n = x_init.shape[1], x_init.shape[2]
-    x, P = np.empty((N, K, n)), np.empty((N, K, n, n))
-    prob, mode = np.empty((N, K, L)), np.empty((N, K), dtype=np.int64)
-    loglik, flag = np.empty((N, K)), np.empty((N, K), dtype=np.uint8)
-    size = (N, K, L) if modes_out else (0, 0, 0)  # zero-size: not written
-    x_modes, P_modes = np.empty((*size, n)), np.empty((*size, n, n))
+    x, P, prob, mode, loglik, flag, x_modes, P_modes = outputs(N, K, L, n, modes_out)
     last = np.empty_like(x_init), np.empty_like(P_init), np.empty_like(log_prob_init)
     mine, shared = True, False  # per-trial arrays, sliced to each thread's trials; the rest
-    # (an array whose first axis of length 1 serves every trial is shared)
-    outcome = run_split(gpb2_bank, [
-        (y, mine), (u, mine), (F, shared), (G, shared), (Qd, shared), (trans, len(trans) > 1),
-        (C, shared), (R, shared), (log_transition, len(log_transition) > 1), (x_init, mine),
-        (P_init, mine),
-        (log_prob_init, mine), (sample_timing, shared), (predict_first, shared),
-        (gate, shared), (lanes, shared), (x, mine), (P, mine), (prob, mine), (mode, mine),
-        (loglik, mine), (flag, mine), (x_modes, modes_out), (P_modes, modes_out),
-        *((a, mine) for a in last)], trials=N, samples=K, block=lanes)
+    # (``trans`` with a first axis of length 1 serves every trial; ``log_transition (L, L)``
+    # is one table for all)
+    outcome = run_values(gpb2_bank, (
+        y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_init,
+        sample_timing, predict_first, gate, lanes, x, P, prob, mode, loglik, flag, x_modes,
+        P_modes, *last), (
+        mine, mine, shared, shared, shared, len(trans) > 1, shared, shared, shared, mine, mine,
+        mine, shared, shared, shared, shared, mine, mine, mine, mine, mine, mine, modes_out,
+        modes_out, mine, mine, mine), trials=N, samples=K, block=lanes)
     modes = (x_modes, P_modes) if modes_out else (None, None)
     return IMMOutput(x, P, prob, mode, loglik, flag, *outcome, *modes), last

@@ -29,23 +29,26 @@ returns the mode-matched posteriors after each sample's update (the input of a s
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
 
 from .._checks import check_timing, positive_int
-from ._arrays import check_gate, checked
+from ._arrays import all_ready, check_gate, checked, replicated
 from ._imm import filter_bank
-from ._parallel import run_split
+from ._parallel import run_values
 
-__all__ = ["LANES", "MIX", "COLLAPSE", "IMMOutput", "imm_run", "imm_run_per_trial", "imm_step",
-           "is_sample_timing"]
+__all__ = ["LANES", "MIX", "COLLAPSE", "GPB2", "Bank", "BankTable", "IMMOutput", "imm_run",
+           "imm_run_per_trial", "imm_step", "is_sample_timing"]
 
 LANES = 16  # trials per block: four AVX2 registers of float64 per row of lanes
 
 # the interaction of filter_bank's mode-matched filters at each sample after the first
 MIX = 0  # the IMM's: mode j restarts from the mixture with weights mu_{i|j}
 COLLAPSE = 1  # GPB1's: every mode restarts from the one Gaussian of all modes' mixture
+
+GPB2 = "gpb2"  # not an interaction of filter_bank: :class:`Bank` runs GPB2's kernel instead
 
 _INTERACTIONS = {"mix": MIX, "collapse": COLLAPSE}
 
@@ -143,8 +146,8 @@ def imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
         "P0:nn log_prob0:L", y, u, F, G, Qd, C, trans, R, log_transition, x0, P0, log_prob0)
     N, L = sizes["N"], sizes["L"]
     output, _ = _bank(y, u, F, G, Qd, trans[None], C, R, np.arange(L)[None, None],
-                      log_transition[None], np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
-                      np.tile(log_prob0, (N, 1)), _interaction(interaction),
+                      log_transition[None], replicated(x0, (N, L)), replicated(P0, (N, L)),
+                      replicated(log_prob0, (N,)), _interaction(interaction),
                       is_sample_timing(timing), False, check_gate(gate),
                       positive_int(lanes, "lanes"), bool(modes_out))
     return output
@@ -178,8 +181,8 @@ def imm_run_per_trial(y, u, F, G, Qd, trans, C, R, out_index, log_transition, x0
         log_transition, x0, P0, log_prob0)
     N, L = sizes["N"], sizes["L"]
     output, _ = _bank(y, u, F, G, Qd, trans, C, R, out_index[:, None], log_transition,
-                      np.tile(x0, (N, L, 1)), np.tile(P0, (N, L, 1, 1)),
-                      np.tile(log_prob0, (N, 1)), MIX, is_sample_timing(timing), False,
+                      replicated(x0, (N, L)), replicated(P0, (N, L)),
+                      replicated(log_prob0, (N,)), MIX, is_sample_timing(timing), False,
                       check_gate(gate), LANES, False)
     return output
 
@@ -227,30 +230,140 @@ def is_sample_timing(timing) -> bool:
 
 
 def _bank(y, u, F, G, Qd, trans, C, R, out_index, log_transition, x_init, P_init,
-          log_prob_init, interaction, sample_timing, predict_first, gate, lanes, modes_out):
+          log_prob_init, interaction, sample_timing, predict_first, gate, lanes, modes_out,
+          transition=None):
     """The bank kernel (``se_filter_bank``, ``engine/c/bank.c``: ``trans``, ``out_index``,
     ``log_transition`` shared by the trials where their first axis has length 1); returns the
     :class:`IMMOutput` (with the mode-matched posteriors of every sample if ``modes_out``)
-    and the mode-matched state ``(x, P, log_prob)`` after the last sample."""
+    and the mode-matched state ``(x, P, log_prob)`` after the last sample. ``transition`` is
+    ``exp(log_transition)`` where the caller holds it already."""
     N, K, _ = y.shape
     L, n = x_init.shape[1], x_init.shape[2]
-    x, P = np.empty((N, K, n)), np.empty((N, K, n, n))
-    prob, mode = np.empty((N, K, L)), np.empty((N, K), dtype=np.int64)
-    loglik, flag = np.empty((N, K)), np.empty((N, K), dtype=np.uint8)
-    size = (N, K, L) if modes_out else (0, 0, 0)  # zero-size: not written
-    x_modes, P_modes = np.empty((*size, n)), np.empty((*size, n, n))
+    x, P, prob, mode, loglik, flag, x_modes, P_modes = outputs(N, K, L, n, modes_out)
     last = np.empty_like(x_init), np.empty_like(P_init), np.empty_like(log_prob_init)
+    if transition is None:
+        transition = np.exp(log_transition)
     mine, shared = True, False  # per-trial arrays, sliced to each thread's trials; the rest
     # (an array whose first axis of length 1 serves every trial is shared)
-    outcome = run_split(filter_bank, [
-        (y, mine), (u, mine), (F, shared), (G, shared), (Qd, shared), (trans, len(trans) > 1),
-        (C, shared), (R, shared), (out_index, len(out_index) > 1),
-        (np.exp(log_transition), len(log_transition) > 1),
-        (log_transition, len(log_transition) > 1), (x_init, mine), (P_init, mine),
-        (log_prob_init, mine),
-        (interaction, shared), (sample_timing, shared), (predict_first, shared),
-        (gate, shared), (lanes, shared), (x, mine), (P, mine), (prob, mine), (mode, mine),
-        (loglik, mine), (flag, mine), (x_modes, modes_out), (P_modes, modes_out),
-        *((a, mine) for a in last)], trials=N, samples=K, block=lanes)
+    outcome = run_values(filter_bank, (
+        y, u, F, G, Qd, trans, C, R, out_index, transition, log_transition, x_init, P_init,
+        log_prob_init, interaction, sample_timing, predict_first, gate, lanes, x, P, prob, mode,
+        loglik, flag, x_modes, P_modes, *last), (
+        mine, mine, shared, shared, shared, len(trans) > 1, shared, shared, len(out_index) > 1,
+        len(transition) > 1, len(log_transition) > 1, mine, mine, mine, shared, shared, shared,
+        shared, shared, mine, mine, mine, mine, mine, mine, modes_out, modes_out, mine, mine,
+        mine), trials=N, samples=K, block=lanes)
     modes = (x_modes, P_modes) if modes_out else (None, None)
     return IMMOutput(x, P, prob, mode, loglik, flag, *outcome, *modes), last
+
+
+def outputs(N: int, K: int, L: int, n: int, modes_out: bool) -> tuple[np.ndarray, ...]:
+    """New arrays for what the bank kernels write for ``N`` trials over ``K`` samples: ``x``,
+    ``P``, ``prob``, ``mode``, ``loglik``, ``flag`` and the mode-matched posteriors (of zero size,
+    not written, unless ``modes_out``)."""
+    x_modes, P_modes = (np.empty((N, K, L, n)), np.empty((N, K, L, n, n))) if modes_out \
+        else _no_modes(n)
+    return (np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K, L)),
+            np.empty((N, K), dtype=np.int64), np.empty((N, K)), np.empty((N, K), dtype=np.uint8),
+            x_modes, P_modes)
+
+
+@lru_cache(maxsize=16)
+def _no_modes(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The zero-size mode-matched outputs ``(0, 0, 0, n)``, ``(0, 0, 0, n, n)``: nothing is
+    written into them, so one pair serves every call."""
+    return np.empty((0, 0, 0, n)), np.empty((0, 0, 0, n, n))
+
+
+class BankTable(NamedTuple):
+    """A table of transitions checked against a :class:`Bank` (:meth:`Bank.table`): ``F``,
+    ``G``, ``Qd`` and ``trans`` as the kernels take them (``(1, K, L)`` for a record,
+    ``(1, 1, L)`` for one sample), with the sizes they bound."""
+
+    F: np.ndarray
+    G: np.ndarray
+    Qd: np.ndarray
+    trans: np.ndarray
+    sizes: dict
+
+
+class Bank:
+    """The configuration of a bank of mode-matched filters, checked and converted once: the
+    output matrices ``C (L, m, n)``, noises ``R (L, m, m)``, ``log_transition (L, L)``, the
+    prior ``x0 (n,)``, ``P0 (n, n)``, ``log_prob0 (L,)`` of every mode, the ``interaction``
+    (``"mix"``, ``"collapse"`` or :data:`GPB2`, the kernel of :mod:`.gpb`), ``timing``,
+    ``gate`` and ``lanes``. :meth:`run` and :meth:`step` then check only what changes between
+    calls (the measurements, inputs and state) and call the kernel :func:`imm_run`,
+    :func:`imm_step` (or :func:`.gpb.gpb2_run`, :func:`.gpb.gpb2_step`) call, on the same
+    arrays. The arrays given are not modified; keep them unchanged while the bank is used.
+    """
+
+    def __init__(self, C, R, log_transition, x0, P0, log_prob0, *, gate=math.inf,
+                 interaction: str = "mix", timing: str = "interval", lanes: int = LANES):
+        sizes: dict[str, int] = {}
+        self.C, self.R, self.log_transition, self.x0, self.P0, self.log_prob0 = checked(
+            sizes, "C:Lmn R:Lmm log_transition:LL x0:n P0:nn log_prob0:L", C, R,
+            log_transition, x0, P0, log_prob0)
+        self.sizes = sizes
+        self.gpb2 = interaction == GPB2
+        self.interaction = None if self.gpb2 else _interaction(interaction)
+        self.sample_timing = is_sample_timing(timing)
+        self.gate = check_gate(gate)
+        self.lanes = positive_int(lanes, "lanes")
+        L, n = sizes["L"], sizes["n"]
+        self._shared_log_transition = self.log_transition[None]
+        self._transition = np.exp(self._shared_log_transition)
+        self._out_index = np.arange(L)[None, None]
+        self._step_sizes = L, n, sizes["m"]
+
+    def table(self, F, G, Qd, trans) -> BankTable:
+        """``F (M, n, n)``, ``G (M, n, l)``, ``Qd (M, n, n)`` checked, with ``trans (K, L)``
+        (for :meth:`run`) or ``(L,)`` (for :meth:`step`) indexing them."""
+        sizes = dict(self.sizes)
+        record = np.ndim(trans) == 2
+        F, G, Qd, trans = checked(sizes, "F:Mnn G:Mnl Qd:Mnn " + ("trans:KL<M" if record
+                                                                  else "trans:L<M"),
+                                  F, G, Qd, trans)
+        return BankTable(F, G, Qd, trans[None] if record else trans[None, None], sizes)
+
+    def run(self, y, u, table: BankTable, *, modes_out: bool = False) -> IMMOutput:
+        """The filter of ``y (N, K, m)``, ``u (N, K, l)`` over a record's ``table``, from the
+        prior: :func:`imm_run`."""
+        if "K" not in table.sizes:
+            raise ValueError("a table of one sample (trans of shape (L,)) serves step, not run")
+        sizes = dict(table.sizes)
+        y, u = checked(sizes, "y:NKm u:NKl", y, u)
+        N, L = sizes["N"], sizes["L"]
+        output, _ = self._kernel(y, u, table, replicated(self.x0, (N, L)),
+                                 replicated(self.P0, (N, L)), replicated(self.log_prob0, (N,)),
+                                 False, self.lanes, bool(modes_out))
+        return output
+
+    def step(self, x, P, log_prob, y, u, table: BankTable, *,
+             predict_first: bool) -> tuple[IMMOutput, tuple[np.ndarray, ...]]:
+        """One sample of every trial from the mode-matched state ``x (N, L, n)``,
+        ``P (N, L, n, n)``, ``log_prob (N, L)`` with ``y (N, m)``, ``u (N, l)`` over a
+        one-sample ``table``: :func:`imm_step`."""
+        if "K" in table.sizes:
+            raise ValueError("a record's table (trans of shape (K, L)) serves run, not step")
+        values = (x, P, log_prob, y, u)
+        N = x.shape[0] if type(x) is np.ndarray and x.ndim else -1
+        (L, n, m), l = self._step_sizes, table.sizes["l"]
+        if not all_ready(values, ((N, L, n), (N, L, n, n), (N, L), (N, m), (N, l))):
+            x, P, log_prob, y, u = checked(dict(table.sizes), "x:NLn P:NLnn log_prob:NL y:Nm u:Nl",
+                                           *values)
+        return self._kernel(y[:, None], u[:, None], table, x, P, log_prob, bool(predict_first),
+                            LANES, False)
+
+    def _kernel(self, y, u, table, x_init, P_init, log_prob_init, predict_first, lanes,
+                modes_out):
+        if self.gpb2:
+            from .gpb import _gpb2  # (gpb imports this module)
+
+            return _gpb2(y, u, table.F, table.G, table.Qd, table.trans, self.C, self.R,
+                         self.log_transition, x_init, P_init, log_prob_init, self.sample_timing,
+                         predict_first, self.gate, lanes, modes_out)
+        return _bank(y, u, table.F, table.G, table.Qd, table.trans, self.C, self.R,
+                     self._out_index, self._shared_log_transition, x_init, P_init,
+                     log_prob_init, self.interaction, self.sample_timing, predict_first,
+                     self.gate, lanes, modes_out, self._transition)

@@ -22,11 +22,12 @@ from typing import NamedTuple
 import numpy as np
 
 from .._checks import positive_int
-from ._arrays import check_gate, checked
+from ._arrays import check_gate, checked, replicated
 from ._kalman import CHUNK, LANES, kalman_filter, steady_filter  # noqa: F401 (CHUNK: re-exported)
-from ._parallel import run_split
+from ._parallel import run_values
 
-__all__ = ["KalmanOutput", "kalman_run", "kalman_step", "kalman_steady_run", "kalman_steady_step"]
+__all__ = ["KalmanOutput", "KalmanRun", "kalman_run", "kalman_step", "kalman_steady_run",
+           "kalman_steady_step"]
 
 
 class KalmanOutput(NamedTuple):
@@ -91,9 +92,34 @@ def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, *, gate=math.inf,
         sizes, "y:NKm u:NKl F:Mnn G:Mnl Qd:Mnn trans:NK<M C:Lmn R:Lmm mode:NK<L x0:n P0:nn",
         y, u, F, G, Qd, trans, C, R, mode, x0, P0)
     N = sizes["N"]
-    return _one_mode(y, u, F, G, Qd, trans, C, R, mode, np.repeat(x0[None], N, axis=0),
-                     np.repeat(P0[None], N, axis=0), False, check_gate(gate),
-                     positive_int(lanes, "lanes"))
+    return _one_mode(y, u, F, G, Qd, trans, C, R, mode, replicated(x0, (N,)),
+                     replicated(P0, (N,)), False, check_gate(gate), positive_int(lanes, "lanes"))
+
+
+class KalmanRun:
+    """:func:`kalman_run` with its tables that do not change between calls checked and
+    converted once: the output matrices ``C (L, m, n)``, noises ``R (L, m, m)``, the prior
+    ``x0 (n,)``, ``P0 (n, n)``, ``gate`` and ``lanes``; :meth:`__call__` checks the rest and
+    runs the same kernel on the same arrays. The arrays given are not modified; keep them
+    unchanged while it is used."""
+
+    def __init__(self, C, R, x0, P0, *, gate=math.inf, lanes: int = LANES):
+        sizes: dict[str, int] = {}
+        self.C, self.R, self.x0, self.P0 = checked(sizes, "C:Lmn R:Lmm x0:n P0:nn", C, R, x0, P0)
+        self.sizes = sizes
+        self.gate = check_gate(gate)
+        self.lanes = positive_int(lanes, "lanes")
+
+    def __call__(self, y, u, F, G, Qd, trans, mode) -> KalmanOutput:
+        """:func:`kalman_run` of ``y (N, K, m)``, ``u (N, K, l)`` along the table ``F``, ``G``,
+        ``Qd`` with ``trans (N, K)`` and ``mode (N, K)``."""
+        sizes = dict(self.sizes)
+        y, u, F, G, Qd, trans, mode = checked(
+            sizes, "y:NKm u:NKl F:Mnn G:Mnl Qd:Mnn trans:NK<M mode:NK<L", y, u, F, G, Qd, trans,
+            mode)
+        N = sizes["N"]
+        return _one_mode(y, u, F, G, Qd, trans, self.C, self.R, mode, replicated(self.x0, (N,)),
+                         replicated(self.P0, (N,)), False, self.gate, self.lanes)
 
 
 def kalman_step(x, P, y, u, F, G, Qd, C, R, *, predict_first: bool,
@@ -123,11 +149,11 @@ def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, 
     x, P, loglik = np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K))
     flag = np.empty((N, K), dtype=np.uint8)
     mine, shared = True, False  # per-trial arrays, sliced to each thread's trials; tables
-    outcome = run_split(kalman_filter, [
-        (y, mine), (u, mine), (F, shared), (G, shared), (Qd, shared), (trans, mine),
-        (C, shared), (R, shared), (mode, mine), (x_init, mine), (P_init, mine),
-        (predict_first, shared), (gate, shared), (min(lanes, N), shared),
-        (x, mine), (P, mine), (loglik, mine), (flag, mine)], trials=N, samples=K, block=lanes)
+    outcome = run_values(kalman_filter, (
+        y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, gate, min(lanes, N), x,
+        P, loglik, flag), (
+        mine, mine, shared, shared, shared, mine, shared, shared, mine, mine, mine, shared, shared,
+        shared, mine, mine, mine, mine), trials=N, samples=K, block=lanes)
     return KalmanOutput(x, P, loglik, flag, *outcome)
 
 

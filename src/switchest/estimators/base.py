@@ -35,6 +35,9 @@ from ..system import SwitchedLinearSystem
 
 __all__ = ["Estimate", "Estimator"]
 
+_INT64, _FLOAT64 = np.dtype(np.int64), np.dtype(np.float64)
+_INT_MAX = 2**62  # int_array's bound
+
 
 @dataclass(frozen=True, eq=False)
 class Estimate:
@@ -185,12 +188,13 @@ class Estimator(ABC):
         ``y`` is a numpy masked array; ``u`` must be complete (no NaN, no mask).
         """
         sys = self.system
-        y = float_array(y, "y", masked="nan")
+        if type(y) is not np.ndarray or y.dtype is not _FLOAT64:  # (else float_array's: y)
+            y = float_array(y, "y", masked="nan")
         if y.ndim < 2 or y.shape[-1] != sys.n_outputs:
             raise ValueError(
                 f"y must have shape (..., K, m) with m = {sys.n_outputs} outputs, got {y.shape}"
             )
-        if np.any(np.isinf(y)):
+        if np.isinf(y).any():
             raise ValueError("y must not contain infinities (NaN marks a missing measurement)")
         batch, K = y.shape[:-2], y.shape[-2]
         if K == 0:
@@ -208,10 +212,14 @@ class Estimator(ABC):
         if u is None:  # no input: zeros, nothing to check
             u = np.zeros((N, K, l))
         else:
-            u = float_array(u, "u")
-            check_finite(u, "u")
-            if u.shape == (l,) or u.shape == (K, l):
-                u = np.broadcast_to(u, (*batch, K, l))
+            if type(u) is not np.ndarray or u.dtype is not _FLOAT64:  # (else float_array's: u)
+                u = float_array(u, "u")
+            if not np.isfinite(u).all():
+                check_finite(u, "u")  # its message
+            if u.shape == (l,) or u.shape == (K, l):  # held by every trial: a copy per trial,
+                held = np.empty((*batch, K, l))  # as the kernels take it
+                held[...] = u
+                u = held
             elif u.shape != (*batch, K, l):
                 raise ValueError(
                     f"u must have shape (l,) = ({l},), (K, l) = ({K}, {l}) or {(*batch, K, l)}, "
@@ -226,33 +234,58 @@ class Estimator(ABC):
             if sys.is_continuous:
                 raise ValueError("t (the sample times) is required for a continuous-time system")
             return sys.dt * np.arange(K)
-        t = float_array(t, "t", ndim=1)
-        check_finite(t, "t")
+        key = None
+        if type(t) is np.ndarray and t.dtype is _FLOAT64 and t.shape == (K,) and K <= 4096:
+            key = t.tobytes()  # times checked before (the same values) pass again
+            if key in self.__dict__.get("_valid_times", ()):
+                return t
+        if type(t) is not np.ndarray or t.dtype is not _FLOAT64 or t.ndim != 1:
+            t = float_array(t, "t", ndim=1)  # (else its result: t)
+        if not np.isfinite(t).all():
+            check_finite(t, "t")  # its message
         if t.shape != (K,):
             raise ValueError(f"t must have shape (K,) = ({K},), got {t.shape}")
-        step = np.diff(t)
-        if np.any(step <= 0):
+        step = t[1:] - t[:-1]  # np.diff's
+        if (step <= 0).any():
             raise ValueError("t must be strictly increasing")
         if not sys.is_continuous and np.any(np.abs(step - sys.dt) > 1e-9 * sys.dt):
             raise ValueError(f"t must be spaced by the discrete system's dt = {sys.dt:g}")
+        if key is not None:
+            valid = self.__dict__.setdefault("_valid_times", set())
+            if len(valid) >= 8:
+                valid.clear()
+            valid.add(key)
         return t
 
     def _modes(self, modes, batch, K, name="modes") -> np.ndarray:
         """Per-sample modes ``(K,)`` or ``(*batch, K)`` -> ``(N, K)``, validated, C-contiguous."""
-        modes = int_array(modes, name)
+        given = modes
+        fast = type(modes) is np.ndarray and modes.dtype is _INT64 and modes.size > 0
+        if fast:  # int64 already: int_array's checks are its range, made once with ours
+            lo, hi = modes.min(), modes.max()
+            if hi > _INT_MAX or lo < -_INT_MAX:
+                int_array(modes, name)  # its message
+        else:
+            modes = int_array(modes, name)
         if modes.shape != (K,) and modes.shape != (*batch, K):
             raise ValueError(f"{name} must have shape (K,) = ({K},) or {(*batch, K)}, "
                              f"got {modes.shape}")
         L = self.system.n_modes
-        lo, hi = modes.min(), modes.max()  # on the array given, before broadcasting
+        if not fast:
+            lo, hi = modes.min(), modes.max()  # on the array given, before broadcasting
         if lo < 0 or hi >= L:
             raise ValueError(f"{name} must be in 0..{L - 1}, got {lo}..{hi}")
         if modes.shape == (K,):
             modes = np.broadcast_to(modes, (*batch, K))
-        return np.ascontiguousarray(modes.reshape(-1, K))
+        modes = np.ascontiguousarray(modes.reshape(-1, K))
+        # a new array, as int_array's conversion gives: never a view of the caller's
+        return modes.copy() if fast and np.may_share_memory(modes, given) else modes
 
     @staticmethod
     def _unflatten(est: Estimate, batch) -> Estimate:
+        if len(batch) == 1:  # the batch axis is the flattened one: nothing to reshape
+            return est
+
         def shape(a):
             return None if a is None else a.reshape(*batch, *a.shape[1:])
 

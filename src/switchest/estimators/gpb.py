@@ -42,8 +42,7 @@ updated and gets weight zero; a sample no filter can use counts as missing and i
 
 from __future__ import annotations
 
-from ..engine.gpb import gpb2_run, gpb2_step
-from ..engine.imm import imm_run, imm_step
+from ..engine.imm import GPB2
 from .mode_bank import ModeBankFilter
 
 __all__ = ["GPB1Filter", "GPB2Filter"]
@@ -91,17 +90,7 @@ class GPB1Filter(ModeBankFilter):
     the identity transition are that bank (their mixing weights are ``delta_ij``).
     """
 
-    def _kernel_run(self, y, u, F, G, Qd, trans, modes_out):
-        sys = self.system
-        return imm_run(y, u, F, G, Qd, trans, sys.C, sys.R, self._log_transition, self.x0,
-                       self.P0, self._log_p0, gate=self._gate, interaction="collapse",
-                       timing=self.timing, modes_out=modes_out)
-
-    def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first):
-        sys = self.system
-        return imm_step(x, P, log_prob, y, u, F, G, Qd, trans, sys.C, sys.R,
-                        self._log_transition, predict_first=predict_first, gate=self._gate,
-                        interaction="collapse", timing=self.timing)
+    _interaction = "collapse"
 
 
 class GPB2Filter(ModeBankFilter):
@@ -145,14 +134,4 @@ class GPB2Filter(ModeBankFilter):
     ``mu_j(k) ∝ mu_j(0) prod_t Lambda_j(t)``.
     """
 
-    def _kernel_run(self, y, u, F, G, Qd, trans, modes_out):
-        sys = self.system
-        return gpb2_run(y, u, F, G, Qd, trans, sys.C, sys.R, self._log_transition, self.x0,
-                        self.P0, self._log_p0, gate=self._gate, timing=self.timing,
-                        modes_out=modes_out)
-
-    def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first):
-        sys = self.system
-        return gpb2_step(x, P, log_prob, y, u, F, G, Qd, trans, sys.C, sys.R,
-                         self._log_transition, predict_first=predict_first, gate=self._gate,
-                         timing=self.timing)
+    _interaction = GPB2

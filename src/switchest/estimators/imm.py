@@ -9,7 +9,8 @@ sample instants; the ``timing`` says which interval the mode of a sample governs
 original). Mode probabilities are kept as log-weights.
 
 Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
-:mod:`switchest.engine.imm` (``imm_run``, ``imm_step``), which holds the one
+:mod:`switchest.engine.imm` (the one ``imm_run`` and ``imm_step`` call, through the filter's
+:class:`~switchest.engine.imm.Bank`: its tables checked once), which holds the one
 implementation of each equation: interaction (Blom & Bar-Shalom, 1988), mode-matched
 Kalman prediction and update (Joseph form; the information form where that loses its
 digits, a covariance beyond ``1/eps`` repaired with a ``RuntimeWarning``), and the
@@ -27,7 +28,6 @@ rows sum to one.
 
 from __future__ import annotations
 
-from ..engine.imm import imm_run, imm_step
 from .mode_bank import IMMState, ModeBankFilter
 
 __all__ = ["IMMState", "IMMFilter"]
@@ -84,14 +84,4 @@ class IMMFilter(ModeBankFilter):
     (:meth:`~switchest.estimators.mode_bank.ModeBankFilter.smooth`).
     """
 
-    def _kernel_run(self, y, u, F, G, Qd, trans, modes_out):
-        sys = self.system
-        return imm_run(y, u, F, G, Qd, trans, sys.C, sys.R, self._log_transition, self.x0,
-                       self.P0, self._log_p0, gate=self._gate, timing=self.timing,
-                       modes_out=modes_out)
-
-    def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first):
-        sys = self.system
-        return imm_step(x, P, log_prob, y, u, F, G, Qd, trans, sys.C, sys.R,
-                        self._log_transition, predict_first=predict_first, gate=self._gate,
-                        timing=self.timing)
+    _interaction = "mix"

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from abc import abstractmethod
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -33,13 +32,18 @@ from .._checks import (
 )
 from ..discretize import mode_steps, sample_mode_steps
 from ..engine import GATED, raise_for_status, warn_for_repairs
-from ..engine.imm import IMMOutput
+from ..engine.imm import Bank, BankTable, IMMOutput
 from .base import Estimate, Estimator
 from .smoothing import smooth_filtered
 
 __all__ = ["IMMState", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"]
 
 _DIVERGED = 1e4  # smoothed spread beyond this many times the filtered one: the smoother diverged
+_CACHED_TABLES = 8  # step lengths (or records' sample times) whose checked tables a filter keeps
+_CACHED_SAMPLES = 4096  # longest record whose table is kept
+_FLOAT64 = np.dtype(np.float64)
+_STEP_TYPES = (float, int, np.float64)  # step lengths whose tables are kept (bool is not one)
+_UNCACHED = object()  # the key of a step length of another type: its table is made anew
 
 
 class SmootherDivergenceWarning(RuntimeWarning):
@@ -172,6 +176,8 @@ class ModeBankFilter(Estimator):
     (docs/conventions.rst).
     """
 
+    _interaction: str  # the bank's interaction (:class:`switchest.engine.imm.Bank`)
+
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None, gate: float | None = None,
                  timing: str = "interval"):
         self._set_prior(system, x0, P0)
@@ -179,16 +185,39 @@ class ModeBankFilter(Estimator):
         self._set_mode_prior(transition, mode_prob0)
         self.timing = check_timing(timing)
         self._gate = math.inf if self.gate is None else self.gate
+        # the tables that do not change, checked and converted once for every run and step
+        self._bank = Bank(system.C, system.R, self._log_transition, self.x0, self.P0,
+                          self._log_p0, gate=self._gate, interaction=self._interaction,
+                          timing=self.timing)
+        self._tables: dict = {}  # dt -> the bank's table of one sample (of the cached steps)
+        self._dims = system.n_modes, system.n_states, system.n_outputs, system.n_inputs
+        self._records: dict = {}  # t's bytes -> (F, G, Qd, trans, the bank's table)
 
     # ------------------------------------------------------------------ the kernels
-    @abstractmethod
-    def _kernel_run(self, y, u, F, G, Qd, trans, modes_out: bool) -> IMMOutput:
-        """The compiled filter over a prepared record, in ``self.timing``."""
+    def _kernel_run(self, y, u, table: BankTable, modes_out: bool) -> IMMOutput:
+        """The compiled filter over a prepared record and its table, in ``self.timing``."""
+        return self._bank.run(y, u, table, modes_out=modes_out)
 
-    @abstractmethod
-    def _kernel_step(self, x, P, log_prob, y, u, F, G, Qd, trans, predict_first: bool):
-        """One compiled sample from the mode-matched state, in ``self.timing``:
-        ``(IMMOutput, (x, P, log_prob))``."""
+    def _step_table(self, dt) -> BankTable:
+        """The bank's table of one sample predicted over ``dt`` (None: update only, the table
+        not read): every mode's own transition (:func:`switchest.discretize.mode_steps`),
+        checked once per step length."""
+        key = dt if dt is None or type(dt) in _STEP_TYPES else _UNCACHED
+        table = self._tables.get(key)
+        if table is None:
+            sys = self.system
+            L, n, l = sys.n_modes, sys.n_states, sys.n_inputs
+            if dt is None:  # update only: the transition table is not read
+                F, G, Qd = np.zeros((L, n, n)), np.zeros((L, n, l)), np.zeros((L, n, n))
+            else:
+                steps = mode_steps(sys, dt)  # validates dt
+                F, G, Qd = steps.F, steps.G, steps.Qd
+            table = self._bank.table(F, G, Qd, np.arange(L))
+            if key is not _UNCACHED:
+                if len(self._tables) >= _CACHED_TABLES:
+                    self._tables.clear()
+                self._tables[key] = table
+        return table
 
     # ------------------------------------------------------------------ the protocol
     def init(self, batch_shape=()) -> IMMState:
@@ -209,24 +238,35 @@ class ModeBankFilter(Estimator):
         ``state`` is an :class:`~switchest.estimators.imm.IMMState`: the mode-matched
         Gaussians (GPB2: merged), log mode probabilities and the combined estimate.
         """
-        sys = self.system
         batch = state.log_prob.shape[:-1]
-        L, n = sys.n_modes, sys.n_states
-        N = int(np.prod(batch, dtype=np.int64))
-        y = np.asarray(y, dtype=float).reshape(N, sys.n_outputs)
+        L, n, m, l = self._dims
+        N = math.prod(batch)
+        if type(y) is not np.ndarray or y.dtype is not _FLOAT64:
+            y = np.asarray(y, dtype=float)
+        y = np.ascontiguousarray(y.reshape(N, m))  # (a copy of a strided one)
+        one = len(batch) == 1  # the state's arrays keep their shapes: no reshape to make
         if u is None:
-            u = np.zeros((N, sys.n_inputs))
-        u = np.broadcast_to(np.asarray(u, dtype=float), (*batch, sys.n_inputs)).reshape(N, -1)
-        if dt is None:  # update only: the transition table is not read
-            F, G, Qd = np.zeros((L, n, n)), np.zeros((L, n, sys.n_inputs)), np.zeros((L, n, n))
+            u = np.zeros((N, l))
         else:
-            steps = mode_steps(sys, dt)
-            F, G, Qd = steps.F, steps.G, steps.Qd
-        out, (x, P, log_prob) = self._kernel_step(
-            state.x.reshape(N, L, n), state.P.reshape(N, L, n, n), state.log_prob.reshape(N, L),
-            y, u, F, G, Qd, np.arange(L), predict_first=dt is not None)
+            if type(u) is not np.ndarray or u.dtype is not _FLOAT64:
+                u = np.asarray(u, dtype=float)
+            if u.shape != (*batch, l) or not u.flags.c_contiguous:
+                held = np.empty((*batch, l))
+                held[...] = u  # u broadcast over the batch
+                u = held
+            if not one:
+                u = u.reshape(N, l)
+        out, (x, P, log_prob) = self._bank.step(
+            state.x if one else state.x.reshape(N, L, n),
+            state.P if one else state.P.reshape(N, L, n, n),
+            state.log_prob if one else state.log_prob.reshape(N, L), y, u,
+            self._step_table(dt), predict_first=dt is not None)
         raise_for_status(out.status)
         warn_for_repairs(out)
+        if one:
+            return IMMState(x=x, P=P, log_prob=log_prob, loglik=out.loglik[:, 0],
+                            outlier=out.flag[:, 0] == GATED, combined_x=out.x[:, 0],
+                            combined_P=out.P[:, 0])
         return IMMState(
             x=x.reshape(*batch, L, n), P=P.reshape(*batch, L, n, n),
             log_prob=log_prob.reshape(*batch, L), loglik=out.loglik.reshape(batch),
@@ -242,9 +282,8 @@ class ModeBankFilter(Estimator):
         distinct sampling step.
         """
         y2, u2, t, batch = self._prepare(y, u, t)
-        F, G, Qd, trans = self._table(t)
-        return self._unflatten(self._estimate(self._kernel_run(y2, u2, F, G, Qd, trans, False)),
-                               batch)
+        table = self._record_table(t)[-1]
+        return self._unflatten(self._estimate(self._kernel_run(y2, u2, table, False)), batch)
 
     def run_modes(self, y, u=None, t=None) -> ModeMatchedRun:
         """:meth:`run`, also returning the mode-matched Gaussians after each sample's update,
@@ -256,17 +295,32 @@ class ModeBankFilter(Estimator):
         check_memory(8 * N * K * L * (n * n + n),
                      f"{type(self).__name__} mode-matched posteriors of y of shape {y2.shape} "
                      f"(N K L (n^2 + n) floats, n = {n}, L = {L})")
-        F, G, Qd, trans = self._table(t)
-        out = self._kernel_run(y2, u2, F, G, Qd, trans, True)
+        F, G, Qd, trans, table = self._record_table(t)
+        out = self._kernel_run(y2, u2, table, True)
         return ModeMatchedRun(self._estimate(out), out.x_modes, out.P_modes, out.mode_prob,
-                              np.ascontiguousarray(u2), F, G, Qd, trans, self.transition,
-                              tuple(batch))
+                              np.ascontiguousarray(u2), F.copy(), G.copy(), Qd.copy(),
+                              trans.copy(), self.transition, tuple(batch))
 
     def _table(self, t):
         """``F, G, Qd`` of each mode and distinct sampling step, and ``trans (K, L)``, the entry
         of mode ``j`` into sample ``k`` (:func:`switchest.discretize.sample_mode_steps`)."""
         table, trans = sample_mode_steps(self.system, t)
         return table.F, table.G, table.Qd, trans
+
+    def _record_table(self, t):
+        """:meth:`_table` of the checked sample times ``t`` and the bank's table of it, kept
+        for the last few ``t`` (of at most :data:`_CACHED_SAMPLES` samples): a run on the
+        same times reuses them (they are only read; :meth:`run_modes` hands out copies)."""
+        key = t.tobytes() if t.size <= _CACHED_SAMPLES else None
+        entry = self._records.get(key) if key is not None else None
+        if entry is None:
+            F, G, Qd, trans = self._table(t)
+            entry = F, G, Qd, trans, self._bank.table(F, G, Qd, trans)
+            if key is not None:
+                if len(self._records) >= _CACHED_TABLES:
+                    self._records.clear()
+                self._records[key] = entry
+        return entry
 
     def smooth(self, y, u=None, t=None) -> Estimate:
         """Fixed-interval smoothing of ``y (..., K, m)``: the combined smoothed ``x``, ``P``,

@@ -29,7 +29,7 @@ from ..analysis.steady_state_kalman import steady_state_gain
 from ..discretize import mode_steps, segment_transitions
 from ..dyadic import dyadic_table, interval_transitions
 from ..engine import GATED, raise_for_status, warn_for_repairs
-from ..engine.kalman import kalman_run, kalman_steady_run, kalman_steady_step, kalman_step
+from ..engine.kalman import KalmanRun, kalman_steady_run, kalman_steady_step, kalman_step
 from .base import Estimate, Estimator
 
 __all__ = ["KalmanState", "ModeKalmanFilter"]
@@ -79,6 +79,8 @@ class ModeKalmanFilter(Estimator):
         self.steady_state = check_bool(steady_state, "steady_state")
         self.gate = None if gate is None else positive_scalar(gate, "gate")
         self._gate = math.inf if self.gate is None else self.gate
+        self._kalman = KalmanRun(system.C, system.R, self.x0, self.P0, gate=self._gate)
+        self._steps: dict = {}  # t's bytes -> its table of steps (_step_table)
 
     def init(self, batch_shape=()) -> KalmanState:
         """The prior, replicated over ``batch_shape``."""
@@ -166,8 +168,7 @@ class ModeKalmanFilter(Estimator):
             out = kalman_steady_run(y2, u2, F, G, trans, sys.C, modes, gain, P_prior, P_post,
                                     whiten, self.x0, gate=self._gate)
         else:
-            out = kalman_run(y2, u2, F, G, Qd, trans, sys.C, sys.R, modes, self.x0, self.P0,
-                             gate=self._gate)
+            out = self._kalman(y2, u2, F, G, Qd, trans, modes)
             raise_for_status(out.status)
             warn_for_repairs(out)
         est = Estimate(x=out.x, P=out.P, loglik=out.loglik, outlier=out.flag == GATED)
@@ -185,17 +186,8 @@ class ModeKalmanFilter(Estimator):
         """
         sys = self.system
         L, (N, K) = sys.n_modes, modes.shape
-        length = np.diff(t)
-        if length.size == 0:  # one sample: update only, the table is not read
-            steps, which = np.ones(1), length.astype(np.intp)
-        elif np.all(length == length[0]):  # periodic sampling: one step, nothing to sort
-            steps, which = length[:1], np.zeros(length.size, dtype=np.intp)
-        else:
-            steps, which = np.unique(length, return_inverse=True)
-        table = [mode_steps(sys, h) for h in steps]
-        F = [np.concatenate([s.F for s in table])]
-        G = [np.concatenate([s.G for s in table])]
-        Qd = [np.concatenate([s.Qd for s in table])]
+        steps, which, F0, G0, Qd0 = self._step_table(t)
+        F, G, Qd = [F0], [G0], [Qd0]
         trans = np.zeros((N, K), dtype=np.int64)
         first = modes[:, :-1] if seg is None else seg[0][..., 0]
         trans[:, 1:] = L * which + first
@@ -212,7 +204,33 @@ class ModeKalmanFilter(Estimator):
                 F.append(tr.F)
                 G.append(tr.G)
                 Qd.append(tr.Qd)
+        if len(F) == 1:  # the table of the steps itself (only read)
+            return F0, G0, Qd0, trans
         return np.concatenate(F), np.concatenate(G), np.concatenate(Qd), trans
+
+    def _step_table(self, t):
+        """The distinct steps of the sample times ``t``, the step of each interval (``which``)
+        and the table of every mode over each step (entry ``d L + j``: mode ``j`` over step
+        ``d``), kept for the last few ``t`` of at most 4096 samples (only read)."""
+        key = t.tobytes() if t.size <= 4096 else None
+        entry = self._steps.get(key) if key is not None else None
+        if entry is None:
+            sys = self.system
+            length = np.diff(t)
+            if length.size == 0:  # one sample: update only, the table is not read
+                steps, which = np.ones(1), length.astype(np.intp)
+            elif np.all(length == length[0]):  # periodic sampling: one step, nothing to sort
+                steps, which = length[:1], np.zeros(length.size, dtype=np.intp)
+            else:
+                steps, which = np.unique(length, return_inverse=True)
+            table = [mode_steps(sys, h) for h in steps]
+            entry = (steps, which, *(np.concatenate([getattr(s, a) for s in table])
+                                     for a in ("F", "G", "Qd")))
+            if key is not None:
+                if len(self._steps) >= 8:
+                    self._steps.clear()
+                self._steps[key] = entry
+        return entry
 
     def _segments(self, segments, batch, t) -> tuple[np.ndarray, np.ndarray]:
         """Validate ``(modes, offsets)``: modes in range, offsets finite in their interval."""
