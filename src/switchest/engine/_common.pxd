@@ -1,29 +1,106 @@
 # Shared by the bindings. The raw data pointer of an array the Python wrapper has already
-# checked (C-contiguous, writeable, of the kernel's dtype), after a constant-time re-check.
+# checked (C-contiguous, of the kernel's dtype), after a constant-time re-check. The helpers
+# run without the GIL (they read the array's header only; a failed check takes the GIL to
+# raise), so a binding passes `fptr(y)` straight into its kernel's call in its `with nogil`
+# block instead of naming a pointer per array.
 cimport numpy as cnp
-from libc.stdint cimport int64_t, uint8_t
+from libc.stdint cimport int64_t, uint8_t, uint64_t
 
 
 cdef extern from "se_common.h":
     ctypedef int64_t se_int
+    enum:
+        SE_NO_MEMORY
 
 
-cdef inline double* fptr(cnp.ndarray a) except NULL:
-    if cnp.PyArray_TYPE(a) != cnp.NPY_DOUBLE or not cnp.PyArray_ISCARRAY(a):
-        raise TypeError("the engine takes C-contiguous writeable float64 arrays")
+cdef inline int _check(bint ok, str what) except -1 nogil:
+    if not ok:
+        with gil:
+            raise TypeError(f"the engine takes C-contiguous {what} arrays")
+    return 0
+
+
+cdef inline double* fptr(cnp.ndarray a) except NULL nogil:
+    """A writeable float64 array."""
+    _check(cnp.PyArray_TYPE(a) == cnp.NPY_DOUBLE and cnp.PyArray_ISCARRAY(a), "writeable float64")
     return <double*>cnp.PyArray_DATA(a)
 
 
-cdef inline int64_t* iptr(cnp.ndarray a) except NULL:
-    if cnp.PyArray_TYPE(a) != cnp.NPY_INT64 or not cnp.PyArray_ISCARRAY(a):
-        raise TypeError("the engine takes C-contiguous writeable int64 index arrays")
+cdef inline const double* cfptr(cnp.ndarray a) except NULL nogil:
+    """A float64 array only read (it may be read-only)."""
+    _check(cnp.PyArray_TYPE(a) == cnp.NPY_DOUBLE and cnp.PyArray_ISCARRAY_RO(a), "float64")
+    return <const double*>cnp.PyArray_DATA(a)
+
+
+cdef inline int64_t* iptr(cnp.ndarray a) except NULL nogil:
+    """A writeable int64 index array."""
+    _check(cnp.PyArray_TYPE(a) == cnp.NPY_INT64 and cnp.PyArray_ISCARRAY(a),
+           "writeable int64 index")
     return <int64_t*>cnp.PyArray_DATA(a)
 
 
-cdef inline uint8_t* u8ptr(cnp.ndarray a) except NULL:
-    if cnp.PyArray_TYPE(a) != cnp.NPY_UINT8 or not cnp.PyArray_ISCARRAY(a):
-        raise TypeError("the engine takes C-contiguous writeable uint8 flag arrays")
+cdef inline uint8_t* u8ptr(cnp.ndarray a) except NULL nogil:
+    """A writeable uint8 flag array."""
+    _check(cnp.PyArray_TYPE(a) == cnp.NPY_UINT8 and cnp.PyArray_ISCARRAY(a),
+           "writeable uint8 flag")
     return <uint8_t*>cnp.PyArray_DATA(a)
+
+
+cdef inline uint8_t* bptr(cnp.ndarray a) except NULL nogil:
+    """A writeable bool (or uint8) flag array."""
+    cdef int t = cnp.PyArray_TYPE(a)
+    _check((t == cnp.NPY_BOOL or t == cnp.NPY_UINT8) and cnp.PyArray_ISCARRAY(a),
+           "writeable bool flag")
+    return <uint8_t*>cnp.PyArray_DATA(a)
+
+
+cdef inline const uint64_t* kptr(cnp.ndarray a) except NULL nogil:
+    """A uint64 key array only read."""
+    _check(cnp.PyArray_TYPE(a) == cnp.NPY_UINT64 and cnp.PyArray_ISCARRAY_RO(a), "uint64 key")
+    return <const uint64_t*>cnp.PyArray_DATA(a)
+
+
+cdef inline int no_memory(se_int status, str kernel) except -1:
+    """Raise MemoryError for a kernel's SE_NO_MEMORY (its scratch could not be allocated)."""
+    if status == SE_NO_MEMORY:
+        raise MemoryError(f"{kernel}: the kernel's scratch space could not be allocated")
+    return 0
+
+
+# The outputs of the bank kernels (c/bank.h: se_filter_bank, se_gpb2_bank), gathered for them.
+cdef extern from "bank.h":
+    ctypedef struct se_bank_out:
+        se_int K
+        int modes_wanted
+        double *x
+        double *P
+        double *prob
+        se_int *mode
+        double *loglik
+        uint8_t *flag
+        double *x_modes
+        double *P_modes
+        double *x_last
+        double *P_last
+        double *log_prob_last
+
+
+cdef inline se_bank_out bank_outputs(se_int N, se_int K, cnp.ndarray x_out, cnp.ndarray P_out,
+                                     cnp.ndarray prob_out, cnp.ndarray mode_out,
+                                     cnp.ndarray loglik_out, cnp.ndarray flag_out,
+                                     cnp.ndarray x_modes_out, cnp.ndarray P_modes_out,
+                                     cnp.ndarray x_last, cnp.ndarray P_last,
+                                     cnp.ndarray log_prob_last) except *:
+    """The numba kernels' output arguments as the C kernels take them; the mode-matched
+    posteriors are written if x_modes_out has a row per trial (zero-size arrays otherwise)."""
+    cdef se_bank_out out
+    out.K = K
+    out.modes_wanted = x_modes_out.shape[0] == N
+    out.x, out.P, out.prob = fptr(x_out), fptr(P_out), fptr(prob_out)
+    out.mode, out.loglik, out.flag = iptr(mode_out), fptr(loglik_out), u8ptr(flag_out)
+    out.x_modes, out.P_modes = fptr(x_modes_out), fptr(P_modes_out)
+    out.x_last, out.P_last, out.log_prob_last = fptr(x_last), fptr(P_last), fptr(log_prob_last)
+    return out
 
 
 # LAPACK for the rare eigendecompositions of a covariance repair (c/linalg.c, se_repair): the
@@ -41,3 +118,11 @@ cdef extern from "linalg.h":
 
 cdef inline void use_lapack() noexcept:
     se_use_dsyevd(<se_dsyevd_fn *>_dsyevd)
+
+
+cdef inline int start_binding() except -1:
+    """What every binding does once, at import: numpy's C API for this module, and LAPACK for
+    its copy of linalg.c (use_lapack)."""
+    cnp.import_array()
+    use_lapack()
+    return 0

@@ -3,30 +3,22 @@
 kernel, :func:`filter_bank`, with the arguments of the numba kernel it replaces
 (``switchest.estimators._compiled.bank.filter_bank``)."""
 cimport numpy as cnp
-from libc.stdint cimport uint8_t
-from ._common cimport fptr, iptr, u8ptr, se_int, use_lapack
-cnp.import_array()
-use_lapack()
+from ._common cimport (fptr, iptr, se_int, se_bank_out, bank_outputs, no_memory,
+                      start_binding)
+start_binding()
 
 cdef extern from "bank.h":
     se_int se_filter_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
                           se_int trans_N, se_int trans_K, se_int out_N, se_int out_K,
-                          se_int transition_N, se_int modes_N, const double *y,
+                          se_int transition_N, const double *y,
                           const double *u, const double *F, const double *G,
                           const double *Qd, const se_int *trans, const double *C,
                           const double *R, const se_int *out_index, const double *transition,
                           const double *log_transition, const double *x_init,
                           const double *P_init, const double *log_prob_init,
                           se_int interaction, int sample_timing, int predict_first,
-                          double gate, se_int lanes, double *x_out, double *P_out,
-                          double *prob_out, se_int *mode_out, double *loglik_out,
-                          uint8_t *flag_out, double *x_modes_out, double *P_modes_out,
-                          double *x_last, double *P_last, double *log_prob_last,
+                          double gate, se_int lanes, const se_bank_out *out,
                           double *report) nogil
-
-cdef enum:
-    SE_NO_MEMORY = 3
-
 
 def filter_bank(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cnp.ndarray Qd,
                 cnp.ndarray trans, cnp.ndarray C, cnp.ndarray R, cnp.ndarray out_index,
@@ -43,43 +35,16 @@ def filter_bank(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cnp.
         raise ValueError(f"lanes must be a positive int, got {lanes}")
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
     cdef se_int L = x_init.shape[1], n = x_init.shape[2], l = u.shape[2]
-    cdef se_int trans_N = trans.shape[0], trans_K = trans.shape[1]
-    cdef se_int out_N = out_index.shape[0], out_K = out_index.shape[1]
-    cdef se_int transition_N = transition.shape[0], modes_N = x_modes_out.shape[0]
-    cdef const double *py = fptr(y)
-    cdef const double *pu = fptr(u)
-    cdef const double *pF = fptr(F)
-    cdef const double *pG = fptr(G)
-    cdef const double *pQd = fptr(Qd)
-    cdef const se_int *ptrans = iptr(trans)
-    cdef const double *pC = fptr(C)
-    cdef const double *pR = fptr(R)
-    cdef const se_int *pout = iptr(out_index)
-    cdef const double *ptr = fptr(transition)
-    cdef const double *plt = fptr(log_transition)
-    cdef const double *px0 = fptr(x_init)
-    cdef const double *pP0 = fptr(P_init)
-    cdef const double *plp0 = fptr(log_prob_init)
-    cdef double *px = fptr(x_out)
-    cdef double *pP = fptr(P_out)
-    cdef double *pprob = fptr(prob_out)
-    cdef se_int *pmode = iptr(mode_out)
-    cdef double *pll = fptr(loglik_out)
-    cdef uint8_t *pflag = u8ptr(flag_out)
-    cdef double *pxm = fptr(x_modes_out)
-    cdef double *pPm = fptr(P_modes_out)
-    cdef double *pxl = fptr(x_last)
-    cdef double *pPl = fptr(P_last)
-    cdef double *plpl = fptr(log_prob_last)
-    cdef double *prep = fptr(report)
+    cdef se_bank_out out = bank_outputs(N, K, x_out, P_out, prob_out, mode_out, loglik_out,
+                                        flag_out, x_modes_out, P_modes_out, x_last, P_last,
+                                        log_prob_last)
     cdef se_int status
-    cdef int st = sample_timing, pf = predict_first
     with nogil:
-        status = se_filter_bank(n, m, l, L, N, K, trans_N, trans_K, out_N, out_K,
-                                transition_N, modes_N, py, pu, pF, pG, pQd, ptrans, pC, pR,
-                                pout, ptr, plt, px0, pP0, plp0, interaction, st, pf, gate,
-                                lanes, px, pP, pprob, pmode, pll, pflag, pxm, pPm, pxl, pPl,
-                                plpl, prep)
-    if status == SE_NO_MEMORY:
-        raise MemoryError("the IMM kernel's scratch space could not be allocated")
+        status = se_filter_bank(
+            n, m, l, L, N, K, trans.shape[0], trans.shape[1], out_index.shape[0],
+            out_index.shape[1], transition.shape[0], fptr(y), fptr(u), fptr(F), fptr(G),
+            fptr(Qd), iptr(trans), fptr(C), fptr(R), iptr(out_index), fptr(transition),
+            fptr(log_transition), fptr(x_init), fptr(P_init), fptr(log_prob_init), interaction,
+            sample_timing, predict_first, gate, lanes, &out, fptr(report))
+    no_memory(status, "filter_bank")
     return status

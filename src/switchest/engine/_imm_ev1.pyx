@@ -2,10 +2,8 @@
 """Binding of the IMM extended-Viterbi kernel (engine/c/imm_ev1.c): Shankar et al.'s
 Algorithm 1 with gridded switching times."""
 cimport numpy as cnp
-from libc.stdint cimport uint8_t
-from ._common cimport fptr, iptr, u8ptr, se_int, use_lapack
-cnp.import_array()
-use_lapack()
+from ._common cimport uint8_t, fptr, iptr, u8ptr, se_int, start_binding
+start_binding()
 
 cdef extern from "imm_ev1.h":
     se_int se_viterbi_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
@@ -40,40 +38,14 @@ def viterbi_bank(cnp.ndarray y, cnp.ndarray u, cnp.ndarray table, cnp.ndarray F,
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
     cdef se_int L = x_init.shape[1], n = x_init.shape[2]
     cdef se_int l = u.shape[2], g = tau.shape[1]
-    cdef const double* py = fptr(y)
-    cdef const double* pu = fptr(u)
-    cdef const se_int* ptable = iptr(table)
-    cdef const double* pF = fptr(F)
-    cdef const double* pG = fptr(G)
-    cdef const double* pQd = fptr(Qd)
-    cdef const double* pH = fptr(H)
-    cdef const double* pGy = fptr(Gy)
-    cdef const double* pS0 = fptr(S0)
-    cdef const double* ptau = fptr(tau)
-    cdef const double* pC = fptr(C)
-    cdef const double* pR = fptr(R)
-    cdef const double* plt = fptr(log_transition)
-    cdef const double* px0 = fptr(x_init)
-    cdef const double* pP0 = fptr(P_init)
-    cdef const double* pw0 = fptr(log_w_init)
-    cdef const se_int* pc0 = iptr(chosen_init)
-    cdef const double* po0 = fptr(offset_init)
-    cdef double* px = fptr(x_out)
-    cdef double* pP = fptr(P_out)
-    cdef double* pprob = fptr(prob_out)
-    cdef se_int* pmode = iptr(mode_out)
-    cdef double* poff = fptr(offset_out)
-    cdef uint8_t* pout = u8ptr(outlier_out)
-    cdef double* pxl = fptr(x_last)
-    cdef double* pPl = fptr(P_last)
-    cdef double* pwl = fptr(log_w_last)
-    cdef se_int* pcl = iptr(chosen_last)
-    cdef double* pol = fptr(offset_last)
-    cdef double* prep = fptr(report)
     cdef se_int status
     with nogil:
-        status = se_viterbi_bank(n, m, l, L, N, K, g, py, pu, ptable, pF, pG, pQd, pH, pGy,
-                                 pS0, ptau, pC, pR, plt, epsilon, px0, pP0, pw0, pc0, po0,
-                                 predict_first, gate, printed, marginal, by_path, lanes, px,
-                                 pP, pprob, pmode, poff, pout, pxl, pPl, pwl, pcl, pol, prep)
+        status = se_viterbi_bank(
+            n, m, l, L, N, K, g, fptr(y), fptr(u), iptr(table), fptr(F), fptr(G), fptr(Qd),
+            fptr(H), fptr(Gy), fptr(S0), fptr(tau), fptr(C), fptr(R), fptr(log_transition),
+            epsilon, fptr(x_init), fptr(P_init), fptr(log_w_init), iptr(chosen_init),
+            fptr(offset_init), predict_first, gate, printed, marginal, by_path, lanes,
+            fptr(x_out), fptr(P_out), fptr(prob_out), iptr(mode_out), fptr(offset_out),
+            u8ptr(outlier_out), fptr(x_last), fptr(P_last), fptr(log_w_last),
+            iptr(chosen_last), fptr(offset_last), fptr(report))
     return status

@@ -9,10 +9,8 @@ converted by the wrapper (:mod:`switchest.engine.kalman`), reads the sizes from 
 and runs the kernel without the GIL.
 """
 cimport numpy as cnp
-from libc.stdint cimport uint8_t
-from ._common cimport fptr, iptr, u8ptr, se_int, use_lapack
-cnp.import_array()
-use_lapack()
+from ._common cimport uint8_t, fptr, iptr, u8ptr, se_int, start_binding
+start_binding()
 
 cdef extern from "kalman.h":
     enum:
@@ -46,27 +44,12 @@ def kalman_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cn
     status. Shapes as :func:`switchest.estimators._compiled.kalman_kernel.kalman_filter`."""
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
     cdef se_int n = x_init.shape[1], l = u.shape[2]
-    cdef const double *py = fptr(y)
-    cdef const double *pu = fptr(u)
-    cdef const double *pF = fptr(F)
-    cdef const double *pG = fptr(G)
-    cdef const double *pQd = fptr(Qd)
-    cdef const se_int *ptrans = iptr(trans)
-    cdef const double *pC = fptr(C)
-    cdef const double *pR = fptr(R)
-    cdef const se_int *pmode = iptr(mode)
-    cdef const double *px_init = fptr(x_init)
-    cdef const double *pP_init = fptr(P_init)
-    cdef double *px_out = fptr(x_out)
-    cdef double *pP_out = fptr(P_out)
-    cdef double *ploglik_out = fptr(loglik_out)
-    cdef uint8_t *pflag_out = u8ptr(flag_out)
-    cdef double *preport = fptr(report)
     cdef se_int status
     with nogil:
-        status = se_kalman_filter(n, m, l, N, K, py, pu, pF, pG, pQd, ptrans, pC, pR, pmode,
-                                  px_init, pP_init, predict_first, gate, lanes, px_out, pP_out,
-                                  ploglik_out, pflag_out, preport)
+        status = se_kalman_filter(
+            n, m, l, N, K, fptr(y), fptr(u), fptr(F), fptr(G), fptr(Qd), iptr(trans),
+            fptr(C), fptr(R), iptr(mode), fptr(x_init), fptr(P_init), predict_first, gate,
+            lanes, fptr(x_out), fptr(P_out), fptr(loglik_out), u8ptr(flag_out), fptr(report))
     return status
 
 
@@ -81,25 +64,11 @@ def steady_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G,
     :func:`switchest.estimators._compiled.kalman._steady_filter`."""
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
     cdef se_int n = x_init.shape[1], l = u.shape[2], L = P_prior.shape[0]
-    cdef const double *py = fptr(y)
-    cdef const double *pu = fptr(u)
-    cdef const double *pF = fptr(F)
-    cdef const double *pG = fptr(G)
-    cdef const se_int *ptrans = iptr(trans)
-    cdef const double *pC = fptr(C)
-    cdef const se_int *pmode = iptr(mode)
-    cdef const double *pgain = fptr(gain)
-    cdef const double *pP_prior = fptr(P_prior)
-    cdef const double *pP_post = fptr(P_post)
-    cdef const double *pwhiten = fptr(whiten)
-    cdef const double *px_init = fptr(x_init)
-    cdef double *px_out = fptr(x_out)
-    cdef double *pP_out = fptr(P_out)
-    cdef double *ploglik_out = fptr(loglik_out)
-    cdef uint8_t *pflag_out = u8ptr(flag_out)
     cdef se_int status
     with nogil:
-        status = se_steady_filter(n, m, l, L, N, K, py, pu, pF, pG, ptrans, pC, pmode, pgain,
-                                  pP_prior, pP_post, pwhiten, px_init, predict_first, gate,
-                                  lanes, px_out, pP_out, ploglik_out, pflag_out)
+        status = se_steady_filter(
+            n, m, l, L, N, K, fptr(y), fptr(u), fptr(F), fptr(G), iptr(trans), fptr(C),
+            iptr(mode), fptr(gain), fptr(P_prior), fptr(P_post), fptr(whiten), fptr(x_init),
+            predict_first, gate, lanes, fptr(x_out), fptr(P_out), fptr(loglik_out),
+            u8ptr(flag_out))
     return status

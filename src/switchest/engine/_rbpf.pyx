@@ -4,10 +4,9 @@
 ``resampling_positions``, ``ancestors``), bit for bit those of the numba module."""
 cimport numpy as cnp
 from libc.stdint cimport uint8_t, uint64_t
-from ._common cimport fptr, iptr, u8ptr, se_int, use_lapack
+from ._common cimport fptr, iptr, u8ptr, kptr, se_int, start_binding
 import numpy as np
-cnp.import_array()
-use_lapack()  # se_repair's eigendecompositions: scipy's LAPACK dsyevd, as numpy.linalg.eigh
+start_binding()
 
 cdef extern from "rbpf.h":
     double se_uniform(uint64_t key, se_int k, se_int j) nogil
@@ -29,13 +28,6 @@ cdef extern from "rbpf.h":
                               double *loglik_out, uint8_t *flag_out, double *ess_out,
                               double *x_last, double *P_last, se_int *mode_last,
                               double *logw_last, double *report) nogil
-
-
-cdef inline const uint64_t* kptr(cnp.ndarray a) except NULL:
-    """The keys (read only): C-contiguous aligned uint64."""
-    if cnp.PyArray_TYPE(a) != cnp.NPY_UINT64 or not cnp.PyArray_ISCARRAY_RO(a):
-        raise TypeError("the engine takes C-contiguous uint64 key arrays")
-    return <const uint64_t*>cnp.PyArray_DATA(a)
 
 
 cdef inline int shaped(cnp.ndarray a, str name, tuple shape) except -1:
@@ -107,35 +99,6 @@ def particle_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G,
     """Filter ``N`` trials over ``K`` samples with ``Np`` particles each (the kernel of
     :mod:`switchest.engine.rbpf`; arguments and outputs as the numba kernel's
     ``particle_filter``, sizes read from the shapes, which are checked). Returns the status."""
-    cdef const double *py = fptr(y)
-    cdef const double *pu = fptr(u)
-    cdef const double *pF = fptr(F)
-    cdef const double *pG = fptr(G)
-    cdef const double *pQd = fptr(Qd)
-    cdef const se_int *ptrans = iptr(trans)
-    cdef const double *pC = fptr(C)
-    cdef const double *pR = fptr(R)
-    cdef const double *ptransition = fptr(transition)
-    cdef const double *plog_transition = fptr(log_transition)
-    cdef const double *pprob0 = fptr(prob0)
-    cdef const double *plog_prob0 = fptr(log_prob0)
-    cdef const uint64_t *pkeys = kptr(keys)
-    cdef const double *px_init = fptr(x_init)
-    cdef const double *pP_init = fptr(P_init)
-    cdef const se_int *pmode_init = iptr(mode_init)
-    cdef const double *plogw_init = fptr(logw_init)
-    cdef double *px_out = fptr(x_out)
-    cdef double *pP_out = fptr(P_out)
-    cdef double *pprob_out = fptr(prob_out)
-    cdef se_int *pmode_out = iptr(mode_out)
-    cdef double *ploglik_out = fptr(loglik_out)
-    cdef uint8_t *pflag_out = u8ptr(flag_out)
-    cdef double *pess_out = fptr(ess_out)
-    cdef double *px_last = fptr(x_last)
-    cdef double *pP_last = fptr(P_last)
-    cdef se_int *pmode_last = iptr(mode_last)
-    cdef double *plogw_last = fptr(logw_last)
-    cdef double *preport = fptr(report)
     if y.ndim != 3 or u.ndim != 3 or x_init.ndim != 3 or C.ndim != 3 or F.ndim != 3:
         raise ValueError("y, u, x_init, C and F must have three axes")
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
@@ -163,10 +126,12 @@ def particle_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G,
         raise ValueError("particle_filter needs at least one mode")
     cdef se_int status
     with nogil:
-        status = se_particle_filter(n, m, l, L, Np, N, K, S, T, py, pu, pF, pG, pQd, ptrans, pC,
-                                    pR, ptransition, plog_transition, pprob0, plog_prob0, pkeys,
-                                    k0, predict_first, sample_timing, optimal, scheme, threshold,
-                                    px_init, pP_init, pmode_init, plogw_init, px_out, pP_out,
-                                    pprob_out, pmode_out, ploglik_out, pflag_out, pess_out,
-                                    px_last, pP_last, pmode_last, plogw_last, preport)
+        status = se_particle_filter(
+            n, m, l, L, Np, N, K, S, T, fptr(y), fptr(u), fptr(F), fptr(G), fptr(Qd),
+            iptr(trans), fptr(C), fptr(R), fptr(transition), fptr(log_transition),
+            fptr(prob0), fptr(log_prob0), kptr(keys), k0, predict_first, sample_timing,
+            optimal, scheme, threshold, fptr(x_init), fptr(P_init), iptr(mode_init),
+            fptr(logw_init), fptr(x_out), fptr(P_out), fptr(prob_out), iptr(mode_out),
+            fptr(loglik_out), u8ptr(flag_out), fptr(ess_out), fptr(x_last), fptr(P_last),
+            iptr(mode_last), fptr(logw_last), fptr(report))
     return status

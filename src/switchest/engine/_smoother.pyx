@@ -1,10 +1,8 @@
 # distutils: sources = src/switchest/engine/c/smoother.c src/switchest/engine/c/linalg.c
 """Binding of Kim's backward pass and of the covariance screen (engine/c/smoother.c)."""
 cimport numpy as cnp
-from libc.stdint cimport uint8_t
-from ._common cimport fptr, iptr, se_int, use_lapack
-cnp.import_array()
-use_lapack()  # se_repair's eigendecompositions: scipy's LAPACK dsyevd, as numpy.linalg.eigh
+from ._common cimport uint8_t, fptr, cfptr, iptr, bptr, se_int, no_memory, start_binding
+start_binding()
 
 cdef extern from "smoother.h":
     se_int se_kim_backward(se_int n, se_int l, se_int L, se_int N, se_int K, se_int T,
@@ -18,25 +16,6 @@ cdef extern from "smoother.h":
                            double *lag_cross) nogil
     se_int se_screen_psd(se_int M, se_int n, const double *A, double relative_shift,
                          double *sym, uint8_t *failed, double *scale, double *asym) nogil
-
-cdef extern from "se_common.h":
-    enum:
-        SE_NO_MEMORY
-
-
-cdef inline const double* cfptr(cnp.ndarray a) except NULL:
-    """The data of a C-contiguous float64 array only read (it may be read-only)."""
-    if cnp.PyArray_TYPE(a) != cnp.NPY_DOUBLE or not cnp.PyArray_ISCARRAY_RO(a):
-        raise TypeError("the engine takes C-contiguous float64 arrays")
-    return <const double*>cnp.PyArray_DATA(a)
-
-
-cdef inline uint8_t* bptr(cnp.ndarray a) except NULL:
-    """The data of a C-contiguous writeable bool (or uint8) flag array."""
-    cdef int t = cnp.PyArray_TYPE(a)
-    if (t != cnp.NPY_BOOL and t != cnp.NPY_UINT8) or not cnp.PyArray_ISCARRAY(a):
-        raise TypeError("the engine takes C-contiguous writeable bool flag arrays")
-    return <uint8_t*>cnp.PyArray_DATA(a)
 
 
 cdef inline int shaped(cnp.ndarray a, int ndim, se_int s0, se_int s1, se_int s2, se_int s3,
@@ -95,34 +74,15 @@ def kim_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f, cnp.n
     shaped(lag_cross, 5, N, J, L, n, n)
     if (T != 1 and T != N) or (Ns != 0 and Ns != N) or (lagged and J != K - 1) or lanes < 1:
         raise ValueError("the smoother's arrays do not agree in shape")
-    cdef const double *px_f = fptr(x_f)
-    cdef const double *pP_f = fptr(P_f)
-    cdef const double *plp = fptr(log_prob_f)
-    cdef const double *pu = fptr(u)
-    cdef const double *pF = fptr(F)
-    cdef const double *pG = fptr(G)
-    cdef const double *pQd = fptr(Qd)
-    cdef const se_int *ptrans = iptr(trans)
-    cdef const double *plt = fptr(log_transition)
-    cdef double *px_out = fptr(x_out)
-    cdef double *pP_out = fptr(P_out)
-    cdef double *pprob = fptr(prob_out)
-    cdef se_int *pmode = iptr(mode_out)
-    cdef double *px_s = fptr(x_s)
-    cdef double *pP_s = fptr(P_s)
-    cdef double *preport = fptr(report)
-    cdef double *ppair = fptr(pair_out)
-    cdef double *plag_x = fptr(lag_x)
-    cdef double *plag_P = fptr(lag_P)
-    cdef double *plag_cross = fptr(lag_cross)
     cdef se_int status
     with nogil:
-        status = se_kim_backward(n, l, L, N, K, T, TK, Ns, J, px_f, pP_f, plp, pu, pF, pG, pQd,
-                                 ptrans, plt, lanes, sample_timing, px_out, pP_out, pprob,
-                                 pmode, px_s, pP_s, preport, lagged, ppair, plag_x, plag_P,
-                                 plag_cross)
-    if status == SE_NO_MEMORY:  # numba's np.empty of the scratch raises it
-        raise MemoryError("kim_backward: no memory for the scratch of a block of lanes")
+        status = se_kim_backward(
+            n, l, L, N, K, T, TK, Ns, J, fptr(x_f), fptr(P_f), fptr(log_prob_f), fptr(u),
+            fptr(F), fptr(G), fptr(Qd), iptr(trans), fptr(log_transition), lanes,
+            sample_timing, fptr(x_out), fptr(P_out), fptr(prob_out), iptr(mode_out),
+            fptr(x_s), fptr(P_s), fptr(report), lagged, fptr(pair_out), fptr(lag_x),
+            fptr(lag_P), fptr(lag_cross))
+    no_memory(status, "kim_backward")  # numba's np.empty of the scratch raises it
     return status
 
 
@@ -135,13 +95,10 @@ def screen_psd(cnp.ndarray A, double relative_shift, cnp.ndarray sym, cnp.ndarra
     shaped(A, 3, M, n, n, -1, -1)
     shaped(sym, 3, M, n, n, -1, -1)
     shaped(failed, 1, M, -1, -1, -1, -1)
-    cdef const double *pA = cfptr(A)
-    cdef double *psym = fptr(sym)
-    cdef uint8_t *pfailed = bptr(failed)
     cdef double scale = 0.0, asym = 0.0
     cdef se_int status
     with nogil:
-        status = se_screen_psd(M, n, pA, relative_shift, psym, pfailed, &scale, &asym)
-    if status == SE_NO_MEMORY:
-        raise MemoryError("screen_psd: no memory for the factor's scratch")
+        status = se_screen_psd(M, n, cfptr(A), relative_shift, fptr(sym), bptr(failed), &scale,
+                               &asym)
+    no_memory(status, "screen_psd")
     return scale, asym

@@ -1,10 +1,8 @@
 # distutils: sources = src/switchest/engine/c/switch_time.c src/switchest/engine/c/linalg.c
 """Binding of the switch-time Kalman kernel (engine/c/switch_time.c)."""
 cimport numpy as cnp
-from libc.stdint cimport uint8_t
-from ._common cimport fptr, iptr, u8ptr, se_int, use_lapack
-cnp.import_array()
-use_lapack()
+from ._common cimport uint8_t, fptr, iptr, u8ptr, se_int, start_binding
+start_binding()
 
 cdef extern from "switch_time.h":
     se_int se_switch_time_filter(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
@@ -36,36 +34,14 @@ def switch_time_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray which, cnp.ndar
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
     cdef se_int n = x_init.shape[1], l = u.shape[2], L = C.shape[0]
     cdef se_int D = grid_tau.shape[0], g = grid_tau.shape[1]
-    cdef const double* py = fptr(y)
-    cdef const double* pu = fptr(u)
-    cdef const se_int* pwhich = iptr(which)
-    cdef const se_int* pmode = iptr(mode)
-    cdef const se_int* pprev = iptr(prev)
-    cdef const double* pC = fptr(C)
-    cdef const double* pR = fptr(R)
-    cdef const double* pF = fptr(F)
-    cdef const double* pG = fptr(G)
-    cdef const double* pQd = fptr(Qd)
-    cdef const double* psteps = fptr(steps)
-    cdef const double* pgrid = fptr(grid_tau)
-    cdef const double* px0 = fptr(x_init)
-    cdef const double* pP0 = fptr(P_init)
-    cdef const double* pCF = fptr(CF)
-    cdef const double* pCG = fptr(CG)
-    cdef const double* pCQC = fptr(CQC)
-    cdef double* px = fptr(x_out)
-    cdef double* pP = fptr(P_out)
-    cdef double* pll = fptr(loglik_out)
-    cdef double* poff = fptr(offset_out)
-    cdef uint8_t* pflag = u8ptr(flag_out)
-    cdef double* prep = fptr(report)
-    cdef se_int status
     if lanes < 1:
         raise ValueError(f"lanes must be at least 1, got {lanes}")
+    cdef se_int status
     with nogil:
-        status = se_switch_time_filter(n, m, l, L, N, K, D, g, py, pu, pwhich, pmode, pprev,
-                                       pC, pR, pF, pG, pQd, psteps, pgrid, n_coarse, n_switch,
-                                       px0, pP0, predict_first, marginal, printed, gate,
-                                       iterations, tolerance, pCF, pCG, pCQC, lanes, px, pP,
-                                       pll, poff, pflag, prep)
+        status = se_switch_time_filter(
+            n, m, l, L, N, K, D, g, fptr(y), fptr(u), iptr(which), iptr(mode), iptr(prev),
+            fptr(C), fptr(R), fptr(F), fptr(G), fptr(Qd), fptr(steps), fptr(grid_tau),
+            n_coarse, n_switch, fptr(x_init), fptr(P_init), predict_first, marginal, printed,
+            gate, iterations, tolerance, fptr(CF), fptr(CG), fptr(CQC), lanes, fptr(x_out),
+            fptr(P_out), fptr(loglik_out), fptr(offset_out), u8ptr(flag_out), fptr(report))
     return status

@@ -55,6 +55,15 @@ static void se_predict_modes(se_int n, se_int l, se_int L, se_int B, se_int tran
     }
 }
 
+/* dst[:, :nb] = src[:, :nb] as loops (numba compiles slice assignment slowly). */
+static void se_copy_rows(se_int L, se_int B, const double *restrict src, double *restrict dst,
+                         se_int nb)
+{
+    for (se_int j = 0; j < L; j++)
+        for (se_int b = 0; b < nb; b++)
+            dst[j * B + b] = src[j * B + b];
+}
+
 /* The bank's interaction, in place on the mode-matched x (L, n, B), P, weighted by the mode
  * probabilities prob of the previous sample and each lane's transition matrix
  * transition (L, L, B): se_mix (SE_MIX) or se_collapse (SE_COLLAPSE); with one mode only
@@ -78,10 +87,10 @@ static void se_interact(se_int n, se_int L, se_int B, double *restrict x, double
 /* Each lane's transition matrix and its logarithm, [trial] of transition (N or 1, L, L) and
  * log_transition for trial i0 + b (an axis of length 1 is shared), into pi (L, L, B),
  * log_pi. */
-void se_gather_transitions(se_int L, se_int B, se_int transition_N,
-                           const double *restrict transition,
-                           const double *restrict log_transition, se_int i0, se_int nb,
-                           double *restrict pi, double *restrict log_pi)
+static void se_gather_transitions(se_int L, se_int B, se_int transition_N,
+                                  const double *restrict transition,
+                                  const double *restrict log_transition, se_int i0, se_int nb,
+                                  double *restrict pi, double *restrict log_pi)
 {
     for (se_int b = 0; b < nb; b++) {
         se_int i = transition_N > 1 ? i0 + b : 0;
@@ -93,30 +102,21 @@ void se_gather_transitions(se_int L, se_int B, se_int transition_N,
     }
 }
 
-/* dst[:, :nb] = src[:, :nb] as loops (numba compiles slice assignment slowly). */
-void se_copy_rows(se_int L, se_int B, const double *restrict src, double *restrict dst,
-                  se_int nb)
-{
-    for (se_int j = 0; j < L; j++)
-        for (se_int b = 0; b < nb; b++)
-            dst[j * B + b] = src[j * B + b];
-}
-
 /* Write sample k of the block's trials: the combined output of the mode-matched Gaussians
  * x (L, n, B), P with probabilities prob (Bar-Shalom, Li & Kirubarajan §11.6.6; xc, Pc, best
  * scratch), the most probable mode, the log-likelihood total (0 where nothing was observed or
  * the sample was gated), the flag, the mode probabilities and, if modes_wanted, the
  * mode-matched Gaussians themselves. */
-void se_report_sample(se_int n, se_int L, se_int B, se_int K, const double *restrict x,
-                      const double *restrict P, const double *restrict prob,
-                      const double *restrict log_prob, const double *restrict total,
-                      const uint8_t *restrict flag, const double *restrict n_obs, se_int i0,
-                      se_int nb, se_int k, int modes_wanted, double *restrict xc,
-                      double *restrict Pc, se_int *restrict best, double *restrict x_out,
-                      double *restrict P_out, double *restrict prob_out,
-                      se_int *restrict mode_out, double *restrict loglik_out,
-                      uint8_t *restrict flag_out, double *restrict x_modes_out,
-                      double *restrict P_modes_out)
+static void se_report_sample(se_int n, se_int L, se_int B, se_int K, const double *restrict x,
+                             const double *restrict P, const double *restrict prob,
+                             const double *restrict log_prob, const double *restrict total,
+                             const uint8_t *restrict flag, const double *restrict n_obs, se_int i0,
+                             se_int nb, se_int k, int modes_wanted, double *restrict xc,
+                             double *restrict Pc, se_int *restrict best, double *restrict x_out,
+                             double *restrict P_out, double *restrict prob_out,
+                             se_int *restrict mode_out, double *restrict loglik_out,
+                             uint8_t *restrict flag_out, double *restrict x_modes_out,
+                             double *restrict P_modes_out)
 {
     se_combine(n, L, B, x, P, prob, log_prob, nb, xc, Pc, best);
     for (se_int b = 0; b < nb; b++) {
@@ -133,23 +133,22 @@ void se_report_sample(se_int n, se_int L, se_int B, se_int K, const double *rest
     }
 }
 
-/* the scratch of se_filter_bank, the arrays of numba's np.empty (shapes as there) */
-typedef struct {
-    double *x, *P, *log_prob, *prob, *Fl, *Gl, *Ql, *Cl, *Rl, *yl, *ul, *obs, *n_obs, *e, *z,
-        *scale, *PCt, *chol, *nis, *loglik, *work, *gain, *T, *AP, *xs, *log_c, *w, *pi,
-        *log_pi, *xm, *Pm, *a, *total, *xc, *Pc, *prior, *root;
-    se_int *idx, *best;
-    uint8_t *use, *flag, *bad, *lost;
-} bank_scratch;
+/* ---- the skeleton of the bank kernels ------------------------------------------------------- */
 
-static void bank_carve(se_arena *ar, bank_scratch *s, se_int n, se_int m, se_int l, se_int L,
-                       se_int B)
+/* The scratch of se_filter_bank (pairs 0) or se_gpb2_bank (pairs 1), the arrays of numba's
+ * np.empty (bank.h gives the shapes). */
+static void se_bank_carve(se_arena *ar, se_bank_scratch *s, se_int n, se_int m, se_int l,
+                          se_int L, se_int B, int pairs)
 {
     const size_t d = sizeof(double);
+    const se_int F = pairs ? L * L : L; /* filters per sample: modes, or pairs of modes */
+    const se_int bank = pairs ? 0 : 1, gpb = pairs ? 1 : 0;
     s->x = se_carve(ar, L * n * B, d);
     s->P = se_carve(ar, L * n * n * B, d);
     s->log_prob = se_carve(ar, L * B, d);
     s->prob = se_carve(ar, L * B, d);
+    s->xp = se_carve(ar, gpb * F * n * B, d);
+    s->Pp = se_carve(ar, gpb * F * n * n * B, d);
     s->Fl = se_carve(ar, n * n * B, d);
     s->Gl = se_carve(ar, n * l * B, d);
     s->Ql = se_carve(ar, n * n * B, d);
@@ -159,36 +158,113 @@ static void bank_carve(se_arena *ar, bank_scratch *s, se_int n, se_int m, se_int
     s->ul = se_carve(ar, l * B, d);
     s->obs = se_carve(ar, m * B, d);
     s->n_obs = se_carve(ar, B, d);
-    s->e = se_carve(ar, L * m * B, d);
-    s->z = se_carve(ar, L * m * B, d);
-    s->scale = se_carve(ar, L * m * B, d);
-    s->PCt = se_carve(ar, L * n * m * B, d);
-    s->chol = se_carve(ar, L * m * m * B, d);
-    s->nis = se_carve(ar, L * B, d);
-    s->loglik = se_carve(ar, L * B, d);
+    s->e = se_carve(ar, F * m * B, d);
+    s->z = se_carve(ar, F * m * B, d);
+    s->scale = se_carve(ar, F * m * B, d);
+    s->PCt = se_carve(ar, F * n * m * B, d);
+    s->chol = se_carve(ar, F * m * m * B, d);
+    s->nis = se_carve(ar, F * B, d);
+    s->loglik = se_carve(ar, F * B, d);
+    s->prior_w = se_carve(ar, gpb * F * B, d);
+    s->a = se_carve(ar, F * B, d);
+    s->w = se_carve(ar, (pairs ? L : L * L) * B, d);
+    s->log_mu = se_carve(ar, gpb * L * B, d);
     s->work = se_carve(ar, 3 * B, d);
-    s->gain = se_carve(ar, n * m * B, d);
-    s->T = se_carve(ar, n * m * B, d);
-    s->AP = se_carve(ar, n * n * B, d);
     s->xs = se_carve(ar, n * B, d);
-    s->log_c = se_carve(ar, L * B, d);
-    s->w = se_carve(ar, L * L * B, d);
-    s->pi = se_carve(ar, L * L * B, d);
-    s->log_pi = se_carve(ar, L * L * B, d);
-    s->xm = se_carve(ar, L * n * B, d);
-    s->Pm = se_carve(ar, L * n * n * B, d);
-    s->a = se_carve(ar, L * B, d);
+    s->log_c = se_carve(ar, bank * L * B, d);
+    s->pi = se_carve(ar, bank * L * L * B, d);
+    s->log_pi = se_carve(ar, bank * L * L * B, d);
+    s->xm = se_carve(ar, bank * L * n * B, d);
+    s->Pm = se_carve(ar, bank * L * n * n * B, d);
     s->total = se_carve(ar, B, d);
     s->xc = se_carve(ar, n * B, d);
     s->Pc = se_carve(ar, n * n * B, d);
-    s->prior = se_carve(ar, n * n * B, d);
-    s->root = se_carve(ar, n * B, d);
     s->idx = se_carve(ar, B, sizeof(se_int));
     s->best = se_carve(ar, B, sizeof(se_int));
-    s->use = se_carve(ar, L * B, 1);
+    s->use = se_carve(ar, F * B, 1);
     s->flag = se_carve(ar, B, 1);
     s->bad = se_carve(ar, B, 1);
-    s->lost = se_carve(ar, B, 1);
+    se_carve_update(ar, n, m, B, &s->upd);
+}
+
+int se_bank_open(se_arena *ar, se_bank_scratch *s, se_int n, se_int m, se_int l, se_int L,
+                 se_int B, int pairs, double *report)
+{
+    se_report_start(report);
+    do
+        se_bank_carve(ar, s, n, m, l, L, B, pairs);
+    while (se_arena_open(ar));
+    return ar->base != NULL;
+}
+
+void se_bank_open_block(se_int n, se_int L, se_int B, const double *restrict x_init,
+                        const double *restrict P_init, const double *restrict log_prob_init,
+                        se_int i0, se_int nb, se_bank_scratch *s)
+{
+    se_gather_rows(L, B, 1, log_prob_init, i0, nb, s->log_prob);
+    se_gather_modes(n, L, B, 1, x_init, P_init, i0, nb, s->x, s->P);
+}
+
+void se_bank_observe(se_int m, se_int B, se_int K, const double *restrict y, se_int i0,
+                     se_int nb, se_int k, se_bank_scratch *s)
+{
+    se_gather_samples(m, B, K, y, i0, nb, k, s->yl);
+    se_observe(m, B, s->yl, nb, s->obs, s->n_obs);
+}
+
+/* The measurement update of the bank's filters at one sample, in the order of numba's loops:
+ * each filter's innovation (se_innovation: e = y - C x, S = C P C' + R over the observed
+ * components, Shankar et al. eq. (8)), the gating decision over all of them before anything
+ * changes (se_gate: a = prior + log Lambda where used), then each filter's update (se_update:
+ * Joseph's form, eqs (9)-(10), with the covariance rule of the filters). Filter (j, i),
+ * j < rows, i < cols, is x, P at q = j * stride + i (the bank: stride 1, cols 1, filter j mode
+ * j; GPB2: stride L, pair (i at k - 1, j at k)) with mode j's Cl, Rl and its innovation, use
+ * and a at q of s's per-filter arrays. Returns SE_OK or the failure of an innovation. */
+se_int se_bank_measure(se_int n, se_int m, se_int B, se_int rows, se_int cols, se_int stride,
+                       double *x, double *P, const double *prior, double gate, se_int nb,
+                       se_bank_scratch *s, double *report)
+{
+    for (se_int j = 0; j < rows; j++)
+        for (se_int i = 0; i < cols; i++) {
+            const se_int q = j * stride + i;
+            se_int status = se_innovation(
+                n, m, B, x + q * n * B, P + q * n * n * B, s->yl, s->Cl + j * m * n * B,
+                s->Rl + j * m * m * B, s->obs, s->n_obs, nb, s->e + q * m * B,
+                s->PCt + q * n * m * B, s->chol + q * m * m * B, s->scale + q * m * B,
+                s->z + q * m * B, s->nis + q * B, s->loglik + q * B, s->work, s->bad, report);
+            if (status != SE_OK)
+                return status;
+        }
+    se_gate(rows, cols, stride, B, prior, s->loglik, s->nis, gate, nb, s->use, s->a, s->flag);
+    for (se_int j = 0; j < rows; j++)
+        for (se_int i = 0; i < cols; i++) {
+            const se_int q = j * stride + i;
+            se_update(n, m, B, x + q * n * B, P + q * n * n * B, s->Cl + j * m * n * B,
+                      s->Rl + j * m * m * B, s->obs, s->n_obs, s->use + q * B, nb,
+                      s->PCt + q * n * m * B, s->chol + q * m * m * B, s->scale + q * m * B,
+                      s->z + q * m * B, &s->upd, report);
+        }
+    return SE_OK;
+}
+
+/* log mu_j normalized (se_log_normalize: log_w, then log_prob, prob and total = the sample's
+ * log-likelihood), and sample k written (se_report_sample). */
+void se_bank_close_sample(se_int n, se_int L, se_int B, double *log_w, se_int i0, se_int nb,
+                          se_int k, se_bank_scratch *s, const se_bank_out *out)
+{
+    se_log_normalize(L, B, log_w, s->prob, s->total, nb);
+    se_copy_rows(L, B, log_w, s->log_prob, nb);
+    se_report_sample(n, L, B, out->K, s->x, s->P, s->prob, s->log_prob, s->total, s->flag,
+                     s->n_obs, i0, nb, k, out->modes_wanted, s->xc, s->Pc, s->best, out->x,
+                     out->P, out->prob, out->mode, out->loglik, out->flag, out->x_modes,
+                     out->P_modes);
+}
+
+void se_bank_close_block(se_int n, se_int L, se_int B, se_int i0, se_int nb,
+                         const se_bank_scratch *s, const se_bank_out *out)
+{
+    se_scatter_rows(L, B, 1, s->log_prob, i0, nb, out->log_prob_last);
+    se_scatter_modes(n, L, B, 1, s->x, s->P, i0, nb, out->x_last, out->P_last);
 }
 
 /* Filter N trials over K samples with L interacting mode-matched filters.
@@ -231,15 +307,13 @@ static void bank_carve(se_arena *ar, bank_scratch *s, se_int n, se_int m, se_int
  *     Largest normalized innovation squared a mode accepts.
  * lanes : int
  *     Trials per block.
- * x_out, P_out, prob_out, mode_out, loglik_out, flag_out
- *     Written: combined estimate (N, K, n), (N, K, n, n), mode probabilities (N, K, L), most
- *     probable mode, log-likelihood (0 when nothing was observed or the sample was gated) and
- *     flag (N, K).
- * x_modes_out, P_modes_out
- *     Written when their first axis has length N (pass zero-size arrays otherwise): the
- *     mode-matched posteriors after each sample's update, (N, K, L, n), (N, K, L, n, n).
- * x_last, P_last, log_prob_last
- *     Written: the mode-matched state after the last sample, shaped as x_init etc.
+ * out : se_bank_out (bank.h)
+ *     Written: the combined estimate x (N, K, n), P (N, K, n, n), the mode probabilities
+ *     prob (N, K, L), the most probable mode, the log-likelihood (0 when nothing was observed
+ *     or the sample was gated) and the flag (N, K); if out->modes_wanted, the mode-matched
+ *     posteriors after each sample's update, x_modes (N, K, L, n), P_modes (N, K, L, n, n);
+ *     the mode-matched state after the last sample, x_last, P_last, log_prob_last, shaped as
+ *     x_init etc.
  * report : (2,) float64
  *     Written: the number of covariances repaired (se_repair) and the smallest eigenvalue one
  *     had before its repair (inf if none), for the caller's warning.
@@ -269,60 +343,32 @@ static void bank_carve(se_arena *ar, bank_scratch *s, se_int n, se_int m, se_int
  *
  * The scratch has min(lanes, N) lanes (one block either way when lanes >= N).
  */
-se_int se_filter_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
-                      se_int trans_N, se_int trans_K, se_int out_N, se_int out_K,
-                      se_int transition_N, se_int modes_N, const double *restrict y,
-                      const double *restrict u, const double *restrict F,
-                      const double *restrict G, const double *restrict Qd,
-                      const se_int *restrict trans, const double *restrict C,
-                      const double *restrict R, const se_int *restrict out_index,
-                      const double *restrict transition, const double *restrict log_transition,
-                      const double *restrict x_init, const double *restrict P_init,
-                      const double *restrict log_prob_init, se_int interaction,
-                      int sample_timing, int predict_first, double gate, se_int lanes,
-                      double *restrict x_out, double *restrict P_out,
-                      double *restrict prob_out, se_int *restrict mode_out,
-                      double *restrict loglik_out, uint8_t *restrict flag_out,
-                      double *restrict x_modes_out, double *restrict P_modes_out,
-                      double *restrict x_last, double *restrict P_last,
-                      double *restrict log_prob_last, double *restrict report)
+se_int se_filter_bank(SE_FILTER_BANK_PARAMETERS)
 {
-    const se_int B = lanes < N ? lanes : (N > 0 ? N : 1);
-    const int modes_wanted = modes_N == N;
-    se_int status = SE_OK;
-    report[0] = 0.0;
-    report[1] = INFINITY;
-
+    const se_int B = se_lanes(lanes, N);
     se_arena ar = {NULL, 0};
-    bank_scratch s;
-    bank_carve(&ar, &s, n, m, l, L, B);
-    char *block = se_arena_alloc(&ar);
-    if (!block)
+    se_bank_scratch s;
+    if (!se_bank_open(&ar, &s, n, m, l, L, B, 0, report))
         return SE_NO_MEMORY;
-    ar.base = block;
-    ar.used = 0;
-    bank_carve(&ar, &s, n, m, l, L, B);
-    memset(s.bad, 0, (size_t)B);
+    se_int status = SE_OK;
 
     for (se_int i0 = 0; i0 < N; i0 += B) {
-        const se_int nb = B < N - i0 ? B : N - i0;
-        se_gather_rows(L, B, 1, log_prob_init, i0, nb, s.log_prob);
-        se_gather_modes(n, L, B, 1, x_init, P_init, i0, nb, s.x, s.P);
+        const se_int nb = se_block_trials(B, N, i0);
+        se_bank_open_block(n, L, B, x_init, P_init, log_prob_init, i0, nb, &s);
         se_gather_transitions(L, B, transition_N, transition, log_transition, i0, nb, s.pi,
                               s.log_pi);
         for (se_int j = 0; j < L; j++)
             for (se_int b = 0; b < nb; b++)
                 s.prob[j * B + b] = exp(s.log_prob[j * B + b]);
         for (se_int k = 0; k < K; k++) {
-            se_gather_samples(m, B, K, y, i0, nb, k, s.yl);
-            se_observe(m, B, s.yl, nb, s.obs, s.n_obs);
+            se_bank_observe(m, B, K, y, i0, nb, k, &s);
             if (k > 0 || predict_first) {
                 se_gather_samples(l, B, K, u, i0, nb, k > 0 ? k - 1 : 0, s.ul);
                 if (!sample_timing) /* "interval": interact, then predict */
                     se_interact(n, L, B, s.x, s.P, s.prob, s.log_prob, s.pi, s.log_pi,
                                 interaction, nb, s.log_c, s.w, s.xm, s.Pm);
                 se_predict_modes(n, l, L, B, trans_N, trans_K, s.x, s.P, F, G, Qd, trans, i0,
-                                 nb, k, s.ul, s.idx, s.Fl, s.Gl, s.Ql, s.AP, s.xs);
+                                 nb, k, s.ul, s.idx, s.Fl, s.Gl, s.Ql, s.upd.AP, s.xs);
                 if (sample_timing) /* "sample": predict, then interact */
                     se_interact(n, L, B, s.x, s.P, s.prob, s.log_prob, s.pi, s.log_pi,
                                 interaction, nb, s.log_c, s.w, s.xm, s.Pm);
@@ -336,61 +382,15 @@ se_int se_filter_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K
                     se_gather_matrices(m, m, B, R, s.idx, nb, s.Rl + j * m * m * B);
                 }
             }
-            for (se_int j = 0; j < L; j++) {
-                status = se_innovation(n, m, B, s.x + j * n * B, s.P + j * n * n * B, s.yl,
-                                       s.Cl + j * m * n * B, s.Rl + j * m * m * B, s.obs,
-                                       s.n_obs, nb, s.e + j * m * B, s.PCt + j * n * m * B,
-                                       s.chol + j * m * m * B, s.scale + j * m * B,
-                                       s.z + j * m * B, s.nis + j * B, s.loglik + j * B,
-                                       s.work, s.bad, report);
-                if (status != SE_OK)
-                    goto done;
-            }
-            for (se_int b = 0; b < nb; b++) { /* the gating decision, before anything changes */
-                double top = -INFINITY;
-                for (se_int j = 0; j < L; j++) {
-                    const double lk = s.loglik[j * B + b];
-                    const int use = isfinite(lk) && s.nis[j * B + b] <= gate;
-                    s.use[j * B + b] = (uint8_t)use;
-                    s.a[j * B + b] = use ? s.log_c[j * B + b] + lk : -INFINITY;
-                    if (s.a[j * B + b] > top)
-                        top = s.a[j * B + b];
-                }
-                s.flag[b] = SE_ACCEPTED;
-                for (se_int j = 0; j < L; j++) {
-                    if (top == -INFINITY) { /* no mode can use it: the sample counts as missing */
-                        s.flag[b] = SE_GATED;
-                        s.use[j * B + b] = 0;
-                        s.a[j * B + b] = s.log_c[j * B + b];
-                    } else if (!s.use[j * B + b]) {
-                        s.flag[b] = SE_PARTLY_GATED;
-                    }
-                }
-            }
-            for (se_int j = 0; j < L; j++) {
-                double *Pj = s.P + j * n * n * B;
-                const uint8_t *usej = s.use + j * B;
-                se_correct(n, m, B, s.x + j * n * B, Pj, s.Cl + j * m * n * B,
-                           s.Rl + j * m * m * B, usej, nb, s.PCt + j * n * m * B,
-                           s.chol + j * m * m * B, s.scale + j * m * B, s.z + j * m * B,
-                           s.gain, s.T, s.AP, s.prior);
-                if (se_joseph_lost(n, B, Pj, s.prior, usej, nb, s.root, s.lost)) /* rare */
-                    se_information_or_repair(n, m, B, Pj, s.prior, s.Cl + j * m * n * B,
-                                             s.Rl + j * m * m * B, s.obs, s.n_obs, s.lost, nb,
-                                             report);
-            }
-            /* log mu_j = log c_j + log Lambda_j, normalized */
-            se_log_normalize(L, B, s.a, s.prob, s.total, nb);
-            se_copy_rows(L, B, s.a, s.log_prob, nb);
-            se_report_sample(n, L, B, K, s.x, s.P, s.prob, s.log_prob, s.total, s.flag,
-                             s.n_obs, i0, nb, k, modes_wanted, s.xc, s.Pc, s.best, x_out,
-                             P_out, prob_out, mode_out, loglik_out, flag_out, x_modes_out,
-                             P_modes_out);
+            /* each mode's update, gated mode by mode; log mu_j = log c_j + log Lambda_j */
+            status = se_bank_measure(n, m, B, L, 1, 1, s.x, s.P, s.log_c, gate, nb, &s, report);
+            if (status != SE_OK)
+                goto done;
+            se_bank_close_sample(n, L, B, s.a, i0, nb, k, &s, out);
         }
-        se_scatter_rows(L, B, 1, s.log_prob, i0, nb, log_prob_last);
-        se_scatter_modes(n, L, B, 1, s.x, s.P, i0, nb, x_last, P_last);
+        se_bank_close_block(n, L, B, i0, nb, &s, out);
     }
 done:
-    free(block);
+    free(ar.base);
     return status;
 }

@@ -34,46 +34,6 @@
 #include "bank.h"
 #include "linalg.h"
 
-/* The gating decision over every pair, before anything changes (as se_filter_bank takes it
- * over modes).
- *
- * use[j, i]: pair (i, j)'s likelihood is finite and its normalized innovation squared within
- * gate; a[j, i] = prior[j, i] + loglik[j, i] where used, -inf where not (prior: the
- * log-weight log mu_i + log pi_ij before the measurement). If no pair has a finite a the
- * sample counts as missing: no pair is used, a = prior, flag SE_GATED; else the flag is
- * SE_PARTLY_GATED where a pair is not used. n_src sources per mode are in use (L, or 1 at the
- * first sample). prior, loglik, nis, a (L, L, B), use (L, L, B) uint8, flag (B,) uint8. */
-static void se_gate_pairs(se_int L, se_int B, const double *restrict prior,
-                          const double *restrict loglik, const double *restrict nis,
-                          double gate, se_int n_src, se_int nb, uint8_t *restrict use,
-                          double *restrict a, uint8_t *restrict flag)
-{
-    for (se_int b = 0; b < nb; b++) {
-        double top = -INFINITY;
-        for (se_int j = 0; j < L; j++)
-            for (se_int i = 0; i < n_src; i++) {
-                const se_int at = (j * L + i) * B + b;
-                const int used = isfinite(loglik[at]) && nis[at] <= gate;
-                use[at] = (uint8_t)used;
-                a[at] = used ? prior[at] + loglik[at] : -INFINITY;
-                if (a[at] > top)
-                    top = a[at];
-            }
-        flag[b] = SE_ACCEPTED;
-        for (se_int j = 0; j < L; j++)
-            for (se_int i = 0; i < n_src; i++) {
-                const se_int at = (j * L + i) * B + b;
-                if (top == -INFINITY) { /* no pair can use it: the sample counts as missing */
-                    flag[b] = SE_GATED;
-                    use[at] = 0;
-                    a[at] = prior[at];
-                } else if (!use[at]) {
-                    flag[b] = SE_PARTLY_GATED;
-                }
-            }
-    }
-}
-
 /* log sum_i exp(a[i, b]) over the L rows of a (L, B), -inf when every term is -inf. */
 static inline double se_log_sum_exp(se_int L, se_int B, const double *restrict a, se_int b)
 {
@@ -114,64 +74,6 @@ static void se_merge_weights(se_int L, se_int B, const double *restrict a,
     }
 }
 
-/* the scratch of se_gpb2_bank, the arrays of numba's np.empty (shapes as there) */
-typedef struct {
-    double *x, *P, *log_prob, *prob, *xp, *Pp, *Fl, *Gl, *Ql, *Cl, *Rl, *yl, *ul, *obs, *n_obs,
-        *e, *z, *scale, *PCt, *chol, *nis, *loglik, *prior_w, *a, *w, *log_mu, *work, *gain,
-        *T, *AP, *xs, *total, *xc, *Pc, *prior, *root;
-    se_int *idx, *best;
-    uint8_t *use, *flag, *bad, *lost;
-} gpb_scratch;
-
-static void gpb_carve(se_arena *ar, gpb_scratch *s, se_int n, se_int m, se_int l, se_int L,
-                      se_int B)
-{
-    const size_t d = sizeof(double);
-    const se_int LL = L * L;
-    s->x = se_carve(ar, L * n * B, d);
-    s->P = se_carve(ar, L * n * n * B, d);
-    s->log_prob = se_carve(ar, L * B, d);
-    s->prob = se_carve(ar, L * B, d);
-    s->xp = se_carve(ar, LL * n * B, d);
-    s->Pp = se_carve(ar, LL * n * n * B, d);
-    s->Fl = se_carve(ar, n * n * B, d);
-    s->Gl = se_carve(ar, n * l * B, d);
-    s->Ql = se_carve(ar, n * n * B, d);
-    s->Cl = se_carve(ar, L * m * n * B, d);
-    s->Rl = se_carve(ar, L * m * m * B, d);
-    s->yl = se_carve(ar, m * B, d);
-    s->ul = se_carve(ar, l * B, d);
-    s->obs = se_carve(ar, m * B, d);
-    s->n_obs = se_carve(ar, B, d);
-    s->e = se_carve(ar, LL * m * B, d);
-    s->z = se_carve(ar, LL * m * B, d);
-    s->scale = se_carve(ar, LL * m * B, d);
-    s->PCt = se_carve(ar, LL * n * m * B, d);
-    s->chol = se_carve(ar, LL * m * m * B, d);
-    s->nis = se_carve(ar, LL * B, d);
-    s->loglik = se_carve(ar, LL * B, d);
-    s->prior_w = se_carve(ar, LL * B, d);
-    s->a = se_carve(ar, LL * B, d);
-    s->w = se_carve(ar, L * B, d);
-    s->log_mu = se_carve(ar, L * B, d);
-    s->work = se_carve(ar, 3 * B, d);
-    s->gain = se_carve(ar, n * m * B, d);
-    s->T = se_carve(ar, n * m * B, d);
-    s->AP = se_carve(ar, n * n * B, d);
-    s->xs = se_carve(ar, n * B, d);
-    s->total = se_carve(ar, B, d);
-    s->xc = se_carve(ar, n * B, d);
-    s->Pc = se_carve(ar, n * n * B, d);
-    s->prior = se_carve(ar, n * n * B, d);
-    s->root = se_carve(ar, n * B, d);
-    s->idx = se_carve(ar, B, sizeof(se_int));
-    s->best = se_carve(ar, B, sizeof(se_int));
-    s->use = se_carve(ar, LL * B, 1);
-    s->flag = se_carve(ar, B, 1);
-    s->bad = se_carve(ar, B, 1);
-    s->lost = se_carve(ar, B, 1);
-}
-
 /* GPB2 over N trials and K samples (Bar-Shalom, Li & Kirubarajan §11.6.5).
  *
  * Parameters
@@ -198,15 +100,11 @@ static void gpb_carve(se_arena *ar, gpb_scratch *s, se_int n, se_int m, se_int l
  *     Largest normalized innovation squared a pair accepts.
  * lanes : int
  *     Trials per block (the results do not depend on it).
- * x_out, P_out, prob_out, mode_out, loglik_out, flag_out
+ * out : se_bank_out (bank.h)
  *     Written as by se_filter_bank: combined estimate, mode probabilities mu_j, most probable
  *     mode, log-likelihood log sum_ij exp(a_ij) (0 when nothing was observed or the sample
- *     was gated) and flag.
- * x_modes_out, P_modes_out
- *     Written when their first axis has length N (zero-size arrays otherwise): the merged
- *     Gaussians x_j, P_j after each sample, (N, K, L, n), (N, K, L, n, n).
- * x_last, P_last, log_prob_last
- *     Written: the merged state after the last sample, shaped as x_init etc.
+ *     was gated) and flag; if out->modes_wanted, the merged Gaussians x_j, P_j after each
+ *     sample; the merged state after the last sample, shaped as x_init etc.
  * report : (2,) float64
  *     Written: covariances repaired and the smallest eigenvalue one had (inf if none).
  *
@@ -218,47 +116,22 @@ static void gpb_carve(se_arena *ar, gpb_scratch *s, se_int n, se_int m, se_int l
  *
  * The scratch has min(lanes, N) lanes (one block either way when lanes >= N).
  */
-se_int se_gpb2_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, se_int trans_N,
-                    se_int trans_K, se_int modes_N, const double *restrict y,
-                    const double *restrict u, const double *restrict F,
-                    const double *restrict G, const double *restrict Qd,
-                    const se_int *restrict trans, const double *restrict C,
-                    const double *restrict R, const double *restrict log_transition,
-                    const double *restrict x_init, const double *restrict P_init,
-                    const double *restrict log_prob_init, int sample_timing, int predict_first,
-                    double gate, se_int lanes, double *restrict x_out, double *restrict P_out,
-                    double *restrict prob_out, se_int *restrict mode_out,
-                    double *restrict loglik_out, uint8_t *restrict flag_out,
-                    double *restrict x_modes_out, double *restrict P_modes_out,
-                    double *restrict x_last, double *restrict P_last,
-                    double *restrict log_prob_last, double *restrict report)
+se_int se_gpb2_bank(SE_GPB2_BANK_PARAMETERS)
 {
-    const se_int B = lanes < N ? lanes : (N > 0 ? N : 1);
-    const int modes_wanted = modes_N == N;
-    se_int status = SE_OK;
-    report[0] = 0.0;
-    report[1] = INFINITY;
-
+    const se_int B = se_lanes(lanes, N);
     se_arena ar = {NULL, 0};
-    gpb_scratch s;
-    gpb_carve(&ar, &s, n, m, l, L, B);
-    char *block = se_arena_alloc(&ar);
-    if (!block)
+    se_bank_scratch s;
+    if (!se_bank_open(&ar, &s, n, m, l, L, B, 1, report))
         return SE_NO_MEMORY;
-    ar.base = block;
-    ar.used = 0;
-    gpb_carve(&ar, &s, n, m, l, L, B);
-    memset(s.bad, 0, (size_t)B);
+    se_int status = SE_OK;
 
 /* pair (i, j)'s lane arrays: x (n, B), P (n, n, B) of xp, Pp (L, L, ...), j first */
 #define XP(j, i) (s.xp + ((j) * L + (i)) * n * B)
 #define PP(j, i) (s.Pp + ((j) * L + (i)) * n * n * B)
-#define PAIR(arr, j, i, size) (s.arr + ((j) * L + (i)) * (size) * B)
 
     for (se_int i0 = 0; i0 < N; i0 += B) {
-        const se_int nb = B < N - i0 ? B : N - i0;
-        se_gather_rows(L, B, 1, log_prob_init, i0, nb, s.log_prob);
-        se_gather_modes(n, L, B, 1, x_init, P_init, i0, nb, s.x, s.P);
+        const se_int nb = se_block_trials(B, N, i0);
+        se_bank_open_block(n, L, B, x_init, P_init, log_prob_init, i0, nb, &s);
         for (se_int j = 0; j < L; j++) {
             for (se_int b = 0; b < nb; b++)
                 s.idx[b] = j;
@@ -266,8 +139,7 @@ se_int se_gpb2_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, 
             se_gather_matrices(m, m, B, R, s.idx, nb, s.Rl + j * m * m * B);
         }
         for (se_int k = 0; k < K; k++) {
-            se_gather_samples(m, B, K, y, i0, nb, k, s.yl);
-            se_observe(m, B, s.yl, nb, s.obs, s.n_obs);
+            se_bank_observe(m, B, K, y, i0, nb, k, &s);
             const int paired = k > 0 || predict_first;
             /* sources per mode: the modes at k-1, or the prior */
             const se_int n_src = paired ? L : 1;
@@ -278,7 +150,7 @@ se_int se_gpb2_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, 
                         se_gather_transition(n, l, L, B, trans_N, trans_K, F, G, Qd, trans, i0,
                                              nb, k, i, s.idx, s.Fl, s.Gl, s.Ql);
                         se_predict(n, l, B, s.x + i * n * B, s.P + i * n * n * B, s.Fl, s.Gl,
-                                   s.ul, s.Ql, nb, s.AP, s.xs);
+                                   s.ul, s.Ql, nb, s.upd.AP, s.xs);
                     }
                 }
                 for (se_int j = 0; j < L; j++) {
@@ -291,7 +163,7 @@ se_int se_gpb2_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, 
                                          XP(j, i), PP(j, i));
                         if (!sample_timing)
                             se_predict(n, l, B, XP(j, i), PP(j, i), s.Fl, s.Gl, s.ul, s.Ql, nb,
-                                       s.AP, s.xs);
+                                       s.upd.AP, s.xs);
                         const double lt = log_transition[i * L + j];
                         double *pw = s.prior_w + (j * L + i) * B;
                         for (se_int b = 0; b < nb; b++)
@@ -307,31 +179,12 @@ se_int se_gpb2_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, 
                         pw[b] = s.log_prob[j * B + b];
                 }
             }
-            for (se_int j = 0; j < L; j++)
-                for (se_int i = 0; i < n_src; i++) {
-                    status = se_innovation(n, m, B, XP(j, i), PP(j, i), s.yl,
-                                           s.Cl + j * m * n * B, s.Rl + j * m * m * B, s.obs,
-                                           s.n_obs, nb, PAIR(e, j, i, m), PAIR(PCt, j, i, n * m),
-                                           PAIR(chol, j, i, m * m), PAIR(scale, j, i, m),
-                                           PAIR(z, j, i, m), PAIR(nis, j, i, 1),
-                                           PAIR(loglik, j, i, 1), s.work, s.bad, report);
-                    if (status != SE_OK)
-                        goto done;
-                }
-            se_gate_pairs(L, B, s.prior_w, s.loglik, s.nis, gate, n_src, nb, s.use, s.a,
-                          s.flag);
-            for (se_int j = 0; j < L; j++)
-                for (se_int i = 0; i < n_src; i++) { /* a_ij = log mu_i + log pi_ij + log Lambda_ij */
-                    const uint8_t *use = s.use + (j * L + i) * B;
-                    se_correct(n, m, B, XP(j, i), PP(j, i), s.Cl + j * m * n * B,
-                               s.Rl + j * m * m * B, use, nb, PAIR(PCt, j, i, n * m),
-                               PAIR(chol, j, i, m * m), PAIR(scale, j, i, m), PAIR(z, j, i, m),
-                               s.gain, s.T, s.AP, s.prior);
-                    if (se_joseph_lost(n, B, PP(j, i), s.prior, use, nb, s.root, s.lost)) /* rare */
-                        se_information_or_repair(n, m, B, PP(j, i), s.prior,
-                                                 s.Cl + j * m * n * B, s.Rl + j * m * m * B,
-                                                 s.obs, s.n_obs, s.lost, nb, report);
-                }
+            /* every pair's update, gated pair by pair (as the bank gates mode by mode):
+             * a_ij = log mu_i + log pi_ij + log Lambda_ij */
+            status = se_bank_measure(n, m, B, L, n_src, L, s.xp, s.Pp, s.prior_w, gate, nb, &s,
+                                     report);
+            if (status != SE_OK)
+                goto done;
             for (se_int j = 0; j < L; j++) { /* mu_j = sum_i mu_ij, x_j, P_j: the moments over i */
                 if (paired) {
                     se_merge_weights(L, B, s.a + j * L * B, s.prior_w + j * L * B, nb,
@@ -345,20 +198,13 @@ se_int se_gpb2_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, 
                                      s.P + j * n * n * B);
                 }
             }
-            se_log_normalize(L, B, s.log_mu, s.prob, s.total, nb);
-            se_copy_rows(L, B, s.log_mu, s.log_prob, nb);
-            se_report_sample(n, L, B, K, s.x, s.P, s.prob, s.log_prob, s.total, s.flag,
-                             s.n_obs, i0, nb, k, modes_wanted, s.xc, s.Pc, s.best, x_out,
-                             P_out, prob_out, mode_out, loglik_out, flag_out, x_modes_out,
-                             P_modes_out);
+            se_bank_close_sample(n, L, B, s.log_mu, i0, nb, k, &s, out);
         }
-        se_scatter_rows(L, B, 1, s.log_prob, i0, nb, log_prob_last);
-        se_scatter_modes(n, L, B, 1, s.x, s.P, i0, nb, x_last, P_last);
+        se_bank_close_block(n, L, B, i0, nb, &s, out);
     }
 #undef XP
 #undef PP
-#undef PAIR
 done:
-    free(block);
+    free(ar.base);
     return status;
 }

@@ -38,8 +38,8 @@ typedef struct {
 } dims;
 
 /* the workspaces: pred of hypothesis (xs, Ps, Fl, Gl, Ql, FP, xv), inn of se_innovation
- * (e, PCt, chol, scale, z, nis, loglik, work, bad) and fix, the rest of se_correct's and
- * se_joseph_lost's (gain, T, AP, prior, root, lost); all W lanes wide */
+ * (e, PCt, chol, scale, z, nis, loglik, work, bad) and fix, se_update's (linalg.h); all W
+ * lanes wide */
 typedef struct {
     double *xs, *Ps, *Fl, *Gl, *Ql, *FP, *xv;
 } pred_ws;
@@ -48,11 +48,6 @@ typedef struct {
     double *e, *PCt, *chol, *scale, *z, *nis, *loglik, *work;
     uint8_t *bad;
 } inn_ws;
-
-typedef struct {
-    double *gain, *T, *AP, *prior, *root;
-    uint8_t *lost;
-} fix_ws;
 
 /* v[a, q nb + b] = v[a, b] for every lane below width: each trial's row, in lanes
  * 0 .. nb - 1, repeated for every hypothesis. v (rows, W) */
@@ -184,7 +179,7 @@ static se_int likelihoods(const dims *s, const double *x, const double *P, se_in
             return status;
     }
     for (se_int b = 0; b < width; b++) {
-        use[b] = isfinite(loglik[b]) && nis[b] <= gate;
+        use[b] = se_passes_gate(loglik[b], nis[b], gate);
         J[b] = use[b] ? loglik[b] : -INFINITY;
     }
     if (!printed)
@@ -357,7 +352,7 @@ static se_int predict_chosen(const dims *s, const double *x, const double *P, se
                              int marginal, se_int nb, se_int *restrict source,
                              se_int *restrict entry, uint8_t *restrict use_lanes,
                              double *restrict w_lanes, const pred_ws *pred, const inn_ws *inn,
-                             const fix_ws *fix, double *report, double *restrict xg,
+                             const se_update_ws *fix, double *report, double *restrict xg,
                              double *restrict Pg, double *restrict x_new, double *restrict P_new)
 {
     const se_int n = s->n, m = s->m, L = s->L, g = s->g, B = s->B, W = s->W;
@@ -379,12 +374,8 @@ static se_int predict_chosen(const dims *s, const double *x, const double *P, se
     if (status != SE_OK)
         return status;
     double *xs = pred->xs, *Ps = pred->Ps;
-    se_correct(n, m, W, xs, Ps, C, R, use_lanes, width, inn->PCt, inn->chol, inn->scale, inn->z,
-               fix->gain, fix->T, fix->AP, fix->prior);
-    if (se_joseph_lost(n, W, Ps, fix->prior, use_lanes, width, fix->root, fix->lost))
-        /* rare: lane by lane */
-        se_information_or_repair(n, m, W, Ps, fix->prior, C, R, obs, n_obs, fix->lost, width,
-                                 report);
+    se_update(n, m, W, xs, Ps, C, R, obs, n_obs, use_lanes, width, inn->PCt, inn->chol,
+              inn->scale, inn->z, fix, report);
     for (se_int i = 0; i < L; i++) {
         double *xi = x_new + i * n * B, *Pi = P_new + i * n * n * B;
         if (!marginal) {
@@ -415,7 +406,7 @@ static se_int update_only(const dims *s, double *x, double *P, const double *res
                           const double *y, const double *Cl, const double *Rl,
                           const double *obs, const double *n_obs, double gate, se_int nb,
                           uint8_t *use, double *restrict a, uint8_t *restrict outlier,
-                          const inn_ws *inn, const fix_ws *fix, double *report)
+                          const inn_ws *inn, const se_update_ws *fix, double *report)
 {
     const se_int n = s->n, m = s->m, L = s->L, B = s->B;
     const double *nis = inn->nis, *loglik = inn->loglik;
@@ -429,15 +420,11 @@ static se_int update_only(const dims *s, double *x, double *P, const double *res
         if (status != SE_OK)
             return status;
         for (se_int b = 0; b < nb; b++) {
-            uj[b] = isfinite(loglik[b]) && nis[b] <= gate;
+            uj[b] = se_passes_gate(loglik[b], nis[b], gate);
             a[j * B + b] = uj[b] ? log_w[j * B + b] + loglik[b] : -INFINITY;
         }
-        se_correct(n, m, B, xj, Pj, Cj, Rj, uj, nb, inn->PCt, inn->chol, inn->scale, inn->z,
-                   fix->gain, fix->T, fix->AP, fix->prior);
-        if (se_joseph_lost(n, B, Pj, fix->prior, uj, nb, fix->root, fix->lost))
-            /* rare: lane by lane */
-            se_information_or_repair(n, m, B, Pj, fix->prior, Cj, Rj, obs, n_obs, fix->lost, nb,
-                                     report);
+        se_update(n, m, B, xj, Pj, Cj, Rj, obs, n_obs, uj, nb, inn->PCt, inn->chol, inn->scale,
+                  inn->z, fix, report);
     }
     for (se_int b = 0; b < nb; b++) {
         int out = 1;
@@ -454,19 +441,6 @@ static se_int update_only(const dims *s, double *x, double *P, const double *res
 /* ---- the kernel's scratch: one block, carved -------------------------------------------- */
 
 typedef struct {
-    char *base; /* NULL while measuring */
-    size_t used;
-} arena;
-
-static void *carve(arena *ar, size_t count, size_t size)
-{
-    size_t bytes = (count * size + 63) & ~(size_t)63; /* every array on a cache line */
-    void *p = ar->base ? ar->base + ar->used : NULL;
-    ar->used += bytes;
-    return p;
-}
-
-typedef struct {
     double *x, *P, *x_new, *P_new, *log_w, *prob, *total, *offset, *a, *J, *log_b, *w;
     double *tau_pair, *w_lanes, *xg, *Pg, *Cl, *Rl, *yw, *uw, *yh, *obs, *n_obs, *J_lanes;
     double *C1, *R1, *C2, *R2, *H1, *Gy1, *S1, *zero;
@@ -474,79 +448,74 @@ typedef struct {
     uint8_t *outlier, *use, *update_use, *use_lanes;
     pred_ws pred;
     inn_ws inn;
-    fix_ws fix;
+    se_update_ws fix;
 } scratch;
 
-static void layout(const dims *s, se_int n_hyp, arena *ar, scratch *t)
+static void layout(const dims *s, se_int n_hyp, se_arena *ar, scratch *t)
 {
     const size_t n = (size_t)s->n, m = (size_t)s->m, l = (size_t)s->l, L = (size_t)s->L;
     const size_t g = (size_t)s->g, B = (size_t)s->B, W = (size_t)s->W;
     const size_t D = sizeof(double), I = sizeof(se_int), U = sizeof(uint8_t);
-    t->x = carve(ar, L * n * B, D);
-    t->P = carve(ar, L * n * n * B, D);
-    t->x_new = carve(ar, L * n * B, D);
-    t->P_new = carve(ar, L * n * n * B, D);
-    t->log_w = carve(ar, L * B, D);
-    t->prob = carve(ar, L * B, D);
-    t->total = carve(ar, B, D);
-    t->offset = carve(ar, L * B, D);
-    t->a = carve(ar, L * B, D);
-    t->J = carve(ar, L * L * g * B, D);
-    t->log_b = carve(ar, L * L * B, D);
-    t->w = carve(ar, L * L * g * B, D);
-    t->tau_pair = carve(ar, L * L * B, D);
-    t->w_lanes = carve(ar, g * B, D);
-    t->xg = carve(ar, g * n * B, D);
-    t->Pg = carve(ar, g * n * n * B, D);
-    t->Cl = carve(ar, L * m * n * B, D);
-    t->Rl = carve(ar, L * m * m * B, D);
-    t->yw = carve(ar, m * W, D);
-    t->uw = carve(ar, l * W, D);
-    t->yh = carve(ar, m * W, D);
-    t->obs = carve(ar, m * W, D);
-    t->n_obs = carve(ar, W, D);
-    t->J_lanes = carve(ar, W, D);
-    t->C1 = carve(ar, m * n * W, D); /* the likelihood pass's lanes */
-    t->R1 = carve(ar, m * m * W, D);
-    t->C2 = carve(ar, m * n * W, D); /* the update pass's lanes */
-    t->R2 = carve(ar, m * m * W, D);
-    t->H1 = carve(ar, m * n * W, D);
-    t->Gy1 = carve(ar, m * l * W, D);
-    t->S1 = carve(ar, m * m * W, D);
-    t->zero = carve(ar, n * n * W, D);
-    t->pred.xs = carve(ar, n * W, D);
-    t->pred.Ps = carve(ar, n * n * W, D);
-    t->pred.Fl = carve(ar, n * n * W, D);
-    t->pred.Gl = carve(ar, n * l * W, D);
-    t->pred.Ql = carve(ar, n * n * W, D);
-    t->pred.FP = carve(ar, n * n * W, D);
-    t->pred.xv = carve(ar, n * W, D);
-    t->inn.e = carve(ar, m * W, D);
-    t->inn.PCt = carve(ar, n * m * W, D);
-    t->inn.chol = carve(ar, m * m * W, D);
-    t->inn.scale = carve(ar, m * W, D);
-    t->inn.z = carve(ar, m * W, D);
-    t->inn.nis = carve(ar, W, D);
-    t->inn.loglik = carve(ar, W, D);
-    t->inn.work = carve(ar, 3 * W, D);
-    t->fix.gain = carve(ar, n * m * W, D);
-    t->fix.T = carve(ar, n * m * W, D);
-    t->fix.AP = carve(ar, n * n * W, D);
-    t->fix.prior = carve(ar, n * n * W, D);
-    t->fix.root = carve(ar, n * W, D);
-    t->hypotheses = carve(ar, (size_t)n_hyp * 3, I);
-    t->chosen = carve(ar, L * B, I);
-    t->best_k = carve(ar, L * L * B, I);
-    t->source = carve(ar, W, I);
-    t->entry = carve(ar, W, I);
-    t->source2 = carve(ar, W, I);
-    t->entry2 = carve(ar, W, I);
-    t->outlier = carve(ar, B, U);
-    t->use = carve(ar, L * L * g * B, U);
-    t->update_use = carve(ar, L * B, U);
-    t->use_lanes = carve(ar, W, U);
-    t->inn.bad = carve(ar, W, U);
-    t->fix.lost = carve(ar, W, U);
+    t->x = se_carve(ar, L * n * B, D);
+    t->P = se_carve(ar, L * n * n * B, D);
+    t->x_new = se_carve(ar, L * n * B, D);
+    t->P_new = se_carve(ar, L * n * n * B, D);
+    t->log_w = se_carve(ar, L * B, D);
+    t->prob = se_carve(ar, L * B, D);
+    t->total = se_carve(ar, B, D);
+    t->offset = se_carve(ar, L * B, D);
+    t->a = se_carve(ar, L * B, D);
+    t->J = se_carve(ar, L * L * g * B, D);
+    t->log_b = se_carve(ar, L * L * B, D);
+    t->w = se_carve(ar, L * L * g * B, D);
+    t->tau_pair = se_carve(ar, L * L * B, D);
+    t->w_lanes = se_carve(ar, g * B, D);
+    t->xg = se_carve(ar, g * n * B, D);
+    t->Pg = se_carve(ar, g * n * n * B, D);
+    t->Cl = se_carve(ar, L * m * n * B, D);
+    t->Rl = se_carve(ar, L * m * m * B, D);
+    t->yw = se_carve(ar, m * W, D);
+    t->uw = se_carve(ar, l * W, D);
+    t->yh = se_carve(ar, m * W, D);
+    t->obs = se_carve(ar, m * W, D);
+    t->n_obs = se_carve(ar, W, D);
+    t->J_lanes = se_carve(ar, W, D);
+    t->C1 = se_carve(ar, m * n * W, D); /* the likelihood pass's lanes */
+    t->R1 = se_carve(ar, m * m * W, D);
+    t->C2 = se_carve(ar, m * n * W, D); /* the update pass's lanes */
+    t->R2 = se_carve(ar, m * m * W, D);
+    t->H1 = se_carve(ar, m * n * W, D);
+    t->Gy1 = se_carve(ar, m * l * W, D);
+    t->S1 = se_carve(ar, m * m * W, D);
+    t->zero = se_carve(ar, n * n * W, D);
+    t->pred.xs = se_carve(ar, n * W, D);
+    t->pred.Ps = se_carve(ar, n * n * W, D);
+    t->pred.Fl = se_carve(ar, n * n * W, D);
+    t->pred.Gl = se_carve(ar, n * l * W, D);
+    t->pred.Ql = se_carve(ar, n * n * W, D);
+    t->pred.FP = se_carve(ar, n * n * W, D);
+    t->pred.xv = se_carve(ar, n * W, D);
+    t->inn.e = se_carve(ar, m * W, D);
+    t->inn.PCt = se_carve(ar, n * m * W, D);
+    t->inn.chol = se_carve(ar, m * m * W, D);
+    t->inn.scale = se_carve(ar, m * W, D);
+    t->inn.z = se_carve(ar, m * W, D);
+    t->inn.nis = se_carve(ar, W, D);
+    t->inn.loglik = se_carve(ar, W, D);
+    t->inn.work = se_carve(ar, 3 * W, D);
+    se_carve_update(ar, n, m, W, &t->fix);
+    t->hypotheses = se_carve(ar, (size_t)n_hyp * 3, I);
+    t->chosen = se_carve(ar, L * B, I);
+    t->best_k = se_carve(ar, L * L * B, I);
+    t->source = se_carve(ar, W, I);
+    t->entry = se_carve(ar, W, I);
+    t->source2 = se_carve(ar, W, I);
+    t->entry2 = se_carve(ar, W, I);
+    t->outlier = se_carve(ar, B, U);
+    t->use = se_carve(ar, L * L * g * B, U);
+    t->update_use = se_carve(ar, L * B, U);
+    t->use_lanes = se_carve(ar, W, U);
+    t->inn.bad = se_carve(ar, W, U);
 }
 
 /* Filter N trials over K samples with the IMM-EV1 of Shankar et al., Algorithm 1.
@@ -610,45 +579,23 @@ static void layout(const dims *s, se_int n_hyp, arena *ar, scratch *t)
  * The block of trials is min(lanes, N) lanes wide (numba's is always lanes): the lanes beyond
  * N were never used, so the numbers are the same.
  */
-se_int se_viterbi_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, se_int g,
-                       const double *restrict y, const double *restrict u,
-                       const se_int *restrict table, const double *restrict F,
-                       const double *restrict G, const double *restrict Qd,
-                       const double *restrict H, const double *restrict Gy,
-                       const double *restrict S0, const double *restrict tau,
-                       const double *restrict C, const double *restrict R,
-                       const double *restrict log_transition, double epsilon,
-                       const double *restrict x_init, const double *restrict P_init,
-                       const double *restrict log_w_init, const se_int *restrict chosen_init,
-                       const double *restrict offset_init, int predict_first, double gate,
-                       int printed, int marginal, int by_path, se_int lanes,
-                       double *restrict x_out, double *restrict P_out,
-                       double *restrict prob_out, se_int *restrict mode_out,
-                       double *restrict offset_out, uint8_t *restrict outlier_out,
-                       double *restrict x_last, double *restrict P_last,
-                       double *restrict log_w_last, se_int *restrict chosen_last,
-                       double *restrict offset_last, double *restrict report)
+se_int se_viterbi_bank(SE_VITERBI_BANK_PARAMETERS)
 {
-    report[0] = 0.0;
-    report[1] = INFINITY;
+    se_report_start(report);
     if (N <= 0)
         return SE_OK;
-    const se_int B = lanes < 1 ? 1 : (lanes < N ? lanes : N);
+    const se_int B = se_lanes(lanes, N);
     const se_int per = marginal ? g : 1; /* hypotheses predicted per destination */
     const se_int n_hyp = L + L * (L - 1) * g;
     const se_int W = (n_hyp > L * per ? n_hyp : L * per) * B; /* lanes of the widest pass */
     const dims s = {n, m, l, L, g, B, W};
     scratch t;
-    arena ar = {NULL, 0};
-    layout(&s, n_hyp, &ar, &t);
-    char *block = aligned_alloc(64, ar.used > 0 ? ar.used : 64);
-    if (!block)
+    se_arena ar = {NULL, 0};
+    do
+        layout(&s, n_hyp, &ar, &t);
+    while (se_arena_open(&ar));
+    if (ar.base == NULL)
         return SE_NO_MEMORY;
-    ar.base = block;
-    ar.used = 0;
-    layout(&s, n_hyp, &ar, &t);
-    memset(t.zero, 0, (size_t)(n * n * W) * sizeof(double));
-    memset(t.inn.bad, 0, (size_t)W);
 
     se_int q = 0;
     for (se_int j = 0; j < L; j++) {
@@ -671,7 +618,7 @@ se_int se_viterbi_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int 
         se_gather_matrices(m, m, B, R, entry, B, t.Rl + i * m * m * B);
     }
     for (se_int i0 = 0; i0 < N; i0 += B) {
-        const se_int nb = B < N - i0 ? B : N - i0;
+        const se_int nb = se_block_trials(B, N, i0);
         const se_int width1 = n_hyp * nb, width2 = L * per * nb;
         for (q = 0; q < n_hyp; q++) { /* the lanes' predecessors and destinations' C, R */
             for (se_int b = 0; b < nb; b++) {
@@ -766,6 +713,6 @@ se_int se_viterbi_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int 
         se_scatter_modes(n, L, B, 1, x, P, i0, nb, x_last, P_last);
     }
 done:
-    free(block);
+    free(ar.base);
     return status;
 }

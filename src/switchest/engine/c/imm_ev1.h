@@ -23,23 +23,21 @@
 
 #include "se_common.h"
 
-se_int se_viterbi_bank(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, se_int g,
-                       const double *restrict y, const double *restrict u,
-                       const se_int *restrict table, const double *restrict F,
-                       const double *restrict G, const double *restrict Qd,
-                       const double *restrict H, const double *restrict Gy,
-                       const double *restrict S0, const double *restrict tau,
-                       const double *restrict C, const double *restrict R,
-                       const double *restrict log_transition, double epsilon,
-                       const double *restrict x_init, const double *restrict P_init,
-                       const double *restrict log_w_init, const se_int *restrict chosen_init,
-                       const double *restrict offset_init, int predict_first, double gate,
-                       int printed, int marginal, int by_path, se_int lanes,
-                       double *restrict x_out, double *restrict P_out,
-                       double *restrict prob_out, se_int *restrict mode_out,
-                       double *restrict offset_out, uint8_t *restrict outlier_out,
-                       double *restrict x_last, double *restrict P_last,
-                       double *restrict log_w_last, se_int *restrict chosen_last,
-                       double *restrict offset_last, double *restrict report);
+/* the parameter list, written once for the prototype and the definition (imm_ev1.c) */
+#define SE_VITERBI_BANK_PARAMETERS                                                                \
+    se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, se_int g,                         \
+    const double *restrict y, const double *restrict u, const se_int *restrict table,             \
+    const double *restrict F, const double *restrict G, const double *restrict Qd,                \
+    const double *restrict H, const double *restrict Gy, const double *restrict S0,               \
+    const double *restrict tau, const double *restrict C, const double *restrict R,               \
+    const double *restrict log_transition, double epsilon, const double *restrict x_init,         \
+    const double *restrict P_init, const double *restrict log_w_init,                             \
+    const se_int *restrict chosen_init, const double *restrict offset_init, int predict_first,    \
+    double gate, int printed, int marginal, int by_path, se_int lanes, double *restrict x_out,    \
+    double *restrict P_out, double *restrict prob_out, se_int *restrict mode_out,                 \
+    double *restrict offset_out, uint8_t *restrict outlier_out, double *restrict x_last,          \
+    double *restrict P_last, double *restrict log_w_last, se_int *restrict chosen_last,           \
+    double *restrict offset_last, double *restrict report
+se_int se_viterbi_bank(SE_VITERBI_BANK_PARAMETERS);
 
 #endif

@@ -66,30 +66,12 @@
 #define TRANS 2  /* the entry of F, Qd in the group's lane (-1: to be gathered) */
 #define MODE 3   /* the entry of C, R in the group's lane (-1: to be gathered) */
 
-/* ---- the scratch arena --------------------------------------------------------------------- */
-
-/* Bytes of an array of `count` elements of `size` bytes, rounded up to 64 (each array of the
- * arena starts on a cache line). */
-static size_t arena_bytes(se_int count, size_t size)
-{
-    size_t bytes = (size_t)count * size;
-    return (bytes + 63) & ~(size_t)63;
-}
-
-/* The next `count` elements of `size` bytes from the arena at *cursor. */
-static void *arena_take(char **cursor, se_int count, size_t size)
-{
-    void *p = *cursor;
-    *cursor += arena_bytes(count, size);
-    return p;
-}
-
 /* ---- shared with the fixed-gain filter ----------------------------------------------------- */
 
 /* held[b] <- index[i0 + b, k] for every lane; return whether one changed (the lanes' matrices
  * are then gathered again). */
-int se_lane_entries(se_int K, const se_int *restrict index, se_int i0, se_int nb, se_int k,
-                    se_int *restrict held)
+static int se_lane_entries(se_int K, const se_int *restrict index, se_int i0, se_int nb, se_int k,
+                           se_int *restrict held)
 {
     int changed = 0;
     for (se_int b = 0; b < nb; b++) {
@@ -104,11 +86,11 @@ int se_lane_entries(se_int K, const se_int *restrict index, se_int i0, se_int nb
  * se_predict_mean), with u[:, k-1] and the transition trans[i0 + b, k] of the table F, G,
  * whose lane matrices Fl, Gl are gathered again where it changed (se_lane_entries); ul, xs are
  * scratch. */
-void se_predict_means(se_int n, se_int l, se_int B, se_int K, const se_int *restrict trans,
-                      const double *restrict F, const double *restrict G,
-                      const double *restrict u, se_int i0, se_int nb, se_int k,
-                      se_int *restrict held, double *restrict Fl, double *restrict Gl,
-                      double *restrict ul, double *restrict x, double *restrict xs)
+static void se_predict_means(se_int n, se_int l, se_int B, se_int K, const se_int *restrict trans,
+                             const double *restrict F, const double *restrict G,
+                             const double *restrict u, se_int i0, se_int nb, se_int k,
+                             se_int *restrict held, double *restrict Fl, double *restrict Gl,
+                             double *restrict ul, double *restrict x, double *restrict xs)
 {
     if (se_lane_entries(K, trans, i0, nb, k, held)) {
         se_gather_matrices(n, n, B, F, held, nb, Fl);
@@ -121,12 +103,12 @@ void se_predict_means(se_int n, se_int l, se_int B, se_int K, const se_int *rest
 /* Write the `count` buffered samples of the block's trials out as samples k0 .. of the
  * outputs, trial by trial (each trial's samples are contiguous there, as in the buffers);
  * P_out holds each covariance as a row of n^2. */
-void se_write_out(se_int n, se_int K, const double *restrict x_buf,
-                  const double *restrict P_buf, const se_int *restrict group_buf,
-                  const double *restrict loglik_buf, const uint8_t *restrict flag_buf,
-                  se_int i0, se_int nb, se_int k0, se_int count, double *restrict x_out,
-                  double *restrict P_out, double *restrict loglik_out,
-                  uint8_t *restrict flag_out)
+static void se_write_out(se_int n, se_int K, const double *restrict x_buf,
+                         const double *restrict P_buf, const se_int *restrict group_buf,
+                         const double *restrict loglik_buf, const uint8_t *restrict flag_buf,
+                         se_int i0, se_int nb, se_int k0, se_int count, double *restrict x_out,
+                         double *restrict P_out, double *restrict loglik_out,
+                         uint8_t *restrict flag_out)
 {
     const se_int nn = n * n;
     for (se_int b = 0; b < nb; b++) {
@@ -506,124 +488,89 @@ static void record(se_int n, se_int B, const double *restrict x, const double *r
  * resolves it or where the innovation covariance fails its factorization; only a covariance
  * that needs no repair and still fails stops the kernel.
  */
-se_int se_kalman_filter(se_int n, se_int m, se_int l, se_int N, se_int K,
-                        const double *restrict y, const double *restrict u,
-                        const double *restrict F, const double *restrict G,
-                        const double *restrict Qd, const se_int *restrict trans,
-                        const double *restrict C, const double *restrict R,
-                        const se_int *restrict mode, const double *restrict x_init,
-                        const double *restrict P_init, int predict_first, double gate,
-                        se_int lanes, double *restrict x_out, double *restrict P_out,
-                        double *restrict loglik_out, uint8_t *restrict flag_out,
-                        double *restrict report)
+se_int se_kalman_filter(SE_KALMAN_FILTER_PARAMETERS)
 {
-    report[0] = 0.0;
-    report[1] = INFINITY;
+    se_report_start(report);
     if (N <= 0 || K <= 0 || lanes <= 0)
         return SE_OK; /* nothing to filter (numba refuses N = 0: range step 0) */
-    const se_int B = lanes, nn = n * n;
-    const se_int nd[] = {
-        /* the trials, one per lane; PCt, chol, scale, log_det: each a copy of its group's */
-        n * B, n * B,                           /* x, xs */
-        nn * B, n * l * B, m * n * B,           /* Fl, Gl, Cl */
-        m * B, l * B, m * B, B,                 /* yl, ul, obs, n_obs */
-        m * B, m * B, B, B,                     /* e, z, nis, loglik */
-        n * m * B, m * m * B, m * B,            /* PCt, chol, scale */
-        2 * B,                                  /* log_det */
-        /* the groups, one per lane: covariance, sample, factorization; mean, input, output 0 */
-        nn * B, nn * B, nn * B,                 /* P, Fg, Qg */
-        m * n * B, m * m * B,                   /* Cg, Rg */
-        m * B, B,                               /* obs_g, n_obs_g */
-        n * B, n * l * B, l * B, m * B,         /* xg, Gg, ug, yg (zeros) */
-        m * B, m * B,                           /* eg, zg */
-        n * m * B, m * m * B,                   /* PCt_g, chol_g */
-        m * B, B, B,                            /* scale_g, nis_g, loglik_g */
-        3 * B, 2 * B,                           /* work, log_det_g */
-        n * m * B, n * m * B, nn * B,           /* gain, T, FP */
-        nn * B, n * B,                          /* prior, root */
-        nn * B,                                 /* P_last */
-        /* the last samples of the block, written out by trial */
-        B * CHUNK * n, B * CHUNK * nn, B * CHUNK, /* x_buf, P_buf, loglik_buf */
-    };
-    const se_int ni[] = {2 * B, B, 4 * B, B * CHUNK}; /* held, group, slot, group_buf */
-    const se_int nu[] = {B, B, B, B, B, B * CHUNK};   /* use, use_g, bad, lost, use_last, flag_buf */
-    size_t bytes = 0;
-    for (size_t q = 0; q < sizeof nd / sizeof nd[0]; q++)
-        bytes += arena_bytes(nd[q], sizeof(double));
-    for (size_t q = 0; q < sizeof ni / sizeof ni[0]; q++)
-        bytes += arena_bytes(ni[q], sizeof(se_int));
-    for (size_t q = 0; q < sizeof nu / sizeof nu[0]; q++)
-        bytes += arena_bytes(nu[q], 1);
-    char *arena = calloc(bytes + 64, 1); /* zeroed: xg, Gg, ug, yg and bad start at 0 */
-    if (arena == NULL)
+    const se_int B = se_lanes(lanes, N), nn = n * n;
+    double *restrict x, *restrict xs, *restrict Fl, *restrict Gl, *restrict Cl, *restrict yl,
+        *restrict ul, *restrict obs, *restrict n_obs, *restrict e, *restrict z, *restrict nis,
+        *restrict loglik, *restrict PCt, *restrict chol, *restrict scale, *restrict log_det,
+        *restrict P, *restrict Fg, *restrict Qg, *restrict Cg, *restrict Rg, *restrict obs_g,
+        *restrict n_obs_g, *restrict xg, *restrict Gg, *restrict ug, *restrict yg, *restrict eg,
+        *restrict zg, *restrict PCt_g, *restrict chol_g, *restrict scale_g, *restrict nis_g,
+        *restrict loglik_g, *restrict work, *restrict log_det_g, *restrict gain, *restrict T,
+        *restrict FP, *restrict prior, *restrict root, *restrict P_last, *restrict x_buf, *restrict
+        P_buf, *restrict loglik_buf;
+    se_int *restrict held, *restrict group, *restrict slot, *restrict group_buf;
+    uint8_t *restrict use, *restrict use_g, *restrict bad, *restrict lost, *restrict use_last,
+        *restrict flag_buf;
+    se_arena ar = {NULL, 0};
+    do { /* size the arena, then carve it (zeroed: xg, Gg, ug, yg and bad start at 0) */
+        x = se_doubles(&ar, n * B);
+        xs = se_doubles(&ar, n * B);
+        Fl = se_doubles(&ar, nn * B);
+        Gl = se_doubles(&ar, n * l * B);
+        Cl = se_doubles(&ar, m * n * B);
+        yl = se_doubles(&ar, m * B);
+        ul = se_doubles(&ar, l * B);
+        obs = se_doubles(&ar, m * B);
+        n_obs = se_doubles(&ar, B);
+        e = se_doubles(&ar, m * B);
+        z = se_doubles(&ar, m * B);
+        nis = se_doubles(&ar, B);
+        loglik = se_doubles(&ar, B);
+        PCt = se_doubles(&ar, n * m * B);
+        chol = se_doubles(&ar, m * m * B);
+        scale = se_doubles(&ar, m * B);
+        log_det = se_doubles(&ar, 2 * B);
+        P = se_doubles(&ar, nn * B);
+        Fg = se_doubles(&ar, nn * B);
+        Qg = se_doubles(&ar, nn * B);
+        Cg = se_doubles(&ar, m * n * B);
+        Rg = se_doubles(&ar, m * m * B);
+        obs_g = se_doubles(&ar, m * B);
+        n_obs_g = se_doubles(&ar, B);
+        xg = se_doubles(&ar, n * B);
+        Gg = se_doubles(&ar, n * l * B);
+        ug = se_doubles(&ar, l * B);
+        yg = se_doubles(&ar, m * B);
+        eg = se_doubles(&ar, m * B);
+        zg = se_doubles(&ar, m * B);
+        PCt_g = se_doubles(&ar, n * m * B);
+        chol_g = se_doubles(&ar, m * m * B);
+        scale_g = se_doubles(&ar, m * B);
+        nis_g = se_doubles(&ar, B);
+        loglik_g = se_doubles(&ar, B);
+        work = se_doubles(&ar, 3 * B);
+        log_det_g = se_doubles(&ar, 2 * B);
+        gain = se_doubles(&ar, n * m * B);
+        T = se_doubles(&ar, n * m * B);
+        FP = se_doubles(&ar, nn * B);
+        prior = se_doubles(&ar, nn * B);
+        root = se_doubles(&ar, n * B);
+        P_last = se_doubles(&ar, nn * B);
+        x_buf = se_doubles(&ar, B * CHUNK * n);
+        P_buf = se_doubles(&ar, B * CHUNK * nn);
+        loglik_buf = se_doubles(&ar, B * CHUNK);
+        held = se_ints(&ar, 2 * B);
+        group = se_ints(&ar, B);
+        slot = se_ints(&ar, 4 * B);
+        group_buf = se_ints(&ar, B * CHUNK);
+        use = se_flags(&ar, B);
+        use_g = se_flags(&ar, B);
+        bad = se_flags(&ar, B);
+        lost = se_flags(&ar, B);
+        use_last = se_flags(&ar, B);
+        flag_buf = se_flags(&ar, B * CHUNK);
+    } while (se_arena_open(&ar));
+    if (ar.base == NULL)
         return SE_NO_MEMORY;
-    char *cursor = arena + ((64 - ((uintptr_t)arena & 63)) & 63);
-#define TAKE_D(name, count) double *restrict name = arena_take(&cursor, (count), sizeof(double))
-#define TAKE_I(name, count) se_int *restrict name = arena_take(&cursor, (count), sizeof(se_int))
-#define TAKE_U(name, count) uint8_t *restrict name = arena_take(&cursor, (count), 1)
-    TAKE_D(x, n * B);
-    TAKE_D(xs, n * B);
-    TAKE_D(Fl, nn * B);
-    TAKE_D(Gl, n * l * B);
-    TAKE_D(Cl, m * n * B);
-    TAKE_D(yl, m * B);
-    TAKE_D(ul, l * B);
-    TAKE_D(obs, m * B);
-    TAKE_D(n_obs, B);
-    TAKE_D(e, m * B);
-    TAKE_D(z, m * B);
-    TAKE_D(nis, B);
-    TAKE_D(loglik, B);
-    TAKE_D(PCt, n * m * B);
-    TAKE_D(chol, m * m * B);
-    TAKE_D(scale, m * B);
-    TAKE_D(log_det, 2 * B);
-    TAKE_D(P, nn * B);
-    TAKE_D(Fg, nn * B);
-    TAKE_D(Qg, nn * B);
-    TAKE_D(Cg, m * n * B);
-    TAKE_D(Rg, m * m * B);
-    TAKE_D(obs_g, m * B);
-    TAKE_D(n_obs_g, B);
-    TAKE_D(xg, n * B);
-    TAKE_D(Gg, n * l * B);
-    TAKE_D(ug, l * B);
-    TAKE_D(yg, m * B);
-    TAKE_D(eg, m * B);
-    TAKE_D(zg, m * B);
-    TAKE_D(PCt_g, n * m * B);
-    TAKE_D(chol_g, m * m * B);
-    TAKE_D(scale_g, m * B);
-    TAKE_D(nis_g, B);
-    TAKE_D(loglik_g, B);
-    TAKE_D(work, 3 * B);
-    TAKE_D(log_det_g, 2 * B);
-    TAKE_D(gain, n * m * B);
-    TAKE_D(T, n * m * B);
-    TAKE_D(FP, nn * B);
-    TAKE_D(prior, nn * B);
-    TAKE_D(root, n * B);
-    TAKE_D(P_last, nn * B);
-    TAKE_D(x_buf, B * CHUNK * n);
-    TAKE_D(P_buf, B * CHUNK * nn);
-    TAKE_D(loglik_buf, B * CHUNK);
-    TAKE_I(held, 2 * B);
-    TAKE_I(group, B);
-    TAKE_I(slot, 4 * B);
-    TAKE_I(group_buf, B * CHUNK);
-    TAKE_U(use, B);
-    TAKE_U(use_g, B);
-    TAKE_U(bad, B);
-    TAKE_U(lost, B);
-    TAKE_U(use_last, B);
-    TAKE_U(flag_buf, B * CHUNK);
-#undef TAKE_D
-#undef TAKE_I
-#undef TAKE_U
     const Sample sp = {n, m, B, K, trans, mode, F, Qd, C, R};
     se_int status = SE_OK;
     for (se_int i0 = 0; i0 < N; i0 += B) {
-        const se_int nb = B < N - i0 ? B : N - i0;
+        const se_int nb = se_block_trials(B, N, i0);
         se_gather_rows(n, B, 1, x_init, i0, nb, x);
         for (se_int q = 0; q < 2 * B; q++) /* no entry held: each lane gathers its matrices at its first sample */
             held[q] = -1;
@@ -664,7 +611,7 @@ se_int se_kalman_filter(se_int n, se_int m, se_int l, se_int N, se_int K,
             for (se_int j = 0; j < n_groups; j++)
                 use_g[j] = 0;
             for (se_int b = 0; b < nb; b++) { /* the gate, then the update (eqs (9)-(10)) where it passed */
-                use[b] = isfinite(loglik[b]) && nis[b] <= gate;
+                use[b] = se_passes_gate(loglik[b], nis[b], gate);
                 use_g[group[b]] |= use[b];
             }
             int lost_any = 0;
@@ -698,7 +645,7 @@ se_int se_kalman_filter(se_int n, se_int m, se_int l, se_int N, se_int K,
         }
     }
 done:
-    free(arena);
+    free(ar.base);
     return status;
 }
 
@@ -725,90 +672,48 @@ static void whitened_norm(se_int m, se_int B, const double *restrict e,
     }
 }
 
-/* x <- x + K e in the lanes that use their measurement (Zhang & Natarajan eq. (6)); the other
- * lanes keep x as predicted. x (n, B), e (m, B), gain (n, m, B), use (B,). */
-static void steady_correct(se_int n, se_int m, se_int B, double *restrict x,
-                           const double *restrict e, const double *restrict gain,
-                           const uint8_t *restrict use, se_int nb)
-{
-    for (se_int i = 0; i < n; i++) {
-        double *xi = x + i * B;
-        for (se_int a = 0; a < m; a++) {
-            const double *Kia = gain + (i * m + a) * B, *ea = e + a * B;
-            for (se_int b = 0; b < nb; b++)
-                xi[b] += use[b] ? Kia[b] * ea[b] : 0.0;
-        }
-    }
-}
-
 /* Fixed-gain filter of every trial from x_init[i], in blocks of `lanes` trials:
  * x <- F x + G u (se_predict_means), then x <- x + K (y - C x) in the lanes where every
  * component of y is observed and its normalized innovation squared |W e|^2 passes gate
  * (Zhang & Natarajan eq. (6)); P is copied from the tables, loglik is NaN. A lane's matrices
  * are gathered when its entry changes; the outputs are buffered and written trial by trial
  * (se_write_out). Returns SE_OK, or SE_NO_MEMORY. */
-se_int se_steady_filter(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
-                        const double *restrict y, const double *restrict u,
-                        const double *restrict F, const double *restrict G,
-                        const se_int *restrict trans, const double *restrict C,
-                        const se_int *restrict mode, const double *restrict gain,
-                        const double *restrict P_prior, const double *restrict P_post,
-                        const double *restrict whiten, const double *restrict x_init,
-                        int predict_first, double gate, se_int lanes, double *restrict x_out,
-                        double *restrict P_out, double *restrict loglik_out,
-                        uint8_t *restrict flag_out)
+se_int se_steady_filter(SE_STEADY_FILTER_PARAMETERS)
 {
     if (N <= 0 || K <= 0 || lanes <= 0)
         return SE_OK; /* nothing to filter (numba refuses N = 0: range step 0) */
-    const se_int B = lanes, nn = n * n;
-    const se_int nd[] = {
-        n * B, n * B, m * B, l * B,            /* x, xs, yl, ul */
-        nn * B, n * l * B,                     /* Fl, Gl */
-        m * n * B, n * m * B, m * m * B, m * B, /* Cl, Kl, Wl, e */
-        m * B, B, B, B,                        /* obs, n_obs, v, nis */
-        /* the buffers of se_write_out; its covariances are the tables (prior, then posterior) */
-        B * CHUNK * n, 2 * L * CHUNK * nn, B * CHUNK, /* x_buf, P_buf, loglik_buf */
-    };
-    const se_int ni[] = {2 * B, B * CHUNK}; /* held, entry_buf */
-    const se_int nu[] = {B, B * CHUNK};     /* use, flag_buf */
-    size_t bytes = 0;
-    for (size_t q = 0; q < sizeof nd / sizeof nd[0]; q++)
-        bytes += arena_bytes(nd[q], sizeof(double));
-    for (size_t q = 0; q < sizeof ni / sizeof ni[0]; q++)
-        bytes += arena_bytes(ni[q], sizeof(se_int));
-    for (size_t q = 0; q < sizeof nu / sizeof nu[0]; q++)
-        bytes += arena_bytes(nu[q], 1);
-    char *arena = calloc(bytes + 64, 1);
-    if (arena == NULL)
+    const se_int B = se_lanes(lanes, N), nn = n * n;
+    double *restrict x, *restrict xs, *restrict yl, *restrict ul, *restrict Fl, *restrict Gl,
+        *restrict Cl, *restrict Kl, *restrict Wl, *restrict e, *restrict obs, *restrict n_obs,
+        *restrict v, *restrict nis, *restrict x_buf, *restrict P_buf, *restrict loglik_buf;
+    se_int *restrict held, *restrict entry_buf;
+    uint8_t *restrict use, *restrict flag_buf;
+    se_arena ar = {NULL, 0};
+    do { /* size the arena, then carve it (zeroed) */
+        x = se_doubles(&ar, n * B);
+        xs = se_doubles(&ar, n * B);
+        yl = se_doubles(&ar, m * B);
+        ul = se_doubles(&ar, l * B);
+        Fl = se_doubles(&ar, nn * B);
+        Gl = se_doubles(&ar, n * l * B);
+        Cl = se_doubles(&ar, m * n * B);
+        Kl = se_doubles(&ar, n * m * B);
+        Wl = se_doubles(&ar, m * m * B);
+        e = se_doubles(&ar, m * B);
+        obs = se_doubles(&ar, m * B);
+        n_obs = se_doubles(&ar, B);
+        v = se_doubles(&ar, B);
+        nis = se_doubles(&ar, B);
+        x_buf = se_doubles(&ar, B * CHUNK * n);
+        P_buf = se_doubles(&ar, 2 * L * CHUNK * nn);
+        loglik_buf = se_doubles(&ar, B * CHUNK);
+        held = se_ints(&ar, 2 * B);
+        entry_buf = se_ints(&ar, B * CHUNK);
+        use = se_flags(&ar, B);
+        flag_buf = se_flags(&ar, B * CHUNK);
+    } while (se_arena_open(&ar));
+    if (ar.base == NULL)
         return SE_NO_MEMORY;
-    char *cursor = arena + ((64 - ((uintptr_t)arena & 63)) & 63);
-#define TAKE_D(name, count) double *restrict name = arena_take(&cursor, (count), sizeof(double))
-#define TAKE_I(name, count) se_int *restrict name = arena_take(&cursor, (count), sizeof(se_int))
-#define TAKE_U(name, count) uint8_t *restrict name = arena_take(&cursor, (count), 1)
-    TAKE_D(x, n * B);
-    TAKE_D(xs, n * B);
-    TAKE_D(yl, m * B);
-    TAKE_D(ul, l * B);
-    TAKE_D(Fl, nn * B);
-    TAKE_D(Gl, n * l * B);
-    TAKE_D(Cl, m * n * B);
-    TAKE_D(Kl, n * m * B);
-    TAKE_D(Wl, m * m * B);
-    TAKE_D(e, m * B);
-    TAKE_D(obs, m * B);
-    TAKE_D(n_obs, B);
-    TAKE_D(v, B);
-    TAKE_D(nis, B);
-    TAKE_D(x_buf, B * CHUNK * n);
-    TAKE_D(P_buf, 2 * L * CHUNK * nn);
-    TAKE_D(loglik_buf, B * CHUNK);
-    TAKE_I(held, 2 * B);
-    TAKE_I(entry_buf, B * CHUNK);
-    TAKE_U(use, B);
-    TAKE_U(flag_buf, B * CHUNK);
-#undef TAKE_D
-#undef TAKE_I
-#undef TAKE_U
     for (se_int q = 0; q < B * CHUNK; q++)
         loglik_buf[q] = NAN;
     for (se_int i = 0; i < L; i++)
@@ -818,7 +723,7 @@ se_int se_steady_filter(se_int n, se_int m, se_int l, se_int L, se_int N, se_int
                 P_buf[((L + i) * CHUNK + t) * nn + q] = P_post[i * nn + q];
             }
     for (se_int i0 = 0; i0 < N; i0 += B) {
-        const se_int nb = B < N - i0 ? B : N - i0;
+        const se_int nb = se_block_trials(B, N, i0);
         se_gather_rows(n, B, 1, x_init, i0, nb, x);
         for (se_int q = 0; q < 2 * B; q++) /* no entry held: each lane gathers its matrices at its first sample */
             held[q] = -1;
@@ -841,7 +746,7 @@ se_int se_steady_filter(se_int n, se_int m, se_int l, se_int L, se_int N, se_int
                 flag_buf[b * CHUNK + t] = seen && !use[b] ? SE_GATED : SE_ACCEPTED;
                 entry_buf[b * CHUNK + t] = held[B + b] + (use[b] ? L : 0);
             }
-            steady_correct(n, m, B, x, e, Kl, use, nb);
+            se_add_gain(n, m, B, x, Kl, e, use, nb); /* Zhang & Natarajan eq. (6) */
             for (se_int b = 0; b < nb; b++)
                 for (se_int r = 0; r < n; r++)
                     x_buf[(b * CHUNK + t) * n + r] = x[r * B + b];
@@ -850,6 +755,6 @@ se_int se_steady_filter(se_int n, se_int m, se_int l, se_int L, se_int N, se_int
                              t + 1, x_out, P_out, loglik_out, flag_out);
         }
     }
-    free(arena);
+    free(ar.base);
     return SE_OK;
 }

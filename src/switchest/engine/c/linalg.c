@@ -219,9 +219,9 @@ void se_residual(se_int n, se_int m, se_int B, const double *restrict x,
 }
 
 /* e = y - C x (Shankar et al. eq. (8)) with each lane's unobserved components zeroed. */
-void se_observed_residual(se_int n, se_int m, se_int B, const double *restrict x,
-                          const double *restrict y, const double *restrict C,
-                          const double *restrict obs, se_int nb, double *restrict e)
+static void se_observed_residual(se_int n, se_int m, se_int B, const double *restrict x,
+                                 const double *restrict y, const double *restrict C,
+                                 const double *restrict obs, se_int nb, double *restrict e)
 {
     se_residual(n, m, B, x, y, C, nb, e);
     for (se_int a = 0; a < m; a++)
@@ -229,29 +229,77 @@ void se_observed_residual(se_int n, se_int m, se_int B, const double *restrict x
             e[a * B + b] = obs[a * B + b] > 0.0 ? e[a * B + b] : 0.0;
 }
 
+/* va <- va / L_aa, or va * inv_a with the reciprocals inv (m, B) taken beforehand */
+static inline void se_divide_by_pivot(se_int m, se_int B, const double *restrict chol,
+                                      const double *restrict inv, se_int a, double *restrict va,
+                                      se_int nb)
+{
+    if (inv) {
+        const double *ia = inv + a * B;
+        for (se_int b = 0; b < nb; b++)
+            va[b] *= ia[b];
+    } else {
+        const double *Laa = chol + (a * m + a) * B;
+        for (se_int b = 0; b < nb; b++)
+            va[b] /= Laa[b];
+    }
+}
+
+/* The triangular solves with S = D^1/2 L L' D^1/2 as se_factor leaves it (chol (m, m, B),
+ * scale = D^-1/2 (m, B)), in place on v (m, B) per lane (Golub & Van Loan, "Matrix
+ * Computations", 4th ed., §3.1): forward, v <- L^-1 D^-1/2 v, and back, v <- D^-1/2 L'^-1 v.
+ * Each divides by L's diagonal, or with inv (m, B) multiplies by its reciprocals (se_solve_rows
+ * takes them once for many right-hand sides: a division costs several multiplications). The
+ * one shared implementation of the lane solves. */
+static inline void se_forward_lanes(se_int m, se_int B, const double *restrict chol,
+                                    const double *restrict scale, const double *restrict inv,
+                                    double *restrict v, se_int nb)
+{
+    for (se_int a = 0; a < m; a++) {
+        double *va = v + a * B;
+        const double *sa = scale + a * B;
+        for (se_int b = 0; b < nb; b++)
+            va[b] *= sa[b];
+        for (se_int c = 0; c < a; c++) {
+            const double *Lac = chol + (a * m + c) * B, *vc = v + c * B;
+            for (se_int b = 0; b < nb; b++)
+                va[b] -= Lac[b] * vc[b];
+        }
+        se_divide_by_pivot(m, B, chol, inv, a, va, nb);
+    }
+}
+
+static inline void se_backward_lanes(se_int m, se_int B, const double *restrict chol,
+                                     const double *restrict scale, const double *restrict inv,
+                                     double *restrict v, se_int nb)
+{
+    for (se_int a = m - 1; a >= 0; a--) {
+        double *va = v + a * B;
+        for (se_int c = a + 1; c < m; c++) {
+            const double *Lca = chol + (c * m + a) * B, *vc = v + c * B;
+            for (se_int b = 0; b < nb; b++)
+                va[b] -= Lca[b] * vc[b];
+        }
+        se_divide_by_pivot(m, B, chol, inv, a, va, nb);
+    }
+    for (se_int a = 0; a < m; a++)
+        for (se_int b = 0; b < nb; b++)
+            v[a * B + b] *= scale[a * B + b];
+}
+
 /* z = L^-1 D^-1/2 e by forward substitution and nis = |z|^2 = e' S^-1 e, per lane, for
  * S = D^1/2 L L' D^1/2 as se_innovation factors it. */
-void se_whiten(se_int m, se_int B, const double *restrict e, const double *restrict chol,
-               const double *restrict scale, se_int nb, double *restrict z,
-               double *restrict nis)
+static void se_whiten(se_int m, se_int B, const double *restrict e, const double *restrict chol,
+                      const double *restrict scale, se_int nb, double *restrict z,
+                      double *restrict nis)
 {
+    se_copy_lanes(m, 1, B, e, nb, z);
+    se_forward_lanes(m, B, chol, scale, NULL, z, nb);
     for (se_int b = 0; b < nb; b++)
         nis[b] = 0.0;
-    for (se_int a = 0; a < m; a++) {
-        double *za = z + a * B;
+    for (se_int a = 0; a < m; a++)
         for (se_int b = 0; b < nb; b++)
-            za[b] = scale[a * B + b] * e[a * B + b];
-        for (se_int c = 0; c < a; c++) {
-            const double *Lac = chol + (a * m + c) * B, *zc = z + c * B;
-            for (se_int b = 0; b < nb; b++)
-                za[b] -= Lac[b] * zc[b];
-        }
-        const double *Laa = chol + (a * m + a) * B;
-        for (se_int b = 0; b < nb; b++) {
-            za[b] /= Laa[b];
-            nis[b] += za[b] * za[b];
-        }
-    }
+            nis[b] += z[a * B + b] * z[a * B + b];
 }
 
 /* Innovation of y against (x, P) over each lane's observed components.
@@ -438,24 +486,11 @@ void se_innovation_mean(se_int n, se_int m, se_int B, const double *restrict x,
 }
 
 /* v <- S^-1 v per lane, with S = D^1/2 L L' D^1/2 as se_innovation left it. */
-void se_solve(se_int m, se_int B, const double *restrict chol, const double *restrict scale,
-              double *restrict v, se_int nb)
+static void se_solve(se_int m, se_int B, const double *restrict chol, const double *restrict scale,
+                     double *restrict v, se_int nb)
 {
-    for (se_int a = 0; a < m; a++) { /* forward: L w = D^-1/2 v */
-        double *va = v + a * B;
-        const double *sa = scale + a * B;
-        for (se_int b = 0; b < nb; b++)
-            va[b] *= sa[b];
-        for (se_int c = 0; c < a; c++) {
-            const double *Lac = chol + (a * m + c) * B, *vc = v + c * B;
-            for (se_int b = 0; b < nb; b++)
-                va[b] -= Lac[b] * vc[b];
-        }
-        const double *Laa = chol + (a * m + a) * B;
-        for (se_int b = 0; b < nb; b++)
-            va[b] /= Laa[b];
-    }
-    se_back_substitute(m, B, chol, scale, v, nb);
+    se_forward_lanes(m, B, chol, scale, NULL, v, nb);
+    se_backward_lanes(m, B, chol, scale, NULL, v, nb);
 }
 
 /* V[r] <- S^-1 V[r] per lane for every row r of V (q, m, B), with S = D^1/2 L L' D^1/2 as
@@ -470,56 +505,16 @@ void se_solve_rows(se_int m, se_int B, se_int q, const double *restrict chol,
         for (se_int b = 0; b < nb; b++)
             inv[a * B + b] = 1.0 / chol[(a * m + a) * B + b];
     for (se_int r = 0; r < q; r++) {
-        double *v = V + r * m * B;
-        for (se_int a = 0; a < m; a++) { /* forward: L w = D^-1/2 v */
-            double *va = v + a * B;
-            const double *sa = scale + a * B;
-            for (se_int b = 0; b < nb; b++)
-                va[b] *= sa[b];
-            for (se_int c = 0; c < a; c++) {
-                const double *Lac = chol + (a * m + c) * B, *vc = v + c * B;
-                for (se_int b = 0; b < nb; b++)
-                    va[b] -= Lac[b] * vc[b];
-            }
-            const double *ia = inv + a * B;
-            for (se_int b = 0; b < nb; b++)
-                va[b] *= ia[b];
-        }
-        for (se_int a = m - 1; a >= 0; a--) { /* back: D^-1/2 L'^-1 w */
-            double *va = v + a * B;
-            for (se_int c = a + 1; c < m; c++) {
-                const double *Lca = chol + (c * m + a) * B, *vc = v + c * B;
-                for (se_int b = 0; b < nb; b++)
-                    va[b] -= Lca[b] * vc[b];
-            }
-            const double *ia = inv + a * B;
-            for (se_int b = 0; b < nb; b++)
-                va[b] *= ia[b];
-        }
-        for (se_int a = 0; a < m; a++)
-            for (se_int b = 0; b < nb; b++)
-                v[a * B + b] *= scale[a * B + b];
+        se_forward_lanes(m, B, chol, scale, inv, V + r * m * B, nb);
+        se_backward_lanes(m, B, chol, scale, inv, V + r * m * B, nb);
     }
 }
 
 /* v <- D^-1/2 L'^-1 v per lane: the second half of se_solve (S^-1 e from z = L^-1 D^-1/2 e). */
-void se_back_substitute(se_int m, se_int B, const double *restrict chol,
-                        const double *restrict scale, double *restrict v, se_int nb)
+static void se_back_substitute(se_int m, se_int B, const double *restrict chol,
+                               const double *restrict scale, double *restrict v, se_int nb)
 {
-    for (se_int a = m - 1; a >= 0; a--) {
-        double *va = v + a * B;
-        for (se_int c = a + 1; c < m; c++) {
-            const double *Lca = chol + (c * m + a) * B, *vc = v + c * B;
-            for (se_int b = 0; b < nb; b++)
-                va[b] -= Lca[b] * vc[b];
-        }
-        const double *Laa = chol + (a * m + a) * B;
-        for (se_int b = 0; b < nb; b++)
-            va[b] /= Laa[b];
-    }
-    for (se_int a = 0; a < m; a++)
-        for (se_int b = 0; b < nb; b++)
-            v[a * B + b] *= scale[a * B + b];
+    se_backward_lanes(m, B, chol, scale, NULL, v, nb);
 }
 
 /* Measurement update, in the lanes where use is true (Shankar et al. eqs (9)-(10)).
@@ -594,14 +589,7 @@ void se_correct_mean(se_int n, se_int m, se_int B, double *restrict x, double *r
                      const double *restrict scale, const uint8_t *restrict use, se_int nb)
 {
     se_back_substitute(m, B, chol, scale, z, nb); /* S^-1 e = D^-1/2 L'^-1 z */
-    for (se_int i = 0; i < n; i++) {
-        double *xi = x + i * B;
-        for (se_int a = 0; a < m; a++) {
-            const double *Pia = PCt + (i * m + a) * B, *za = z + a * B;
-            for (se_int b = 0; b < nb; b++)
-                xi[b] += use[b] ? Pia[b] * za[b] : 0.0;
-        }
-    }
+    se_add_gain(n, m, B, x, PCt, z, use, nb);
 }
 
 /* Mark the lanes where Joseph's form has lost its digits; return whether there is one.
@@ -643,15 +631,60 @@ int se_joseph_lost(se_int n, se_int B, const double *restrict P, const double *r
  * form (se_information_form), or where that fails, repaired if indefinite (se_repair, counted
  * in report): the rule of the filters here, after se_correct (a group's repair in the Kalman
  * kernel counts its trials). */
-void se_information_or_repair(se_int n, se_int m, se_int B, double *restrict P,
-                              const double *restrict prior, const double *restrict C,
-                              const double *restrict R, const double *restrict obs,
-                              const double *restrict n_obs, const uint8_t *restrict lost,
-                              se_int nb, double *restrict report)
+static void se_information_or_repair(se_int n, se_int m, se_int B, double *restrict P,
+                                     const double *restrict prior, const double *restrict C,
+                                     const double *restrict R, const double *restrict obs,
+                                     const double *restrict n_obs, const uint8_t *restrict lost,
+                                     se_int nb, double *restrict report)
 {
     for (se_int b = 0; b < nb; b++)
         if (lost[b] && n_obs[b] > 0.0 && !se_information_form(n, m, B, P, prior, C, R, obs, b))
             se_repair(n, B, P, b, 1, report);
+}
+
+/* The measurement update with the covariance rule of every filter (see linalg.h). */
+void se_update(se_int n, se_int m, se_int B, double *restrict x, double *restrict P,
+               const double *restrict C, const double *restrict R, const double *restrict obs,
+               const double *restrict n_obs, const uint8_t *restrict use, se_int nb,
+               const double *restrict PCt, const double *restrict chol,
+               const double *restrict scale, double *restrict z, const se_update_ws *ws,
+               double *restrict report)
+{
+    se_correct(n, m, B, x, P, C, R, use, nb, PCt, chol, scale, z, ws->gain, ws->T, ws->AP,
+               ws->prior);
+    if (se_joseph_lost(n, B, P, ws->prior, use, nb, ws->root, ws->lost)) /* rare: lane by lane */
+        se_information_or_repair(n, m, B, P, ws->prior, C, R, obs, n_obs, ws->lost, nb, report);
+}
+
+/* The gating decision of a multiple-model filter, before anything changes (see linalg.h). */
+void se_gate(se_int rows, se_int cols, se_int stride, se_int B, const double *restrict prior,
+             const double *restrict loglik, const double *restrict nis, double gate, se_int nb,
+             uint8_t *restrict use, double *restrict a, uint8_t *restrict flag)
+{
+    for (se_int b = 0; b < nb; b++) {
+        double top = -INFINITY;
+        for (se_int j = 0; j < rows; j++)
+            for (se_int i = 0; i < cols; i++) {
+                const se_int at = (j * stride + i) * B + b;
+                const int used = se_passes_gate(loglik[at], nis[at], gate);
+                use[at] = (uint8_t)used;
+                a[at] = used ? prior[at] + loglik[at] : -INFINITY;
+                if (a[at] > top)
+                    top = a[at];
+            }
+        flag[b] = SE_ACCEPTED;
+        for (se_int j = 0; j < rows; j++)
+            for (se_int i = 0; i < cols; i++) {
+                const se_int at = (j * stride + i) * B + b;
+                if (top == -INFINITY) { /* no filter can use it: the sample counts as missing */
+                    flag[b] = SE_GATED;
+                    use[at] = 0;
+                    a[at] = prior[at];
+                } else if (!use[at]) {
+                    flag[b] = SE_PARTLY_GATED;
+                }
+            }
+    }
 }
 
 /* Scratch of the scalar paths: on the stack up to SE_LINALG_STACK states, else the heap. */
@@ -704,22 +737,8 @@ static int se_cholesky_into(se_int n, const double *restrict A, double *restrict
     return 1;
 }
 
-/* Equilibrated Cholesky factor of one symmetric A (n, n) (lower triangle read):
- * out = D L (lower, zero above), A = (D L)(D L)', with D the powers of two near sqrt(A_ii)
- * and L the factor of D^-1 A D^-1 (no overflow for entries of 1e300). Returns 0 if A is not
- * positive definite or not finite. */
-int se_cholesky(se_int n, const double *restrict A, double *restrict out)
-{
-    SE_SCRATCH(d, n, SE_LINALG_STACK);
-    if (d == NULL)
-        return 0;
-    int ok = se_cholesky_into(n, A, out, d);
-    SE_SCRATCH_FREE(d);
-    return ok;
-}
-
 /* Bm <- Lo^-1 Bm for a lower-triangular Lo (m, m) and Bm (m, q) (numba's B (m, k)). */
-void se_forward(se_int m, se_int q, const double *restrict Lo, double *restrict Bm)
+static void se_forward(se_int m, se_int q, const double *restrict Lo, double *restrict Bm)
 {
     for (se_int a = 0; a < m; a++) {
         for (se_int c = 0; c < a; c++)
@@ -911,6 +930,71 @@ void se_log_normalize(se_int L, se_int B, double *restrict a, double *restrict p
     }
 }
 
+/* Lane b of mixture j in the log domain: w[i, b] = exp(log mu_i + log pi_ij - lse),
+ * returning lse = logsumexp_i(log mu_i + log pi_ij); zero weights and -inf when every term is
+ * -inf. w (L, B) is numba's w[j]. */
+static double se_log_weights(se_int L, se_int B, const double *restrict log_prob,
+                             const double *restrict log_transition, se_int j, se_int b,
+                             double *restrict w)
+{
+    double top = -INFINITY;
+    for (se_int i = 0; i < L; i++) {
+        w[i * B + b] = log_prob[i * B + b] + log_transition[(i * L + j) * B + b];
+        top = w[i * B + b] > top ? w[i * B + b] : top;
+    }
+    if (top == -INFINITY) {
+        for (se_int i = 0; i < L; i++)
+            w[i * B + b] = 0.0;
+        return -INFINITY;
+    }
+    double acc = 0.0;
+    for (se_int i = 0; i < L; i++)
+        acc += exp(w[i * B + b] - top);
+    double lse = top + log(acc);
+    for (se_int i = 0; i < L; i++)
+        w[i * B + b] = exp(w[i * B + b] - lse);
+    return lse;
+}
+
+/* Predicted mode probabilities log c_j = log sum_i pi_ij mu_i and the IMM's mixing weights
+ * w[j][i] = mu_{i|j} = pi_ij mu_i / c_j (Blom & Bar-Shalom, 1988; Bar-Shalom, Li &
+ * Kirubarajan §11.6.6), per lane, for L modes of probabilities prob (L, B) (and their
+ * logarithms log_prob) and the lane's transition matrix transition (L, L, B) (and its
+ * logarithm): the first half of se_mix, shared with se_collapse.
+ *
+ * The sums are taken over the probabilities themselves; one below 1e-250 is redone in the log
+ * domain (see se_mix). A mode no predecessor reaches gets log c_j = -inf and zero weights.
+ * log_c (L, B) and w (L, L, B) are written. */
+static void se_predicted_mode_probabilities(se_int L, se_int B, const double *restrict prob,
+                                            const double *restrict log_prob,
+                                            const double *restrict transition,
+                                            const double *restrict log_transition, se_int nb,
+                                            double *restrict log_c, double *restrict w)
+{
+    for (se_int j = 0; j < L; j++) {
+        double *wj = w + j * L * B, *cj = log_c + j * B;
+        for (se_int b = 0; b < nb; b++)
+            cj[b] = 0.0;
+        for (se_int i = 0; i < L; i++) {
+            const double *tij = transition + (i * L + j) * B, *pi = prob + i * B;
+            double *wji = wj + i * B;
+            for (se_int b = 0; b < nb; b++) {
+                wji[b] = tij[b] * pi[b];
+                cj[b] += wji[b];
+            }
+        }
+        for (se_int b = 0; b < nb; b++) {
+            if (cj[b] > SE_TINY_SUM) {
+                for (se_int i = 0; i < L; i++)
+                    wj[i * B + b] /= cj[b];
+                cj[b] = log(cj[b]);
+            } else {
+                cj[b] = se_log_weights(L, B, log_prob, log_transition, j, b, wj);
+            }
+        }
+    }
+}
+
 /* IMM interaction, in place on the mode-matched x (L, n, B), P (L, n, n, B).
  *
  * Predicted mode probabilities log c_j = logsumexp_i(log mu_i + log pi_ij), mixing weights
@@ -943,45 +1027,6 @@ void se_mix(se_int n, se_int L, se_int B, double *restrict x, double *restrict P
                 for (se_int b = 0; b < nb; b++)
                     P[((j * n + r) * n + c) * B + b] = Pm[((j * n + r) * n + c) * B + b];
         }
-}
-
-/* Predicted mode probabilities log c_j = log sum_i pi_ij mu_i and the IMM's mixing weights
- * w[j][i] = mu_{i|j} = pi_ij mu_i / c_j (Blom & Bar-Shalom, 1988; Bar-Shalom, Li &
- * Kirubarajan §11.6.6), per lane, for L modes of probabilities prob (L, B) (and their
- * logarithms log_prob) and the lane's transition matrix transition (L, L, B) (and its
- * logarithm): the first half of se_mix, shared with se_collapse.
- *
- * The sums are taken over the probabilities themselves; one below 1e-250 is redone in the log
- * domain (see se_mix). A mode no predecessor reaches gets log c_j = -inf and zero weights.
- * log_c (L, B) and w (L, L, B) are written. */
-void se_predicted_mode_probabilities(se_int L, se_int B, const double *restrict prob,
-                                     const double *restrict log_prob,
-                                     const double *restrict transition,
-                                     const double *restrict log_transition, se_int nb,
-                                     double *restrict log_c, double *restrict w)
-{
-    for (se_int j = 0; j < L; j++) {
-        double *wj = w + j * L * B, *cj = log_c + j * B;
-        for (se_int b = 0; b < nb; b++)
-            cj[b] = 0.0;
-        for (se_int i = 0; i < L; i++) {
-            const double *tij = transition + (i * L + j) * B, *pi = prob + i * B;
-            double *wji = wj + i * B;
-            for (se_int b = 0; b < nb; b++) {
-                wji[b] = tij[b] * pi[b];
-                cj[b] += wji[b];
-            }
-        }
-        for (se_int b = 0; b < nb; b++) {
-            if (cj[b] > SE_TINY_SUM) {
-                for (se_int i = 0; i < L; i++)
-                    wj[i * B + b] /= cj[b];
-                cj[b] = log(cj[b]);
-            } else {
-                cj[b] = se_log_weights(L, B, log_prob, log_transition, j, b, wj);
-            }
-        }
-    }
 }
 
 /* GPB1 interaction, in place on the mode-matched x (L, n, B), P (L, n, n, B).
@@ -1018,32 +1063,6 @@ void se_merge(se_int n, se_int L, se_int B, const double *restrict w, const doub
               const double *restrict P, se_int nb, double *restrict xm, double *restrict Pm)
 {
     se_moments(n, L, B, w, x, P, nb, xm, Pm);
-}
-
-/* Lane b of mixture j in the log domain: w[i, b] = exp(log mu_i + log pi_ij - lse),
- * returning lse = logsumexp_i(log mu_i + log pi_ij); zero weights and -inf when every term is
- * -inf. w (L, B) is numba's w[j]. */
-double se_log_weights(se_int L, se_int B, const double *restrict log_prob,
-                      const double *restrict log_transition, se_int j, se_int b,
-                      double *restrict w)
-{
-    double top = -INFINITY;
-    for (se_int i = 0; i < L; i++) {
-        w[i * B + b] = log_prob[i * B + b] + log_transition[(i * L + j) * B + b];
-        top = w[i * B + b] > top ? w[i * B + b] : top;
-    }
-    if (top == -INFINITY) {
-        for (se_int i = 0; i < L; i++)
-            w[i * B + b] = 0.0;
-        return -INFINITY;
-    }
-    double acc = 0.0;
-    for (se_int i = 0; i < L; i++)
-        acc += exp(w[i * B + b] - top);
-    double lse = top + log(acc);
-    for (se_int i = 0; i < L; i++)
-        w[i * B + b] = exp(w[i * B + b] - lse);
-    return lse;
 }
 
 /* Mean xm (n, B) and covariance Pm (n, n, B) of the mixture sum_i w_i N(x_i, P_i) per lane,

@@ -174,16 +174,6 @@ void se_residual(se_int n, se_int m, se_int B, const double *restrict x,
                  const double *restrict y, const double *restrict C, se_int nb,
                  double *restrict e);
 
-/* e = y - C x with each lane's unobserved components zeroed: obs (m, B), shapes as se_residual */
-void se_observed_residual(se_int n, se_int m, se_int B, const double *restrict x,
-                          const double *restrict y, const double *restrict C,
-                          const double *restrict obs, se_int nb, double *restrict e);
-
-/* z = L^-1 D^-1/2 e, nis = |z|^2: e (m, B), chol (m, m, B), scale (m, B), z (m, B), nis (B,) */
-void se_whiten(se_int m, se_int B, const double *restrict e, const double *restrict chol,
-               const double *restrict scale, se_int nb, double *restrict z,
-               double *restrict nis);
-
 /* Innovation of y against (x, P) over each lane's observed components, and S's factorization.
  * x (n, B), P (n, n, B), y (m, B), C (m, n, B), R (m, m, B), obs (m, B), n_obs (B,);
  * written: e (m, B), PCt (n, m, B), chol (m, m, B), scale (m, B), z (m, B), nis (B,),
@@ -212,19 +202,11 @@ void se_innovation_mean(se_int n, se_int m, se_int B, const double *restrict x,
                         const double *restrict log_det, se_int nb, double *restrict e,
                         double *restrict z, double *restrict nis, double *restrict loglik);
 
-/* v <- S^-1 v per lane: chol (m, m, B), scale (m, B), v (m, B) */
-void se_solve(se_int m, se_int B, const double *restrict chol, const double *restrict scale,
-              double *restrict v, se_int nb);
-
 /* V[r] <- S^-1 V[r] for every row r of V (q, m, B); inv (m, B) written. (The smoother passes
  * its gain (n, m, B): q = n.) */
 void se_solve_rows(se_int m, se_int B, se_int q, const double *restrict chol,
                    const double *restrict scale, double *restrict V, se_int nb,
                    double *restrict inv);
-
-/* v <- D^-1/2 L'^-1 v per lane: chol (m, m, B), scale (m, B), v (m, B) */
-void se_back_substitute(se_int m, se_int B, const double *restrict chol,
-                        const double *restrict scale, double *restrict v, se_int nb);
 
 /* Measurement update (Joseph form) in the lanes where use[b]: x (n, B), P (n, n, B),
  * C (m, n, B), R (m, m, B), use (B,) uint8, PCt (n, m, B), chol (m, m, B), scale (m, B),
@@ -237,33 +219,82 @@ void se_correct(se_int n, se_int m, se_int B, double *restrict x, double *restri
                 double *restrict K, double *restrict T, double *restrict AP,
                 double *restrict prior);
 
+/* x <- x + K v in the lanes where use[b], the others left as they are: x (n, B),
+ * K (n, m, B), v (m, B), use (B,) uint8 (the mean update of se_correct_mean, K = P C' and
+ * v = S^-1 e, and of the fixed-gain filter) */
+static inline void se_add_gain(se_int n, se_int m, se_int B, double *restrict x,
+                               const double *restrict K, const double *restrict v,
+                               const uint8_t *restrict use, se_int nb)
+{
+    for (se_int i = 0; i < n; i++) {
+        double *xi = x + i * B;
+        for (se_int a = 0; a < m; a++) {
+            const double *Kia = K + (i * m + a) * B, *va = v + a * B;
+            for (se_int b = 0; b < nb; b++)
+                xi[b] += use[b] ? Kia[b] * va[b] : 0.0;
+        }
+    }
+}
+
 /* x <- x + P C' S^-1 e where use[b]: x (n, B), z (m, B) (overwritten with S^-1 e),
  * PCt (n, m, B), chol (m, m, B), scale (m, B), use (B,) uint8 */
 void se_correct_mean(se_int n, se_int m, se_int B, double *restrict x, double *restrict z,
                      const double *restrict PCt, const double *restrict chol,
                      const double *restrict scale, const uint8_t *restrict use, se_int nb);
 
+/* The gating rule of every filter: a lane uses its measurement only if its likelihood is
+ * finite (an outlier such as 1e300 overflows it) and its normalized innovation squared is
+ * within the gate. */
+static inline int se_passes_gate(double loglik, double nis, double gate)
+{
+    return isfinite(loglik) && nis <= gate;
+}
+
+/* The gating decision of a multiple-model filter over its filters, lane by lane, before
+ * anything changes: filter (j, i), for j < rows and i < cols, stands at (j * stride + i) * B of
+ * the (.., B) arrays prior, loglik, nis, use, a (stride 1, cols 1: the bank's modes; stride L:
+ * GPB2's pairs). use = se_passes_gate; a = prior + loglik where used, -inf where not (prior:
+ * the filter's log-weight before the measurement). If no filter has a finite a the sample
+ * counts as missing: none is used, a = prior, flag SE_GATED; else the flag is SE_PARTLY_GATED
+ * where a filter is not used, SE_ACCEPTED where all are. flag (B,) uint8. */
+void se_gate(se_int rows, se_int cols, se_int stride, se_int B, const double *restrict prior,
+             const double *restrict loglik, const double *restrict nis, double gate, se_int nb,
+             uint8_t *restrict use, double *restrict a, uint8_t *restrict flag);
+
+/* The scratch of se_update (W lanes wide for W-lane calls): gain, T (n, m, B),
+ * AP, prior (n, n, B), root (n, B), lost (B,) */
+typedef struct {
+    double *gain, *T, *AP, *prior, *root;
+    uint8_t *lost;
+} se_update_ws;
+
+static inline void se_carve_update(se_arena *arena, se_int n, se_int m, se_int B,
+                                   se_update_ws *ws)
+{
+    ws->gain = se_doubles(arena, n * m * B);
+    ws->T = se_doubles(arena, n * m * B);
+    ws->AP = se_doubles(arena, n * n * B);
+    ws->prior = se_doubles(arena, n * n * B);
+    ws->root = se_doubles(arena, n * B);
+    ws->lost = se_flags(arena, B);
+}
+
+/* The measurement update of every filter, in the lanes where use[b], with its covariance rule:
+ * se_correct (Joseph form), then each lane where Joseph's form lost its digits (se_joseph_lost)
+ * in information form, or repaired (se_information_or_repair, counted in report (2,)).
+ * Arguments as se_correct's, with obs (m, B), n_obs (B,) as se_innovation read them. */
+void se_update(se_int n, se_int m, se_int B, double *restrict x, double *restrict P,
+               const double *restrict C, const double *restrict R, const double *restrict obs,
+               const double *restrict n_obs, const uint8_t *restrict use, se_int nb,
+               const double *restrict PCt, const double *restrict chol,
+               const double *restrict scale, double *restrict z, const se_update_ws *ws,
+               double *restrict report);
+
 /* Mark in lost (B,) uint8 the lanes where Joseph's form lost its digits; returns whether there
  * is one. P, prior (n, n, B), use (B,) uint8, root (n, B) scratch. */
 int se_joseph_lost(se_int n, se_int B, const double *restrict P, const double *restrict prior,
                    const uint8_t *restrict use, se_int nb, double *restrict root,
                    uint8_t *restrict lost);
-
-/* Each lost lane that observed something in information form, else repaired if indefinite
- * (counted in report (2,)): P, prior (n, n, B), C (m, n, B), R (m, m, B), obs (m, B),
- * n_obs (B,), lost (B,) uint8 */
-void se_information_or_repair(se_int n, se_int m, se_int B, double *restrict P,
-                              const double *restrict prior, const double *restrict C,
-                              const double *restrict R, const double *restrict obs,
-                              const double *restrict n_obs, const uint8_t *restrict lost,
-                              se_int nb, double *restrict report);
-
-/* Equilibrated Cholesky factor of one symmetric A (n, n) (lower triangle read) into
- * out (n, n) (lower, zero above); returns 0 if A is not positive definite or not finite. */
-int se_cholesky(se_int n, const double *restrict A, double *restrict out);
-
-/* Bm <- Lo^-1 Bm for a lower-triangular Lo (m, m) and Bm (m, q) (numba's B) */
-void se_forward(se_int m, se_int q, const double *restrict Lo, double *restrict Bm);
 
 /* Lane b of the posterior in information form: P, prior (n, n, B), C (m, n, B), R (m, m, B),
  * obs (m, B); returns 0, leaving P alone, if prior or R is not positive definite. */
@@ -290,14 +321,6 @@ void se_mix(se_int n, se_int L, se_int B, double *restrict x, double *restrict P
             const double *restrict transition, const double *restrict log_transition, se_int nb,
             double *restrict log_c, double *restrict w, double *restrict xm,
             double *restrict Pm);
-
-/* log c_j and the mixing weights: prob, log_prob (L, B), transition, log_transition
- * (L, L, B); log_c (L, B), w (L, L, B) written */
-void se_predicted_mode_probabilities(se_int L, se_int B, const double *restrict prob,
-                                     const double *restrict log_prob,
-                                     const double *restrict transition,
-                                     const double *restrict log_transition, se_int nb,
-                                     double *restrict log_c, double *restrict w);
 
 /* GPB1 interaction in place; arguments as se_mix */
 void se_collapse(se_int n, se_int L, se_int B, double *restrict x, double *restrict P,
@@ -327,12 +350,6 @@ static inline void se_write_modes(se_int n, se_int L, se_int B, se_int K,
         }
     }
 }
-
-/* Lane b of mixture j in the log domain: log_prob (L, B), log_transition (L, L, B),
- * w (L, B) (numba's w[j]); returns lse */
-double se_log_weights(se_int L, se_int B, const double *restrict log_prob,
-                      const double *restrict log_transition, se_int j, se_int b,
-                      double *restrict w);
 
 /* Mixture moments: w (L, B), x (L, n, B), P (L, n, n, B); xm (n, B), Pm (n, n, B) */
 void se_moments(se_int n, se_int L, se_int B, const double *restrict w, const double *restrict x,

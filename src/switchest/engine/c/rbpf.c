@@ -28,7 +28,7 @@
  *
  * Layout: the numba arrays keep their shapes and axis order; a lane array of shape (n, n, Np)
  * is addressed P[(r * n + c) * Np + p]. The scratch of numba's np.empty calls is carved from
- * one malloc at the kernel's start (struct arena), freed before every return.
+ * one allocation at the kernel's start (se_arena), freed before every return.
  */
 #include "rbpf.h"
 
@@ -220,8 +220,7 @@ typedef struct {
 typedef struct {
     double *e, *PCt, *chol, *scale, *z, *nis, *inn; /* (m,B) (n,m,B) (m,m,B) (m,B) (m,B) (B,) (3,B) */
     uint8_t *bad;                                     /* (B,), zeroed */
-    double *gain, *T, *AP, *prior, *root;             /* (n,m,B) (n,m,B) (n,n,B) (n,n,B) (n,B) */
-    uint8_t *lost;                                    /* (B,) */
+    se_update_ws upd;                                 /* se_update's (linalg.h) */
 } work_t;
 
 /* The Kalman measurement update of every lane, with its predictive log-likelihood.
@@ -247,11 +246,8 @@ static se_int filter_lanes(se_int n, se_int m, se_int B, double *restrict x,
         return status;
     for (se_int b = 0; b < nb; b++)
         use[b] = isfinite(loglik[b]) ? 1 : 0;
-    se_correct(n, m, B, x, P, Cl, Rl, use, nb, work->PCt, work->chol, work->scale, work->z,
-               work->gain, work->T, work->AP, work->prior);
-    if (se_joseph_lost(n, B, P, work->prior, use, nb, work->root, work->lost)) /* rare: lane by lane */
-        se_information_or_repair(n, m, B, P, work->prior, Cl, Rl, obs, n_obs, work->lost, nb,
-                                 report);
+    se_update(n, m, B, x, P, Cl, Rl, obs, n_obs, use, nb, work->PCt, work->chol, work->scale,
+              work->z, &work->upd, report);
     return SE_OK;
 }
 
@@ -502,96 +498,69 @@ static void resample(se_int n, se_int B, const double *restrict x, const double 
  * particles resampled when the effective sample size 1 / sum_p w_p^2 (Kong, Liu & Wong 1994)
  * is below threshold Np, each copying its ancestor's mode and filter, with weights 1 / Np.
  */
-se_int se_particle_filter(se_int n, se_int m, se_int l, se_int L, se_int Np, se_int N, se_int K,
-                          se_int S, se_int T, const double *restrict y,
-                          const double *restrict u, const double *restrict F,
-                          const double *restrict G, const double *restrict Qd,
-                          const se_int *restrict trans, const double *restrict C,
-                          const double *restrict R, const double *restrict transition,
-                          const double *restrict log_transition, const double *restrict prob0,
-                          const double *restrict log_prob0, const uint64_t *restrict keys,
-                          se_int k0, int predict_first, int sample_timing, int optimal,
-                          se_int scheme, double threshold, const double *restrict x_init,
-                          const double *restrict P_init, const se_int *restrict mode_init,
-                          const double *restrict logw_init, double *restrict x_out,
-                          double *restrict P_out, double *restrict prob_out,
-                          se_int *restrict mode_out, double *restrict loglik_out,
-                          uint8_t *restrict flag_out, double *restrict ess_out,
-                          double *restrict x_last, double *restrict P_last,
-                          se_int *restrict mode_last, double *restrict logw_last,
-                          double *restrict report)
+se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
 {
     const se_int B = Np;
     const se_int n_cand = optimal ? L : 1;   /* filters updated per particle: candidates, or one */
     const se_int n_copies = optimal ? L : 0; /* the candidates' filters, kept until one is drawn */
     const se_int m3 = 3;
 
-    /* the arena: the doubles, then the int64 arrays, then the booleans, each array starting on
-     * a 64-byte boundary (vector loads that never straddle a cache line, as numba's aligned
-     * allocations) */
-#define PAD(count) ((((size_t)(count)) + 7u) & ~(size_t)7u) /* 8 doubles or int64: 64 bytes */
-    const size_t nd = PAD(n * B) * 2 + PAD(n * n * B) * 2           /* x, P, x_to, P_to */
-                      + PAD(B) * 2 + PAD(1)                         /* logw, w, total */
-                      + PAD(m * B) * 2 + PAD(l * B) + PAD(B)        /* yl, obs, ul, n_obs */
-                      + PAD(B)                                      /* pos */
-                      + PAD(n * n * B) * 3 + PAD(n * l * B) + PAD(m * n * B) + PAD(m * m * B)
-                      + PAD(n * B)                                  /* mats */
-                      + PAD(m * B) * 3 + PAD(n * m * B) * 3 + PAD(m * m * B) + PAD(B)
-                      + PAD(m3 * B) + PAD(n * n * B) * 2 + PAD(n * B) /* work */
-                      + PAD(n_cand * B)                             /* ll */
-                      + PAD(n_copies * n * B) + PAD(n_copies * n * n * B) /* xc, Pc */
-                      + PAD(n_cand * B) + PAD(L) + PAD(B)           /* terms, pick, inc */
-                      + PAD(L) + PAD(n) + PAD(n * n);               /* prob, xm, Pm */
-    const size_t ni = PAD(B) * 4;                                   /* mode, mode_to, idx, anc */
-    const size_t nu = (size_t)(B + B + n_cand * B);                 /* bad, lost, use */
-    size_t bytes = nd * sizeof(double) + ni * sizeof(se_int) + nu + 64;
-    char *block = malloc(bytes);
-    if (block == NULL)
-        return SE_NO_MEMORY;
-    double *dp = (double *)(block + (64u - (uintptr_t)block % 64u) % 64u);
-#define TAKE(count) (dp += PAD(count), dp - PAD(count))
-    double *x = TAKE(n * B), *P = TAKE(n * n * B), *x_to = TAKE(n * B), *P_to = TAKE(n * n * B);
-    double *logw = TAKE(B), *w = TAKE(B), *total = TAKE(1);
-    double *yl = TAKE(m * B), *ul = TAKE(l * B), *obs = TAKE(m * B), *n_obs = TAKE(B);
-    double *pos = TAKE(B);
+    double *x, *P, *x_to, *P_to, *logw, *w, *total, *yl, *ul, *obs, *n_obs, *pos, *ll, *xc, *Pc;
+    double *terms, *pick_w, *inc, *prob, *xm, *Pm;
+    se_int *mode, *mode_to, *idx, *anc;
+    uint8_t *use;
     mats_t mats;
-    mats.Fl = TAKE(n * n * B);
-    mats.Gl = TAKE(n * l * B);
-    mats.Ql = TAKE(n * n * B);
-    mats.Cl = TAKE(m * n * B);
-    mats.Rl = TAKE(m * m * B);
-    mats.AP = TAKE(n * n * B);
-    mats.xs = TAKE(n * B);
     work_t work;
-    work.e = TAKE(m * B);
-    work.PCt = TAKE(n * m * B);
-    work.chol = TAKE(m * m * B);
-    work.scale = TAKE(m * B);
-    work.z = TAKE(m * B);
-    work.nis = TAKE(B);
-    work.inn = TAKE(m3 * B);
-    work.gain = TAKE(n * m * B);
-    work.T = TAKE(n * m * B);
-    work.AP = TAKE(n * n * B);
-    work.prior = TAKE(n * n * B);
-    work.root = TAKE(n * B);
-    double *ll = TAKE(n_cand * B);
-    double *xc = TAKE(n_copies * n * B), *Pc = TAKE(n_copies * n * n * B);
-    double *terms = TAKE(n_cand * B), *pick_w = TAKE(L), *inc = TAKE(B);
-    double *prob = TAKE(L), *xm = TAKE(n), *Pm = TAKE(n * n);
-#undef TAKE
-    se_int *ip = (se_int *)dp;
-    se_int *mode = ip, *mode_to = ip + PAD(B), *idx = ip + 2 * PAD(B), *anc = ip + 3 * PAD(B);
-#undef PAD
-    uint8_t *up = (uint8_t *)(ip + ni);
-    work.bad = up;
-    work.lost = up + B;
-    uint8_t *use = up + 2 * B;
-    memset(work.bad, 0, (size_t)B); /* numba's np.zeros */
+    se_arena ar = {NULL, 0};
+    do { /* size the arena, then carve it (zeroed: work.bad is numba's np.zeros) */
+        x = se_doubles(&ar, n * B);
+        P = se_doubles(&ar, n * n * B);
+        x_to = se_doubles(&ar, n * B);
+        P_to = se_doubles(&ar, n * n * B);
+        logw = se_doubles(&ar, B);
+        w = se_doubles(&ar, B);
+        total = se_doubles(&ar, 1);
+        yl = se_doubles(&ar, m * B);
+        ul = se_doubles(&ar, l * B);
+        obs = se_doubles(&ar, m * B);
+        n_obs = se_doubles(&ar, B);
+        pos = se_doubles(&ar, B);
+        mats.Fl = se_doubles(&ar, n * n * B);
+        mats.Gl = se_doubles(&ar, n * l * B);
+        mats.Ql = se_doubles(&ar, n * n * B);
+        mats.Cl = se_doubles(&ar, m * n * B);
+        mats.Rl = se_doubles(&ar, m * m * B);
+        mats.AP = se_doubles(&ar, n * n * B);
+        mats.xs = se_doubles(&ar, n * B);
+        work.e = se_doubles(&ar, m * B);
+        work.PCt = se_doubles(&ar, n * m * B);
+        work.chol = se_doubles(&ar, m * m * B);
+        work.scale = se_doubles(&ar, m * B);
+        work.z = se_doubles(&ar, m * B);
+        work.nis = se_doubles(&ar, B);
+        work.inn = se_doubles(&ar, m3 * B);
+        se_carve_update(&ar, n, m, B, &work.upd);
+        ll = se_doubles(&ar, n_cand * B);
+        xc = se_doubles(&ar, n_copies * n * B);
+        Pc = se_doubles(&ar, n_copies * n * n * B);
+        terms = se_doubles(&ar, n_cand * B);
+        pick_w = se_doubles(&ar, L);
+        inc = se_doubles(&ar, B);
+        prob = se_doubles(&ar, L);
+        xm = se_doubles(&ar, n);
+        Pm = se_doubles(&ar, n * n);
+        mode = se_ints(&ar, B);
+        mode_to = se_ints(&ar, B);
+        idx = se_ints(&ar, B);
+        anc = se_ints(&ar, B);
+        work.bad = se_flags(&ar, B);
+        use = se_flags(&ar, n_cand * B);
+    } while (se_arena_open(&ar));
+    if (ar.base == NULL)
+        return SE_NO_MEMORY;
 
     se_int status = SE_OK;
-    report[0] = 0.0;
-    report[1] = INFINITY;
+    se_report_start(report);
     const double uniform_log_weight = -log((double)Np);
     for (se_int i = 0; i < N; i++) {
         se_int s = S > 1 ? i : 0;
@@ -685,6 +654,6 @@ se_int se_particle_filter(se_int n, se_int m, se_int l, se_int L, se_int Np, se_
         }
     }
 done:
-    free(block);
+    free(ar.base);
     return status;
 }

@@ -43,23 +43,21 @@ void se_ancestors(const double *restrict w, const double *restrict pos, se_int n
  * loglik_out (N, K), flag_out (N, K), ess_out (N, K), x_last (T, Np, n),
  * P_last (T, Np, n, n), mode_last (T, Np), logw_last (T, Np), report (2,).
  * Returns SE_OK, the failure code of an innovation covariance, or SE_NO_MEMORY. */
-se_int se_particle_filter(se_int n, se_int m, se_int l, se_int L, se_int Np, se_int N, se_int K,
-                          se_int S, se_int T, const double *restrict y,
-                          const double *restrict u, const double *restrict F,
-                          const double *restrict G, const double *restrict Qd,
-                          const se_int *restrict trans, const double *restrict C,
-                          const double *restrict R, const double *restrict transition,
-                          const double *restrict log_transition, const double *restrict prob0,
-                          const double *restrict log_prob0, const uint64_t *restrict keys,
-                          se_int k0, int predict_first, int sample_timing, int optimal,
-                          se_int scheme, double threshold, const double *restrict x_init,
-                          const double *restrict P_init, const se_int *restrict mode_init,
-                          const double *restrict logw_init, double *restrict x_out,
-                          double *restrict P_out, double *restrict prob_out,
-                          se_int *restrict mode_out, double *restrict loglik_out,
-                          uint8_t *restrict flag_out, double *restrict ess_out,
-                          double *restrict x_last, double *restrict P_last,
-                          se_int *restrict mode_last, double *restrict logw_last,
-                          double *restrict report);
+/* the parameter list, written once for the prototype and the definition (rbpf.c) */
+#define SE_PARTICLE_FILTER_PARAMETERS                                                             \
+    se_int n, se_int m, se_int l, se_int L, se_int Np, se_int N, se_int K, se_int S, se_int T,    \
+    const double *restrict y, const double *restrict u, const double *restrict F,                 \
+    const double *restrict G, const double *restrict Qd, const se_int *restrict trans,            \
+    const double *restrict C, const double *restrict R, const double *restrict transition,        \
+    const double *restrict log_transition, const double *restrict prob0,                          \
+    const double *restrict log_prob0, const uint64_t *restrict keys, se_int k0,                   \
+    int predict_first, int sample_timing, int optimal, se_int scheme, double threshold,           \
+    const double *restrict x_init, const double *restrict P_init,                                 \
+    const se_int *restrict mode_init, const double *restrict logw_init,                           \
+    double *restrict x_out, double *restrict P_out, double *restrict prob_out,                    \
+    se_int *restrict mode_out, double *restrict loglik_out, uint8_t *restrict flag_out,           \
+    double *restrict ess_out, double *restrict x_last, double *restrict P_last,                   \
+    se_int *restrict mode_last, double *restrict logw_last, double *restrict report
+se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS);
 
 #endif

@@ -12,8 +12,11 @@
 #ifndef SE_COMMON_H
 #define SE_COMMON_H
 
-#include <stdint.h>
+#include <math.h>
 #include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
 
 typedef int64_t se_int;
 
@@ -31,5 +34,85 @@ enum {
     SE_GATED = 1,       /* an outlier or a gated measurement: treated as missing */
     SE_PARTLY_GATED = 2 /* multiple-model filters: some modes gated the measurement */
 };
+
+/* The lane-block iteration of every kernel: N trials in blocks of B = se_lanes(lanes, N) lanes
+ * (min(lanes, N), at least 1: one block either way when lanes >= N; the results do not depend
+ * on it), the block at trial i0 being nb = se_block_trials(B, N, i0) trials wide:
+ *
+ *     for (se_int i0 = 0; i0 < N; i0 += B) {
+ *         const se_int nb = se_block_trials(B, N, i0);
+ */
+static inline se_int se_lanes(se_int lanes, se_int N)
+{
+    return lanes < 1 ? 1 : (lanes < N ? lanes : (N > 0 ? N : 1));
+}
+
+static inline se_int se_block_trials(se_int B, se_int N, se_int i0)
+{
+    return B < N - i0 ? B : N - i0;
+}
+
+/* A kernel's report of covariance repairs {count, smallest eigenvalue seen}, before any. */
+static inline void se_report_start(double *report)
+{
+    report[0] = 0.0;
+    report[1] = INFINITY;
+}
+
+/* A kernel's scratch: ONE zeroed block of memory carved into its arrays, each rounded up to
+ * 64 bytes so that every array starts on a cache line. A kernel carves its arrays twice with
+ * the same calls: a first pass with base NULL only adds up the size (se_carve returns NULL),
+ * se_arena_open then allocates a zeroed block of that size and asks for the second pass, which
+ * carves it; the kernel frees ar.base before it returns:
+ *
+ *     se_arena ar = {NULL, 0};
+ *     do
+ *         x = se_doubles(&ar, n * B), ...;
+ *     while (se_arena_open(&ar));
+ *     if (ar.base == NULL)
+ *         return SE_NO_MEMORY;
+ */
+typedef struct {
+    char *base;
+    size_t used;
+} se_arena;
+
+static inline void *se_carve(se_arena *arena, se_int count, size_t size)
+{
+    size_t bytes = ((size_t)count * size + 63) & ~(size_t)63;
+    void *p = arena->base ? (void *)(arena->base + arena->used) : NULL;
+    arena->used += bytes;
+    return p;
+}
+
+static inline double *se_doubles(se_arena *arena, se_int count)
+{
+    return (double *)se_carve(arena, count, sizeof(double));
+}
+
+static inline se_int *se_ints(se_arena *arena, se_int count)
+{
+    return (se_int *)se_carve(arena, count, sizeof(se_int));
+}
+
+static inline uint8_t *se_flags(se_arena *arena, se_int count)
+{
+    return (uint8_t *)se_carve(arena, count, 1);
+}
+
+/* After the counting pass: allocate the zeroed block and return 1 (carve it now); after the
+ * carving pass, or if the allocation failed (ar.base stays NULL), return 0. */
+static inline int se_arena_open(se_arena *arena)
+{
+    if (arena->base != NULL)
+        return 0;
+    size_t bytes = arena->used ? arena->used : 64;
+    arena->base = (char *)aligned_alloc(64, bytes);
+    arena->used = 0;
+    if (arena->base == NULL)
+        return 0;
+    memset(arena->base, 0, bytes);
+    return 1;
+}
 
 #endif

@@ -104,26 +104,6 @@
 #include "linalg.h"
 #include "smoother.h"
 
-/* ---- the scratch arena -------------------------------------------------------------------- */
-
-/* A bump allocator over one block: sized in a first pass (base NULL), carved in a second. Each
- * array starts on a 64-byte boundary (a cache line, the widest SIMD load). */
-typedef struct {
-    char *base;
-    size_t used;
-} arena_t;
-
-static void *carve(arena_t *a, size_t bytes)
-{
-    void *p = a->base ? (void *)(a->base + a->used) : NULL;
-    a->used += (bytes + 63) & ~(size_t)63;
-    return p;
-}
-
-static double *carve_f(arena_t *a, se_int count) { return carve(a, (size_t)count * sizeof(double)); }
-static se_int *carve_i(arena_t *a, se_int count) { return carve(a, (size_t)count * sizeof(se_int)); }
-static uint8_t *carve_u8(arena_t *a, se_int count) { return carve(a, (size_t)count); }
-
 /* The work arrays of rts_gain for n states and B lanes, in its order:
  * F P, xs, chol, scale, work (2, B), root (numba's gain_scratch). */
 typedef struct {
@@ -132,14 +112,14 @@ typedef struct {
 
 /* gain_scratch: carved from the arena; chol starts zero (np.zeros; only its lower triangle is
  * read). */
-static void gain_scratch(arena_t *a, se_int n, se_int B, gain_scratch_t *s)
+static void gain_scratch(se_arena *a, se_int n, se_int B, gain_scratch_t *s)
 {
-    s->FP = carve_f(a, n * n * B);
-    s->xs = carve_f(a, n * B);
-    s->chol = carve_f(a, n * n * B);
-    s->scale = carve_f(a, n * B);
-    s->work = carve_f(a, 2 * B);
-    s->root = carve_f(a, n * B);
+    s->FP = se_doubles(a, n * n * B);
+    s->xs = se_doubles(a, n * B);
+    s->chol = se_doubles(a, n * n * B);
+    s->scale = se_doubles(a, n * B);
+    s->work = se_doubles(a, 2 * B);
+    s->root = se_doubles(a, n * B);
 }
 
 /* The work arrays of rts_pair for n states and B lanes, in its order: e, D, T
@@ -148,11 +128,11 @@ typedef struct {
     double *e, *D, *T;
 } pair_scratch_t;
 
-static void pair_scratch(arena_t *a, se_int n, se_int B, pair_scratch_t *s)
+static void pair_scratch(se_arena *a, se_int n, se_int B, pair_scratch_t *s)
 {
-    s->e = carve_f(a, n * B);
-    s->D = carve_f(a, n * n * B);
-    s->T = carve_f(a, n * n * B);
+    s->e = se_doubles(a, n * B);
+    s->D = se_doubles(a, n * n * B);
+    s->T = se_doubles(a, n * n * B);
 }
 
 /* The work arrays of rts_joseph for n states and B lanes, in its order (numba's
@@ -168,30 +148,30 @@ typedef struct {
     double *x, *eye, *zero, *obs, *n_obs;
 } joseph_scratch_t;
 
-static void joseph_scratch(arena_t *a, se_int n, se_int B, joseph_scratch_t *s)
+static void joseph_scratch(se_arena *a, se_int n, se_int B, joseph_scratch_t *s)
 {
-    s->Pp = carve_f(a, n * n * B);
-    s->FP = carve_f(a, n * n * B);
-    s->xs = carve_f(a, n * B);
-    s->e = carve_f(a, n * B);
-    s->PCt = carve_f(a, n * n * B);
-    s->chol = carve_f(a, n * n * B);
-    s->scale = carve_f(a, n * B);
-    s->z = carve_f(a, n * B);
-    s->nis = carve_f(a, B);
-    s->loglik = carve_f(a, B);
-    s->work = carve_f(a, 3 * B);
-    s->bad = carve_u8(a, B);
-    s->T = carve_f(a, n * n * B);
-    s->AP = carve_f(a, n * n * B);
-    s->prior = carve_f(a, n * n * B);
-    s->root = carve_f(a, n * B);
-    s->lost = carve_u8(a, B);
-    s->x = carve_f(a, n * B);
-    s->eye = carve_f(a, n * n * B);
-    s->zero = carve_f(a, n * n * B);
-    s->obs = carve_f(a, n * B);
-    s->n_obs = carve_f(a, B);
+    s->Pp = se_doubles(a, n * n * B);
+    s->FP = se_doubles(a, n * n * B);
+    s->xs = se_doubles(a, n * B);
+    s->e = se_doubles(a, n * B);
+    s->PCt = se_doubles(a, n * n * B);
+    s->chol = se_doubles(a, n * n * B);
+    s->scale = se_doubles(a, n * B);
+    s->z = se_doubles(a, n * B);
+    s->nis = se_doubles(a, B);
+    s->loglik = se_doubles(a, B);
+    s->work = se_doubles(a, 3 * B);
+    s->bad = se_flags(a, B);
+    s->T = se_doubles(a, n * n * B);
+    s->AP = se_doubles(a, n * n * B);
+    s->prior = se_doubles(a, n * n * B);
+    s->root = se_doubles(a, n * B);
+    s->lost = se_flags(a, B);
+    s->x = se_doubles(a, n * B);
+    s->eye = se_doubles(a, n * n * B);
+    s->zero = se_doubles(a, n * n * B);
+    s->obs = se_doubles(a, n * B);
+    s->n_obs = se_doubles(a, B);
 }
 
 /* joseph_scratch's constant arrays, once the arena (zeroed) is carved: eye, obs, n_obs. */
@@ -499,11 +479,9 @@ static se_int rts_joseph(se_int n, se_int l, se_int B, const double *restrict xj
                 PCt[(r * n + a) * B + b] = FP[(a * n + r) * B + b];
     se_copy_gaussian(n, B, xj, Pj, nb, s->x, P);
     /* P = (I - J F) P_j (I - J F)' + J Qd J', gain = J = P_j F' P_pred^-1 (x: unchanged) */
-    se_correct(n, n, B, s->x, P, F, Qd, use, nb, PCt, s->chol, s->scale, s->z, gain, s->T,
-               s->AP, s->prior);
-    if (se_joseph_lost(n, B, P, s->prior, use, nb, s->root, s->lost))
-        se_information_or_repair(n, n, B, P, s->prior, F, Qd, s->obs, s->n_obs, s->lost, nb,
-                                 report);
+    const se_update_ws ws = {gain, s->T, s->AP, s->prior, s->root, s->lost};
+    se_update(n, n, B, s->x, P, F, Qd, s->obs, s->n_obs, use, nb, PCt, s->chol, s->scale, s->z,
+              &ws, report);
     return SE_OK;
 }
 
@@ -559,24 +537,13 @@ static se_int redo_(se_int n, se_int l, se_int B, const double *restrict xj,
  * lag_P, lag_cross (KimOutput). Returns SE_OK or the failure code of a predicted covariance
  * that could not be factored even repaired (SE_NO_MEMORY if the scratch could not be
  * allocated). */
-se_int se_kim_backward(se_int n, se_int l, se_int L, se_int N, se_int K, se_int T, se_int TK,
-                       se_int Ns, se_int J, const double *restrict x_f,
-                       const double *restrict P_f, const double *restrict log_prob_f,
-                       const double *restrict u, const double *restrict F,
-                       const double *restrict G, const double *restrict Qd,
-                       const se_int *restrict trans, const double *restrict log_transition,
-                       se_int lanes, int sample_timing, double *restrict x_out,
-                       double *restrict P_out, double *restrict prob_out,
-                       se_int *restrict mode_out, double *restrict x_s, double *restrict P_s,
-                       double *restrict report, int lagged, double *restrict pair_out,
-                       double *restrict lag_x, double *restrict lag_P,
-                       double *restrict lag_cross)
+se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS)
 {
     /* the lane stride: numba's is `lanes`; a block never holds more than N trials, and every
      * lane's operations are the same whatever the stride, so B = min(lanes, N) gives the same
      * numbers with no more scratch than the trials need (nor an overflow of its size for a
      * huge `lanes`) */
-    const se_int B = lanes < N ? lanes : N;
+    const se_int B = se_lanes(lanes, N);
     double *xf, *Pf, *xn, *Pn, *xk, *Pk, *lpf, *lpn, *lpk, *prob, *back, *x_pair, *P_pair;
     double *gain_pair, *log_w, *w, *total, *xc, *Pc, *ul, *Fl, *Gl, *Ql, *xp, *Pp, *gain;
     double *acc_w, *acc_x, *acc_M, *acc_P, *acc_J, *delta;
@@ -586,69 +553,64 @@ se_int se_kim_backward(se_int n, se_int l, se_int L, se_int N, se_int K, se_int 
     joseph_scratch_t joseph;
     pair_scratch_t pair;
     conditional_t conditional;
-    arena_t arena = {NULL, 0};
-    report[0] = 0.0;
-    report[1] = INFINITY;
+    se_arena arena = {NULL, 0};
+    se_report_start(report);
     if (N == 0 || K == 0)
         return SE_OK; /* nothing to smooth (numba: no block for N = 0; see the report for K = 0) */
-    for (int pass = 0; pass < 2; pass++) { /* size the arena, then carve it */
-        if (pass == 1) {
-            arena.base = calloc(1, arena.used ? arena.used : 1);
-            if (!arena.base)
-                return SE_NO_MEMORY;
-            arena.used = 0;
-        }
-        xf = carve_f(&arena, L * n * B); /* filtered at k */
-        Pf = carve_f(&arena, L * n * n * B);
-        xn = carve_f(&arena, L * n * B); /* smoothed at k + 1 */
-        Pn = carve_f(&arena, L * n * n * B);
-        xk = carve_f(&arena, L * n * B); /* smoothed at k */
-        Pk = carve_f(&arena, L * n * n * B);
-        lpf = carve_f(&arena, L * B);
-        lpn = carve_f(&arena, L * B);
-        lpk = carve_f(&arena, L * B);
-        prob = carve_f(&arena, L * B);
-        back = carve_f(&arena, L * L * B); /* back[i, j] = log P(r_k = j | r_{k+1} = i, y_0..k) */
-        x_pair = carve_f(&arena, L * n * B);
-        P_pair = carve_f(&arena, L * n * n * B);
-        gain_pair = carve_f(&arena, L * n * n * B); /* each pair's J (read when lagged) */
-        redo = carve_u8(&arena, L * B); /* redo[i]: lanes of pair (j, i) for Joseph's form */
-        log_w = carve_f(&arena, L * B);
-        w = carve_f(&arena, L * B);
-        total = carve_f(&arena, B);
-        best = carve_i(&arena, B);
-        idx = carve_i(&arena, B);
-        xc = carve_f(&arena, n * B);
-        Pc = carve_f(&arena, n * n * B);
-        ul = carve_f(&arena, l * B);
-        Fl = carve_f(&arena, L * n * n * B);
-        Gl = carve_f(&arena, L * n * l * B);
-        Ql = carve_f(&arena, L * n * n * B);
+    do { /* size the arena, then carve it */
+        xf = se_doubles(&arena, L * n * B); /* filtered at k */
+        Pf = se_doubles(&arena, L * n * n * B);
+        xn = se_doubles(&arena, L * n * B); /* smoothed at k + 1 */
+        Pn = se_doubles(&arena, L * n * n * B);
+        xk = se_doubles(&arena, L * n * B); /* smoothed at k */
+        Pk = se_doubles(&arena, L * n * n * B);
+        lpf = se_doubles(&arena, L * B);
+        lpn = se_doubles(&arena, L * B);
+        lpk = se_doubles(&arena, L * B);
+        prob = se_doubles(&arena, L * B);
+        back = se_doubles(&arena, L * L * B); /* back[i, j] = log P(r_k = j | r_{k+1} = i, y_0..k) */
+        x_pair = se_doubles(&arena, L * n * B);
+        P_pair = se_doubles(&arena, L * n * n * B);
+        gain_pair = se_doubles(&arena, L * n * n * B); /* each pair's J (read when lagged) */
+        redo = se_flags(&arena, L * B); /* redo[i]: lanes of pair (j, i) for Joseph's form */
+        log_w = se_doubles(&arena, L * B);
+        w = se_doubles(&arena, L * B);
+        total = se_doubles(&arena, B);
+        best = se_ints(&arena, B);
+        idx = se_ints(&arena, B);
+        xc = se_doubles(&arena, n * B);
+        Pc = se_doubles(&arena, n * n * B);
+        ul = se_doubles(&arena, l * B);
+        Fl = se_doubles(&arena, L * n * n * B);
+        Gl = se_doubles(&arena, L * n * l * B);
+        Ql = se_doubles(&arena, L * n * n * B);
         /* the direct form's prediction and gain of the moving mode (rts_gain) */
-        xp = carve_f(&arena, n * B);
-        Pp = carve_f(&arena, n * n * B);
-        gain = carve_f(&arena, n * n * B);
-        failed = carve_u8(&arena, B);
-        use = carve_u8(&arena, B); /* all lanes (np.ones) */
+        xp = se_doubles(&arena, n * B);
+        Pp = se_doubles(&arena, n * n * B);
+        gain = se_doubles(&arena, n * n * B);
+        failed = se_flags(&arena, B);
+        use = se_flags(&arena, B); /* all lanes (np.ones) */
         gain_scratch(&arena, n, B, &scratch);
         joseph_scratch(&arena, n, B, &joseph);
         pair_scratch(&arena, n, B, &pair);
         /* Joseph's form (redo_): the conditional's x_pred, covariance and gain, a pair's x, P,
          * and the lanes it is taken in */
-        conditional.xp = carve_f(&arena, n * B);
-        conditional.P = carve_f(&arena, n * n * B);
-        conditional.J = carve_f(&arena, n * n * B);
-        conditional.x = carve_f(&arena, n * B);
-        conditional.Pr = carve_f(&arena, n * n * B);
-        conditional.use = carve_u8(&arena, B);
+        conditional.xp = se_doubles(&arena, n * B);
+        conditional.P = se_doubles(&arena, n * n * B);
+        conditional.J = se_doubles(&arena, n * n * B);
+        conditional.x = se_doubles(&arena, n * B);
+        conditional.Pr = se_doubles(&arena, n * n * B);
+        conditional.use = se_flags(&arena, B);
         /* per mode i at k + 1: weight, mean, scatter of the pairs' x_ji, mean P_ji and gain */
-        acc_w = carve_f(&arena, L * B);
-        acc_x = carve_f(&arena, L * n * B);
-        acc_M = carve_f(&arena, L * n * n * B);
-        acc_P = carve_f(&arena, L * n * n * B);
-        acc_J = carve_f(&arena, L * n * n * B);
-        delta = carve_f(&arena, n);
-    }
+        acc_w = se_doubles(&arena, L * B);
+        acc_x = se_doubles(&arena, L * n * B);
+        acc_M = se_doubles(&arena, L * n * n * B);
+        acc_P = se_doubles(&arena, L * n * n * B);
+        acc_J = se_doubles(&arena, L * n * n * B);
+        delta = se_doubles(&arena, n);
+    } while (se_arena_open(&arena));
+    if (arena.base == NULL)
+        return SE_NO_MEMORY;
     for (se_int b = 0; b < B; b++)
         use[b] = 1;
     joseph_constants(n, B, &joseph);
@@ -657,7 +619,7 @@ se_int se_kim_backward(se_int n, se_int l, se_int L, se_int N, se_int K, se_int 
     se_int status = SE_OK;
 
     for (se_int i0 = 0; i0 < N; i0 += B) {
-        se_int nb = B < N - i0 ? B : N - i0;
+        const se_int nb = se_block_trials(B, N, i0);
         /* smoothed = filtered */
         se_gather_modes(n, L, B, K, x_f + (K - 1) * L * n, P_f + (K - 1) * L * n * n, i0, nb, xn,
                         Pn);

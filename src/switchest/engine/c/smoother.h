@@ -28,18 +28,18 @@
  * lag_x (N, J, L, n), lag_P (N, J, L, n, n), lag_cross (N, J, L, n, n) with J = K - 1.
  * Returns SE_OK, the failure code of a predicted covariance that could not be factored even
  * repaired, or SE_NO_MEMORY. */
-se_int se_kim_backward(se_int n, se_int l, se_int L, se_int N, se_int K, se_int T, se_int TK,
-                       se_int Ns, se_int J, const double *restrict x_f,
-                       const double *restrict P_f, const double *restrict log_prob_f,
-                       const double *restrict u, const double *restrict F,
-                       const double *restrict G, const double *restrict Qd,
-                       const se_int *restrict trans, const double *restrict log_transition,
-                       se_int lanes, int sample_timing, double *restrict x_out,
-                       double *restrict P_out, double *restrict prob_out,
-                       se_int *restrict mode_out, double *restrict x_s, double *restrict P_s,
-                       double *restrict report, int lagged, double *restrict pair_out,
-                       double *restrict lag_x, double *restrict lag_P,
-                       double *restrict lag_cross);
+/* the parameter list, written once for the prototype and the definition (smoother.c) */
+#define SE_KIM_BACKWARD_PARAMETERS                                                                \
+    se_int n, se_int l, se_int L, se_int N, se_int K, se_int T, se_int TK, se_int Ns,             \
+    se_int J, const double *restrict x_f, const double *restrict P_f,                             \
+    const double *restrict log_prob_f, const double *restrict u, const double *restrict F,        \
+    const double *restrict G, const double *restrict Qd, const se_int *restrict trans,            \
+    const double *restrict log_transition, se_int lanes, int sample_timing,                       \
+    double *restrict x_out, double *restrict P_out, double *restrict prob_out,                    \
+    se_int *restrict mode_out, double *restrict x_s, double *restrict P_s,                        \
+    double *restrict report, int lagged, double *restrict pair_out, double *restrict lag_x,       \
+    double *restrict lag_P, double *restrict lag_cross
+se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS);
 
 /* Symmetrize a stack A (M, n, n) into sym (M, n, n) and certify its matrices positive
  * semidefinite to within a shift, as far as a Cholesky factorization can (smoother.c):

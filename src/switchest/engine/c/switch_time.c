@@ -72,9 +72,8 @@ typedef struct {
     /* ws: the workspace of se_innovation */
     double *e, *PCt, *chol, *scale, *z, *nis, *loglik, *work;
     uint8_t *bad;
-    /* cs: (gain, T, AP, prior, root, lost) of the correction */
-    double *gain, *T, *AP, *prior, *root;
-    uint8_t *lost;
+    /* cs: se_update's (gain, T, AP, prior, root, lost; linalg.h) */
+    se_update_ws cs;
     double *xs;
     /* sw: the compacted switched lanes: x, P, y, u, obs, n_obs, C, R, and the rows of the
      * mode before and after and of the mode pair */
@@ -254,7 +253,7 @@ static se_int likelihood(const Work *w, const double *restrict x, double *restri
         if (status != SE_OK)
             return status;
         for (se_int b = 0; b < nb; b++)
-            J[b] = isfinite(loglik[b]) && nis[b] <= gate ? loglik[b] : -INFINITY;
+            J[b] = se_passes_gate(loglik[b], nis[b], gate) ? loglik[b] : -INFINITY;
         if (!w->printed)
             return SE_OK;
     }
@@ -588,7 +587,7 @@ static se_int refine(const Work *w, se_int ns, se_int d, const se_int *restrict 
                 }
                 const double loglik = -0.5 * (nis + log_det + log(det) + n_obs[c] * SE_LOG_2PI);
                 if (kind == 0) { /* rejected beyond the gate or where not finite */
-                    J = isfinite(loglik) && nis <= gate ? loglik : -INFINITY;
+                    J = se_passes_gate(loglik, nis, gate) ? loglik : -INFINITY;
                     if (!printed)
                         break;
                 } else { /* printed: rejected where its own nis is not finite, or gated */
@@ -721,11 +720,9 @@ static se_int update(const Work *w, double *restrict x, double *restrict P,
     if (status != SE_OK)
         return status;
     for (se_int b = 0; b < nb; b++)
-        use[b] = isfinite(loglik[b]) && nis[b] <= gate;
-    se_correct(n, m, B, x, P, C, R, use, nb, w->PCt, w->chol, w->scale, w->z, w->gain, w->T,
-               w->AP, w->prior);
-    if (se_joseph_lost(n, B, P, w->prior, use, nb, w->root, w->lost)) /* rare: lane by lane */
-        se_information_or_repair(n, m, B, P, w->prior, C, R, obs, n_obs, w->lost, nb, report);
+        use[b] = se_passes_gate(loglik[b], nis[b], gate);
+    se_update(n, m, B, x, P, C, R, obs, n_obs, use, nb, w->PCt, w->chol, w->scale, w->z, &w->cs,
+              report);
     return SE_OK;
 }
 
@@ -754,14 +751,8 @@ static se_int merge(const Work *w, double gate, se_int ns, se_int d, const se_in
             index[c] = w->first + pair[c] * g + r;
         gather_transition(w, index, ns, w->Phi, w->Gam, w->Q);
         double *restrict xr = xh + r * n * B, *restrict Pr = Ph + r * n * n * B;
-        for (se_int i = 0; i < n; i++) {
-            for (se_int c = 0; c < ns; c++)
-                xr[i * B + c] = xc[i * B + c];
-            for (se_int j = 0; j < n; j++)
-                for (se_int c = 0; c < ns; c++)
-                    Pr[(i * n + j) * B + c] = Pc[(i * n + j) * B + c];
-        }
-        se_predict(n, w->l, B, xr, Pr, w->Phi, w->Gam, w->su, w->Q, ns, w->AP, w->xs);
+        se_copy_gaussian(n, B, xc, Pc, ns, xr, Pr);
+        se_predict(n, w->l, B, xr, Pr, w->Phi, w->Gam, w->su, w->Q, ns, w->cs.AP, w->xs);
         se_int status = update(w, xr, Pr, w->sy, w->sC, w->sR, w->sobs, w->sn_obs, gate, ns,
                                w->huse, report);
         if (status != SE_OK)
@@ -838,75 +829,17 @@ static se_int merge(const Work *w, double gate, se_int ns, se_int d, const se_in
  * marginal the switched lanes' posteriors are then replaced by the merge of their grid
  * hypotheses (merge). The predicted state of a lane whose measurement is rejected is its
  * posterior, as for a missing measurement. */
-se_int se_switch_time_filter(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
-                             se_int D, se_int g, const double *restrict y,
-                             const double *restrict u, const se_int *restrict which,
-                             const se_int *restrict mode, const se_int *restrict prev,
-                             const double *restrict C, const double *restrict R,
-                             const double *restrict F, const double *restrict G,
-                             const double *restrict Qd, const double *restrict steps,
-                             const double *restrict grid_tau, se_int n_coarse,
-                             se_int n_switch, const double *restrict x_init,
-                             const double *restrict P_init, int predict_first, int marginal,
-                             int printed, double gate, se_int iterations, double tolerance,
-                             const double *restrict CF, const double *restrict CG,
-                             const double *restrict CQC, se_int lanes, double *restrict x_out,
-                             double *restrict P_out, double *restrict loglik_out,
-                             double *restrict offset_out, uint8_t *restrict flag_out,
-                             double *restrict report)
+se_int se_switch_time_filter(SE_SWITCH_TIME_FILTER_PARAMETERS)
 {
-    const se_int B = lanes;
+    const se_int B = se_lanes(lanes, N);
     const se_int G_h = marginal ? g : 0;
-    report[0] = 0.0;
-    report[1] = INFINITY;
+    se_report_start(report);
 
-    /* ---- the scratch, one allocation: doubles, then indices, then flags */
-    const se_int nd =
-        /* block: x, P, yl, ul, obs, n_obs, Fl, Gl, Ql, Cl, Rl, lik, off */
-        (n + n * n + m + l + m + 1 + n * n + n * l + n * n + m * n + m * m + 1 + 1) * B
-        /* ws: e, PCt, chol, scale, z, nis, loglik, work */
-        + (m + n * m + m * m + m + m + 1 + 1 + 3) * B
-        /* cs: gain, T, AP, prior, root; xs */
-        + (n * m + n * m + n * n + n * n + n + n) * B
-        /* sw: x, P, y, u, obs, n_obs, C, R */
-        + (n + n * n + m + l + m + 1 + m * n + m * m) * B
-        /* lw: ye, Re, zero */
-        + (m + m * m + n * n) * B
-        /* obsv: E, Go, Qo, EQ */
-        + (m * n + m * l + m * m + m * n) * B
-        /* flow: Phi, Gam, Q */
-        + (n * n + n * l + n * n) * B
-        /* gs: best_ll, J */
-        + 2 * B
-        /* pk: E, EQ, EF, Go, Qo, PCt, chol, scale, e, T1, T2, Gt (one lane) */
-        + (3 * m * n + m * l + m * m + n * m + m * m + m + m + 2 * n * n + n * l)
-        /* hyp: xh, Ph, llh, wh, total, xm, Pm */
-        + (G_h * n + G_h * n * n + 2 * G_h + 1 + n + n * n) * B;
-    /* index, lane, mode_c, row_a, row_b, pair, best, rows, win, hindex */
-    const se_int ni = 10 * B;
-    /* use, flg, bad, lost, huse */
-    const se_int nu = 5 * B;
-    const size_t bytes = (size_t)nd * sizeof(double) + (size_t)ni * sizeof(se_int) + (size_t)nu;
-    char *arena = calloc(bytes > 0 ? bytes : 1, 1); /* zeroed: numba's np.zeros for zero, bad */
-    if (arena == NULL)
-        return SE_NO_MEMORY;
-    double *fp = (double *)arena;
-    se_int *ip = (se_int *)(arena + (size_t)nd * sizeof(double));
-    uint8_t *up = (uint8_t *)(arena + (size_t)nd * sizeof(double) + (size_t)ni * sizeof(se_int));
-#define TAKE_F(count) (fp += (count), fp - (count))
-#define TAKE_I(count) (ip += (count), ip - (count))
-#define TAKE_U(count) (up += (count), up - (count))
-
-    double *restrict x = TAKE_F(n * B), *restrict P = TAKE_F(n * n * B);
-    double *restrict yl = TAKE_F(m * B), *restrict ul = TAKE_F(l * B);
-    double *restrict obs = TAKE_F(m * B), *restrict n_obs = TAKE_F(B);
-    double *restrict Fl = TAKE_F(n * n * B), *restrict Gl = TAKE_F(n * l * B),
-                     *restrict Ql = TAKE_F(n * n * B);
-    double *restrict Cl = TAKE_F(m * n * B), *restrict Rl = TAKE_F(m * m * B);
-    double *restrict lik = TAKE_F(B), *restrict off = TAKE_F(B);
-    se_int *restrict index = TAKE_I(B), *restrict lane = TAKE_I(B), *restrict mode_c = TAKE_I(B);
-    uint8_t *restrict use = TAKE_U(B), *restrict flg = TAKE_U(B);
-
+    double *restrict x, *restrict P, *restrict yl, *restrict ul, *restrict obs, *restrict n_obs,
+        *restrict Fl, *restrict Gl, *restrict Ql, *restrict Cl, *restrict Rl, *restrict lik,
+        *restrict off;
+    se_int *restrict index, *restrict lane, *restrict mode_c;
+    uint8_t *restrict use, *restrict flg;
     Work w;
     w.n = n;
     w.m = m;
@@ -931,76 +864,91 @@ se_int se_switch_time_filter(se_int n, se_int m, se_int l, se_int L, se_int N, s
     w.gate = gate;
     w.iterations = iterations;
     w.tolerance = tolerance;
-    w.e = TAKE_F(m * B);
-    w.PCt = TAKE_F(n * m * B);
-    w.chol = TAKE_F(m * m * B);
-    w.scale = TAKE_F(m * B);
-    w.z = TAKE_F(m * B);
-    w.nis = TAKE_F(B);
-    w.loglik = TAKE_F(B);
-    w.work = TAKE_F(3 * B);
-    w.bad = TAKE_U(B);
-    w.gain = TAKE_F(n * m * B);
-    w.T = TAKE_F(n * m * B);
-    w.AP = TAKE_F(n * n * B);
-    w.prior = TAKE_F(n * n * B);
-    w.root = TAKE_F(n * B);
-    w.lost = TAKE_U(B);
-    w.xs = TAKE_F(n * B);
-    w.sx = TAKE_F(n * B);
-    w.sP = TAKE_F(n * n * B);
-    w.sy = TAKE_F(m * B);
-    w.su = TAKE_F(l * B);
-    w.sobs = TAKE_F(m * B);
-    w.sn_obs = TAKE_F(B);
-    w.sC = TAKE_F(m * n * B);
-    w.sR = TAKE_F(m * m * B);
-    w.row_a = TAKE_I(B);
-    w.row_b = TAKE_I(B);
-    w.pair = TAKE_I(B);
-    w.ye = TAKE_F(m * B);
-    w.Re = TAKE_F(m * m * B);
-    w.zero = TAKE_F(n * n * B);
-    w.E = TAKE_F(m * n * B);
-    w.Go = TAKE_F(m * l * B);
-    w.Qo = TAKE_F(m * m * B);
-    w.EQ = TAKE_F(m * n * B);
-    w.Phi = TAKE_F(n * n * B);
-    w.Gam = TAKE_F(n * l * B);
-    w.Q = TAKE_F(n * n * B);
-    w.best = TAKE_I(B);
-    w.best_ll = TAKE_F(B);
-    w.J = TAKE_F(B);
-    w.rows = TAKE_I(B);
-    w.win = TAKE_I(B);
-    w.pE = TAKE_F(m * n);
-    w.pEQ = TAKE_F(m * n);
-    w.pEF = TAKE_F(m * n);
-    w.pGo = TAKE_F(m * l);
-    w.pQo = TAKE_F(m * m);
-    w.pPCt = TAKE_F(n * m);
-    w.pchol = TAKE_F(m * m);
-    w.pscale = TAKE_F(m);
-    w.pe = TAKE_F(m);
-    w.T1 = TAKE_F(n * n);
-    w.T2 = TAKE_F(n * n);
-    w.Gt = TAKE_F(n * l);
-    w.xh = TAKE_F(G_h * n * B);
-    w.Ph = TAKE_F(G_h * n * n * B);
-    w.llh = TAKE_F(G_h * B);
-    w.wh = TAKE_F(G_h * B);
-    w.total = TAKE_F(B);
-    w.xm = TAKE_F(n * B);
-    w.Pm = TAKE_F(n * n * B);
-    w.huse = TAKE_U(B);
-    w.hindex = TAKE_I(B);
-#undef TAKE_F
-#undef TAKE_I
-#undef TAKE_U
+    se_arena ar = {NULL, 0};
+    do { /* size the arena, then carve it (zeroed: numba's np.zeros for zero, bad) */
+        x = se_doubles(&ar, n * B);
+        P = se_doubles(&ar, n * n * B);
+        yl = se_doubles(&ar, m * B);
+        ul = se_doubles(&ar, l * B);
+        obs = se_doubles(&ar, m * B);
+        n_obs = se_doubles(&ar, B);
+        Fl = se_doubles(&ar, n * n * B);
+        Gl = se_doubles(&ar, n * l * B);
+        Ql = se_doubles(&ar, n * n * B);
+        Cl = se_doubles(&ar, m * n * B);
+        Rl = se_doubles(&ar, m * m * B);
+        lik = se_doubles(&ar, B);
+        off = se_doubles(&ar, B);
+        index = se_ints(&ar, B);
+        lane = se_ints(&ar, B);
+        mode_c = se_ints(&ar, B);
+        use = se_flags(&ar, B);
+        flg = se_flags(&ar, B);
+        w.e = se_doubles(&ar, m * B);
+        w.PCt = se_doubles(&ar, n * m * B);
+        w.chol = se_doubles(&ar, m * m * B);
+        w.scale = se_doubles(&ar, m * B);
+        w.z = se_doubles(&ar, m * B);
+        w.nis = se_doubles(&ar, B);
+        w.loglik = se_doubles(&ar, B);
+        w.work = se_doubles(&ar, 3 * B);
+        w.bad = se_flags(&ar, B);
+        se_carve_update(&ar, n, m, B, &w.cs);
+        w.xs = se_doubles(&ar, n * B);
+        w.sx = se_doubles(&ar, n * B);
+        w.sP = se_doubles(&ar, n * n * B);
+        w.sy = se_doubles(&ar, m * B);
+        w.su = se_doubles(&ar, l * B);
+        w.sobs = se_doubles(&ar, m * B);
+        w.sn_obs = se_doubles(&ar, B);
+        w.sC = se_doubles(&ar, m * n * B);
+        w.sR = se_doubles(&ar, m * m * B);
+        w.row_a = se_ints(&ar, B);
+        w.row_b = se_ints(&ar, B);
+        w.pair = se_ints(&ar, B);
+        w.ye = se_doubles(&ar, m * B);
+        w.Re = se_doubles(&ar, m * m * B);
+        w.zero = se_doubles(&ar, n * n * B);
+        w.E = se_doubles(&ar, m * n * B);
+        w.Go = se_doubles(&ar, m * l * B);
+        w.Qo = se_doubles(&ar, m * m * B);
+        w.EQ = se_doubles(&ar, m * n * B);
+        w.Phi = se_doubles(&ar, n * n * B);
+        w.Gam = se_doubles(&ar, n * l * B);
+        w.Q = se_doubles(&ar, n * n * B);
+        w.best = se_ints(&ar, B);
+        w.best_ll = se_doubles(&ar, B);
+        w.J = se_doubles(&ar, B);
+        w.rows = se_ints(&ar, B);
+        w.win = se_ints(&ar, B);
+        w.pE = se_doubles(&ar, m * n);
+        w.pEQ = se_doubles(&ar, m * n);
+        w.pEF = se_doubles(&ar, m * n);
+        w.pGo = se_doubles(&ar, m * l);
+        w.pQo = se_doubles(&ar, m * m);
+        w.pPCt = se_doubles(&ar, n * m);
+        w.pchol = se_doubles(&ar, m * m);
+        w.pscale = se_doubles(&ar, m);
+        w.pe = se_doubles(&ar, m);
+        w.T1 = se_doubles(&ar, n * n);
+        w.T2 = se_doubles(&ar, n * n);
+        w.Gt = se_doubles(&ar, n * l);
+        w.xh = se_doubles(&ar, G_h * n * B);
+        w.Ph = se_doubles(&ar, G_h * n * n * B);
+        w.llh = se_doubles(&ar, G_h * B);
+        w.wh = se_doubles(&ar, G_h * B);
+        w.total = se_doubles(&ar, B);
+        w.xm = se_doubles(&ar, n * B);
+        w.Pm = se_doubles(&ar, n * n * B);
+        w.huse = se_flags(&ar, B);
+        w.hindex = se_ints(&ar, B);
+    } while (se_arena_open(&ar));
+    if (ar.base == NULL)
+        return SE_NO_MEMORY;
 
     se_int status = SE_OK;
     for (se_int i0 = 0; i0 < N; i0 += B) {
-        const se_int nb = N - i0 < B ? N - i0 : B;
+        const se_int nb = se_block_trials(B, N, i0);
         se_gather_rows(n, B, 1, x_init, i0, nb, x);
         for (se_int r = 0; r < n; r++)
             for (se_int c = 0; c < n; c++)
@@ -1046,7 +994,7 @@ se_int se_switch_time_filter(se_int n, se_int m, se_int l, se_int L, se_int N, s
                     if (status != SE_OK)
                         goto done;
                 }
-                se_predict(n, l, B, x, P, Fl, Gl, ul, Ql, nb, w.AP, w.xs);
+                se_predict(n, l, B, x, P, Fl, Gl, ul, Ql, nb, w.cs.AP, w.xs);
             }
             for (se_int b = 0; b < nb; b++)
                 index[b] = mode[(i0 + b) * K + k];
@@ -1074,6 +1022,6 @@ se_int se_switch_time_filter(se_int n, se_int m, se_int l, se_int L, se_int N, s
         }
     }
 done:
-    free(arena);
+    free(ar.base);
     return status;
 }

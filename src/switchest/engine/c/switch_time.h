@@ -22,21 +22,19 @@
  * written: x_out (N, K, n), P_out (N, K, n, n), loglik_out, offset_out (N, K),
  * flag_out (N, K), report (2,) {repaired, smallest eigenvalue}.
  * Returns SE_OK, SE_NO_MEMORY or the failure code that stopped the kernel. */
-se_int se_switch_time_filter(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
-                             se_int D, se_int g, const double *restrict y,
-                             const double *restrict u, const se_int *restrict which,
-                             const se_int *restrict mode, const se_int *restrict prev,
-                             const double *restrict C, const double *restrict R,
-                             const double *restrict F, const double *restrict G,
-                             const double *restrict Qd, const double *restrict steps,
-                             const double *restrict grid_tau, se_int n_coarse,
-                             se_int n_switch, const double *restrict x_init,
-                             const double *restrict P_init, int predict_first, int marginal,
-                             int printed, double gate, se_int iterations, double tolerance,
-                             const double *restrict CF, const double *restrict CG,
-                             const double *restrict CQC, se_int lanes, double *restrict x_out,
-                             double *restrict P_out, double *restrict loglik_out,
-                             double *restrict offset_out, uint8_t *restrict flag_out,
-                             double *restrict report);
+/* the parameter list, written once for the prototype and the definition (switch_time.c) */
+#define SE_SWITCH_TIME_FILTER_PARAMETERS                                                          \
+    se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, se_int D, se_int g,               \
+    const double *restrict y, const double *restrict u, const se_int *restrict which,             \
+    const se_int *restrict mode, const se_int *restrict prev, const double *restrict C,           \
+    const double *restrict R, const double *restrict F, const double *restrict G,                 \
+    const double *restrict Qd, const double *restrict steps, const double *restrict grid_tau,     \
+    se_int n_coarse, se_int n_switch, const double *restrict x_init,                              \
+    const double *restrict P_init, int predict_first, int marginal, int printed, double gate,     \
+    se_int iterations, double tolerance, const double *restrict CF, const double *restrict CG,    \
+    const double *restrict CQC, se_int lanes, double *restrict x_out, double *restrict P_out,     \
+    double *restrict loglik_out, double *restrict offset_out, uint8_t *restrict flag_out,         \
+    double *restrict report
+se_int se_switch_time_filter(SE_SWITCH_TIME_FILTER_PARAMETERS);
 
 #endif
