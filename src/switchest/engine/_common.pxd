@@ -91,7 +91,7 @@ cdef inline se_bank_out bank_outputs(se_int N, se_int K, cnp.ndarray x_out, cnp.
                                      cnp.ndarray x_modes_out, cnp.ndarray P_modes_out,
                                      cnp.ndarray x_last, cnp.ndarray P_last,
                                      cnp.ndarray log_prob_last) except *:
-    """The numba kernels' output arguments as the C kernels take them; the mode-matched
+    """The bank bindings' output arguments as the C kernels take them; the mode-matched
     posteriors are written if x_modes_out has a row per trial (zero-size arrays otherwise)."""
     cdef se_bank_out out
     out.K = K

@@ -1,6 +1,6 @@
 # distutils: sources = src/switchest/engine/c/gpb.c src/switchest/engine/c/bank.c src/switchest/engine/c/linalg.c
-"""Binding of GPB2 (engine/c/gpb.c): :func:`gpb2_bank`, with the arguments of the numba kernel
-it replaces (``switchest.estimators._compiled.gpb.gpb2_bank``)."""
+"""Binding of GPB2 (engine/c/gpb.c): :func:`gpb2_bank`, the kernel behind
+:func:`switchest.engine.gpb.gpb2_run` and :func:`switchest.engine.gpb.gpb2_step`."""
 cimport numpy as cnp
 from ._common cimport (fptr, iptr, se_int, se_bank_out, bank_outputs, no_memory,
                       start_binding)
@@ -25,8 +25,9 @@ def gpb2_bank(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cnp.nd
               cnp.ndarray mode_out, cnp.ndarray loglik_out, cnp.ndarray flag_out,
               cnp.ndarray x_modes_out, cnp.ndarray P_modes_out, cnp.ndarray x_last,
               cnp.ndarray P_last, cnp.ndarray log_prob_last, cnp.ndarray report):
-    """:func:`switchest.estimators._compiled.gpb.gpb2_bank` in C: the same arguments (checked
-    by the caller), the same outputs written, the same status returned."""
+    """Run ``se_gpb2_bank`` on arrays checked and shaped by the caller
+    (:func:`switchest.engine.gpb._gpb2`; the shapes are in engine/c/gpb.h): writes the outputs
+    and ``report`` in place, returns the status (``MemoryError`` for ``SE_NO_MEMORY``)."""
     if lanes < 1:
         raise ValueError(f"lanes must be a positive int, got {lanes}")
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]

@@ -1,7 +1,7 @@
 # distutils: sources = src/switchest/engine/c/bank.c src/switchest/engine/c/linalg.c
 """Binding of the bank of mode-matched filters (engine/c/bank.c): the IMM's and GPB1's
-kernel, :func:`filter_bank`, with the arguments of the numba kernel it replaces
-(``switchest.estimators._compiled.bank.filter_bank``)."""
+kernel, :func:`filter_bank`, behind :func:`switchest.engine.imm.imm_run`,
+:func:`switchest.engine.imm.imm_step` and :class:`switchest.engine.imm.Bank`."""
 cimport numpy as cnp
 from ._common cimport (fptr, iptr, se_int, se_bank_out, bank_outputs, no_memory,
                       start_binding)
@@ -29,8 +29,9 @@ def filter_bank(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cnp.
                 cnp.ndarray mode_out, cnp.ndarray loglik_out, cnp.ndarray flag_out,
                 cnp.ndarray x_modes_out, cnp.ndarray P_modes_out, cnp.ndarray x_last,
                 cnp.ndarray P_last, cnp.ndarray log_prob_last, cnp.ndarray report):
-    """:func:`switchest.estimators._compiled.bank.filter_bank` in C: the same arguments
-    (checked by the caller), the same outputs written, the same status returned."""
+    """Run ``se_filter_bank`` on arrays checked and shaped by the caller
+    (:func:`switchest.engine.imm._bank`; the shapes are in engine/c/bank.h): writes the outputs
+    and ``report`` in place, returns the status (``MemoryError`` for ``SE_NO_MEMORY``)."""
     if lanes < 1:
         raise ValueError(f"lanes must be a positive int, got {lanes}")
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]

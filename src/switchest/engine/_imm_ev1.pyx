@@ -32,9 +32,9 @@ def viterbi_bank(cnp.ndarray y, cnp.ndarray u, cnp.ndarray table, cnp.ndarray F,
                  cnp.ndarray mode_out, cnp.ndarray offset_out, cnp.ndarray outlier_out,
                  cnp.ndarray x_last, cnp.ndarray P_last, cnp.ndarray log_w_last,
                  cnp.ndarray chosen_last, cnp.ndarray offset_last, cnp.ndarray report):
-    """The IMM-EV1 over ``N`` trials and ``K`` samples: numba's ``viterbi_bank``'s arguments
-    (``outlier_out`` as uint8), checked and shaped by :mod:`switchest.engine.imm_ev1`;
-    returns the status."""
+    """The IMM-EV1 over ``N`` trials and ``K`` samples (``se_viterbi_bank``; the shapes and
+    argument order are in engine/c/imm_ev1.h, ``outlier_out`` uint8), the arrays checked and
+    shaped by :mod:`switchest.engine.imm_ev1`; returns the status."""
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
     cdef se_int L = x_init.shape[1], n = x_init.shape[2]
     cdef se_int l = u.shape[2], g = tau.shape[1]

@@ -2,11 +2,11 @@
 """Binding of the Kalman kernels (engine/c/kalman.c): the filter along given transitions, whose
 trials share their covariance in groups, and the fixed-gain filter.
 
-Each function takes the arguments of the numba kernel it replaces
-(:func:`switchest.estimators._compiled.kalman_kernel.kalman_filter`,
-:func:`switchest.estimators._compiled.kalman._steady_filter`), arrays already checked and
-converted by the wrapper (:mod:`switchest.engine.kalman`), reads the sizes from their shapes
-and runs the kernel without the GIL.
+Each function takes the arguments of its C kernel in the kernel's order (the shapes are in
+engine/c/kalman.h), arrays already checked and converted by the wrapper
+(:mod:`switchest.engine.kalman`: :func:`~switchest.engine.kalman.kalman_run`,
+:func:`~switchest.engine.kalman.kalman_steady_run` and their ``_step`` variants), reads the
+sizes from their shapes and runs the kernel without the GIL.
 """
 cimport numpy as cnp
 from ._common cimport uint8_t, fptr, iptr, u8ptr, se_int, start_binding
@@ -41,7 +41,9 @@ def kalman_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cn
                   se_int lanes, cnp.ndarray x_out, cnp.ndarray P_out, cnp.ndarray loglik_out,
                   cnp.ndarray flag_out, cnp.ndarray report):
     """Kalman filter of ``N`` trials over ``K`` samples (se_kalman_filter); returns the
-    status. Shapes as :func:`switchest.estimators._compiled.kalman_kernel.kalman_filter`."""
+    status. Shapes: y (N, K, m), u (N, K, l), F, G, Qd (M, n, n), (M, n, l), (M, n, n),
+    trans, mode (N, K) int64, C (L, m, n), R (L, m, m), x_init (N, n), P_init (N, n, n);
+    written: x_out (N, K, n), P_out (N, K, n, n), loglik_out, flag_out (N, K), report (2,)."""
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
     cdef se_int n = x_init.shape[1], l = u.shape[2]
     cdef se_int status
@@ -60,8 +62,10 @@ def steady_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G,
                   cnp.ndarray x_out, cnp.ndarray P_out, cnp.ndarray loglik_out,
                   cnp.ndarray flag_out):
     """Fixed-gain filter of every trial (se_steady_filter); returns the status (``OK``, or
-    ``NO_MEMORY``; numba's ``_steady_filter`` returns nothing). Shapes as
-    :func:`switchest.estimators._compiled.kalman._steady_filter`."""
+    ``NO_MEMORY`` if its scratch cannot be allocated). Shapes: y (N, K, m), u (N, K, l),
+    F (M, n, n), G (M, n, l), trans, mode (N, K) int64, C (L, m, n), gain (L, n, m),
+    P_prior, P_post (L, n, n), whiten (L, m, m), x_init (N, n); written: x_out (N, K, n),
+    P_out (N, K, n, n), loglik_out (N, K) (NaN), flag_out (N, K)."""
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
     cdef se_int n = x_init.shape[1], l = u.shape[2], L = P_prior.shape[0]
     cdef se_int status

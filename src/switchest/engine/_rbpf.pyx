@@ -1,7 +1,8 @@
 # distutils: sources = src/switchest/engine/c/rbpf.c src/switchest/engine/c/linalg.c
 """Binding of the Rao-Blackwellized particle filter (engine/c/rbpf.c): the kernel
 ``particle_filter`` and the counter-based random stream (``uniform``, ``trial_keys``,
-``resampling_positions``, ``ancestors``), bit for bit those of the numba module."""
+``resampling_positions``, ``ancestors``), whose streams are fixed bit for bit (engine/c/rbpf.c
+documents the arithmetic)."""
 cimport numpy as cnp
 from libc.stdint cimport uint8_t, uint64_t
 from ._common cimport fptr, iptr, u8ptr, kptr, se_int, start_binding
@@ -97,8 +98,8 @@ def particle_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G,
                     cnp.ndarray P_last, cnp.ndarray mode_last, cnp.ndarray logw_last,
                     cnp.ndarray report):
     """Filter ``N`` trials over ``K`` samples with ``Np`` particles each (the kernel of
-    :mod:`switchest.engine.rbpf`; arguments and outputs as the numba kernel's
-    ``particle_filter``, sizes read from the shapes, which are checked). Returns the status."""
+    :mod:`switchest.engine.rbpf`; arguments and outputs in the order and shapes of
+    engine/c/rbpf.h, sizes read from the shapes, which are checked). Returns the status."""
     if y.ndim != 3 or u.ndim != 3 or x_init.ndim != 3 or C.ndim != 3 or F.ndim != 3:
         raise ValueError("y, u, x_init, C and F must have three axes")
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]

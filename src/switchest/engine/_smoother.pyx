@@ -43,9 +43,10 @@ def kim_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f, cnp.n
                  cnp.ndarray mode_out, cnp.ndarray x_s, cnp.ndarray P_s, cnp.ndarray report,
                  bint lagged, cnp.ndarray pair_out, cnp.ndarray lag_x, cnp.ndarray lag_P,
                  cnp.ndarray lag_cross):
-    """The backward recursion over every trial, in blocks of ``lanes`` trials (the numba
-    kernel's arguments, checked by :func:`switchest.engine.smoother.kim_smooth`); returns the
-    status code (``MemoryError`` if the scratch cannot be allocated, as numba's would raise)."""
+    """The backward recursion over every trial, in blocks of ``lanes`` trials (the arguments of
+    ``se_kim_backward``, engine/c/smoother.h, checked by
+    :func:`switchest.engine.smoother.kim_smooth`); returns the status code (``MemoryError`` if
+    the scratch cannot be allocated)."""
     shaped(x_f, 4, -1, -1, -1, -1, -1)
     cdef se_int N = x_f.shape[0], K = x_f.shape[1], L = x_f.shape[2], n = x_f.shape[3]
     shaped(u, 3, N, K, -1, -1, -1)
@@ -82,7 +83,7 @@ def kim_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f, cnp.n
             sample_timing, fptr(x_out), fptr(P_out), fptr(prob_out), iptr(mode_out),
             fptr(x_s), fptr(P_s), fptr(report), lagged, fptr(pair_out), fptr(lag_x),
             fptr(lag_P), fptr(lag_cross))
-    no_memory(status, "kim_backward")  # numba's np.empty of the scratch raises it
+    no_memory(status, "kim_backward")  # SE_NO_MEMORY (no scratch) raises MemoryError
     return status
 
 

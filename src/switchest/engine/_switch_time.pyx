@@ -27,9 +27,10 @@ def switch_time_filter(cnp.ndarray y, cnp.ndarray u, cnp.ndarray which, cnp.ndar
                        se_int iterations, double tolerance, tuple outputs, se_int lanes,
                        cnp.ndarray x_out, cnp.ndarray P_out, cnp.ndarray loglik_out,
                        cnp.ndarray offset_out, cnp.ndarray flag_out, cnp.ndarray report):
-    """The switch-time filter of N trials over K samples (the numba kernel
-    ``switch_time_filter`` of ``_compiled/switch_time.py``, same arguments); returns the
-    status."""
+    """The switch-time filter of N trials over K samples (``se_switch_time_filter``, the
+    arguments in the order of engine/c/switch_time.h, ``outputs`` being the tuple
+    ``(CF, CG, CQC)`` of :func:`switchest.engine.switch_time.coarse_outputs`), called by
+    :func:`switchest.engine.switch_time.switch_time_run`; returns the status."""
     cdef cnp.ndarray CF = outputs[0], CG = outputs[1], CQC = outputs[2]
     cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
     cdef se_int n = x_init.shape[1], l = u.shape[2], L = C.shape[0]

@@ -1,5 +1,4 @@
-/* The compiled kernel of the Gaussian filters: a bank of mode-matched Kalman filters (the port
- * of switchest/estimators/_compiled/bank.py).
+/* The compiled kernel of the Gaussian filters: a bank of mode-matched Kalman filters.
  *
  * se_filter_bank runs, for every trial and every sample, L Kalman filters (one per mode) with
  * an interaction between them before each prediction: the IMM's mixing (SE_MIX: Blom &
@@ -55,7 +54,7 @@ static void se_predict_modes(se_int n, se_int l, se_int L, se_int B, se_int tran
     }
 }
 
-/* dst[:, :nb] = src[:, :nb] as loops (numba compiles slice assignment slowly). */
+/* dst[:, :nb] = src[:, :nb] of two (L, B) lane arrays: the first nb lanes of each row. */
 static void se_copy_rows(se_int L, se_int B, const double *restrict src, double *restrict dst,
                          se_int nb)
 {
@@ -135,8 +134,8 @@ static void se_report_sample(se_int n, se_int L, se_int B, se_int K, const doubl
 
 /* ---- the skeleton of the bank kernels ------------------------------------------------------- */
 
-/* The scratch of se_filter_bank (pairs 0) or se_gpb2_bank (pairs 1), the arrays of numba's
- * np.empty (bank.h gives the shapes). */
+/* The scratch of se_filter_bank (pairs 0) or se_gpb2_bank (pairs 1), carved from the arena
+ * (bank.h gives the shapes); the arrays one kind does not use are carved with size 0. */
 static void se_bank_carve(se_arena *ar, se_bank_scratch *s, se_int n, se_int m, se_int l,
                           se_int L, se_int B, int pairs)
 {
@@ -212,7 +211,7 @@ void se_bank_observe(se_int m, se_int B, se_int K, const double *restrict y, se_
     se_observe(m, B, s->yl, nb, s->obs, s->n_obs);
 }
 
-/* The measurement update of the bank's filters at one sample, in the order of numba's loops:
+/* The measurement update of the bank's filters at one sample, in this fixed order:
  * each filter's innovation (se_innovation: e = y - C x, S = C P C' + R over the observed
  * components, Shankar et al. eq. (8)), the gating decision over all of them before anything
  * changes (se_gate: a = prior + log Lambda where used), then each filter's update (se_update:

@@ -1,12 +1,12 @@
-/* The bank of mode-matched Kalman filters with the IMM's or GPB1's interaction: the port of
- * switchest/estimators/_compiled/bank.py. The documentation of the kernel and its helpers
- * (paper and equation citations) is at their definitions in bank.c; here: the prototypes and
- * the shapes.
+/* The bank of mode-matched Kalman filters with the IMM's or GPB1's interaction. The
+ * documentation of the kernel and its helpers (paper and equation citations) is at their
+ * definitions in bank.c; here: the prototypes and the shapes.
  *
  * Conventions of linalg.h: sizes first as se_int (n states, m outputs, l inputs, L modes,
- * B the lane stride, then the other extents), then the arguments of the Python function in
- * its order; booleans int, boolean arrays uint8_t, index arrays se_int, the rest double, all
- * C-contiguous. The skeleton below is shared with gpb.c (GPB2), which links bank.c.
+ * B the lane stride, then the other extents), then the arrays and scalars in the order of
+ * the prototype (the bindings, engine/_imm.pyx and engine/_gpb.pyx, keep it); booleans int,
+ * boolean arrays uint8_t, index arrays se_int, the rest double, all C-contiguous. The skeleton
+ * below is shared with gpb.c (GPB2), which links bank.c.
  */
 #ifndef SE_BANK_H
 #define SE_BANK_H

@@ -1,5 +1,5 @@
 /* The compiled second-order generalized pseudo-Bayesian filter, GPB2 (Bar-Shalom, Li &
- * Kirubarajan 2001, §11.6.5): the port of switchest/estimators/_compiled/gpb.py.
+ * Kirubarajan 2001, §11.6.5).
  *
  * The state of a trial after sample k - 1 is one Gaussian per mode, N(x_i, P_i) with
  * probability mu_i. Into sample k run L^2 Kalman filters, one per pair (mode i at k - 1,

@@ -1,11 +1,11 @@
 /* The second-order generalized pseudo-Bayesian filter, GPB2 (Bar-Shalom, Li & Kirubarajan
- * 2001, §11.6.5): the port of switchest/estimators/_compiled/gpb.py. The documentation of the
- * kernel (paper and equation citations) is at its definition in gpb.c; here: the prototype
- * and the shapes. It links bank.c (the skeleton of the bank kernels, se_bank_*, and
- * se_gather_transition) and linalg.c.
+ * 2001, §11.6.5). The documentation of the kernel (paper and equation citations) is at its
+ * definition in gpb.c; here: the prototype and the shapes. It links bank.c (the skeleton of
+ * the bank kernels, se_bank_*, and se_gather_transition) and linalg.c.
  *
  * Sizes first (n states, m outputs, l inputs, L modes, N trials, K samples, then trans's first
- * two extents), then numba's gpb2_bank arguments in its order, the outputs gathered in out.
+ * two extents), then the inputs in the order of the binding's gpb2_bank (engine/_gpb.pyx), the
+ * outputs gathered in out.
  * Shapes (C-contiguous): y (N, K, m), u (N, K, l), F, G, Qd (M, n, n), (M, n, l), (M, n, n),
  * trans (trans_N, trans_K, L) se_int, C (L, m, n), R (L, m, m),
  * log_transition (L, L), x_init (N, L, n), P_init (N, L, n, n), log_prob_init (N, L);

@@ -1,5 +1,4 @@
-/* The compiled IMM extended-Viterbi filter with gridded switching times (port of
- * switchest/estimators/_compiled/imm_ev1.py, numba).
+/* The compiled IMM extended-Viterbi filter with gridded switching times.
  *
  * Shankar, Yang & Hespanha, Algorithm 1, on the IMM-EV1 of Ho & Chen (2006): one Kalman filter
  * per destination mode `i`. At each sample every predecessor `j` and, when `j != i`, every
@@ -15,13 +14,14 @@
  * hypotheses, without forming their predictions; then, once each destination has chosen its
  * predecessor and instant, the prediction and update of the chosen hypotheses only.
  *
- * Layout: numba's arrays keep their shapes and axis order; a lane array's last axis is either
- * B (a block of trials: x (L, n, B), J (L, L, g, B) ...) or W (the lanes of the widest pass,
- * one hypothesis of one trial per lane: xs (n, W), C1 (m, n, W) ...). Every linalg call gets
- * arrays of one lane stride, as numba's calls do, except the update without prediction
- * (update_only), where numba mixes B-wide states with W-wide measurement and scratch arrays:
+ * Layout: the scratch arrays keep the shape and axis order of the quantity they hold, with
+ * the lanes last; a lane array's last axis is either B (a block of trials: x (L, n, B),
+ * J (L, L, g, B) ...) or W (the lanes of the widest pass, one hypothesis of one trial per
+ * lane: xs (n, W), C1 (m, n, W) ...), addressed e.g. J[((j * L + i) * g + k) * B + b]. Every
+ * linalg call gets arrays of one lane stride, except the update without prediction
+ * (update_only), which pairs B-wide states with the W-wide measurement and scratch arrays:
  * there the measurement of the sample is gathered at stride B (the only lanes it uses, as its
- * width is nb) and the scratch is read at stride B, which gives the same numbers.
+ * width is nb) and the scratch is read at stride B, which gives the same numbers as stride W.
  */
 #include <math.h>
 #include <stdint.h>
@@ -576,8 +576,9 @@ static void layout(const dims *s, se_int n_hyp, se_arena *ar, scratch *t)
  * updating every hypothesis and selecting afterwards, as Algorithm 1 states. Gating and
  * ill-conditioned covariances are handled lane by lane as in the bank's filter.
  *
- * The block of trials is min(lanes, N) lanes wide (numba's is always lanes): the lanes beyond
- * N were never used, so the numbers are the same.
+ * The block of trials is min(lanes, N) lanes wide (se_lanes): lanes beyond N would never be
+ * used, so the numbers do not depend on it. Returns SE_OK with only the report written for
+ * N = 0.
  */
 se_int se_viterbi_bank(SE_VITERBI_BANK_PARAMETERS)
 {

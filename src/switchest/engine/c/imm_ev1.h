@@ -1,10 +1,11 @@
 /* The IMM extended-Viterbi filter with gridded switching times (Shankar, Yang & Hespanha,
- * Algorithm 1): the port of switchest/estimators/_compiled/imm_ev1.py. The documentation of
- * the kernel (paper and equation citations, the two passes of each sample) is at its
- * definition in imm_ev1.c; here: the prototype and the shapes.
+ * Algorithm 1). The documentation of the kernel (paper and equation citations, the two
+ * passes of each sample) is at its definition in imm_ev1.c; here: the prototype and the
+ * shapes.
  *
  * Sizes first (n states, m outputs, l inputs, L modes, N trials, K samples, g grid points),
- * then numba's viterbi_bank arguments in its order. Shapes (C-contiguous):
+ * then the arguments in the order of the binding's viterbi_bank (engine/_imm_ev1.pyx). Shapes
+ * (C-contiguous):
  *   y (N, K, m), u (N, K, l), table (K,) se_int,
  *   F, G, Qd (M, n, n), (M, n, l), (M, n, n), H, Gy, S0 (M, m, n), (M, m, l), (M, m, m)
  *     with M = D L L g, entry ((d L + j) L + i) g + k,

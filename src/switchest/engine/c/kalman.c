@@ -1,6 +1,5 @@
-/* The Kalman filter along given transitions: covariances shared by trials (the port of
- * switchest/estimators/_compiled/kalman_kernel.py), and the fixed-gain filter (the kernels of
- * _compiled/kalman.py).
+/* The Kalman filter along given transitions: covariances shared by trials (se_kalman_filter),
+ * and the fixed-gain filter (se_steady_filter).
  *
  * The covariance recursion of a Kalman filter (Shankar et al. eqs (7)-(10)) does not depend on
  * the measured values: trials that start from the same P, predict through equal F, Qd, update
@@ -32,10 +31,11 @@
  * the means alone. Any change (another entry, other observed components, a gated measurement,
  * a new group, a repair) runs the equations again.
  *
- * (numba note kept for the record: a block of one group runs the covariance equations on one
- * lane, where each lane loop costs more than its arithmetic; compiling the equations for a
- * literal lane count of 1 ran 10 trials over 200 samples of the vehicle (n = 4, m = 2) in
- * 0.80-0.87 of the time but took 5-10 CPU-s more to compile, so it was not done there.)
+ * (A measurement on the JIT-compiled implementation this file was ported from, kept for the
+ * record: a block of one group runs the covariance equations on one lane, where each lane loop
+ * costs more than its arithmetic; compiling the equations for a literal lane count of 1 ran 10
+ * trials over 200 samples of the vehicle (n = 4, m = 2) in 0.80-0.87 of the time but took
+ * 5-10 CPU-s more to compile, so it was not done there.)
  *
  * The outputs (N, K, ...) are written through buffers of CHUNK samples, trial by trial, so
  * that each store continues a run of contiguous memory (se_write_out): stored sample by
@@ -46,7 +46,7 @@
  * the mode i (Zhang & Natarajan eq. (6)); the covariance is read from the tables.
  *
  * Layout: every lane array has the block's lanes as its last axis, of length B = lanes (the
- * lane stride), e.g. P[(r * n + c) * B + b] for numba's P[r, c, b] of shape (n, n, B); a
+ * lane stride), e.g. P of shape (n, n, B) is addressed P[(r * n + c) * B + b]; a
  * block's scratch is one allocation (an arena carved into the arrays) made at the start of
  * the kernel and freed before it returns.
  */
@@ -194,7 +194,7 @@ static se_int group_equal(se_int n, se_int B, const double *restrict P_init, se_
     return n_groups;
 }
 
-/* The tables and indices one sample of a block is read from (numba's argument lists). */
+/* The tables and indices one sample of a block is read from, gathered in one struct. */
 typedef struct {
     se_int n, m, B, K;
     const se_int *trans, *mode;
@@ -492,7 +492,7 @@ se_int se_kalman_filter(SE_KALMAN_FILTER_PARAMETERS)
 {
     se_report_start(report);
     if (N <= 0 || K <= 0 || lanes <= 0)
-        return SE_OK; /* nothing to filter (numba refuses N = 0: range step 0) */
+        return SE_OK; /* nothing to filter: SE_OK with only the report written */
     const se_int B = se_lanes(lanes, N), nn = n * n;
     double *restrict x, *restrict xs, *restrict Fl, *restrict Gl, *restrict Cl, *restrict yl,
         *restrict ul, *restrict obs, *restrict n_obs, *restrict e, *restrict z, *restrict nis,
@@ -681,7 +681,7 @@ static void whitened_norm(se_int m, se_int B, const double *restrict e,
 se_int se_steady_filter(SE_STEADY_FILTER_PARAMETERS)
 {
     if (N <= 0 || K <= 0 || lanes <= 0)
-        return SE_OK; /* nothing to filter (numba refuses N = 0: range step 0) */
+        return SE_OK; /* nothing to filter: SE_OK with nothing written */
     const se_int B = se_lanes(lanes, N), nn = n * n;
     double *restrict x, *restrict xs, *restrict yl, *restrict ul, *restrict Fl, *restrict Gl,
         *restrict Cl, *restrict Kl, *restrict Wl, *restrict e, *restrict obs, *restrict n_obs,

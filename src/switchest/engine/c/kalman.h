@@ -1,11 +1,10 @@
 /* The Kalman filter along given transitions (covariances shared by the trials of a group) and
- * the fixed-gain filter: the port of switchest/estimators/_compiled/kalman_kernel.py and of
- * the kernels of _compiled/kalman.py. The documentation of each function is at its definition
- * in kalman.c; here: the prototypes and the shapes.
+ * the fixed-gain filter. The documentation of each function is at its definition in kalman.c;
+ * here: the prototypes and the shapes.
  *
- * Conventions as linalg.h: sizes first (se_int), then the Python arguments in the order of the
- * Python signature; booleans int, boolean arrays uint8_t, index arrays se_int, the rest double;
- * every array C-contiguous of the shape given.
+ * Conventions as linalg.h: sizes first (se_int), then the arrays and scalars in the order of
+ * the prototype (the binding, engine/_kalman.pyx, keeps it); booleans int, boolean arrays
+ * uint8_t, index arrays se_int, the rest double; every array C-contiguous of the shape given.
  */
 #ifndef SE_KALMAN_H
 #define SE_KALMAN_H
@@ -33,11 +32,11 @@
     uint8_t *restrict flag_out, double *restrict report
 se_int se_kalman_filter(SE_KALMAN_FILTER_PARAMETERS);
 
-/* Fixed-gain filter (numba's _steady_filter) of every trial from x_init[i]:
+/* Fixed-gain filter of every trial from x_init[i]:
  * y (N, K, m), u (N, K, l), F (M, n, n), G (M, n, l), trans (N, K), C (L, m, n), mode (N, K),
  * gain (L, n, m), P_prior, P_post (L, n, n), whiten (L, m, m), x_init (N, n); written x_out
  * (N, K, n), P_out (N, K, n, n), loglik_out (N, K) (NaN), flag_out (N, K). Returns SE_OK, or
- * SE_NO_MEMORY (numba returns nothing). */
+ * SE_NO_MEMORY if its scratch cannot be allocated. */
 /* the parameter list, written once for the prototype and the definition (kalman.c) */
 #define SE_STEADY_FILTER_PARAMETERS                                                               \
     se_int n, se_int m, se_int l, se_int L, se_int N, se_int K, const double *restrict y,         \

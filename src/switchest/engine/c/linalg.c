@@ -1,5 +1,9 @@
-/* The Kalman and IMM equations over a block of trials laid across SIMD lanes (port of
- * switchest/estimators/_compiled/linalg.py, and of lane_index of _compiled/bank.py).
+/* The Kalman and IMM equations over a block of trials laid across SIMD lanes.
+ *
+ * Provenance: the C engine (the kernels of engine/c, bound by the engine/_NAME.pyx modules)
+ * was ported line by line from the numba kernels of switchest/estimators/_compiled (the last
+ * commit that holds them is d903876); before those kernels were deleted, the outputs of both
+ * were compared on their conformance cases and found bit-identical.
  *
  * Every array here carries a block of trials as its *last* axis, the lanes: x (n, B),
  * P (n, n, B), y (m, B), of which the first nb are in use. Each equation loops over matrix
@@ -23,10 +27,12 @@
  * the shared covariance and se_innovation_mean, se_correct_mean (their per-lane halves, the
  * same operations) finish each trial's mean.
  *
- * Operation order: each loop is the numba code's, so that the results are the same to the
- * last bit or nearly (the families are compared to numba at 1e-12). se_repair's
- * eigendecomposition is LAPACK's dsyevd, as numpy.linalg.eigh's, reached through the pointer
- * each binding sets from scipy.linalg.cython_lapack when it is imported (se_use_dsyevd).
+ * Operation order: the order of every loop's operations is fixed on purpose, not to be changed
+ * for speed: the numpy oracles of tests/estimators/ depend on it, as did the recorded
+ * comparison above (bit-identical on the conformance cases, within 1e-12 on the families).
+ * se_repair's eigendecomposition is LAPACK's dsyevd, as numpy.linalg.eigh's, reached through
+ * the pointer each binding sets from scipy.linalg.cython_lapack when it is imported
+ * (se_use_dsyevd).
  */
 #include "linalg.h"
 
@@ -314,7 +320,7 @@ static void se_whiten(se_int m, se_int B, const double *restrict e, const double
  * loglik = log N(e; 0, S) = -(e' S^-1 e + log det S + m_o log 2 pi) / 2 (0 with nothing
  * observed). work (3, B) is scratch; e, PCt, chol, scale, z keep what se_correct needs.
  *
- * With report ([count, smallest eigenvalue] of se_repair; NULL is numba's None), the lanes
+ * With report ([count, smallest eigenvalue] of se_repair; NULL: no repair), the lanes
  * whose factorization fails have their P repaired and every lane is factored once more: the
  * rule of the filters here. Without it the caller decides (a group's repair in the Kalman
  * kernel, a full prediction in imm_ev1).
@@ -737,7 +743,7 @@ static int se_cholesky_into(se_int n, const double *restrict A, double *restrict
     return 1;
 }
 
-/* Bm <- Lo^-1 Bm for a lower-triangular Lo (m, m) and Bm (m, q) (numba's B (m, k)). */
+/* Bm <- Lo^-1 Bm for a lower-triangular Lo (m, m) and Bm (m, q), both row-major. */
 static void se_forward(se_int m, se_int q, const double *restrict Lo, double *restrict Bm)
 {
     for (se_int a = 0; a < m; a++) {
@@ -764,7 +770,7 @@ int se_information_form(se_int n, se_int m, se_int B, double *restrict P,
     SE_SCRATCH(buf, 4 * n * n + 2 * m * m + m * n + n + m, 7 * S * S + 2 * S);
     if (buf == NULL)
         return 0;
-    /* numba's A, Lp, Ln, Z (n, n), Rd, Lr (m, m), W (m, n) and _cholesky's d (n or m) */
+    /* A, Lp, Ln, Z (n, n), Rd, Lr (m, m), W (m, n) and the Cholesky scratch d (n or m) */
     double *A = buf, *Lp = A + n * n, *Ln = Lp + n * n, *Z = Ln + n * n;
     double *Rd = Z + n * n, *Lr = Rd + m * m, *W = Lr + m * m, *d = W + m * n;
     int ok = 0;
@@ -932,7 +938,7 @@ void se_log_normalize(se_int L, se_int B, double *restrict a, double *restrict p
 
 /* Lane b of mixture j in the log domain: w[i, b] = exp(log mu_i + log pi_ij - lse),
  * returning lse = logsumexp_i(log mu_i + log pi_ij); zero weights and -inf when every term is
- * -inf. w (L, B) is numba's w[j]. */
+ * -inf. w (L, B) is mixture j's rows, the pointer w + j L B of the caller's w (L, L, B). */
 static double se_log_weights(se_int L, se_int B, const double *restrict log_prob,
                              const double *restrict log_transition, se_int j, se_int b,
                              double *restrict w)
@@ -1114,7 +1120,7 @@ void se_combine(se_int n, se_int L, se_int B, const double *restrict x, const do
     se_moments(n, L, B, prob, x, P, nb, xc, Pc);
 }
 
-/* ---- from _compiled/bank.py ---------------------------------------------------------------- */
+/* ---- the per-lane index of a trial table --------------------------------------------------- */
 
 /* out[b]: entry [trial, k, j] of index (N or 1, K or 1, L) for trial i0 + b; an axis of length
  * 1 is shared by all trials (or samples). */

@@ -1,26 +1,26 @@
-/* The Kalman and IMM equations over a block of trials laid across SIMD lanes: the port of
- * switchest/estimators/_compiled/linalg.py (and of lane_index from _compiled/bank.py). The
- * full documentation of each equation (paper and equation citations) is at its definition in
- * linalg.c; here: the prototypes and the shapes.
+/* The Kalman and IMM equations over a block of trials laid across SIMD lanes (provenance:
+ * linalg.c), and the per-lane index of a trial table (se_lane_index). The full documentation
+ * of each equation (paper and equation citations) is at its definition in linalg.c; here: the
+ * prototypes and the shapes.
  *
  * Conventions of every prototype
  * ------------------------------
- * - Name: "se_" + the Python name, a leading underscore dropped (_solve -> se_solve).
- * - Arguments: first the sizes numba read from array shapes, as se_int, in the order
+ * - Name: "se_" + the equation's name (se_solve, se_innovation, se_repair ...).
+ * - Arguments: first the sizes (the arrays' extents), as se_int, in the order
  *       n, m, l, L, B, then any other extent (K, N, q, p ...),
- *   then the Python arguments in the order of the Python signature (nb, i0, k, b, j ... as
- *   se_int where they stand). n = states, m = outputs, l = inputs, L = modes, B = the lane
- *   stride, the length of the last axis of EVERY lane array passed to that call (all lane
- *   arrays of one call must have the same last-axis length B; a lane array of shape
- *   (n, n, B) is addressed P[(r * n + c) * B + b]).
+ *   then the arrays and scalars as each prototype lists them, mostly inputs before outputs
+ *   and scratch (nb, i0, k, b, j ... as se_int where they stand). n = states, m = outputs,
+ *   l = inputs, L = modes, B = the lane stride, the length of the last axis of EVERY lane
+ *   array passed to that call (all lane arrays of one call must have the same last-axis
+ *   length B; a lane array of shape (n, n, B) is addressed P[(r * n + c) * B + b]).
  * - Booleans: int (arguments, return values); boolean arrays (use, bad, lost): uint8_t
  *   (0/1); index arrays (index, best): se_int; everything else double.
- * - A numba sub-array argument such as x[j] of x (L, n, B) is passed as the pointer
+ * - A sub-array such as mode j's x (n, B) of x (L, n, B) is passed as the pointer
  *   x + j * n * B.
  * - Trial tables read at [i0 + b, ...] (gather / scatter / write): the extents after the
  *   trial axis are passed among the sizes. The gather_rows / scatter_rows / gather_modes /
  *   scatter_modes family also takes a K: the array is (N, K, ...) read at one sample; pass
- *   K = 1 for an (N, ...) array, or, for numba's slice data[:, k] of an (N, K, ...) array
+ *   K = 1 for an (N, ...) array, or, for the sample-k slice data[:, k] of an (N, K, ...) array
  *   (the smoother's x_f[:, k]), the pointer at data[0, k] and that K.
  * - Status codes (SE_OK, SE_NOT_POSITIVE_DEFINITE, SE_NOT_FINITE) and flags come from
  *   se_common.h; the functions returning a status return se_int.
@@ -44,7 +44,7 @@ typedef void se_dsyevd_fn(char *jobz, char *uplo, int *n, double *a, int *lda, d
                           double *work, int *lwork, int *iwork, int *liwork, int *info);
 void se_use_dsyevd(se_dsyevd_fn *dsyevd);
 
-/* the constants of _compiled/linalg.py */
+/* the numerical constants of the equations */
 #define SE_LOG_2PI 1.8378770664093453           /* math.log(2 pi) = 0x1.d67f1c864beb4p+0 */
 #define SE_EPS 2.220446049250313e-16            /* numpy.finfo(float).eps */
 #define SE_CORRELATION_BOUND 1.0000000149011612 /* 1 + sqrt(eps) = 0x1.0000004p+0 */
@@ -177,7 +177,7 @@ void se_residual(se_int n, se_int m, se_int B, const double *restrict x,
 /* Innovation of y against (x, P) over each lane's observed components, and S's factorization.
  * x (n, B), P (n, n, B), y (m, B), C (m, n, B), R (m, m, B), obs (m, B), n_obs (B,);
  * written: e (m, B), PCt (n, m, B), chol (m, m, B), scale (m, B), z (m, B), nis (B,),
- * loglik (B,), work (3, B) scratch, bad (B,) uint8; report (2,) or NULL (numba's None: no
+ * loglik (B,), work (3, B) scratch, bad (B,) uint8; report (2,) or NULL (NULL: no
  * repair). Returns SE_OK, SE_NOT_FINITE or SE_NOT_POSITIVE_DEFINITE (bad marks the lanes). */
 se_int se_innovation(se_int n, se_int m, se_int B, const double *restrict x, double *restrict P,
                      const double *restrict y, const double *restrict C,
@@ -188,8 +188,8 @@ se_int se_innovation(se_int n, se_int m, se_int B, const double *restrict x, dou
                      double *restrict work, uint8_t *restrict bad, double *restrict report);
 
 /* Equilibrated Cholesky factorization in place of each lane's S in the lower triangle of
- * chol (m, m, B); scale (m, B), det (B,) written, pivot (B,) scratch. numba returns the pair
- * (finite, positive): here the return value is `finite` and *positive gets `positive`. */
+ * chol (m, m, B); scale (m, B), det (B,) written, pivot (B,) scratch. Returns whether every
+ * lane's diagonal of S is finite; *positive gets whether every lane's S is positive definite. */
 int se_factor(se_int m, se_int B, double *restrict chol, double *restrict scale, se_int nb,
               double *restrict det, double *restrict pivot, int *positive);
 
@@ -361,7 +361,7 @@ void se_combine(se_int n, se_int L, se_int B, const double *restrict x, const do
                 const double *restrict prob, const double *restrict log_prob, se_int nb,
                 double *restrict xc, double *restrict Pc, se_int *restrict best);
 
-/* ---- from _compiled/bank.py ---------------------------------------------------------------- */
+/* ---- the per-lane index of a trial table --------------------------------------------------- */
 
 /* out[b]: entry [trial, k, j] of index (N or 1, K or 1, L) for trial i0 + b; an axis of length
  * 1 is shared. N, K: index.shape[0], index.shape[1]; out (B,) */

@@ -1,5 +1,4 @@
-/* The compiled Rao-Blackwellized particle filter for jump-Markov linear systems (the port of
- * switchest/estimators/_compiled/rbpf.py).
+/* The compiled Rao-Blackwellized particle filter for jump-Markov linear systems.
  *
  * Each particle carries a mode and the Kalman filter (x, P) conditional on its mode history
  * (Doucet, de Freitas, Murphy & Russell 2000, §3; Doucet, Gordon & Krishnamurthy 2001, §III).
@@ -13,9 +12,10 @@
  * key, k and j (se_uniform), so a trial's result depends on its key alone (not on the batch it
  * ran in), and a streaming step needs nothing but the key and the sample index to continue. At
  * sample k, uniforms 0 .. Np-1 draw the particles' modes and Np .. 2 Np - 1 the resampling
- * positions. The arithmetic is numba's: uint64 with wrap-around modulo 2^64, the sample and
- * draw indices (int64) converted to uint64 after the + 1, and the top 53 bits of the result
- * converted exactly to a double before the multiplication by 2^-53.
+ * positions. The arithmetic is fixed bit for bit (tests/estimators/rbpf_oracle.py reproduces
+ * it in numpy): uint64 with wrap-around modulo 2^64, the sample and draw indices (int64)
+ * converted to uint64 after the + 1, and the top 53 bits of the result converted exactly to a
+ * double before the multiplication by 2^-53.
  *
  * Convention of switchest: transition[i, j] = P(mode j at k+1 | mode i at k). trans[k, r] is
  * mode r's transition over the interval into sample k in the table F, G, Qd; mode r at sample
@@ -26,9 +26,10 @@
  * at k drawn), else its mode at k (Bar-Shalom's timing, x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1}
  * + w: the mode drawn, then the particle predicted with it).
  *
- * Layout: the numba arrays keep their shapes and axis order; a lane array of shape (n, n, Np)
- * is addressed P[(r * n + c) * Np + p]. The scratch of numba's np.empty calls is carved from
- * one allocation at the kernel's start (se_arena), freed before every return.
+ * Layout: the arrays keep the shapes and axis order given in rbpf.h, the particles last in the
+ * scratch: a lane array of shape (n, n, Np) is addressed P[(r * n + c) * Np + p]. The scratch
+ * is carved from one zeroed allocation at the kernel's start (se_arena), freed before every
+ * return.
  */
 #include "rbpf.h"
 
@@ -56,8 +57,8 @@ static inline uint64_t mix64(uint64_t z)
 
 /* Element index (0-based) of the SplitMix64 sequence started at key:
  * mix64(key + (index + 1) * golden) (Steele, Lea & Flood 2014, §3), modulo 2^64.
- * (numba: np.uint64(index + 1) of an int64, wrapping; here the + 1 is taken in uint64, the
- * same bits without signed overflow.) */
+ * (The + 1 is taken in uint64, after the conversion: the same bits as converting index + 1,
+ * without its signed overflow at INT64_MAX.) */
 static inline uint64_t stream(uint64_t key, se_int index)
 {
     return mix64(key + ((uint64_t)index + 1u) * GOLDEN);
@@ -101,8 +102,8 @@ static se_int pick(se_int L, const double *restrict weights, double u)
     return last;
 }
 
-/* a[0 .. n-1] sorted ascending in place (numba's ndarray.sort of the multinomial positions:
- * any correct sort gives the same array, the uniforms holding no NaN): quicksort with a
+/* a[0 .. n-1] sorted ascending in place (the multinomial positions: any correct sort gives the
+ * same array, the uniforms holding no NaN): quicksort with a
  * median-of-three pivot, recursing into the smaller part, insertion sort below 17 entries. */
 static void sort_doubles(double *a, se_int n)
 {
@@ -168,8 +169,7 @@ void se_resampling_positions(uint64_t key, se_int k, se_int scheme, se_int nb,
 /* out[p]: the particle whose cumulative-weight interval holds position pos[p] (sorted, in
  * [0, 1]), the first j with w_0 + .. + w_j > pos[p] sum(w), at most the last positive weight:
  * the inversion every resampling scheme shares (Douc, Cappé & Moulines 2005, §2), merged in one
- * pass over the sorted positions. w, pos, out (nb,). (numba reads w[0] even for nb = 0, out of
- * bounds; here nothing is read then.) */
+ * pass over the sorted positions. w, pos, out (nb,). Nothing is read or written for nb = 0. */
 void se_ancestors(const double *restrict w, const double *restrict pos, se_int nb,
                   se_int *restrict out)
 {
@@ -211,8 +211,8 @@ static void fill_index(se_int value, se_int nb, se_int *restrict out)
         out[b] = value;
 }
 
-/* The scratch arrays of the kernel (numba's tuples mats and work), every lane array with the
- * lane stride Np. */
+/* The scratch arrays of the kernel, in two groups (the lanes' matrices, mats_t, and the
+ * measurement update's workspace, work_t), every lane array with the lane stride Np. */
 typedef struct {
     double *Fl, *Gl, *Ql, *Cl, *Rl, *AP, *xs; /* (n,n,B) (n,l,B) (n,n,B) (m,n,B) (m,m,B) (n,n,B) (n,B) */
 } mats_t;
@@ -278,7 +278,7 @@ static void predict_lanes(se_int n, se_int l, se_int B, double *restrict x, doub
  * distribution; Doucet, de Freitas, Murphy & Russell 2000, §3). In either timing the weight is
  * the likelihood of y_k given the particle's history up to r_k, the target-to-proposal ratio
  * when the proposal is the prior.
- * ll, use: (1, B) (numba's ll[0], use[0]); inc (B,). */
+ * ll, use: (1, B), the one row of the particles' own modes; inc (B,). */
 static se_int prior_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
                              double *restrict x, double *restrict P, se_int *restrict mode,
                              const double *restrict yl, const double *restrict ul,
@@ -321,7 +321,8 @@ static se_int prior_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
  * Krishnamurthy 2001, §III); prob0 replaces pi(r_{k-1}, .) at the first sample. A candidate
  * whose likelihood is not finite gets Lambda_r = 0; a particle with no candidate left
  * (inc = -inf) draws from pi(r_{k-1}, .) alone and keeps its predicted filter.
- * xc (L, n, B), Pc (L, n, n, B), ll, use, terms (L, B), pick_w (L,) (numba's pick), inc (B,). */
+ * xc (L, n, B), Pc (L, n, n, B), ll, use, terms (L, B), pick_w (L,) (one draw's weights),
+ * inc (B,). */
 static se_int optimal_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
                                double *restrict x, double *restrict P, se_int *restrict mode,
                                const double *restrict yl, const double *restrict ul,
@@ -365,7 +366,7 @@ static se_int optimal_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
         for (se_int r = 0; r < L; r++) {
             double t = use[r * B + p] ? prev[r] + ll[r * B + p] : -INFINITY;
             terms[r * B + p] = t;
-            top = t > top ? t : top; /* numba's max(top, t): no NaN here */
+            top = t > top ? t : top; /* max(top, t): no NaN here */
         }
         double acc = 0.0;
         for (se_int r = 0; r < L; r++)
@@ -512,7 +513,7 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
     mats_t mats;
     work_t work;
     se_arena ar = {NULL, 0};
-    do { /* size the arena, then carve it (zeroed: work.bad is numba's np.zeros) */
+    do { /* size the arena, then carve it (zeroed: work.bad must start at 0) */
         x = se_doubles(&ar, n * B);
         P = se_doubles(&ar, n * n * B);
         x_to = se_doubles(&ar, n * B);
@@ -593,7 +594,7 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
                                         &work, report);
             if (status != SE_OK)
                 goto done;
-            /* numba reads n_obs[0] even without particles; here nothing is seen then */
+            /* without particles (Np = 0) nothing counts as seen, and n_obs is not read */
             const int seen = Np > 0 && n_obs[0] > 0.0;
             int alive = 0;
             for (se_int p = 0; p < Np; p++)

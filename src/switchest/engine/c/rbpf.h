@@ -1,11 +1,11 @@
-/* The Rao-Blackwellized particle filter for jump-Markov linear systems: the port of
- * switchest/estimators/_compiled/rbpf.py. The documentation of each function is at its
- * definition in rbpf.c; here: the prototypes and the shapes.
+/* The Rao-Blackwellized particle filter for jump-Markov linear systems. The documentation of
+ * each function is at its definition in rbpf.c; here: the prototypes and the shapes.
  *
- * Conventions as linalg.h: sizes first (se_int), then the Python arguments in the order of the
- * Python signature; booleans int, boolean arrays uint8_t, index arrays se_int, keys uint64_t,
- * the rest double; every array C-contiguous of the shape given. The particles of one trial lie
- * across the lanes: the lane stride B is the particle count Np.
+ * Conventions as linalg.h: sizes first (se_int), then the arrays and scalars in the order of
+ * the prototype (the binding, engine/_rbpf.pyx, keeps it); booleans int, boolean arrays
+ * uint8_t, index arrays se_int, keys uint64_t, the rest double; every array C-contiguous of
+ * the shape given. The particles of one trial lie across the lanes: the lane stride B is the
+ * particle count Np.
  */
 #ifndef SE_RBPF_H
 #define SE_RBPF_H

@@ -1,5 +1,5 @@
-/* The compiled backward pass of the fixed-interval smoother with mode probabilities: the port
- * of switchest/estimators/_compiled/smoother.py (its module docstring, kept here).
+/* The compiled backward pass of the fixed-interval smoother with mode probabilities; the
+ * Python side is switchest.engine.smoother.kim_smooth.
  *
  * Kim (1994, J. Econometrics 60, "Dynamic linear models with Markov-switching", §2.2), as
  * applied to collapsed (GPB2 / IMM) filters by Murphy (1998, "Switching Kalman filters", tech.
@@ -92,10 +92,10 @@
  * Trials are processed in blocks of `lanes` laid across SIMD lanes (linalg.h); the results do
  * not depend on the block size.
  *
- * Layout: every block array carries the lanes as its last axis, of stride B = lanes, addressed
- * as numba's: x (L, n, B) at x[(j * n + r) * B + b], P (L, n, n, B) at
- * P[((j * n + r) * n + c) * B + b]. numba's np.empty scratch is carved from one allocation
- * (the arena, below) at the start of se_kim_backward, freed before it returns.
+ * Layout: every block array carries the lanes as its last axis, of stride B = lanes, after the
+ * axes of the quantity in C order: x (L, n, B) at x[(j * n + r) * B + b], P (L, n, n, B) at
+ * P[((j * n + r) * n + c) * B + b]. The scratch is carved from one zeroed allocation (the
+ * arena, below) at the start of se_kim_backward, freed before it returns.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -105,13 +105,13 @@
 #include "smoother.h"
 
 /* The work arrays of rts_gain for n states and B lanes, in its order:
- * F P, xs, chol, scale, work (2, B), root (numba's gain_scratch). */
+ * F P, xs, chol, scale, work (2, B), root. */
 typedef struct {
     double *FP, *xs, *chol, *scale, *work, *root;
 } gain_scratch_t;
 
-/* gain_scratch: carved from the arena; chol starts zero (np.zeros; only its lower triangle is
- * read). */
+/* gain_scratch: carved from the arena; chol starts zero (the arena is zeroed; only its lower
+ * triangle is read). */
 static void gain_scratch(se_arena *a, se_int n, se_int B, gain_scratch_t *s)
 {
     s->FP = se_doubles(a, n * n * B);
@@ -122,8 +122,7 @@ static void gain_scratch(se_arena *a, se_int n, se_int B, gain_scratch_t *s)
     s->root = se_doubles(a, n * B);
 }
 
-/* The work arrays of rts_pair for n states and B lanes, in its order: e, D, T
- * (numba's pair_scratch). */
+/* The work arrays of rts_pair for n states and B lanes, in its order: e, D, T. */
 typedef struct {
     double *e, *D, *T;
 } pair_scratch_t;
@@ -135,8 +134,8 @@ static void pair_scratch(se_arena *a, se_int n, se_int B, pair_scratch_t *s)
     s->T = se_doubles(a, n * n * B);
 }
 
-/* The work arrays of rts_joseph for n states and B lanes, in its order (numba's
- * joseph_scratch): P_pred, F P, xs (se_predict); e, P C', chol, scale, z, nis, loglik, work,
+/* The work arrays of rts_joseph for n states and B lanes, in its order (joseph_scratch):
+ * P_pred, F P, xs (se_predict); e, P C', chol, scale, z, nis, loglik, work,
  * bad (se_innovation); T, AP, prior (se_correct); root, lost (se_joseph_lost); x (the mean
  * se_correct leaves unchanged); the lanes' identity and zero (n, n), obs ones (n, B) and
  * n_obs = n (the pseudo-measurement, every component observed). */
@@ -529,18 +528,18 @@ static se_int redo_(se_int n, se_int l, se_int B, const double *restrict xj,
 
 /* ---- the kernel --------------------------------------------------------------------------- */
 
-/* The backward recursion over every trial, in blocks of `lanes` trials (numba's kim_backward).
+/* The backward recursion over every trial, in blocks of `lanes` trials.
  *
- * Arguments as kim_smooth (checked there; sample_timing true for the "sample" timing);
- * written: the combined x_out, P_out, prob_out, mode_out and the mode-matched x_s, P_s (shapes
- * of KimOutput), report [repairs, smallest eigenvalue] and, when lagged, pair_out, lag_x,
- * lag_P, lag_cross (KimOutput). Returns SE_OK or the failure code of a predicted covariance
- * that could not be factored even repaired (SE_NO_MEMORY if the scratch could not be
- * allocated). */
+ * Arguments as switchest.engine.smoother.kim_smooth (checked there; shapes in smoother.h;
+ * sample_timing true for the "sample" timing); written: the combined x_out, P_out, prob_out,
+ * mode_out and the mode-matched x_s, P_s (shapes of KimOutput), report [repairs, smallest
+ * eigenvalue] and, when lagged, pair_out, lag_x, lag_P, lag_cross (KimOutput). Returns SE_OK
+ * or the failure code of a predicted covariance that could not be factored even repaired
+ * (SE_NO_MEMORY if the scratch could not be allocated). */
 se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS)
 {
-    /* the lane stride: numba's is `lanes`; a block never holds more than N trials, and every
-     * lane's operations are the same whatever the stride, so B = min(lanes, N) gives the same
+    /* the lane stride: a block never holds more than N trials, and every lane's operations are
+     * the same whatever the stride, so B = min(lanes, N) rather than `lanes` gives the same
      * numbers with no more scratch than the trials need (nor an overflow of its size for a
      * huge `lanes`) */
     const se_int B = se_lanes(lanes, N);
@@ -556,7 +555,7 @@ se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS)
     se_arena arena = {NULL, 0};
     se_report_start(report);
     if (N == 0 || K == 0)
-        return SE_OK; /* nothing to smooth (numba: no block for N = 0; see the report for K = 0) */
+        return SE_OK; /* nothing to smooth: SE_OK with only the report written */
     do { /* size the arena, then carve it */
         xf = se_doubles(&arena, L * n * B); /* filtered at k */
         Pf = se_doubles(&arena, L * n * n * B);
@@ -589,7 +588,7 @@ se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS)
         Pp = se_doubles(&arena, n * n * B);
         gain = se_doubles(&arena, n * n * B);
         failed = se_flags(&arena, B);
-        use = se_flags(&arena, B); /* all lanes (np.ones) */
+        use = se_flags(&arena, B); /* all lanes (set to 1 below) */
         gain_scratch(&arena, n, B, &scratch);
         joseph_scratch(&arena, n, B, &joseph);
         pair_scratch(&arena, n, B, &pair);
@@ -614,7 +613,7 @@ se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS)
     for (se_int b = 0; b < B; b++)
         use[b] = 1;
     joseph_constants(n, B, &joseph);
-    double *root = scratch.root; /* shared, as in numba */
+    double *root = scratch.root; /* shared: rts_gain's root also serves se_joseph_lost here */
     uint8_t *lost = joseph.lost;
     se_int status = SE_OK;
 
@@ -748,7 +747,8 @@ done:
  * ed., Theorem 10.3), so the smallest eigenvalue of sym[s] is at least
  * -shift - n gamma_{n+1} (scale + shift). Returns (scale, max |A - A'|) in *scale, *asym.
  *
- * (Python's max(a, v), as numba compiles it: v if v > a else a.)
+ * (Each running maximum is taken as v if v > a else a, as Python's max(a, v) does: a NaN v
+ * leaves it unchanged.)
  */
 se_int se_screen_psd(se_int M, se_int n, const double *restrict A, double relative_shift,
                      double *restrict sym, uint8_t *restrict failed, double *restrict scale_out,

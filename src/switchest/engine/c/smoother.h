@@ -1,14 +1,13 @@
 /* The backward pass of the fixed-interval smoother with mode probabilities (Kim 1994,
- * Murphy 1998): the port of switchest/estimators/_compiled/smoother.py. The documentation of
- * the equations is at the top of smoother.c and at each function there; here: the prototypes
- * and the shapes.
+ * Murphy 1998). The documentation of the equations is at the top of smoother.c and at each
+ * function there; here: the prototypes and the shapes.
  *
- * Sizes first (se_int, the extents numba read from the array shapes: n states, l inputs,
- * L modes, then the trial axis N, samples K, the trial axis T and the sample axis TK of trans,
- * the trial axis Ns of the mode-matched outputs (N, or 0 when they are not asked for), the
- * interval axis J of the lagged outputs (K - 1, or 0 when they are not asked for)); then the
- * Python arguments in the order of the numba kernel. Booleans are int, boolean arrays uint8_t,
- * index arrays se_int.
+ * Sizes first (se_int, the extents of the arrays: n states, l inputs, L modes, then the trial
+ * axis N, samples K, the trial axis T and the sample axis TK of trans, the trial axis Ns of the
+ * mode-matched outputs (N, or 0 when they are not asked for), the interval axis J of the lagged
+ * outputs (K - 1, or 0 when they are not asked for)); then the arrays and scalars in the order
+ * of the prototype (the binding's kim_backward, engine/_smoother.pyx, keeps it). Booleans are
+ * int, boolean arrays uint8_t, index arrays se_int.
  */
 #ifndef SE_SMOOTHER_H
 #define SE_SMOOTHER_H
@@ -43,7 +42,7 @@ se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS);
 
 /* Symmetrize a stack A (M, n, n) into sym (M, n, n) and certify its matrices positive
  * semidefinite to within a shift, as far as a Cholesky factorization can (smoother.c):
- * failed (M,) uint8 written; *scale and *asym get numba's returned pair (scale, max |A - A'|).
+ * failed (M,) uint8 written; *scale gets max(max |A|, tiny) and *asym max |A - A'|.
  * Returns SE_OK, or SE_NO_MEMORY if the factor's scratch (n beyond SE_SCREEN_STACK) could not
  * be allocated (nothing written then). */
 se_int se_screen_psd(se_int M, se_int n, const double *restrict A, double relative_shift,

@@ -1,5 +1,4 @@
-/* The compiled Kalman filter with estimated switching times (Shankar et al. §III-§IV): the
- * port of switchest/estimators/_compiled/switch_time.py.
+/* The compiled Kalman filter with estimated switching times (Shankar et al. §III-§IV).
  *
  * switch_time_run filters every trial over every sample inside compiled code, and so does one
  * call per sample (the streaming step): the kernel se_switch_time_filter holds the one
@@ -37,10 +36,10 @@
  * probe. The last flow's C_j F, C_j G, C_j Qd C_j' are computed once per table
  * (coarse_outputs), so that a probe pulls the output map back through two flows only.
  *
- * Port notes: numba's tuples of scratch arrays (ws, cs, sw, lw, obsv, flow, gs, pk, hyp) are
- * the fields of one Work, carved from one allocation at the kernel's start. Lane arrays are
- * addressed with explicit index arithmetic, P[(r * n + c) * B + b] for numba's P[r, c, b] of
- * shape (n, n, B); table rows F[(row * n + r) * n + c] for F[row, r, c].
+ * Layout: the scratch arrays, in groups (ws, cs, sw, lw, obsv, flow, gs, pk, hyp), are the
+ * fields of one Work, carved from one zeroed allocation at the kernel's start. Lane arrays are
+ * addressed with explicit index arithmetic: P of shape (n, n, B) at P[(r * n + c) * B + b];
+ * table rows of F (M, n, n) at F[(row * n + r) * n + c].
  */
 #include "switch_time.h"
 
@@ -57,7 +56,7 @@
 static inline double py_max(double a, double b) { return b > a ? b : a; }
 static inline double py_min(double a, double b) { return b < a ? b : a; }
 
-/* The kernel's scratch (numba's tuples of arrays) and the sizes and tables it reads. */
+/* The kernel's scratch (its arrays in named groups) and the sizes and tables it reads. */
 typedef struct {
     se_int n, m, l, L, B, g;
     /* tables: the table, the step lengths and grid, the first rows of the grid, coarse and
@@ -358,16 +357,17 @@ static se_int grid_maximum(const Work *w, se_int ns, se_int d, const se_int *res
  * paper's literal N(y; C x-(tau), R)) as in likelihood, a lane at a time: the equations of
  * pull_back and se_innovation (equilibrated Cholesky factor, eq. (8)) written out here, in one
  * body, for one lane at a time: those functions loop over lanes innermost, and a probe has one
- * lane. (Run on them instead, every switched lane probing in step, the refined filter took 1.9
- * times as long on the boost converter (numba): about 9 lanes are too few to fill the SIMD
- * registers, and each probe waits for the lane whose search runs longest. Nor did searches
- * side by side pay, each in a slot that takes the next lane when its search ends, the slots'
- * probes evaluated together so that their chains of divisions, roots and logarithms overlap:
- * with the searches' state in arrays and the probe split into inlined parts, the refined
- * filter took 1.5 times as long, with one slot as with four.) In numba this function is
- * inlined into the kernel: called with its forty arrays, each reference-counted, it cost the
- * refined filter a quarter of its time. A lane whose factorization fails has its P repaired
- * (se_repair) and is factored once more.
+ * lane. (Measured on the JIT-compiled (numba) implementation this file was ported from: run on
+ * them instead, every switched lane probing in step, the refined filter took 1.9 times as
+ * long on the boost converter: about 9 lanes are too few to fill the SIMD registers, and each
+ * probe waits for the lane whose search runs longest. Nor did searches side by side pay, each
+ * in a slot that takes the next lane when its search ends, the slots' probes evaluated
+ * together so that their chains of divisions, roots and logarithms overlap: with the searches'
+ * state in arrays and the probe split into inlined parts, the refined filter took 1.5 times as
+ * long, with one slot as with four. In that implementation this function was inlined into the
+ * kernel: called with its forty arrays, each reference-counted, it cost the refined filter a
+ * quarter of its time.) A lane whose factorization fails has its P repaired (se_repair) and is
+ * factored once more.
  *
  * The grid instant is kept unless a probe beats it; a winning probe's transition is composed
  * exactly (pulled back from I) into the lane's Fl, Gl, Ql, its instant written into off. */
@@ -700,12 +700,12 @@ static se_int refine(const Work *w, se_int ns, se_int d, const se_int *restrict 
 
 /* ---------------------------------------------------------------- measurement update */
 
-/* Measurement update of every lane, as the bank does for one mode (bank's filter_bank):
+/* Measurement update of every lane, as the bank does for one mode (se_bank_measure, bank.c):
  * innovation (se_innovation, repairing), the gate (use: the normalized innovation squared
  * within gate and a finite likelihood), the Joseph-form correction of the lanes that use it
  * (Shankar et al. eqs (8)-(10)), and the information form where Joseph's loses its digits, a
- * repair where neither resolves P (se_information_or_repair). The workspace is numba's ws
- * (e, PCt, chol, scale, z, nis, loglik, work, bad) and cs (gain, T, AP, prior, root, lost).
+ * repair where neither resolves P (se_information_or_repair). The workspace is Work's group
+ * ws (e, PCt, chol, scale, z, nis, loglik, work, bad) and cs (gain, T, AP, prior, root, lost).
  * Returns the status. */
 static se_int update(const Work *w, double *restrict x, double *restrict P,
                      const double *restrict y, const double *restrict C,
@@ -805,7 +805,8 @@ static se_int merge(const Work *w, double gate, se_int ns, se_int d, const se_in
  * tolerance
  *     The refinement's tolerance on the switching instant, in units of the sampling step.
  * CF, CG, CQC
- *     numba's outputs: C F, C G, C Qd C' of the coarse section (coarse_outputs).
+ *     C F, C G, C Qd C' of the coarse section, (H, m, n), (H, m, l), (H, m, m) with
+ *     H = D L N1 (switchest.engine.switch_time.coarse_outputs).
  * lanes
  *     Trials per block.
  * x_out, P_out, loglik_out, offset_out, flag_out
@@ -865,7 +866,7 @@ se_int se_switch_time_filter(SE_SWITCH_TIME_FILTER_PARAMETERS)
     w.iterations = iterations;
     w.tolerance = tolerance;
     se_arena ar = {NULL, 0};
-    do { /* size the arena, then carve it (zeroed: numba's np.zeros for zero, bad) */
+    do { /* size the arena, then carve it (zeroed: zero and bad must start at 0) */
         x = se_doubles(&ar, n * B);
         P = se_doubles(&ar, n * n * B);
         yl = se_doubles(&ar, m * B);

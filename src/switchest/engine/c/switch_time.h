@@ -1,11 +1,10 @@
-/* The Kalman filter with estimated switching times (Shankar et al. §III-§IV): the port of
- * switchest/estimators/_compiled/switch_time.py. The documentation of each function (and the
- * layout of the transition table) is at its definition in switch_time.c; here: the prototypes
- * and the shapes.
+/* The Kalman filter with estimated switching times (Shankar et al. §III-§IV). The
+ * documentation of each function (and the layout of the transition table) is at its
+ * definition in switch_time.c; here: the prototypes and the shapes.
  *
- * Conventions as linalg.h: sizes first (se_int), then the Python arguments in the order of the
- * Python signature; booleans int, boolean arrays uint8_t, index arrays se_int, the rest double;
- * every array C-contiguous of the shape given.
+ * Conventions as linalg.h: sizes first (se_int), then the arrays and scalars in the order of
+ * the prototype (the binding, engine/_switch_time.pyx, keeps it); booleans int, boolean arrays
+ * uint8_t, index arrays se_int, the rest double; every array C-contiguous of the shape given.
  */
 #ifndef SE_SWITCH_TIME_H
 #define SE_SWITCH_TIME_H
@@ -18,7 +17,8 @@
  * y (N, K, m), u (N, K, l), which (K,), mode, prev (N, K), C (L, m, n), R (L, m, m),
  * F (M, n, n), G (M, n, l), Qd (M, n, n) (M = D L (1 + L g + N1 + L (N0 + 1))), steps (D,),
  * grid_tau (D, g), n_coarse = N1, n_switch = N0 + 1, x_init (N, n), P_init (N, n, n);
- * CF (H, m, n), CG (H, m, l), CQC (H, m, m) (H = D L N1: numba's `outputs`);
+ * CF (H, m, n), CG (H, m, l), CQC (H, m, m) (H = D L N1: the binding's `outputs`, from
+ * switchest.engine.switch_time.coarse_outputs);
  * written: x_out (N, K, n), P_out (N, K, n, n), loglik_out, offset_out (N, K),
  * flag_out (N, K), report (2,) {repaired, smallest eigenvalue}.
  * Returns SE_OK, SE_NO_MEMORY or the failure code that stopped the kernel. */
