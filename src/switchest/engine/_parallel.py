@@ -99,15 +99,11 @@ def run_split(kernel: Callable[..., int], args: list[tuple[object, bool]], *, tr
     one had; it returns its status.
     """
     if _thread_count(trials, samples, block) == 1:  # the calling thread: no slices to take
-        report = np.empty(2)
-        status = kernel(*[value for value, _ in args], report)
-        return int(status), int(report[0]), float(report[1])
+        return _call(kernel, [value for value, _ in args])
 
     def run_range(begin: int, end: int) -> Report:
-        report = np.empty(2)
-        status = kernel(*[value[begin:end] if per_trial else value for value, per_trial in args],
-                        report)
-        return int(status), int(report[0]), float(report[1])
+        return _call(kernel, [value[begin:end] if per_trial else value
+                              for value, per_trial in args])
 
     return over_trials(run_range, trials, samples, block=block)
 
@@ -117,11 +113,16 @@ def run_values(kernel: Callable[..., int], values: tuple, per_trial: tuple[bool,
     """:func:`run_split` with the arguments and whether each is per trial given apart: on the
     calling thread alone the kernel takes ``values`` as they are (no pairs to build)."""
     if _thread_count(trials, samples, block) == 1:
-        report = np.empty(2)
-        status = kernel(*values, report)
-        return int(status), int(report[0]), float(report[1])
+        return _call(kernel, values)
     return run_split(kernel, list(zip(values, per_trial, strict=True)), trials=trials,
                      samples=samples, block=block)
+
+
+def _call(kernel: Callable[..., int], values) -> Report:
+    """``kernel(*values, report)`` with a new report: its status and the report's two entries."""
+    report = np.empty(2)
+    status = kernel(*values, report)
+    return int(status), int(report[0]), float(report[1])
 
 
 def _thread_count(trials: int, samples: int, block: int) -> int:
