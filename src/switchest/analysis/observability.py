@@ -456,10 +456,14 @@ def omega_min(system: SwitchedLinearSystem, i: int, j: int, t) -> np.ndarray | f
     """``lambda_min(W_ij(t))`` (Lee et al. §II); minimize over pairs for ``omega_min(t)``.
 
     :func:`joint_observability` with ``t=...`` reports the minimum over all pairs
-    ``i != j``, which is Lee et al.'s ``omega_min(t)``.
+    ``i != j``, which is Lee et al.'s ``omega_min(t)``. An eigenvalue within the
+    eigensolver's rounding, ``4 (2n) eps lambda_max``, is 0: the Gramian is singular (the
+    pair cannot be told apart) and its rounding, of either sign, carries no information.
     """
     W = joint_gramian(system, i, j, t)
-    lam = np.linalg.eigvalsh(W)[..., 0]
+    eig = np.linalg.eigvalsh(W)
+    rounding = 4 * W.shape[-1] * np.finfo(float).eps * np.abs(eig[..., -1])
+    lam = np.where(np.abs(eig[..., 0]) <= rounding, 0.0, eig[..., 0])
     return float(lam) if lam.ndim == 0 else lam
 
 
