@@ -22,12 +22,15 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from .._threads import cores
 
-__all__ = ["MIN_WORK", "over_trials", "run_split", "run_values", "set_threads", "threads"]
+__all__ = ["MIN_WORK", "Report", "Reported", "over_trials", "run_split", "run_values",
+           "set_threads", "threads"]
 
 MIN_WORK = 20_000
 """Fewest trial-samples worth a thread of their own (a dispatch costs tens of microseconds;
@@ -64,8 +67,34 @@ def threads() -> int:
     return cores()
 
 
-Report = tuple[int, int, float]
-"""A kernel call's outcome: ``(status, covariances repaired, smallest eigenvalue seen)``."""
+class Report(NamedTuple):
+    """A kernel call's outcome."""
+
+    status: int
+    repaired: int = 0
+    smallest_eigenvalue: float = math.inf
+
+
+@dataclass(kw_only=True)
+class Reported:
+    """The last attributes of every kernel's output, its :class:`Report`.
+
+    Attributes
+    ----------
+    status : int
+        ``OK`` (0) or the failure code that stopped the kernel (outputs then incomplete);
+        :func:`switchest.engine.raise_for_status` turns it into an exception.
+    repaired : int
+        How many covariances (of a mode, trial and sample) were repaired to their rounding
+        level (``se_repair``, ``engine/c/linalg.c``);
+        :func:`switchest.engine.warn_for_repairs` warns about them.
+    smallest_eigenvalue : float
+        The smallest eigenvalue a repaired covariance had (``inf`` if none was).
+    """
+
+    status: int
+    repaired: int = 0
+    smallest_eigenvalue: float = math.inf
 
 
 def over_trials(run_range: Callable[[int, int], Report], trials: int, samples: int, *,
@@ -85,7 +114,7 @@ def over_trials(run_range: Callable[[int, int], Report], trials: int, samples: i
     # the calling thread takes the first range meanwhile, then waits for the others
     results = [run_range(*bounds[0])] + [future.result() for future in others]
     status = next((s for s, _, _ in results if s != 0), 0)
-    return status, sum(r for _, r, _ in results), min(e for _, _, e in results)
+    return Report(status, sum(r for _, r, _ in results), min(e for _, _, e in results))
 
 
 def run_split(kernel: Callable[..., int], args: list[tuple[object, bool]], *, trials: int,
@@ -122,7 +151,7 @@ def _call(kernel: Callable[..., int], values) -> Report:
     """``kernel(*values, report)`` with a new report: its status and the report's two entries."""
     report = np.empty(2)
     status = kernel(*values, report)
-    return int(status), int(report[0]), float(report[1])
+    return Report(int(status), int(report[0]), float(report[1]))
 
 
 def _thread_count(trials: int, samples: int, block: int) -> int:

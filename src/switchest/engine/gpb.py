@@ -109,4 +109,4 @@ def _gpb2(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_
         mine, shared, shared, shared, shared, mine, mine, mine, mine, mine, mine, modes_out,
         modes_out, mine, mine, mine), trials=N, samples=K, block=lanes)
     modes = (x_modes, P_modes) if modes_out else (None, None)
-    return IMMOutput(x, P, prob, mode, loglik, flag, *outcome, *modes), last
+    return IMMOutput(x, P, prob, mode, loglik, flag, *modes, **outcome._asdict()), last

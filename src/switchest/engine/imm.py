@@ -29,6 +29,7 @@ returns the mode-matched posteriors after each sample's update (the input of a s
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -37,7 +38,7 @@ import numpy as np
 from .._checks import check_timing, positive_int
 from ._arrays import all_ready, check_gate, checked, replicated
 from ._imm import filter_bank
-from ._parallel import run_values
+from ._parallel import Reported, run_values
 
 __all__ = ["LANES", "MIX", "COLLAPSE", "GPB2", "Bank", "BankTable", "IMMOutput", "imm_run",
            "imm_run_per_trial", "imm_step", "is_sample_timing"]
@@ -53,7 +54,8 @@ GPB2 = "gpb2"  # not an interaction of filter_bank: :class:`Bank` runs GPB2's ke
 _INTERACTIONS = {"mix": MIX, "collapse": COLLAPSE}
 
 
-class IMMOutput(NamedTuple):
+@dataclass
+class IMMOutput(Reported):
     """What the IMM reports after each sample, for every trial (:func:`imm_run`; from
     :func:`imm_step`, the one sample as ``K = 1``).
 
@@ -70,14 +72,8 @@ class IMMOutput(NamedTuple):
         Log of the total likelihood ``sum_j c_j Lambda_j`` of the measurement given the past.
     flag : ndarray of uint8, shape (N, K)
         ``ACCEPTED`` (0), ``GATED`` (1: treated as missing) or ``PARTLY_GATED`` (2).
-    status : int
-        ``OK`` (0) or the failure code that stopped the kernel (outputs then incomplete).
-    repaired : int
-        How many covariances (of a mode, trial and sample) were repaired to their rounding
-        level (``se_repair``, ``engine/c/linalg.c``);
-        :func:`~switchest.engine.warn_for_repairs` warns about them.
-    smallest_eigenvalue : float
-        The smallest eigenvalue a repaired covariance had (``inf`` if none was).
+    status, repaired, smallest_eigenvalue
+        The kernel's report (:class:`~switchest.engine.Reported`).
     x_modes : ndarray, shape (N, K, L, n), or None
         The mode-matched posterior means after each sample's update, where asked for
         (``modes_out=True``).
@@ -91,9 +87,6 @@ class IMMOutput(NamedTuple):
     mode: np.ndarray
     loglik: np.ndarray
     flag: np.ndarray
-    status: int
-    repaired: int = 0
-    smallest_eigenvalue: float = math.inf
     x_modes: np.ndarray | None = None
     P_modes: np.ndarray | None = None
 
@@ -254,7 +247,7 @@ def _bank(y, u, F, G, Qd, trans, C, R, out_index, log_transition, x_init, P_init
         shared, shared, mine, mine, mine, mine, mine, mine, modes_out, modes_out, mine, mine,
         mine), trials=N, samples=K, block=lanes)
     modes = (x_modes, P_modes) if modes_out else (None, None)
-    return IMMOutput(x, P, prob, mode, loglik, flag, *outcome, *modes), last
+    return IMMOutput(x, P, prob, mode, loglik, flag, *modes, **outcome._asdict()), last
 
 
 def outputs(N: int, K: int, L: int, n: int, modes_out: bool) -> tuple[np.ndarray, ...]:

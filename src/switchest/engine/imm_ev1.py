@@ -19,21 +19,22 @@ predecessor and instant, the prediction and update of the chosen hypotheses only
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._checks import positive_int, positive_scalar
 from ._arrays import check_gate, checked, indices
 from ._imm_ev1 import viterbi_bank
-from ._parallel import run_split
+from ._parallel import Reported, run_split
 
 __all__ = ["IMMEV1Output", "imm_ev1_run", "imm_ev1_step", "viterbi_bank"]
 
 LANES = 16  # trials per block: four AVX2 registers of float64 per row of lanes
 
 
-class IMMEV1Output(NamedTuple):
+@dataclass
+class IMMEV1Output(Reported):
     """What the IMM-EV1 reports after each sample, for every trial (:func:`imm_ev1_run`; from
     :func:`imm_ev1_step`, the one sample as ``K = 1``).
 
@@ -50,7 +51,7 @@ class IMMEV1Output(NamedTuple):
     outlier : ndarray of bool, shape (N, K)
         True where every hypothesis rejected the measurement (treated as missing).
     status, repaired, smallest_eigenvalue
-        As in :class:`.imm.IMMOutput`.
+        The kernel's report (:class:`~switchest.engine.Reported`).
     """
 
     x: np.ndarray
@@ -59,9 +60,6 @@ class IMMEV1Output(NamedTuple):
     mode: np.ndarray
     switch_offset: np.ndarray
     outlier: np.ndarray
-    status: int
-    repaired: int = 0
-    smallest_eigenvalue: float = math.inf
 
 
 def imm_ev1_run(y, u, F, G, Qd, table, tau, C, R, log_transition, x0, P0, log_weight0, *,
@@ -182,4 +180,5 @@ def _viterbi(y, u, tables, table, state, predict_first, gate, printed, marginal,
         (bool(printed), shared), (bool(marginal), shared), (bool(by_path), shared),
         (lanes, shared), (x, mine), (P, mine), (prob, mine), (mode, mine), (offset, mine),
         (outlier, mine), *((a, mine) for a in last)], trials=N, samples=K, block=lanes)
-    return IMMEV1Output(x, P, prob, mode, offset, outlier.view(np.bool_), *outcome), last
+    return IMMEV1Output(x, P, prob, mode, offset, outlier.view(np.bool_),
+                        **outcome._asdict()), last

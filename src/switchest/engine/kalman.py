@@ -17,20 +17,21 @@ the distinct transitions. Output matrices come as ``C (L, m, n)``, ``R (L, m, m)
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .._checks import positive_int
 from ._arrays import check_gate, checked, replicated
 from ._kalman import CHUNK, LANES, kalman_filter, steady_filter  # noqa: F401 (CHUNK: re-exported)
-from ._parallel import run_values
+from ._parallel import Reported, run_values
 
 __all__ = ["KalmanOutput", "KalmanRun", "kalman_run", "kalman_step", "kalman_steady_run",
            "kalman_steady_step"]
 
 
-class KalmanOutput(NamedTuple):
+@dataclass
+class KalmanOutput(Reported):
     """Posterior after each sample, for every trial.
 
     Attributes
@@ -43,21 +44,14 @@ class KalmanOutput(NamedTuple):
     flag : ndarray of uint8, shape (N, K) (``(N,)`` from a step)
         ``ACCEPTED`` (0) or ``GATED`` (1): an outlier or a gated measurement, treated as
         missing.
-    status : int
-        ``OK`` or the failure code that stopped the kernel (outputs then incomplete);
-        :func:`switchest.engine.raise_for_status` turns it into an exception.
-    repaired, smallest_eigenvalue
-        How many covariances were repaired to their rounding level, and the smallest
-        eigenvalue one had (``inf`` if none was): see :class:`.imm.IMMOutput`.
+    status, repaired, smallest_eigenvalue
+        The kernel's report (:class:`~switchest.engine.Reported`).
     """
 
     x: np.ndarray
     P: np.ndarray
     loglik: np.ndarray
     flag: np.ndarray
-    status: int
-    repaired: int = 0
-    smallest_eigenvalue: float = math.inf
 
 
 def kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0, *, gate=math.inf,
@@ -137,8 +131,7 @@ def kalman_step(x, P, y, u, F, G, Qd, C, R, *, predict_first: bool,
     own = np.arange(sizes["N"])[:, None]  # trial i uses entry i of the per-trial "tables"
     out = _one_mode(y[:, None], u[:, None], F, G, Qd, own, C, R, own, x, P, bool(predict_first),
                     check_gate(gate), LANES)
-    return KalmanOutput(out.x[:, 0], out.P[:, 0], out.loglik[:, 0], out.flag[:, 0], out.status,
-                        out.repaired, out.smallest_eigenvalue)
+    return replace(out, x=out.x[:, 0], P=out.P[:, 0], loglik=out.loglik[:, 0], flag=out.flag[:, 0])
 
 
 def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, gate, lanes):
@@ -154,7 +147,7 @@ def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, 
         P, loglik, flag), (
         mine, mine, shared, shared, shared, mine, shared, shared, mine, mine, mine, shared, shared,
         shared, mine, mine, mine, mine), trials=N, samples=K, block=lanes)
-    return KalmanOutput(x, P, loglik, flag, *outcome)
+    return KalmanOutput(x, P, loglik, flag, **outcome._asdict())
 
 
 def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x0, *,
@@ -182,7 +175,7 @@ def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten,
     status = steady_filter(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten,
                            np.repeat(x0[None], N, axis=0), False, check_gate(gate),
                            min(positive_int(lanes, "lanes"), N), x, P, loglik, flag)
-    return KalmanOutput(x, P, loglik, flag, int(status))
+    return KalmanOutput(x, P, loglik, flag, status=int(status))
 
 
 def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, whiten, *,
@@ -201,4 +194,4 @@ def kalman_steady_step(x, y, u, F, G, C, gain, P_prior, P_post, whiten, *,
     status = steady_filter(y[:, None], u[:, None], F, G, own, C, own, gain, P_prior, P_post,
                            whiten, x, bool(predict_first), check_gate(gate), min(LANES, N),
                            x_out, P_out, loglik, flag)
-    return KalmanOutput(x_out[:, 0], P_out[:, 0], loglik[:, 0], flag[:, 0], int(status))
+    return KalmanOutput(x_out[:, 0], P_out[:, 0], loglik[:, 0], flag[:, 0], status=int(status))

@@ -29,13 +29,13 @@ predicted with it).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._checks import positive_int
 from ._arrays import checked
-from ._parallel import run_split
+from ._parallel import Reported, run_split
 from ._rbpf import ancestors, particle_filter, resampling_positions, trial_keys, uniform
 
 __all__ = [
@@ -54,7 +54,8 @@ RESAMPLING = {"systematic": 0, "stratified": 1, "multinomial": 2}
 """The resampling schemes by name, and the code the kernel takes for each."""
 
 
-class RBPFOutput(NamedTuple):
+@dataclass
+class RBPFOutput(Reported):
     """What the RBPF reports after each sample, for every trial (:func:`rbpf_run`; from
     :func:`rbpf_step`, the one sample as ``K = 1``).
 
@@ -73,13 +74,8 @@ class RBPFOutput(NamedTuple):
         treated as missing).
     ess : ndarray, shape (N, K)
         Effective sample size ``1 / sum_p w_p^2`` before resampling.
-    status : int
-        ``engine.OK`` or the failure code that stopped the kernel (outputs then incomplete;
-        ``engine.NO_MEMORY`` if its scratch space could not be allocated).
-    repaired : int
-        How many covariances were repaired to their rounding level (``se_repair``, c/linalg.c).
-    smallest_eigenvalue : float
-        The smallest eigenvalue a repaired covariance had (``inf`` if none was).
+    status, repaired, smallest_eigenvalue
+        The kernel's report (:class:`~switchest.engine.Reported`).
     """
 
     x: np.ndarray
@@ -89,9 +85,6 @@ class RBPFOutput(NamedTuple):
     loglik: np.ndarray
     flag: np.ndarray
     ess: np.ndarray
-    status: int
-    repaired: int = 0
-    smallest_eigenvalue: float = math.inf
 
 
 def rbpf_run(y, u, F, G, Qd, trans, C, R, transition, x0, P0, prob0, keys, *, particles: int,
@@ -194,4 +187,4 @@ def _kernel(y, u, F, G, Qd, trans, C, R, transition, prob0, keys, k0, predict_fi
         (x, mine), (P, mine), (prob, mine), (mode, mine), (loglik, mine), (flag, mine),
         (ess, mine), *((a, mine) for a in last)], trials=N, samples=K * state[0].shape[1],
         block=1)
-    return RBPFOutput(x, P, prob, mode, loglik, flag, ess, *outcome), last
+    return RBPFOutput(x, P, prob, mode, loglik, flag, ess, **outcome._asdict()), last

@@ -104,14 +104,13 @@ kernel through its binding (``engine/_smoother.pyx``).
 
 from __future__ import annotations
 
-import math
-from typing import NamedTuple
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .._checks import check_timing, positive_int
 from ._arrays import checked
-from ._parallel import run_split
+from ._parallel import Reported, run_split
 from ._smoother import kim_backward
 from ._smoother import screen_psd as _screen_psd
 
@@ -124,7 +123,8 @@ LANES = 64  # trials per block: the backward pass runs ~500 short loops over the
 # doubled its time on the vehicle (n = 4, L = 3), at 64 and 128 it is amortized
 
 
-class KimOutput(NamedTuple):
+@dataclass
+class KimOutput(Reported):
     """The smoothed posteriors of every trial and sample (:func:`kim_smooth`).
 
     Attributes
@@ -138,13 +138,8 @@ class KimOutput(NamedTuple):
     x_modes, P_modes : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
         Mode-matched smoothed posteriors ``x_j(k|K)``, ``P_j(k|K)``; a mode of smoothed
         probability zero keeps its filtered posterior.
-    status : int
-        ``linalg.OK`` or the failure code that stopped the kernel (outputs then incomplete).
-    repaired : int
-        How many covariances were repaired to their rounding level (``se_repair``
-        of ``engine/c/linalg.c``).
-    smallest_eigenvalue : float
-        The smallest eigenvalue a repaired covariance had (``inf`` if none was).
+    status, repaired, smallest_eigenvalue
+        The kernel's report (:class:`~switchest.engine.Reported`).
     pair_prob : ndarray, shape (N, K-1, L, L), or None
         With ``lagged``: ``pair_prob[:, k, j, i] = mu_ji(k|K) = P(r_k = j, r_{k+1} = i | Y)``.
     lag_x, lag_P : ndarray, shapes (N, K-1, L, n), (N, K-1, L, n, n), or None
@@ -159,9 +154,6 @@ class KimOutput(NamedTuple):
     mode: np.ndarray
     x_modes: np.ndarray
     P_modes: np.ndarray
-    status: int
-    repaired: int = 0
-    smallest_eigenvalue: float = math.inf
     pair_prob: np.ndarray | None = None
     lag_x: np.ndarray | None = None
     lag_P: np.ndarray | None = None
@@ -220,25 +212,25 @@ def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *
     size = (N, K, L) if modes_out else (0, K, L)  # zero trials: the kernel writes none
     out = KimOutput(np.empty((N, K, n)), np.empty((N, K, n, n)), np.empty((N, K, L)),
                     np.empty((N, K), dtype=np.int64), np.empty((*size, n)),
-                    np.empty((*size, n, n)), OK)
+                    np.empty((*size, n, n)), status=OK)
     J = K - 1 if lagged else 0  # intervals reported (none unless asked)
     lag = (np.zeros((N, J, L, L)), np.zeros((N, J, L, n)), np.zeros((N, J, L, n, n)),
            np.zeros((N, J, L, n, n)))
     lanes = positive_int(lanes, "lanes")
     mine, shared = True, False  # per-trial arrays, sliced to each thread's trials; the rest
     # (trans of first axis 1 serves every trial; without modes_out the zero-trial x_modes)
-    status, repaired, smallest = run_split(_backward, [
+    outcome = run_split(_backward, [
         (x_modes, mine), (P_modes, mine), (log_prob, mine), (u, mine), (F, shared),
         (G, shared), (Qd, shared), (trans, len(trans) > 1), (log_transition, shared),
         (lanes, shared), (timing == "sample", shared), (out.x, mine), (out.P, mine),
         (out.mode_prob, mine), (out.mode, mine), (out.x_modes, modes_out),
         (out.P_modes, modes_out), (bool(lagged), shared), *((a, mine) for a in lag)],
         trials=N, samples=K, block=lanes)
-    out = out._replace(status=status, repaired=repaired, smallest_eigenvalue=smallest)
+    out = replace(out, **outcome._asdict())
     if not modes_out:
-        out = out._replace(x_modes=None, P_modes=None)
-    return out._replace(pair_prob=lag[0], lag_x=lag[1], lag_P=lag[2],
-                        lag_cross=lag[3]) if lagged else out
+        out = replace(out, x_modes=None, P_modes=None)
+    return replace(out, pair_prob=lag[0], lag_x=lag[1], lag_P=lag[2],
+                   lag_cross=lag[3]) if lagged else out
 
 
 def _backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes, sample_timing,

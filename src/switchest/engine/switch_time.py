@@ -42,13 +42,13 @@ output map back through two flows only.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 
 from . import ACCEPTED, GATED, NOT_FINITE, NOT_POSITIVE_DEFINITE, OK  # noqa: F401
 from ._arrays import check_gate, checked, indices
-from ._parallel import run_split
+from ._parallel import Reported, run_split
 from ._switch_time import switch_time_filter
 
 __all__ = [
@@ -64,7 +64,8 @@ LANES = 16  # trials per block: four AVX2 registers of float64 per row
 REFINE_TOLERANCE = 1e-4  # Brent's tolerance on the refined instant (tol = 1e-4 T, refine)
 
 
-class SwitchTimeOutput(NamedTuple):
+@dataclass
+class SwitchTimeOutput(Reported):
     """What the filter reports after each sample, for every trial.
 
     Attributes
@@ -81,11 +82,8 @@ class SwitchTimeOutput(NamedTuple):
         the posterior mean.
     flag : ndarray of uint8, shape (N, K)
         ``ACCEPTED`` (0) or ``GATED`` (1): the measurement was rejected, treated as missing.
-    status : int
-        ``OK`` or the failure code that stopped the kernel (outputs then incomplete).
-    repaired, smallest_eigenvalue
-        Covariances repaired to their rounding level and the smallest eigenvalue one had
-        (``inf`` if none was): see :class:`.imm.IMMOutput`.
+    status, repaired, smallest_eigenvalue
+        The kernel's report (:class:`~switchest.engine.Reported`).
     """
 
     x: np.ndarray
@@ -93,9 +91,6 @@ class SwitchTimeOutput(NamedTuple):
     loglik: np.ndarray
     offset: np.ndarray
     flag: np.ndarray
-    status: int
-    repaired: int = 0
-    smallest_eigenvalue: float = math.inf
 
 
 def switch_time_run(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, x0, P0, *,
@@ -188,7 +183,7 @@ def switch_time_run(y, u, which, mode, prev, C, R, F, G, Qd, steps, grid_tau, x0
         (check_gate(gate), shared), (iterations, shared), (tolerance, shared),
         (outputs, shared), (LANES, shared), (x, mine), (P, mine), (loglik, mine),
         (offset, mine), (flag, mine)], trials=N, samples=K, block=LANES)
-    return SwitchTimeOutput(x, P, loglik, offset, flag, *outcome)
+    return SwitchTimeOutput(x, P, loglik, offset, flag, **outcome._asdict())
 
 
 def coarse_outputs(C, F, G, Qd, D: int, g: int, n_coarse: int):
