@@ -16,6 +16,8 @@ estimate that would not fit in memory is refused before the first step.
 from __future__ import annotations
 
 import math
+import re
+import textwrap
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
@@ -37,6 +39,28 @@ __all__ = ["Estimate", "Estimator"]
 
 _INT64, _FLOAT64 = np.dtype(np.int64), np.dtype(np.float64)
 _INT_MAX = 2**62  # int_array's bound
+
+# The Parameters entries of the configuration the multiple-model filters share, ``system,
+# transition, x0, P0, *, mode_prob0`` (checked by Estimator._set_prior and _set_mode_prior),
+# written once: a class decorated with _with_mode_model_parameters names them in its docstring
+# by the line "{mode model parameters}".
+_MODE_MODEL_PARAMETERS = """\
+system : SwitchedLinearSystem
+transition : array_like, shape (L, L)
+    ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
+x0, P0 : array_like
+    Prior mean and covariance of the state at the first sample, the same for every mode.
+mode_prob0 : array_like, shape (L,), optional
+    Prior mode probabilities at the first sample (keyword-only); uniform by default."""
+
+
+def _with_mode_model_parameters(cls: type) -> type:
+    """The class with :data:`_MODE_MODEL_PARAMETERS` in place of its docstring's marker line."""
+    if cls.__doc__ is not None:  # (None under python -OO)
+        cls.__doc__ = re.sub(r"^([ \t]*)\{mode model parameters\}$",
+                             lambda line: textwrap.indent(_MODE_MODEL_PARAMETERS, line[1]),
+                             cls.__doc__, count=1, flags=re.MULTILINE)
+    return cls
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,17 +164,22 @@ class Estimator(ABC):
         self.x0 = x0
         self.P0 = check_symmetric_psd(P0, "P0")
 
-    def _set_mode_prior(self, transition, mode_prob0) -> None:
+    def _set_mode_prior(self, transition, mode_prob0, *, optional_transition: bool = False) -> None:
         """Validate and keep the mode model of the multiple-model filters: ``transition``
         ``(L, L)`` (``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows summing to 1)
         and ``mode_prob0`` ``(L,)`` (uniform when None), with their logarithms
-        (``-inf`` for an impossible switch)."""
+        (``-inf`` for an impossible switch). With ``optional_transition`` a ``transition`` of
+        None is kept as None, every switch weighted alike (its logarithm zero)."""
         L = self.system.n_modes
-        self.transition = check_row_stochastic(transition, "transition", n=L)
+        if optional_transition and transition is None:
+            self.transition = None
+        else:
+            self.transition = check_row_stochastic(transition, "transition", n=L)
         p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
         self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
         with np.errstate(divide="ignore"):
-            self._log_transition = np.log(self.transition)
+            self._log_transition = (np.zeros((L, L)) if self.transition is None
+                                    else np.log(self.transition))
             self._log_p0 = np.log(self.mode_prob0)
 
     def _prior_copies(self, shape) -> tuple[np.ndarray, np.ndarray]:

@@ -37,7 +37,7 @@ from .._linalg import log_normalize, mixture_moments
 from ..discretize import mode_steps, sample_mode_steps
 from ..engine import GATED, raise_for_status, warn_for_repairs
 from ..engine.kalman import kalman_run, kalman_step
-from .base import Estimate, Estimator
+from .base import Estimate, Estimator, _with_mode_model_parameters
 from .smoothing import smooth_mode_matched
 
 __all__ = ["ExactMixtureState", "ExactMixtureFilter"]
@@ -81,19 +81,13 @@ class ExactMixtureState:
     combined_P: np.ndarray
 
 
+@_with_mode_model_parameters
 class ExactMixtureFilter(Estimator):
     """Exact filter and smoother of a jump-Markov linear system, over every mode sequence.
 
     Parameters
     ----------
-    system : SwitchedLinearSystem
-    transition : array_like, shape (L, L)
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
-    x0, P0 : array_like
-        Prior mean and covariance of the state at the first sample.
-    mode_prob0 : array_like, shape (L,), optional
-        Prior probabilities of the mode at the first sample (keyword-only); uniform by
-        default.
+    {mode model parameters}
     max_sequences : int
         Most mode sequences (``L^K`` for ``K`` samples) a run or a stream may hold
         (keyword-only); more are refused with a ``ValueError``.

@@ -43,11 +43,13 @@ updated and gets weight zero; a sample no filter can use counts as missing and i
 from __future__ import annotations
 
 from ..engine.imm import GPB2
+from .base import _with_mode_model_parameters
 from .mode_bank import ModeBankFilter
 
 __all__ = ["GPB1Filter", "GPB2Filter"]
 
 
+@_with_mode_model_parameters
 class GPB1Filter(ModeBankFilter):
     """First-order generalized pseudo-Bayesian filter (Bar-Shalom, Li & Kirubarajan §11.6.4),
     batched over trials and modes.
@@ -64,13 +66,7 @@ class GPB1Filter(ModeBankFilter):
 
     Parameters
     ----------
-    system : SwitchedLinearSystem
-    transition : array_like, shape (L, L)
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
-    x0, P0 : array_like
-        Prior mean and covariance of the state at the first sample (every mode).
-    mode_prob0 : array_like, shape (L,), optional
-        Prior mode probabilities at the first sample (keyword-only); uniform by default.
+    {mode model parameters}
     gate : float, optional
         Largest normalized innovation squared a mode-matched filter accepts (keyword-only);
         ``None`` rejects only measurements whose innovation overflows. A sample every mode
@@ -93,6 +89,7 @@ class GPB1Filter(ModeBankFilter):
     _interaction = "collapse"
 
 
+@_with_mode_model_parameters
 class GPB2Filter(ModeBankFilter):
     """Second-order generalized pseudo-Bayesian filter (Bar-Shalom, Li & Kirubarajan §11.6.5),
     batched over trials, modes and pairs of modes.
@@ -111,13 +108,7 @@ class GPB2Filter(ModeBankFilter):
 
     Parameters
     ----------
-    system : SwitchedLinearSystem
-    transition : array_like, shape (L, L)
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
-    x0, P0 : array_like
-        Prior mean and covariance of the state at the first sample (every mode).
-    mode_prob0 : array_like, shape (L,), optional
-        Prior mode probabilities at the first sample (keyword-only); uniform by default.
+    {mode model parameters}
     gate : float, optional
         Largest normalized innovation squared a pair's filter accepts (keyword-only); ``None``
         rejects only measurements whose innovation overflows. A sample every pair rejects is

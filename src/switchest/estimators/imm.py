@@ -28,23 +28,19 @@ rows sum to one.
 
 from __future__ import annotations
 
+from .base import _with_mode_model_parameters
 from .mode_bank import IMMState, ModeBankFilter
 
 __all__ = ["IMMState", "IMMFilter"]
 
 
+@_with_mode_model_parameters
 class IMMFilter(ModeBankFilter):
     """Interacting multiple model filter, batched over trials and modes.
 
     Parameters
     ----------
-    system : SwitchedLinearSystem
-    transition : array_like, shape (L, L)
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
-    x0, P0 : array_like
-        Prior mean and covariance of the state at the first sample (every mode).
-    mode_prob0 : array_like, shape (L,), optional
-        Prior mode probabilities at the first sample (keyword-only); uniform by default.
+    {mode model parameters}
     gate : float, optional
         Largest normalized innovation squared ``e' S^-1 e`` a mode-matched filter
         accepts (keyword-only); e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None``

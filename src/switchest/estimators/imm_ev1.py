@@ -26,13 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import (
-    check_memory,
-    check_probability_vector,
-    check_row_stochastic,
-    float_array,
-    positive_scalar,
-)
+from .._checks import check_memory, float_array, positive_scalar
 from ..discretize import pairwise_grid, switch_grid
 from ..engine import raise_for_status, warn_for_repairs
 from ..engine.imm_ev1 import imm_ev1_run, imm_ev1_step
@@ -118,15 +112,11 @@ class IMMEV1Filter(Estimator):
         if not system.is_continuous:
             raise ValueError("IMMEV1Filter needs a continuous-time system "
                              "(switches inside intervals)")
-        L = system.n_modes
         switch_grid(1.0, grid)
         self.grid = int(grid)
         self.epsilon = positive_scalar(epsilon, "epsilon", allow_zero=True)
         self.gate = None if gate is None else positive_scalar(gate, "gate")
-        self.transition = (None if transition is None
-                           else check_row_stochastic(transition, "transition", n=L))
-        p0 = np.full(L, 1.0 / L) if mode_prob0 is None else mode_prob0
-        self.mode_prob0 = check_probability_vector(p0, "mode_prob0", n=L)
+        self._set_mode_prior(transition, mode_prob0, optional_transition=True)
         if predecessor not in ("path", "likelihood"):
             raise ValueError(f"predecessor must be 'path' or 'likelihood', got {predecessor!r}")
         if likelihood not in ("innovation", "printed"):
@@ -136,10 +126,6 @@ class IMMEV1Filter(Estimator):
         self.predecessor = predecessor
         self.likelihood = likelihood
         self.switch_time = switch_time
-        with np.errstate(divide="ignore"):
-            self._log_p0 = np.log(self.mode_prob0)
-            self._log_transition = (np.zeros((L, L)) if transition is None
-                                    else np.log(self.transition))
         self._gate = math.inf if self.gate is None else self.gate
 
     def init(self, batch_shape=()) -> IMMEV1State:

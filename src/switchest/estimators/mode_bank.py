@@ -33,7 +33,7 @@ from .._checks import (
 from ..discretize import mode_steps, sample_mode_steps
 from ..engine import GATED, raise_for_status, warn_for_repairs
 from ..engine.imm import Bank, BankTable, IMMOutput
-from .base import Estimate, Estimator
+from .base import Estimate, Estimator, _with_mode_model_parameters
 from .smoothing import smooth_filtered
 
 __all__ = ["IMMState", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"]
@@ -118,19 +118,14 @@ class ModeMatchedRun(NamedTuple):
     batch: tuple[int, ...]
 
 
+@_with_mode_model_parameters
 class ModeBankFilter(Estimator):
     """Configuration, state, loop and smoother of the filters on a bank of mode-matched
     Kalman filters (IMM, GPB1, GPB2); a subclass names its compiled kernels.
 
     Parameters
     ----------
-    system : SwitchedLinearSystem
-    transition : array_like, shape (L, L)
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
-    x0, P0 : array_like
-        Prior mean and covariance of the state at the first sample (every mode).
-    mode_prob0 : array_like, shape (L,), optional
-        Prior mode probabilities at the first sample (keyword-only); uniform by default.
+    {mode model parameters}
     gate : float, optional
         Largest normalized innovation squared ``e' S^-1 e`` a filter accepts (keyword-only);
         e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None`` rejects only measurements whose

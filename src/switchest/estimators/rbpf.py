@@ -72,7 +72,7 @@ from ..discretize import mode_steps, sample_mode_steps
 from ..engine import GATED, raise_for_status, warn_for_repairs
 from ..engine.rbpf import RESAMPLING, rbpf_run, rbpf_step
 from ..engine.rbpf import trial_keys as split_keys
-from .base import Estimate, Estimator
+from .base import Estimate, Estimator, _with_mode_model_parameters
 
 __all__ = ["RBPFState", "RBPFilter"]
 
@@ -122,18 +122,13 @@ class RBPFState:
     ess: np.ndarray
 
 
+@_with_mode_model_parameters
 class RBPFilter(Estimator):
     """Rao-Blackwellized particle filter for a jump-Markov linear system, batched over trials.
 
     Parameters
     ----------
-    system : SwitchedLinearSystem
-    transition : array_like, shape (L, L)
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
-    x0, P0 : array_like
-        Prior mean and covariance of the state at the first sample (every particle).
-    mode_prob0 : array_like, shape (L,), optional
-        Prior mode probabilities at the first sample; uniform by default.
+    {mode model parameters}
     particles : int
         Particles per trial (default 1000).
     rng : numpy Generator, int seed, SeedSequence or None
