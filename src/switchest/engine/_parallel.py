@@ -156,12 +156,10 @@ def _call(kernel: Callable[..., int], values) -> Report:
 
 def _thread_count(trials: int, samples: int, block: int) -> int:
     """How many threads a batch of ``trials x samples`` in blocks of ``block`` is worth."""
-    wanted = threads()
-    if wanted == 1:
+    worth = min(math.ceil(trials / block), (trials * max(samples, 1)) // MIN_WORK)
+    if worth <= 1:  # a small batch: the setting (an environment look-up) is not needed
         return 1
-    by_blocks = math.ceil(trials / block)
-    by_work = (trials * max(samples, 1)) // MIN_WORK
-    return max(1, min(wanted, by_blocks, by_work))
+    return min(threads(), worth)
 
 
 def _executor(size: int) -> ThreadPoolExecutor:
