@@ -244,3 +244,31 @@ def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatc
     first_cells = [line.split("│")[1].strip() for line in out.splitlines()
                    if line.startswith("│")]
     assert sum(1 for cell in first_cells if len(cell) >= 4) >= 5  # labels, not slivers
+
+
+def test_estimate_refuses_to_write_a_diverged_smoother(tmp_path):
+    """On the boost converter Kim's smoother diverges (SmootherDivergenceWarning): the CLI
+    says so in one ``error:`` line, exits 1 and writes no CSV (issue 35)."""
+    model = EXAMPLES / "shankar-boost.toml"
+    data, out = tmp_path / "d.csv", tmp_path / "e.csv"
+    assert main(["simulate", "--model", str(model), "--seed", "1", "--input", "100",
+                 "--out", str(data)]) == 0
+    code = main(["estimate", "--model", str(model), "--data", str(data), "--method", "imm",
+                 "--smooth", "--out", str(out)])
+    assert code == 1 and not out.exists()
+
+
+def test_estimate_writes_the_outlier_flags_and_counts_them(tmp_path, capsys):
+    model = EXAMPLES / "shankar-boost.toml"
+    data, out = tmp_path / "d.csv", tmp_path / "e.csv"
+    assert main(["simulate", "--model", str(model), "--seed", "2", "--input", "100",
+                 "--out", str(data)]) == 0
+    frame = pd.read_csv(data)
+    frame.loc[40, "y"] = 1e6  # one wild sample, far beyond the gate
+    frame.to_csv(data, index=False)
+    capsys.readouterr()
+    assert main(["estimate", "--model", str(model), "--data", str(data), "--method", "imm",
+                 "--gate", "15.1", "--out", str(out)]) == 0  # chi-square 0.9999 of one output
+    table = pd.read_csv(out)
+    assert table["outlier"].dtype == bool and table["outlier"][40] and table["outlier"].sum() == 1
+    assert "1 of 201 measurements were rejected" in capsys.readouterr().err

@@ -123,7 +123,7 @@ def _workers(text: str) -> int:
 _positive = _integer(1, "a positive integer")
 _seed = _integer(0, "a non-negative integer")
 _duration = _real("a finite positive number of seconds")
-_window = _real("a finite positive number")
+_window = _real("a finite positive number")  # also the outlier gate
 _probability = _real("a probability in (0, 1]", high=1.0)
 
 
@@ -442,6 +442,7 @@ def _cmd_list(args: argparse.Namespace, console: Console) -> int:
 
 
 def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
+    from .estimators import SmootherDivergenceWarning
     from .modelfile import load_model
     from .tabular import ImplausibleEstimateWarning, estimate_table
 
@@ -450,22 +451,31 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
     spec = load_model(args.model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImplausibleEstimateWarning)
+        warnings.simplefilter("always", SmootherDivergenceWarning)
         table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
                                refine=args.refine, stay=args.stay, v_max=args.v_max,
                                delta=args.delta, Delta=args.Delta,
                                switch_interval=args.switch_interval, smooth=args.smooth,
                                particles=args.particles, seed=args.seed, timing=args.timing,
-                               trial=args.trial)
+                               gate=args.gate, trial=args.trial)
+    errors = Console(stderr=True, soft_wrap=True, highlight=False)
+    for warning in caught:
+        if issubclass(warning.category, SmootherDivergenceWarning):
+            _say(errors, "error", f"{warning.message} No estimates were written.")
+            return 1
     for warning in caught:
         if issubclass(warning.category, ImplausibleEstimateWarning):
-            _say(Console(stderr=True, soft_wrap=True, highlight=False), "warning",
-                 str(warning.message))
+            _say(errors, "warning", str(warning.message))
         else:
             warnings.showwarning(warning.message, warning.category, warning.filename,
                                  warning.lineno)
     table.to_csv(out, index=False)
     console.print(f"{len(table)} samples estimated with {args.method}: "
                   f"[bold]{escape(str(out))}[/bold]")
+    if "outlier" in table and table["outlier"].any():
+        _say(errors, "warning", f"{int(table['outlier'].sum())} of {len(table)} measurements "
+             "were rejected by the filter's outlier gate and treated as missing (column "
+             "'outlier')")
     if plot is not None:
         _plot_estimate(plot, spec, table, args)
         console.print(f"figure: {escape(str(plot))}")
@@ -780,6 +790,11 @@ def _parser() -> _Parser:
                                                "'interval' (default) the one before it "
                                                "(Bar-Shalom's IMM); 'sample' the one after it, "
                                                "as simulate draws (docs: Conventions)"))
+    p_est.add_argument("--gate", type=_window, default=None,
+                       help=_applies("gate", "outlier gate: a measurement whose normalized "
+                                             "innovation squared exceeds it is treated as "
+                                             "missing and flagged (column outlier; e.g. 15.1, "
+                                             "chi-square 0.9999 of one output)"))
     p_est.add_argument("--trial", type=_seed, default=None,
                        help="which trial to estimate, in a CSV with a trial column")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")

@@ -81,7 +81,7 @@ __all__ = [
 METHODS = METHOD_NAMES
 """The method names, :data:`switchest.estimators.registry.METHOD_NAMES`."""
 _WITHOUT_DEFAULT = ("v_max", "delta", "Delta", "switch_interval", "smooth", "particles", "seed",
-                    "timing")
+                    "timing", "gate")
 """The options of :func:`estimate_table` that are refused for a method they do not apply to when
 set; ``grid``, ``refine`` (which have a default) and ``stay`` apply only where they are used."""
 
@@ -91,7 +91,8 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
                    delta: float | None = None, Delta: float | None = None,
                    switch_interval: float | None = None, smooth: bool = False,
                    particles: int | None = None, seed: int | None = None,
-                   timing: str | None = None, trial: int | None = None) -> pd.DataFrame:
+                   timing: str | None = None, gate: float | None = None,
+                   trial: int | None = None) -> pd.DataFrame:
     """Run ``method`` on measured data; returns a table of estimates per sample.
 
     Parameters
@@ -125,6 +126,11 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         ``imm``, ``gpb1``, ``gpb2``, ``rbpf``: which interval the mode of a sample governs
         (default ``"interval"``, Bar-Shalom's, the one before it; ``"sample"``, the one after
         it, as ``simulate`` draws: docs/conventions.rst).
+    gate : float, optional
+        The Kalman-type filters' outlier gate: the largest normalized innovation squared
+        ``e' S^-1 e`` a measurement may have to be used, e.g. ``scipy.stats.chi2.ppf(0.9999,
+        m)``; one beyond it is treated as missing and flagged in the ``outlier`` column.
+        Default: no gate.
     trial : int, optional
         The trial to estimate from a table of several (a ``trial`` column).
 
@@ -133,12 +139,14 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     DataFrame
         ``t``, ``x0 ..``, ``std_x0 ..`` (where the method has a covariance), and
         where the method gives them ``mode`` (nullable integers, empty where
-        undefined), ``p_mode0 ..``, ``switch_time`` (NaN where none).
+        undefined), ``p_mode0 ..``, ``switch_time`` (NaN where none), and for the filters
+        with an outlier gate ``outlier`` (True where the measurement was rejected and
+        treated as missing).
     """
     entry = get_method(method)
     options = {"grid": grid, "refine": refine, "stay": stay, "v_max": v_max, "delta": delta,
                "Delta": Delta, "switch_interval": switch_interval, "smooth": smooth,
-               "particles": particles, "seed": seed, "timing": timing}
+               "particles": particles, "seed": seed, "timing": timing, "gate": gate}
     entry.check_options(name for name in _WITHOUT_DEFAULT
                         if options[name] is not None and options[name] is not False)
     meas = read_measurements(data, spec, trial=trial)
@@ -159,6 +167,14 @@ class ImplausibleEstimateWarning(UserWarning):
 
 _Z_LIMIT = 4.0  # |z| beyond which the mean NIS is implausible for a consistent filter
 
+# what else makes a method's residuals larger than its covariance claims, with a model that fits
+_OWN_APPROXIMATION = {
+    "kalman": "; switches between the samples also do it, which method 'switch-time' models",
+    "switch-time": ("; so does the filter's own approximation (each switching instant taken "
+                    "on its grid of candidates, and the hypotheses merged into one Gaussian "
+                    "after each sample: a finer --grid or --refine narrows it)"),
+}
+
 
 def _warn_if_inconsistent(spec: ModelSpec, meas: dict, est: Estimate, modes, method: str) -> None:
     """Warn when the mean normalized innovation squared is more than :data:`_Z_LIMIT`
@@ -173,8 +189,7 @@ def _warn_if_inconsistent(spec: ModelSpec, meas: dict, est: Estimate, modes, met
     if check.z > 0:
         cause = ("the residuals are larger than the filter's covariance claims: the mode column, "
                  "the process noise Q or the measurement noise R of the model file do not fit "
-                 "the data" + ("; switches between the samples also do it, which method "
-                               "'switch-time' models" if method == "kalman" else ""))
+                 "the data" + _OWN_APPROXIMATION.get(method, ""))
     else:
         cause = ("the residuals are smaller than the filter's covariance claims: the model "
                  "file's Q or R is larger than the data's")
@@ -203,4 +218,6 @@ def _table(t: np.ndarray, est: Estimate) -> pd.DataFrame:
         cols.update({f"p_mode{j}": est.mode_prob[:, j] for j in range(est.mode_prob.shape[-1])})
     if est.switch_time is not None:
         cols["switch_time"] = est.switch_time
+    if est.outlier is not None:  # samples the filter's gate rejected (treated as missing)
+        cols["outlier"] = np.asarray(est.outlier, dtype=bool)
     return pd.DataFrame(cols)

@@ -219,25 +219,25 @@ class Method:
 
 
 _TABLE = {m.name: m for m in (
-    Method("kalman", ".mode_kalman:ModeKalmanFilter", "modes", "unused", (),
+    Method("kalman", ".mode_kalman:ModeKalmanFilter", "modes", "unused", ("gate",),
            "Kalman filter along a known (or believed) mode sequence",
            "Zhang & Natarajan (001), Algorithm 1", innovation_check=True),
     Method("switch-time", ".switch_time:SwitchTimeKalmanFilter", "modes", "unused",
-           ("grid", "refine"),
+           ("grid", "refine", "gate"),
            "Kalman filter with the modes known at the samples and gridded maximum-likelihood "
            "switching times", "Shankar et al. (000), §III-§IV, eq. (23)", innovation_check=True),
-    Method("imm", ".imm:IMMFilter", None, "required", ("stay", "smooth", "timing"),
+    Method("imm", ".imm:IMMFilter", None, "required", ("stay", "smooth", "timing", "gate"),
            "interacting multiple model filter; modes unknown", "Blom & Bar-Shalom (1988)"),
-    Method("gpb1", ".gpb:GPB1Filter", None, "required", ("stay", "smooth", "timing"),
+    Method("gpb1", ".gpb:GPB1Filter", None, "required", ("stay", "smooth", "timing", "gate"),
            "first-order generalized pseudo-Bayesian filter (one Gaussian kept); modes unknown",
            "Bar-Shalom, Li & Kirubarajan (2001), §11.6.4"),
-    Method("gpb2", ".gpb:GPB2Filter", None, "required", ("stay", "smooth", "timing"),
+    Method("gpb2", ".gpb:GPB2Filter", None, "required", ("stay", "smooth", "timing", "gate"),
            "second-order generalized pseudo-Bayesian filter (one Gaussian per mode, L^2 "
            "filters); modes unknown", "Bar-Shalom, Li & Kirubarajan (2001), §11.6.5"),
     Method("rbpf", ".rbpf:RBPFilter", None, "required", ("stay", "particles", "seed", "timing"),
            "Rao-Blackwellized particle filter (modes sampled, a Kalman filter per particle); "
            "modes unknown", "Doucet, Gordon & Krishnamurthy (2001), §III"),
-    Method("imm-ev1", ".imm_ev1:IMMEV1Filter", None, "optional", ("grid", "stay"),
+    Method("imm-ev1", ".imm_ev1:IMMEV1Filter", None, "optional", ("grid", "stay", "gate"),
            "IMM extended-Viterbi filter with switching-time estimation; modes unknown",
            "Shankar et al. (000), Algorithm 1"),
     Method("min-distance", ".min_distance:MinimumDistanceDetector", None, "unused",
