@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from switchest._toml import ModelFileError
+from switchest.measurements import simulate_measurements
 from switchest.modelfile import (
     ModelSpec,
     load_model,
@@ -195,3 +196,24 @@ def test_model_spec_checks_its_switching_model():
     with pytest.raises(ValueError, match="switching switches among 3 modes, the system has 2"):
         ModelSpec(system, switching=IID([0.2, 0.3, 0.5]))
     assert ModelSpec(system, switching=Dwell(2, 1.0, 2.0)).switching.min_dwell == 1.0
+
+
+def test_the_input_table_is_read_written_and_checked(tmp_path):
+    spec = load_model(EXAMPLES / "shankar-boost.toml")
+    np.testing.assert_array_equal(spec.input, [100.0])  # v_in = 100 V, Shankar et al. §V.A
+    again = load_model(save_model(spec, tmp_path / "again.toml"))
+    np.testing.assert_array_equal(again.input, spec.input)
+    text = (EXAMPLES / "shankar-boost.toml").read_text()
+    for bad, match in [("value = [100.0, 1.0]", r"input\.value"), ("valeu = [100.0]", "value"),
+                       ("value = [nan]", "finite")]:
+        path = tmp_path / "bad.toml"
+        path.write_text(text.replace("value = [100.0]", bad))
+        with pytest.raises(ValueError, match=match):
+            load_model(path)
+
+
+def test_simulate_runs_at_the_files_input_by_default():
+    spec = load_model(EXAMPLES / "shankar-boost.toml")
+    table = simulate_measurements(spec, duration=0.002, rng=0)
+    assert np.all(table["u"] == 100.0)
+    assert np.all(simulate_measurements(spec, duration=0.002, u=[0.0], rng=0)["u"] == 0.0)

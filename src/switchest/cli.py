@@ -807,7 +807,8 @@ def _parser() -> _Parser:
     p_sim.add_argument("--trials", type=_positive, default=1,
                        help="independent runs (a trial column when more than one)")
     p_sim.add_argument("--input", default=None,
-                       help="constant input, comma-separated (default: zero)")
+                       help="constant input, comma-separated (default: the model file's [input] "
+                            "value, zero without one)")
     p_sim.add_argument("--seed", type=_seed, default=0)
     p_sim.add_argument("--out", required=True, help="CSV of t, u, y, mode and the true x")
     p_fit = command("fit", _cmd_fit,

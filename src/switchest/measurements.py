@@ -198,7 +198,7 @@ def simulate_measurements(spec: ModelSpec, *, duration: float | None = None, tri
     trials : int
         Independent runs.
     u : array_like, shape (l,), optional
-        A constant input; zero by default.
+        A constant input; by default the file's ``[input] value``, zero when it names none.
     rng : numpy.random.Generator, int or None
         The seed of everything drawn.
 
@@ -212,7 +212,7 @@ def simulate_measurements(spec: ModelSpec, *, duration: float | None = None, tri
     if spec.switching is None:
         raise ValueError("the model has no [switching] table: simulate needs a switching model")
     if u is None:
-        u = np.zeros(sys.n_inputs)
+        u = spec.input if spec.input is not None else np.zeros(sys.n_inputs)
     u = float_array(u, "u", ndim=1)
     if u.shape != (sys.n_inputs,):
         raise ValueError(f"u must hold the model's {sys.n_inputs} input(s), got {u.size}")

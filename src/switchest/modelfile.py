@@ -13,6 +13,8 @@ A TOML file holds the system (read by :func:`system_from_dict`) and, optionally:
     [initial]               # Gaussian initial state
     mean = [0.0, 100.0]
     cov = [[25.0, 0.0], [0.0, 25.0]]
+    [input]                 # the constant input the system runs at (one value per input):
+    value = [100.0]         # what simulate uses unless told another
     [states]                # names and units of the states, for tables and figures
     names = ["i_L", "v_0"]
     units = ["A", "V"]
@@ -60,8 +62,9 @@ _SAMPLING_KEYS = {"period", "tau_min", "tau_max", "duration"}
 _INITIAL_KEYS = {"mean", "cov"}
 _NOISE_BOUNDS = {"v_max", "u_max", "x_min"}  # bounds on |v|, |u|, |x|: zero is meaningful
 _NOISE_DESIGN = {"delta", "Delta", "observer_decay"}  # windows (s) and a decay rate (1/s)
-_TOP_KEYS = {"domain", "dt", "shared", "modes", "sampling", "switching", "initial", "noise",
-             "states", "description"}
+_TOP_KEYS = {"domain", "dt", "shared", "modes", "sampling", "switching", "initial", "input",
+             "noise", "states", "description"}
+_INPUT_KEYS = {"value"}
 _STATES_KEYS = {"names", "units"}
 
 
@@ -84,6 +87,9 @@ class ModelSpec:
     state_names, state_units : tuple of str
         A name and a unit per state (empty: ``x0, x1, ...`` without units).
     description : str
+    input : ndarray, shape (l,), or None
+        The constant input the system runs at (``[input] value``), or None when the file
+        names none.
     """
 
     system: SwitchedLinearSystem
@@ -94,9 +100,13 @@ class ModelSpec:
     description: str = ""
     state_names: tuple[str, ...] = ()
     state_units: tuple[str, ...] = ()
+    input: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.system.n_states
+        if self.input is not None and np.shape(self.input) != (self.system.n_inputs,):
+            raise ValueError(f"input must hold the system's {self.system.n_inputs} input(s), "
+                             f"got shape {np.shape(self.input)}")
         for name in ("state_names", "state_units"):
             labels = getattr(self, name)
             if not isinstance(labels, tuple) or not all(isinstance(v, str) for v in labels):
@@ -150,6 +160,8 @@ class ModelSpec:
                              for k, v in table.items()}
         if self.initial is not None:
             doc["initial"] = {"mean": self.initial[0], "cov": self.initial[1]}
+        if self.input is not None:
+            doc["input"] = {"value": np.asarray(self.input).tolist()}
         states = {k: list(v) for k, v in (("names", self.state_names),
                                           ("units", self.state_units)) if v}
         if states:
@@ -188,6 +200,7 @@ def load_model(path: str | Path) -> ModelSpec:
         sampling=_sampling(doc.get("sampling", {}), source),
         switching=_switching(doc.get("switching", {}), source, system.n_modes),
         initial=_initial(doc.get("initial"), source, system.n_states),
+        input=_input(doc.get("input"), source, system.n_inputs),
         noise=_noise(doc.get("noise", {}), source),
         description=description,
         **_states(doc.get("states", {}), source, system.n_states),
@@ -451,6 +464,22 @@ def _initial(table, source: str, n: int):
     except ValueError as exc:
         raise _toml.ModelFileError(_toml.where(source, str(exc))) from None
     return mean, cov
+
+
+def _input(table, source: str, l: int) -> np.ndarray | None:  # noqa: E741 (the paper's l)
+    """The ``[input]`` table's constant ``value`` (one finite number per input), or None."""
+    if table is None:
+        return None
+    table = _table(table, source, "input")
+    for key in table:
+        if key not in _INPUT_KEYS:
+            raise _toml.unknown_key(source, "input", key, _INPUT_KEYS)
+    if "value" not in table:
+        raise _toml.ModelFileError(_toml.where(source, "input.value: required"))
+    value = _toml.matrix(table["value"], _toml.where(source, "input.value"), shape=(l,), ndim=1)
+    if not np.all(np.isfinite(value)):
+        raise _toml.ModelFileError(_toml.where(source, "input.value: expected finite numbers"))
+    return value
 
 
 def _states(table, source: str, n: int) -> dict:
