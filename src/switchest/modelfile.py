@@ -366,17 +366,18 @@ def _dims(shape: tuple[int, ...]) -> str:
     return "x".join(map(str, shape))
 
 
-def _table(value, source: str, name: str) -> dict:
+def _table(value, source: str, name: str, keys=None) -> dict:
+    """``value`` checked to be a table (of no key outside ``keys``, where given)."""
     if not isinstance(value, dict):
         raise _toml.ModelFileError(_toml.where(source, f"{name}: expected a table"))
+    for key in () if keys is None else value:
+        if key not in keys:
+            raise _toml.unknown_key(source, name, key, keys)
     return value
 
 
 def _sampling(table, source: str) -> dict:
-    table = _table(table, source, "sampling")
-    for key in table:
-        if key not in _SAMPLING_KEYS:
-            raise _toml.unknown_key(source, "sampling", key, _SAMPLING_KEYS)
+    table = _table(table, source, "sampling", _SAMPLING_KEYS)
     out = {k: _toml.number(v, _toml.where(source, f"sampling.{k}"), positive=True)
            for k, v in table.items()}
     if "period" in out and ("tau_min" in out or "tau_max" in out):
@@ -449,10 +450,7 @@ def _switching_value(key: str, value, at: str, L: int):
 def _initial(table, source: str, n: int):
     if table is None:
         return None
-    table = _table(table, source, "initial")
-    for key in table:
-        if key not in _INITIAL_KEYS:
-            raise _toml.unknown_key(source, "initial", key, _INITIAL_KEYS)
+    table = _table(table, source, "initial", _INITIAL_KEYS)
     if "mean" not in table:
         raise _toml.ModelFileError(_toml.where(source, "initial.mean: required (cov defaults to "
                                                        "zero)"))
@@ -470,10 +468,7 @@ def _input(table, source: str, l: int) -> np.ndarray | None:  # noqa: E741 (the 
     """The ``[input]`` table's constant ``value`` (one finite number per input), or None."""
     if table is None:
         return None
-    table = _table(table, source, "input")
-    for key in table:
-        if key not in _INPUT_KEYS:
-            raise _toml.unknown_key(source, "input", key, _INPUT_KEYS)
+    table = _table(table, source, "input", _INPUT_KEYS)
     if "value" not in table:
         raise _toml.ModelFileError(_toml.where(source, "input.value: required"))
     value = _toml.matrix(table["value"], _toml.where(source, "input.value"), shape=(l,), ndim=1)
@@ -484,11 +479,9 @@ def _input(table, source: str, l: int) -> np.ndarray | None:  # noqa: E741 (the 
 
 def _states(table, source: str, n: int) -> dict:
     """``state_names``, ``state_units`` of the ``[states]`` table: lists of n strings."""
-    table = _table(table, source, "states")
+    table = _table(table, source, "states", _STATES_KEYS)
     out = {}
     for key, value in table.items():
-        if key not in _STATES_KEYS:
-            raise _toml.unknown_key(source, "states", key, _STATES_KEYS)
         at = _toml.where(source, f"states.{key}")
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             raise _toml.ModelFileError(f"{at}: expected a list of strings, got {value!r}")
@@ -499,11 +492,9 @@ def _states(table, source: str, n: int) -> dict:
 
 
 def _noise(table, source: str) -> dict:
-    table = _table(table, source, "noise")
+    table = _table(table, source, "noise", _NOISE_BOUNDS | _NOISE_DESIGN)
     out = {}
     for key, value in table.items():
-        if key not in _NOISE_BOUNDS | _NOISE_DESIGN:
-            raise _toml.unknown_key(source, "noise", key, _NOISE_BOUNDS | _NOISE_DESIGN)
         at = _toml.where(source, f"noise.{key}")
         out[key] = _toml.number(value, at, positive=key in _NOISE_DESIGN)
         if out[key] < 0:
