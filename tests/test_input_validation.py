@@ -7,6 +7,7 @@ the valid extremes next to them that must keep working (a dwell time of 1e-15 s)
 """
 
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -290,3 +291,21 @@ def test_nan_never_passes_as_a_covariance():
         ModeKalmanFilter(SYS, X0, np.full((2, 2), np.nan))
     with pytest.raises(ValueError, match="Q must be finite"):
         _checks.check_symmetric_psd(np.full((2, 2), np.nan), "Q")
+
+
+def test_messages_name_the_argument_the_user_gave():
+    """Issue 35: ``duration=-1`` named ``t_end`` and ``RBPFilter.step(dt=-1)`` named ``T`` (the
+    parameters of the functions they call)."""
+    from switchest.estimators import IMMFilter, RBPFilter
+    from switchest.measurements import simulate_measurements
+    from switchest.modelfile import load_model
+
+    spec = load_model(Path(__file__).resolve().parents[1] / "examples/models/shankar-boost.toml")
+    with pytest.raises(ValueError, match="^duration"):
+        simulate_measurements(spec, duration=-1)
+    transition = [[0.9, 0.1], [0.1, 0.9]]
+    for f in (RBPFilter(spec.system, transition, np.zeros(2), np.eye(2), particles=4),
+              IMMFilter(spec.system, transition, np.zeros(2), np.eye(2))):
+        state = f.step(f.init(()), [1.0], [100.0])
+        with pytest.raises(ValueError, match="^dt must"):
+            f.step(state, [1.0], [100.0], dt=-1.0)

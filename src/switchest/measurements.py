@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._checks import as_rng, check_finite, float_array, int_array, positive_int
+from ._checks import as_rng, check_finite, float_array, int_array, positive_int, positive_scalar
 from .modelfile import ModelSpec
 from .signals import SwitchingSignal, schedule
 from .simulate import simulate
@@ -207,6 +207,8 @@ def simulate_measurements(spec: ModelSpec, *, duration: float | None = None, tri
     DataFrame
     """
     trials = positive_int(trials, "trials")
+    if duration is not None:
+        duration = positive_scalar(duration, "duration")
     rng = as_rng(rng)
     sys = spec.system
     if spec.switching is None:

@@ -66,7 +66,8 @@ _MESSAGES = {
     ),
     NOT_FINITE: (
         "innovation covariance C P C' + R is not finite: the state covariance P is not "
-        "finite, it overflowed (an unstable mode over long intervals, or a huge P0)"
+        "finite, it overflowed (an unstable mode over long intervals, a huge P0, or an x0 so "
+        "large that the spread of the modes' means overflows)"
     ),
 }
 

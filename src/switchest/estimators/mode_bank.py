@@ -205,7 +205,7 @@ class ModeBankFilter(Estimator):
             if dt is None:  # update only: the transition table is not read
                 F, G, Qd = np.zeros((L, n, n)), np.zeros((L, n, l)), np.zeros((L, n, n))
             else:
-                steps = mode_steps(sys, dt)  # validates dt
+                steps = mode_steps(sys, positive_scalar(dt, "dt"))
                 F, G, Qd = steps.F, steps.G, steps.Qd
             table = self._bank.table(F, G, Qd, np.arange(L))
             if key is not _UNCACHED:

@@ -217,7 +217,7 @@ class RBPFilter(Estimator):
         if dt is None:  # update only: the transition table is not read
             F, G, Qd = np.zeros((L, n, n)), np.zeros((L, n, sys.n_inputs)), np.zeros((L, n, n))
         else:
-            steps = mode_steps(sys, dt)
+            steps = mode_steps(sys, positive_scalar(dt, "dt"))
             F, G, Qd = steps.F, steps.G, steps.Qd
         out, (x, P, mode, log_weight) = rbpf_step(
             state.x.reshape(N, Np, n), state.P.reshape(N, Np, n, n), state.mode.reshape(N, Np),
