@@ -28,6 +28,8 @@ extensions = [
         f"switchest.engine.{pyx.stem}",
         [str(pyx)],
         include_dirs=[str(ENGINE / "c"), numpy.get_include()],
+        depends=[str(path) for path in sorted((ENGINE / "c").glob("*.[ch]"))]  # a header edit
+        + [str(ENGINE / "_common.pxd")],  # rebuilds too
         define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
         extra_compile_args=FLAGS,
     )

@@ -85,22 +85,39 @@ cdef extern from "bank.h":
         double *log_prob_last
 
 
-cdef inline se_bank_out bank_outputs(se_int N, se_int K, cnp.ndarray x_out, cnp.ndarray P_out,
-                                     cnp.ndarray prob_out, cnp.ndarray mode_out,
-                                     cnp.ndarray loglik_out, cnp.ndarray flag_out,
-                                     cnp.ndarray x_modes_out, cnp.ndarray P_modes_out,
-                                     cnp.ndarray x_last, cnp.ndarray P_last,
-                                     cnp.ndarray log_prob_last) except *:
-    """The bank bindings' output arguments as the C kernels take them; the mode-matched
-    posteriors are written if x_modes_out has a row per trial (zero-size arrays otherwise)."""
-    cdef se_bank_out out
-    out.K = K
-    out.modes_wanted = x_modes_out.shape[0] == N
-    out.x, out.P, out.prob = fptr(x_out), fptr(P_out), fptr(prob_out)
-    out.mode, out.loglik, out.flag = iptr(mode_out), fptr(loglik_out), u8ptr(flag_out)
-    out.x_modes, out.P_modes = fptr(x_modes_out), fptr(P_modes_out)
-    out.x_last, out.P_last, out.log_prob_last = fptr(x_last), fptr(P_last), fptr(log_prob_last)
-    return out
+# What the bank bindings (_imm.pyx, _gpb.pyx) hand their kernel besides its inputs: the sizes,
+# the outputs and the report.
+cdef struct bank_call:
+    se_int n, m, l, L, N, K
+    se_bank_out out
+    double *report
+
+
+cdef inline bank_call bank_arguments(se_int lanes, cnp.ndarray y, cnp.ndarray u,
+                                     cnp.ndarray x_init, tuple outputs) except *:
+    """The sizes of a bank kernel's call, read from y (N, K, m), u (N, K, l) and
+    x_init (N, L, n), and the arguments after its inputs, ``outputs``: x_out, P_out, prob_out,
+    mode_out, loglik_out, flag_out, x_modes_out, P_modes_out, x_last, P_last, log_prob_last
+    (se_bank_out's, c/bank.h) and the report (2,), as the C kernels take them. The mode-matched
+    posteriors are written if x_modes_out has a row per trial (zero-size arrays otherwise).
+    Raises ValueError unless ``lanes`` is positive."""
+    if lanes < 1:
+        raise ValueError(f"lanes must be a positive int, got {lanes}")
+    cdef cnp.ndarray x_out, P_out, prob_out, mode_out, loglik_out, flag_out, x_modes_out
+    cdef cnp.ndarray P_modes_out, x_last, P_last, log_prob_last, report
+    (x_out, P_out, prob_out, mode_out, loglik_out, flag_out, x_modes_out, P_modes_out, x_last,
+     P_last, log_prob_last, report) = outputs
+    cdef bank_call c
+    c.N, c.K, c.m = y.shape[0], y.shape[1], y.shape[2]
+    c.L, c.n, c.l = x_init.shape[1], x_init.shape[2], u.shape[2]
+    c.out.K = c.K
+    c.out.modes_wanted = x_modes_out.shape[0] == c.N
+    c.out.x, c.out.P, c.out.prob = fptr(x_out), fptr(P_out), fptr(prob_out)
+    c.out.mode, c.out.loglik, c.out.flag = iptr(mode_out), fptr(loglik_out), u8ptr(flag_out)
+    c.out.x_modes, c.out.P_modes = fptr(x_modes_out), fptr(P_modes_out)
+    c.out.x_last, c.out.P_last = fptr(x_last), fptr(P_last)
+    c.out.log_prob_last, c.report = fptr(log_prob_last), fptr(report)
+    return c
 
 
 # LAPACK for the rare eigendecompositions of a covariance repair (c/linalg.c, se_repair): the

@@ -2,8 +2,8 @@
 """Binding of GPB2 (engine/c/gpb.c): :func:`gpb2_bank`, the kernel behind
 :func:`switchest.engine.gpb.gpb2_run` and :func:`switchest.engine.gpb.gpb2_step`."""
 cimport numpy as cnp
-from ._common cimport (fptr, iptr, se_int, se_bank_out, bank_outputs, no_memory,
-                      start_binding)
+from ._common cimport (fptr, iptr, se_int, se_bank_out, bank_call, bank_arguments,
+                      no_memory, start_binding)
 start_binding()
 
 cdef extern from "gpb.h":
@@ -20,27 +20,18 @@ cdef extern from "gpb.h":
 def gpb2_bank(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cnp.ndarray Qd,
               cnp.ndarray trans, cnp.ndarray C, cnp.ndarray R, cnp.ndarray log_transition,
               cnp.ndarray x_init, cnp.ndarray P_init, cnp.ndarray log_prob_init,
-              bint sample_timing, bint predict_first, double gate, se_int lanes,
-              cnp.ndarray x_out, cnp.ndarray P_out, cnp.ndarray prob_out,
-              cnp.ndarray mode_out, cnp.ndarray loglik_out, cnp.ndarray flag_out,
-              cnp.ndarray x_modes_out, cnp.ndarray P_modes_out, cnp.ndarray x_last,
-              cnp.ndarray P_last, cnp.ndarray log_prob_last, cnp.ndarray report):
+              bint sample_timing, bint predict_first, double gate, se_int lanes, *outputs):
     """Run ``se_gpb2_bank`` on arrays checked and shaped by the caller
-    (:func:`switchest.engine.gpb._gpb2`; the shapes are in engine/c/gpb.h): writes the outputs
-    and ``report`` in place, returns the status (``MemoryError`` for ``SE_NO_MEMORY``)."""
-    if lanes < 1:
-        raise ValueError(f"lanes must be a positive int, got {lanes}")
-    cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
-    cdef se_int L = x_init.shape[1], n = x_init.shape[2], l = u.shape[2]
-    cdef se_bank_out out = bank_outputs(N, K, x_out, P_out, prob_out, mode_out, loglik_out,
-                                        flag_out, x_modes_out, P_modes_out, x_last, P_last,
-                                        log_prob_last)
+    (:func:`switchest.engine.gpb._gpb2`; the shapes are in engine/c/gpb.h), the outputs and the
+    report after the inputs (``outputs``, in the order of ``_common.bank_arguments``): writes
+    them in place, returns the status (``MemoryError`` for ``SE_NO_MEMORY``)."""
+    cdef bank_call c = bank_arguments(lanes, y, u, x_init, outputs)
     cdef se_int status
     with nogil:
         status = se_gpb2_bank(
-            n, m, l, L, N, K, trans.shape[0], trans.shape[1], fptr(y), fptr(u), fptr(F),
-            fptr(G), fptr(Qd), iptr(trans), fptr(C), fptr(R), fptr(log_transition),
+            c.n, c.m, c.l, c.L, c.N, c.K, trans.shape[0], trans.shape[1], fptr(y), fptr(u),
+            fptr(F), fptr(G), fptr(Qd), iptr(trans), fptr(C), fptr(R), fptr(log_transition),
             fptr(x_init), fptr(P_init), fptr(log_prob_init), sample_timing, predict_first,
-            gate, lanes, &out, fptr(report))
+            gate, lanes, &c.out, c.report)
     no_memory(status, "gpb2_bank")
     return status

@@ -3,8 +3,8 @@
 kernel, :func:`filter_bank`, behind :func:`switchest.engine.imm.imm_run`,
 :func:`switchest.engine.imm.imm_step` and :class:`switchest.engine.imm.Bank`."""
 cimport numpy as cnp
-from ._common cimport (fptr, iptr, se_int, se_bank_out, bank_outputs, no_memory,
-                      start_binding)
+from ._common cimport (fptr, iptr, se_int, se_bank_out, bank_call, bank_arguments,
+                      no_memory, start_binding)
 start_binding()
 
 cdef extern from "bank.h":
@@ -24,28 +24,19 @@ def filter_bank(cnp.ndarray y, cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cnp.
                 cnp.ndarray trans, cnp.ndarray C, cnp.ndarray R, cnp.ndarray out_index,
                 cnp.ndarray transition, cnp.ndarray log_transition, cnp.ndarray x_init,
                 cnp.ndarray P_init, cnp.ndarray log_prob_init, se_int interaction,
-                bint sample_timing, bint predict_first, double gate, se_int lanes,
-                cnp.ndarray x_out, cnp.ndarray P_out, cnp.ndarray prob_out,
-                cnp.ndarray mode_out, cnp.ndarray loglik_out, cnp.ndarray flag_out,
-                cnp.ndarray x_modes_out, cnp.ndarray P_modes_out, cnp.ndarray x_last,
-                cnp.ndarray P_last, cnp.ndarray log_prob_last, cnp.ndarray report):
+                bint sample_timing, bint predict_first, double gate, se_int lanes, *outputs):
     """Run ``se_filter_bank`` on arrays checked and shaped by the caller
-    (:func:`switchest.engine.imm._bank`; the shapes are in engine/c/bank.h): writes the outputs
-    and ``report`` in place, returns the status (``MemoryError`` for ``SE_NO_MEMORY``)."""
-    if lanes < 1:
-        raise ValueError(f"lanes must be a positive int, got {lanes}")
-    cdef se_int N = y.shape[0], K = y.shape[1], m = y.shape[2]
-    cdef se_int L = x_init.shape[1], n = x_init.shape[2], l = u.shape[2]
-    cdef se_bank_out out = bank_outputs(N, K, x_out, P_out, prob_out, mode_out, loglik_out,
-                                        flag_out, x_modes_out, P_modes_out, x_last, P_last,
-                                        log_prob_last)
+    (:func:`switchest.engine.imm._bank`; the shapes are in engine/c/bank.h), the outputs and
+    the report after the inputs (``outputs``, in the order of ``_common.bank_arguments``):
+    writes them in place, returns the status (``MemoryError`` for ``SE_NO_MEMORY``)."""
+    cdef bank_call c = bank_arguments(lanes, y, u, x_init, outputs)
     cdef se_int status
     with nogil:
         status = se_filter_bank(
-            n, m, l, L, N, K, trans.shape[0], trans.shape[1], out_index.shape[0],
+            c.n, c.m, c.l, c.L, c.N, c.K, trans.shape[0], trans.shape[1], out_index.shape[0],
             out_index.shape[1], transition.shape[0], fptr(y), fptr(u), fptr(F), fptr(G),
             fptr(Qd), iptr(trans), fptr(C), fptr(R), iptr(out_index), fptr(transition),
             fptr(log_transition), fptr(x_init), fptr(P_init), fptr(log_prob_init), interaction,
-            sample_timing, predict_first, gate, lanes, &out, fptr(report))
+            sample_timing, predict_first, gate, lanes, &c.out, c.report)
     no_memory(status, "filter_bank")
     return status

@@ -37,17 +37,11 @@ typedef struct {
     se_int n, m, l, L, g, B, W;
 } dims;
 
-/* the workspaces: pred of hypothesis (xs, Ps, Fl, Gl, Ql, FP, xv), inn of se_innovation
- * (e, PCt, chol, scale, z, nis, loglik, work, bad) and fix, se_update's (linalg.h); all W
- * lanes wide */
+/* the workspaces: pred of hypothesis (xs, Ps, Fl, Gl, Ql, FP, xv), inn of se_innovation and
+ * fix of se_update (se_innovation_ws, se_update_ws: linalg.h); all W lanes wide */
 typedef struct {
     double *xs, *Ps, *Fl, *Gl, *Ql, *FP, *xv;
 } pred_ws;
-
-typedef struct {
-    double *e, *PCt, *chol, *scale, *z, *nis, *loglik, *work;
-    uint8_t *bad;
-} inn_ws;
 
 /* v[a, q nb + b] = v[a, b] for every lane below width: each trial's row, in lanes
  * 0 .. nb - 1, repeated for every hypothesis. v (rows, W) */
@@ -122,7 +116,7 @@ static se_int hypothesis(const dims *s, const double *x, const double *P, const 
                          const se_int *entry, const double *u, double epsilon, const double *y,
                          const double *C, const double *R, const double *obs,
                          const double *n_obs, se_int nb, se_int width, const pred_ws *pred,
-                         const inn_ws *inn, double *report)
+                         const se_innovation_ws *inn, double *report)
 {
     const se_int n = s->n, l = s->l, W = s->W;
     gather_states(n, s->B, W, x, P, source, nb, width, pred->xs, pred->Ps);
@@ -132,9 +126,7 @@ static se_int hypothesis(const dims *s, const double *x, const double *P, const 
     se_predict(n, l, W, pred->xs, pred->Ps, pred->Fl, pred->Gl, u, pred->Ql, width, pred->FP,
                pred->xv);
     inflate(n, W, pred->Ps, epsilon, width);
-    return se_innovation(n, s->m, W, pred->xs, pred->Ps, y, C, R, obs, n_obs, width, inn->e,
-                         inn->PCt, inn->chol, inn->scale, inn->z, inn->nis, inn->loglik,
-                         inn->work, inn->bad, report);
+    return se_innovate(n, s->m, W, pred->xs, pred->Ps, y, C, R, obs, n_obs, width, inn, report);
 }
 
 /* J of every hypothesis, one per lane (width lanes); use where it accepts the measurement.
@@ -160,7 +152,7 @@ static se_int likelihoods(const dims *s, const double *x, const double *P, se_in
                           const double *S0, const double *C, const double *R,
                           const se_int *source, const se_int *entry, double epsilon,
                           double gate, int printed, double *zero, double *yh,
-                          const pred_ws *pred, const inn_ws *inn, double *report,
+                          const pred_ws *pred, const se_innovation_ws *inn, double *report,
                           double *restrict J, uint8_t *restrict use)
 {
     const se_int n = s->n, m = s->m, W = s->W;
@@ -169,9 +161,7 @@ static se_int likelihoods(const dims *s, const double *x, const double *P, se_in
     se_int status;
     gather_states(n, s->B, W, x, P, source, nb, width, xw, Pw);
     se_residual(s->l, m, W, u, y, Gy, width, yh); /* y less the response to the input, (C G) u */
-    int full = se_innovation(n, m, W, xw, Pw, yh, H, S0, obs, n_obs, width, inn->e, inn->PCt,
-                             inn->chol, inn->scale, inn->z, inn->nis, inn->loglik, inn->work,
-                             inn->bad, NULL) != SE_OK;
+    int full = se_innovate(n, m, W, xw, Pw, yh, H, S0, obs, n_obs, width, inn, NULL) != SE_OK;
     if (full) { /* the predictions themselves, repaired where needed */
         status = hypothesis(s, x, P, source, F, G, Qd, entry, u, epsilon, y, C, R, obs, n_obs,
                             nb, width, pred, inn, report);
@@ -185,13 +175,9 @@ static se_int likelihoods(const dims *s, const double *x, const double *P, se_in
     if (!printed)
         return SE_OK;
     if (full)
-        status = se_innovation(n, m, W, xw, zero, y, C, R, obs, n_obs, width, inn->e, inn->PCt,
-                               inn->chol, inn->scale, inn->z, inn->nis, inn->loglik, inn->work,
-                               inn->bad, NULL);
+        status = se_innovate(n, m, W, xw, zero, y, C, R, obs, n_obs, width, inn, NULL);
     else
-        status = se_innovation(n, m, W, xw, zero, yh, H, R, obs, n_obs, width, inn->e, inn->PCt,
-                               inn->chol, inn->scale, inn->z, inn->nis, inn->loglik, inn->work,
-                               inn->bad, NULL);
+        status = se_innovate(n, m, W, xw, zero, yh, H, R, obs, n_obs, width, inn, NULL);
     if (status != SE_OK)
         return status;
     for (se_int b = 0; b < width; b++) /* N(y; C x-, R): -inf where its quadratic form overflows */
@@ -351,9 +337,10 @@ static se_int predict_chosen(const dims *s, const double *x, const double *P, se
                              const double *R, const double *obs, const double *n_obs,
                              int marginal, se_int nb, se_int *restrict source,
                              se_int *restrict entry, uint8_t *restrict use_lanes,
-                             double *restrict w_lanes, const pred_ws *pred, const inn_ws *inn,
-                             const se_update_ws *fix, double *report, double *restrict xg,
-                             double *restrict Pg, double *restrict x_new, double *restrict P_new)
+                             double *restrict w_lanes, const pred_ws *pred,
+                             const se_innovation_ws *inn, const se_update_ws *fix,
+                             double *report, double *restrict xg, double *restrict Pg,
+                             double *restrict x_new, double *restrict P_new)
 {
     const se_int n = s->n, m = s->m, L = s->L, g = s->g, B = s->B, W = s->W;
     const se_int per = marginal ? g : 1;
@@ -406,7 +393,7 @@ static se_int update_only(const dims *s, double *x, double *P, const double *res
                           const double *y, const double *Cl, const double *Rl,
                           const double *obs, const double *n_obs, double gate, se_int nb,
                           uint8_t *use, double *restrict a, uint8_t *restrict outlier,
-                          const inn_ws *inn, const se_update_ws *fix, double *report)
+                          const se_innovation_ws *inn, const se_update_ws *fix, double *report)
 {
     const se_int n = s->n, m = s->m, L = s->L, B = s->B;
     const double *nis = inn->nis, *loglik = inn->loglik;
@@ -414,9 +401,7 @@ static se_int update_only(const dims *s, double *x, double *P, const double *res
         double *xj = x + j * n * B, *Pj = P + j * n * n * B;
         const double *Cj = Cl + j * m * n * B, *Rj = Rl + j * m * m * B;
         uint8_t *uj = use + j * B;
-        se_int status = se_innovation(n, m, B, xj, Pj, y, Cj, Rj, obs, n_obs, nb, inn->e,
-                                      inn->PCt, inn->chol, inn->scale, inn->z, inn->nis,
-                                      inn->loglik, inn->work, inn->bad, report);
+        se_int status = se_innovate(n, m, B, xj, Pj, y, Cj, Rj, obs, n_obs, nb, inn, report);
         if (status != SE_OK)
             return status;
         for (se_int b = 0; b < nb; b++) {
@@ -447,7 +432,7 @@ typedef struct {
     se_int *hypotheses, *chosen, *best_k, *source, *entry, *source2, *entry2;
     uint8_t *outlier, *use, *update_use, *use_lanes;
     pred_ws pred;
-    inn_ws inn;
+    se_innovation_ws inn;
     se_update_ws fix;
 } scratch;
 
@@ -495,14 +480,7 @@ static void layout(const dims *s, se_int n_hyp, se_arena *ar, scratch *t)
     t->pred.Ql = se_carve(ar, n * n * W, D);
     t->pred.FP = se_carve(ar, n * n * W, D);
     t->pred.xv = se_carve(ar, n * W, D);
-    t->inn.e = se_carve(ar, m * W, D);
-    t->inn.PCt = se_carve(ar, n * m * W, D);
-    t->inn.chol = se_carve(ar, m * m * W, D);
-    t->inn.scale = se_carve(ar, m * W, D);
-    t->inn.z = se_carve(ar, m * W, D);
-    t->inn.nis = se_carve(ar, W, D);
-    t->inn.loglik = se_carve(ar, W, D);
-    t->inn.work = se_carve(ar, 3 * W, D);
+    se_carve_innovation(ar, n, m, W, &t->inn);
     se_carve_update(ar, n, m, W, &t->fix);
     t->hypotheses = se_carve(ar, (size_t)n_hyp * 3, I);
     t->chosen = se_carve(ar, L * B, I);
@@ -515,7 +493,6 @@ static void layout(const dims *s, se_int n_hyp, se_arena *ar, scratch *t)
     t->use = se_carve(ar, L * L * g * B, U);
     t->update_use = se_carve(ar, L * B, U);
     t->use_lanes = se_carve(ar, W, U);
-    t->inn.bad = se_carve(ar, W, U);
 }
 
 /* Filter N trials over K samples with the IMM-EV1 of Shankar et al., Algorithm 1.

@@ -142,6 +142,21 @@ void se_observe(se_int m, se_int B, const double *restrict y, se_int nb, double 
         }
 }
 
+/* o[b] = sum_k X_k[b] Y_k[b] per lane, k = 0 .. q-1, X_k = X + k sx and Y_k = Y + k sy being
+ * lane rows (.., B) (strides in doubles): one entry of a product of lane matrices (F P, P C',
+ * K R, a mixture's mean), from 0, its terms added in the order of k. */
+static inline void se_lane_dot(se_int q, const double *restrict X, se_int sx,
+                               const double *restrict Y, se_int sy, se_int nb, double *restrict o)
+{
+    for (se_int b = 0; b < nb; b++)
+        o[b] = 0.0;
+    for (se_int k = 0; k < q; k++) {
+        const double *Xk = X + k * sx, *Yk = Y + k * sy;
+        for (se_int b = 0; b < nb; b++)
+            o[b] += Xk[b] * Yk[b];
+    }
+}
+
 /* ---- time update --------------------------------------------------------------------------- */
 
 /* Mean time update x <- F x + G u (Shankar et al. eq. (6)); xs (n, B) is scratch. */
@@ -179,17 +194,9 @@ void se_predict(se_int n, se_int l, se_int B, double *restrict x, double *restri
                 const double *restrict Qd, se_int nb, double *restrict FP, double *restrict xs)
 {
     se_predict_mean(n, l, B, x, F, G, u, nb, xs);
-    for (se_int i = 0; i < n; i++)
-        for (se_int j = 0; j < n; j++) {
-            double *o = FP + (i * n + j) * B;
-            for (se_int b = 0; b < nb; b++)
-                o[b] = 0.0;
-            for (se_int k = 0; k < n; k++) {
-                const double *Fik = F + (i * n + k) * B, *Pkj = P + (k * n + j) * B;
-                for (se_int b = 0; b < nb; b++)
-                    o[b] += Fik[b] * Pkj[b];
-            }
-        }
+    for (se_int i = 0; i < n; i++) /* FP = F P */
+        for (se_int j = 0; j < n; j++)
+            se_lane_dot(n, F + i * n * B, B, P + j * B, n * B, nb, FP + (i * n + j) * B);
     se_symmetric_sum(n, n, B, Qd, FP, F, nb, P);
 }
 
@@ -328,13 +335,7 @@ static void se_whiten(se_int m, se_int B, const double *restrict e, const double
  * Returns SE_OK; SE_NOT_FINITE if a lane's S has a non-finite diagonal; else
  * SE_NOT_POSITIVE_DEFINITE if a lane's factorization failed (with report: again, or where its
  * P needed no repair), bad (B,) then marking those lanes (the others are complete). */
-se_int se_innovation(se_int n, se_int m, se_int B, const double *restrict x, double *restrict P,
-                     const double *restrict y, const double *restrict C,
-                     const double *restrict R, const double *restrict obs,
-                     const double *restrict n_obs, se_int nb, double *restrict e,
-                     double *restrict PCt, double *restrict chol, double *restrict scale,
-                     double *restrict z, double *restrict nis, double *restrict loglik,
-                     double *restrict work, uint8_t *restrict bad, double *restrict report)
+se_int se_innovation(SE_INNOVATION_PARAMETERS)
 {
     double *log_det = work, *det = work + B, *pivot = work + 2 * B;
     int repaired = 0;
@@ -344,13 +345,7 @@ se_int se_innovation(se_int n, se_int m, se_int B, const double *restrict x, dou
             const double *oa = obs + a * B;
             for (se_int i = 0; i < n; i++) {
                 double *o = PCt + (i * m + a) * B;
-                for (se_int b = 0; b < nb; b++)
-                    o[b] = 0.0;
-                for (se_int j = 0; j < n; j++) {
-                    const double *Pij = P + (i * n + j) * B, *Caj = C + (a * n + j) * B;
-                    for (se_int b = 0; b < nb; b++)
-                        o[b] += Pij[b] * Caj[b];
-                }
+                se_lane_dot(n, P + i * n * B, B, C + a * n * B, B, nb, o);
                 for (se_int b = 0; b < nb; b++)
                     o[b] *= oa[b];
             }
@@ -570,13 +565,7 @@ void se_correct(se_int n, se_int m, se_int B, double *restrict x, double *restri
     for (se_int i = 0; i < n; i++) /* T = K R - A P C' */
         for (se_int c = 0; c < m; c++) {
             double *o = T + (i * m + c) * B;
-            for (se_int b = 0; b < nb; b++)
-                o[b] = 0.0;
-            for (se_int a = 0; a < m; a++) {
-                const double *Kia = K + (i * m + a) * B, *Rac = R + (a * m + c) * B;
-                for (se_int b = 0; b < nb; b++)
-                    o[b] += Kia[b] * Rac[b];
-            }
+            se_lane_dot(m, K + i * m * B, B, R + c * B, m * B, nb, o);
             for (se_int j = 0; j < n; j++) {
                 const double *APij = AP + (i * n + j) * B, *Ccj = C + (c * n + j) * B;
                 for (se_int b = 0; b < nb; b++)
@@ -1076,16 +1065,8 @@ void se_merge(se_int n, se_int L, se_int B, const double *restrict w, const doub
 void se_moments(se_int n, se_int L, se_int B, const double *restrict w, const double *restrict x,
                 const double *restrict P, se_int nb, double *restrict xm, double *restrict Pm)
 {
-    for (se_int r = 0; r < n; r++) {
-        double *o = xm + r * B;
-        for (se_int b = 0; b < nb; b++)
-            o[b] = 0.0;
-        for (se_int i = 0; i < L; i++) {
-            const double *wi = w + i * B, *xir = x + (i * n + r) * B;
-            for (se_int b = 0; b < nb; b++)
-                o[b] += wi[b] * xir[b];
-        }
-    }
+    for (se_int r = 0; r < n; r++)
+        se_lane_dot(L, w, B, x + r * B, n * B, nb, xm + r * B);
     for (se_int r = 0; r < n; r++)
         for (se_int c = r; c < n; c++) {
             double *o = Pm + (r * n + c) * B;

@@ -179,13 +179,49 @@ void se_residual(se_int n, se_int m, se_int B, const double *restrict x,
  * written: e (m, B), PCt (n, m, B), chol (m, m, B), scale (m, B), z (m, B), nis (B,),
  * loglik (B,), work (3, B) scratch, bad (B,) uint8; report (2,) or NULL (NULL: no
  * repair). Returns SE_OK, SE_NOT_FINITE or SE_NOT_POSITIVE_DEFINITE (bad marks the lanes). */
-se_int se_innovation(se_int n, se_int m, se_int B, const double *restrict x, double *restrict P,
-                     const double *restrict y, const double *restrict C,
-                     const double *restrict R, const double *restrict obs,
-                     const double *restrict n_obs, se_int nb, double *restrict e,
-                     double *restrict PCt, double *restrict chol, double *restrict scale,
-                     double *restrict z, double *restrict nis, double *restrict loglik,
-                     double *restrict work, uint8_t *restrict bad, double *restrict report);
+/* the parameter list, written once for the prototype and the definition (linalg.c) */
+#define SE_INNOVATION_PARAMETERS                                                                  \
+    se_int n, se_int m, se_int B, const double *restrict x, double *restrict P,                   \
+    const double *restrict y, const double *restrict C, const double *restrict R,                 \
+    const double *restrict obs, const double *restrict n_obs, se_int nb, double *restrict e,      \
+    double *restrict PCt, double *restrict chol, double *restrict scale, double *restrict z,      \
+    double *restrict nis, double *restrict loglik, double *restrict work, uint8_t *restrict bad,  \
+    double *restrict report
+se_int se_innovation(SE_INNOVATION_PARAMETERS);
+
+/* The workspace of se_innovation (W lanes wide for W-lane calls): e, scale, z (m, B),
+ * PCt (n, m, B), chol (m, m, B), nis, loglik (B,), work (3, B), bad (B,) (zeroed, as the
+ * arena is) */
+typedef struct {
+    double *e, *PCt, *chol, *scale, *z, *nis, *loglik, *work;
+    uint8_t *bad;
+} se_innovation_ws;
+
+static inline void se_carve_innovation(se_arena *arena, se_int n, se_int m, se_int B,
+                                       se_innovation_ws *ws)
+{
+    ws->e = se_doubles(arena, m * B);
+    ws->PCt = se_doubles(arena, n * m * B);
+    ws->chol = se_doubles(arena, m * m * B);
+    ws->scale = se_doubles(arena, m * B);
+    ws->z = se_doubles(arena, m * B);
+    ws->nis = se_doubles(arena, B);
+    ws->loglik = se_doubles(arena, B);
+    ws->work = se_doubles(arena, 3 * B);
+    ws->bad = se_flags(arena, B);
+}
+
+/* se_innovation (Shankar et al. eq. (8)) with its workspace ws, whose nis and loglik get the
+ * lanes' results */
+static inline se_int se_innovate(se_int n, se_int m, se_int B, const double *restrict x,
+                                 double *restrict P, const double *restrict y,
+                                 const double *restrict C, const double *restrict R,
+                                 const double *restrict obs, const double *restrict n_obs,
+                                 se_int nb, const se_innovation_ws *ws, double *restrict report)
+{
+    return se_innovation(n, m, B, x, P, y, C, R, obs, n_obs, nb, ws->e, ws->PCt, ws->chol,
+                         ws->scale, ws->z, ws->nis, ws->loglik, ws->work, ws->bad, report);
+}
 
 /* Equilibrated Cholesky factorization in place of each lane's S in the lower triangle of
  * chol (m, m, B); scale (m, B), det (B,) written, pivot (B,) scratch. Returns whether every

@@ -211,61 +211,87 @@ static void fill_index(se_int value, se_int nb, se_int *restrict out)
         out[b] = value;
 }
 
-/* The scratch arrays of the kernel, in two groups (the lanes' matrices, mats_t, and the
- * measurement update's workspace, work_t), every lane array with the lane stride Np. */
+/* The scratch arrays of the kernel, in two groups (the lanes' matrices, mats_t, with the
+ * entries idx they are gathered from, and the measurement update's workspace, work_t), every
+ * lane array with the lane stride Np. */
 typedef struct {
     double *Fl, *Gl, *Ql, *Cl, *Rl, *AP, *xs; /* (n,n,B) (n,l,B) (n,n,B) (m,n,B) (m,m,B) (n,n,B) (n,B) */
+    se_int *idx;                              /* (B,) */
 } mats_t;
 
 typedef struct {
-    double *e, *PCt, *chol, *scale, *z, *nis, *inn; /* (m,B) (n,m,B) (m,m,B) (m,B) (m,B) (B,) (3,B) */
-    uint8_t *bad;                                     /* (B,), zeroed */
-    se_update_ws upd;                                 /* se_update's (linalg.h) */
+    se_innovation_ws inn; /* se_innovation's (linalg.h); bad zeroed */
+    se_update_ws upd;     /* se_update's (linalg.h) */
 } work_t;
 
-/* The Kalman measurement update of every lane, with its predictive log-likelihood.
+/* What a proposal reads at sample k of a trial: the sizes (B = Np lanes, nb of them in use),
+ * the sample in every lane, yl (m, B), ul (l, B), obs (m, B), n_obs (B,), the tables F, G, Qd,
+ * C, R and the row trans_row = trans[k] (L,), the mode chain's transition, log_transition
+ * (L, L) and prob0, log_prob0 (L,), the trial's key and the sample's index k in its record
+ * (for the uniforms), whether the sample is predicted into, and the timing. */
+typedef struct {
+    se_int n, m, l, L, B, nb;
+    const double *yl, *ul, *obs, *n_obs;
+    const double *F, *G, *Qd, *C, *R;
+    const se_int *trans_row;
+    const double *transition, *log_transition, *prob0, *log_prob0;
+    uint64_t key;
+    se_int k;
+    int predicting, sample_timing;
+} sample_t;
+
+/* The Kalman measurement update of every lane p with the output matrices of entry index[p] of
+ * C, R, with its predictive log-likelihood.
  *
  * loglik = log N(y; C x, C P C' + R) over the observed components (0 with none), by
  * se_innovation (Shankar et al. eq. (8)); the lanes whose likelihood is finite (use) are
  * corrected in Joseph form (se_correct, Shankar et al. eqs (9)-(10)), in information form where
- * that loses its digits, as the bank of filters does (bank.c). work holds the scratch arrays.
- * Returns the status of the innovation.
- * x (n, B), P (n, n, B), yl (m, B), Cl (m, n, B), Rl (m, m, B), obs (m, B), n_obs (B,);
- * written loglik (B,), use (B,). */
-static se_int filter_lanes(se_int n, se_int m, se_int B, double *restrict x,
-                           double *restrict P, const double *restrict yl,
-                           const double *restrict Cl, const double *restrict Rl,
-                           const double *restrict obs, const double *restrict n_obs, se_int nb,
-                           double *restrict loglik, uint8_t *restrict use,
+ * that loses its digits, as the bank of filters does (bank.c). mats and work hold the scratch
+ * arrays. Returns the status of the innovation.
+ * x (n, B), P (n, n, B), index (B,); written loglik (B,) (work's own, or a candidate's row),
+ * use (B,). */
+static se_int filter_lanes(const sample_t *restrict s, double *restrict x, double *restrict P,
+                           const se_int *restrict index, double *restrict loglik,
+                           uint8_t *restrict use, const mats_t *restrict mats,
                            const work_t *restrict work, double *restrict report)
 {
-    se_int status = se_innovation(n, m, B, x, P, yl, Cl, Rl, obs, n_obs, nb, work->e, work->PCt,
-                                  work->chol, work->scale, work->z, work->nis, loglik,
-                                  work->inn, work->bad, report);
+    const se_int n = s->n, m = s->m, B = s->B, nb = s->nb;
+    const se_innovation_ws *inn = &work->inn;
+    se_gather_matrices(m, n, B, s->C, index, nb, mats->Cl);
+    se_gather_matrices(m, m, B, s->R, index, nb, mats->Rl);
+    se_int status = se_innovation(n, m, B, x, P, s->yl, mats->Cl, mats->Rl, s->obs, s->n_obs, nb,
+                                  inn->e, inn->PCt, inn->chol, inn->scale, inn->z, inn->nis,
+                                  loglik, inn->work, inn->bad, report);
     if (status != SE_OK)
         return status;
     for (se_int b = 0; b < nb; b++)
         use[b] = isfinite(loglik[b]) ? 1 : 0;
-    se_update(n, m, B, x, P, Cl, Rl, obs, n_obs, use, nb, work->PCt, work->chol, work->scale,
-              work->z, &work->upd, report);
+    se_update(n, m, B, x, P, mats->Cl, mats->Rl, s->obs, s->n_obs, use, nb, inn->PCt, inn->chol,
+              inn->scale, inn->z, &work->upd, report);
     return SE_OK;
 }
 
-/* Kalman prediction of every lane p through the transition trans_row[mode[p]] of its mode
- * (Shankar et al. eqs (6)-(7), se_predict). x (n, B), P (n, n, B), mode (B,), ul (l, B),
- * F (M, n, n), G (M, n, l), Qd (M, n, n), trans_row (L,); idx (B,) and mats scratch. */
-static void predict_lanes(se_int n, se_int l, se_int B, double *restrict x, double *restrict P,
-                          const se_int *restrict mode, const double *restrict ul,
-                          const double *restrict F, const double *restrict G,
-                          const double *restrict Qd, const se_int *restrict trans_row,
-                          se_int nb, se_int *restrict idx, const mats_t *restrict mats)
+/* Kalman prediction of every lane p through the entry mats->idx[p] of the table F, G, Qd
+ * (Shankar et al. eqs (6)-(7), se_predict), with the input ul. x (n, B), P (n, n, B); mats'
+ * matrices scratch. */
+static void predict_entries(const sample_t *restrict s, double *restrict x, double *restrict P,
+                            const mats_t *restrict mats)
 {
-    for (se_int p = 0; p < nb; p++)
-        idx[p] = trans_row[mode[p]];
-    se_gather_matrices(n, n, B, F, idx, nb, mats->Fl);
-    se_gather_matrices(n, l, B, G, idx, nb, mats->Gl);
-    se_gather_matrices(n, n, B, Qd, idx, nb, mats->Ql);
-    se_predict(n, l, B, x, P, mats->Fl, mats->Gl, ul, mats->Ql, nb, mats->AP, mats->xs);
+    const se_int n = s->n, l = s->l, B = s->B, nb = s->nb;
+    se_gather_matrices(n, n, B, s->F, mats->idx, nb, mats->Fl);
+    se_gather_matrices(n, l, B, s->G, mats->idx, nb, mats->Gl);
+    se_gather_matrices(n, n, B, s->Qd, mats->idx, nb, mats->Ql);
+    se_predict(n, l, B, x, P, mats->Fl, mats->Gl, s->ul, mats->Ql, nb, mats->AP, mats->xs);
+}
+
+/* Kalman prediction of every lane p through the transition trans_row[mode[p]] of its mode
+ * (predict_entries). mode (B,). */
+static void predict_lanes(const sample_t *restrict s, double *restrict x, double *restrict P,
+                          const se_int *restrict mode, const mats_t *restrict mats)
+{
+    for (se_int p = 0; p < s->nb; p++)
+        mats->idx[p] = s->trans_row[mode[p]];
+    predict_entries(s, x, P, mats);
 }
 
 /* Sample each particle's mode from its prior and update its filter; inc gets the incremental
@@ -278,32 +304,24 @@ static void predict_lanes(se_int n, se_int l, se_int B, double *restrict x, doub
  * distribution; Doucet, de Freitas, Murphy & Russell 2000, §3). In either timing the weight is
  * the likelihood of y_k given the particle's history up to r_k, the target-to-proposal ratio
  * when the proposal is the prior.
- * ll, use: (1, B), the one row of the particles' own modes; inc (B,). */
-static se_int prior_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
-                             double *restrict x, double *restrict P, se_int *restrict mode,
-                             const double *restrict yl, const double *restrict ul,
-                             const double *restrict obs, const double *restrict n_obs,
-                             const double *restrict F, const double *restrict G,
-                             const double *restrict Qd, const se_int *restrict trans_row,
-                             const double *restrict C, const double *restrict R,
-                             const double *restrict transition, const double *restrict prob0,
-                             uint64_t key, se_int k, int predicting, int sample_timing,
-                             se_int nb, se_int *restrict idx, const mats_t *restrict mats,
-                             double *restrict ll, uint8_t *restrict use, double *restrict inc,
+ * x (n, B), P (n, n, B), mode (B,); written use (B,), the particles' likelihoods in
+ * work->inn.loglik, inc (B,). */
+static se_int prior_proposal(const sample_t *restrict s, double *restrict x, double *restrict P,
+                             se_int *restrict mode, const mats_t *restrict mats,
+                             uint8_t *restrict use, double *restrict inc,
                              const work_t *restrict work, double *restrict report)
 {
-    if (predicting && sample_timing)
-        predict_lanes(n, l, B, x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats);
+    const se_int L = s->L, nb = s->nb;
+    double *ll = work->inn.loglik;
+    if (s->predicting && s->sample_timing)
+        predict_lanes(s, x, P, mode, mats);
     for (se_int p = 0; p < nb; p++) {
-        const double *row = predicting ? transition + mode[p] * L : prob0;
-        mode[p] = pick(L, row, uniform(key, k, p));
+        const double *row = s->predicting ? s->transition + mode[p] * L : s->prob0;
+        mode[p] = pick(L, row, uniform(s->key, s->k, p));
     }
-    if (predicting && !sample_timing)
-        predict_lanes(n, l, B, x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats);
-    se_gather_matrices(m, n, B, C, mode, nb, mats->Cl);
-    se_gather_matrices(m, m, B, R, mode, nb, mats->Rl);
-    se_int status = filter_lanes(n, m, B, x, P, yl, mats->Cl, mats->Rl, obs, n_obs, nb, ll, use,
-                                 work, report);
+    if (s->predicting && !s->sample_timing)
+        predict_lanes(s, x, P, mode, mats);
+    se_int status = filter_lanes(s, x, P, mode, ll, use, mats, work, report);
     for (se_int p = 0; p < nb; p++)
         inc[p] = use[p] ? ll[p] : -INFINITY;
     return status;
@@ -321,47 +339,34 @@ static se_int prior_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
  * Krishnamurthy 2001, §III); prob0 replaces pi(r_{k-1}, .) at the first sample. A candidate
  * whose likelihood is not finite gets Lambda_r = 0; a particle with no candidate left
  * (inc = -inf) draws from pi(r_{k-1}, .) alone and keeps its predicted filter.
- * xc (L, n, B), Pc (L, n, n, B), ll, use, terms (L, B), pick_w (L,) (one draw's weights),
- * inc (B,). */
-static se_int optimal_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
-                               double *restrict x, double *restrict P, se_int *restrict mode,
-                               const double *restrict yl, const double *restrict ul,
-                               const double *restrict obs, const double *restrict n_obs,
-                               const double *restrict F, const double *restrict G,
-                               const double *restrict Qd, const se_int *restrict trans_row,
-                               const double *restrict C, const double *restrict R,
-                               const double *restrict log_transition,
-                               const double *restrict log_prob0, uint64_t key, se_int k,
-                               int predicting, int sample_timing, se_int nb,
-                               se_int *restrict idx, const mats_t *restrict mats,
+ * x (n, B), P (n, n, B), mode (B,); xc (L, n, B), Pc (L, n, n, B), ll, use, terms (L, B),
+ * pick_w (L,) (one draw's weights), inc (B,). */
+static se_int optimal_proposal(const sample_t *restrict s, double *restrict x, double *restrict P,
+                               se_int *restrict mode, const mats_t *restrict mats,
                                double *restrict xc, double *restrict Pc, double *restrict ll,
                                uint8_t *restrict use, double *restrict terms,
                                double *restrict pick_w, double *restrict inc,
                                const work_t *restrict work, double *restrict report)
 {
-    if (predicting && sample_timing)
-        predict_lanes(n, l, B, x, P, mode, ul, F, G, Qd, trans_row, nb, idx, mats);
+    const se_int n = s->n, L = s->L, B = s->B, nb = s->nb;
+    const double *log_transition = s->log_transition, *log_prob0 = s->log_prob0;
+    if (s->predicting && s->sample_timing)
+        predict_lanes(s, x, P, mode, mats);
     for (se_int r = 0; r < L; r++) {
         double *xr = xc + r * n * B, *Pr = Pc + r * n * n * B;
         se_copy_gaussian(n, B, x, P, nb, xr, Pr);
-        if (predicting && !sample_timing) {
-            fill_index(trans_row[r], nb, idx);
-            se_gather_matrices(n, n, B, F, idx, nb, mats->Fl);
-            se_gather_matrices(n, l, B, G, idx, nb, mats->Gl);
-            se_gather_matrices(n, n, B, Qd, idx, nb, mats->Ql);
-            se_predict(n, l, B, xr, Pr, mats->Fl, mats->Gl, ul, mats->Ql, nb, mats->AP,
-                       mats->xs);
+        if (s->predicting && !s->sample_timing) {
+            fill_index(s->trans_row[r], nb, mats->idx);
+            predict_entries(s, xr, Pr, mats);
         }
-        fill_index(r, nb, idx);
-        se_gather_matrices(m, n, B, C, idx, nb, mats->Cl);
-        se_gather_matrices(m, m, B, R, idx, nb, mats->Rl);
-        se_int status = filter_lanes(n, m, B, xr, Pr, yl, mats->Cl, mats->Rl, obs, n_obs, nb,
-                                     ll + r * B, use + r * B, work, report);
+        fill_index(r, nb, mats->idx);
+        se_int status = filter_lanes(s, xr, Pr, mats->idx, ll + r * B, use + r * B, mats, work,
+                                     report);
         if (status != SE_OK)
             return status;
     }
     for (se_int p = 0; p < nb; p++) { /* log pi(r_{k-1}, r) + log Lambda_r and their log-sum-exp */
-        const double *prev = predicting ? log_transition + mode[p] * L : log_prob0;
+        const double *prev = s->predicting ? log_transition + mode[p] * L : log_prob0;
         double top = -INFINITY;
         for (se_int r = 0; r < L; r++) {
             double t = use[r * B + p] ? prev[r] + ll[r * B + p] : -INFINITY;
@@ -374,10 +379,10 @@ static se_int optimal_proposal(se_int n, se_int m, se_int l, se_int L, se_int B,
         inc[p] = top > -INFINITY ? top + log(acc) : -INFINITY;
     }
     for (se_int p = 0; p < nb; p++) {
-        const double *prev = predicting ? log_transition + mode[p] * L : log_prob0;
+        const double *prev = s->predicting ? log_transition + mode[p] * L : log_prob0;
         for (se_int r = 0; r < L; r++) /* weights relative to the largest, or the prior's alone */
             pick_w[r] = inc[p] > -INFINITY ? exp(terms[r * B + p] - inc[p]) : exp(prev[r]);
-        se_int chosen = pick(L, pick_w, uniform(key, k, p));
+        se_int chosen = pick(L, pick_w, uniform(s->key, s->k, p));
         mode[p] = chosen;
         const double *xs = xc + chosen * n * B, *Ps = Pc + chosen * n * n * B;
         for (se_int a = 0; a < n; a++) {
@@ -503,17 +508,16 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
 {
     const se_int B = Np;
     const se_int n_cand = optimal ? L : 1;   /* filters updated per particle: candidates, or one */
-    const se_int n_copies = optimal ? L : 0; /* the candidates' filters, kept until one is drawn */
-    const se_int m3 = 3;
+    const se_int n_copies = optimal ? L : 0; /* candidates' filters and likelihoods, until a draw */
 
     double *x, *P, *x_to, *P_to, *logw, *w, *total, *yl, *ul, *obs, *n_obs, *pos, *ll, *xc, *Pc;
     double *terms, *pick_w, *inc, *prob, *xm, *Pm;
-    se_int *mode, *mode_to, *idx, *anc;
+    se_int *mode, *mode_to, *anc;
     uint8_t *use;
     mats_t mats;
     work_t work;
     se_arena ar = {NULL, 0};
-    do { /* size the arena, then carve it (zeroed: work.bad must start at 0) */
+    do { /* size the arena, then carve it (zeroed: work.inn.bad must start at 0) */
         x = se_doubles(&ar, n * B);
         P = se_doubles(&ar, n * n * B);
         x_to = se_doubles(&ar, n * B);
@@ -533,15 +537,9 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
         mats.Rl = se_doubles(&ar, m * m * B);
         mats.AP = se_doubles(&ar, n * n * B);
         mats.xs = se_doubles(&ar, n * B);
-        work.e = se_doubles(&ar, m * B);
-        work.PCt = se_doubles(&ar, n * m * B);
-        work.chol = se_doubles(&ar, m * m * B);
-        work.scale = se_doubles(&ar, m * B);
-        work.z = se_doubles(&ar, m * B);
-        work.nis = se_doubles(&ar, B);
-        work.inn = se_doubles(&ar, m3 * B);
+        se_carve_innovation(&ar, n, m, B, &work.inn);
         se_carve_update(&ar, n, m, B, &work.upd);
-        ll = se_doubles(&ar, n_cand * B);
+        ll = se_doubles(&ar, n_copies * B);
         xc = se_doubles(&ar, n_copies * n * B);
         Pc = se_doubles(&ar, n_copies * n * n * B);
         terms = se_doubles(&ar, n_cand * B);
@@ -552,9 +550,8 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
         Pm = se_doubles(&ar, n * n);
         mode = se_ints(&ar, B);
         mode_to = se_ints(&ar, B);
-        idx = se_ints(&ar, B);
+        mats.idx = se_ints(&ar, B);
         anc = se_ints(&ar, B);
-        work.bad = se_flags(&ar, B);
         use = se_flags(&ar, n_cand * B);
     } while (se_arena_open(&ar));
     if (ar.base == NULL)
@@ -563,6 +560,8 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
     se_int status = SE_OK;
     se_report_start(report);
     const double uniform_log_weight = -log((double)Np);
+    sample_t sp = {n, m, l, L, B, Np, yl, ul, obs, n_obs, F, G, Qd, C, R, NULL, transition,
+                   log_transition, prob0, log_prob0, 0, 0, 0, sample_timing};
     for (se_int i = 0; i < N; i++) {
         se_int s = S > 1 ? i : 0;
         for (se_int p = 0; p < Np; p++) {
@@ -576,22 +575,19 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
             }
         }
         for (se_int k = 0; k < K; k++) {
-            const int predicting = k > 0 || predict_first;
             const se_int ik = i * K + k;
             fill_lanes(m, B, y + ik * m, Np, yl);
             se_observe(m, B, yl, Np, obs, n_obs);
             fill_lanes(l, B, u + (i * K + (k > 0 ? k - 1 : 0)) * l, Np, ul);
+            sp.trans_row = trans + k * L;
+            sp.key = keys[i];
+            sp.k = k0 + k;
+            sp.predicting = k > 0 || predict_first;
             if (optimal)
-                status = optimal_proposal(n, m, l, L, B, x, P, mode, yl, ul, obs, n_obs, F, G, Qd,
-                                          trans + k * L, C, R, log_transition, log_prob0,
-                                          keys[i], k0 + k, predicting, sample_timing, Np, idx,
-                                          &mats, xc, Pc, ll, use, terms, pick_w, inc, &work,
-                                          report);
+                status = optimal_proposal(&sp, x, P, mode, &mats, xc, Pc, ll, use, terms, pick_w,
+                                          inc, &work, report);
             else
-                status = prior_proposal(n, m, l, L, B, x, P, mode, yl, ul, obs, n_obs, F, G, Qd,
-                                        trans + k * L, C, R, transition, prob0, keys[i], k0 + k,
-                                        predicting, sample_timing, Np, idx, &mats, ll, use, inc,
-                                        &work, report);
+                status = prior_proposal(&sp, x, P, mode, &mats, use, inc, &work, report);
             if (status != SE_OK)
                 goto done;
             /* without particles (Np = 0) nothing counts as seen, and n_obs is not read */

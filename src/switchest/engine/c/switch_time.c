@@ -68,9 +68,8 @@ typedef struct {
     double gate;
     se_int iterations;
     double tolerance;
-    /* ws: the workspace of se_innovation */
-    double *e, *PCt, *chol, *scale, *z, *nis, *loglik, *work;
-    uint8_t *bad;
+    /* ws: se_innovation's (e, PCt, chol, scale, z, nis, loglik, work, bad; linalg.h) */
+    se_innovation_ws ws;
     /* cs: se_update's (gain, T, AP, prior, root, lost; linalg.h) */
     se_update_ws cs;
     double *xs;
@@ -239,7 +238,7 @@ static se_int likelihood(const Work *w, const double *restrict x, double *restri
     const se_int n = w->n, m = w->m, l = w->l, B = w->B;
     const double gate = w->gate;
     double *restrict ye = w->ye, *restrict Re = w->Re;
-    const double *nis = w->nis, *loglik = w->loglik; /* written by se_innovation */
+    const double *nis = w->ws.nis, *loglik = w->ws.loglik; /* written by se_innovation */
     se_int status;
     se_residual(l, m, B, u, y, Go, nb, ye); /* y - Go u */
     for (se_int a = 0; a < m; a++)
@@ -247,8 +246,7 @@ static se_int likelihood(const Work *w, const double *restrict x, double *restri
             for (se_int b = 0; b < nb; b++)
                 Re[(a * m + c) * B + b] = R[(a * m + c) * B + b] + Qo[(a * m + c) * B + b];
     if (!w->printed || gate < INFINITY) {
-        status = se_innovation(n, m, B, x, P, ye, E, Re, obs, n_obs, nb, w->e, w->PCt, w->chol,
-                               w->scale, w->z, w->nis, w->loglik, w->work, w->bad, report);
+        status = se_innovate(n, m, B, x, P, ye, E, Re, obs, n_obs, nb, &w->ws, report);
         if (status != SE_OK)
             return status;
         for (se_int b = 0; b < nb; b++)
@@ -256,8 +254,7 @@ static se_int likelihood(const Work *w, const double *restrict x, double *restri
         if (!w->printed)
             return SE_OK;
     }
-    status = se_innovation(n, m, B, x, w->zero, ye, E, R, obs, n_obs, nb, w->e, w->PCt, w->chol,
-                           w->scale, w->z, w->nis, w->loglik, w->work, w->bad, report);
+    status = se_innovate(n, m, B, x, w->zero, ye, E, R, obs, n_obs, nb, &w->ws, report);
     if (status != SE_OK)
         return status;
     for (se_int b = 0; b < nb; b++) {
@@ -714,15 +711,14 @@ static se_int update(const Work *w, double *restrict x, double *restrict P,
                      uint8_t *restrict use, double *restrict report)
 {
     const se_int n = w->n, m = w->m, B = w->B;
-    const double *nis = w->nis, *loglik = w->loglik; /* written by se_innovation */
-    se_int status = se_innovation(n, m, B, x, P, y, C, R, obs, n_obs, nb, w->e, w->PCt, w->chol,
-                                  w->scale, w->z, w->nis, w->loglik, w->work, w->bad, report);
+    const double *nis = w->ws.nis, *loglik = w->ws.loglik; /* written by se_innovation */
+    se_int status = se_innovate(n, m, B, x, P, y, C, R, obs, n_obs, nb, &w->ws, report);
     if (status != SE_OK)
         return status;
     for (se_int b = 0; b < nb; b++)
         use[b] = se_passes_gate(loglik[b], nis[b], gate);
-    se_update(n, m, B, x, P, C, R, obs, n_obs, use, nb, w->PCt, w->chol, w->scale, w->z, &w->cs,
-              report);
+    se_update(n, m, B, x, P, C, R, obs, n_obs, use, nb, w->ws.PCt, w->ws.chol, w->ws.scale,
+              w->ws.z, &w->cs, report);
     return SE_OK;
 }
 
@@ -744,8 +740,8 @@ static se_int merge(const Work *w, double gate, se_int ns, se_int d, const se_in
     double *restrict xh = w->xh, *restrict Ph = w->Ph, *restrict llh = w->llh,
                      *restrict wh = w->wh, *restrict total = w->total;
     se_int *restrict index = w->hindex;
-    const uint8_t *use = w->huse;       /* written by update */
-    const double *loglik = w->loglik; /* written by update */
+    const uint8_t *use = w->huse;        /* written by update */
+    const double *loglik = w->ws.loglik; /* written by update */
     for (se_int r = 0; r < g; r++) {
         for (se_int c = 0; c < ns; c++)
             index[c] = w->first + pair[c] * g + r;
@@ -885,15 +881,7 @@ se_int se_switch_time_filter(SE_SWITCH_TIME_FILTER_PARAMETERS)
         mode_c = se_ints(&ar, B);
         use = se_flags(&ar, B);
         flg = se_flags(&ar, B);
-        w.e = se_doubles(&ar, m * B);
-        w.PCt = se_doubles(&ar, n * m * B);
-        w.chol = se_doubles(&ar, m * m * B);
-        w.scale = se_doubles(&ar, m * B);
-        w.z = se_doubles(&ar, m * B);
-        w.nis = se_doubles(&ar, B);
-        w.loglik = se_doubles(&ar, B);
-        w.work = se_doubles(&ar, 3 * B);
-        w.bad = se_flags(&ar, B);
+        se_carve_innovation(&ar, n, m, B, &w.ws);
         se_carve_update(&ar, n, m, B, &w.cs);
         w.xs = se_doubles(&ar, n * B);
         w.sx = se_doubles(&ar, n * B);
@@ -1005,7 +993,7 @@ se_int se_switch_time_filter(SE_SWITCH_TIME_FILTER_PARAMETERS)
             if (status != SE_OK)
                 goto done;
             for (se_int b = 0; b < nb; b++) {
-                lik[b] = use[b] ? w.loglik[b] : 0.0;
+                lik[b] = use[b] ? w.ws.loglik[b] : 0.0;
                 flg[b] = use[b] ? SE_ACCEPTED : SE_GATED;
             }
             if (ns && marginal) {
