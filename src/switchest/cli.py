@@ -442,7 +442,6 @@ def _cmd_list(args: argparse.Namespace, console: Console) -> int:
 
 
 def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
-    from .estimators import SmootherDivergenceWarning
     from .modelfile import load_model
     from .tabular import ImplausibleEstimateWarning, estimate_table
 
@@ -451,7 +450,6 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
     spec = load_model(args.model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImplausibleEstimateWarning)
-        warnings.simplefilter("always", SmootherDivergenceWarning)
         table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
                                refine=args.refine, stay=args.stay, v_max=args.v_max,
                                delta=args.delta, Delta=args.Delta,
@@ -459,10 +457,6 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
                                particles=args.particles, seed=args.seed, timing=args.timing,
                                gate=args.gate, trial=args.trial)
     errors = Console(stderr=True, soft_wrap=True, highlight=False)
-    for warning in caught:
-        if issubclass(warning.category, SmootherDivergenceWarning):
-            _say(errors, "error", f"{warning.message} No estimates were written.")
-            return 1
     for warning in caught:
         if issubclass(warning.category, ImplausibleEstimateWarning):
             _say(errors, "warning", str(warning.message))
@@ -779,7 +773,7 @@ def _parser() -> _Parser:
                        help=_applies("switch_interval", "switching interval T, modes change only "
                                                         "at t0 + kT (default: sampling.period)"))
     p_est.add_argument("--smooth", action="store_true",
-                       help=_applies("smooth", "smoothed estimates given the whole record (Kim's "
+                       help=_applies("smooth", "smoothed estimates given the whole record (two-filter "
                                                "smoother) instead of filtered ones"))
     p_est.add_argument("--particles", type=_positive, default=None,
                        help=_applies("particles", "number of particles (default 1000)"))

@@ -117,8 +117,8 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         ``rsls`` only: the switching interval ``T`` (Wang et al. Assumption 1);
         overrides ``sampling.period``.
     smooth : bool
-        ``imm``, ``gpb1``, ``gpb2``: fixed-interval smoothed estimates (Kim's smoother, given
-        the whole record) instead of filtered ones.
+        ``imm``, ``gpb1``, ``gpb2``: fixed-interval smoothed estimates (the two-filter
+        smoother, given the whole record) instead of filtered ones.
     particles, seed : int, optional
         ``rbpf`` only: the number of particles (default 1000) and the seed of its random
         numbers (default 0).

@@ -179,7 +179,7 @@ def test_smooth_runs_kims_smoother_in_the_filters_timing(timing):
     fwd = est.run_modes(y, u)
     ref = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G, fwd.Qd,
                           fwd.trans, fwd.transition, modes_out=False, timing=timing)
-    out = est.smooth(y, u)
+    out = est.smooth(y, u, method="kim")
     for name in ("x", "P", "mode_prob", "mode"):  # the same computation: equal to the last bit
         np.testing.assert_array_equal(getattr(out, name), getattr(ref, name))
 

@@ -95,4 +95,4 @@ def test_a_diverging_smoother_is_reported():
                     trials=2, rng=1)
     imm = IMMFilter(system, np.full((2, 2), 0.5), np.array([10.0, 100.0]), np.diag([25.0, 4.0]))
     with pytest.warns(SmootherDivergenceWarning, match="Kim's smoother diverged"):
-        imm.smooth(traj.y, np.array([20.0]), t)
+        imm.smooth(traj.y, np.array([20.0]), t, method="kim")

@@ -30,11 +30,13 @@ from .._checks import (
     check_timing,
     positive_scalar,
 )
+from .._linalg import mixture_moments
 from ..discretize import mode_steps, sample_mode_steps
 from ..engine import GATED, raise_for_status, warn_for_repairs
 from ..engine.imm import Bank, BankTable, IMMOutput
 from .base import Estimate, Estimator, _with_mode_model_parameters
 from .smoothing import smooth_filtered
+from .two_filter import two_filter_smooth
 
 __all__ = ["IMMState", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"]
 
@@ -103,6 +105,8 @@ class ModeMatchedRun(NamedTuple):
         ``transition[i, j]`` = P(mode j at k+1 | mode i at k).
     batch : tuple of int
         The batch shape of ``y``, ``N`` its product (to restore it in a result).
+    y : ndarray, shape (N, K, m)
+        The measurements (NaN: missing).
     """
 
     estimate: Estimate
@@ -116,6 +120,7 @@ class ModeMatchedRun(NamedTuple):
     trans: np.ndarray
     transition: np.ndarray
     batch: tuple[int, ...]
+    y: np.ndarray
 
 
 @_with_mode_model_parameters
@@ -294,7 +299,7 @@ class ModeBankFilter(Estimator):
         out = self._kernel_run(y2, u2, table, True)
         return ModeMatchedRun(self._estimate(out), out.x_modes, out.P_modes, out.mode_prob,
                               np.ascontiguousarray(u2), F.copy(), G.copy(), Qd.copy(),
-                              trans.copy(), self.transition, tuple(batch))
+                              trans.copy(), self.transition, tuple(batch), y2)
 
     def _table(self, t):
         """``F, G, Qd`` of each mode and distinct sampling step, and ``trans (K, L)``, the entry
@@ -317,30 +322,50 @@ class ModeBankFilter(Estimator):
                 self._records[key] = entry
         return entry
 
-    def smooth(self, y, u=None, t=None) -> Estimate:
+    def smooth(self, y, u=None, t=None, *, method: str = "two-filter") -> Estimate:
         """Fixed-interval smoothing of ``y (..., K, m)``: the combined smoothed ``x``, ``P``,
         the smoothed ``mode_prob`` and the most probable ``mode`` at each sample, given the
         whole record.
 
-        The filter runs forward (:meth:`run`, keeping its mode-matched posteriors); Kim's
-        backward recursion (Kim 1994, §2.2; for collapsing filters as Murphy 1998, §3-4)
-        then weighs every pair (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) by
-        ``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` and moves mode
-        ``j``'s filtered posterior by a Rauch-Tung-Striebel step through the transition into
-        ``k + 1`` of the mode that governs it in the filter's ``timing``: mode ``j``'s
-        (``"sample"``) or mode ``i``'s (``"interval"``)
-        (:func:`~switchest.estimators.smoothing.smooth_mode_matched`). The last
-        sample's smoothed estimate is the filtered one. Like the filter it approximates, the
-        smoother is not exact; :class:`~switchest.estimators.ExactMixtureFilter` is, for short
-        records.
+        The filter runs forward (:meth:`run`, keeping its mode-matched posteriors), then a
+        backward pass in the filter's ``timing``:
+
+        - ``method="two-filter"`` (the default): backward information messages, the
+          likelihood of the later measurements given each mode and state, combined with the
+          filtered mode-matched posteriors by Bayes' rule
+          (:mod:`switchest.estimators.two_filter`; Helmick, Blair & Hoffman 1995). No
+          smoothed covariance exceeds the filtered one, so it cannot diverge where the filter
+          does not; its mode probabilities lie 0.002-0.007 (mean absolute error) from the
+          exact smoothed ones on small problems where Kim's are 0.03-0.09 off.
+        - ``method="kim"``: Kim's recursion (Kim 1994, §2.2; for collapsing filters Murphy
+          1998, §3-4), the pairs (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) weighed by
+          ``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` and mode
+          ``j``'s filtered posterior moved by a Rauch-Tung-Striebel step
+          (:func:`~switchest.estimators.smoothing.smooth_mode_matched`). It warns
+          (:class:`SmootherDivergenceWarning`) where its step diverges.
+
+        The last sample's smoothed estimate is the filtered one. Like the filter it
+        approximates, the smoother is not exact;
+        :class:`~switchest.estimators.ExactMixtureFilter` is, for short records.
         """
+        if method not in ("two-filter", "kim"):
+            raise ValueError(f"method must be 'two-filter' or 'kim', got {method!r}")
         fwd = self.run_modes(y, u, t)
-        s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
-                            fwd.Qd, fwd.trans, fwd.transition, modes_out=False,
-                            timing=self.timing)
-        _warn_if_diverged(fwd.estimate, s)
-        return self._unflatten(Estimate(x=s.x, P=s.P, mode_prob=s.mode_prob, mode=s.mode),
-                               fwd.batch)
+        if method == "kim":
+            s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
+                                fwd.Qd, fwd.trans, fwd.transition, modes_out=False,
+                                timing=self.timing)
+            _warn_if_diverged(fwd.estimate, s)
+            x, P, prob, mode = s.x, s.P, s.mode_prob, s.mode
+        else:
+            sys = self.system
+            x_s, P_s, prob = two_filter_smooth(
+                fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.y, fwd.u, fwd.F, fwd.G, fwd.Qd,
+                fwd.trans, fwd.transition, sys.C, sys.R, outlier=fwd.estimate.outlier,
+                timing=self.timing)
+            x, P = mixture_moments(prob[..., None], x_s, P_s)
+            x, P, mode = x[..., 0, :], P[..., 0, :, :], np.argmax(prob, axis=-1)
+        return self._unflatten(Estimate(x=x, P=P, mode_prob=prob, mode=mode), fwd.batch)
 
     @staticmethod
     def _estimate(out: IMMOutput) -> Estimate:
