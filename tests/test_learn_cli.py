@@ -64,8 +64,10 @@ def test_simulate_fit_estimate_check_from_the_shell(tmp_path, capsys, monkeypatc
     start = model_file(tmp_path / "start.toml", np.array([[0.8, 0.2], [0.3, 0.7]]), 1.5 * Q,
                        0.7 * R)
     data, fitted, png = tmp_path / "d.csv", tmp_path / "fitted.toml", tmp_path / "ll.png"
+    # seed 3: the maximum is interior (with seed 7 mode 0's Q is singular there, a boundary
+    # maximum the fit names in a warning; 2 seeds of 0..7 put it there)
     assert main(["simulate", "--model", str(truth), "--duration", "1500", "--trials", "2",
-                 "--seed", "7", "--out", str(data)]) == 0
+                 "--seed", "3", "--out", str(data)]) == 0
     capsys.readouterr()
     traces = []
     draw = switchest.plotting.curves
@@ -110,7 +112,8 @@ def test_simulate_fit_estimate_check_from_the_shell(tmp_path, capsys, monkeypatc
     assert main(["fit", "--model", str(start), "--data", str(data), "--trial", "1",
                  "--estimate", "R", "--max-iter", "3", "--out", str(fitted)]) == 0
     out = capsys.readouterr().out
-    assert "1501 samples, known modes (mode column): 3 iterations" in " ".join(out.split())
+    assert ("1501 samples, known modes (mode column), switches at the samples: 3 iterations, "
+            "stopped at --max-iter 3") in " ".join(out.split())
     assert set(printed_rows(out)) == {"R mode 0 [0,0]", "R mode 1 [0,0]"}
     kept = load_model(fitted)
     np.testing.assert_array_equal(kept.system.Q, 1.5 * Q)  # not estimated: the start's

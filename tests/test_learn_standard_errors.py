@@ -56,11 +56,27 @@ def test_an_entry_on_the_boundary_is_held_fixed_and_named():
     np.testing.assert_allclose(se["R"].ravel(), [0.03, 0.04], rtol=1e-6)
 
 
-def test_no_positive_definite_information_gives_no_standard_errors():
-    Q1 = 0.4  # an interior saddle along mode 1's Q: not a maximum
-    with pytest.warns(RuntimeWarning, match="not positive definite"):
+def test_an_entry_without_positive_information_is_held_fixed_and_named():
+    """An interior saddle along mode 1's Q (not a maximum there): that entry is named and held
+    fixed, the others' standard errors are their curvature (the likelihood separates)."""
+    Q1 = 0.4
+    with pytest.warns(RuntimeWarning, match=r"not positive definite at the fit along Q mode 1 "
+                                            r"\[0,0\]"):
         se = observed_standard_errors(_system(Q1), PI, ("Q", "R"),
                                       _each(Q1=Q1, bowl=1.0))
+    assert np.isnan(se["Q"][1, 0, 0])
+    np.testing.assert_allclose(se["Q"][0, 0, 0], 0.1, rtol=1e-6)
+    np.testing.assert_allclose(se["R"].ravel(), [0.03, 0.04], rtol=1e-6)
+
+
+def test_no_positive_definite_information_gives_no_standard_errors():
+    """Every entry's curvature points away from a maximum: no standard error at all."""
+    def bowl(candidates):
+        return np.array([(s.Q[0, 0, 0] - 0.5) ** 2 + (s.R[0, 0, 0] - 0.2) ** 2
+                         for s, _ in candidates])
+
+    with pytest.warns(RuntimeWarning, match="observed information of Q, R is not positive"):
+        se = observed_standard_errors(_system(0.4), PI, ("Q", "R"), bowl)
     assert np.all(np.isnan(se["Q"])) and np.all(np.isnan(se["R"]))
 
 

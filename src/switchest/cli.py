@@ -553,22 +553,31 @@ names, repeated so that building the parser does not import the learner (tests/t
 holds them equal)."""
 
 
-def _fit_parameters(text: str) -> tuple[str, ...]:
-    """``--estimate``: comma-separated names among :data:`_FIT_PARAMETERS`."""
-    names = tuple(name.strip() for name in text.split(","))
-    unknown = [name for name in names if name not in _FIT_PARAMETERS]
-    if unknown:
-        raise argparse.ArgumentTypeError(
-            f"unknown parameter(s) {', '.join(repr(n) for n in unknown)}; expected "
-            f"comma-separated names among {', '.join(_FIT_PARAMETERS)}")
-    return tuple(dict.fromkeys(names))
+def _names(allowed: tuple[str, ...]) -> Callable[[str], tuple[str, ...]]:
+    """An option of comma-separated names among ``allowed``."""
+    def parse(text: str) -> tuple[str, ...]:
+        names = tuple(name.strip() for name in text.split(","))
+        unknown = [name for name in names if name not in allowed]
+        if unknown:
+            raise argparse.ArgumentTypeError(
+                f"unknown parameter(s) {', '.join(repr(n) for n in unknown)}; expected "
+                f"comma-separated names among {', '.join(allowed)}")
+        return tuple(dict.fromkeys(names))
+    return parse
+
+
+_fit_parameters = _names(_FIT_PARAMETERS)
+"""``--estimate``: comma-separated names among :data:`_FIT_PARAMETERS`."""
+_fit_shared = _names(_FIT_PARAMETERS[1:])
+"""``--shared``: comma-separated matrices among ``A, B, C, Q, R``."""
 
 
 def _fit_table(start: SwitchedLinearSystem, start_transition: np.ndarray | None,
                result: FitResult) -> Table:
     """The fitted parameters beside their standard errors and starting values: every entry of
     the transition matrix, the upper triangle of each fitted noise block (entries held at zero
-    left out), every entry of a fitted ``A``, ``B``, ``C``; a matrix the modes share once."""
+    left out), every entry of a fitted ``A``, ``B``, ``C``; a matrix tied across the modes
+    (``--shared``) once."""
     import numpy as np
     from rich.table import Table
 
@@ -596,7 +605,7 @@ def _fit_table(start: SwitchedLinearSystem, start_transition: np.ndarray | None,
         if name not in se:
             continue
         fitted, first = getattr(result.system, name), getattr(start, name)
-        one = fitted.shape[0] > 1 and bool(np.all(fitted == fitted[:1]))
+        one = fitted.shape[0] > 1 and name in result.shared
         for j in [0] if one else range(fitted.shape[0]):
             where = "all modes" if one else f"mode {j}"
             if name in "QR":
@@ -651,6 +660,7 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
                          "the prior of the state at the first sample, which fit holds fixed")
     data = read_trials(args.data, spec, args.trial)
     start = start_transition(spec, data["t"])
+    switch_times = args.switch_times or _switch_times(spec, data["mode"] is not None)
     columns = (TextColumn("EM"), BarColumn(), MofNCompleteColumn(),
                TextColumn("log-likelihood {task.fields[loglik]}"), TimeElapsedColumn())
     with (warnings.catch_warnings(record=True) as caught,
@@ -660,15 +670,25 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
         task = bar.add_task("EM", total=args.max_iter, loglik="…")
         result = fit(spec.system, data["y"], data["u"], data["t"], transition=start,
                      x0=spec.initial[0], P0=spec.initial[1], modes=data["mode"],
-                     estimate=args.estimate, max_iter=args.max_iter, tol=args.tol, rng=0,
+                     estimate=args.estimate, shared=args.shared, switch_times=switch_times,
+                     grid=args.grid, max_iter=args.max_iter, tol=args.tol, rng=0,
                      progress=lambda i, loglik: bar.update(
                          task, completed=i + 1, total=max(args.max_iter, i + 1),
                          loglik=f"{loglik:.10g}"))
     _print_fit_warnings(caught, result.loglik)
+    if data["mode"] is None and _switch_times(spec, True) == "between":
+        _say(Console(stderr=True, soft_wrap=True, highlight=False), "warning",
+             f"the model's switching model ({spec.switching.kind}) switches between the samples; "
+             "without a mode column fit holds each mode over the interval after its sample "
+             "(--switch-times between needs the known modes), and the noise it fits takes up "
+             "the difference")
     fitted, note = fitted_model(spec, result, args.estimate, Path(args.data))
     save_model(fitted, out)
     trace = result.loglik
     modes = "known modes (mode column)" if data["mode"] is not None else "unknown modes"
+    if data["mode"] is not None:
+        modes += (f", switches between the samples (instants marginalized on a grid of "
+                  f"{args.grid})" if switch_times == "between" else ", switches at the samples")
     stop = ("converged" if result.converged else
             f"[yellow]stopped at --max-iter {args.max_iter} without converging[/yellow]")
     runs = f"{data['trials']} trials x " if data["trials"] > 1 else ""
@@ -676,6 +696,9 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
            f" ({result.ascent_from} of EM, then direct ascent)")
     console.print(f"EM on {runs}{data['t'].size} samples, {modes}: {result.iterations} "
                   f"iterations{how}, {stop}; log-likelihood {trace[0]:.10g} → {trace[-1]:.10g}")
+    if result.outliers:
+        console.print(f"{result.outliers} sample(s) rejected by the outlier gate, fitted as "
+                      "missing")
     console.print(_fit_table(spec.system, start, result))
     console.print(f"switching model: {escape(note)}")
     console.print(f"fitted model: [bold]{escape(str(out))}[/bold]")
@@ -688,6 +711,15 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
                ylabel="log-likelihood", title=f"{Path(args.model).name}: EM, {modes}")
         console.print(f"figure: {escape(str(plot))}")
     return 0
+
+
+def _switch_times(spec, known: bool) -> str:
+    """``fit``'s default ``--switch-times``: ``between`` for known modes of a continuous-time
+    model whose switching model switches in continuous time (not at the samples), else
+    ``samples``."""
+    between = (known and spec.system.is_continuous and spec.switching is not None
+               and not spec.switching.at_samples)
+    return "between" if between else "samples"
 
 
 # ---------------------------------------------------------------------- the parser and main
@@ -773,8 +805,8 @@ def _parser() -> _Parser:
                        help=_applies("switch_interval", "switching interval T, modes change only "
                                                         "at t0 + kT (default: sampling.period)"))
     p_est.add_argument("--smooth", action="store_true",
-                       help=_applies("smooth", "smoothed estimates given the whole record (two-filter "
-                                               "smoother) instead of filtered ones"))
+                       help=_applies("smooth", "smoothed estimates given the whole record "
+                                               "(two-filter smoother) instead of filtered ones"))
     p_est.add_argument("--particles", type=_positive, default=None,
                        help=_applies("particles", "number of particles (default 1000)"))
     p_est.add_argument("--seed", type=_seed, default=None,
@@ -815,9 +847,22 @@ def _parser() -> _Parser:
     p_fit.add_argument("--estimate", type=_fit_parameters, default=("transition", "Q", "R"),
                        help="what to fit, comma-separated among transition, A, B (discrete "
                             "time), C, Q, R (default: transition,Q,R)")
-    p_fit.add_argument("--max-iter", type=_positive, default=200, help="most EM iterations")
-    p_fit.add_argument("--tol", type=_window, default=1e-6,
-                       help="stop when the log-likelihood changes by at most this fraction")
+    p_fit.add_argument("--shared", type=_fit_shared, default=(),
+                       help="estimated matrices tied across the modes, comma-separated among "
+                            "A, B, C, Q, R (default: none, each mode its own)")
+    p_fit.add_argument("--switch-times", choices=("samples", "between"), default=None,
+                       help="known modes: whether the switches fall at the samples or between "
+                            "them (instants marginalized on a grid); default between for a "
+                            "continuous-time model whose switching model switches in "
+                            "continuous time, else samples")
+    p_fit.add_argument("--grid", type=_positive, default=16,
+                       help="switch instants per interval of --switch-times between")
+    p_fit.add_argument("--max-iter", type=_positive, default=200,
+                       help="most iterations: of EM, then of the direct ascent that finishes "
+                            "an EM that crawls or whose E-step is approximate")
+    p_fit.add_argument("--tol", type=_window, default=1e-3,
+                       help="stop when an iteration gains, and EM's estimate of the gain still "
+                            "to come is, at most this many nats of log-likelihood")
     p_fit.add_argument("--trial", type=_seed, default=None,
                        help="fit one trial of a CSV with a trial column (default: all at once)")
     p_fit.add_argument("--out", required=True, help="fitted TOML model file")

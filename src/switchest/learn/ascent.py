@@ -27,11 +27,11 @@ search crawled towards it: a 3-mode fit at K = 8000 still moving after 300 itera
   all start at 1 and their curvatures are alike) and at least 0, with ``pi_jr = 1 - sum``
   (a point where that is negative is outside the simplex: no value); a zero entry stays zero,
   as under EM's M-step;
-- each fitted block of ``Q`` and ``R`` (per mode, or once for a matrix the modes share; on the
-  components of positive variance, :func:`.noise_step.support`): its Cholesky factor ``F``
-  (``F F'`` is positive semidefinite wherever it goes), row ``a`` divided by the standard
-  deviation ``d_a`` of component ``a`` at the start, so every parameter starts at most 1 in
-  size. A diagonal entry lies in ``[0, e^SPAN]`` for ``Q`` (a singular process noise is a
+- each fitted block of ``Q`` and ``R`` (per mode, or once for a matrix the fit ties across the
+  modes; on the components of positive variance, :func:`.noise_step.support`): its Cholesky
+  factor ``F`` (``F F'`` is positive semidefinite wherever it goes), row ``a`` divided by the
+  standard deviation ``d_a`` of component ``a`` at the start, so every parameter starts at
+  most 1 in size. A diagonal entry lies in ``[0, e^SPAN]`` for ``Q`` (a singular process noise is a
   model) and in ``[e^-SPAN, e^SPAN]`` for ``R`` (whose inverse the filter needs), an entry
   below it in ``[-e^SPAN, e^SPAN]`` (:data:`SPAN` = 9: about four orders of magnitude).
 
@@ -61,7 +61,8 @@ _STEP = np.finfo(float).eps ** (1 / 3)  # central differences: h^2 truncation vs
 class _Layout:
     """Where each free parameter lives: transition rows, then the noise blocks."""
 
-    def __init__(self, system: SwitchedLinearSystem, transition: np.ndarray, names):
+    def __init__(self, system: SwitchedLinearSystem, transition: np.ndarray, names,
+                 tied=frozenset()):
         self.system = system
         # (row j, reference column r, free columns)
         self.rows = free_rows(transition) if "transition" in names else []
@@ -70,7 +71,7 @@ class _Layout:
         for name in ("Q", "R"):
             if name in names:
                 stack = getattr(system, name)
-                for g in groups(stack):
+                for g in groups(system.n_modes, name in tied):
                     idx = support(stack[g[0]])
                     if idx.size:
                         scale = np.sqrt(np.diag(stack[g[0]])[idx])
@@ -126,16 +127,17 @@ class _Layout:
 
 
 def ascend(system: SwitchedLinearSystem, transition: np.ndarray, names,
-           logliks: Callable[[list], np.ndarray], *, start_loglik: float, max_iter: int,
-           tol: float, report: Callable[[float], object]
+           logliks: Callable[[list], np.ndarray], *, tied=frozenset(), start_loglik: float,
+           max_iter: int, tol: float, report: Callable[[float], object]
            ) -> tuple[SwitchedLinearSystem, np.ndarray, bool]:
     """Maximize the log-likelihood over the estimated ``names`` among ``"transition"``,
     ``"Q"``, ``"R"`` (module docstring) from the given point, at most ``max_iter`` iterations,
-    stopping when an iteration raises it by at most ``tol`` of its value. ``logliks`` maps a
+    stopping when an iteration raises it by at most ``tol`` of its value; ``Q`` or ``R`` in
+    ``tied`` is one matrix for all modes. ``logliks`` maps a
     list of ``(system, transition)`` candidates to their log-likelihoods (NaN where one has
     none); ``start_loglik`` is the value at the start. ``report(loglik)`` is called after
     every iteration. Returns the maximizer and whether L-BFGS-B reported convergence."""
-    layout = _Layout(system, transition, names)
+    layout = _Layout(system, transition, names, tied)
     start = layout.pack(system, transition)
     if start.size == 0:
         return system, transition, True

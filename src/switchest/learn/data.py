@@ -15,6 +15,8 @@ from ..system import SwitchedLinearSystem
 
 __all__ = ["Record", "record"]
 
+_Y_LIMIT = float(np.sqrt(np.finfo(float).max))  # 1.34e154: beyond it y^2 overflows
+
 
 @dataclass(frozen=True, eq=False)
 class Record:
@@ -53,6 +55,13 @@ def record(system: SwitchedLinearSystem, y, u, t, modes) -> Record:
         raise ValueError(f"y must have shape (K, m) or (N, K, m) with m = {m}, got {y.shape}")
     if np.any(np.isinf(y)):
         raise ValueError("y must not contain infinities (NaN marks a missing component)")
+    wild = np.abs(np.where(np.isnan(y), 0.0, y)) > _Y_LIMIT
+    if np.any(wild):
+        at = tuple(int(i) for i in np.argwhere(wild)[0])
+        sample = f"trial {at[0]}, sample {at[1]}" if y.ndim == 3 else f"sample {at[0]}"
+        raise ValueError(f"y[{', '.join(map(str, at))}] = {y[at]:.6g} ({sample}) is beyond "
+                         f"{_Y_LIMIT:.3g}, where its square overflows the floating-point range: "
+                         "no covariance holds it; mark it missing (NaN)")
     y = y.reshape(-1, *y.shape[-2:])
     N, K = y.shape[:2]
     if K < 2 or N == 0:

@@ -2,7 +2,7 @@
 
 Conditional maximization (Meng & Rubin 1993, Biometrika 80, ECM) of the expected complete-data
 log-likelihood, before the noise steps that then use the new matrices: a weighted least-squares
-regression of ``x_{k+1}`` on ``z_k = (x_k, u_k)`` per mode (or pooled where the model shares the
+regression of ``x_{k+1}`` on ``z_k = (x_k, u_k)`` per mode (or pooled where the fit ties the
 matrices), ``[A B] = (sum w E[x_{k+1} z_k']) (sum w E[z_k z_k'])^-1`` (Shumway & Stoffer 1982,
 eq. (13); Ghahramani & Hinton 1996, "Parameter estimation for linear dynamical systems", eq.
 (12)), and ``C = (sum w y_k E[x_k]') (sum w E[x_k x_k'])^-1`` over the samples observed in full
@@ -16,16 +16,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from .expectation import Moments
+from .moments import Moments
 from .noise_step import groups
 
 __all__ = ["fit_AB", "fit_C"]
 
 
-def fit_AB(A: np.ndarray, B: np.ndarray, u: np.ndarray, mom: Moments, *, with_B: bool
-           ) -> tuple[np.ndarray, np.ndarray]:
-    """New ``A (L, n, n)`` and ``B (L, n, l)``; ``B`` kept unless ``with_B``. A mode whose
-    regressor moment is singular (too few intervals) keeps its matrices."""
+def fit_AB(A: np.ndarray, B: np.ndarray, u: np.ndarray, mom: Moments, *, with_B: bool,
+           tied: bool) -> tuple[np.ndarray, np.ndarray]:
+    """New ``A (L, n, n)`` and ``B (L, n, l)``, per mode or pooled over all (``tied``); ``B``
+    kept unless ``with_B``. A mode whose regressor moment is singular (too few intervals)
+    keeps its matrices. The E-step's components are the modes (a discrete-time system
+    switches at its steps)."""
     n, l = A.shape[1], B.shape[2]
     w = mom.step_weight
     uk = u[:, :-1]
@@ -35,7 +37,7 @@ def fit_AB(A: np.ndarray, B: np.ndarray, u: np.ndarray, mom: Moments, *, with_B:
     S1x = np.einsum("nkj,nkjab->jab", w, mom.cross + mom.x1[..., :, None] * mom.x0[..., None, :])
     S1u = np.einsum("nkj,nkja,nkb->jab", w, mom.x1, uk)
     newA, newB = A.copy(), B.copy()
-    for group in groups(A, B) if with_B else groups(A):
+    for group in groups(A.shape[0], tied):
         zz = Sxx[group].sum(axis=0)
         xz = S1x[group].sum(axis=0)
         if with_B:
@@ -53,9 +55,10 @@ def fit_AB(A: np.ndarray, B: np.ndarray, u: np.ndarray, mom: Moments, *, with_B:
     return newA, newB
 
 
-def fit_C(C: np.ndarray, R: np.ndarray, y: np.ndarray, mom: Moments) -> np.ndarray:
-    """New ``C (L, m, n)``: the regression of the measurements on the smoothed state
-    (Shumway & Stoffer 1982, eq. (13)), ``C_j = (sum w y x') (sum w E[x x'])^-1`` per mode.
+def fit_C(C: np.ndarray, R: np.ndarray, mom: Moments, *, tied: bool) -> np.ndarray:
+    """New ``C (L, m, n)``: the regression of the E-step's measurements ``mom.y`` on the
+    smoothed state (Shumway & Stoffer 1982, eq. (13)), ``C_j = (sum w y x') (sum w E[x
+    x'])^-1`` per mode, or pooled over all (``tied``).
 
     With every ``R_j`` diagonal the expected complete-data log-likelihood separates by output
     component, so row ``a`` of ``C`` is fitted from every sample that observes component
@@ -65,6 +68,7 @@ def fit_C(C: np.ndarray, R: np.ndarray, y: np.ndarray, mom: Moments) -> np.ndarr
     1962, seemingly unrelated regressions with identical regressors). A mode (or row) whose
     state moment is singular keeps its ``C``.
     """
+    y = mom.y
     seen = ~np.isnan(y)  # (N, K, m)
     if not np.all(R == np.eye(R.shape[1]) * R):  # a correlated R: the fully observed samples
         seen = np.broadcast_to(np.all(seen, axis=-1, keepdims=True), seen.shape)
@@ -73,7 +77,7 @@ def fit_C(C: np.ndarray, R: np.ndarray, y: np.ndarray, mom: Moments) -> np.ndarr
     new = C.copy()
     for a in range(C.shape[1]):
         Sxx = np.einsum("nkj,nk,nkjab->jab", mom.weight, seen[..., a].astype(float), Exx)
-        for group in groups(C):
+        for group in groups(C.shape[0], tied):
             xx = Sxx[group].sum(axis=0)
             if np.linalg.cond(xx) > 1e12:
                 continue

@@ -8,7 +8,11 @@ lag-one cross-covariances ``P_{k+1,k|K} = P_{k+1|K} J_k'`` (de Jong & MacKinnon 
 :func:`~switchest.estimators.smoothing.smooth_mode_matched` with one mode per trial. The mode
 ``r_k`` at sample ``k`` drives the interval into ``k + 1`` and the measurement at ``k`` (the
 convention of ``ModeKalmanFilter`` and of ``switchest.simulate``: the signal is right
-continuous, a switch at ``t_{k+1}`` takes effect there).
+continuous, a switch at ``t_{k+1}`` takes effect there). Known modes of a continuous-time
+system whose switches fall inside the intervals: :mod:`~switchest.learn.between`.
+
+Every E-step runs its filter with the filters' outlier gate: a sample it rejects is missing for
+the smoother and the maximization steps (``Moments.y``, ``Moments.outlier``).
 
 Unknown modes: Kim's smoother (Kim 1994, §2.2) on the chain of consecutive mode pairs
 ``s_k = (r_{k-1}, r_k)``. In the package's timing (``timing="sample"``, docs/conventions.rst)
@@ -40,17 +44,19 @@ Laird & Rubin 1977, Theorem 1). Cost: ``L^K`` Kalman filters and smoothers per t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from .._linalg import log_normalize, mixture_moments
-from ..discretize import Transition, sample_mode_steps
+from ..discretize import sample_mode_steps
 from ..estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
 from ..estimators.smoothing import smooth_filtered, smooth_mode_matched
 from ..estimators.tables import imm_logliks, kalman_logliks
 from ..system import SwitchedLinearSystem
+from .between import between_log_likelihood, known_between
 from .data import Record
+from .markov_step import mode_term
+from .moments import Moments
+from .steps import sample_table
 
 __all__ = ["MAX_SEQUENCES", "Moments", "expectation", "log_likelihood", "log_likelihoods"]
 
@@ -61,67 +67,34 @@ _ROWS = 2**16  # (sequence, trial) rows per compiled run of the exact E-step
 _LANES = 64  # (candidate, trial) rows per compiled run of log_likelihoods
 
 
-@dataclass(frozen=True, eq=False)
-class Moments:
-    """What an E-step hands to the M-steps, for ``N`` trials, ``K`` samples, ``L`` modes.
-
-    Attributes
-    ----------
-    loglik : float
-        Log-likelihood of the record under the parameters of the E-step (known modes:
-        ``log p(y | r) + sum_k log pi_{r_k r_{k+1}}``; unknown: the pair chain's IMM's
-        ``sum log p(y_k | y_0..k-1)``, or with the exact E-step the exact ``log p(y)``, which
-        :class:`~switchest.estimators.ExactMixtureFilter`'s ``loglik`` sums to).
-    weight : ndarray, shape (N, K, L)
-        ``P(r_k = j | Y)`` (one-hot for known modes).
-    x, P : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
-        Smoothed state moments given ``r_k = j`` (broadcast views for known modes).
-    step_weight : ndarray, shape (N, K-1, L)
-        Weight of mode ``j`` driving the interval ``k -> k+1``.
-    x1, P1 : ndarray, shapes (N, K-1, L, n), (N, K-1, L, n, n)
-        Moments of ``x_{k+1}`` given the driving mode ``j`` and ``Y``.
-    x0, P0, cross : ndarray, shapes (N, K-1, L, n), (N, K-1, L, n, n), (N, K-1, L, n, n)
-        Moments of ``x_k`` and ``Cov(x_{k+1}, x_k)`` given the driving mode and ``Y``.
-    table : Transition
-        Exact transitions of each mode and distinct step, batch ``(D L,)``.
-    entry : ndarray of int64, shape (K-1, L)
-        ``entry[k, j]``: the table row of mode ``j`` over the interval ``k -> k+1``.
-    pairs : ndarray, shape (L, L)
-        Expected transition counts ``sum_k P(r_k = j, r_{k+1} = i | Y)``.
-    """
-
-    loglik: float
-    weight: np.ndarray
-    x: np.ndarray
-    P: np.ndarray
-    step_weight: np.ndarray
-    x1: np.ndarray
-    P1: np.ndarray
-    x0: np.ndarray
-    P0: np.ndarray
-    cross: np.ndarray
-    table: Transition
-    entry: np.ndarray
-    pairs: np.ndarray
-
-
 def expectation(system: SwitchedLinearSystem, transition: np.ndarray, x0, P0,
-                data: Record, *, exact: bool = False) -> Moments:
-    """The E-step under ``system`` and ``transition``: exact for known modes; for unknown
-    modes Kim's, or with ``exact`` the enumeration of every mode sequence."""
+                data: Record, *, exact: bool = False, gate: float | None = None,
+                grid: int | None = None) -> Moments:
+    """The E-step under ``system`` and ``transition``: exact for known modes switching at the
+    samples; with ``grid`` (known modes of a continuous-time system switching inside the
+    intervals) the switch-time filter's with the instants marginalized over a grid of that
+    many (:func:`~switchest.learn.between.known_between`); for unknown modes Kim's, or with
+    ``exact`` the enumeration of every mode sequence. ``gate`` is the filters' outlier gate
+    (:class:`~switchest.estimators.ModeKalmanFilter`): the samples it rejects are missing for
+    the smoother and the maximization steps (``Moments.y``, ``Moments.outlier``)."""
     if data.modes is not None:
-        return _known(system, transition, x0, P0, data)
+        if grid is not None:
+            return known_between(system, transition, x0, P0, data, grid=grid, gate=gate)
+        return _known(system, transition, x0, P0, data, gate)
     if exact:
-        return _enumerated(system, transition, x0, P0, data)
-    return _unknown(system, transition, x0, P0, data)
+        return _enumerated(system, transition, x0, P0, data, gate)
+    return _unknown(system, transition, x0, P0, data, gate)
 
 
 def log_likelihood(system: SwitchedLinearSystem, transition, x0, P0, data: Record, *,
-                   exact: bool = False) -> float:
-    """The log-likelihood :attr:`Moments.loglik` reports, without the smoother."""
+                   exact: bool = False, grid: int | None = None) -> float:
+    """The log-likelihood :attr:`Moments.loglik` reports, without the smoother (and without a
+    gate: give the record of the E-step's measurements, ``Moments.y``)."""
     if data.modes is not None:
+        if grid is not None:
+            return between_log_likelihood(system, transition, x0, P0, data, grid=grid)
         out = ModeKalmanFilter(system, x0, P0).run(data.y, data.u, data.t, modes=data.modes)
-        return float(out.loglik.sum()) + _mode_term(transition, data.modes)
+        return float(out.loglik.sum()) + mode_term(transition, data.modes)
     if exact:
         flt = ExactMixtureFilter(system, transition, x0, P0, max_sequences=MAX_SEQUENCES,
                                  timing="sample")
@@ -131,7 +104,8 @@ def log_likelihood(system: SwitchedLinearSystem, transition, x0, P0, data: Recor
     return float(out.loglik.sum())
 
 
-def log_likelihoods(candidates, x0, P0, data: Record, *, exact: bool = False) -> np.ndarray:
+def log_likelihoods(candidates, x0, P0, data: Record, *, exact: bool = False,
+                    grid: int | None = None) -> np.ndarray:
     """:func:`log_likelihood` of each ``(system, transition)`` of ``candidates`` (all with the
     sizes of one model), NaN where its filter fails (a transition or covariance beyond the
     floating-point range).
@@ -143,11 +117,12 @@ def log_likelihoods(candidates, x0, P0, data: Record, *, exact: bool = False) ->
     filters per sample). The trials then fill the SIMD lanes, where one record alone leaves all
     but one empty (about ten times the cost per trial-step for the IMM). The values are those
     of :func:`log_likelihood`, computed by the same kernels; the exact E-step's enumeration
-    runs one candidate at a time.
+    and the switch-time filter of switches inside the intervals (``grid``) run one candidate
+    at a time (each candidate's filter its own tables).
     """
     candidates = list(candidates)
-    if exact and data.modes is None:
-        return np.array([_or_nan(log_likelihood, s, pi, x0, P0, data, exact=True)
+    if (exact and data.modes is None) or (grid is not None and data.modes is not None):
+        return np.array([_or_nan(log_likelihood, s, pi, x0, P0, data, exact=exact, grid=grid)
                          for s, pi in candidates])
     size = max(1, _LANES // data.shape[0])
     return np.concatenate([_together(candidates[a:a + size], x0, P0, data)
@@ -193,7 +168,7 @@ def _together(candidates, x0, P0, data: Record) -> np.ndarray:
         trans = np.concatenate([entry[np.arange(K), before] for entry in entries])
         mode = np.concatenate([data.modes + s * L for s in range(S)])
         loglik = kalman_logliks(y, u, F, G, Qd, trans, C, R, mode, x0, P0)
-        extra = np.array([_mode_term(candidates[q][1], data.modes) for q in where])
+        extra = np.array([mode_term(candidates[q][1], data.modes) for q in where])
     else:
         a, b = np.divmod(np.arange(L * L), L)
         chains = [_pair_markov(candidates[q][1]) for q in where]
@@ -213,17 +188,16 @@ def _together(candidates, x0, P0, data: Record) -> np.ndarray:
     return values
 
 
-def _mode_term(transition, modes) -> float:
-    """``sum_k log pi_{r_k r_{k+1}}`` of the known mode sequences (``-inf`` if impossible)."""
-    with np.errstate(divide="ignore"):
-        return float(np.log(transition)[modes[:, :-1], modes[:, 1:]].sum())
+def _masked(y: np.ndarray, outlier: np.ndarray) -> np.ndarray:
+    """``y`` with the gated samples missing."""
+    return np.where(outlier[..., None], np.nan, y)
 
 
-def _known(system, transition, x0, P0, data: Record) -> Moments:
-    y, u, t, modes = data.y, data.u, data.t, data.modes
+def _known(system, transition, x0, P0, data: Record, gate) -> Moments:
+    u, t, modes = data.u, data.t, data.modes
     (N, K), L = data.shape, system.n_modes
-    out = ModeKalmanFilter(system, x0, P0).run(y, u, t, modes=modes)
-    table, entry = sample_mode_steps(system, t)
+    out = ModeKalmanFilter(system, x0, P0, gate=gate).run(data.y, u, t, modes=modes)
+    table, entry = sample_table(system, t)
     trans = np.zeros((N, K), dtype=np.int64)
     trans[:, 1:] = entry[np.arange(1, K), modes[:, :-1]]  # r_k drives the interval into k + 1
     s = smooth_mode_matched(out.x[:, :, None], out.P[:, :, None], np.ones((N, K, 1)), u,
@@ -237,18 +211,19 @@ def _known(system, transition, x0, P0, data: Record) -> Moments:
     pairs = np.zeros((L, L))
     np.add.at(pairs, (modes[:, :-1], modes[:, 1:]), 1.0)
     return Moments(
-        loglik=float(out.loglik.sum()) + _mode_term(transition, modes),
+        loglik=float(out.loglik.sum()) + mode_term(transition, modes),
         weight=onehot, x=modes_axis(s.x[:, :, None], K), P=modes_axis(s.P[:, :, None], K),
         step_weight=onehot[:, :-1],
         x1=modes_axis(s.x[:, 1:, None], K - 1), P1=modes_axis(s.P[:, 1:, None], K - 1),
         x0=modes_axis(s.lag_x, K - 1), P0=modes_axis(s.lag_P, K - 1),
-        cross=modes_axis(s.lag_cross, K - 1), table=table, entry=entry[1:], pairs=pairs)
+        cross=modes_axis(s.lag_cross, K - 1), table=table, entry=entry[1:], pairs=pairs,
+        y=_masked(data.y, out.outlier), outlier=out.outlier)
 
 
-def _pair_filter(system: SwitchedLinearSystem, transition, x0, P0) -> IMMFilter:
+def _pair_filter(system: SwitchedLinearSystem, transition, x0, P0, gate=None) -> IMMFilter:
     """The IMM on the chain of consecutive mode pairs (:func:`_pair_chain`)."""
     pairs, chain, prior = _pair_chain(system, transition)
-    return IMMFilter(pairs, chain, x0, P0, mode_prob0=prior, timing="interval")
+    return IMMFilter(pairs, chain, x0, P0, mode_prob0=prior, timing="interval", gate=gate)
 
 
 def _pair_chain(system: SwitchedLinearSystem, transition
@@ -274,11 +249,11 @@ def _pair_markov(transition: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return chain, np.where(a == b, 1.0 / L, 0.0)
 
 
-def _unknown(system, transition, x0, P0, data: Record) -> Moments:
+def _unknown(system, transition, x0, P0, data: Record, gate) -> Moments:
     """Kim's E-step on the pair chain (module docstring)."""
     N, K = data.shape
     L = system.n_modes
-    fwd = _pair_filter(system, transition, x0, P0).run_modes(data.y, data.u, data.t)
+    fwd = _pair_filter(system, transition, x0, P0, gate).run_modes(data.y, data.u, data.t)
     s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
                         fwd.Qd, fwd.trans, fwd.transition, lagged=True, timing="interval")
     prob = s.mode_prob  # (N, K, L^2): P(s_k = (a, b) | Y)
@@ -294,11 +269,13 @@ def _unknown(system, transition, x0, P0, data: Record) -> Moments:
                         [np.swapaxes(s.lag_cross, -1, -2), s.lag_P]])
     jx, jP = _given(prob[:, 1:], step_weight, np.eye(L)[a], joint_x, joint_P)
     pairs = prob[:, 1:].sum(axis=(0, 1)).reshape(L, L)
-    table, entry = sample_mode_steps(system, data.t)
+    table, entry = sample_table(system, data.t)
+    outlier = fwd.estimate.outlier
     return Moments(
         loglik=float(fwd.estimate.loglik.sum()), weight=weight, x=x, P=P,
         step_weight=step_weight, x1=jx[..., :n], P1=jP[..., :n, :n], x0=jx[..., n:],
-        P0=jP[..., n:, n:], cross=jP[..., :n, n:], table=table, entry=entry[1:], pairs=pairs)
+        P0=jP[..., n:, n:], cross=jP[..., :n, n:], table=table, entry=entry[1:], pairs=pairs,
+        y=_masked(data.y, outlier), outlier=outlier)
 
 
 def _given(prob, weight, member, x, P):
@@ -321,17 +298,23 @@ def _chunks(data: Record, L: int) -> list[slice]:
     return [slice(a, min(a + size, N)) for a in range(0, N, size)]
 
 
-def _enumerated(system, transition, x0, P0, data: Record) -> Moments:
-    """The exact E-step of unknown modes, by enumeration (module docstring)."""
-    parts = [_enumerated_block(system, transition, x0, P0, data.y[c], data.u[c], data.t)
+def _enumerated(system, transition, x0, P0, data: Record, gate) -> Moments:
+    """The exact E-step of unknown modes, by enumeration (module docstring), of the samples
+    the pair chain's IMM does not gate (:func:`_unknown`'s filter, whose gate sees the same
+    predictions up to its merging)."""
+    outlier = _pair_filter(system, transition, x0, P0, gate).run(
+        data.y, data.u, data.t).outlier
+    y = _masked(data.y, outlier)
+    parts = [_enumerated_block(system, transition, x0, P0, y[c], data.u[c], data.t)
              for c in _chunks(data, system.n_modes)]
-    table, entry = sample_mode_steps(system, data.t)
+    table, entry = sample_table(system, data.t)
     fields = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
     weight = fields.pop("weight")
     pair = fields.pop("pair")
     return Moments(loglik=float(fields.pop("loglik").sum()), weight=weight,
                    step_weight=weight[:, :-1],  # r_k drives the interval into k + 1
-                   table=table, entry=entry[1:], pairs=pair.sum(axis=(0, 1)), **fields)
+                   table=table, entry=entry[1:], pairs=pair.sum(axis=(0, 1)), y=y,
+                   outlier=outlier, **fields)
 
 
 def _enumerated_block(system, transition, x0, P0, y, u, t) -> dict[str, np.ndarray]:

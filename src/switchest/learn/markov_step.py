@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import logm
 
-__all__ = ["fit_transition", "free_rows", "rates_from_transition", "transition_se"]
+__all__ = ["fit_transition", "free_rows", "mode_term", "rates_from_transition", "transition_se"]
 
 
 def fit_transition(pairs: np.ndarray, current: np.ndarray) -> np.ndarray:
@@ -43,6 +43,13 @@ def free_rows(transition: np.ndarray, allowed: np.ndarray | None = None
         if cols.size:
             out.append((j, r, cols))
     return out
+
+
+def mode_term(transition: np.ndarray, modes: np.ndarray) -> float:
+    """``sum_k log pi_{r_k r_{k+1}}`` of the known mode sequences ``modes (N, K)`` (``-inf``
+    if one is impossible): the modes' share of the complete-data log-likelihood."""
+    with np.errstate(divide="ignore"):
+        return float(np.log(transition)[modes[:, :-1], modes[:, 1:]].sum())
 
 
 def transition_se(transition: np.ndarray, visits: np.ndarray) -> np.ndarray:

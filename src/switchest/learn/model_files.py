@@ -82,10 +82,18 @@ def fitted_model(spec: ModelSpec, result: FitResult, estimate: tuple[str, ...],
     ``FitResult.rates`` (``logm`` of the fitted transition over the sampling period) when the
     model's chain is continuous-time and such a generator exists; otherwise a ``markov``
     chain of the fitted per-sample transition matrix, switching at the samples (keeping the
-    initial mode distribution of a ``markov`` model)."""
+    initial mode distribution of a ``markov`` model); the model's own where the fit put the
+    switches between the samples (``FitResult.switch_times``) and the model's switching model is
+    not a continuous-time chain."""
     sw = spec.switching
     if "transition" not in estimate and sw is not None:
         switching, note = sw, f"kept the model's switching model ({sw.kind})"
+    elif (result.switch_times == "between" and sw is not None
+          and not isinstance(sw, MarkovContinuous)):
+        switching = sw
+        note = (f"kept the model's switching model ({sw.kind}): its switches fall between the "
+                "samples, where a per-sample chain of the fitted transition matrix would not "
+                "put them")
     elif isinstance(sw, MarkovContinuous) and result.rates is not None:
         switching = MarkovContinuous(result.rates, initial_mode=sw.initial_mode)
         note = "markov-continuous: the generator of the fitted per-sample transition matrix"

@@ -2,7 +2,7 @@
 
 Both maximize the expected complete-data log-likelihood of Shumway & Stoffer (1982, eqs
 (13)-(14)) given the E-step's moments (:class:`~.expectation.Moments`), per mode, or pooled
-over the modes where the model shares the matrix (all modes equal). A noise component with
+over the modes where the fit ties the matrix across them (``shared``). A noise component with
 zero variance in the starting model (a state without process noise, an output without sensor
 noise) stays noise-free: only the block on the other components is fitted.
 
@@ -11,17 +11,24 @@ noise) stays noise-free: only the block on the other components is fitted.
   missing noise given the observed one under the current ``R`` (``v_m | v_o ~ N(R_mo R_oo^-1
   v_o, R_mm - R_mo R_oo^-1 R_om)``, Shumway & Stoffer 1982 §4, "missing observations"), a sample
   missing all of them contributes the current ``R``: a proper EM step, not a drop.
-- ``Q`` of a discrete-time system: ``Q_j = sum_k w_kj E[w w' | Y] / sum_k w_kj`` with
-  ``w = x_{k+1} - F x_k - G u_k``, ``E[w w'] = e e' + P1 - F C' - C F' + F P0 F'`` (``e`` the
-  mean residual, ``C = Cov(x_{k+1}, x_k)``).
-- ``Q`` of a continuous-time system is the intensity: ``Qd(h) = int_0^h e^{As} Q e^{A's} ds``
-  (Van Loan 1978, the exact discretization of :mod:`switchest.discretize`) is linear in ``Q``,
-  so its map is computed once per (mode, distinct step) on a basis of symmetric matrices, and
-  ``sum_(j,h) n_jh log det Qd_jh(Q) + tr(Qd_jh(Q)^-1 S_jh)`` is minimized over ``Q = L L'``
-  (Cholesky factor, BFGS with the analytic gradient ``d/dQ = sum Qd*(n Qd^-1 - Qd^-1 S Qd^-1)``,
-  ``Qd*`` the adjoint map) from the current ``Q``; the result is kept only if it does not
-  increase the objective: a generalized EM step (Dempster, Laird & Rubin 1977, §3), which never
-  decreases the likelihood.
+- ``Q``: the E-step's intervals move through the rows of a
+  :class:`~switchest.learn.steps.StepTable`, each row ``r`` with its own ``Qd_r``; with
+  ``n_r = sum w`` the weight of the components through row ``r`` and ``S_r = sum w E[w w' |
+  Y]`` of ``w = x_{k+1} - F_r x_k - G_r u_k`` (``E[w w'] = e e' + P1 - F C' - C F' + F P0 F'``,
+  ``e`` the mean residual, ``C = Cov(x_{k+1}, x_k)``), the step minimizes
+  ``sum_r n_r log det Qd_r + tr(Qd_r^-1 S_r)``.
+  Discrete time: ``Qd_r = Q_j`` of the row's mode, so ``Q_j = sum_r S_r / sum_r n_r`` over
+  the rows of ``j`` (of the modes tied with it).
+  Continuous time: ``Q`` is the intensity, and ``Qd_r = Phi_b Qd_a(tau) Phi_b' + Qd_b(h -
+  tau)`` (a row that switches from ``a`` to ``b`` at ``tau``, Shankar et al. eqs (3)-(5) with
+  the exact noise; ``a = b`` without a switch; Van Loan 1978, the exact discretization of
+  :mod:`switchest.discretize`) is linear in ``Q_a`` and ``Q_b`` together: its map is computed
+  once per row on a basis of symmetric matrices of each fitted block, and the objective is
+  minimized over all the fitted blocks at once, ``Q = L L'`` (Cholesky factors, BFGS with the
+  analytic gradient ``d/dQ = sum Qd*(n Qd^-1 - Qd^-1 S Qd^-1)``, ``Qd*`` the adjoint map), from
+  the current ``Q``; the result is kept only if it does not increase the objective: a
+  generalized EM step (Dempster, Laird & Rubin 1977, §3), which never decreases the
+  likelihood. The rows that switch couple the modes' intensities, so they are fitted jointly.
 """
 
 from __future__ import annotations
@@ -29,28 +36,23 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize
 
-from ..discretize import interval
 from ..system import SwitchedLinearSystem
 from .expectation import Moments
+from .steps import StepTable
 
-__all__ = ["fit_R", "fit_Q", "groups", "step_residual_moments", "shared", "support"]
+__all__ = ["fit_Q", "fit_R", "groups", "intensity_maps", "row_sums", "step_residual_moments",
+           "support"]
 
 
-def shared(stack: np.ndarray) -> bool:
-    """Whether a per-mode stack holds one matrix for all modes (the model shares it)."""
-    return stack.shape[0] > 1 and bool(np.all(stack == stack[:1]))
+def groups(L: int, tied: bool) -> list[list[int]]:
+    """Modes fitted together: all ``L`` where the fit ties the matrix across them, else one
+    each."""
+    return [list(range(L))] if tied else [[j] for j in range(L)]
 
 
 def support(matrix: np.ndarray) -> np.ndarray:
     """Indices of the components with positive variance (the block a fit may change)."""
     return np.flatnonzero(np.diag(matrix) > 0)
-
-
-def groups(*stacks: np.ndarray) -> list[list[int]]:
-    """Modes fitted together: all of them when the model shares every one of the matrices,
-    else one each."""
-    L = stacks[0].shape[0]
-    return [list(range(L))] if all(shared(s) for s in stacks) else [[j] for j in range(L)]
 
 
 def _place(block: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:
@@ -59,15 +61,12 @@ def _place(block: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def fit_R(C: np.ndarray, R: np.ndarray, y: np.ndarray, mom: Moments) -> tuple[np.ndarray,
-                                                                               np.ndarray]:
-    """The R step: new ``R (L, m, m)`` and each mode's weight (expected samples) ``(L,)``.
-
-    A mode of zero weight keeps its ``R``.
-    """
+def fit_R(C: np.ndarray, R: np.ndarray, mom: Moments, *, tied: bool) -> np.ndarray:
+    """The R step: new ``R (L, m, m)`` from the E-step's measurements ``mom.y`` (those its
+    filter gated are missing); a mode (or tied group) of zero weight keeps its ``R``."""
     L, m = R.shape[0], R.shape[1]
     total, weight = np.zeros((L, m, m)), np.zeros(L)
-    flat_y = y.reshape(-1, m)
+    flat_y = mom.y.reshape(-1, m)
     w_all = mom.weight.reshape(-1, L)
     x_all = mom.x.reshape(-1, L, mom.x.shape[-1])
     P_all = mom.P.reshape(-1, L, *mom.P.shape[-2:])
@@ -95,111 +94,130 @@ def fit_R(C: np.ndarray, R: np.ndarray, y: np.ndarray, mom: Moments) -> tuple[np
         total += np.einsum("sj,sjab->jab", w, E)
         weight += w.sum(axis=0)
     new = R.copy()
-    for group in groups(R):
+    for group in groups(L, tied):
         n_g = weight[group].sum()
         idx = support(R[group[0]])
         if n_g <= 0 or idx.size == 0:
             continue
         block = total[group].sum(axis=0)[np.ix_(idx, idx)] / n_g
         new[group] = _place(block, idx, m)
-    return new, weight
+    return new
 
 
 def step_residual_moments(F: np.ndarray, G: np.ndarray, u: np.ndarray,
                           mom: Moments) -> np.ndarray:
-    """``E[w w' | j, Y]`` of every interval and driving mode, ``(N, K-1, L, n, n)``, with
-    ``w = x_{k+1} - F x_k - G u_k`` and ``F, G`` of shape ``(K-1, L, n, .)``."""
-    e = (mom.x1 - np.einsum("kjab,nkjb->nkja", F, mom.x0)
-         - np.einsum("kjab,nkb->nkja", G, u[:, :-1]))
-    FC = np.einsum("kjab,nkjcb->nkjac", F, mom.cross)  # F C'
+    """``E[w w' | h, Y]`` of every interval and component ``h``, ``(N, K-1, H, n, n)``, with
+    ``w = x_{k+1} - F x_k - G u_k`` and ``F, G`` of shape ``(K-1, H, n, .)`` or ``(N, K-1, H,
+    n, .)`` (the table's rows of the components, ``table.F[mom.entry]``)."""
+    e = (mom.x1 - np.einsum("...jab,...jb->...ja", F, mom.x0)
+         - np.einsum("...jab,...b->...ja", G, u[:, :-1]))
+    FC = np.einsum("...jab,...jcb->...jac", F, mom.cross)  # F C'
     return (e[..., :, None] * e[..., None, :] + mom.P1 - FC - np.swapaxes(FC, -1, -2)
-            + np.einsum("kjab,nkjbc,kjdc->nkjad", F, mom.P0, F))
+            + np.einsum("...jab,...jbc,...jdc->...jad", F, mom.P0, F))
 
 
-def _step_sums(system, mom: Moments, u, table):
-    """Weight ``(D, L)`` and weighted ``E[w w']`` sums ``(D, L, n, n)`` per distinct step."""
-    L = system.n_modes
+def row_sums(mom: Moments, u: np.ndarray, table: StepTable) -> tuple[np.ndarray, np.ndarray]:
+    """The weight ``n_r (M,)`` and the weighted ``S_r = sum w E[w w']`` ``(M, n, n)`` of every
+    row of ``table`` (module docstring), the E-step's components mapped to their rows by
+    ``mom.entry``."""
     F, G = table.F[mom.entry], table.G[mom.entry]
     E = step_residual_moments(F, G, u, mom)
-    which = mom.entry[:, 0] // L  # the distinct step of each interval
-    D = mom.table.F.shape[0] // L
-    S = np.zeros((D, L, *E.shape[-2:]))
-    np.add.at(S, which, np.einsum("nkj,nkjab->kjab", mom.step_weight, E))
-    count = np.zeros((D, L))
-    np.add.at(count, which, mom.step_weight.sum(axis=0))
-    return count, S
+    M, n = table.F.shape[0], E.shape[-1]
+    rows = np.broadcast_to(mom.entry, mom.step_weight.shape).ravel()
+    w = mom.step_weight.ravel()
+    wE = (mom.step_weight[..., None, None] * E).reshape(-1, n * n)
+    S = np.stack([np.bincount(rows, weights=wE[:, c], minlength=M) for c in range(n * n)],
+                 axis=-1).reshape(M, n, n)
+    return np.bincount(rows, weights=w, minlength=M), S
 
 
-def fit_Q(system: SwitchedLinearSystem, steps: np.ndarray, u, mom: Moments, table
-          ) -> tuple[np.ndarray, np.ndarray]:
-    """The Q step: new ``Q (L, n, n)`` (intensity for a continuous system) and each mode's
-    weight (expected intervals it drives) ``(L,)``; a mode of zero weight keeps its ``Q``.
-
-    ``steps (D,)`` are the distinct sampling steps, in the order of the E-step's table;
-    ``table`` the exact transitions of ``system`` in that layout (those of the E-step, or of
-    dynamics updated by an earlier conditional step).
-    """
-    count, S = _step_sums(system, mom, u, table)
-    Q, n = system.Q, system.n_states
-    new = Q.copy()
-    for group in groups(Q):
+def fit_Q(system: SwitchedLinearSystem, u: np.ndarray, mom: Moments, table: StepTable, *,
+          tied: bool) -> np.ndarray:
+    """The Q step: new ``Q (L, n, n)`` (the intensity of a continuous system), module
+    docstring. ``table`` holds the E-step's rows under ``system`` (those of the E-step, or
+    rediscretized with dynamics an earlier conditional step updated); a mode (or tied group)
+    that drives no interval keeps its ``Q``."""
+    count, S = row_sums(mom, u, table)
+    Q, n, L = system.Q, system.n_states, system.n_modes
+    involved = np.zeros((len(count), L), dtype=bool)  # the modes of each row's segments
+    involved[np.arange(len(count)), table.modes[:, 0]] = True
+    involved[np.arange(len(count)), table.modes[:, 1]] = True
+    fitted = []  # (modes, support) of every block that the data inform
+    for group in groups(L, tied):
         idx = support(Q[group[0]])
-        if count[:, group].sum() <= 0 or idx.size == 0:
-            continue
-        if not system.is_continuous:
-            block = S[:, group].sum(axis=(0, 1))[np.ix_(idx, idx)] / count[:, group].sum()
-        else:
-            block = _intensity(system, steps, group, idx, count[:, group], S[:, group])
-        new[group] = _place(block, idx, n)
-    return new, count.sum(axis=0)
+        if idx.size and count[involved[:, group].any(axis=1)].sum() > 0:
+            fitted.append((group, idx))
+    new = Q.copy()
+    if not fitted:
+        return new
+    if not system.is_continuous:
+        for group, idx in fitted:
+            rows = np.isin(table.modes[:, 0], group)
+            block = S[rows].sum(axis=0)[np.ix_(idx, idx)] / count[rows].sum()
+            new[group] = _place(block, idx, n)
+        return new
+    use = count > 0
+    return _intensity(system, _rows(table, use), fitted, count[use], S[use])
+
+
+def _rows(table: StepTable, use: np.ndarray) -> StepTable:
+    return StepTable(table.F[use], table.G[use], table.Qd[use], table.length[use],
+                     table.modes[use], table.offset[use])
 
 
 def _basis(k: int) -> list[tuple[int, int]]:
     return [(a, b) for a in range(k) for b in range(a, k)]
 
 
-def intensity_maps(system: SwitchedLinearSystem, steps, modes, idx) -> np.ndarray:
-    """``Qd_{h, j}(E_p)`` for the symmetric basis ``E_p`` of the block ``idx`` (``E_aa``, and
-    ``E_ab + E_ba`` for ``a < b``): ``(P, D, len(modes), n, n)``, by Van Loan's exact
-    discretization (:func:`switchest.discretize.interval`) of unit intensities."""
-    n = system.n_states
-    steps = np.asarray(steps, dtype=float)
+def intensity_maps(system: SwitchedLinearSystem, table: StepTable, modes, idx) -> np.ndarray:
+    """``Qd_r`` of every row of ``table`` when the intensity of ``modes`` is ``E_p``, for the
+    symmetric basis ``E_p`` of the block ``idx`` (``E_aa``, and ``E_ab + E_ba`` for ``a < b``),
+    and zero in the other modes: ``(P, M, n, n)``, by the exact discretization of each row's
+    segments (:meth:`StepTable.under`, Van Loan's)."""
+    n, L = system.n_states, system.n_modes
+    on = np.isin(np.arange(L), modes)[:, None, None]
 
     def qd(vec):
-        q = np.outer(vec, vec)
-        sysb = system.replace(Q=q)
-        return interval(sysb, steps[:, None], np.asarray(modes)[None, :, None]).Qd
+        return table.under(system.replace(Q=np.where(on, np.outer(vec, vec), 0.0))).Qd
 
     diag = {a: qd(np.eye(n)[idx[a]]) for a in range(idx.size)}
     maps = []
     for a, b in _basis(idx.size):
         if a == b:
             maps.append(diag[a])
-        else:
+        else:  # (e_a + e_b)(e_a + e_b)' - e_a e_a' - e_b e_b' = E_ab + E_ba
             maps.append(qd(np.eye(n)[idx[a]] + np.eye(n)[idx[b]]) - diag[a] - diag[b])
     return np.stack(maps)
 
 
-def _intensity(system, steps, group, idx, count, S) -> np.ndarray:
-    """Minimize ``sum n log det Qd(Q) + tr(Qd(Q)^-1 S)`` over ``Q = L L'`` on the block ``idx``,
-    from the current ``Q``; the current block if no better point is found."""
-    pairs = _basis(idx.size)
-    maps = intensity_maps(system, steps, group, idx)  # (P, D, G, n, n)
-    use = count > 0
-    maps, count, S = maps[:, use], count[use], S[use]
-    k = idx.size
-    low = np.tril_indices(k)
+def _intensity(system, table: StepTable, fitted, count, S) -> np.ndarray:
+    """Minimize ``sum n log det Qd(Q) + tr(Qd(Q)^-1 S)`` over the fitted blocks ``Q = L L'``
+    together, from the current ``Q`` (module docstring); the current ``Q`` if no better point
+    is found."""
+    n = system.n_states
+    held = system.Q.copy()  # the modes not fitted keep theirs: their fixed share of each Qd
+    for group, _ in fitted:
+        held[group] = 0.0
+    fixed = table.under(system.replace(Q=held)).Qd
+    maps = [intensity_maps(system, table, group, idx) for group, idx in fitted]
+    pairs = [_basis(idx.size) for _, idx in fitted]
+    lows = [np.tril_indices(idx.size) for _, idx in fitted]
+    sizes = np.cumsum([0] + [low[0].size for low in lows])
 
-    def unpack(theta):
-        Lf = np.zeros((k, k))
-        Lf[low] = theta
-        return Lf
+    def blocks(theta):
+        out = []
+        for (_, idx), low, a in zip(fitted, lows, sizes):
+            Lf = np.zeros((idx.size, idx.size))
+            Lf[low] = theta[a:a + low[0].size]
+            out.append(Lf)
+        return out
 
     def objective(theta):
-        Lf = unpack(theta)
-        Qb = Lf @ Lf.T
-        q = np.array([Qb[a, b] for a, b in pairs])
-        Qd = np.einsum("p,psab->sab", q, maps)
+        factors = blocks(theta)
+        Qd = fixed.copy()
+        for Lf, mp, pr in zip(factors, maps, pairs):
+            Qb = Lf @ Lf.T
+            Qd += np.einsum("p,psab->sab", np.array([Qb[a, b] for a, b in pr]), mp)
         try:
             chol = np.linalg.cholesky(Qd)
         except np.linalg.LinAlgError:
@@ -208,19 +226,27 @@ def _intensity(system, steps, group, idx, count, S) -> np.ndarray:
         logdet = 2 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(axis=-1)
         f = float(np.sum(count * logdet) + np.einsum("sab,sba->", inv, S))
         M = count[:, None, None] * inv - inv @ S @ inv  # d f / d Qd
-        g = np.einsum("sab,psba->p", M, maps)  # d f / d q_p
-        Gs = np.zeros((k, k))
-        for (a, b), gp in zip(pairs, g):
-            Gs[a, b] += gp if a == b else 0.5 * gp
-            Gs[b, a] += 0.0 if a == b else 0.5 * gp
-        return f, (2 * Gs @ Lf)[low]
+        grad = []
+        for Lf, mp, pr, low in zip(factors, maps, pairs, lows):
+            g = np.einsum("sab,psba->p", M, mp)  # d f / d q_p
+            k = Lf.shape[0]
+            Gs = np.zeros((k, k))
+            for (a, b), gp in zip(pr, g):
+                Gs[a, b] += gp if a == b else 0.5 * gp
+                Gs[b, a] += 0.0 if a == b else 0.5 * gp
+            grad.append((2 * Gs @ Lf)[low])
+        return f, np.concatenate(grad)
 
-    start = system.Q[group[0]][np.ix_(idx, idx)]
-    theta0 = np.linalg.cholesky(start + 1e-12 * np.trace(start) / k * np.eye(k))[low]
+    starts = [system.Q[group[0]][np.ix_(idx, idx)] for group, idx in fitted]
+    theta0 = np.concatenate([
+        np.linalg.cholesky(q + 1e-12 * np.trace(q) / q.shape[0] * np.eye(q.shape[0]))[low]
+        for q, low in zip(starts, lows)])
     f0, _ = objective(theta0)
     res = minimize(objective, theta0, jac=True, method="BFGS",
                    options={"gtol": 1e-10 * max(1.0, abs(f0)), "maxiter": 500})
+    new = system.Q.copy()
     if not np.isfinite(res.fun) or res.fun > f0:
-        return start
-    Lf = unpack(res.x)
-    return Lf @ Lf.T
+        return new
+    for (group, idx), Lf in zip(fitted, blocks(res.x)):
+        new[group] = _place(Lf @ Lf.T, idx, n)
+    return new

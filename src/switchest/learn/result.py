@@ -27,12 +27,14 @@ class FitResult:
         ``loglik[i]``: the log-likelihood of the data under the parameters of iteration ``i``
         (``i = 0`` the starting ones); the last entry is that of ``system``, ``transition``.
     converged : bool
-        Whether the relative change of the log-likelihood fell below ``tol`` before
-        ``max_iter`` iterations (after a direct ascent: whether it reached a stationary point).
+        Whether EM's stopping rule (the gain, and the gain still to come, at most ``tol``
+        nats) held before ``max_iter`` iterations (after a direct ascent: whether it reached a
+        stationary point).
     iterations : int
         Number of iterations in ``loglik``: accepted E-steps, then those of the ascent.
     ascent_from : int or None
-        With unknown modes and Kim's E-step, the index of ``loglik`` where the direct ascent
+        With an approximate E-step (unknown modes and Kim's, or switches between the
+        samples), the index of ``loglik`` where the direct ascent
         (:mod:`~switchest.learn.ascent`) begins, from the last EM iterate (EM stops at the
         first step that would lower the likelihood, and that step is not in ``loglik``). None
         when the fit was EM throughout.
@@ -45,6 +47,14 @@ class FitResult:
         For a continuous-time system sampled periodically, the generator of a continuous-time
         Markov chain whose transition over one period is ``transition`` (None where no valid
         generator exists: :func:`switchest.learn.rates_from_transition`).
+    shared : tuple of str
+        The matrices fitted as one for all modes (``fit``'s ``shared``).
+    switch_times : str
+        ``"samples"`` or ``"between"``: where the E-step put the switches of known modes.
+    outlier : ndarray of bool, shape (N, K), or None
+        The samples the E-step's filter gated (treated as missing) at the fit.
+    outliers : int
+        Their number.
     """
 
     system: SwitchedLinearSystem
@@ -55,3 +65,7 @@ class FitResult:
     se: Mapping[str, np.ndarray]
     rates: np.ndarray | None = None
     ascent_from: int | None = None
+    shared: tuple[str, ...] = ()
+    switch_times: str = "samples"
+    outlier: np.ndarray | None = None
+    outliers: int = 0

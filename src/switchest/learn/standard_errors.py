@@ -8,8 +8,9 @@ estimate is its inverse. The free parameters:
 
 - of ``Q`` and ``R``, the upper triangle of each fitted block (its support), each step ``1e-3``
   of the entry's scale ``sqrt(V_aa V_bb)``;
-- of ``A``, ``B`` and ``C``, every entry (per mode, or once for a matrix the modes share), each
-  step ``1e-3`` of the entry, or of ``1e-3`` of the matrix's largest entry for a smaller one;
+- of ``A``, ``B`` and ``C``, every entry (per mode, or once for a matrix the fit ties across
+  the modes), each step ``1e-3`` of the entry, or of ``1e-3`` of the matrix's largest entry
+  for a smaller one;
 - of the transition matrix (with unknown modes: ``"transition"`` in ``names``), the entries
   ``pi_ji`` of each row but its largest that were nonzero at the fit's start,
   ``pi_jr = 1 - sum_{i != r} pi_ji``, which depends on them (:func:`.markov_step.free_rows`; a
@@ -26,7 +27,10 @@ A fit on the boundary of the parameter space (a transition probability near zero
 ``Q`` or ``R`` block: a maximum where the likelihood need not be flat) has no information
 there in the regular sense: those entries get NaN and are held fixed, and the others' standard
 errors come from the information of the rest (conditional on them; Self & Liang 1987, JASA 82,
-on the boundary's non-standard asymptotics).
+on the boundary's non-standard asymptotics). Likewise where the information is not positive
+definite (a parameter the data barely inform, whose curvature is lost in the rounding of the
+summed likelihood, or a fit not at a maximum along it): the entries of least information
+relative to their scale are held fixed, one at a time, until that of the rest is, and named.
 
 The parameters are taken jointly: with unknown modes the transition's estimates are correlated
 with the others' (the modes are told apart through them), and the marginal standard errors
@@ -56,14 +60,14 @@ _REL_STEP = 1e-3
 _BOUNDARY = 1e-4
 
 
-def _free(system: SwitchedLinearSystem, names) -> list[tuple[str, list[int], int, int]]:
+def _free(system: SwitchedLinearSystem, names, tied) -> list[tuple[str, list[int], int, int]]:
     """The free entries: ``(matrix name, modes sharing it, a, b)``, per mode or once for a
-    shared matrix: for ``Q``, ``R`` those with ``a <= b`` in the matrix's support, for ``A``,
-    ``B``, ``C`` every entry."""
+    matrix tied across the modes (``tied``): for ``Q``, ``R`` those with ``a <= b`` in the
+    matrix's support, for ``A``, ``B``, ``C`` every entry."""
     out = []
     for name in names:
         stack = getattr(system, name)
-        for group in groups(stack):
+        for group in groups(system.n_modes, name in tied):
             if name in ("A", "B", "C"):
                 out += [(name, group, a, b) for a, b in np.ndindex(stack.shape[1:])]
                 continue
@@ -111,19 +115,20 @@ def _with(system: SwitchedLinearSystem, transition: np.ndarray, free, theta
 
 
 def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarray, names,
-                             logliks: Callable[[list], np.ndarray], *,
+                             logliks: Callable[[list], np.ndarray], *, tied=frozenset(),
                              allowed: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Standard errors of the fitted ``transition``, ``A``, ``B``, ``C``, ``Q`` and ``R`` (those
     in ``names``) at ``system``, ``transition``, from the observed information of the
     log-likelihood; ``logliks`` maps a list of ``(system, transition)`` candidates to their
     log-likelihoods (NaN where one has none), and is called once, with every point of the
-    finite-difference Hessian. ``allowed`` (nonzero where the fit's start transition matrix
+    finite-difference Hessian. A matrix in ``tied`` is one for all modes (one set of free
+    entries). ``allowed`` (nonzero where the fit's start transition matrix
     is) says which transition entries may be nonzero (default: those of ``transition``).
     Shaped like the matrices, NaN outside the fitted blocks (and at a zero entry of
-    ``allowed``), at the entries on the boundary (module docstring), or everywhere when the
-    information of the others is not positive definite (each case with a ``RuntimeWarning``
-    that says so)."""
-    free = _free(system, [name for name in names if name != "transition"])
+    ``allowed``), at the entries on the boundary and those held fixed where the information is
+    not positive definite (module docstring), or everywhere when no entry's is (each case with
+    a ``RuntimeWarning`` that says so)."""
+    free = _free(system, [name for name in names if name != "transition"], tied)
     if "transition" in names:
         free = _free_transition(transition, allowed) + free
     out = {name: np.full((transition if name == "transition" else getattr(system, name)).shape,
@@ -152,20 +157,27 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
     for (u, v), four in zip(pairs, cross.reshape(-1, 4)):
         info[u, v] = info[v, u] = -(four[0] - four[1] - four[2] + four[3]) / (
             4 * h[inner[u]] * h[inner[v]])
-    try:  # positive definite, and its inverse, by one Cholesky factorization
-        factor = cho_factor(info) if inner.size and np.all(np.isfinite(info)) else None
-    except np.linalg.LinAlgError:
-        factor = None
-    if factor is None:
-        warnings.warn(f"the observed information of {', '.join(names)} is not positive definite "
-                      "at the fit (a parameter is not identifiable, or the fit is not at a "
-                      "maximum): their standard errors are NaN", RuntimeWarning, stacklevel=3)
-        return out
     if np.any(edge):
         where = ", ".join(_label(free[q]) for q in np.flatnonzero(edge))
         warnings.warn(f"the fit lies on the boundary of the parameter space at {where}: these "
                       "have no standard error, and the others' are conditional on them",
                       RuntimeWarning, stacklevel=3)
+    kept, factor = _definite(info, h[inner] / _REL_STEP)
+    if factor is None:
+        warnings.warn(f"the observed information of {', '.join(names)} is not positive definite "
+                      "at the fit (a parameter is not identifiable, or the fit is not at a "
+                      "maximum): their standard errors are NaN", RuntimeWarning, stacklevel=3)
+        return out
+    if kept.size < inner.size:
+        held = inner[np.setdiff1d(np.arange(inner.size), kept)]
+        warnings.warn(f"the observed information is not positive definite at the fit along "
+                      f"{', '.join(_label(free[q]) for q in held)} (not identifiable from the "
+                      "data, or the fit is not at a maximum along them): these have no standard "
+                      "error, and the others' are conditional on them", RuntimeWarning,
+                      stacklevel=3)
+        edge = edge.copy()
+        edge[held] = True  # held fixed, as those on the boundary
+        inner = inner[kept]
     cov = np.full((p, p), np.nan)
     cov[np.ix_(inner, inner)] = cho_solve(factor, np.eye(inner.size))
     for (name, group, a, b), s in zip(free, np.sqrt(np.diag(cov))):
@@ -182,6 +194,25 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
             row = [q for q in row if not edge[q]]  # those on the boundary are held fixed
             out["transition"][j, r] = np.sqrt(cov[np.ix_(row, row)].sum()) if row else 0.0
     return out
+
+
+def _definite(info: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, tuple | None]:
+    """The parameters whose observed information ``info`` is positive definite, and its
+    Cholesky factor (None if there are none): all of them if it is; otherwise, one at a time,
+    the one of least information relative to its ``scale`` (``info_ii scale_i^2``, the
+    curvature in relative units; a non-finite one first) is left out until the rest is."""
+    kept = np.arange(info.shape[0])
+    while kept.size:
+        sub = info[np.ix_(kept, kept)]
+        if np.all(np.isfinite(sub)):
+            try:
+                return kept, cho_factor(sub)
+            except np.linalg.LinAlgError:
+                pass
+        finite = np.all(np.isfinite(sub), axis=1)
+        relative = np.where(finite, np.diag(sub) * scale[kept] ** 2, -np.inf)
+        kept = np.delete(kept, int(np.argmin(relative)))
+    return kept, None
 
 
 def _on_boundary(system: SwitchedLinearSystem, transition: np.ndarray, free) -> np.ndarray:

@@ -1,0 +1,67 @@
+"""Whether a fit's timing of the switches can represent the data: the innovations after the mode
+changes.
+
+A fit with known modes switching at the samples holds each mode over the whole interval after
+its sample. On data whose switches fall inside the intervals that is wrong exactly at the
+intervals where the mode changes, and the fit puts the model error into ``Q`` and ``R``: the
+normalized innovations squared (NIS) of the fitted model's Kalman filter then average about
+their dimension ``m`` overall, the fit having made them so, but far more after a mode change
+than elsewhere. A model that fits has NIS chi-square with ``m`` degrees of freedom at every
+sample (Bar-Shalom, Li & Kirubarajan 2001, §5.4), so the mean over the ``S`` samples after a
+mode change lies within a few ``sqrt(2 m / S)`` of ``m``
+(:func:`switchest.metrics.innovation_consistency`, the check of ``switchest estimate``).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..estimators import ModeKalmanFilter
+from ..metrics import innovation_consistency
+from ..system import SwitchedLinearSystem
+from .data import Record
+
+__all__ = ["Z_LIMIT", "warn_if_mistimed"]
+
+Z_LIMIT = 4.0
+"""Standard deviations of the mean NIS beyond which a fit is implausible (``switchest
+estimate``'s limit)."""
+_FEWEST = 20  # samples after a mode change below which the check says nothing
+
+
+def warn_if_mistimed(system: SwitchedLinearSystem, x0, P0, data: Record) -> None:
+    """Warn (``RuntimeWarning``) when the mean NIS of ``system``'s Kalman filter along the known
+    modes over the samples after a mode change is more than :data:`Z_LIMIT` standard
+    deviations above its value for a model that fits (module docstring)."""
+    est = ModeKalmanFilter(system, x0, P0).run(data.y, data.u, data.t, modes=data.modes)
+    change = np.zeros(data.shape, dtype=bool)
+    change[:, 1:] = data.modes[:, 1:] != data.modes[:, :-1]
+    seen = {}
+    for label, where in (("after", change), ("others", ~change)):
+        nis = dims = count = 0.0
+        for i in range(data.shape[0]):
+            check = innovation_consistency(system, data.y[i], est.x[i], est.P[i], data.modes[i],
+                                           used=where[i])
+            if check.samples:
+                nis += check.mean_nis * check.samples
+                dims += check.expected * check.samples
+                count += check.samples
+        seen[label] = (nis / count, dims / count, int(count)) if count else None
+    if seen["after"] is None or seen["after"][2] < _FEWEST:
+        return
+    mean, expected, samples = seen["after"]
+    z = (mean - expected) / np.sqrt(2 * expected / samples)
+    if z <= Z_LIMIT:
+        return
+    others = ("" if seen["others"] is None else
+              f" and {seen['others'][0]:.3g} over the {seen['others'][2]} others")
+    warnings.warn(f"implausible fit: mean normalized innovation squared {mean:.3g} over the "
+                  f"{samples} samples after a mode change{others}, {expected:g} expected for a "
+                  f"filter whose model fits the data (z = {z:.1f}); the residuals after a mode "
+                  "change are larger than the fitted model's covariance claims: switches "
+                  "between the samples do it (the fit held each mode over the interval after "
+                  "its sample), which switch_times='between' models (switchest fit "
+                  "--switch-times between)", RuntimeWarning,
+                  stacklevel=4)
