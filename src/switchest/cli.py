@@ -410,7 +410,7 @@ def _cmd_report(args: argparse.Namespace, console: Console) -> int:
 
     _output_folder(Path(args.out), "--out")
     try:
-        store = Store(args.store)
+        store = Store(args.store, read_only=True)
     except (ValueError, OSError) as exc:
         raise _UsageError(f"--store: {exc}") from None
     with _report_progress(console) as progress:

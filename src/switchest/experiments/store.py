@@ -157,18 +157,26 @@ class StoredTask:
 class Store:
     """A results store at ``path`` (created on first use, parent folders included).
 
+    With ``read_only`` (``switchest report``) the store must exist and hold switchest's
+    tables; it is opened read-only: nothing is created, upgraded or switched to WAL.
+
     Raises
     ------
     ValueError
         If ``path`` is a folder, a file that is not a SQLite database, or a place
-        where the store cannot be created or read; the message names the path.
+        where the store cannot be created or read; with ``read_only``, a missing file or a
+        database without switchest's tables; the message names the path.
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, read_only: bool = False):
         self.path = Path(path)
+        self.read_only = read_only
         if self.path.is_dir():
             raise ValueError(f"store {self.path} is a folder; expected a SQLite file such as "
                              f"{self.path / 'results.sqlite'}")
+        if read_only:
+            self._check_tables()
+            return
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -204,6 +212,18 @@ class Store:
                 for statement in filter(str.strip, _RUNS_WITH_TEXT_SEED.split(";")):
                     con.execute(statement)
 
+    def _check_tables(self) -> None:
+        """Refuse a missing file, or a database that lacks the tables a store reads."""
+        if not self.path.is_file():
+            raise ValueError(f"store {self.path} does not exist")
+        with self._connect() as con:
+            names = {row[0] for row in con.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table'")}
+        missing = sorted({"tasks", "runs"} - names)
+        if missing:
+            raise ValueError(f"store {self.path} is not a switchest results store (no table "
+                             f"{', '.join(missing)}; it has {', '.join(sorted(names)) or 'none'})")
+
     @contextmanager
     def _connect(self) -> Iterator[sqlite3.Connection]:
         """A short-lived autocommit connection (``timeout``: SQLite's busy timeout), closed on exit.
@@ -212,7 +232,9 @@ class Store:
         naming the path; busy and locked errors pass through.
         """
         try:
-            con = sqlite3.connect(self.path, timeout=60.0, isolation_level=None)
+            con = (sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True,
+                                   timeout=60.0, isolation_level=None) if self.read_only else
+                   sqlite3.connect(self.path, timeout=60.0, isolation_level=None))
             try:
                 yield con
             finally:
@@ -299,8 +321,18 @@ class Store:
                 "SELECT key, experiment, config, seed, result, elapsed, finished FROM tasks "
                 "WHERE experiment = ? ORDER BY key", (experiment,)
             ).fetchall()
-        return [StoredTask(k, e, json.loads(c), json.loads(s), json.loads(r), el, f)
+        return [StoredTask(k, e, *(self._decoded(k, name, text) for name, text in
+                                   (("config", c), ("seed", s), ("result", r))), el, f)
                 for k, e, c, s, r, el, f in rows]
+
+    def _decoded(self, key: str, name: str, text: str):
+        """The JSON ``text`` of task ``key``'s column ``name``, or a ValueError naming both
+        and the store."""
+        try:
+            return json.loads(text)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"store {self.path}: the stored {name} of task {key} is corrupt "
+                             f"({exc})") from None
 
     def record_run(self, experiment: str, params: dict, seed: int) -> None:
         """Remember that a run of ``experiment`` with ``params`` and ``seed`` started.
