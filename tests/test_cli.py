@@ -199,8 +199,9 @@ def test_the_multiple_model_methods_from_the_shell(tmp_path, capsys):
 
 
 def test_timing_selects_the_interval_a_mode_governs(tmp_path, capsys):
-    """--timing: the default is Bar-Shalom's ("interval"), "sample" is another filter (the
-    vehicle's modes differ in their dynamics), and methods without modes to time refuse it."""
+    """--timing: the default is the model file's (here "sample", the timing simulate draws),
+    Bar-Shalom's "interval" is another filter (the vehicle's modes differ in their dynamics),
+    and methods without modes to time refuse it."""
     model = Path(__file__).resolve().parents[1] / "examples" / "models" / "shankar-vehicle.toml"
     data = tmp_path / "d.csv"
     assert main(["simulate", "--model", str(model), "--duration", "20", "--input", "1",
@@ -213,7 +214,7 @@ def test_timing_selects_the_interval_a_mode_governs(tmp_path, capsys):
         out = tmp_path / f"{name}.csv"
         assert main([*args, *extra, "--out", str(out)]) == 0, name
         tables[name] = pd.read_csv(out)
-    pd.testing.assert_frame_equal(tables["default"], tables["interval"])
+    pd.testing.assert_frame_equal(tables["default"], tables["sample"])
     states = ["x0", "x1", "x2", "x3"]
     assert np.abs(tables["interval"][states].to_numpy()
                   - tables["sample"][states].to_numpy()).max() > 1e-6
@@ -257,7 +258,7 @@ def test_estimate_smooths_the_boost_converter(tmp_path):
                      *extra, "--out", str(out)]) == 0
     f, s = pd.read_csv(filtered), pd.read_csv(smoothed)
     assert np.all(np.isfinite(s[["x0", "x1"]].to_numpy()))
-    assert np.all(s["std_x1"] <= f["std_x1"].max())
+    assert np.median(s["std_x1"]) < np.median(f["std_x1"])  # the whole record knows more
 
 
 def test_estimate_writes_the_outlier_flags_and_counts_them(tmp_path, capsys):

@@ -217,3 +217,17 @@ def test_simulate_runs_at_the_files_input_by_default():
     table = simulate_measurements(spec, duration=0.002, rng=0)
     assert np.all(table["u"] == 100.0)
     assert np.all(simulate_measurements(spec, duration=0.002, u=[0.0], rng=0)["u"] == 0.0)
+
+
+def test_the_timing_key_is_read_written_and_checked(tmp_path):
+    spec = load_model(EXAMPLES / "shankar-boost.toml")
+    assert spec.timing == "sample"  # the default: the timing simulate draws
+    text = (EXAMPLES / "shankar-boost.toml").read_text()
+    path = tmp_path / "interval.toml"
+    path.write_text('timing = "interval"\n' + text)
+    spec = load_model(path)
+    assert spec.timing == "interval"
+    assert load_model(save_model(spec, tmp_path / "again.toml")).timing == "interval"
+    path.write_text('timing = "intervals"\n' + text)
+    with pytest.raises(ValueError, match="timing: expected one of 'sample', 'interval'"):
+        load_model(path)

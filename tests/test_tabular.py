@@ -1,6 +1,7 @@
 """Estimation from tables: CSV round trip through the CLI, missing samples, refused tables."""
 
 import inspect
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -386,3 +387,21 @@ def test_estimate_warns_when_the_residuals_do_not_fit_the_model(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", ImplausibleEstimateWarning)
         estimate_table(spec, data, method="switch-time")
+
+
+def test_the_filters_run_in_the_model_files_timing_and_name_another(tmp_path):
+    """Issue 35: simulate draws the "sample" timing while the multiple-model filters defaulted
+    to "interval"; from a model file they now run in the file's timing (that of its data), and
+    an explicit other timing is named in a TimingWarning."""
+    from switchest.tabular import TimingWarning
+
+    spec, df, path, traj = boost_csv(tmp_path)
+    assert spec.timing == "sample"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TimingWarning)
+        default = estimate_table(spec, path, method="gpb2")
+    same = estimate_table(spec, path, method="gpb2", timing="sample")
+    np.testing.assert_allclose(default[["x0", "x1"]].to_numpy(), same[["x0", "x1"]].to_numpy())
+    with pytest.warns(TimingWarning, match="'interval' timing, the model file's data in the "
+                                           "'sample' one"):
+        estimate_table(spec, path, method="gpb2", timing="interval")

@@ -443,13 +443,14 @@ def _cmd_list(args: argparse.Namespace, console: Console) -> int:
 
 def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
     from .modelfile import load_model
-    from .tabular import ImplausibleEstimateWarning, estimate_table
+    from .tabular import ImplausibleEstimateWarning, TimingWarning, estimate_table
 
     out = _output_file(Path(args.out), "--out")
     plot = args.plot and _output_file(Path(args.plot), "--plot", ("png", "pdf", "svg"))
     spec = load_model(args.model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImplausibleEstimateWarning)
+        warnings.simplefilter("always", TimingWarning)
         table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
                                refine=args.refine, stay=args.stay, v_max=args.v_max,
                                delta=args.delta, Delta=args.Delta,
@@ -458,7 +459,7 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
                                gate=args.gate, trial=args.trial)
     errors = Console(stderr=True, soft_wrap=True, highlight=False)
     for warning in caught:
-        if issubclass(warning.category, ImplausibleEstimateWarning):
+        if issubclass(warning.category, (ImplausibleEstimateWarning, TimingWarning)):
             _say(errors, "warning", str(warning.message))
         else:
             warnings.showwarning(warning.message, warning.category, warning.filename,
@@ -813,9 +814,10 @@ def _parser() -> _Parser:
                        help=_applies("seed", "seed of the particles' random numbers (default 0)"))
     p_est.add_argument("--timing", choices=TIMINGS, default=None,
                        help=_applies("timing", "which interval the mode of a sample governs: "
-                                               "'interval' (default) the one before it "
-                                               "(Bar-Shalom's IMM); 'sample' the one after it, "
-                                               "as simulate draws (docs: Conventions)"))
+                                               "'sample' the one after it, as simulate draws; "
+                                               "'interval' the one before it (Bar-Shalom's "
+                                               "IMM); default: the model file's timing, that "
+                                               "of its data (docs: Conventions)"))
     p_est.add_argument("--gate", type=_window, default=None,
                        help=_applies("gate", "outlier gate: a measurement whose normalized "
                                              "innovation squared exceeds it is treated as "

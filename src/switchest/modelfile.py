@@ -3,6 +3,9 @@
 A TOML file holds the system (read by :func:`system_from_dict`) and, optionally::
 
     description = "free text"
+    timing = "sample"       # which interval a sample's mode governs in the file's data: the
+                            # one after it ("sample", as simulate draws; the default) or the
+                            # one before it ("interval"); the multiple-model filters default to it
     [sampling]              # period = T, or tau_min / tau_max for aperiodic sampling;
     period = 0.0005         # duration = default length of a simulation (s)
     duration = 10.0
@@ -63,7 +66,8 @@ _INITIAL_KEYS = {"mean", "cov"}
 _NOISE_BOUNDS = {"v_max", "u_max", "x_min"}  # bounds on |v|, |u|, |x|: zero is meaningful
 _NOISE_DESIGN = {"delta", "Delta", "observer_decay"}  # windows (s) and a decay rate (1/s)
 _TOP_KEYS = {"domain", "dt", "shared", "modes", "sampling", "switching", "initial", "input",
-             "noise", "states", "description"}
+             "noise", "states", "description", "timing"}
+_TIMINGS = ("sample", "interval")
 _INPUT_KEYS = {"value"}
 _STATES_KEYS = {"names", "units"}
 
@@ -90,6 +94,10 @@ class ModelSpec:
     input : ndarray, shape (l,), or None
         The constant input the system runs at (``[input] value``), or None when the file
         names none.
+    timing : {"sample", "interval"}
+        Which interval the mode of a sample governs in the file's data (docs/conventions.rst):
+        the one after it (``"sample"``, the default, as :func:`switchest.simulate.simulate`
+        draws) or the one before it (``"interval"``).
     """
 
     system: SwitchedLinearSystem
@@ -101,8 +109,11 @@ class ModelSpec:
     state_names: tuple[str, ...] = ()
     state_units: tuple[str, ...] = ()
     input: np.ndarray | None = None
+    timing: str = "sample"
 
     def __post_init__(self) -> None:
+        if self.timing not in _TIMINGS:
+            raise ValueError(f"timing must be one of {_TIMINGS}, got {self.timing!r}")
         n = self.system.n_states
         if self.input is not None and np.shape(self.input) != (self.system.n_inputs,):
             raise ValueError(f"input must hold the system's {self.system.n_inputs} input(s), "
@@ -162,6 +173,8 @@ class ModelSpec:
             doc["initial"] = {"mean": self.initial[0], "cov": self.initial[1]}
         if self.input is not None:
             doc["input"] = {"value": np.asarray(self.input).tolist()}
+        if self.timing != "sample":
+            doc["timing"] = self.timing
         states = {k: list(v) for k, v in (("names", self.state_names),
                                           ("units", self.state_units)) if v}
         if states:
@@ -195,6 +208,10 @@ def load_model(path: str | Path) -> ModelSpec:
     description = doc.get("description", "")
     if not isinstance(description, str):
         raise _toml.ModelFileError(_toml.where(source, "description: expected a string"))
+    timing = doc.get("timing", "sample")
+    if timing not in _TIMINGS:
+        raise _toml.ModelFileError(_toml.where(
+            source, f"timing: expected one of {', '.join(map(repr, _TIMINGS))}, got {timing!r}"))
     return ModelSpec(
         system=system,
         sampling=_sampling(doc.get("sampling", {}), source),
@@ -203,6 +220,7 @@ def load_model(path: str | Path) -> ModelSpec:
         input=_input(doc.get("input"), source, system.n_inputs),
         noise=_noise(doc.get("noise", {}), source),
         description=description,
+        timing=timing,
         **_states(doc.get("states", {}), source, system.n_states),
     )
 
