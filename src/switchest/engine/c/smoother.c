@@ -135,13 +135,13 @@ static void pair_scratch(se_arena *a, se_int n, se_int B, pair_scratch_t *s)
 }
 
 /* The work arrays of rts_joseph for n states and B lanes, in its order (joseph_scratch):
- * P_pred, F P, xs (se_predict); e, P C', chol, scale, z, nis, loglik, work,
- * bad (se_innovation); T, AP, prior (se_correct); root, lost (se_joseph_lost); x (the mean
+ * P_pred, F P, xs (se_predict); inn, se_innovation's workspace (se_carve_innovation);
+ * T, AP, prior (se_correct); root, lost (se_joseph_lost); x (the mean
  * se_correct leaves unchanged); the lanes' identity and zero (n, n), obs ones (n, B) and
  * n_obs = n (the pseudo-measurement, every component observed). */
 typedef struct {
-    double *Pp, *FP, *xs, *e, *PCt, *chol, *scale, *z, *nis, *loglik, *work;
-    uint8_t *bad;
+    double *Pp, *FP, *xs;
+    se_innovation_ws inn;
     double *T, *AP, *prior, *root;
     uint8_t *lost;
     double *x, *eye, *zero, *obs, *n_obs;
@@ -152,15 +152,7 @@ static void joseph_scratch(se_arena *a, se_int n, se_int B, joseph_scratch_t *s)
     s->Pp = se_doubles(a, n * n * B);
     s->FP = se_doubles(a, n * n * B);
     s->xs = se_doubles(a, n * B);
-    s->e = se_doubles(a, n * B);
-    s->PCt = se_doubles(a, n * n * B);
-    s->chol = se_doubles(a, n * n * B);
-    s->scale = se_doubles(a, n * B);
-    s->z = se_doubles(a, n * B);
-    s->nis = se_doubles(a, B);
-    s->loglik = se_doubles(a, B);
-    s->work = se_doubles(a, 3 * B);
-    s->bad = se_flags(a, B);
+    se_carve_innovation(a, n, n, B, &s->inn);
     s->T = se_doubles(a, n * n * B);
     s->AP = se_doubles(a, n * n * B);
     s->prior = se_doubles(a, n * n * B);
@@ -463,13 +455,12 @@ static se_int rts_joseph(se_int n, se_int l, se_int B, const double *restrict xj
                          double *restrict xp, double *restrict P, double *restrict gain,
                          double *restrict report, const joseph_scratch_t *s)
 {
-    double *restrict Pp = s->Pp, *restrict FP = s->FP, *restrict PCt = s->PCt;
+    double *restrict Pp = s->Pp, *restrict FP = s->FP, *restrict PCt = s->inn.PCt;
     se_copy_gaussian(n, B, xj, Pj, nb, xp, Pp);
     se_predict(n, l, B, xp, Pp, F, G, u, Qd, nb, FP, s->xs); /* x_pred, P_pred; FP = F P_j */
     /* S = P_pred factored (repaired where singular); the measurement x_pred: e = z = 0 */
-    se_int status = se_innovation(n, n, B, xp, Pp, xp, s->eye, s->zero, s->obs, s->n_obs, nb,
-                                  s->e, PCt, s->chol, s->scale, s->z, s->nis, s->loglik,
-                                  s->work, s->bad, report);
+    se_int status = se_innovate(n, n, B, xp, Pp, xp, s->eye, s->zero, s->obs, s->n_obs, nb,
+                                &s->inn, report);
     if (status != SE_OK)
         return status;
     for (se_int r = 0; r < n; r++) /* the pseudo-measurement's P C' = P_j F' = (F P_j)' */
@@ -479,8 +470,8 @@ static se_int rts_joseph(se_int n, se_int l, se_int B, const double *restrict xj
     se_copy_gaussian(n, B, xj, Pj, nb, s->x, P);
     /* P = (I - J F) P_j (I - J F)' + J Qd J', gain = J = P_j F' P_pred^-1 (x: unchanged) */
     const se_update_ws ws = {gain, s->T, s->AP, s->prior, s->root, s->lost};
-    se_update(n, n, B, s->x, P, F, Qd, s->obs, s->n_obs, use, nb, PCt, s->chol, s->scale, s->z,
-              &ws, report);
+    se_update(n, n, B, s->x, P, F, Qd, s->obs, s->n_obs, use, nb, PCt, s->inn.chol,
+              s->inn.scale, s->inn.z, &ws, report);
     return SE_OK;
 }
 
