@@ -143,3 +143,22 @@ cdef inline int start_binding() except -1:
     cnp.import_array()
     use_lapack()
     return 0
+
+
+cdef inline int shaped(cnp.ndarray a, int ndim, se_int s0, se_int s1, se_int s2, se_int s3,
+                       se_int s4, str kernel) except -1:
+    """Raise ValueError unless ``a`` has ``ndim`` axes of the sizes given (-1: any), naming
+    the ``kernel`` whose arrays disagree."""
+    cdef se_int want[5]
+    cdef int d
+    want[0] = s0
+    want[1] = s1
+    want[2] = s2
+    want[3] = s3
+    want[4] = s4
+    if cnp.PyArray_NDIM(a) != ndim:
+        raise ValueError(f"{kernel}'s arrays do not agree in shape")
+    for d in range(ndim):
+        if want[d] >= 0 and a.shape[d] != want[d]:
+            raise ValueError(f"{kernel}'s arrays do not agree in shape")
+    return 0

@@ -1,7 +1,7 @@
 # distutils: sources = src/switchest/engine/c/smoother.c src/switchest/engine/c/linalg.c
 """Binding of Kim's backward pass and of the covariance screen (engine/c/smoother.c)."""
 cimport numpy as cnp
-from ._common cimport uint8_t, fptr, cfptr, iptr, bptr, se_int, no_memory, start_binding
+from ._common cimport uint8_t, fptr, cfptr, iptr, bptr, se_int, no_memory, shaped, start_binding
 start_binding()
 
 cdef extern from "smoother.h":
@@ -18,22 +18,7 @@ cdef extern from "smoother.h":
                          double *sym, uint8_t *failed, double *scale, double *asym) nogil
 
 
-cdef inline int shaped(cnp.ndarray a, int ndim, se_int s0, se_int s1, se_int s2, se_int s3,
-                       se_int s4) except -1:
-    """Raise ValueError unless ``a`` has ``ndim`` axes of the sizes given (-1: any)."""
-    cdef se_int want[5]
-    cdef int d
-    want[0] = s0
-    want[1] = s1
-    want[2] = s2
-    want[3] = s3
-    want[4] = s4
-    if cnp.PyArray_NDIM(a) != ndim:
-        raise ValueError("the smoother's arrays do not agree in shape")
-    for d in range(ndim):
-        if want[d] >= 0 and a.shape[d] != want[d]:
-            raise ValueError("the smoother's arrays do not agree in shape")
-    return 0
+_KERNEL = "the smoother"  # named when its arrays disagree in shape
 
 
 def kim_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f, cnp.ndarray u,
@@ -47,32 +32,32 @@ def kim_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f, cnp.n
     ``se_kim_backward``, engine/c/smoother.h, checked by
     :func:`switchest.engine.smoother.kim_smooth`); returns the status code (``MemoryError`` if
     the scratch cannot be allocated)."""
-    shaped(x_f, 4, -1, -1, -1, -1, -1)
+    shaped(x_f, 4, -1, -1, -1, -1, -1, _KERNEL)
     cdef se_int N = x_f.shape[0], K = x_f.shape[1], L = x_f.shape[2], n = x_f.shape[3]
-    shaped(u, 3, N, K, -1, -1, -1)
+    shaped(u, 3, N, K, -1, -1, -1, _KERNEL)
     cdef se_int l = u.shape[2]
-    shaped(F, 3, -1, n, n, -1, -1)
+    shaped(F, 3, -1, n, n, -1, -1, _KERNEL)
     cdef se_int M = F.shape[0]
-    shaped(trans, 3, -1, K, L, -1, -1)
+    shaped(trans, 3, -1, K, L, -1, -1, _KERNEL)
     cdef se_int T = trans.shape[0], TK = trans.shape[1]
-    shaped(x_s, 4, -1, K, L, n, -1)
+    shaped(x_s, 4, -1, K, L, n, -1, _KERNEL)
     cdef se_int Ns = x_s.shape[0]
-    shaped(pair_out, 4, N, -1, L, L, -1)
+    shaped(pair_out, 4, N, -1, L, L, -1, _KERNEL)
     cdef se_int J = pair_out.shape[1]
-    shaped(P_f, 5, N, K, L, n, n)
-    shaped(log_prob_f, 3, N, K, L, -1, -1)
-    shaped(G, 3, M, n, l, -1, -1)
-    shaped(Qd, 3, M, n, n, -1, -1)
-    shaped(log_transition, 2, L, L, -1, -1, -1)
-    shaped(x_out, 3, N, K, n, -1, -1)
-    shaped(P_out, 4, N, K, n, n, -1)
-    shaped(prob_out, 3, N, K, L, -1, -1)
-    shaped(mode_out, 2, N, K, -1, -1, -1)
-    shaped(P_s, 5, Ns, K, L, n, n)
-    shaped(report, 1, 2, -1, -1, -1, -1)
-    shaped(lag_x, 4, N, J, L, n, -1)
-    shaped(lag_P, 5, N, J, L, n, n)
-    shaped(lag_cross, 5, N, J, L, n, n)
+    shaped(P_f, 5, N, K, L, n, n, _KERNEL)
+    shaped(log_prob_f, 3, N, K, L, -1, -1, _KERNEL)
+    shaped(G, 3, M, n, l, -1, -1, _KERNEL)
+    shaped(Qd, 3, M, n, n, -1, -1, _KERNEL)
+    shaped(log_transition, 2, L, L, -1, -1, -1, _KERNEL)
+    shaped(x_out, 3, N, K, n, -1, -1, _KERNEL)
+    shaped(P_out, 4, N, K, n, n, -1, _KERNEL)
+    shaped(prob_out, 3, N, K, L, -1, -1, _KERNEL)
+    shaped(mode_out, 2, N, K, -1, -1, -1, _KERNEL)
+    shaped(P_s, 5, Ns, K, L, n, n, _KERNEL)
+    shaped(report, 1, 2, -1, -1, -1, -1, _KERNEL)
+    shaped(lag_x, 4, N, J, L, n, -1, _KERNEL)
+    shaped(lag_P, 5, N, J, L, n, n, _KERNEL)
+    shaped(lag_cross, 5, N, J, L, n, n, _KERNEL)
     if (T != 1 and T != N) or (Ns != 0 and Ns != N) or (lagged and J != K - 1) or lanes < 1:
         raise ValueError("the smoother's arrays do not agree in shape")
     cdef se_int status
@@ -91,11 +76,11 @@ def screen_psd(cnp.ndarray A, double relative_shift, cnp.ndarray sym, cnp.ndarra
     """Symmetrize a stack ``A (M, n, n)`` into ``sym`` and mark in ``failed (M,)`` the
     matrices whose Cholesky factorization shifted by ``relative_shift max |A|`` fails (engine
     C; :func:`switchest.engine.smoother.screen_psd`); returns ``(scale, max |A - A'|)``."""
-    shaped(A, 3, -1, -1, -1, -1, -1)
+    shaped(A, 3, -1, -1, -1, -1, -1, _KERNEL)
     cdef se_int M = A.shape[0], n = A.shape[1]
-    shaped(A, 3, M, n, n, -1, -1)
-    shaped(sym, 3, M, n, n, -1, -1)
-    shaped(failed, 1, M, -1, -1, -1, -1)
+    shaped(A, 3, M, n, n, -1, -1, _KERNEL)
+    shaped(sym, 3, M, n, n, -1, -1, _KERNEL)
+    shaped(failed, 1, M, -1, -1, -1, -1, _KERNEL)
     cdef double scale = 0.0, asym = 0.0
     cdef se_int status
     with nogil:

@@ -1101,6 +1101,120 @@ void se_combine(se_int n, se_int L, se_int B, const double *restrict x, const do
     se_moments(n, L, B, prob, x, P, nb, xc, Pc);
 }
 
+/* ---- general lane products and solves (the two-filter smoother) ---------------------------- */
+
+/* out = X Y per lane, each entry one se_lane_dot over the strided operands (see linalg.h): the
+ * products of the two-filter smoother's messages, F' Omega F, I + P Omega, I + Omega Qd. */
+void se_lane_product(se_int p, se_int q, se_int r, se_int B, const double *restrict X,
+                     se_int xi, se_int xk, const double *restrict Y, se_int yk, se_int yj,
+                     se_int nb, double *restrict out)
+{
+    for (se_int i = 0; i < p; i++)
+        for (se_int j = 0; j < r; j++)
+            se_lane_dot(q, X + i * xi * B, xk * B, Y + j * yj * B, yk * B, nb,
+                        out + (i * r + j) * B);
+}
+
+/* The rows j and piv[j, b] of each lane's X (n, q, B) exchanged, for every row r > j that a lane
+ * chose (a blend, so that the lanes run on SIMD registers whatever each chose). */
+static void se_swap_rows(se_int n, se_int q, se_int B, se_int j, const se_int *restrict piv,
+                         double *restrict X, se_int nb)
+{
+    const se_int *pj = piv + j * B;
+    for (se_int r = j + 1; r < n; r++)
+        for (se_int c = 0; c < q; c++) {
+            double *Xj = X + (j * q + c) * B, *Xr = X + (r * q + c) * B;
+            for (se_int b = 0; b < nb; b++) {
+                const int chosen = pj[b] == r;
+                const double a = Xj[b], s = Xr[b];
+                Xj[b] = chosen ? s : a;
+                Xr[b] = chosen ? a : s;
+            }
+        }
+}
+
+/* LU factorization with partial pivoting of each lane's A (n, n), in place (Golub & Van Loan,
+ * "Matrix Computations", 4th ed., Algorithm 3.4.1; the pivot of column j the first entry of
+ * largest modulus on or below the diagonal, LAPACK dgetrf's rule, what numpy.linalg.solve and
+ * slogdet factor with): P A = L U with L unit lower triangular in the strict lower triangle of
+ * A and U in its upper triangle, whole rows exchanged. piv[j, b] is the row exchanged with row j
+ * at step j; log_det = sum_j log |U_jj| = log |det A|. A zero pivot leaves infinities or NaN
+ * (no check: the caller's result is then not finite). best (B,) is scratch. */
+void se_lu(se_int n, se_int B, double *restrict A, se_int *restrict piv, se_int nb,
+           double *restrict log_det, double *restrict best)
+{
+    for (se_int b = 0; b < nb; b++)
+        log_det[b] = 0.0;
+    for (se_int j = 0; j < n; j++) {
+        se_int *pj = piv + j * B;
+        const double *Ajj = A + (j * n + j) * B;
+        for (se_int b = 0; b < nb; b++) {
+            pj[b] = j;
+            best[b] = fabs(Ajj[b]);
+        }
+        for (se_int r = j + 1; r < n; r++) {
+            const double *Arj = A + (r * n + j) * B;
+            for (se_int b = 0; b < nb; b++) {
+                const double v = fabs(Arj[b]);
+                const int larger = v > best[b];
+                best[b] = larger ? v : best[b];
+                pj[b] = larger ? r : pj[b];
+            }
+        }
+        se_swap_rows(n, n, B, j, piv, A, nb);
+        for (se_int b = 0; b < nb; b++)
+            log_det[b] += log(fabs(Ajj[b]));
+        for (se_int r = j + 1; r < n; r++) {
+            double *Arj = A + (r * n + j) * B;
+            for (se_int b = 0; b < nb; b++)
+                Arj[b] /= Ajj[b];
+            for (se_int c = j + 1; c < n; c++) {
+                double *Arc = A + (r * n + c) * B;
+                const double *Ajc = A + (j * n + c) * B;
+                for (se_int b = 0; b < nb; b++)
+                    Arc[b] -= Arj[b] * Ajc[b];
+            }
+        }
+    }
+}
+
+/* X <- A^-1 X per lane for the q columns of X (n, q, B), from se_lu's P A = L U: the rows
+ * exchanged as piv says, then forward substitution with L (unit diagonal) and back
+ * substitution with U (Golub & Van Loan, "Matrix Computations", 4th ed., §3.1 and §3.4.4). */
+void se_lu_solve(se_int n, se_int q, se_int B, const double *restrict LU,
+                 const se_int *restrict piv, double *restrict X, se_int nb)
+{
+    for (se_int j = 0; j < n; j++)
+        se_swap_rows(n, q, B, j, piv, X, nb);
+    for (se_int r = 1; r < n; r++)
+        for (se_int p = 0; p < r; p++) {
+            const double *Lrp = LU + (r * n + p) * B;
+            for (se_int c = 0; c < q; c++) {
+                double *Xr = X + (r * q + c) * B;
+                const double *Xp = X + (p * q + c) * B;
+                for (se_int b = 0; b < nb; b++)
+                    Xr[b] -= Lrp[b] * Xp[b];
+            }
+        }
+    for (se_int r = n - 1; r >= 0; r--) {
+        for (se_int p = r + 1; p < n; p++) {
+            const double *Urp = LU + (r * n + p) * B;
+            for (se_int c = 0; c < q; c++) {
+                double *Xr = X + (r * q + c) * B;
+                const double *Xp = X + (p * q + c) * B;
+                for (se_int b = 0; b < nb; b++)
+                    Xr[b] -= Urp[b] * Xp[b];
+            }
+        }
+        const double *Urr = LU + (r * n + r) * B;
+        for (se_int c = 0; c < q; c++) {
+            double *Xr = X + (r * q + c) * B;
+            for (se_int b = 0; b < nb; b++)
+                Xr[b] /= Urr[b];
+        }
+    }
+}
+
 /* ---- the per-lane index of a trial table --------------------------------------------------- */
 
 /* out[b]: entry [trial, k, j] of index (N or 1, K or 1, L) for trial i0 + b; an axis of length

@@ -397,6 +397,25 @@ void se_combine(se_int n, se_int L, se_int B, const double *restrict x, const do
                 const double *restrict prob, const double *restrict log_prob, se_int nb,
                 double *restrict xc, double *restrict Pc, se_int *restrict best);
 
+/* ---- general lane products and solves (the two-filter smoother) ---------------------------- */
+
+/* out = X Y per lane: X (p, q), Y (q, r), out (p, r, B) at out[(i * r + j) * B + b]; X's entry
+ * (i, k) stands at X + (i * xi + k * xk) * B and Y's (k, j) at Y + (k * yk + j * yj) * B
+ * (strides in lane rows: a transposed operand passes its two strides swapped) */
+void se_lane_product(se_int p, se_int q, se_int r, se_int B, const double *restrict X,
+                     se_int xi, se_int xk, const double *restrict Y, se_int yk, se_int yj,
+                     se_int nb, double *restrict out);
+
+/* LU factorization with partial pivoting, in place, of each lane's A (n, n, B): piv (n, B)
+ * se_int written (the row swapped with row j at step j), log_det (B,) = log |det A|, best (B,)
+ * scratch */
+void se_lu(se_int n, se_int B, double *restrict A, se_int *restrict piv, se_int nb,
+           double *restrict log_det, double *restrict best);
+
+/* X <- A^-1 X per lane from se_lu's factors: LU (n, n, B), piv (n, B), X (n, q, B) */
+void se_lu_solve(se_int n, se_int q, se_int B, const double *restrict LU,
+                 const se_int *restrict piv, double *restrict X, se_int nb);
+
 /* ---- the per-lane index of a trial table --------------------------------------------------- */
 
 /* out[b]: entry [trial, k, j] of index (N or 1, K or 1, L) for trial i0 + b; an axis of length

@@ -1,0 +1,64 @@
+# distutils: sources = src/switchest/engine/c/two_filter.c src/switchest/engine/c/linalg.c
+"""Binding of the two-filter smoother's backward pass (engine/c/two_filter.c)."""
+cimport numpy as cnp
+from ._common cimport uint8_t, fptr, cfptr, iptr, bptr, se_int, no_memory, shaped, start_binding
+start_binding()
+
+cdef extern from "two_filter.h":
+    se_int se_two_filter_backward(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
+                                  se_int T, se_int TK, const double *x_f, const double *P_f,
+                                  const double *log_prob_f, const double *y, const double *u,
+                                  const uint8_t *outlier, const double *F, const double *G,
+                                  const double *Qd, const se_int *trans,
+                                  const double *log_transition, const double *C,
+                                  const double *R, se_int lanes, int sample_timing,
+                                  double *x_s, double *P_s, double *prob_s,
+                                  double *report) nogil
+
+
+_KERNEL = "the two-filter smoother"  # named when its arrays disagree in shape
+
+
+def two_filter_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f,
+                        cnp.ndarray y, cnp.ndarray u, cnp.ndarray outlier, cnp.ndarray F,
+                        cnp.ndarray G, cnp.ndarray Qd, cnp.ndarray trans,
+                        cnp.ndarray log_transition, cnp.ndarray C, cnp.ndarray R,
+                        se_int lanes, bint sample_timing, cnp.ndarray x_s, cnp.ndarray P_s,
+                        cnp.ndarray prob_s, cnp.ndarray report):
+    """The backward recursion over every trial, in blocks of ``lanes`` trials (the arguments of
+    ``se_two_filter_backward``, engine/c/two_filter.h, checked by
+    :func:`switchest.engine.two_filter.two_filter_run`); returns the status code
+    (``MemoryError`` if the scratch cannot be allocated)."""
+    shaped(x_f, 4, -1, -1, -1, -1, -1, _KERNEL)
+    cdef se_int N = x_f.shape[0], K = x_f.shape[1], L = x_f.shape[2], n = x_f.shape[3]
+    shaped(y, 3, N, K, -1, -1, -1, _KERNEL)
+    cdef se_int m = y.shape[2]
+    shaped(u, 3, N, K, -1, -1, -1, _KERNEL)
+    cdef se_int l = u.shape[2]
+    shaped(F, 3, -1, n, n, -1, -1, _KERNEL)
+    cdef se_int M = F.shape[0]
+    shaped(trans, 3, -1, K, L, -1, -1, _KERNEL)
+    cdef se_int T = trans.shape[0], TK = trans.shape[1]
+    shaped(P_f, 5, N, K, L, n, n, _KERNEL)
+    shaped(log_prob_f, 3, N, K, L, -1, -1, _KERNEL)
+    shaped(outlier, 2, N, K, -1, -1, -1, _KERNEL)
+    shaped(G, 3, M, n, l, -1, -1, _KERNEL)
+    shaped(Qd, 3, M, n, n, -1, -1, _KERNEL)
+    shaped(log_transition, 2, L, L, -1, -1, -1, _KERNEL)
+    shaped(C, 3, L, m, n, -1, -1, _KERNEL)
+    shaped(R, 3, L, m, m, -1, -1, _KERNEL)
+    shaped(x_s, 4, N, K, L, n, -1, _KERNEL)
+    shaped(P_s, 5, N, K, L, n, n, _KERNEL)
+    shaped(prob_s, 3, N, K, L, -1, -1, _KERNEL)
+    shaped(report, 1, 2, -1, -1, -1, -1, _KERNEL)
+    if (T != 1 and T != N) or lanes < 1:
+        raise ValueError("the two-filter smoother's arrays do not agree in shape")
+    cdef se_int status
+    with nogil:
+        status = se_two_filter_backward(
+            n, m, l, L, N, K, T, TK, cfptr(x_f), cfptr(P_f), cfptr(log_prob_f), cfptr(y),
+            cfptr(u), bptr(outlier), cfptr(F), cfptr(G), cfptr(Qd), iptr(trans),
+            cfptr(log_transition), cfptr(C), cfptr(R), lanes, sample_timing, fptr(x_s),
+            fptr(P_s), fptr(prob_s), fptr(report))
+    no_memory(status, "two_filter_backward")  # SE_NO_MEMORY (no scratch) raises MemoryError
+    return status

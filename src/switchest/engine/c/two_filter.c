@@ -1,0 +1,482 @@
+/* The compiled backward pass of the two-filter smoother of a bank of mode-matched filters; the
+ * Python side is switchest.engine.two_filter.two_filter_run, its documentation (every equation,
+ * numbered as here) the module docstring of switchest.estimators.two_filter.
+ *
+ * For each mode i at sample k the forward filter's posterior N(x_i(k|k), P_i(k|k)) with weight
+ * mu_i(k|k) is combined by Bayes' rule with a backward message, the likelihood of the later
+ * measurements given the state and the mode, beta_i(k)(x) = p(y_{k+1..K-1} | x_k = x, r_k = i)
+ * (Helmick, Blair & Hoffman 1995, IEEE Trans. Inf. Theory 41(6), "Fixed-interval smoothing for
+ * Markovian switching systems"; Mayne 1966, Fraser & Potter 1969 for one mode), kept in
+ * information form beta(x) = exp(c - x' Omega x / 2 + omega' x). Over the interval k -> k+1 and
+ * the mode l of sample k+1 ("interval" timing: l governs the interval into k+1 and y_{k+1}):
+ *
+ * 1. measurement (measure_): Omega += C_l' R_l^-1 C_l, omega += C_l' R_l^-1 y,
+ *    c += log N(y; 0, R_l) over the observed components of y_{k+1} (none in a sample the filter
+ *    rejected);
+ * 2. dynamics (dynamics_): the Gaussian integral through x' = F_l x + g + w, w ~ N(0, Qd_l),
+ *    g = G_l u_k, with M = I + Omega Qd: Omega_d = F' M^-1 Omega F,
+ *    omega_d = F' M^-1 (omega - Omega g), c_d = c - log |M| / 2 - g' Omega_t g / 2
+ *    + omega_t' g + omega' Qd omega_t / 2 (Omega_t = M^-1 Omega, omega_t = M^-1 omega);
+ * 3. the mixture over the next mode collapsed (pool_): w_l ∝ pi_il Z_il, Z_il the evidence of
+ *    message l under the reference Gaussian of mode i, Omega = sum_l w_l Omega_l,
+ *    omega = sum_l w_l omega_l (log-linear pooling) and c such that the pooled message keeps the
+ *    mixture's evidence under that reference: c = log sum_l pi_il Z_il - log Z(pooled, c = 0).
+ *
+ * In the "interval" timing the reference is mode i's filtered posterior, and the messages
+ * pooled are the dynamics' delta_l; in the "sample" timing (the mode of sample k governs the
+ * interval after it) the measurement messages alpha_l are pooled at x_{k+1} under mode i's
+ * prediction N(F_i x_i + G_i u_k, F_i P_i F_i' + Qd_i), then taken through mode i's dynamics.
+ *
+ * The posterior of N(x, P) and a message (evidence_): M = I + P Omega, P_s = M^-1 P,
+ * x_s = x + P_s r, r = omega - Omega x, and
+ * log Z = c - x' Omega x / 2 + omega' x + r' P_s r / 2 - log |M| / 2; the smoothed mode
+ * probabilities are mu_i(k|K) ∝ mu_i(k|k) Z_i. At k = K-1 the smoothed posterior is the
+ * filtered one (beta = 1).
+ *
+ * The two systems solved, I + P Omega and I + Omega Qd, are not symmetric; both are
+ * I + (positive semidefinite)(positive semidefinite), whose eigenvalues are those of
+ * I + S' Omega S (P = S S') and so >= 1: regular, with |det| >= 1. They are solved by an LU
+ * factorization with partial pivoting per lane (se_lu, se_lu_solve, linalg.c), as
+ * numpy.linalg.solve and slogdet do in the oracle; a symmetric square-root form would need a
+ * Cholesky factor of P or Qd, which a deterministic component (Qd singular) or a filter
+ * certain of a state (P singular) does not have. A pivot of zero (only where the entries are
+ * beyond double precision's range of the identity) leaves a result that is not finite, and the
+ * kernel stops with SE_NOT_FINITE: the caller's error says the smoother lost its digits.
+ *
+ * Every message stays exactly symmetric: the measurement adds a mirrored upper triangle
+ * (se_symmetric_sum), the dynamics and the posterior symmetrize (A + A') / 2, and a pooled sum
+ * of exactly symmetric matrices is one.
+ *
+ * Trials are processed in blocks of `lanes` laid across SIMD lanes (linalg.h); the results do
+ * not depend on the block size. Layout: every block array carries the lanes as its last axis,
+ * of stride B, after the axes of the quantity in C order: Omega (L, n, n, B) at
+ * Omega[((j * n + r) * n + c) * B + b]. The scratch is carved from one zeroed allocation (the
+ * arena) at the start of se_two_filter_backward, freed before it returns.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "linalg.h"
+#include "two_filter.h"
+
+/* The work arrays of evidence_ and dynamics_ for n states and B lanes: M (n, n, B) and its
+ * LU pivots piv (n, B), best, log_det (B,); X (n, n + 1, B) the right-hand sides; T (n, n, B);
+ * the vectors v, w, p (n, B); zero (B,) (a message's c = 0). */
+typedef struct {
+    double *M;
+    se_int *piv;
+    double *best, *log_det, *X, *T, *v, *w, *p, *zero;
+} solve_ws;
+
+/* solve_ws carved from the arena */
+static void carve_solve(se_arena *a, se_int n, se_int B, solve_ws *s)
+{
+    s->M = se_doubles(a, n * n * B);
+    s->piv = se_ints(a, n * B);
+    s->best = se_doubles(a, B);
+    s->log_det = se_doubles(a, B);
+    s->X = se_doubles(a, n * (n + 1) * B);
+    s->T = se_doubles(a, n * n * B);
+    s->v = se_doubles(a, n * B);
+    s->w = se_doubles(a, n * B);
+    s->p = se_doubles(a, n * B);
+    s->zero = se_doubles(a, B);
+}
+
+/* The work arrays of measure_: se_innovation's (inn), its zero state x0 (n, B) and covariance
+ * P0 (n, n, B) (S = R), C' over the observed components Ct (n, m, B), its solve V (n, m, B),
+ * inv (m, B), and every lane's flag `use` (B,) set. */
+typedef struct {
+    se_innovation_ws inn;
+    double *x0, *P0, *Ct, *V, *inv;
+    uint8_t *use;
+} measure_ws;
+
+/* measure_ws carved from the arena (its use flags are set once the arena is carved) */
+static void carve_measure(se_arena *a, se_int n, se_int m, se_int B, measure_ws *s)
+{
+    se_carve_innovation(a, n, m, B, &s->inn);
+    s->x0 = se_doubles(a, n * B);
+    s->P0 = se_doubles(a, n * n * B);
+    s->Ct = se_doubles(a, n * m * B);
+    s->V = se_doubles(a, n * m * B);
+    s->inv = se_doubles(a, m * B);
+    s->use = se_flags(a, B);
+}
+
+/* The work arrays of pool_: the log-weights a, the weights w (L, B), their total (B,). */
+typedef struct {
+    double *a, *w, *total;
+} pool_ws;
+
+/* M = I + X Y per lane, X, Y (n, n, B) row-major. */
+static void identity_plus(se_int n, se_int B, const double *restrict X, const double *restrict Y,
+                          se_int nb, double *restrict M)
+{
+    se_lane_product(n, n, n, B, X, n, 1, Y, n, 1, nb, M);
+    for (se_int r = 0; r < n; r++)
+        for (se_int b = 0; b < nb; b++)
+            M[(r * n + r) * B + b] += 1.0;
+}
+
+/* out = (A + A') / 2 per lane: A's leading (n, n) block, its rows q entries apart (A (n, q, B),
+ * q >= n), out (n, n, B). */
+static void symmetrize_(se_int n, se_int q, se_int B, const double *restrict A, se_int nb,
+                        double *restrict out)
+{
+    for (se_int r = 0; r < n; r++)
+        for (se_int c = 0; c < n; c++) {
+            const double *Arc = A + (r * q + c) * B, *Acr = A + (c * q + r) * B;
+            double *o = out + (r * n + c) * B;
+            for (se_int b = 0; b < nb; b++)
+                o[b] = 0.5 * (Arc[b] + Acr[b]);
+        }
+}
+
+/* o[b] = sum_i X[i, b] Y[i, b] per lane: X, Y (n, B). */
+static void dot_(se_int n, se_int B, const double *restrict X, const double *restrict Y,
+                 se_int nb, double *restrict o)
+{
+    se_lane_product(1, n, 1, B, X, 0, 1, Y, 1, 1, nb, o);
+}
+
+/* Step 1 (measurement): the message beta_l (Omega (n, n, B), omega (n, B), c (B,)) times
+ * N(y; C x, R) over each lane's observed components (obs (m, B), n_obs (B,)), in place:
+ * Omega += C' R^-1 C, omega += C' R^-1 y, c += log N(y; 0, R). The factorization of R over the
+ * observed components (an unobserved one decoupled with a unit variance) is se_innovation's for
+ * x = 0, P = 0 (S = R, e = y, loglik = log N(y; 0, R)); V = R^-1 C by its solves
+ * (se_solve_rows on the rows of C'), C' V added as a mirrored upper triangle
+ * (se_symmetric_sum), C' R^-1 y added as a Kalman mean update would add it (se_correct_mean,
+ * gain C'). Returns se_innovation's status. */
+static se_int measure_(se_int n, se_int m, se_int B, double *restrict Omega,
+                       double *restrict omega, double *restrict c, const double *restrict y,
+                       const double *restrict obs, const double *restrict n_obs,
+                       const double *restrict C, const double *restrict R, se_int nb,
+                       const measure_ws *ws)
+{
+    const se_innovation_ws *inn = &ws->inn;
+    se_int status = se_innovate(n, m, B, ws->x0, ws->P0, y, C, R, obs, n_obs, nb, inn, NULL);
+    if (status != SE_OK)
+        return status;
+    for (se_int i = 0; i < n; i++) /* Ct = C' with the unobserved columns zero */
+        for (se_int a = 0; a < m; a++) {
+            const double *Cai = C + (a * n + i) * B, *oa = obs + a * B;
+            double *o = ws->Ct + (i * m + a) * B;
+            for (se_int b = 0; b < nb; b++)
+                o[b] = Cai[b] * oa[b];
+        }
+    se_copy_lanes(n, m, B, ws->Ct, nb, ws->V);
+    se_solve_rows(m, B, n, inn->chol, inn->scale, ws->V, nb, ws->inv); /* V[i] = R^-1 C[:, i] */
+    se_symmetric_sum(n, m, B, Omega, ws->Ct, ws->V, nb, Omega);       /* Omega += C' R^-1 C */
+    se_correct_mean(n, m, B, omega, inn->z, ws->Ct, inn->chol, inn->scale, ws->use, nb);
+    for (se_int b = 0; b < nb; b++) /* c += log N(y; 0, R) */
+        c[b] += inn->loglik[b];
+    return SE_OK;
+}
+
+/* Step 2 (dynamics): the message (Omega, omega, c) on x_{k+1} taken back through
+ * x_{k+1} = F x_k + g + w, w ~ N(0, Qd) (F, Qd (n, n, B), g (n, B)), the Gaussian integral
+ * delta(x) = ∫ N(x'; F x + g, Qd) beta(x') dx', into (Od (n, n, B), od (n, B), cd (B,)):
+ * M = I + Omega Qd (LU, log |M|), Omega_t = sym(M^-1 Omega), omega_t = M^-1 omega (one solve
+ * of both), Og = Omega_t g,
+ * cd = c - log |M| / 2 - g' Og / 2 + omega_t' g + omega' Qd omega_t / 2,
+ * Od = sym(F' Omega_t F), od = F' (omega_t - Og). */
+static void dynamics_(se_int n, se_int B, const double *restrict Omega,
+                      const double *restrict omega, const double *restrict c,
+                      const double *restrict F, const double *restrict g,
+                      const double *restrict Qd, se_int nb, double *restrict Od,
+                      double *restrict od, double *restrict cd, const solve_ws *ws)
+{
+    const se_int q = n + 1;
+    identity_plus(n, B, Omega, Qd, nb, ws->M);
+    se_lu(n, B, ws->M, ws->piv, nb, ws->log_det, ws->best);
+    for (se_int r = 0; r < n; r++) { /* X = [Omega | omega] */
+        for (se_int s = 0; s < n; s++)
+            for (se_int b = 0; b < nb; b++)
+                ws->X[(r * q + s) * B + b] = Omega[(r * n + s) * B + b];
+        for (se_int b = 0; b < nb; b++)
+            ws->X[(r * q + n) * B + b] = omega[r * B + b];
+    }
+    se_lu_solve(n, q, B, ws->M, ws->piv, ws->X, nb);
+    symmetrize_(n, q, B, ws->X, nb, ws->T); /* Omega_t */
+    for (se_int r = 0; r < n; r++)           /* omega_t */
+        for (se_int b = 0; b < nb; b++)
+            ws->v[r * B + b] = ws->X[(r * q + n) * B + b];
+    se_lane_product(n, n, 1, B, ws->T, n, 1, g, 1, 1, nb, ws->w);      /* Og */
+    se_lane_product(n, n, 1, B, Qd, n, 1, ws->v, 1, 1, nb, ws->p);     /* Qd omega_t */
+    double *gOg = ws->best, *tg = ws->X, *quad = ws->X + B;            /* (X is free now) */
+    dot_(n, B, g, ws->w, nb, gOg);
+    dot_(n, B, ws->v, g, nb, tg);
+    dot_(n, B, omega, ws->p, nb, quad);
+    for (se_int b = 0; b < nb; b++)
+        cd[b] = c[b] - 0.5 * ws->log_det[b] - 0.5 * gOg[b] + tg[b] + 0.5 * quad[b];
+    se_lane_product(n, n, n, B, ws->T, n, 1, F, n, 1, nb, ws->X);      /* Omega_t F */
+    se_lane_product(n, n, n, B, F, 1, n, ws->X, n, 1, nb, ws->M);      /* F' Omega_t F */
+    symmetrize_(n, n, B, ws->M, nb, Od);
+    for (se_int r = 0; r < n; r++) /* omega_t - Og */
+        for (se_int b = 0; b < nb; b++)
+            ws->v[r * B + b] -= ws->w[r * B + b];
+    se_lane_product(n, n, 1, B, F, 1, n, ws->v, 1, 1, nb, od);
+}
+
+/* The posterior of the Gaussian N(x, P) (x (n, B), P (n, n, B)) times the message
+ * (Omega, omega, c) (module docstring): M = I + P Omega (LU, log |M|), r = omega - Omega x,
+ * log_z (B,) = c - x' Omega x / 2 + omega' x + r' P_s r / 2 - log |M| / 2 with P_s = M^-1 P.
+ * With x_s (n, B) and P_s (n, n, B) (not NULL) the posterior too: P_s = sym(M^-1 P),
+ * x_s = x + P_s r; without, only P_s r = M^-1 (P r) is solved (the evidence of a pair). */
+static void evidence_(se_int n, se_int B, const double *restrict x, const double *restrict P,
+                      const double *restrict Omega, const double *restrict omega,
+                      const double *restrict c, se_int nb, double *restrict log_z,
+                      double *restrict x_s, double *restrict P_s, const solve_ws *ws)
+{
+    identity_plus(n, B, P, Omega, nb, ws->M);
+    se_lu(n, B, ws->M, ws->piv, nb, ws->log_det, ws->best);
+    se_lane_product(n, n, 1, B, Omega, n, 1, x, 1, 1, nb, ws->w); /* Omega x */
+    for (se_int r = 0; r < n; r++)                                 /* r = omega - Omega x */
+        for (se_int b = 0; b < nb; b++)
+            ws->v[r * B + b] = omega[r * B + b] - ws->w[r * B + b];
+    if (x_s) {
+        se_copy_lanes(n, n, B, P, nb, ws->X);
+        se_lu_solve(n, n, B, ws->M, ws->piv, ws->X, nb);
+        symmetrize_(n, n, B, ws->X, nb, P_s);
+        se_lane_product(n, n, 1, B, P_s, n, 1, ws->v, 1, 1, nb, ws->p); /* P_s r */
+        for (se_int r = 0; r < n; r++)
+            for (se_int b = 0; b < nb; b++)
+                x_s[r * B + b] = x[r * B + b] + ws->p[r * B + b];
+    } else {
+        se_lane_product(n, n, 1, B, P, n, 1, ws->v, 1, 1, nb, ws->p); /* P r */
+        se_lu_solve(n, 1, B, ws->M, ws->piv, ws->p, nb);
+    }
+    double *xOx = ws->best, *ox = ws->X, *rPr = ws->X + B; /* (free now) */
+    dot_(n, B, x, ws->w, nb, xOx);
+    dot_(n, B, omega, x, nb, ox);
+    dot_(n, B, ws->v, ws->p, nb, rPr);
+    for (se_int b = 0; b < nb; b++)
+        log_z[b] = c[b] - 0.5 * xOx[b] + ox[b] + 0.5 * rPr[b] - 0.5 * ws->log_det[b];
+}
+
+/* Step 3 (the mixture over the next mode): for every mode i, the messages l (Omega (L, n, n, B),
+ * omega (L, n, B), c (L, B)) weighed under the reference N(x_ref[i], P_ref[i]) (x_ref (L, n, B),
+ * P_ref (L, n, n, B)): a_l = log pi_il + log Z_il (evidence_; a pair of pi_il = 0 is not
+ * computed, a_l = -inf), w = exp(a - logsumexp(a)) (zero if every a_l is -inf), pooled
+ * Op[i] = sum_l w_l Omega_l, op[i] = sum_l w_l omega_l, and cp[i] = logsumexp(a) - base[i],
+ * base[i] = log Z of the pooled message with c = 0 under the reference. base (L, B) is
+ * written; with x_s, P_s (L, ..) not NULL the posterior of that evidence too (the "interval"
+ * timing's smoothed posterior, whose reference is the filtered one). */
+static void pool_(se_int n, se_int L, se_int B, const double *restrict x_ref,
+                  const double *restrict P_ref, const double *restrict Omega,
+                  const double *restrict omega, const double *restrict c,
+                  const double *restrict log_transition, se_int nb, double *restrict Op,
+                  double *restrict op, double *restrict cp, double *restrict base,
+                  double *restrict x_s, double *restrict P_s, const pool_ws *pw,
+                  const solve_ws *ws)
+{
+    const se_int nn = n * n;
+    for (se_int i = 0; i < L; i++) {
+        const double *xi = x_ref + i * n * B, *Pi = P_ref + i * nn * B;
+        for (se_int j = 0; j < L; j++) {
+            const double lt = log_transition[i * L + j];
+            double *aj = pw->a + j * B;
+            if (lt == -INFINITY) {
+                for (se_int b = 0; b < nb; b++)
+                    aj[b] = -INFINITY;
+                continue;
+            }
+            evidence_(n, B, xi, Pi, Omega + j * nn * B, omega + j * n * B, c + j * B, nb, aj,
+                      NULL, NULL, ws);
+            for (se_int b = 0; b < nb; b++)
+                aj[b] += lt;
+        }
+        se_log_normalize(L, B, pw->a, pw->w, pw->total, nb);
+        double *Opi = Op + i * nn * B, *opi = op + i * n * B;
+        se_lane_product(1, L, nn, B, pw->w, 0, 1, Omega, nn, 1, nb, Opi);
+        se_lane_product(1, L, n, B, pw->w, 0, 1, omega, n, 1, nb, opi);
+        evidence_(n, B, xi, Pi, Opi, opi, ws->zero, nb, base + i * B,
+                  x_s ? x_s + i * n * B : NULL, P_s ? P_s + i * nn * B : NULL, ws);
+        for (se_int b = 0; b < nb; b++)
+            cp[i * B + b] = pw->total[b] - base[i * B + b];
+    }
+}
+
+/* Sample k of the block's smoothed outputs: log_s (L, B) normalized over the modes into prob
+ * (L, B) (total (B,) scratch), x (L, n, B), P (L, n, n, B) and prob written at sample k of
+ * x_s, P_s, prob_s. Returns whether every lane's x, P and prob are finite (nothing is written
+ * otherwise). */
+static int write_(se_int n, se_int L, se_int B, se_int K, const double *restrict x,
+                  const double *restrict P, double *restrict log_s, double *restrict prob,
+                  double *restrict total, se_int i0, se_int nb, se_int k, double *restrict x_s,
+                  double *restrict P_s, double *restrict prob_s)
+{
+    se_log_normalize(L, B, log_s, prob, total, nb);
+    int finite = 1;
+    for (se_int j = 0; j < L; j++) {
+        for (se_int e = 0; e < n; e++)
+            for (se_int b = 0; b < nb; b++)
+                finite &= isfinite(x[(j * n + e) * B + b]) != 0;
+        for (se_int e = 0; e < n * n; e++)
+            for (se_int b = 0; b < nb; b++)
+                finite &= isfinite(P[(j * n * n + e) * B + b]) != 0;
+        for (se_int b = 0; b < nb; b++)
+            finite &= isfinite(prob[j * B + b]) != 0;
+    }
+    if (!finite)
+        return 0;
+    se_scatter_modes(n, L, B, K, x, P, i0, nb, x_s + k * L * n, P_s + k * L * n * n);
+    se_scatter_rows(L, B, K, prob, i0, nb, prob_s + k * L);
+    return 1;
+}
+
+/* The backward recursion over every trial (see the top of this file and two_filter.h). */
+se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
+{
+    se_report_start(report); /* nothing is repaired here */
+    if (N == 0 || K == 0)
+        return SE_OK;
+    const se_int B = se_lanes(lanes, N), nn = n * n;
+    double *Om, *om, *c, *Oa, *oa, *ca, *Od, *od, *cd, *Fl, *Gl, *Ql, *g, *ul, *yk, *obs;
+    double *n_obs, *Cl, *Rl, *xf, *Pf, *lmu, *xp, *Pp, *FP, *xs, *xo, *Po, *lz, *base, *prob;
+    double *total;
+    se_int *idx;
+    solve_ws sw;
+    measure_ws mw;
+    pool_ws pw;
+    se_arena arena = {NULL, 0};
+    do {
+        Om = se_doubles(&arena, L * nn * B); /* beta_l(k+1), then beta_i(k) */
+        om = se_doubles(&arena, L * n * B);
+        c = se_doubles(&arena, L * B);
+        Oa = se_doubles(&arena, L * nn * B); /* alpha_l (step 1) */
+        oa = se_doubles(&arena, L * n * B);
+        ca = se_doubles(&arena, L * B);
+        Od = se_doubles(&arena, L * nn * B); /* delta_l ("interval"), pooled ("sample") */
+        od = se_doubles(&arena, L * n * B);
+        cd = se_doubles(&arena, L * B);
+        Fl = se_doubles(&arena, L * nn * B); /* each mode's transition into k + 1 */
+        Gl = se_doubles(&arena, L * n * l * B);
+        Ql = se_doubles(&arena, L * nn * B);
+        g = se_doubles(&arena, L * n * B);
+        idx = se_ints(&arena, B);
+        ul = se_doubles(&arena, l * B);
+        yk = se_doubles(&arena, m * B);
+        obs = se_doubles(&arena, m * B);
+        n_obs = se_doubles(&arena, B);
+        Cl = se_doubles(&arena, L * m * n * B);
+        Rl = se_doubles(&arena, L * m * m * B);
+        xf = se_doubles(&arena, L * n * B); /* the filtered posteriors at k */
+        Pf = se_doubles(&arena, L * nn * B);
+        lmu = se_doubles(&arena, L * B);
+        xp = se_doubles(&arena, L * n * B); /* "sample": the predictions into k + 1 */
+        Pp = se_doubles(&arena, L * nn * B);
+        FP = se_doubles(&arena, nn * B);
+        xs = se_doubles(&arena, n * B);
+        xo = se_doubles(&arena, L * n * B); /* the smoothed posteriors at k */
+        Po = se_doubles(&arena, L * nn * B);
+        lz = se_doubles(&arena, L * B);
+        base = se_doubles(&arena, L * B);
+        prob = se_doubles(&arena, L * B);
+        total = se_doubles(&arena, B);
+        pw.a = se_doubles(&arena, L * B);
+        pw.w = se_doubles(&arena, L * B);
+        pw.total = se_doubles(&arena, B);
+        carve_solve(&arena, n, B, &sw);
+        carve_measure(&arena, n, m, B, &mw);
+    } while (se_arena_open(&arena));
+    if (arena.base == NULL)
+        return SE_NO_MEMORY;
+    for (se_int b = 0; b < B; b++) /* constants: every lane's C_l, R_l; every lane used */
+        idx[b] = 0;
+    for (se_int j = 0; j < L; j++) {
+        se_gather_matrices(m, n, B, C + j * m * n, idx, B, Cl + j * m * n * B);
+        se_gather_matrices(m, m, B, R + j * m * m, idx, B, Rl + j * m * m * B);
+    }
+    for (se_int b = 0; b < B; b++)
+        mw.use[b] = 1;
+    se_int status = SE_OK;
+
+    for (se_int i0 = 0; i0 < N; i0 += B) {
+        const se_int nb = se_block_trials(B, N, i0);
+        memset(Om, 0, sizeof(double) * (size_t)(L * nn * B)); /* beta(K-1) = 1 */
+        memset(om, 0, sizeof(double) * (size_t)(L * n * B));
+        memset(c, 0, sizeof(double) * (size_t)(L * B));
+        /* k = K-1: smoothed = filtered */
+        se_gather_modes(n, L, B, K, x_f + (K - 1) * L * n, P_f + (K - 1) * L * nn, i0, nb, xf,
+                        Pf);
+        se_gather_rows(L, B, K, log_prob_f + (K - 1) * L, i0, nb, lmu);
+        if (!write_(n, L, B, K, xf, Pf, lmu, prob, total, i0, nb, K - 1, x_s, P_s, prob_s)) {
+            status = SE_NOT_FINITE;
+            goto done;
+        }
+        for (se_int k = K - 2; k >= 0; k--) {
+            for (se_int j = 0; j < L; j++) { /* mode j's transition into k + 1, g_j = G_j u_k */
+                se_lane_index(L, T, TK, trans, i0, nb, k + 1, j, idx);
+                se_gather_matrices(n, n, B, F, idx, nb, Fl + j * nn * B);
+                se_gather_matrices(n, l, B, G, idx, nb, Gl + j * n * l * B);
+                se_gather_matrices(n, n, B, Qd, idx, nb, Ql + j * nn * B);
+            }
+            se_gather_samples(l, B, K, u, i0, nb, k, ul);
+            for (se_int j = 0; j < L; j++)
+                se_lane_product(n, l, 1, B, Gl + j * n * l * B, l, 1, ul, 1, 1, nb,
+                                g + j * n * B);
+            se_gather_samples(m, B, K, y, i0, nb, k + 1, yk); /* y_{k+1}, its observed part */
+            se_observe(m, B, yk, nb, obs, n_obs);
+            for (se_int b = 0; b < nb; b++)
+                if (outlier[(i0 + b) * K + k + 1]) { /* rejected by the filter: missing */
+                    n_obs[b] = 0.0;
+                    for (se_int a = 0; a < m; a++)
+                        obs[a * B + b] = 0.0;
+                }
+            se_copy_lanes(L, nn, B, Om, nb, Oa); /* step 1: alpha_l = N(y; C_l x, R_l) beta_l */
+            se_copy_lanes(L, n, B, om, nb, oa);
+            se_copy_lanes(L, 1, B, c, nb, ca);
+            for (se_int j = 0; j < L; j++) {
+                status = measure_(n, m, B, Oa + j * nn * B, oa + j * n * B, ca + j * B, yk,
+                                  obs, n_obs, Cl + j * m * n * B, Rl + j * m * m * B, nb, &mw);
+                if (status != SE_OK)
+                    goto done;
+            }
+            se_gather_modes(n, L, B, K, x_f + k * L * n, P_f + k * L * nn, i0, nb, xf, Pf);
+            se_gather_rows(L, B, K, log_prob_f + k * L, i0, nb, lmu);
+            if (!sample_timing) {
+                for (se_int j = 0; j < L; j++) /* step 2 through mode j's transition */
+                    dynamics_(n, B, Oa + j * nn * B, oa + j * n * B, ca + j * B,
+                              Fl + j * nn * B, g + j * n * B, Ql + j * nn * B, nb,
+                              Od + j * nn * B, od + j * n * B, cd + j * B, &sw);
+                /* step 3 under the filtered posteriors, whose pooled evidence is the smoothed
+                 * posterior's: log Z_i = c_i + base_i */
+                pool_(n, L, B, xf, Pf, Od, od, cd, log_transition, nb, Om, om, c, base, xo,
+                      Po, &pw, &sw);
+                for (se_int e = 0; e < L * B; e++)
+                    lz[e] = c[e] + base[e];
+            } else {
+                for (se_int i = 0; i < L; i++) { /* mode i's prediction into k + 1 */
+                    se_copy_gaussian(n, B, xf + i * n * B, Pf + i * nn * B, nb, xp + i * n * B,
+                                     Pp + i * nn * B);
+                    se_predict(n, l, B, xp + i * n * B, Pp + i * nn * B, Fl + i * nn * B,
+                               Gl + i * n * l * B, ul, Ql + i * nn * B, nb, FP, xs);
+                }
+                /* step 3 at x_{k+1} under the predictions, then step 2 through mode i's
+                 * transition, then the posterior of the filtered Gaussian */
+                pool_(n, L, B, xp, Pp, Oa, oa, ca, log_transition, nb, Od, od, cd, base, NULL,
+                      NULL, &pw, &sw);
+                for (se_int i = 0; i < L; i++) {
+                    dynamics_(n, B, Od + i * nn * B, od + i * n * B, cd + i * B,
+                              Fl + i * nn * B, g + i * n * B, Ql + i * nn * B, nb,
+                              Om + i * nn * B, om + i * n * B, c + i * B, &sw);
+                    evidence_(n, B, xf + i * n * B, Pf + i * nn * B, Om + i * nn * B,
+                              om + i * n * B, c + i * B, nb, lz + i * B, xo + i * n * B,
+                              Po + i * nn * B, &sw);
+                }
+            }
+            for (se_int e = 0; e < L * B; e++) /* log mu_i(k|K) = log mu_i(k|k) + log Z_i + const */
+                lz[e] += lmu[e];
+            if (!write_(n, L, B, K, xo, Po, lz, prob, total, i0, nb, k, x_s, P_s, prob_s)) {
+                status = SE_NOT_FINITE;
+                goto done;
+            }
+        }
+    }
+done:
+    free(arena.base);
+    return status;
+}
