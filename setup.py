@@ -1,8 +1,10 @@
 """Build switchest's engine: the C kernels of ``src/switchest/engine/c`` behind their Cython
 bindings (``src/switchest/engine/_*.pyx``), one extension module per family of filters.
 
-Each binding names the C files it is built from in its ``# distutils: sources`` line. The
-kernels are compiled with ``-O3`` for the building machine's processor (``-march=native``), as
+Each binding names its family's C file in its ``# distutils: sources`` line; the files
+several families share (``linalg.c``, the shared equations, and ``bank.c``, the IMM/GPB bank)
+are compiled once, into a static library every module links (compiled once per module, the
+parallel build wrote the same object file from two threads at once). The kernels are compiled with ``-O3`` for the building machine's processor (``-march=native``), as
 a source install runs where it was built; set ``SWITCHEST_PORTABLE=1`` to build for the
 architecture's baseline instead, for a wheel meant to run on other machines. Floating-point
 contraction stays off (``-ffp-contract=off``): each product and sum is rounded as written, as
@@ -23,6 +25,13 @@ FLAGS = ["-O3", "-std=c11", "-fno-math-errno", "-ffp-contract=off"]
 if not PORTABLE:
     FLAGS.append("-march=native")
 
+SHARED = ["linalg.c", "bank.c"]  # the C files of several families: one static library
+engine_library = ("switchest_engine", {
+    "sources": [str(ENGINE / "c" / name) for name in SHARED],
+    "include_dirs": [str(ENGINE / "c")],
+    "cflags": [*FLAGS, "-fPIC"],  # linked into shared modules
+})
+
 extensions = [
     Extension(
         f"switchest.engine.{pyx.stem}",
@@ -37,6 +46,7 @@ extensions = [
 ]
 
 setup(
+    libraries=[engine_library],
     options={"build_ext": {"parallel": os.cpu_count() or 1}},  # the families side by side
     ext_modules=cythonize(
         extensions,

@@ -18,6 +18,7 @@ import pytest
 from smoother_oracle import imm_modes, random_system, tables
 from two_filter_oracle import two_filter_smooth as oracle_smooth
 
+from switchest._linalg import mixture_moments
 from switchest.engine import NOT_FINITE, OK
 from switchest.engine.two_filter import two_filter_run
 from switchest.estimators import set_threads
@@ -73,6 +74,10 @@ def compare(args, timing, lanes):
     assert out.status == OK and out.repaired == 0
     for name, expected in zip(FIELDS, oracle_smooth(**args, timing=timing)):
         assert_close(getattr(out, name), expected)
+    x, P = mixture_moments(out.mode_prob[..., None], out.x_modes, out.P_modes)
+    assert_close(out.x, x[..., 0, :])  # the combined moments of the smoothed mixture
+    assert_close(out.P, P[..., 0, :, :])
+    np.testing.assert_array_equal(out.mode, np.argmax(out.mode_prob, axis=-1))
     return out
 
 

@@ -1,4 +1,4 @@
-# distutils: sources = src/switchest/engine/c/gpb.c src/switchest/engine/c/bank.c src/switchest/engine/c/linalg.c
+# distutils: sources = src/switchest/engine/c/gpb.c
 """Binding of GPB2 (engine/c/gpb.c): :func:`gpb2_bank`, the kernel behind
 :func:`switchest.engine.gpb.gpb2_run` and :func:`switchest.engine.gpb.gpb2_step`."""
 cimport numpy as cnp

@@ -1,4 +1,3 @@
-# distutils: sources = src/switchest/engine/c/bank.c src/switchest/engine/c/linalg.c
 """Binding of the bank of mode-matched filters (engine/c/bank.c): the IMM's and GPB1's
 kernel, :func:`filter_bank`, behind :func:`switchest.engine.imm.imm_run`,
 :func:`switchest.engine.imm.imm_step` and :class:`switchest.engine.imm.Bank`."""

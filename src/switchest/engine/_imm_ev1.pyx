@@ -1,4 +1,4 @@
-# distutils: sources = src/switchest/engine/c/imm_ev1.c src/switchest/engine/c/linalg.c
+# distutils: sources = src/switchest/engine/c/imm_ev1.c
 """Binding of the IMM extended-Viterbi kernel (engine/c/imm_ev1.c): Shankar et al.'s
 Algorithm 1 with gridded switching times."""
 cimport numpy as cnp

@@ -1,4 +1,4 @@
-# distutils: sources = src/switchest/engine/c/kalman.c src/switchest/engine/c/linalg.c
+# distutils: sources = src/switchest/engine/c/kalman.c
 """Binding of the Kalman kernels (engine/c/kalman.c): the filter along given transitions, whose
 trials share their covariance in groups, and the fixed-gain filter.
 

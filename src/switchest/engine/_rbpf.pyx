@@ -1,4 +1,4 @@
-# distutils: sources = src/switchest/engine/c/rbpf.c src/switchest/engine/c/linalg.c
+# distutils: sources = src/switchest/engine/c/rbpf.c
 """Binding of the Rao-Blackwellized particle filter (engine/c/rbpf.c): the kernel
 ``particle_filter`` and the counter-based random stream (``uniform``, ``trial_keys``,
 ``resampling_positions``, ``ancestors``), whose streams are fixed bit for bit (engine/c/rbpf.c

@@ -1,4 +1,4 @@
-# distutils: sources = src/switchest/engine/c/smoother.c src/switchest/engine/c/linalg.c
+# distutils: sources = src/switchest/engine/c/smoother.c
 """Binding of Kim's backward pass and of the covariance screen (engine/c/smoother.c)."""
 cimport numpy as cnp
 from ._common cimport uint8_t, fptr, cfptr, iptr, bptr, se_int, no_memory, shaped, start_binding

@@ -1,4 +1,4 @@
-# distutils: sources = src/switchest/engine/c/switch_time.c src/switchest/engine/c/linalg.c
+# distutils: sources = src/switchest/engine/c/switch_time.c
 """Binding of the switch-time Kalman kernel (engine/c/switch_time.c)."""
 cimport numpy as cnp
 from ._common cimport uint8_t, fptr, iptr, u8ptr, se_int, start_binding

@@ -1,4 +1,4 @@
-# distutils: sources = src/switchest/engine/c/two_filter.c src/switchest/engine/c/linalg.c
+# distutils: sources = src/switchest/engine/c/two_filter.c
 """Binding of the two-filter smoother's backward pass (engine/c/two_filter.c)."""
 cimport numpy as cnp
 from ._common cimport uint8_t, fptr, cfptr, iptr, bptr, se_int, no_memory, shaped, start_binding
@@ -12,8 +12,8 @@ cdef extern from "two_filter.h":
                                   const double *Qd, const se_int *trans,
                                   const double *log_transition, const double *C,
                                   const double *R, se_int lanes, int sample_timing,
-                                  double *x_s, double *P_s, double *prob_s,
-                                  double *report) nogil
+                                  double *x_s, double *P_s, double *prob_s, double *x_c,
+                                  double *P_c, se_int *mode_c, double *report) nogil
 
 
 _KERNEL = "the two-filter smoother"  # named when its arrays disagree in shape
@@ -24,7 +24,8 @@ def two_filter_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f
                         cnp.ndarray G, cnp.ndarray Qd, cnp.ndarray trans,
                         cnp.ndarray log_transition, cnp.ndarray C, cnp.ndarray R,
                         se_int lanes, bint sample_timing, cnp.ndarray x_s, cnp.ndarray P_s,
-                        cnp.ndarray prob_s, cnp.ndarray report):
+                        cnp.ndarray prob_s, cnp.ndarray x_c, cnp.ndarray P_c,
+                        cnp.ndarray mode_c, cnp.ndarray report):
     """The backward recursion over every trial, in blocks of ``lanes`` trials (the arguments of
     ``se_two_filter_backward``, engine/c/two_filter.h, checked by
     :func:`switchest.engine.two_filter.two_filter_run`); returns the status code
@@ -50,6 +51,9 @@ def two_filter_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f
     shaped(x_s, 4, N, K, L, n, -1, _KERNEL)
     shaped(P_s, 5, N, K, L, n, n, _KERNEL)
     shaped(prob_s, 3, N, K, L, -1, -1, _KERNEL)
+    shaped(x_c, 3, N, K, n, -1, -1, _KERNEL)
+    shaped(P_c, 4, N, K, n, n, -1, _KERNEL)
+    shaped(mode_c, 2, N, K, -1, -1, -1, _KERNEL)
     shaped(report, 1, 2, -1, -1, -1, -1, _KERNEL)
     if (T != 1 and T != N) or lanes < 1:
         raise ValueError("the two-filter smoother's arrays do not agree in shape")
@@ -59,6 +63,6 @@ def two_filter_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f
             n, m, l, L, N, K, T, TK, cfptr(x_f), cfptr(P_f), cfptr(log_prob_f), cfptr(y),
             cfptr(u), bptr(outlier), cfptr(F), cfptr(G), cfptr(Qd), iptr(trans),
             cfptr(log_transition), cfptr(C), cfptr(R), lanes, sample_timing, fptr(x_s),
-            fptr(P_s), fptr(prob_s), fptr(report))
+            fptr(P_s), fptr(prob_s), fptr(x_c), fptr(P_c), iptr(mode_c), fptr(report))
     no_memory(status, "two_filter_backward")  # SE_NO_MEMORY (no scratch) raises MemoryError
     return status

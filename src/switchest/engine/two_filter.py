@@ -30,13 +30,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._checks import check_timing, positive_int
+from . import OK
 from ._arrays import checked
 from ._parallel import Reported, run_split
 from ._two_filter import two_filter_backward
 
 __all__ = ["LANES", "TwoFilterOutput", "two_filter_run"]
-
-OK = 0  # se_common.h SE_OK
 
 LANES = 64  # trials per block: the pass runs many short loops over the lanes per mode pair (LU
 # steps, row exchanges), each with a fixed cost; on the vehicle (n = 4, L = 3) 16 lanes took 1.3
@@ -53,6 +52,10 @@ class TwoFilterOutput(Reported):
         Smoothed mode-matched posteriors ``x_i(k|K)``, ``P_i(k|K)``.
     mode_prob : ndarray, shape (N, K, L)
         Smoothed mode probabilities ``mu_i(k|K)``.
+    x, P : ndarray, shapes (N, K, n), (N, K, n, n)
+        The moments of the smoothed mixture over the modes.
+    mode : ndarray of int64, shape (N, K)
+        The most probable smoothed mode (the first on a tie).
     status, repaired, smallest_eigenvalue
         The kernel's report (:class:`~switchest.engine.Reported`; nothing is repaired here).
     """
@@ -60,6 +63,9 @@ class TwoFilterOutput(Reported):
     x_modes: np.ndarray
     P_modes: np.ndarray
     mode_prob: np.ndarray
+    x: np.ndarray
+    P: np.ndarray
+    mode: np.ndarray
 
 
 def two_filter_run(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transition, C, R, *,
@@ -122,21 +128,23 @@ def two_filter_run(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transitio
         log_prob, log_transition = np.log(mode_prob), np.log(transition)
     lanes = positive_int(lanes, "lanes")
     out = TwoFilterOutput(np.empty((N, K, L, n)), np.empty((N, K, L, n, n)),
-                          np.empty((N, K, L)), status=OK)
+                          np.empty((N, K, L)), np.empty((N, K, n)), np.empty((N, K, n, n)),
+                          np.empty((N, K), dtype=np.int64), status=OK)
     mine, shared = True, False  # per-trial arrays, sliced to each thread's trials; the rest
     outcome = run_split(_backward, [
         (x_modes, mine), (P_modes, mine), (log_prob, mine), (y, mine), (u, mine),
         (flags, mine), (F, shared), (G, shared), (Qd, shared), (trans, len(trans) > 1),
         (log_transition, shared), (C, shared), (R, shared), (lanes, shared),
         (timing == "sample", shared), (out.x_modes, mine), (out.P_modes, mine),
-        (out.mode_prob, mine)], trials=N, samples=K, block=lanes)
+        (out.mode_prob, mine), (out.x, mine), (out.P, mine), (out.mode, mine)],
+        trials=N, samples=K, block=lanes)
     return replace(out, **outcome._asdict())
 
 
 def _backward(x_f, P_f, log_prob_f, y, u, outlier, F, G, Qd, trans, log_transition, C, R,
-              lanes, sample_timing, x_s, P_s, prob_s, report):
+              lanes, sample_timing, x_s, P_s, prob_s, x_c, P_c, mode_c, report):
     """:func:`._two_filter.two_filter_backward` with its report last, as
     :func:`._parallel.run_split` calls a kernel."""
     return two_filter_backward(x_f, P_f, log_prob_f, y, u, outlier, F, G, Qd, trans,
                                log_transition, C, R, lanes, sample_timing, x_s, P_s, prob_s,
-                               report)
+                               x_c, P_c, mode_c, report)

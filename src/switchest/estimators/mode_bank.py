@@ -30,7 +30,6 @@ from .._checks import (
     check_timing,
     positive_scalar,
 )
-from .._linalg import mixture_moments
 from ..discretize import mode_steps, sample_mode_steps
 from ..engine import GATED, raise_for_status, warn_for_repairs
 from ..engine.imm import Bank, BankTable, IMMOutput
@@ -359,12 +358,11 @@ class ModeBankFilter(Estimator):
             x, P, prob, mode = s.x, s.P, s.mode_prob, s.mode
         else:
             sys = self.system
-            x_s, P_s, prob = two_filter_smooth(
+            s = two_filter_smooth(
                 fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.y, fwd.u, fwd.F, fwd.G, fwd.Qd,
                 fwd.trans, fwd.transition, sys.C, sys.R, outlier=fwd.estimate.outlier,
                 timing=self.timing)
-            x, P = mixture_moments(prob[..., None], x_s, P_s)
-            x, P, mode = x[..., 0, :], P[..., 0, :, :], np.argmax(prob, axis=-1)
+            x, P, prob, mode = s.x, s.P, s.mode_prob, s.mode
         return self._unflatten(Estimate(x=x, P=P, mode_prob=prob, mode=mode), fwd.batch)
 
     @staticmethod

@@ -69,14 +69,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..engine import NOT_FINITE, raise_for_status
-from ..engine.two_filter import two_filter_run
+from ..engine.two_filter import TwoFilterOutput, two_filter_run
 
 __all__ = ["two_filter_smooth"]
 
 
 def two_filter_smooth(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transition, C, R, *,
                       outlier=None,
-                      timing: str = "interval") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                      timing: str = "interval") -> TwoFilterOutput:
     """Smoothed mode-matched posteriors and mode probabilities (module docstring).
 
     The arguments are those of :func:`switchest.engine.two_filter.two_filter_run` (arrays a
@@ -85,10 +85,10 @@ def two_filter_smooth(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transi
 
     Returns
     -------
-    x_s, P_s : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
-        Smoothed mode-matched posteriors.
-    prob_s : ndarray, shape (N, K, L)
-        Smoothed mode probabilities.
+    TwoFilterOutput
+        The smoothed mode-matched posteriors and mode probabilities, and the moments of their
+        mixture with its most probable mode
+        (:class:`~switchest.engine.two_filter.TwoFilterOutput`).
 
     Raises
     ------
@@ -106,4 +106,4 @@ def two_filter_smooth(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transi
             f"{np.abs(P_modes).max():.3g} (a mode that grows without process noise), beyond "
             "what its information messages can be combined with in double precision")
     raise_for_status(out.status)
-    return out.x_modes, out.P_modes, out.mode_prob
+    return out

@@ -299,14 +299,23 @@ static void pool_(se_int n, se_int L, se_int B, const double *restrict x_ref,
     }
 }
 
+/* The combined moments of a sample's smoothed mixture (se_combine): x (n, B), P (n, n, B),
+ * best (B,). */
+typedef struct {
+    double *x, *P;
+    se_int *best;
+} combine_ws;
+
 /* Sample k of the block's smoothed outputs: log_s (L, B) normalized over the modes into prob
  * (L, B) (total (B,) scratch), x (L, n, B), P (L, n, n, B) and prob written at sample k of
- * x_s, P_s, prob_s. Returns whether every lane's x, P and prob are finite (nothing is written
+ * x_s, P_s, prob_s, and the mixture's moments (cw scratch) and most probable mode at sample k
+ * of x_c, P_c, mode_c. Returns whether every lane's x, P and prob are finite (nothing is written
  * otherwise). */
 static int write_(se_int n, se_int L, se_int B, se_int K, const double *restrict x,
                   const double *restrict P, double *restrict log_s, double *restrict prob,
                   double *restrict total, se_int i0, se_int nb, se_int k, double *restrict x_s,
-                  double *restrict P_s, double *restrict prob_s)
+                  double *restrict P_s, double *restrict prob_s, const combine_ws *cw,
+                  double *restrict x_c, double *restrict P_c, se_int *restrict mode_c)
 {
     se_log_normalize(L, B, log_s, prob, total, nb);
     int finite = 1;
@@ -324,6 +333,11 @@ static int write_(se_int n, se_int L, se_int B, se_int K, const double *restrict
         return 0;
     se_scatter_modes(n, L, B, K, x, P, i0, nb, x_s + k * L * n, P_s + k * L * n * n);
     se_scatter_rows(L, B, K, prob, i0, nb, prob_s + k * L);
+    se_combine(n, L, B, x, P, prob, log_s, nb, cw->x, cw->P, cw->best);
+    for (se_int b = 0; b < nb; b++) {
+        mode_c[(i0 + b) * K + k] = cw->best[b];
+        se_write_lane(n, B, K, cw->x, cw->P, b, i0 + b, k, x_c, P_c);
+    }
     return 1;
 }
 
@@ -341,6 +355,7 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
     solve_ws sw;
     measure_ws mw;
     pool_ws pw;
+    combine_ws cw;
     se_arena arena = {NULL, 0};
     do {
         Om = se_doubles(&arena, L * nn * B); /* beta_l(k+1), then beta_i(k) */
@@ -379,6 +394,9 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         pw.a = se_doubles(&arena, L * B);
         pw.w = se_doubles(&arena, L * B);
         pw.total = se_doubles(&arena, B);
+        cw.x = se_doubles(&arena, n * B);
+        cw.P = se_doubles(&arena, nn * B);
+        cw.best = se_ints(&arena, B);
         carve_solve(&arena, n, B, &sw);
         carve_measure(&arena, n, m, B, &mw);
     } while (se_arena_open(&arena));
@@ -403,7 +421,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         se_gather_modes(n, L, B, K, x_f + (K - 1) * L * n, P_f + (K - 1) * L * nn, i0, nb, xf,
                         Pf);
         se_gather_rows(L, B, K, log_prob_f + (K - 1) * L, i0, nb, lmu);
-        if (!write_(n, L, B, K, xf, Pf, lmu, prob, total, i0, nb, K - 1, x_s, P_s, prob_s)) {
+        if (!write_(n, L, B, K, xf, Pf, lmu, prob, total, i0, nb, K - 1, x_s, P_s, prob_s,
+                    &cw, x_c, P_c, mode_c)) {
             status = SE_NOT_FINITE;
             goto done;
         }
@@ -470,7 +489,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
             }
             for (se_int e = 0; e < L * B; e++) /* log mu_i(k|K) = log mu_i(k|k) + log Z_i + const */
                 lz[e] += lmu[e];
-            if (!write_(n, L, B, K, xo, Po, lz, prob, total, i0, nb, k, x_s, P_s, prob_s)) {
+            if (!write_(n, L, B, K, xo, Po, lz, prob, total, i0, nb, k, x_s, P_s, prob_s, &cw,
+                        x_c, P_c, mode_c)) {
                 status = SE_NOT_FINITE;
                 goto done;
             }

@@ -23,8 +23,9 @@
  * (NaN: a missing component), u (N, K, l), outlier (N, K) uint8 (samples the filter rejected:
  * missing), F (M, n, n), G (M, n, l), Qd (M, n, n), trans (T, TK, L) with T = N or 1 (indices
  * into the table, checked), log_transition (L, L), C (L, m, n), R (L, m, m).
- * Written: x_s (N, K, L, n), P_s (N, K, L, n, n), prob_s (N, K, L), report (2,) (no covariance
- * is repaired: {0, inf}).
+ * Written: x_s (N, K, L, n), P_s (N, K, L, n, n), prob_s (N, K, L); the combined moments of the
+ * smoothed mixture x_c (N, K, n), P_c (N, K, n, n) and its most probable mode mode_c (N, K)
+ * (se_combine); report (2,) (no covariance is repaired: {0, inf}).
  * Returns SE_OK; SE_NOT_FINITE at the first block and sample whose smoothed posterior or mode
  * probabilities are not finite (the outputs are then incomplete); SE_NOT_POSITIVE_DEFINITE if
  * an observed part of some R_l fails its Cholesky factorization; SE_NO_MEMORY. */
@@ -36,7 +37,8 @@
     const double *restrict F, const double *restrict G, const double *restrict Qd,                \
     const se_int *restrict trans, const double *restrict log_transition,                          \
     const double *restrict C, const double *restrict R, se_int lanes, int sample_timing,          \
-    double *restrict x_s, double *restrict P_s, double *restrict prob_s, double *restrict report
+    double *restrict x_s, double *restrict P_s, double *restrict prob_s,                         \
+    double *restrict x_c, double *restrict P_c, se_int *restrict mode_c, double *restrict report
 se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS);
 
 #endif
