@@ -1115,22 +1115,23 @@ void se_lane_product(se_int p, se_int q, se_int r, se_int B, const double *restr
                         out + (i * r + j) * B);
 }
 
-/* The rows j and piv[j, b] of each lane's X (n, q, B) exchanged, for every row r > j that a lane
- * chose (a blend, so that the lanes run on SIMD registers whatever each chose). */
-static void se_swap_rows(se_int n, se_int q, se_int B, se_int j, const se_int *restrict piv,
+/* The rows j and piv[j, b] of each lane's X (n, q, B) exchanged, in the lanes that chose another
+ * row than j (none, usually: I + P Omega is dominated by its diagonal). */
+static void se_swap_rows(se_int q, se_int B, se_int j, const se_int *restrict piv,
                          double *restrict X, se_int nb)
 {
     const se_int *pj = piv + j * B;
-    for (se_int r = j + 1; r < n; r++)
+    for (se_int b = 0; b < nb; b++) {
+        const se_int r = pj[b];
+        if (r == j)
+            continue;
         for (se_int c = 0; c < q; c++) {
-            double *Xj = X + (j * q + c) * B, *Xr = X + (r * q + c) * B;
-            for (se_int b = 0; b < nb; b++) {
-                const int chosen = pj[b] == r;
-                const double a = Xj[b], s = Xr[b];
-                Xj[b] = chosen ? s : a;
-                Xr[b] = chosen ? a : s;
-            }
+            double *Xj = X + (j * q + c) * B + b, *Xr = X + (r * q + c) * B + b;
+            const double a = *Xj;
+            *Xj = *Xr;
+            *Xr = a;
         }
+    }
 }
 
 /* LU factorization with partial pivoting of each lane's A (n, n), in place (Golub & Van Loan,
@@ -1161,7 +1162,7 @@ void se_lu(se_int n, se_int B, double *restrict A, se_int *restrict piv, se_int 
                 pj[b] = larger ? r : pj[b];
             }
         }
-        se_swap_rows(n, n, B, j, piv, A, nb);
+        se_swap_rows(n, B, j, piv, A, nb);
         for (se_int b = 0; b < nb; b++)
             log_det[b] += log(fabs(Ajj[b]));
         for (se_int r = j + 1; r < n; r++) {
@@ -1185,7 +1186,7 @@ void se_lu_solve(se_int n, se_int q, se_int B, const double *restrict LU,
                  const se_int *restrict piv, double *restrict X, se_int nb)
 {
     for (se_int j = 0; j < n; j++)
-        se_swap_rows(n, q, B, j, piv, X, nb);
+        se_swap_rows(q, B, j, piv, X, nb);
     for (se_int r = 1; r < n; r++)
         for (se_int p = 0; p < r; p++) {
             const double *Lrp = LU + (r * n + p) * B;

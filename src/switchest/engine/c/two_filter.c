@@ -57,6 +57,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bank.h"
 #include "linalg.h"
 #include "two_filter.h"
 
@@ -319,6 +320,8 @@ static int write_(se_int n, se_int L, se_int B, se_int K, const double *restrict
 {
     se_log_normalize(L, B, log_s, prob, total, nb);
     int finite = 1;
+    for (se_int b = 0; b < nb; b++) /* a lane whose every mode has evidence 0 is not a result */
+        finite &= isfinite(total[b]) != 0;
     for (se_int j = 0; j < L; j++) {
         for (se_int e = 0; e < n; e++)
             for (se_int b = 0; b < nb; b++)
@@ -348,7 +351,7 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
     if (N == 0 || K == 0)
         return SE_OK;
     const se_int B = se_lanes(lanes, N), nn = n * n;
-    double *Om, *om, *c, *Oa, *oa, *ca, *Od, *od, *cd, *Fl, *Gl, *Ql, *g, *ul, *yk, *obs;
+    double *Om, *om, *c, *Od, *od, *cd, *Fl, *Gl, *Ql, *g, *ul, *yk, *obs;
     double *n_obs, *Cl, *Rl, *xf, *Pf, *lmu, *xp, *Pp, *FP, *xs, *xo, *Po, *lz, *base, *prob;
     double *total;
     se_int *idx;
@@ -358,12 +361,9 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
     combine_ws cw;
     se_arena arena = {NULL, 0};
     do {
-        Om = se_doubles(&arena, L * nn * B); /* beta_l(k+1), then beta_i(k) */
+        Om = se_doubles(&arena, L * nn * B); /* beta_l(k+1), alpha_l (step 1), then beta_i(k) */
         om = se_doubles(&arena, L * n * B);
         c = se_doubles(&arena, L * B);
-        Oa = se_doubles(&arena, L * nn * B); /* alpha_l (step 1) */
-        oa = se_doubles(&arena, L * n * B);
-        ca = se_doubles(&arena, L * B);
         Od = se_doubles(&arena, L * nn * B); /* delta_l ("interval"), pooled ("sample") */
         od = se_doubles(&arena, L * n * B);
         cd = se_doubles(&arena, L * B);
@@ -427,12 +427,9 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
             goto done;
         }
         for (se_int k = K - 2; k >= 0; k--) {
-            for (se_int j = 0; j < L; j++) { /* mode j's transition into k + 1, g_j = G_j u_k */
-                se_lane_index(L, T, TK, trans, i0, nb, k + 1, j, idx);
-                se_gather_matrices(n, n, B, F, idx, nb, Fl + j * nn * B);
-                se_gather_matrices(n, l, B, G, idx, nb, Gl + j * n * l * B);
-                se_gather_matrices(n, n, B, Qd, idx, nb, Ql + j * nn * B);
-            }
+            for (se_int j = 0; j < L; j++) /* mode j's transition into k + 1, g_j = G_j u_k */
+                se_gather_transition(n, l, L, B, T, TK, F, G, Qd, trans, i0, nb, k + 1, j, idx,
+                                     Fl + j * nn * B, Gl + j * n * l * B, Ql + j * nn * B);
             se_gather_samples(l, B, K, u, i0, nb, k, ul);
             for (se_int j = 0; j < L; j++)
                 se_lane_product(n, l, 1, B, Gl + j * n * l * B, l, 1, ul, 1, 1, nb,
@@ -445,11 +442,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
                     for (se_int a = 0; a < m; a++)
                         obs[a * B + b] = 0.0;
                 }
-            se_copy_lanes(L, nn, B, Om, nb, Oa); /* step 1: alpha_l = N(y; C_l x, R_l) beta_l */
-            se_copy_lanes(L, n, B, om, nb, oa);
-            se_copy_lanes(L, 1, B, c, nb, ca);
-            for (se_int j = 0; j < L; j++) {
-                status = measure_(n, m, B, Oa + j * nn * B, oa + j * n * B, ca + j * B, yk,
+            for (se_int j = 0; j < L; j++) { /* step 1, in place: alpha_l */
+                status = measure_(n, m, B, Om + j * nn * B, om + j * n * B, c + j * B, yk,
                                   obs, n_obs, Cl + j * m * n * B, Rl + j * m * m * B, nb, &mw);
                 if (status != SE_OK)
                     goto done;
@@ -458,7 +452,7 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
             se_gather_rows(L, B, K, log_prob_f + k * L, i0, nb, lmu);
             if (!sample_timing) {
                 for (se_int j = 0; j < L; j++) /* step 2 through mode j's transition */
-                    dynamics_(n, B, Oa + j * nn * B, oa + j * n * B, ca + j * B,
+                    dynamics_(n, B, Om + j * nn * B, om + j * n * B, c + j * B,
                               Fl + j * nn * B, g + j * n * B, Ql + j * nn * B, nb,
                               Od + j * nn * B, od + j * n * B, cd + j * B, &sw);
                 /* step 3 under the filtered posteriors, whose pooled evidence is the smoothed
@@ -476,7 +470,7 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
                 }
                 /* step 3 at x_{k+1} under the predictions, then step 2 through mode i's
                  * transition, then the posterior of the filtered Gaussian */
-                pool_(n, L, B, xp, Pp, Oa, oa, ca, log_transition, nb, Od, od, cd, base, NULL,
+                pool_(n, L, B, xp, Pp, Om, om, c, log_transition, nb, Od, od, cd, base, NULL,
                       NULL, &pw, &sw);
                 for (se_int i = 0; i < L; i++) {
                     dynamics_(n, B, Od + i * nn * B, od + i * n * B, cd + i * B,
