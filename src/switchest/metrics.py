@@ -13,8 +13,14 @@ import numpy as np
 
 from ._checks import float_array, int_array
 
-__all__ = ["RMSE", "InnovationConsistency", "innovation_consistency", "rmse", "mode_accuracy",
-           "switch_time_error"]
+__all__ = ["FEWEST_SAMPLES", "IMPLAUSIBLE_Z", "RMSE", "InnovationConsistency",
+           "innovation_consistency", "rmse", "mode_accuracy", "switch_time_error"]
+
+IMPLAUSIBLE_Z = 4.0
+"""``|z|`` of :class:`InnovationConsistency` beyond which a filter's (or a fit's) residuals are
+implausible for a model that fits the data."""
+FEWEST_SAMPLES = 20
+"""Samples below which the consistency check says nothing."""
 
 
 @dataclass(frozen=True, eq=False)

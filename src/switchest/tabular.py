@@ -64,7 +64,7 @@ import pandas as pd
 from .default_designs import impulsive_gains, rsls_gains, transition_for
 from .estimators import METHOD_NAMES, Estimate, get_method
 from .measurements import mode_signal, read_measurements
-from .metrics import innovation_consistency
+from .metrics import FEWEST_SAMPLES, IMPLAUSIBLE_Z, innovation_consistency
 from .modelfile import ModelSpec
 
 __all__ = [
@@ -179,7 +179,6 @@ class ImplausibleEstimateWarning(UserWarning):
     the data (:func:`switchest.metrics.innovation_consistency`)."""
 
 
-_Z_LIMIT = 4.0  # |z| beyond which the mean NIS is implausible for a consistent filter
 
 # what else makes a method's residuals larger than its covariance claims, with a model that fits
 _OWN_APPROXIMATION = {
@@ -191,11 +190,12 @@ _OWN_APPROXIMATION = {
 
 
 def _warn_if_inconsistent(spec: ModelSpec, meas: dict, est: Estimate, modes, method: str) -> None:
-    """Warn when the mean normalized innovation squared is more than :data:`_Z_LIMIT`
-    standard deviations from its value for a consistent filter, naming the likely cause."""
+    """Warn when the mean normalized innovation squared is more than
+    :data:`~switchest.metrics.IMPLAUSIBLE_Z` standard deviations from its value for a consistent
+    filter, naming the likely cause."""
     used = None if est.outlier is None else ~np.asarray(est.outlier)
     check = innovation_consistency(spec.system, meas["y"], est.x, est.P, modes, used=used)
-    if check.samples < 20 or abs(check.z) <= _Z_LIMIT:
+    if check.samples < FEWEST_SAMPLES or abs(check.z) <= IMPLAUSIBLE_Z:
         return
     seen = (f"mean normalized innovation squared {check.mean_nis:.3g} over {check.samples} "
             f"samples, {check.expected:g} expected for a filter whose model fits the data "

@@ -151,8 +151,8 @@ def instant_posteriors(system: SwitchedLinearSystem, x0, P0, data: Record, offse
         inner = eye + Pm @ lam  # I + P_i Lam
         Ps = symmetrize(np.linalg.solve(inner, Pm))  # (I + P Lam)^-1 P
         ms = np.linalg.solve(inner, (m + (Pm @ eta[..., None])[..., 0])[..., None])[..., 0]
-        back = np.linalg.solve(np.swapaxes(inner, -1, -2),  # (I + Lam P)^-1 (eta - Lam m)
-                               (eta - (lam @ m[..., None])[..., 0])[..., None])[..., 0]
+        # (I + Lam P)^-1 (eta - Lam m) = eta - Lam ms, since (P^-1 + Lam) ms = P^-1 m + eta
+        back = eta - (lam @ ms[..., None])[..., 0]
         b_i = 0.5 * (np.sum(m * back, axis=-1) + np.sum(eta * ms, axis=-1)
                      - np.linalg.slogdet(inner)[1])
         w = np.exp(log_normalize(loglik + b_i)[0])  # P(tau_i | Y), (S, g)
@@ -182,7 +182,9 @@ def _later(m_f, P_f, m_s, P_s) -> tuple[np.ndarray, np.ndarray]:
     """``Lam``, ``eta`` of the likelihood of the later measurements, ``beta(x) ∝ exp(-x' Lam x / 2
     + eta' x)``: the smoothed Gaussian ``N(m_s, P_s)`` divided by the filtered ``N(m_f, P_f)``
     (module docstring)."""
-    inv_s, inv_f = np.linalg.inv(P_s), np.linalg.inv(P_f)
-    lam = symmetrize(inv_s - inv_f)
-    eta = (inv_s @ m_s[..., None] - inv_f @ m_f[..., None])[..., 0]
+    # Lam = P_s^-1 - P_f^-1 = P_f^-1 (P_f - P_s) P_s^-1: solves of the difference, which keep
+    # the digits that subtracting two inverses loses where the later samples add little
+    ratio = np.linalg.solve(P_s, P_f - P_s)  # P_s^-1 (P_f - P_s)
+    lam = symmetrize(np.linalg.solve(P_f, np.swapaxes(ratio, -1, -2)))
+    eta = (np.linalg.solve(P_s, m_s[..., None]) - np.linalg.solve(P_f, m_f[..., None]))[..., 0]
     return lam, eta

@@ -19,44 +19,32 @@ import warnings
 import numpy as np
 
 from ..estimators import ModeKalmanFilter
-from ..metrics import innovation_consistency
+from ..metrics import FEWEST_SAMPLES, IMPLAUSIBLE_Z, innovation_consistency
 from ..system import SwitchedLinearSystem
 from .data import Record
 
-__all__ = ["Z_LIMIT", "warn_if_mistimed"]
-
-Z_LIMIT = 4.0
-"""Standard deviations of the mean NIS beyond which a fit is implausible (``switchest
-estimate``'s limit)."""
-_FEWEST = 20  # samples after a mode change below which the check says nothing
+__all__ = ["warn_if_mistimed"]
 
 
 def warn_if_mistimed(system: SwitchedLinearSystem, x0, P0, data: Record) -> None:
     """Warn (``RuntimeWarning``) when the mean NIS of ``system``'s Kalman filter along the known
-    modes over the samples after a mode change is more than :data:`Z_LIMIT` standard
-    deviations above its value for a model that fits (module docstring)."""
+    modes over the samples after a mode change is more than
+    :data:`~switchest.metrics.IMPLAUSIBLE_Z` standard deviations above its value for a model
+    that fits (module docstring)."""
     est = ModeKalmanFilter(system, x0, P0).run(data.y, data.u, data.t, modes=data.modes)
     change = np.zeros(data.shape, dtype=bool)
     change[:, 1:] = data.modes[:, 1:] != data.modes[:, :-1]
-    seen = {}
-    for label, where in (("after", change), ("others", ~change)):
-        nis = dims = count = 0.0
-        for i in range(data.shape[0]):
-            check = innovation_consistency(system, data.y[i], est.x[i], est.P[i], data.modes[i],
-                                           used=where[i])
-            if check.samples:
-                nis += check.mean_nis * check.samples
-                dims += check.expected * check.samples
-                count += check.samples
-        seen[label] = (nis / count, dims / count, int(count)) if count else None
-    if seen["after"] is None or seen["after"][2] < _FEWEST:
+    N, K = data.shape
+    n = est.x.shape[-1]
+    flat = (data.y.reshape(N * K, -1), est.x.reshape(N * K, n), est.P.reshape(N * K, n, n),
+            data.modes.reshape(N * K))  # the check is sample by sample: the trials in one row
+    after, others = (innovation_consistency(system, *flat, used=where.reshape(N * K))
+                     for where in (change, ~change))
+    if after.samples < FEWEST_SAMPLES or after.z <= IMPLAUSIBLE_Z:
         return
-    mean, expected, samples = seen["after"]
-    z = (mean - expected) / np.sqrt(2 * expected / samples)
-    if z <= Z_LIMIT:
-        return
-    others = ("" if seen["others"] is None else
-              f" and {seen['others'][0]:.3g} over the {seen['others'][2]} others")
+    mean, expected, samples, z = after.mean_nis, after.expected, after.samples, after.z
+    others = ("" if not others.samples else
+              f" and {others.mean_nis:.3g} over the {others.samples} others")
     warnings.warn(f"implausible fit: mean normalized innovation squared {mean:.3g} over the "
                   f"{samples} samples after a mode change{others}, {expected:g} expected for a "
                   f"filter whose model fits the data (z = {z:.1f}); the residuals after a mode "
