@@ -123,7 +123,8 @@ def _workers(text: str) -> int:
 _positive = _integer(1, "a positive integer")
 _seed = _integer(0, "a non-negative integer")
 _duration = _real("a finite positive number of seconds")
-_window = _real("a finite positive number")  # also the outlier gate
+_window = _real("a finite positive number")
+_gate = _real("a finite positive normalized innovation squared")
 _probability = _real("a probability in (0, 1]", high=1.0)
 
 
@@ -818,7 +819,7 @@ def _parser() -> _Parser:
                                                "'interval' the one before it (Bar-Shalom's "
                                                "IMM); default: the model file's timing, that "
                                                "of its data (docs: Conventions)"))
-    p_est.add_argument("--gate", type=_window, default=None,
+    p_est.add_argument("--gate", type=_gate, default=None,
                        help=_applies("gate", "outlier gate: a measurement whose normalized "
                                              "innovation squared exceeds it is treated as "
                                              "missing and flagged (column outlier; e.g. 15.1, "

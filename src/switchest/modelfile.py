@@ -482,14 +482,15 @@ def _initial(table, source: str, n: int):
     return mean, cov
 
 
-def _input(table, source: str, l: int) -> np.ndarray | None:  # noqa: E741 (the paper's l)
+def _input(table, source: str, n_inputs: int) -> np.ndarray | None:
     """The ``[input]`` table's constant ``value`` (one finite number per input), or None."""
     if table is None:
         return None
     table = _table(table, source, "input", _INPUT_KEYS)
     if "value" not in table:
         raise _toml.ModelFileError(_toml.where(source, "input.value: required"))
-    value = _toml.matrix(table["value"], _toml.where(source, "input.value"), shape=(l,), ndim=1)
+    value = _toml.matrix(table["value"], _toml.where(source, "input.value"), shape=(n_inputs,),
+                         ndim=1)
     if not np.all(np.isfinite(value)):
         raise _toml.ModelFileError(_toml.where(source, "input.value: expected finite numbers"))
     return value

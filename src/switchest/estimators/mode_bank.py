@@ -333,9 +333,10 @@ class ModeBankFilter(Estimator):
           likelihood of the later measurements given each mode and state, combined with the
           filtered mode-matched posteriors by Bayes' rule
           (:mod:`switchest.estimators.two_filter`; Helmick, Blair & Hoffman 1995). No
-          smoothed covariance exceeds the filtered one, so it cannot diverge where the filter
-          does not; its mode probabilities lie 0.002-0.007 (mean absolute error) from the
-          exact smoothed ones on small problems where Kim's are 0.03-0.09 off.
+          smoothed mode-matched covariance exceeds the filtered one, so it cannot diverge
+          where the filter does not; its mode probabilities lie 0.002-0.007 (mean absolute
+          error) from the exact smoothed ones after GPB2, 0.007-0.020 after the IMM, on small
+          problems where Kim's are 0.03-0.09 off.
         - ``method="kim"``: Kim's recursion (Kim 1994, §2.2; for collapsing filters Murphy
           1998, §3-4), the pairs (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) weighed by
           ``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` and mode
