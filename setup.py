@@ -13,11 +13,13 @@ core.
 """
 
 import os
+import subprocess
 from pathlib import Path
 
 import numpy
 from Cython.Build import cythonize
 from setuptools import Extension, setup
+from setuptools.command.build_py import build_py
 
 ENGINE = Path("src/switchest/engine")
 PORTABLE = os.environ.get("SWITCHEST_PORTABLE", "0") not in ("", "0")
@@ -45,7 +47,37 @@ extensions = [
     for pyx in sorted(ENGINE.glob("_*.pyx"))
 ]
 
+
+
+class build_py_with_commit(build_py):
+    """Also write ``switchest/_commit.txt``: the git commit the package is built from (``+
+    uncommitted changes`` when the tree has any), which the report's provenance reads from the
+    installed package wherever it is installed."""
+
+    def run(self):
+        super().run()
+        if self.dry_run:
+            return
+        target = Path(self.build_lib) / "switchest" / "_commit.txt"
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(_source_commit() + "\n", encoding="utf-8")
+
+
+def _source_commit() -> str:
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], capture_output=True,
+                              text=True, timeout=10)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
+                                "src"], capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return "unknown (built without git)"
+    if head.returncode != 0:
+        return "unknown (built outside a git checkout)"
+    return head.stdout.strip() + (" + uncommitted changes" if dirty.stdout.strip() else "")
+
+
 setup(
+    cmdclass={"build_py": build_py_with_commit},
     libraries=[engine_library],
     options={"build_ext": {"parallel": os.cpu_count() or 1}},  # the families side by side
     ext_modules=cythonize(

@@ -258,12 +258,12 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
 # ---------------------------------------------------------------------- run, reproduce, report
 def _summary_table(summary) -> Table:
     """Paper vs measured values of one experiment with the verdict at the printed precision
-    (:mod:`switchest.experiments.verdict`); row notes as a caption."""
+    (:mod:`switchest.experiments.verdict`); reasons, fits and run details as a caption."""
     from rich.table import Table
 
     from .experiments.verdict import Verdict, printed_number
 
-    colour = {Verdict.REPRODUCED: "green", Verdict.WITHIN_ERROR: "green",
+    colour = {Verdict.REPRODUCED: "green", Verdict.WITHIN_ERROR: "green", Verdict.FITTED: "blue",
               Verdict.EXPLAINED: "yellow", Verdict.DIFFERS: "red", Verdict.DERIVED: "dim"}
     table = Table(title=escape(summary.title), title_justify="left", caption_justify="left")
     # every column may fold, so that at 80 columns (a pipe, a log) none is squeezed to nothing
@@ -285,11 +285,15 @@ def _summary_table(summary) -> Table:
     for row in summary.rows:
         printed = printed_number(row.paper)
         style = colour[row.verdict]
-        table.add_row(escape(row.quantity), fmt(row.paper if printed is None else str(printed)),
+        quantity = f"  ↳ {row.reading}: {row.quantity}" if row.reading else row.quantity
+        table.add_row(escape(quantity), fmt(row.paper if printed is None else str(printed)),
                       fmt(row.measured, row.se), escape(row.unit),
                       f"[{style}]{row.verdict.value}[/{style}]")
-        if row.note:
-            notes.append(escape(f"{row.quantity}: {row.note}"))
+        said = [str(why) for why in (row.fit, row.explanation) if why is not None]
+        if row.details:
+            said.append(row.details)
+        if said:
+            notes.append(escape(f"{row.quantity}: {'; '.join(said)}"))
     table.caption = "\n".join(notes) or None
     return table
 

@@ -8,13 +8,19 @@ from collections import Counter
 import numpy as np
 import pytest
 from scipy.linalg import expm
-from summary_rows import find_row
+from summary_rows import assert_every_printed_item_judged, find_row
 
 import switchest.experiments.etienne  # noqa: F401  (registers the Etienne experiments)
 from switchest.analysis.impulsive_lmis import impulsive_closed_loop_decay_rate
 from switchest.experiments import get
-from switchest.experiments.etienne import _decay_stats, _envelope, _group, _mean_rate
-from switchest.experiments.verdict import Z_95, Verdict, printed_condition
+from switchest.experiments.etienne import (
+    THEOREM10_ITEM,
+    _decay_stats,
+    _envelope,
+    _group,
+    _mean_rate,
+)
+from switchest.experiments.verdict import Z_95, Reason, Verdict, printed_condition
 from switchest.models import ETIENNE_SCENARIO as S
 from switchest.models import etienne_academic
 
@@ -121,7 +127,8 @@ def test_async_theorem10_verdict_printed_vs_corrected(runs):
     _, results, summary = runs["etienne-async"]
     verdict = find_row(summary, "Theorem 10's conditions at the paper's scalars")
     assert verdict.paper == PAPER["theorem10_verdict"] and verdict.measured == "not verified"
-    assert verdict.verdict is Verdict.EXPLAINED and "(28) = +0.1640" in verdict.note
+    assert verdict.verdict is Verdict.EXPLAINED and "(28) = +0.1640" in verdict.details
+    assert verdict.explanation.reason is Reason.PAPER_ERROR and verdict.item == THEOREM10_ITEM
     corrected = find_row(summary, "LMIs (24)-(27) corrected")
     assert corrected.measured == "infeasible" and corrected.paper is None
     # (26) as printed (block Q0 J): feasible at the §4 scalars, which reproduces the paper's claim
@@ -130,7 +137,8 @@ def test_async_theorem10_verdict_printed_vs_corrected(runs):
     assert printed_lmis["feasible"] and printed_lmis["jump_growth"] > 1
     row = find_row(summary, "LMIs (24)-(27) as printed")
     assert row.measured == "feasible" and row.verdict is Verdict.REPRODUCED
-    assert f"{printed_lmis['jump_growth']:.3g}×" in row.note
+    assert f"{printed_lmis['jump_growth']:.3g}×" in row.details
+    assert row.item == THEOREM10_ITEM and row.reading  # a reading of the verdict, not counted
     # (31) as printed, by hand: 2 beta = alpha (1 - r) - alpha_bar r - ln mu_s / s
     #                                  - ln mu_c (1 - r) / tau_max
     #                                  - delta ln mu_c_bar / (tau_min s), r = delta / s
@@ -142,7 +150,7 @@ def test_async_theorem10_verdict_printed_vs_corrected(runs):
     printed = find_row(summary, "(28) as printed")
     assert printed.measured == pytest.approx(-two_beta, rel=1e-12) and printed.measured > 0
     assert printed_condition(printed.paper) == ("<", 0.0)
-    assert printed.verdict is Verdict.EXPLAINED and f"sum {-two_beta:+.4f}" in printed.note
+    assert printed.verdict is Verdict.EXPLAINED and f"sum {-two_beta:+.4f}" in printed.details
     corrected = find_row(summary, "corrected rate β").measured
     assert corrected == pytest.approx(impulsive_closed_loop_decay_rate(
         S.alpha, S.alpha_bar, S.mu_s, S.mu_c, S.mu_c_bar, S.tau_min, S.tau_max, S.dwell, S.delta))
@@ -192,7 +200,7 @@ def test_async_closed_loop_converges_at_the_papers_delay(runs):
     # (31)'s 0.5
     window = find_row(summary, "most samples in one mismatch window")
     assert window.measured == math.ceil(PAPER["delta"] / S.tau_min) == 1
-    assert window.paper is None and f"δ/τ_min = {PAPER['delta'] / S.tau_min:.3g}" in window.note
+    assert window.paper is None and f"δ/τ_min = {PAPER['delta'] / S.tau_min:.3g}" in window.details
     assert sum(r["wrong_samples"] for r in sims) == sum(r["window_samples"] for r in sims) > 0
     # longer delays slow the decay
     rates = [find_row(summary, f"measured decay rate of ‖z‖, z = (x, e), δ = {d:g} ").measured
@@ -238,3 +246,7 @@ def test_monte_carlo_means_carry_standard_errors():
     np.testing.assert_allclose(worst, np.exp(logs.max(axis=0)))
     np.testing.assert_allclose(geometric, np.exp(logs.mean(axis=0)))
     np.testing.assert_allclose(band, Z_95 * logs.std(axis=0, ddof=1) / math.sqrt(12) * geometric)
+
+
+def test_every_printed_item_of_the_paper_is_judged_or_declared_not_computed(runs):
+    assert_every_printed_item_judged("Etienne", [summary for _, _, summary in runs.values()])

@@ -11,7 +11,7 @@ failures, so the counting can fail.
 
 import numpy as np
 import pytest
-from summary_rows import find_row
+from summary_rows import assert_every_printed_item_judged, find_row
 
 from switchest.analysis.min_distance_design import lee_assumptions
 from switchest.experiments.scoring import mean_and_se
@@ -152,3 +152,7 @@ def test_interpolation_gap_covers_the_gap_to_the_smooth_output():
     gap = np.max(np.linalg.norm(traj.x_fine - lin, axis=-1))
     bound = S.interpolation_gap(h, duration)
     assert 0.2 * bound < gap <= bound
+
+
+def test_every_printed_item_of_the_paper_is_judged(runs):
+    assert_every_printed_item_judged("Lee", [summary for _, _, summary in runs.values()])

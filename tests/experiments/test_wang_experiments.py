@@ -17,7 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
-from summary_rows import assert_rows_compare_only_what_is_printed, close_at_printed, find_row
+from summary_rows import (
+    assert_every_printed_item_judged,
+    assert_rows_compare_only_what_is_printed,
+    close_at_printed,
+    find_row,
+)
 
 from switchest.analysis.subsystem_observers import error_dynamics, second_moments
 from switchest.experiments import (
@@ -25,7 +30,7 @@ from switchest.experiments import (
     wang,  # registers wang-examples and wang-ieee5bus
 )
 from switchest.experiments.scoring import mean_and_se, merge_blocks
-from switchest.experiments.verdict import Verdict
+from switchest.experiments.verdict import Reason, Verdict
 from switchest.models import (
     IEEE_5BUS_INITIAL_ERROR,
     IEEE_5BUS_SAMPLE_PERIOD,
@@ -98,12 +103,13 @@ def test_examples_printed_numbers_and_readings(runs):
                             opt["value"]["L1"], 1)
     assert close_at_printed(find_row(summary, "Ex. 4: σ¹_∞(L1*) (paper's reading").measured,
                             opt["value"]["sigma"], 4)
-    # Example 3 prints expressions: ours is that expression when it equals it (number in the note)
+    # Example 3 prints expressions: ours is written from our number (ln 2 over it), or is
+    # judged against the printed expression evaluated
     row = find_row(summary, "Ex. 3 (a = 10")
-    assert row.paper == row.measured == "ln(2)/20" and row.verdict is Verdict.REPRODUCED
-    assert f"ours {np.log(2) / 20:.10g}" in row.note
+    assert row.paper == "ln(2)/20" and row.verdict is Verdict.REPRODUCED
+    assert row.measured == f"ln(2)/{np.log(2) / float(row.details.split()[1].rstrip(',')):.10g}"
     row = find_row(summary, "Ex. 3: L1 bound")
-    assert row.measured == row.paper and row.verdict is Verdict.REPRODUCED
+    assert isinstance(row.measured, float) and row.verdict is Verdict.REPRODUCED
     # the Kalman-Bucy gains are printed as 2 a_i
     assert find_row(summary, "Ex. 1: Kalman–Bucy gains").verdict is Verdict.REPRODUCED
 
@@ -272,10 +278,12 @@ def test_examples_misreadings_are_explained_and_fig4_claims_judged(runs):
     for row in summary.rows:
         if "(correct" in row.quantity or row.quantity.startswith("Ex. 4: correct"):
             assert row.verdict is Verdict.EXPLAINED, row  # the printed number is the misreading's
+            assert row.explanation.reason is Reason.PAPER_ERROR
     assert find_row(summary, "Fig. 1: MC growth").verdict is Verdict.REPRODUCED  # '> 1 (diverges)'
     # the text: L1 = 60 has a smaller steady state than L1 = 30 -- only under its reading
     row = find_row(summary, "Fig. 4: σ¹_∞(L1 = 60) − σ¹_∞(L1 = 30)")
-    assert row.measured > 0 and row.verdict is Verdict.EXPLAINED and "reading" in row.note
+    assert row.measured > 0 and row.verdict is Verdict.EXPLAINED
+    assert "reading" in row.explanation.evidence
     assert find_row(summary, "Fig. 4: σ¹_∞(L1 = 200)").verdict is Verdict.REPRODUCED
     fig6 = find_row(summary, "Fig. 6: MC")
     assert fig6.se > 0 and fig6.trials == runs["wang-examples"][0]["trials"]
@@ -287,7 +295,7 @@ def test_bus_findings_reach_the_report(runs):
     # §6's time constants from M and b (the second "b_1" is b_2) and the damping entries of A
     assert find_row(summary, "§6: T_1 = M_1/b_1").measured == pytest.approx(9.5)
     t2 = find_row(summary, "§6: T_2 = M_2/b_2")
-    assert t2.measured == pytest.approx(5.625) and "misprint" in t2.note
+    assert t2.measured == pytest.approx(5.625) and "misprint" in t2.details
     for q in ("printed A[2,2]", "printed A[4,4]", "§6: T_1", "§6: T_2"):
         assert find_row(summary, q).verdict is Verdict.REPRODUCED
     # Table 1: every line reproduced at the printed digits but 2-3's truncated angle
@@ -296,7 +304,8 @@ def test_bus_findings_reach_the_report(runs):
     for row in table1:
         expected = Verdict.EXPLAINED if "line 2-3" in row.quantity else Verdict.REPRODUCED
         assert row.verdict is expected, row
-    assert "truncates ours 1.3353" in find_row(summary, "Table 1, line 2-3").note
+    truncated = find_row(summary, "Table 1, line 2-3").explanation
+    assert truncated.reason is Reason.ROUNDING and "truncates ours 1.3353" in truncated.evidence
     # Table 3: the library's observability verdicts are the printed ones
     table3 = [r for r in summary.rows if r.quantity.startswith("Table 3")]
     assert len(table3) == 4 and all(r.verdict is Verdict.REPRODUCED for r in table3)
@@ -307,13 +316,19 @@ def test_bus_findings_reach_the_report(runs):
     counted = [r for r in summary.rows if r.quantity.startswith("printed A[")
                and "from Tables 1-2" in r.quantity]
     assert [r.paper for r in counted] == ["7.7926", "-20.3866"]
-    assert all(r.verdict is Verdict.DIFFERS for r in counted)
+    assert all(r.verdict is Verdict.DIFFERS and r.fit is not None for r in counted)
     assert any(f"reproduced by none of the {2 * len(readings)} readings" in n
                for n in summary.notes)
     # the first design's gain: differs at the printed digits, explained by the rounded A
     gain = [r for r in summary.rows if r.quantity.startswith("first design")]
-    assert all(r.verdict is Verdict.EXPLAINED and "rounded" in r.note for r in gain)
-    assert all("all four entries round to the printed digits" in r.note for r in gain)
+    assert all(r.verdict is Verdict.EXPLAINED and r.explanation.reason is Reason.ROUNDING
+               and "rounded" in r.explanation.evidence for r in gain)
+    assert all("all four entries round to the printed digits" in r.explanation.evidence
+               for r in gain)
+    # the eigenvalues with fitted eigenvector directions: a fitted reading, never reproduced
+    fitted = [r for r in summary.rows if "fitted eigenvector directions" in r.quantity]
+    assert len(fitted) == 8 and all(r.verdict is Verdict.FITTED and r.reading for r in fitted)
+    assert find_row(summary, "T = 0.6997 read as 0.95 T_max").verdict is Verdict.FITTED
     assert find_row(summary, "eigenvalue 4 of the printed A").paper == "-5.3880"
 
 
@@ -323,3 +338,7 @@ def test_rows_compare_only_what_the_paper_prints(runs, name):
     carry printed digits (no computed float in the paper column), differences are explained only
     by a note, and Monte Carlo rows have their trial counts."""
     assert_rows_compare_only_what_is_printed(runs[name][2])
+
+
+def test_every_printed_item_of_the_paper_is_judged_or_declared_not_computed(runs):
+    assert_every_printed_item_judged("Wang", [summary for _, _, summary in runs.values()])

@@ -11,12 +11,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from summary_rows import assert_rows_compare_only_what_is_printed, close_at_printed, find_row
+from summary_rows import (
+    assert_every_printed_item_judged,
+    assert_rows_compare_only_what_is_printed,
+    close_at_printed,
+    find_row,
+)
 
 import switchest.experiments.zhang  # noqa: F401  (registers the Zhang experiments)
 from switchest.analysis.mode_mismatch import bias_recursion, mean_state, mismatch_dynamics
 from switchest.experiments import get
-from switchest.experiments.verdict import Verdict
+from switchest.experiments.verdict import Reason, Verdict
 from switchest.models.zhang import smart_grid, zhang_two_mode
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -135,7 +140,7 @@ def test_example1_monte_carlo_matches_eq9_with_steady_gains(runs):
                            f"Fig. {cfg['figure']} (signal {cfg['signal']}), λ12={lam12:g}, "
                            f"λ21={lam21:g}: (9) vs Monte Carlo, eq. (6)")
             assert row.paper == row.measured == "agree" and row.verdict is Verdict.REPRODUCED
-            assert f"= {z.max():.2f} over {z.size} " in row.note
+            assert f"= {z.max():.2f} over {z.size} " in row.details
     # lam[i, q] is P(filter mode i | true mode q): the transposed reading is rejected
     cfg, tot = next(g for g in groups if g[0]["figure"] == "3")
     modes, lam, m0 = _example1_case(cfg)
@@ -162,7 +167,8 @@ def test_example1_algorithm1_gap_and_theorem4_bound(runs):
             assert row.measured == "agree" and row.verdict is Verdict.REPRODUCED
         else:  # ... but a real gap: a different word, explained by the gains (9) leaves out
             assert row.measured.startswith(f"differ by {rel:.1%} of the peak")
-            assert row.verdict is Verdict.EXPLAINED and "steady gains" in row.note
+            assert row.verdict is Verdict.EXPLAINED and "steady gains" in row.explanation.evidence
+        assert row.reading  # a reading of the figures' claim, judged on the steady gains
         paired.append(z)
     assert len(paired) == 4
     assert max(paired) > Z_MAX  # the gap is not Monte Carlo noise in at least one setting
@@ -195,8 +201,9 @@ def test_smartgrid_printed_values(runs):
                 if (key, (r, c)) in typos:
                     assert close_at_printed(row.measured,
                                             typos[key, (r, c)]["computed_at_printed_precision"], 4)
-                    assert row.ratio == pytest.approx(0.1,
-                                                      abs=0.01) and "slipped decimal" in row.note
+                    assert row.ratio == pytest.approx(0.1, abs=0.01)
+                    assert row.explanation.reason is Reason.MISPRINT
+                    assert "slipped decimal" in row.explanation.evidence
                 else:
                     assert close_at_printed(row.measured, row.paper, 4)
                 checked += 1
@@ -254,3 +261,7 @@ def test_rows_compare_only_what_the_paper_prints(runs, name):
     carry printed digits (no computed float in the paper column), differences are explained only
     by a note, and Monte Carlo rows have their standard errors."""
     assert_rows_compare_only_what_is_printed(runs[name][2])
+
+
+def test_every_printed_item_of_the_paper_is_judged_or_declared_not_computed(runs):
+    assert_every_printed_item_judged("Zhang", [summary for _, _, summary in runs.values()])

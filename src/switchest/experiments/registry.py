@@ -10,6 +10,8 @@ ours, the setup, notes on every disagreement — and figures.
 
 from __future__ import annotations
 
+import re
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,9 +19,13 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import positive_int
-from .verdict import Verdict, judge, printed_number
+from .verdict import Explanation, Fit, Verdict, judge, printed_number
 
 __all__ = ["Experiment", "Row", "Summary", "register", "get", "names", "EXPERIMENTS", "MAX_BLOCKS"]
+
+
+_COMPREHENSION = re.compile(r"(\.<locals>\.<(?:listcomp|genexpr|dictcomp|setcomp)>)+$")
+"""A comprehension's own frame (Python 3.11): a row built in one is its function's."""
 
 
 @dataclass(frozen=True)
@@ -35,21 +41,53 @@ class Row:
         The printed value: a number (a string keeps the printed digits, trailing zeros
         included: ``"0.150"``), a word, or None where the paper prints none (the row is then
         *derived*: shown, not counted).
-    unit, note : str
-        The note explains a difference (it is what makes one *explained*).
+    unit : str
+    details : str
+        Run details (timings, the settings used, what else the run shows): shown, and never
+        part of the verdict.
     se : float, optional
         Standard error of a Monte Carlo ``measured``.
     trials : int, optional
         The number of trials behind ``measured``.
+    item : str, optional
+        The printed item of the paper this row judges (a key of its paper's catalogue,
+        :mod:`.printed_items`); by default the quantity itself.
+    reading : str
+        Non-empty for an alternative reading of the item (another formula, another setting):
+        a sub-row, shown under the item and not counted.
+    explanation : Explanation, optional
+        The reason a difference is explained, with its evidence.
+    fit : Fit, optional
+        Set when ``measured`` comes from a parameter chosen to match the paper.
+    source : str
+        The function that built the row (``module:function``); filled in from the caller
+        when not given.
     """
 
     quantity: str
     measured: float | str
     paper: float | str | None = None
     unit: str = ""
-    note: str = ""
+    details: str = ""
     se: float | None = None
     trials: int | None = None
+    item: str | None = None
+    reading: str = ""
+    explanation: Explanation | None = None
+    fit: Fit | None = None
+    source: str = ""
+
+    def __post_init__(self):
+        if not self.source:  # the caller of the generated __init__ built this row
+            caller = sys._getframe(2)
+            module = caller.f_globals.get("__name__", "?").removeprefix("switchest.")
+            function = _COMPREHENSION.sub("", caller.f_code.co_qualname)
+            object.__setattr__(self, "source", f"{module}:{function}")
+
+    @property
+    def key(self) -> str:
+        """The printed item this row belongs to."""
+        return self.quantity if self.item is None else self.item
 
     @property
     def ratio(self) -> float | None:
@@ -62,9 +100,10 @@ class Row:
 
     @property
     def verdict(self) -> Verdict:
-        """Reproduced, within sampling error, differs (explained or not), or derived
-        (:func:`~switchest.experiments.verdict.judge`)."""
-        return judge(self.paper, self.measured, se=self.se, note=self.note)
+        """Reproduced, within sampling error, matched by a fitted reading, differs (explained
+        by a reason or not), or derived (:func:`~switchest.experiments.verdict.judge`)."""
+        return judge(self.paper, self.measured, se=self.se, explanation=self.explanation,
+                     fit=self.fit)
 
 
 @dataclass(frozen=True)

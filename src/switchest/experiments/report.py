@@ -1,11 +1,13 @@
 """A self-contained HTML report of every experiment in a results store.
 
 The page opens with its provenance (version, commit, command, quick or full runs, seeds, date,
-machine, times) and a summary per paper of how its printed values fare. Then, for each
-experiment: the paper's printed values beside ours with a verdict at the printed precision
-(:mod:`.verdict`), Monte Carlo values with their standard errors, the setup, the notes that
-explain every difference, and the figures (embedded as PNG data, so the page opens from disk
-without a server).
+machine, load, times) and a summary per paper that counts its printed items (:mod:`.items`):
+reproduced, matched only by a fitted reading, explained by a reason, unexplained (listed), not
+computed. Then, for each experiment: the paper's printed values beside ours with a verdict at
+the printed precision (:mod:`.verdict`), Monte Carlo values with their standard errors, the
+reason or the fitted parameter behind each verdict, the run details, the function that built
+each row, the setup, the notes, and the figures (embedded as PNG data, so the page opens from
+disk without a server).
 """
 
 from __future__ import annotations
@@ -20,18 +22,24 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
+from .items import PAPERS as _DECLARED
+from .items import Item, items_of, tally
 from .registry import Experiment, Row, Summary, get
 from .runner import run_tasks, stored_results
 from .store import Store
-from .verdict import Verdict, printed_half_unit, printed_number
+from .verdict import Verdict, compared_as_words, printed_half_unit, printed_number
 
-__all__ = ["RunFacts", "Section", "summarize_store", "provenance", "write_report"]
+__all__ = ["ROW_COLUMNS", "RunFacts", "Section", "paper_items", "provenance", "summarize_store",
+           "write_report"]
 
-_COUNTED = (Verdict.REPRODUCED, Verdict.WITHIN_ERROR, Verdict.EXPLAINED, Verdict.DIFFERS)
-_CLASS = {Verdict.REPRODUCED: "ok", Verdict.WITHIN_ERROR: "near", Verdict.EXPLAINED: "known",
-          Verdict.DIFFERS: "off", Verdict.DERIVED: "derived"}
+_COUNTED = (Verdict.REPRODUCED, Verdict.WITHIN_ERROR, Verdict.FITTED, Verdict.EXPLAINED,
+            Verdict.DIFFERS, Verdict.NOT_COMPUTED)
+_CLASS = {Verdict.REPRODUCED: "ok", Verdict.WITHIN_ERROR: "near", Verdict.FITTED: "fit",
+          Verdict.EXPLAINED: "known", Verdict.DIFFERS: "off", Verdict.NOT_COMPUTED: "none",
+          Verdict.DERIVED: "derived"}
 
 _CSS = """
 body { font: 15px/1.5 system-ui, sans-serif; max-width: 1150px; margin: 2em auto; \
@@ -47,15 +55,20 @@ td.num { font-variant-numeric: tabular-nums; }
 tr.ok td.verdict { background: #e3f4e4; } tr.near td.verdict { background: #eef6d8; }
 tr.known td.verdict { background: #fff0cc; } tr.off td.verdict { background: #fde2e1; \
 font-weight: 600; }
+tr.fit td.verdict { background: #e4ecf7; } tr.none td.verdict { background: #eee; }
 tr.derived td.verdict { color: #777; font-style: italic; }
-td.note { color: #555; max-width: 36em; }
+tr.word td.verdict { background: none; border-left: 4px solid #9c9; }
+tr.reading td { color: #666; font-size: 0.95em; } tr.reading td:first-child { padding-left: 2em; }
+td.note { color: #555; max-width: 30em; } td.why { max-width: 26em; text-align: left; }
+td.src { font-size: 0.8em; color: #888; text-align: left; }
 .setup { background: #f8f8f8; padding: 0.6em 0.9em; border-left: 3px solid #bbb; }
 ul.notes li { margin-bottom: 0.3em; }
 .figs img { max-width: 100%; margin: 0.5em 0; border: 1px solid #eee; }
 .badge { display: inline-block; padding: 0 6px; border-radius: 3px; font-size: 0.85em; \
 background: #eee; margin-right: 0.3em; }
 .badge.ok { background: #e3f4e4; } .badge.near { background: #eef6d8; } \
-.badge.known { background: #fff0cc; } .badge.off { background: #fde2e1; }
+.badge.known { background: #fff0cc; } .badge.off { background: #fde2e1; } \
+.badge.fit { background: #e4ecf7; }
 .badge.quick { background: #ffe8b3; font-weight: 600; }
 table.provenance td, table.provenance th { text-align: left; }
 table.summary td:first-child { white-space: nowrap; }
@@ -97,9 +110,14 @@ class Section:
     paper: str
     facts: RunFacts
 
+    def pairs(self) -> list[tuple[str, Row]]:
+        """``(experiment, row)`` for each of its rows."""
+        return [(self.summary.experiment, row) for row in self.summary.rows]
+
     def counts(self) -> Counter:
-        """How many rows got each verdict."""
-        return Counter(row.verdict for row in self.summary.rows)
+        """How many of the items its rows judge got each verdict (a section's own view: an
+        item judged in several sections is counted once per paper in the summary)."""
+        return Counter(item.verdict for item in items_of(self.paper, self.pairs()))
 
 
 def _mode(experiment: Experiment, params: dict) -> str:
@@ -144,14 +162,21 @@ def provenance(*, command: str | None = None, wall_seconds: float | None = None)
     facts["date"] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     facts["machine"] = (f"{_cpu()}, {os.cpu_count()} logical CPUs; {platform.system()} "
                         f"{platform.release()}; Python {platform.python_version()}")
+    if hasattr(os, "getloadavg"):
+        facts["load average"] = ("{:.2f}, {:.2f}, {:.2f} over the last 1, 5, 15 minutes, when "
+                                 "the report was written".format(*os.getloadavg()))
     if wall_seconds is not None:
         facts["wall time"] = f"{wall_seconds:.0f} s (the runs and this report)"
     return facts
 
 
 def _commit() -> str:
-    """The git commit of the source tree switchest runs from, '+ changes' if it has
-    uncommitted ones; 'not a git checkout' for an installed copy."""
+    """The git commit switchest was built from: the stamp the build writes into an installed
+    package (``switchest/_commit.txt``, see ``setup.py``), else, for an editable install that
+    runs from its checkout, that checkout's commit ('+ uncommitted changes' if it has any)."""
+    stamp = resources.files("switchest").joinpath("_commit.txt")
+    if stamp.is_file():
+        return stamp.read_text(encoding="utf-8").strip()
     here = Path(__file__).resolve().parent
     try:
         head = subprocess.run(["git", "-C", str(here), "rev-parse", "--short=12", "HEAD"],
@@ -214,9 +239,21 @@ def _se_decimals(se: float) -> int:
     return digits
 
 
+def _why(row: Row) -> str:
+    """What decides a verdict beyond the numbers: the reason and its evidence, or the fitted
+    parameter and whether it is unique."""
+    parts = []
+    if row.fit is not None:
+        parts.append(str(row.fit))
+    if row.explanation is not None:
+        parts.append(str(row.explanation))
+    return "; ".join(parts)
+
+
 def _table(summary: Summary) -> str:
     lines = ["<table><tr><th>quantity</th><th>paper (printed)</th><th>ours</th><th>ours / "
-             "paper</th><th>unit</th><th>verdict</th><th>note</th></tr>"]
+             "paper</th><th>unit</th><th>verdict</th><th>reason or fit</th><th>details</th>"
+             "<th>computed by</th></tr>"]
     for row in summary.rows:
         ratio, verdict = row.ratio, row.verdict
         paper, ours = _cells(row)
@@ -224,45 +261,86 @@ def _table(summary: Summary) -> str:
         printed = printed_number(row.paper)
         if printed is not None:
             tolerance = f" title='printed to ± {printed_half_unit(printed):g}'"
+        classes = [_CLASS[verdict]]
+        shown = verdict.value
+        if compared_as_words(row.paper) and verdict is not Verdict.DERIVED:
+            classes.append("word")  # a word is the same or not: no precision behind it
+            shown += " (same words)" if verdict is Verdict.REPRODUCED else ""
+        quantity = html.escape(row.quantity)
+        if row.reading:
+            classes.append("reading")
+            quantity = f"↳ {html.escape(row.reading)}: {quantity}"
+        elif row.item is not None and row.paper is not None:
+            quantity += f" <span class='meta'>(item: {html.escape(row.item)})</span>"
         lines.append(
-            f'<tr class="{_CLASS[verdict]}"><td>{html.escape(row.quantity)}</td>'
+            f'<tr class="{" ".join(classes)}"><td>{quantity}</td>'
             f"<td class='num'{tolerance}>{paper}</td><td class='num'>{ours}</td>"
             f"<td class='num'>{'—' if ratio is None else f'{ratio:.4f}'}</td>"
-            f"<td>{html.escape(row.unit)}</td><td class='verdict'>{verdict.value}</td>"
-            f'<td class="note">{html.escape(row.note)}</td></tr>'
+            f"<td>{html.escape(row.unit)}</td><td class='verdict'>{shown}</td>"
+            f'<td class="why">{html.escape(_why(row))}</td>'
+            f'<td class="note">{html.escape(row.details)}</td>'
+            f'<td class="src"><code>{html.escape(row.source)}</code></td></tr>'
         )
     lines.append("</table>")
     return "\n".join(lines)
 
 
 def _badges(counts: Counter) -> str:
-    """The section's badges: printed values only (derived rows are not counted)."""
+    """The section's badges: its printed items by verdict (derived rows are not counted)."""
     shown = [(v, counts[v]) for v in _COUNTED if counts[v]]
     if not shown:
         return '<span class="badge">no printed value compared</span>'
     return "".join(f'<span class="badge {_CLASS[v]}">{n} {v.value}</span>' for v, n in shown)
 
 
-def _summary_table(sections: list[Section]) -> str:
-    """Per paper: how many printed values are reproduced, within error, differ (explained or
-    not), with links to its sections."""
+def _papers(sections: list[Section]) -> dict[str, list[Section]]:
     papers: dict[str, list[Section]] = {}
     for section in sections:
         papers.setdefault(section.paper, []).append(section)
-    head = "".join(f"<th>{v.value}</th>" for v in _COUNTED)
-    lines = [f"<table class='summary'><tr><th>paper</th>{head}<th>derived (not counted)</th>"
-             "<th>sections</th></tr>"]
-    for paper, group in papers.items():
-        counts = sum((s.counts() for s in group), Counter())
-        cells = "".join(
-            f"<td class='num'>{counts[v] or ''}</td>" for v in (*_COUNTED, Verdict.DERIVED))
+    return papers
+
+
+def paper_items(sections: list[Section]) -> dict[str, list[Item]]:
+    """Paper -> its items judged by the rows of ``sections``."""
+    return {paper: items_of(paper, [pair for s in group for pair in s.pairs()])
+            for paper, group in _papers(sections).items()}
+
+
+def _summary_table(sections: list[Section]) -> str:
+    """Per paper: its printed items by verdict against the number it prints, the reasons of
+    the explained ones, the unexplained and the fitted items by name, and its sections."""
+    heads = ["printed items (N)", *(v.value for v in _COUNTED), "derived rows (not counted)",
+             "sections"]
+    lines = ["<table class='summary'><tr><th>paper</th>"
+             + "".join(f"<th>{h}</th>" for h in heads) + "</tr>"]
+    details = []
+    for paper, items in paper_items(sections).items():
+        group = _papers(sections)[paper]
+        t = tally(paper, items)
+        derived = sum(row.verdict is Verdict.DERIVED for s in group for row in s.summary.rows)
+        cells = "".join(f"<td class='num'>{t.counts[v] or ''}</td>" for v in _COUNTED)
         links = ", ".join(
             f'<a href="#{s.summary.experiment}">{html.escape(s.summary.experiment)}</a>'
             + (" <span class='badge quick'>quick</span>" if s.facts.mode == "quick" else "")
             for s in group)
-        lines.append(f"<tr><td>{html.escape(paper)}</td>{cells}<td>{links}</td></tr>")
+        unjudged = (f" <span class='meta'>({t.unjudged} not in this report)</span>"
+                    if t.unjudged > 0 and paper in _DECLARED else
+                    f" <span class='badge off'>{-t.unjudged} more judged than printed</span>"
+                    if t.unjudged < 0 and paper in _DECLARED else "")
+        lines.append(f"<tr><td>{html.escape(paper)}</td><td class='num'>{t.printed}</td>{cells}"
+                     f"<td class='num'>{derived or ''}</td><td>{links}{unjudged}</td></tr>")
+        if paper not in _DECLARED:
+            continue
+        entry = [f"<b>{html.escape(paper)}</b>: {html.escape(t.sentence())}."]
+        for title, listed in (("unexplained", t.unexplained), ("fitted", t.fitted)):
+            if listed:
+                entry.append(f"{title}: " + "; ".join(html.escape(i.key) for i in listed) + ".")
+        if t.not_computed:
+            entry.append("not computed: " + "; ".join(
+                f"{html.escape(k)} ({html.escape(v)})" for k, v in t.not_computed.items()) + ".")
+        details.append("<li>" + " ".join(entry) + "</li>")
     lines.append("</table>")
-    return "\n".join(lines)
+    return "\n".join(lines) + f"<ul class='notes'>{''.join(details)}</ul>"
 
 
 def _provenance_block(facts: dict, sections: list[Section], store: Store) -> str:
@@ -300,27 +378,42 @@ def _section(section: Section) -> str:
             f'<ul class="notes">{notes}</ul><div class="figs">{figs}</div>')
 
 
+ROW_COLUMNS = ("experiment", "paper", "item", "reading", "quantity", "printed", "ours", "se",
+               "trials", "unit", "verdict", "reason", "evidence", "fitted parameter",
+               "fit unique", "fit evidence", "details", "computed by", "run", "seed")
+"""The columns of ``rows.csv``, one line per row of the report."""
+
+
 def _write_rows(sections: list[Section], path: Path) -> None:
-    """Every row of the report as CSV."""
+    """Every row of the report as CSV (:data:`ROW_COLUMNS`)."""
     with path.open("w", newline="", encoding="utf-8") as f:
         out = csv.writer(f)
-        out.writerow(["experiment", "quantity", "paper", "ours", "se", "trials", "unit",
-                      "verdict", "note"])
+        out.writerow(ROW_COLUMNS)
         for section in sections:
             for row in section.summary.rows:
-                out.writerow([section.summary.experiment, row.quantity,
-                              "" if row.paper is None else row.paper, row.measured,
-                              "" if row.se is None else row.se,
-                              "" if row.trials is None else row.trials, row.unit,
-                              row.verdict.value, row.note])
+                why, fit = row.explanation, row.fit
+                out.writerow([
+                    section.summary.experiment, section.paper, row.key, row.reading,
+                    row.quantity, "" if row.paper is None else row.paper, row.measured,
+                    "" if row.se is None else row.se, "" if row.trials is None else row.trials,
+                    row.unit, row.verdict.value, "" if why is None else why.reason.value,
+                    "" if why is None else why.evidence, "" if fit is None else fit.parameter,
+                    "" if fit is None else fit.unique, "" if fit is None else fit.evidence,
+                    row.details, row.source, section.facts.mode, section.facts.seed])
 
 
-_LEGEND = ("<p class='meta'>A printed value is <b>reproduced</b> when ours rounds to the digits "
+_LEGEND = ("<p class='meta'>Each number or claim a paper prints is one <b>item</b>, counted "
+           "once however many rows judge it; rows marked ↳ are other readings of an item, shown "
+           "and not counted. A printed value is <b>reproduced</b> when ours rounds to the digits "
            "the paper prints; a Monte Carlo value is <b>within sampling error</b> when its 95 % "
            "interval (mean ± 1.96 standard errors, widened by half a unit of the last printed "
-           "digit) covers the printed one; otherwise it <b>differs</b>, <b>explained</b> when "
-           "the note gives the reason. Words compare as words. Rows the paper prints no value "
-           "for are <b>derived</b>: shown, not counted.</p>")
+           "digit) covers the printed one; a value obtained by choosing a parameter to match is "
+           "<b>matched by a fitted reading</b>, never reproduced; otherwise it differs, "
+           "<b>explained</b> only by a declared reason with its evidence (misprint, rounding, "
+           "ambiguous formula, unstated setting, proven error, sampling error), "
+           "<b>unexplained</b> otherwise. Run details never change a verdict. Words compare as "
+           "words (marked by a bar, not a colour). Rows the paper prints no value for are "
+           "<b>derived</b>: shown, not counted.</p>")
 
 
 def write_report(store: Store, out_dir: str | Path, names: list[str] | None = None, *,
@@ -330,8 +423,8 @@ def write_report(store: Store, out_dir: str | Path, names: list[str] | None = No
 
     ``command`` (the command line) and ``wall_seconds`` (how long it ran) go into the
     provenance block when given; ``progress`` as in :func:`summarize_store`. Every row of
-    every section is also written to ``out_dir/rows.csv`` (experiment, quantity, paper,
-    ours, standard error, trials, unit, verdict, note), for a spreadsheet or a script.
+    every section is also written to ``out_dir/rows.csv`` (:data:`ROW_COLUMNS`), for a
+    spreadsheet or a script.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

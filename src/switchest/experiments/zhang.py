@@ -39,7 +39,7 @@ from ..plotting import curves
 from ..system import SwitchedLinearSystem
 from .registry import Experiment, Row, Summary, register
 from .scoring import blocks, mean_and_se, merge_groups
-from .verdict import Z_95
+from .verdict import Z_95, Explanation, Fit, Reason, printed_half_unit, printed_number
 
 # Zhang & Natarajan §5.1 (printed "A_i" is Lambda_i; 1-based modes as printed)
 EXAMPLE1_PAPER = {
@@ -209,21 +209,66 @@ def _padded(se: np.ndarray) -> np.ndarray:
     return np.vstack([np.zeros(se.shape[1]), se])
 
 
-def _algorithm1_row(where: str, c: dict, what: str) -> Row:
+def _algorithm1_row(where: str, c: dict, what: str, item: str) -> Row:
     """The paper's claim that its filter's Monte Carlo bias follows ``what`` ((9) or (10)), judged
     on the paired difference of Algorithm 1's filter and the steady-gain one (whose mean is
-    exactly ``what``)."""
+    exactly ``what``): a reading of ``item``, whose primary rows use the steady gains that
+    ``what`` assumes."""
     numbers = (f"paired gap {c['gap_paired_rel']:.1%} of the peak, {c['gap_z']:.1f} SE; "
                f"unpaired ‖MC − {what}‖ / peak = {c['gap_rel']:.3f}")
+    quantity = f"{where}: {what} vs Monte Carlo, Algorithm 1's gains (the paper's filter)"
+    reading = "simulated with Algorithm 1's gains"
     if c["gap_z"] < Z_MAX:
-        return Row(f"{where}: {what} vs Monte Carlo, Algorithm 1's gains (the paper's filter)",
-                   "agree", "agree", "", numbers, trials=c["trials"])
-    return Row(f"{where}: {what} vs Monte Carlo, Algorithm 1's gains (the paper's filter)",
-               f"differ by {c['gap_paired_rel']:.1%} of the peak ({c['gap_z']:.0f} SE)", "agree",
-               "",
-               f"{what} assumes eq. (6)'s steady gains (row above); Algorithm 1's gains follow "
-               f"the believed modes' Riccati recursion, which {what} leaves out. {numbers}",
-               trials=c["trials"])
+        return Row(quantity, "agree", "agree", "", numbers, trials=c["trials"], item=item,
+                   reading=reading)
+    return Row(quantity, f"differ by {c['gap_paired_rel']:.1%} of the peak ({c['gap_z']:.0f} SE)",
+               "agree", "", numbers, trials=c["trials"], item=item, reading=reading,
+               explanation=Explanation(
+                   Reason.UNSTATED,
+                   f"the paper does not say which gains its simulation uses; {what} assumes eq. "
+                   "(6)'s steady gains, and with them the simulated bias agrees (primary row); "
+                   f"Algorithm 1's gains follow the believed modes' Riccati recursion, which "
+                   f"{what} leaves out"))
+
+
+FIG6_ITEM = "Fig. 6: the bias stays below B = 0.3 with λ from (18)"
+
+
+def _eta_fit(dyn, paper: dict) -> Fit:
+    """The fit of the unprinted η·sup‖u‖ to the printed λ of Fig. 6: the range of values (on a
+    grid of 0.0005 around the one used) whose λ by eq. (18) rounds to the printed digits."""
+    printed = printed_number(paper["fig6_lambda"])
+    half = printed_half_unit(printed)
+    grid = np.round(np.arange(0.95, 1.15, 0.0005), 4)
+    matches = [float(v) for v in grid
+               if abs(max_mismatch_probability(dyn, bound=paper["fig6_bound"], eta=v,
+                                               sup_input=1.0) - float(printed)) <= half]
+    span = (f"{matches[0]:g}..{matches[-1]:g}" if len(matches) > 1 else
+            f"{matches[0]:g}" if matches else "none")
+    return Fit(f"η·sup‖u‖ = {paper['eta_sup_input']:g}", unique=len(matches) <= 1,
+               evidence=f"η·sup‖u‖ is not printed; on a grid of 0.0005 over 0.95..1.15 the values "
+                        f"{span} reproduce the printed λ ({len(matches)} of {grid.size})")
+
+
+def _riccati_fit(system, paper: dict) -> Fit:
+    """The fit of Algorithm 1's unstated Riccati length and Σ_0 to the printed ‖Λ_1‖: which
+    of the nearby lengths and of Σ_0 = 0.1 I, I, 10 I also reproduce it."""
+    printed = printed_number(paper["norm_Lambda"][0])
+    half = printed_half_unit(printed)
+    tried, matches = 0, []
+    for scale in (0.1, 1.0, 10.0):
+        for steps in range(RICCATI_STEPS - 5, RICCATI_STEPS + 6):
+            gains = riccati_gains(system, P0=scale * SIGMA0, steps=steps)
+            norm = np.linalg.norm(mismatch_dynamics(system, gains=gains).Lambda[0], ord=2)
+            tried += 1
+            if abs(norm - float(printed)) <= half:
+                matches.append(f"k = {steps}, Σ_0 = {scale:g} I")
+    lengths = f"k = {RICCATI_STEPS - 5}..{RICCATI_STEPS + 5}"
+    return Fit(f"Algorithm 1 after k = {RICCATI_STEPS} steps from Σ_0 = I",
+               unique=len(matches) <= 1,
+               evidence=f"neither is printed; of {tried} settings tried ({lengths}, Σ_0 = 0.1 I, "
+                        f"I, 10 I) {len(matches)} reproduce the printed value: "
+                        f"{'; '.join(matches) or 'none'}")
 
 
 def _matrix(M) -> str:
@@ -308,7 +353,8 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
     cq_A = cqlf(system.A, "discrete")
     A_norms = np.linalg.norm(system.A, ord=2, axis=(-2, -1))
     rows = [
-        Row("‖Λ_1‖ (printed ‖A_1‖)", float(norms[0]), paper["norm_Lambda"][0]),
+        Row("‖Λ_1‖ (printed ‖A_1‖)", float(norms[0]), paper["norm_Lambda"][0], "",
+            "the paper prints ‖A_1‖ for the norm of Λ_1 (its value is ‖Λ_1‖'s)"),
         Row("‖Λ_2‖ (printed ‖A_2‖)", float(norms[1]), paper["norm_Lambda"][1]),
         Row("Λ_1 = A_1 − K_1 C_1 A_1 (eq. 7)", _matrix(dyn.Lambda[0]), _matrix(paper["Lambda_1"]),
             "", "steady a-priori Riccati gain, Algorithm 1 line 8"),
@@ -320,8 +366,7 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
         Row("CQLF of A_1, A_2 (original system stable)", "exists" if cq_A.holds else "not found",
             "exists"),
         Row("λ12 = λ21 for B = 0.3 by eq. (18), η·sup‖u‖ = 1.04", float(lam_max),
-            paper["fig6_lambda"], "",
-            "η·sup‖u‖ is not printed; 1.04 is the value that reproduces the printed digits"),
+            paper["fig6_lambda"], "", fit=_eta_fit(dyn, paper)),
         Row("BIBO gain η of (10) (bibo_gain)", float(eta), None, "",
             "1/(1 − max‖Λ_i‖); not printed"),
     ]
@@ -339,14 +384,15 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
             label = f"λ12={lam[0, 1]:g}, λ21={lam[1, 0]:g}"
             where = f"Fig. {figure} (signal {signal}), {label}"
             agree, agree_note = _agreement(c["z"], c["comparisons"], "(9)")
+            item = "Figs. 3-4: the bias (9) agrees with the simulated one"
             rows += [
                 Row(f"{where}: peak ‖E(e_k)‖ by (9)", c["peak"], None, "",
                     f"Monte Carlo peak {np.max(np.linalg.norm(c['alg1'], axis=1)):.4g} (Algorithm "
                     "1 gains)"),
                 Row(f"{where}: (9) vs Monte Carlo, eq. (6)'s steady gains", agree, "agree", "",
                     agree_note + (f"; the bias reaches {c['power']:.0f} SE"
-                                  if agree == "agree" else ""), trials=c["trials"]),
-                _algorithm1_row(where, c, "(9)"),
+                                  if agree == "agree" else ""), trials=c["trials"], item=item),
+                _algorithm1_row(where, c, "(9)", item),
             ]
             k = np.arange(modes.size + 1)
             series[f"(9), {label}"] = theory
@@ -393,7 +439,8 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
                         f"{arr['P'][worst]:g}; (9) reaches at most "
                         f"{np.max(arr['theory'] / arr['bound']):.3f} of the bound; steady-gain MC "
                         f"vs (9) within {np.max(arr['z']):.2f} SE",
-                        se=float(arr["mc_se"][worst] / arr["bound"][worst]), trials=trials5))
+                        se=float(arr["mc_se"][worst] / arr["bound"][worst]), trials=trials5,
+                        item="Fig. 5: the simulated bias stays below Theorem 4's bound"))
         series5[f"MC Alg. 1, signal {signal}"] = arr["mc"]
         bands5[f"MC Alg. 1, signal {signal}"] = Z_95 * arr["mc_se"]
         series5[f"(9), signal {signal}"] = arr["theory"]
@@ -417,12 +464,13 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
         rows += [
             Row(f"Fig. 6 (signal {sig}): max_k ‖E(e_k)‖ by (9), λ12 = λ21 = {lam[0, 1]:.6f}",
                 c["peak"], "≤ 0.3",
-                "", f"our η·sup‖u‖ = {eta * sup_u:.4f} (E(x_0) = {np.round(m0, 4).tolist()})"),
+                "", f"our η·sup‖u‖ = {eta * sup_u:.4f} (E(x_0) = {np.round(m0, 4).tolist()})",
+                item=FIG6_ITEM),
             Row(f"Fig. 6 (signal {sig}): max_k ‖MC bias‖, Algorithm 1 gains", float(mc_norm.max()),
                 "≤ 0.3", "",
                 f"at k = {int(np.argmax(mc_norm))}; Monte Carlo noise: SE up to "
                 f"{np.max(se_norm):.3f} per step; steady-gain MC vs (9) within {c['z']:.2f} SE",
-                se=float(se_norm[np.argmax(mc_norm)]), trials=c["trials"]),
+                se=float(se_norm[np.argmax(mc_norm)]), trials=c["trials"], item=FIG6_ITEM),
         ]
         series6[f"(9), signal {sig}"] = np.linalg.norm(theory, axis=1)
         series6[f"MC Alg. 1, signal {sig}"] = mc_norm
@@ -505,11 +553,15 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
     printed = mismatch_dynamics(system, gains=riccati_gains(system, P0=SIGMA0, steps=RICCATI_STEPS))
     n_steady = np.linalg.norm(steady.Lambda, ord=2, axis=(-2, -1))
     n_alg1 = np.linalg.norm(printed.Lambda, ord=2, axis=(-2, -1))
+    norm1, alg1_fit = "‖Λ_1‖", _riccati_fit(system, paper)
     rows = [
         Row(f"‖Λ_1‖, Algorithm 1 gain after {RICCATI_STEPS} steps from Σ_0 = I", float(n_alg1[0]),
-            paper["norm_Lambda"][0]),
+            paper["norm_Lambda"][0], item=norm1, fit=alg1_fit),
         Row("‖Λ_1‖, steady-state gain (eq. 6)", float(n_steady[0]), paper["norm_Lambda"][0], "",
-            "mode 1's Riccati recursion converges slowly; the printed value is the transient one"),
+            "mode 1's Riccati recursion converges slowly", item=norm1,
+            reading="steady-state gain (eq. 6)", explanation=Explanation(
+                Reason.UNSTATED, "Algorithm 1 runs a finite Riccati recursion whose length and "
+                "Σ_0 the paper does not state; the printed value is a transient one (row above)")),
         Row("‖Λ_2‖", float(n_steady[1]), paper["norm_Lambda"][1]),
         Row("‖Λ_3‖", float(n_steady[2]), paper["norm_Lambda"][2]),
     ]
@@ -517,13 +569,16 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
         i, q = (int(s) - 1 for s in key.split(","))
         for (r, c), value in entries.items():
             ours = float(printed.S[i, q, r - 1, c - 1])
-            note = ""
+            details, why = "", None
             if abs(ours) > 0 and abs(value / ours - 10.0) < 0.5:
-                note = "printed value is ten times ours: a slipped decimal"
-            elif i == 0:
-                note = f"steady-state gain: {steady.S[i, q, r - 1, c - 1]:.4f}"
+                why = Explanation(Reason.MISPRINT,
+                                  f"the printed {value:g} is ten times ours ({ours:.5f}) to its "
+                                  "digits, a slipped decimal, while the entries computed by the "
+                                  "same formula reproduce")
+            elif i == 0:  # mode 1's gain: Algorithm 1's, fitted as for ‖Λ_1‖
+                details = f"steady-state gain: {steady.S[i, q, r - 1, c - 1]:.4f}"
             rows.append(Row(f"T_{key}[{r},{c}] = (Λ_i − Γ_i,q)[{r},{c}] (Algorithm 2)", ours, value,
-                            "", note))
+                            "", details, explanation=why, fit=alg1_fit if i == 0 else None))
     uc = unstable_components(system)
     region = stable_mismatch_region(system, dynamics=steady)
     cq_lambda = cqlf(steady.Lambda, "discrete")
@@ -556,8 +611,11 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
         agree, agree_note = _agreement(c["z"], c["comparisons"], "(10)")
         power = (f"; the bias reaches {c['power']:.1f} SE" + (
             ", so agreement says only that both are near zero" if c["power"] < Z_MAX else ""))
+        item = (f"{where}: the bias stays bounded" if name == "I" else
+                f"{where}: the bias explodes")
         z_row = Row(f"{where}: (10) vs Monte Carlo, eq. (6)'s steady gains", agree, "agree", "",
-                    agree_note + (power if agree == "agree" else ""), trials=c["trials"])
+                    agree_note + (power if agree == "agree" else ""), trials=c["trials"],
+                    item=item)
         cycle = 3 * p["dwell"]  # one visit to each mode
         first, last = slice(1, cycle + 1), slice(-cycle, None)
         growth = float(th_norm[last].max() / th_norm[first].max())
@@ -570,14 +628,14 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
             rows += [
                 Row(growth_q, growth, "≤ 1 (bounded)", "",
                     f"max_k ‖E(e_k)‖ = {th_norm.max():.3g}: only the stable P_D enters (T_2,3 and "
-                    "T_3,2 have a zero first column)"),
+                    "T_3,2 have a zero first column)", item=item),
                 Row(f"{where}: Monte Carlo bias, Algorithm 1 gains",
                     "bounded" if np.all(mc_norm <= allowed) else
                     f"above (10) by up to {excess:.1f} SE", "bounded", "",
                     f"‖MC bias‖ within {Z_MAX:g} SE of the bounded (10) at every step: max_k "
                     f"‖MC bias‖ = {mc_norm.max():.3g}, SE up to {np.max(c['alg1_norm_se']):.3f}, "
                     "noise around zero" if np.all(mc_norm <= allowed) else "",
-                    trials=c["trials"]),
+                    trials=c["trials"], item=item),
                 z_row,
             ]
         else:
@@ -590,13 +648,13 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
                 Row(growth_q, growth, "> 1 (explodes)", "",
                     f"‖E(e_k)‖ from {th_norm[p['dwell']]:.3g} at k = {p['dwell']} to "
                     f"{th_norm[-1]:.3g} at k = {modes.size}: a factor "
-                    f"10^{np.log10(th_norm[-1] / th_norm[p['dwell']]):.1f}"),
+                    f"10^{np.log10(th_norm[-1] / th_norm[p['dwell']]):.1f}", item=item),
                 Row(f"{where}: the same ratio for the Monte Carlo bias, Algorithm 1 gains",
                     mc_growth, "> 1 (explodes)", "",
                     f"‖MC bias‖ = {mc_norm[-1]:.3g} at k = {modes.size}",
-                    se=float(mc_growth * rel), trials=c["trials"]),
+                    se=float(mc_growth * rel), trials=c["trials"], item=item),
                 z_row,
-                _algorithm1_row(where, c, "(10)"),
+                _algorithm1_row(where, c, "(10)", item),
             ]
         series = {"(10), steady gains": th_norm,
                   "MC, steady gains": np.linalg.norm(c["steady"], axis=1),

@@ -36,7 +36,7 @@ from ...models import WANG_EXAMPLES
 from ...plotting import curves
 from ..registry import Experiment, Row, Summary, register
 from ..scoring import blocks, mean_and_se, split_variants
-from ..verdict import Z_95
+from ..verdict import Z_95, Explanation, Reason
 from .monte_carlo import (
     block_total,
     exact_moments,
@@ -230,12 +230,12 @@ def _example1_section(c: _Context) -> None:
     c.zs.append(z)
     steady = component_steady_state(dyn, c.prob)
     a = np.array([c.ex.a1, c.ex.a2])
-    is_2a = np.allclose(L_kb, 2.0 * a, rtol=1e-9, atol=0.0)
+    ratio = L_kb / a  # the gains in units of a_i: the printed "L_i = 2a_i" is read off ours
     c.rows += [
         Row("Ex. 1: Kalman–Bucy gains L_1, L_2 (ARE of each observable sub-state)",
-            EXAMPLES_PAPER["kb_gains"] if is_2a else f"{L_kb[0]:.6g}, {L_kb[1]:.6g}",
+            f"L_1 = {ratio[0]:.6g}a_1, L_2 = {ratio[1]:.6g}a_2",
             EXAMPLES_PAPER["kb_gains"], "", f"ours {L_kb[0]:.6g}, {L_kb[1]:.6g} with a = "
-            f"({a[0]:g}, {a[1]:g})" if is_2a else ""),
+            f"({a[0]:g}, {a[1]:g})"),
         Row("Ex. 1: γ̄^1 = p e^{−2a_1T} + (1−p) e^{2a_1T} (Kalman–Bucy)", float(M[0]), paper[0], "",
             "> 1: e¹ diverges in mean square"),
         Row("Ex. 1: γ̄^2 = (1−p) e^{−2a_2T} + p e^{2a_2T} (Kalman–Bucy)", float(M[1]), paper[1]),
@@ -261,6 +261,9 @@ def _example1_section(c: _Context) -> None:
                                "converges"))
 
 
+FIG3_ITEM = "Fig. 3: both observers unstable at T = 0.25 (L1 = 40, L2 = 15)"
+
+
 def _example2_section(c: _Context) -> dict:
     """Example 2: thresholds, gain bounds (both readings), the design (Fig. 2) and T = 0.25 (Fig.
     3)."""
@@ -273,7 +276,9 @@ def _example2_section(c: _Context) -> dict:
         Row("Ex. 2: T_max^2 = ln(1/p)/(2a_2)", float(ci.per_block[1]), paper["T_max"][1]),
         Row("Ex. 2: exact MS threshold for fast observers (critical_interval)",
             float(ci.fast_observer),
-            paper["T_max"][0], "", "= min(T_max^1, T_max^2): the components decouple"),
+            paper["T_max"][0], "", "= min(T_max^1, T_max^2): the components decouple",
+            item="Ex. 2: T_max^1 = ln(1/(1−p))/(2a_1) (per-component threshold)",
+            reading="the exact threshold"),
         Row("Ex. 2: Theorem 3 eq. (20) as printed, q_max h(T) = 1", float(ci.printed_t_max),
             None, "",
             f"q_max = {ci.q_max:g}, h(T) = e^(2a_2T): half of T_max^1; T = 0.03 violates it, yet "
@@ -284,11 +289,17 @@ def _example2_section(c: _Context) -> dict:
             Row(f"Ex. 2: bound L_{comp + 1} > (correct, e^(2(a−L)T))",
                 float(bounds.min_loop_gain[comp]),
                 paper["gain_bounds"][comp], "",
-                "the printed bound solves the condition with e^((a−L)T) (next row reproduces it), "
-                "although Example 2 writes the condition with e^(2(a−L)T), as second moments "
-                "need: at this gain the exact second-moment factor is 1"),
+                "at this gain the exact second-moment factor is 1",
+                item=f"Ex. 2: L_{comp + 1} > {paper['gain_bounds'][comp]}",
+                explanation=Explanation(
+                    Reason.PAPER_ERROR,
+                    "the printed bound solves the condition with e^((a−L)T) (the sub-row "
+                    "reproduces it), although Example 2 writes the condition with e^(2(a−L)T), "
+                    "as second moments need")),
             Row(f"Ex. 2: bound L_{comp + 1} > (paper's reading, e^((a−L)T))",
-                printed_gain_bound(a, p_closed, c.T), paper["gain_bounds"][comp]),
+                printed_gain_bound(a, p_closed, c.T), paper["gain_bounds"][comp],
+                item=f"Ex. 2: L_{comp + 1} > {paper['gain_bounds'][comp]}",
+                reading="the paper's reading, e^((a−L)T)"),
         ]
     gains = scalar_gains(*DESIGN_GAINS)
     M = np.diag(moment_matrix(error_dynamics(c.system, gains, c.T), c.prob))
@@ -341,9 +352,9 @@ def _example2_large_T(c: _Context) -> np.ndarray:
     median = _hist_median(stats["log10_hist"])
     c.rows += [
         Row(f"Fig. 3 (T = {big.T:g}): exact second-moment factor, component 1", float(M[0]),
-            "> 1 (diverges)"),
+            "> 1 (diverges)", item=FIG3_ITEM),
         Row(f"Fig. 3 (T = {big.T:g}): exact second-moment factor, component 2", float(M[1]),
-            "> 1 (diverges)"),
+            "> 1 (diverges)", item=FIG3_ITEM),
         Row(f"Fig. 3: MC growth of σ¹_k per step, k = 1..{k_fit}", growth, None, "",
             f"exact {M[0]:.4g}; fitted while some of the {N} runs are still all open loop",
             trials=N),
@@ -382,19 +393,14 @@ def _example3_rows() -> list[Row]:
     threshold, printed_T = float(ci.per_block[0]), np.log(2.0) / 20.0
     ours_L, printed_L = (float(bound.min_loop_gain[0]),
                          float(-np.log(2.0 * np.exp(-20.0 * T) - 1.0) / (2.0 * T)))
-    same_T = np.isclose(threshold, printed_T, rtol=1e-12, atol=0.0)
-    same_L = np.isclose(ours_L, printed_L, rtol=1e-10, atol=0.0)
     return [
         Row("Ex. 3 (a = 10, p = 0.5): critical interval, T < ... (critical_interval)",
-            EXAMPLES_PAPER["example3_T"] if same_T else f"{threshold:.10g}",
-            EXAMPLES_PAPER["example3_T"], "",
-            f"ours {threshold:.10g}, ln(2)/20 = {printed_T:.10g}" if same_T else ""),
-        Row(f"Ex. 3: L1 bound, L1 > ... (decoupled_gain_bounds at T = {T:g}, a T below ln(2)/20; "
-            "the paper fixes none)",
-            EXAMPLES_PAPER["example3_bound"] if same_L else f"{ours_L:.10g}",
-            EXAMPLES_PAPER["example3_bound"], "",
-            f"ours {ours_L:.10g}; the printed formula at T = {T:g}: {printed_L:.10g}"
-            if same_L else ""),
+            f"ln(2)/{np.log(2.0) / threshold:.10g}", EXAMPLES_PAPER["example3_T"], "",
+            f"ours {threshold:.10g}, ln(2)/20 = {printed_T:.10g}"),
+        Row(f"Ex. 3: L1 bound at T = {T:g} (decoupled_gain_bounds; the paper fixes no T: any "
+            "below ln(2)/20), against the printed −ln(2e^(−20T) − 1)/(2T) evaluated there",
+            ours_L, f"{printed_L:.6f}", "", f"ours {ours_L:.10g}, the printed formula "
+            f"{printed_L:.10g}", item="Ex. 3: L1 > −ln(2e^(−20T) − 1)/(2T)"),
     ]
 
 
@@ -406,29 +412,42 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
         dyn = error_dynamics(c.system, scalar_gains(L1, DESIGN_GAINS[1]), c.T)
         M = moment_matrix(dyn, c.prob)[0, 0]
         c.rows += [
-            Row(f"Ex. 4: γ^1 for L1 = {L1:g} (correct, e^(2(a−L)T))", float(M), printed, "",
-                "the printed γ^1 is p e^((a−L)T) + (1−p) e^(2aT) (next row reproduces it), not "
-                "the γ^1 = p e^(2(a−L)T) + (1−p) e^(2aT) the paper itself defines below (23)"),
+            Row(f"Ex. 4: γ^1 for L1 = {L1:g} (correct, e^(2(a−L)T))", float(M), printed,
+                item=f"Ex. 4: γ^1 = {printed} for L1 = {L1:g}", explanation=Explanation(
+                    Reason.PAPER_ERROR,
+                    "the printed γ^1 is p e^((a−L)T) + (1−p) e^(2aT) (the sub-row reproduces it), "
+                    "not the γ^1 = p e^(2(a−L)T) + (1−p) e^(2aT) the paper itself defines below "
+                    "(23)")),
             Row(f"Ex. 4: γ^1 for L1 = {L1:g} (paper's reading, e^((a−L)T))",
-                printed_gamma(ex.a1, L1, ex.p, c.T), printed),
+                printed_gamma(ex.a1, L1, ex.p, c.T), printed,
+                item=f"Ex. 4: γ^1 = {printed} for L1 = {L1:g}",
+                reading="the paper's reading, e^((a−L)T)"),
         ]
     optimum = _correct_optimum(c.system, c.T, c.prob)
     L_star, s_star = optimum.gain, optimum.steady_state
     L_read, s_read = printed_optimum(ex.a1, ex.p, c.T, ex.zeta)
-    misread = ("the printed optimum minimizes the paper's reading of σ¹_∞ = p Q_1²/(1 − γ^1): "
-               "γ^1 with e^((a−L)T) and Q_1² integrated to ∞ (the rows below reproduce it); with "
-               "(23)'s γ^1 and Q_1² = ∫_0^T, as Proposition 1 has it, the optimum is ours")
+    misread = Explanation(
+        Reason.PAPER_ERROR,
+        "the printed optimum minimizes the paper's reading of σ¹_∞ = p Q_1²/(1 − γ^1): γ^1 with "
+        "e^((a−L)T) and Q_1² integrated to ∞ (the sub-rows reproduce it); with (23)'s γ^1 and "
+        "Q_1² = ∫_0^T, as Proposition 1 has it, the optimum is ours")
+    reading = "the paper's reading: e^((a−L)T), Q² = ∫_0^∞"
+    optimum_item, sigma_item = (f"Ex. 4: L1* = {paper['optimum'][0]}",
+                                f"Ex. 4: σ¹_∞(L1*) = {paper['optimum'][1]}")
     c.rows += [
         Row("Ex. 4: optimal L1* (correct: e^(2(a−L)T), Q² = ∫_0^T)", L_star, paper["optimum"][0],
-            "", misread),
-        Row("Ex. 4: σ¹_∞(L1*) (correct)", s_star, paper["optimum"][1], "", misread),
+            item=optimum_item, explanation=misread),
+        Row("Ex. 4: σ¹_∞(L1*) (correct)", s_star, paper["optimum"][1], item=sigma_item,
+            explanation=misread),
         Row("Ex. 4: optimal L1* (paper's reading: e^((a−L)T), Q² = ∫_0^∞)", L_read,
-            paper["optimum"][0]),
-        Row("Ex. 4: σ¹_∞(L1*) (paper's reading)", s_read, paper["optimum"][1]),
+            paper["optimum"][0], item=optimum_item, reading=reading),
+        Row("Ex. 4: σ¹_∞(L1*) (paper's reading)", s_read, paper["optimum"][1], item=sigma_item,
+            reading=reading),
         Row("Ex. 4: correct σ¹_∞ at the printed L1* = 61.3",
             _sigma1(c.system, c.T, c.prob, paper["optimum"][0]), paper["optimum"][1], "",
-            "the printed 0.9864 is the paper's reading of σ¹_∞ at its optimum (row above); the "
-            "correct steady state at L1 = 61.3 is ours"),
+            "the printed 0.9864 is the paper's reading of σ¹_∞ at its optimum; the correct "
+            "steady state at L1 = 61.3 is ours", item=sigma_item,
+            reading="correct σ¹_∞ at the printed L1*", explanation=misread),
     ]
     cfg, tot, first = block_total(c.results, figure="4")
     K, N = cfg["horizon"], tot["trials"]
@@ -473,11 +492,12 @@ def _example4_section(c: _Context, mc_design: float) -> tuple[float, float]:
                                     cfg["horizon"])[0][w:, 0].mean())
     c.rows.append(Row(f"Fig. 6: MC σ¹(L1 = {La:g}) − σ¹(L1 = {Lb:g}), paired time averages",
                       float(d_mc), "> 0 (61.3 optimal)", "",
-                      "61.3 is optimal only for the paper's reading of σ¹_∞ (e^((a−L)T), Q² to ∞); "
                       f"the correct optimum L1 = {La:g} beats it on the same runs: exact "
                       f"{d_exact:.4g}, |MC − exact| = "
                       f"{z_score(float(d_mc), float(d_se), d_exact):.2f} SE (sample SE)",
-                      se=float(d_se), trials=int(tot["trials"])))
+                      se=float(d_se), trials=int(tot["trials"]), explanation=Explanation(
+                          Reason.PAPER_ERROR, "61.3 is optimal only for the paper's reading of "
+                          "σ¹_∞ (e^((a−L)T), Q² to ∞), see Ex. 4's optimum")))
     grid = np.unique(np.round(np.concatenate([np.geomspace(16.0, 200.0, 20), list(mc_points)]), 3))
     bound = printed_gain_bound(ex.a1, ex.p, c.T)
     c.figs.append(curves(
@@ -514,11 +534,12 @@ def _fig4_claims(c: _Context, mc_rows: dict) -> list[Row]:
     return [
         Row("Fig. 4: σ¹_∞(L1 = 60) − σ¹_∞(L1 = 30), steady state (21) (the text: smaller at 60)",
             d60, "< 0 (smaller at L1 = 60)", "",
-            "the text's claim holds for its reading of σ¹_∞ (e^((a−L)T), Q² to ∞): there the "
-            f"difference is {reading(60.0) - reading(30.0):+.4f}; with the correct second moments "
-            f"L1 = 30 has the smaller steady state ({correct(30.0):.4f} against "
-            f"{correct(60.0):.4f})" + mc(30.0) + mc(60.0) if d60 >= 0 else
-            f"σ¹_∞ = {correct(30.0):.4f} (L1 = 30), {correct(60.0):.4f} (L1 = 60)"),
+            f"σ¹_∞ = {correct(30.0):.4f} (L1 = 30), {correct(60.0):.4f} (L1 = 60)"
+            + mc(30.0) + mc(60.0), explanation=Explanation(
+                Reason.PAPER_ERROR, "the text's claim holds for its reading of σ¹_∞ "
+                f"(e^((a−L)T), Q² to ∞): there the difference is "
+                f"{reading(60.0) - reading(30.0):+.4f}; with the correct second moments L1 = 30 "
+                "has the smaller steady state") if d60 >= 0 else None),
         Row("Fig. 4: σ¹_∞(L1 = 200) − σ¹_∞(L1 = 60), steady state (21) (the text: bigger at "
             "200)", d200, "> 0 (bigger at L1 = 200)", "",
             f"σ¹_∞ = {correct(60.0):.4f} (L1 = 60), {correct(200.0):.4f} (L1 = 200)"

@@ -40,7 +40,7 @@ from ...models import (
 from ...plotting import curves
 from ..registry import Experiment, Row, Summary, register
 from ..scoring import blocks, mean_and_se, split_variants
-from ..verdict import Z_95, Verdict, judge
+from ..verdict import Z_95, Explanation, Fit, Reason
 from .monte_carlo import (
     block_total,
     exact_moments,
@@ -165,18 +165,18 @@ def _table1_rows() -> list[Row]:
         R, X = float(R_text), float(X_text)
         ours = {"|Z|": (float(np.hypot(R, X)), Z_text), "θ": (float(np.arctan2(X, R)), theta_text)}
         shown = {k: f"{v:.{_decimals(t)}f}" for k, (v, t) in ours.items()}
-        explained = []
+        truncated = []
         for k, (v, t) in ours.items():
             if shown[k] != t and np.floor(v * 10 ** _decimals(t)) / 10 ** _decimals(t) == float(t):
-                explained.append(f"the printed {k} = {t} truncates ours {v:.4f} (rounding gives "
+                truncated.append(f"the printed {k} = {t} truncates ours {v:.4f} (rounding gives "
                                  f"{shown[k]})")
         misses = sum(shown[k] != t for k, (_, t) in ours.items())
         where = " (printed '0.1941.25' in our copy: 0.19∠1.25)" if line == "2-4" else ""
-        note = (f"ours |Z| = {ours['|Z|'][0]:.4f}, θ = {ours['θ'][0]:.4f} rad"
-                if not misses else "; ".join(explained) if len(explained) == misses else "")
+        why = (Explanation(Reason.ROUNDING, "; ".join(truncated))
+               if misses and len(truncated) == misses else None)
         rows.append(Row(f"Table 1, line {line}: |Z|∠θ from R = {R_text}, X = {X_text}{where}",
-                        f"{shown['|Z|']}∠{shown['θ']}", f"{Z_text}∠{theta_text}", "p.u.∠rad",
-                        note))
+                        f"{ours['|Z|'][0]:.4f}∠{ours['θ'][0]:.4f}", f"{Z_text}∠{theta_text}",
+                        "p.u.∠rad", explanation=why))
     return rows
 
 
@@ -222,10 +222,12 @@ def _a_reading_rows() -> tuple[list[Row], str]:
     miss, label, unit, coupling = min(found, key=lambda f: f[0])
     reproduced = np.all(np.abs(coupling - printed) <= 0.5e-4 * (1 + 1e-9))
     where = f"closest of {len(found)} readings: {label}, {unit}"
+    fit = Fit(f"the reading of §6: {label}, angles in {unit}", unique=False,
+              evidence=f"the closest of the {len(found)} readings tried to the printed couplings")
     counted = [Row(f"printed A[2,1] from Tables 1-2 ({where})", float(coupling[0]),
-                   BUS_PAPER["A_coupling"][0]),
+                   BUS_PAPER["A_coupling"][0], fit=fit),
                Row(f"printed A[4,1] from Tables 1-2 ({where})", float(coupling[1]),
-                   BUS_PAPER["A_coupling"][1])]
+                   BUS_PAPER["A_coupling"][1], fit=fit)]
     note = (f"The printed A's couplings {BUS_PAPER['A_coupling'][0]} and "
             f"{BUS_PAPER['A_coupling'][1]} " + (
                 f"are reproduced by one reading of §6: {label}, angles in {unit}."
@@ -282,22 +284,28 @@ def _bus_design(design: str, p: dict) -> tuple[list[Row], dict]:
                                        if every else "")
             for j in range(4)]
     rows = [Row(f"{design} design ({tag}): δ1-only mode (paper's mode 2) gain entry {j + 1}",
-                float(v), paper["gain"][design][j], "", notes[j])
+                float(v), paper["gain"][design][j], "",
+                notes[j] if design != "first" else "",
+                explanation=Explanation(Reason.ROUNDING, notes[j]) if design == "first" else None)
             for j, v in enumerate(gains[1, :, 0])]
     ms = ms_convergence(error_dynamics(system, gains, T), prob)
     fitted = bus_gains(design, printed_eigenvalues=True)
     printed = ms_convergence(error_dynamics(system, fitted, T), prob)
-    not_unique = ("mode 1 has two outputs, so its placing gain is not unique: scipy's "
-                  "place_poles picks another gain than MATLAB's place (the paper's); the same "
-                  "poles with fitted eigenvector directions reproduce the printed set (rows below)")
+    not_unique = Explanation(
+        Reason.UNSTATED, "mode 1 has two outputs, so its pole-placing gain is not unique and the "
+        "paper does not print it: scipy's place_poles picks another gain than MATLAB's place "
+        "(the paper's)")
+    fit = Fit("mode 1's eigenvector directions (BUS_MODE1_DIRECTIONS), same poles",
+              unique=False, evidence="chosen so that the four printed eigenvalues come out: the "
+              "match is circular, it shows only that a gain with these poles gives them")
+    item = f"§6, {design} design: eigenvalue {{}} of Σ p_i Λ(i)'Λ(i)"
     rows += [Row(f"{design}: eigenvalue {j + 1} of Σ p_i Λ(i)'Λ(i), scipy place_poles gain",
-                 float(v), paper["moment_eig"][design][j], "",
-                 "" if judge(paper["moment_eig"][design][j], float(v)) is Verdict.REPRODUCED
-                 else not_unique)
+                 float(v), paper["moment_eig"][design][j], item=item.format(j + 1),
+                 explanation=not_unique)
              for j, v in enumerate(ms.moment_eigenvalues)]
     rows += [Row(f"{design}: eigenvalue {j + 1}, mode-1 gain with fitted eigenvector directions",
-                 float(printed.moment_eigenvalues[j]), paper["moment_eig"][design][j], "",
-                 "same poles, other free parameters (BUS_MODE1_DIRECTIONS)" if j == 0 else "")
+                 float(printed.moment_eigenvalues[j]), paper["moment_eig"][design][j],
+                 item=item.format(j + 1), reading="fitted mode-1 gain", fit=fit)
              for j in range(4)]
     exact, steady, _ = exact_moments(system, gains, T, prob, e0, p["intervals"])
     # i.i.d. modes given that mode 4 never occurs
@@ -412,11 +420,15 @@ def _bus_summary(p: dict, results, out: Path) -> Summary:
     rows += [Row(f"p_{i + 1} from ξ_1 = 0.99, ξ_2 = 0.995", float(prob[i]), paper["p"][i], "",
                  "printed rounded (they sum to 1.00005)" if i == 0 else "") for i in range(4)]
     rows += [
-        Row("T_max: eq. (20) with q = p_4, h(T) = ‖e^(AT)‖²", ci.printed_t_max, paper["T_max"], "",
-            f"{ci.printed_t_max:.6f}: the printed {paper['T_max']} is this truncated (rounding "
-            f"gives {ci.printed_t_max:.4f})"),
-        Row("T = 0.6997 read as 0.95 T_max", 0.95 * ci.printed_t_max, paper["T"], "",
-            "the paper does not say how T was chosen: 0.95 T_max is our reading"),
+        Row("T_max: eq. (20) with q = p_4, h(T) = ‖e^(AT)‖²", ci.printed_t_max, paper["T_max"],
+            explanation=Explanation(
+                Reason.ROUNDING, f"ours is {ci.printed_t_max:.6f}: the printed {paper['T_max']} "
+                f"is this truncated (rounding gives {ci.printed_t_max:.4f})")),
+        Row("T = 0.6997 read as 0.95 T_max", 0.95 * ci.printed_t_max, paper["T"],
+            fit=Fit("T = 0.95 T_max", unique=False,
+                    evidence="the paper does not say how T was chosen; any factor within "
+                    f"±{0.5e-4 / ci.printed_t_max:.1e} of 0.95 matches, and any other rule "
+                    "giving 0.6997 would too")),
         Row("eq. (20) with one sub-state per mode (§3.2 literally)", ci_stacked.printed_t_max,
             None, "",
             f"q_max = {ci_stacked.q_max:g}; that observer's exact threshold is "
