@@ -14,7 +14,7 @@
 * :class:`Section` and :func:`markdown_table` — what a benchmark returns and how it prints.
 
 Under CPU contention a threaded BLAS on 3x3..9x9 matrices has been measured to run a
-hundred times slower (DESIGN.md §4), so every measurement here runs single-threaded. The
+hundred times slower, so every measurement here runs single-threaded. The
 engine's kernels split a batch over every core by default; the benchmarks pin them to one
 thread, so that a ratio to a single-threaded peer or yardstick compares like with like.
 

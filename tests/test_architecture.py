@@ -1,4 +1,4 @@
-"""The dependency arrows of DESIGN.md section 1 point down the layer list, never back up."""
+"""The dependency arrows between the layers point down the layer list below, never back up."""
 
 import ast
 from pathlib import Path

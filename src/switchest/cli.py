@@ -299,14 +299,20 @@ def _summary_table(summary) -> Table:
 
 
 def _print_compact(summary, console: Console) -> None:
-    """One line of verdict counts for an experiment, then the rows that differ unexplained."""
+    """One line of the printed items an experiment judges, by verdict, then the rows that
+    differ unexplained."""
     from collections import Counter
 
+    from .experiments.items import items_of
     from .experiments.verdict import Verdict
 
-    counts = Counter(row.verdict for row in summary.rows)
+    counts = Counter(item.verdict for item in
+                     items_of(summary.experiment, [(summary.experiment, r) for r in summary.rows]))
+    derived = sum(row.verdict is Verdict.DERIVED for row in summary.rows)
     parts = [f"{counts[v]} {v.value}" for v in Verdict if counts[v]]
-    console.print(f"[bold]{escape(summary.title)}[/bold]: {escape(', '.join(parts))}")
+    if derived:
+        parts.append(f"{derived} derived rows")
+    console.print(f"[bold]{escape(summary.title)}[/bold]: printed items {escape(', '.join(parts))}")
     for row in summary.rows:
         if row.verdict is Verdict.DIFFERS:
             console.print(f"  [red]differs[/red]: {escape(row.quantity)}: paper "

@@ -1,7 +1,8 @@
-"""One conformance suite over every registered estimator (DESIGN.md §4): the abstract protocol
-and its conventions, batched equals looped, streaming ``step`` equals ``run``, no state kept
-between runs, a single-mode model reduces to the Kalman filter, NaN skips the update, bad
-shapes are refused, results are reproducible.
+"""One conformance suite over every registered estimator (the protocol of
+``docs/estimators/index.rst``): the abstract protocol and its conventions, batched equals
+looped, streaming ``step`` equals ``run``, no state kept between runs, a single-mode model
+reduces to the Kalman filter, NaN skips the update, bad shapes are refused, results are
+reproducible.
 
 The protocol tests run over :data:`switchest.estimators.METHOD_NAMES` directly; the tests on
 data run over :data:`CASES`, at least one configuration per registered method (a method
