@@ -228,6 +228,7 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
     ascends = bool(names) and not {"A", "B", "C"} & set(wanted)  # a direct ascent may finish
     trace: list[float] = []
     warned: set[int] = set()
+    maps: dict = {}  # the Q step's intensity maps, computed once per fit
     converged = False
     dropped = None  # the iteration whose approximate E-step found a lower likelihood
     accepted = None  # the parameters of trace[-1] and their E-step
@@ -249,7 +250,8 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
             break
         if it == max_iter - 1 or (ascends and _slow(trace, tol)):
             break
-        system, transition = _maximize(system, transition, data, mom, wanted, tied, warned)
+        system, transition = _maximize(system, transition, data, mom, wanted, tied, warned,
+                                       maps)
     system, transition, mom = accepted
     used = dataclasses.replace(data, y=mom.y)  # the gated samples missing, as in the E-step
 
@@ -440,8 +442,9 @@ def _slow(trace: list[float], tol: float) -> bool:
     return bool(np.all(rates >= _SLOW) and rate < 1 and gains[-1] * rate / (1 - rate) > tol)
 
 
-def _maximize(system, transition, data: Record, mom, wanted, tied, warned):
-    """One round of conditional M-steps; returns the new system and transition."""
+def _maximize(system, transition, data: Record, mom, wanted, tied, warned, maps: dict):
+    """One round of conditional M-steps; returns the new system and transition. ``maps`` is the
+    fit's cache of the Q step's intensity maps (:func:`~switchest.learn.noise_step.fit_Q`)."""
     mass = mom.weight.sum(axis=(0, 1))
     for j in np.flatnonzero(mass < 1.0):
         if int(j) not in warned:
@@ -464,7 +467,7 @@ def _maximize(system, transition, data: Record, mom, wanted, tied, warned):
     system = system.replace(A=A, B=B, C=C, Q=Q, R=R)
     if "Q" in wanted:
         table = mom.table.under(system) if dynamics else mom.table
-        Q = fit_Q(system, data.u, mom, table, tied="Q" in tied)
+        Q = fit_Q(system, data.u, mom, table, tied="Q" in tied, cache=maps)
     if "R" in wanted:
         R = fit_R(C, R, mom, tied="R" in tied)
     keep = (mass < 1.0)[:, None, None]  # unidentifiable modes keep their own matrices
