@@ -105,6 +105,33 @@ def test_instant_posterior_is_the_likelihood_of_the_whole_record(boost):
     np.testing.assert_array_equal(part["step_weight"][0, still, 0], 1.0)
 
 
+def test_the_switched_intervals_are_discretized_once_for_the_filter_and_the_smoother(
+        boost, monkeypatch):
+    """The E-step's Kalman filter and RTS smoother take one table: the switched intervals at
+    the working instants are composed once per distinct interval length (the filter took them
+    from its own discretization, the smoother from another)."""
+    from switchest.dyadic import interval_transitions
+    from switchest.learn import between
+
+    spec, t = boost
+    sys, (x0, P0) = spec.system, spec.initial
+    t = t[:40]
+    traj = simulate(sys, spec.switching, t, spec.initial, U, trials=2, rng=1)
+    seg_m, seg_o = traj.segments()
+    offset = np.where(seg_m[..., 0] != seg_m[..., 1], seg_o[..., 0], 0.0)
+    switched = []
+
+    def counted(table, modes, offsets):
+        switched.append(len(modes))
+        return interval_transitions(table, modes, offsets)
+
+    monkeypatch.setattr(between, "interval_transitions", counted)
+    instant_posteriors(sys, x0, P0, record(sys, traj.y, U, t, traj.mode), offset, 4)
+    inside = seg_m[..., 0] != seg_m[..., 1]
+    lengths = np.broadcast_to(np.diff(t), inside.shape)[inside]  # periodic up to rounding
+    assert sum(switched) == inside.sum() and len(switched) == np.unique(lengths).size
+
+
 def test_em_with_one_instant_never_lowers_the_likelihood(boost):
     """A grid of one instant (the middle of the interval) makes the E-step exact, the switch
     deterministic: the Q step through the two-segment rows and the R step then climb, EM never
