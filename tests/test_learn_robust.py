@@ -103,6 +103,28 @@ def test_a_wild_measurement_is_gated_as_missing(record):
         fitted(start, y, t[:600], modes[:600])
 
 
+def test_overflow_is_silenced_only_where_the_fit_handles_it(record):
+    """Ungated, a 1e150 makes the fitted R about 1e298, and the standard errors' finite
+    differences leave the floating-point range: they get no value, with no numpy warning. An
+    overflow elsewhere in a fit (here in the caller's progress callback) is not hidden."""
+    t, y, modes = record
+    y = y[:300].copy()
+    y[57] = 1e150
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        wild = fitted(system(), y, t[:300], None, gate=None, max_iter=30)
+    assert not [w for w in caught if "encountered" in str(w.message)]
+    assert np.max(wild.system.R) > 1e250  # the wild sample entered the fit, as asked
+
+    def overflowing(iteration, loglik):
+        return np.float64(1e300) * 1e300
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", "overflow encountered")
+        with pytest.raises(RuntimeWarning, match="overflow encountered"):
+            fitted(system(), y[:50], t[:50], modes[:50], progress=overflowing)
+
+
 def test_aitken_rule_stops_within_tol_of_the_limit_at_any_scale():
     """On a trace converging geometrically to its limit (EM near its fixed point), the rule
     stops where the limit is at most ``tol`` away whatever the size of the log-likelihood
@@ -166,3 +188,4 @@ def test_the_shell_ties_on_request_and_counts_the_gated_samples(tmp_path, capsys
                  str(tmp_path / "f.toml")]) == 2
     err = capsys.readouterr().err
     assert "y[0, 39, 0] = 1e+300 (trial 0, sample 39)" in err and len(err.splitlines()) == 1
+

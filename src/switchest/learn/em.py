@@ -196,15 +196,18 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     fitted the state's coordinates are not identified: ``A``, ``B``, ``C`` then get NaN and the
     others are conditional on them. The gated samples are missing in them too.
 
-    Floating-point warnings of numpy (a candidate of the ascent or of the finite differences
-    whose filter overflows, which gets no value) are not shown.
+    Floating-point warnings of numpy are not shown where an overflow is expected and handled:
+    a candidate of the direct ascent or of the standard errors' finite differences whose filter
+    or difference overflows gets no value (the ascent then takes the one-sided difference or
+    none, the information matrix gives no standard error along it), and a trial point of the
+    continuous-time Q step's line search whose gradient overflows ends it (the step is kept
+    only if it improves). Anywhere else an overflow is not hidden.
     """
     if progress is not None and not callable(progress):
         raise TypeError(f"progress must be a callable progress(iteration, loglik) or None, "
                         f"got {type(progress).__name__}")
-    with np.errstate(all="ignore"):
-        return _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_times,
-                    grid, gate, max_iter, tol, rng, e_step, progress)
+    return _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_times,
+                grid, gate, max_iter, tol, rng, e_step, progress)
 
 
 def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_times, grid,
@@ -268,15 +271,17 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
 
         ascent_from = len(trace)
         start = float(logliks([(system, transition)])[0])
-        system, transition, converged = ascend(
-            system, transition, names, logliks, tied=tied, start_loglik=start,
-            max_iter=budget, tol=tol / max(1.0, abs(start)), report=report)
+        with np.errstate(over="ignore", invalid="ignore"):  # candidates beyond the range
+            system, transition, converged = ascend(
+                system, transition, names, logliks, tied=tied, start_loglik=start,
+                max_iter=budget, tol=tol / max(1.0, abs(start)), report=report)
     elif dropped is not None:
         warnings.warn(f"EM iteration {dropped}: the approximate E-step lowered the "
                       f"log-likelihood, so EM stopped at the iteration before (log-likelihood "
                       f"{trace[-1]:.10g}); with A, B or C estimated no direct ascent follows, and "
                       "the fit need not be a maximum", RuntimeWarning, stacklevel=3)
-    se = _standard_errors(system, transition, used, wanted, tied, mom, allowed, logliks)
+    with np.errstate(over="ignore", invalid="ignore"):  # differences beyond the range
+        se = _standard_errors(system, transition, used, wanted, tied, mom, allowed, logliks)
     if data.modes is not None and grid is None:
         warn_if_mistimed(system, x0, P0, used)
     period = np.diff(data.t)

@@ -254,8 +254,11 @@ def _intensity(system, table: StepTable, use, fitted, count, S, cache: dict) -> 
         np.linalg.cholesky(q + 1e-12 * np.trace(q) / q.shape[0] * np.eye(q.shape[0]))[low]
         for q, low in zip(starts, lows)])
     f0, _ = objective(theta0)
-    res = minimize(objective, theta0, jac=True, method="BFGS",
-                   options={"gtol": 1e-10 * max(1.0, abs(f0)), "maxiter": 500})
+    # a trial point of the line search may send Qd towards singular and the gradient beyond
+    # the floating-point range: BFGS then stops, and its result is kept only if it improves
+    with np.errstate(over="ignore", invalid="ignore"):
+        res = minimize(objective, theta0, jac=True, method="BFGS",
+                       options={"gtol": 1e-10 * max(1.0, abs(f0)), "maxiter": 500})
     new = system.Q.copy()
     if not np.isfinite(res.fun) or res.fun > f0:
         return new
