@@ -7,6 +7,7 @@ probability 0.27 % under the asymptotic normality of the MLE; the seed makes the
 deterministic).
 """
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -189,3 +190,41 @@ def test_the_shell_ties_on_request_and_counts_the_gated_samples(tmp_path, capsys
     err = capsys.readouterr().err
     assert "y[0, 39, 0] = 1e+300 (trial 0, sample 39)" in err and len(err.splitlines()) == 1
 
+
+def test_a_gate_that_flip_flops_is_held_and_em_stops(record, monkeypatch):
+    """A sample on the gate's edge, rejected and accepted in turn by successive E-steps (made
+    so here by an E-step that flags sample 40 at every other call), kept EM from ever
+    comparing two iterations: it ran to max_iter. Once a flagged set comes back, the union is
+    held missing: EM stops (converged), flags sample 40, and fits what the record with that
+    sample missing fits (within 5 % of a standard error: both stop at EM's tolerance)."""
+    from switchest.learn import em
+
+    t, y, modes = record
+    t, y, modes = t[:400], y[:400].copy(), modes[:400]
+    real = em.expectation
+    calls = []
+
+    def flip_flopping(system, transition, x0, P0, data, *, gate, **kw):
+        if gate is None:  # the held record: the gate no longer acts
+            return real(system, transition, x0, P0, data, gate=gate, **kw)
+        calls.append(len(calls))
+        if len(calls) % 2:
+            return real(system, transition, x0, P0, data, gate=gate, **kw)
+        cut = dataclasses.replace(data, y=data.y.copy())
+        cut.y[:, 40] = np.nan
+        mom = real(system, transition, x0, P0, cut, gate=gate, **kw)
+        outlier = mom.outlier.copy()
+        outlier[:, 40] = True
+        return dataclasses.replace(mom, outlier=outlier)
+
+    monkeypatch.setattr(em, "expectation", flip_flopping)
+    start = system(Q=2 * Q, R=0.5 * R)
+    res = fitted(start, y, t, modes, max_iter=60)
+    assert res.converged and res.iterations < 60 and len(calls) == 3  # A, B, A: held
+    assert res.outlier[0, 40] and res.outliers == 1
+    monkeypatch.setattr(em, "expectation", real)
+    y[40] = np.nan
+    missing = fitted(start, y, t, modes, max_iter=60)
+    for name in ("Q", "R"):  # the same maximum, to EM's tolerance: far below one error
+        gap = np.abs(getattr(res.system, name) - getattr(missing.system, name))
+        assert np.all(gap <= 0.05 * np.nan_to_num(missing.se[name], nan=np.inf)), name

@@ -114,7 +114,9 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         The filters' outlier gate in the E-step: the largest normalized innovation squared
         accepted; a rejected sample is missing for the fit (``FitResult.outlier``; each
         E-step gates under its own parameters, and the last one's samples are those of the
-        standard errors). ``"auto"``: the chi-square quantile of probability ``1 -``
+        standard errors; when a flagged set comes back after another, the gate flip-flops on
+        samples at its edge, and the union of the sets since then is held missing for the rest
+        of the fit, so that EM can stop). ``"auto"``: the chi-square quantile of probability ``1 -``
         :data:`GATE_PROBABILITY` with ``m`` degrees of freedom (a measurement of the model
         is rejected once in 1e9). ``None``: only measurements whose innovation overflows
         (a wild but finite one then enters the fit as any other).
@@ -235,8 +237,18 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
     converged = False
     dropped = None  # the iteration whose approximate E-step found a lower likelihood
     accepted = None  # the parameters of trace[-1] and their E-step
+    flagged: list[np.ndarray] = []  # the gate's flagged sets, until one comes back
+    held = None  # the flagged set held missing, once the gate flip-flops
     for it in range(max_iter):
-        mom = expectation(system, transition, x0, P0, data, exact=exact, gate=gate, grid=grid)
+        if held is None:
+            mom = expectation(system, transition, x0, P0, data, exact=exact, gate=gate,
+                              grid=grid)
+            held = _held_if_cycling(mom.outlier, flagged)
+        if held is not None:  # the set held, the gate no longer moves it (overflow rejected)
+            kept = dataclasses.replace(data, y=np.where(held[..., None], np.nan, data.y))
+            mom = expectation(system, transition, x0, P0, kept, exact=exact, gate=None,
+                              grid=grid)
+            mom = dataclasses.replace(mom, outlier=mom.outlier | held)
         if not np.isfinite(mom.loglik):
             raise ValueError(_overflowed(it, mom.loglik, data))
         # the likelihoods of two iterations compare where their gates left the same samples
@@ -292,6 +304,24 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
                      ascent_from=ascent_from, shared=tuple(n for n in _MATRICES if n in tied),
                      switch_times=switch_times, outlier=mom.outlier,
                      outliers=int(mom.outlier.sum()))
+
+
+def _held_if_cycling(outlier: np.ndarray, flagged: list[np.ndarray]) -> np.ndarray | None:
+    """The samples to hold missing ``(N, K)`` once the gate flip-flops, else None.
+
+    Each E-step gates under its own parameters, and the likelihoods of two iterations compare
+    only where their gates left the same samples (``fit``'s stopping rule). A sample on the
+    gate's edge may be rejected and accepted in turn, and EM would then never stop. When a
+    flagged set comes back after another, the union of the sets since its first occurrence is
+    held missing for the rest of the fit (the gate then rejects only overflowing
+    innovations), and EM continues on one record. ``flagged`` collects the sets seen."""
+    for first, seen in enumerate(flagged):
+        if np.array_equal(seen, outlier):
+            if first == len(flagged) - 1:  # the same as the last: no cycle
+                return None
+            return np.logical_or.reduce([*flagged[first:], outlier])
+    flagged.append(outlier)
+    return None
 
 
 def _estimate(estimate, system: SwitchedLinearSystem) -> tuple[str, ...]:
