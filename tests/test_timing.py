@@ -157,3 +157,16 @@ def test_fit_runs_in_the_sample_timing_without_a_timing_warning_and_refuses_the_
     with pytest.raises(ValueError, match="system.timing must be 'sample' to fit"):
         fit(two_mode_system("interval"), traj.y, transition=TRANSITION, x0=np.zeros(2),
             P0=np.eye(2), estimate=("R",), max_iter=2)
+
+
+def test_the_kalman_filter_along_given_modes_names_an_interval_timed_system():
+    """ModeKalmanFilter predicts an interval in the mode of the sample that starts it: the
+    "sample" timing only."""
+    from switchest.estimators import ModeKalmanFilter
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TimingWarning)
+        ModeKalmanFilter(two_mode_system(), np.zeros(2), np.eye(2))
+    with pytest.warns(TimingWarning, match="ModeKalmanFilter predicts each interval in the "
+                                           "mode of the sample that starts it"):
+        ModeKalmanFilter(two_mode_system("interval"), np.zeros(2), np.eye(2))
