@@ -105,6 +105,33 @@ def test_instant_posterior_is_the_likelihood_of_the_whole_record(boost):
     np.testing.assert_array_equal(part["step_weight"][0, still, 0], 1.0)
 
 
+def test_the_switched_intervals_are_discretized_once_for_the_filter_and_the_smoother(
+        boost, monkeypatch):
+    """The E-step's Kalman filter and RTS smoother take one table: the switched intervals at
+    the working instants are composed once per distinct interval length (the filter took them
+    from its own discretization, the smoother from another)."""
+    from switchest.dyadic import interval_transitions
+    from switchest.learn import between
+
+    spec, t = boost
+    sys, (x0, P0) = spec.system, spec.initial
+    t = t[:40]
+    traj = simulate(sys, spec.switching, t, spec.initial, U, trials=2, rng=1)
+    seg_m, seg_o = traj.segments()
+    offset = np.where(seg_m[..., 0] != seg_m[..., 1], seg_o[..., 0], 0.0)
+    switched = []
+
+    def counted(table, modes, offsets):
+        switched.append(len(modes))
+        return interval_transitions(table, modes, offsets)
+
+    monkeypatch.setattr(between, "interval_transitions", counted)
+    instant_posteriors(sys, x0, P0, record(sys, traj.y, U, t, traj.mode), offset, 4)
+    inside = seg_m[..., 0] != seg_m[..., 1]
+    lengths = np.broadcast_to(np.diff(t), inside.shape)[inside]  # periodic up to rounding
+    assert sum(switched) == inside.sum() and len(switched) == np.unique(lengths).size
+
+
 def test_em_with_one_instant_never_lowers_the_likelihood(boost):
     """A grid of one instant (the middle of the interval) makes the E-step exact, the switch
     deterministic: the Q step through the two-segment rows and the R step then climb, EM never
@@ -120,9 +147,42 @@ def test_em_with_one_instant_never_lowers_the_likelihood(boost):
     for _ in range(6):
         mom = expectation(system, pi, x0, P0, data, grid=1)
         trace.append(mom.loglik)
-        system, pi = _maximize(system, pi, data, mom, ("Q", "R"), frozenset(), set())
+        system, pi = _maximize(system, pi, data, mom, ("Q", "R"), frozenset(), set(), {})
     assert np.all(np.diff(trace) >= -1e-9 * np.abs(trace[1:])), np.diff(trace)
     assert trace[-1] > trace[0] + 1.0
+
+
+def test_the_intensity_maps_are_computed_once_per_fit(boost, monkeypatch):
+    """The Q step's maps depend on ``A`` and the E-step's rows, which a fit does not change:
+    kept in the fit's cache, they are computed once per fitted block, and the M-steps give
+    the parameters that maps computed anew at every step give."""
+    from switchest.learn import noise_step
+
+    spec, t = boost
+    sys, (x0, P0) = spec.system, spec.initial
+    traj = simulate(sys, spec.switching, t[:60], spec.initial, U, trials=2, rng=3)
+    data = record(sys, traj.y, U, t[:60], traj.mode)
+    calls = []
+
+    def counted(*args):
+        calls.append(args[2])
+        return intensity_maps(*args)
+
+    monkeypatch.setattr(noise_step, "intensity_maps", counted)
+    start = sys.replace(Q=np.array([np.diag([2.0, 0.5]), np.diag([0.5, 2.0])]))
+    pi = np.full((2, 2), 0.5)
+    fits = {}
+    for kept in (True, False):
+        system, cache = start, {}
+        calls.clear()
+        for _ in range(3):
+            mom = expectation(system, pi, x0, P0, data, grid=2)
+            system, _ = _maximize(system, pi, data, mom, ("Q",), frozenset(), set(),
+                                  cache if kept else {})
+        fits[kept] = system.Q
+        assert len(calls) == (2 if kept else 6)  # one block per mode; per M-step without
+    np.testing.assert_allclose(fits[True], fits[False], rtol=1e-12, atol=1e-15)
+    assert not np.allclose(fits[True], start.Q)  # the steps moved Q
 
 
 def test_between_needs_known_modes_of_a_continuous_system(boost):

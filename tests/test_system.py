@@ -96,5 +96,5 @@ def test_replace_keeps_the_domain_and_checks_the_new_matrices():
     assert SwitchedLinearSystem.continuous(two_modes()).replace(R=np.eye(2)).is_continuous
     with pytest.raises(ValueError, match="Q must be symmetric"):
         sys.replace(Q=-np.eye(sys.n_states))
-    with pytest.raises(TypeError, match=r"replace takes A, B, C, Q, R, got \['D'\]"):
+    with pytest.raises(TypeError, match=r"replace takes A, B, C, Q, R, timing, got \['D'\]"):
         sys.replace(D=0)

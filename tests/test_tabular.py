@@ -393,7 +393,7 @@ def test_the_filters_run_in_the_model_files_timing_and_name_another(tmp_path):
     """Issue 35: simulate draws the "sample" timing while the multiple-model filters defaulted
     to "interval"; from a model file they now run in the file's timing (that of its data), and
     an explicit other timing is named in a TimingWarning."""
-    from switchest.tabular import TimingWarning
+    from switchest.estimators import TimingWarning
 
     spec, df, path, traj = boost_csv(tmp_path)
     assert spec.timing == "sample"
@@ -402,6 +402,6 @@ def test_the_filters_run_in_the_model_files_timing_and_name_another(tmp_path):
         default = estimate_table(spec, path, method="gpb2")
     same = estimate_table(spec, path, method="gpb2", timing="sample")
     np.testing.assert_allclose(default[["x0", "x1"]].to_numpy(), same[["x0", "x1"]].to_numpy())
-    with pytest.warns(TimingWarning, match="'interval' timing, the model file's data in the "
-                                           "'sample' one"):
+    with pytest.warns(TimingWarning, match="GPB2Filter runs in the 'interval' timing, its "
+                                           "system in the 'sample' one"):
         estimate_table(spec, path, method="gpb2", timing="interval")

@@ -453,8 +453,9 @@ def _cmd_list(args: argparse.Namespace, console: Console) -> int:
 
 
 def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
+    from .estimators import TimingWarning
     from .modelfile import load_model
-    from .tabular import ImplausibleEstimateWarning, TimingWarning, estimate_table
+    from .tabular import ImplausibleEstimateWarning, estimate_table
 
     out = _output_file(Path(args.out), "--out")
     plot = args.plot and _output_file(Path(args.plot), "--plot", ("png", "pdf", "svg"))

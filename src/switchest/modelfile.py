@@ -3,9 +3,9 @@
 A TOML file holds the system (read by :func:`system_from_dict`) and, optionally::
 
     description = "free text"
-    timing = "sample"       # which interval a sample's mode governs in the file's data: the
-                            # one after it ("sample", as simulate draws; the default) or the
-                            # one before it ("interval"); the multiple-model filters default to it
+    timing = "sample"       # the system's timing: which interval a sample's mode governs, the
+                            # one after it ("sample", the default) or the one into it
+                            # ("interval"); simulate draws in it, fit and the filters follow it
     [sampling]              # period = T, or tau_min / tau_max for aperiodic sampling;
     period = 0.0005         # duration = default length of a simulation (s)
     duration = 10.0
@@ -95,9 +95,9 @@ class ModelSpec:
         The constant input the system runs at (``[input] value``), or None when the file
         names none.
     timing : {"sample", "interval"}
-        Which interval the mode of a sample governs in the file's data (docs/conventions.rst):
-        the one after it (``"sample"``, the default, as :func:`switchest.simulate.simulate`
-        draws) or the one before it (``"interval"``).
+        The system's timing (:attr:`SwitchedLinearSystem.timing`, a read-only property): which
+        interval the mode of a sample governs in the file's data (docs/conventions.rst), the
+        one after it (``"sample"``, the default) or the one before it (``"interval"``).
     """
 
     system: SwitchedLinearSystem
@@ -109,11 +109,11 @@ class ModelSpec:
     state_names: tuple[str, ...] = ()
     state_units: tuple[str, ...] = ()
     input: np.ndarray | None = None
-    timing: str = "sample"
 
     def __post_init__(self) -> None:
-        if self.timing not in _TIMINGS:
-            raise ValueError(f"timing must be one of {_TIMINGS}, got {self.timing!r}")
+        if not isinstance(self.system, SwitchedLinearSystem):
+            raise TypeError(f"system must be a SwitchedLinearSystem, "
+                            f"got {type(self.system).__name__}")
         n = self.system.n_states
         if self.input is not None and np.shape(self.input) != (self.system.n_inputs,):
             raise ValueError(f"input must hold the system's {self.system.n_inputs} input(s), "
@@ -131,6 +131,11 @@ class ModelSpec:
         L = self.system.n_modes
         if sw is not None and sw.n_modes not in (None, L):
             raise ValueError(f"switching switches among {sw.n_modes} modes, the system has {L}")
+
+    @property
+    def timing(self) -> str:
+        """The system's timing, the file's top-level ``timing``."""
+        return self.system.timing
 
     def sample_times(self, t_end: float | None = None, *, rng=None) -> np.ndarray:
         """Sample times on ``[0, t_end]`` (default: the file's duration)."""
@@ -173,8 +178,6 @@ class ModelSpec:
             doc["initial"] = {"mean": self.initial[0], "cov": self.initial[1]}
         if self.input is not None:
             doc["input"] = {"value": np.asarray(self.input).tolist()}
-        if self.timing != "sample":
-            doc["timing"] = self.timing
         states = {k: list(v) for k, v in (("names", self.state_names),
                                           ("units", self.state_units)) if v}
         if states:
@@ -208,10 +211,6 @@ def load_model(path: str | Path) -> ModelSpec:
     description = doc.get("description", "")
     if not isinstance(description, str):
         raise _toml.ModelFileError(_toml.where(source, "description: expected a string"))
-    timing = doc.get("timing", "sample")
-    if timing not in _TIMINGS:
-        raise _toml.ModelFileError(_toml.where(
-            source, f"timing: expected one of {', '.join(map(repr, _TIMINGS))}, got {timing!r}"))
     return ModelSpec(
         system=system,
         sampling=_sampling(doc.get("sampling", {}), source),
@@ -220,7 +219,6 @@ def load_model(path: str | Path) -> ModelSpec:
         input=_input(doc.get("input"), source, system.n_inputs),
         noise=_noise(doc.get("noise", {}), source),
         description=description,
-        timing=timing,
         **_states(doc.get("states", {}), source, system.n_states),
     )
 
@@ -248,6 +246,8 @@ def system_to_dict(system: SwitchedLinearSystem) -> dict:
     doc: dict = {"domain": system.domain}
     if system.dt is not None:
         doc["dt"] = system.dt
+    if system.timing != "sample":  # the default is not written
+        doc["timing"] = system.timing
     shared, per_mode = {}, [{} for _ in range(system.n_modes)]
     for key in "ABCQR":
         arr = getattr(system, key)
@@ -270,6 +270,7 @@ def system_from_dict(doc: dict, *, source: str = "<model>") -> SwitchedLinearSys
     Layout::
 
         domain = "continuous"        # or "discrete", with dt = <step>
+        timing = "sample"            # or "interval" (SwitchedLinearSystem.timing; optional)
         [shared]                     # matrices common to every mode (optional)
         C = [[0.0, 1.0]]
         R = [[5.0]]
@@ -288,12 +289,16 @@ def system_from_dict(doc: dict, *, source: str = "<model>") -> SwitchedLinearSys
         if key not in _TOP_KEYS:
             raise _toml.unknown_key(source, "", key, _TOP_KEYS)
     domain, dt = _time_base(doc, source)
+    timing = doc.get("timing", "sample")
+    if not isinstance(timing, str) or timing not in _TIMINGS:
+        raise _toml.ModelFileError(_toml.where(
+            source, f"timing: expected one of {', '.join(map(repr, _TIMINGS))}, got {timing!r}"))
     values, shared = _matrix_entries(doc, source)
     arrays = _matrices(values, shared, source)
     build = SwitchedLinearSystem.continuous if domain == "continuous" else (
-        lambda *a: SwitchedLinearSystem.discrete(*a, dt=dt))
+        lambda *a, **kw: SwitchedLinearSystem.discrete(*a, dt=dt, **kw))
     try:
-        return build(*(arrays.get(k) for k in "ABCQR"))
+        return build(*(arrays.get(k) for k in "ABCQR"), timing=timing)
     except (TypeError, ValueError) as exc:
         raise _toml.ModelFileError(f"{source}: {exc}") from None
 

@@ -47,9 +47,16 @@ class Trajectory:
     u : ndarray, shape (N, K, l)
         Input applied on ``[t_k, t_{k+1})`` (zero-order hold).
     mode : ndarray of int, shape (N, K)
-        Mode active at each sample, sigma(t_k).
+        The mode of each sample, the one its measurement ``y_k`` is taken in: sigma(t_k) in
+        the ``"sample"`` timing, the mode of the interval into ``t_k`` (the left limit
+        sigma(t_k-), sigma(t_0) at the first sample) in the ``"interval"`` one. The two
+        differ only at a switch exactly at a sample instant.
     signals : tuple of SwitchingSignal, length N
         The true switching signal of each trial.
+    timing : {"sample", "interval"}
+        The timing the data were drawn in, the system's (:attr:`SwitchedLinearSystem.timing`,
+        docs/conventions.rst); a multiple-model filter told it (``data_timing=``) names another
+        of its own in a :class:`~switchest.estimators.TimingWarning`.
     t_fine, x_fine, mode_fine : ndarray or None
         The continuous path on a fine grid ``(Kf,)``, ``(N, Kf, n)``, ``(N, Kf)``
         when :func:`simulate` was given ``fine_dt``; the fine grid contains every
@@ -65,6 +72,7 @@ class Trajectory:
     u: np.ndarray
     mode: np.ndarray
     signals: tuple[SwitchingSignal, ...]
+    timing: str = "sample"
     t_fine: np.ndarray | None = None
     x_fine: np.ndarray | None = None
     mode_fine: np.ndarray | None = None
@@ -119,6 +127,8 @@ def simulate(
     Parameters
     ----------
     system : SwitchedLinearSystem
+        Its ``timing`` says which mode a sample records and is measured in: the one that
+        starts at it (``"sample"``) or the one that ends there (``"interval"``).
     signal : SwitchingSignal, SwitchingModel or callable
         One signal shared by all trials; or a switching model (anything with a method
         ``sample(rng, t) -> SwitchingSignal``, such as :class:`switchest.switching.Dwell`),
@@ -200,11 +210,14 @@ def simulate(
     X = _propagate(system, modes, offsets, grid, x, u_grid, rng)
     x_s = X if fine_dt is None else X[:, sample_index]
     mode = mode_grid[:, sample_index]
+    if system.timing == "interval":  # the mode of the last segment into t_k (conventions.rst)
+        mode[:, 1:] = modes[:, sample_index[1:] - 1, -1]
     y = _measure(system, x_s, mode, rng)
     fine = {}
     if fine_dt is not None:
         fine = dict(t_fine=grid, x_fine=X, mode_fine=mode_grid)
-    return Trajectory(t=t, x=x_s, y=y, u=u, mode=mode, signals=tuple(signals), **fine)
+    return Trajectory(t=t, x=x_s, y=y, u=u, mode=mode, signals=tuple(signals),
+                      timing=system.timing, **fine)
 
 
 def integrated_output_system(system: SwitchedLinearSystem) -> SwitchedLinearSystem:
@@ -227,7 +240,7 @@ def integrated_output_system(system: SwitchedLinearSystem) -> SwitchedLinearSyst
     Q[:, :n, :n] = system.Q
     Q[:, n:, n:] = system.R
     C = np.broadcast_to(np.eye(n + m)[n:], (L, m, n + m))
-    return SwitchedLinearSystem.continuous(A, B, C, Q=Q)
+    return SwitchedLinearSystem.continuous(A, B, C, Q=Q, timing=system.timing)
 
 
 def _simulate_integrated(system, signal, t, x0, u, *, trials, rng, fine_dt) -> Trajectory:
@@ -243,7 +256,7 @@ def _simulate_integrated(system, signal, t, x0, u, *, trials, rng, fine_dt) -> T
         fine = dict(t_fine=traj.t_fine, x_fine=traj.x_fine[..., :n], mode_fine=traj.mode_fine,
                     y_fine=traj.x_fine[..., n:])
     return Trajectory(t=traj.t, x=traj.x[..., :n], y=traj.x[..., n:], u=traj.u, mode=traj.mode,
-                      signals=traj.signals, **fine)
+                      signals=traj.signals, timing=traj.timing, **fine)
 
 
 def _propagate(system, modes, offsets, grid, x, u, rng) -> np.ndarray:

@@ -23,7 +23,7 @@ from typing import Literal
 
 import numpy as np
 
-from ._checks import check_finite, check_symmetric_psd, float_array, positive_scalar
+from ._checks import check_finite, check_symmetric_psd, check_timing, float_array, positive_scalar
 
 __all__ = ["SwitchedLinearSystem"]
 
@@ -51,6 +51,12 @@ class SwitchedLinearSystem:
     domain : {"continuous", "discrete"}
     dt : float or None
         Sampling step of a discrete system; ``None`` for continuous ones.
+    timing : {"sample", "interval"}
+        Which interval the mode of a sample governs besides its measurement
+        (docs/conventions.rst): the one after it (``"sample"``, the default: Costa, Fragoso &
+        Marques 2005, eq. (3.1)) or the one into it (``"interval"``: Bar-Shalom, Li &
+        Kirubarajan 2001, §11.6). :func:`switchest.simulate.simulate` draws data in it and the
+        multiple-model filters, :func:`switchest.learn.fit` and the model file follow it.
 
     Notes
     -----
@@ -69,10 +75,15 @@ class SwitchedLinearSystem:
     R: np.ndarray
     domain: Domain
     dt: float | None = None
+    timing: str = "sample"
+
+    def __post_init__(self) -> None:
+        check_timing(self.timing)
 
     # ------------------------------------------------------------------ constructors
     @classmethod
-    def continuous(cls, A, B=None, C=None, Q=None, R=None) -> SwitchedLinearSystem:
+    def continuous(cls, A, B=None, C=None, Q=None, R=None, *,
+                   timing: str = "sample") -> SwitchedLinearSystem:
         """A continuous-time switched system.
 
         Parameters
@@ -89,29 +100,35 @@ class SwitchedLinearSystem:
         R : array_like, shape (L, m, m) or (m, m), optional
             Measurement-noise covariance (symmetric positive definite); ``None``
             means noise-free measurements.
+        timing : {"sample", "interval"}
+            Which interval the mode of a sample governs (keyword-only; the attribute).
 
         A 2-D argument is shared by all modes; the number of modes L is the
         leading size of the 3-D arguments, which must agree. Every matrix must be
         real and finite: boolean, complex or date arrays raise ``TypeError``.
         """
-        return cls._build(A, B, C, Q, R, domain="continuous", dt=None)
+        return cls._build(A, B, C, Q, R, domain="continuous", dt=None, timing=timing)
 
     @classmethod
-    def discrete(cls, A, B=None, C=None, Q=None, R=None, dt: float = 1.0) -> SwitchedLinearSystem:
+    def discrete(cls, A, B=None, C=None, Q=None, R=None, dt: float = 1.0, *,
+                 timing: str = "sample") -> SwitchedLinearSystem:
         """A discrete-time switched system with step ``dt``; arguments as :meth:`continuous`.
 
         Here ``Q`` is the per-step process-noise covariance.
         """
-        return cls._build(A, B, C, Q, R, domain="discrete", dt=positive_scalar(dt, "dt"))
+        return cls._build(A, B, C, Q, R, domain="discrete", dt=positive_scalar(dt, "dt"),
+                          timing=timing)
 
     @classmethod
-    def from_statespace(cls, systems: Sequence, *, Q=None, R=None) -> SwitchedLinearSystem:
+    def from_statespace(cls, systems: Sequence, *, Q=None, R=None,
+                        timing: str = "sample") -> SwitchedLinearSystem:
         """Build from one state-space object per mode (e.g. python-control ``ss``).
 
         Each object needs ``A, B, C, D`` attributes and a ``dt`` attribute (0 or
         ``None`` for continuous time, a positive step for discrete time, ``True``
         for an unspecified step, taken as 1). ``D`` must be zero: switchest models
-        have no direct feedthrough. python-control itself is not required.
+        have no direct feedthrough. python-control itself is not required. ``Q``, ``R`` and
+        ``timing`` as in :meth:`continuous`.
         """
         if isinstance(systems, (str, bytes)) or not isinstance(systems, Sequence):
             raise TypeError(
@@ -143,11 +160,12 @@ class SwitchedLinearSystem:
                                  f"got {sorted(s)}")
         A, B, C = (np.stack(mats[k]) for k in "ABC")
         if dts[0] == 0.0:
-            return cls.continuous(A, B, C, Q, R)
-        return cls.discrete(A, B, C, Q, R, dt=dts[0])
+            return cls.continuous(A, B, C, Q, R, timing=timing)
+        return cls.discrete(A, B, C, Q, R, dt=dts[0], timing=timing)
 
     @classmethod
-    def _build(cls, A, B, C, Q, R, *, domain: Domain, dt: float | None) -> SwitchedLinearSystem:
+    def _build(cls, A, B, C, Q, R, *, domain: Domain, dt: float | None,
+               timing: str) -> SwitchedLinearSystem:
         if A is None:
             raise TypeError("A is required: the mode state matrices, shape (L, n, n) or (n, n)")
         given = {"A": A, "B": B, "C": C, "Q": Q, "R": R}
@@ -192,19 +210,20 @@ class SwitchedLinearSystem:
             arr = np.array(arr, dtype=float)  # own, contiguous copy
             arr.setflags(write=False)
             fields[name] = arr
-        return cls(**fields, domain=domain, dt=dt)
+        return cls(**fields, domain=domain, dt=dt, timing=timing)
 
-    def replace(self, **matrices) -> SwitchedLinearSystem:
-        """The same system (domain, ``dt``) with some of ``A``, ``B``, ``C``, ``Q``, ``R``
-        replaced, checked as the constructors check them (noise-free outputs stay noise-free
-        unless ``R`` is given)."""
+    def replace(self, *, timing: str | None = None, **matrices) -> SwitchedLinearSystem:
+        """The same system (domain, ``dt``, ``timing``) with some of ``A``, ``B``, ``C``,
+        ``Q``, ``R`` (and the ``timing``) replaced, checked as the constructors check them
+        (noise-free outputs stay noise-free unless ``R`` is given)."""
         unknown = set(matrices) - {"A", "B", "C", "Q", "R"}
         if unknown:
-            raise TypeError(f"replace takes A, B, C, Q, R, got {sorted(unknown)}")
+            raise TypeError(f"replace takes A, B, C, Q, R, timing, got {sorted(unknown)}")
         fields = {name: matrices.get(name, getattr(self, name)) for name in "ABCQR"}
         if "R" not in matrices and not self.has_measurement_noise:
             fields["R"] = None
-        return self._build(**fields, domain=self.domain, dt=self.dt)
+        return self._build(**fields, domain=self.domain, dt=self.dt,
+                           timing=self.timing if timing is None else timing)
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -241,7 +260,7 @@ class SwitchedLinearSystem:
         step = "" if self.dt is None else f", dt={self.dt:g}"
         return (
             f"SwitchedLinearSystem({self.domain}, modes={self.n_modes}, states={self.n_states}, "
-            f"inputs={self.n_inputs}, outputs={self.n_outputs}{step})"
+            f"inputs={self.n_inputs}, outputs={self.n_outputs}{step}, timing={self.timing!r})"
         )
 
 

@@ -70,7 +70,6 @@ from .modelfile import ModelSpec
 __all__ = [
     "METHODS",
     "ImplausibleEstimateWarning",
-    "TimingWarning",
     "estimate_table",
     "impulsive_gains",
     "mode_signal",
@@ -127,7 +126,8 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         ``imm``, ``gpb1``, ``gpb2``, ``rbpf``: which interval the mode of a sample governs
         (``"sample"``, the one after it, as ``simulate`` draws; ``"interval"``, Bar-Shalom's,
         the one before it: docs/conventions.rst). Default: the model file's ``timing``, the
-        convention of its data; another is named in a :class:`TimingWarning`.
+        convention of its data (its system's); another is named in a
+        :class:`~switchest.estimators.TimingWarning` by the filter.
     gate : float, optional
         The Kalman-type filters' outlier gate: the largest normalized innovation squared
         ``e' S^-1 e`` a measurement may have to be used, e.g. ``scipy.stats.chi2.ppf(0.9999,
@@ -151,14 +151,6 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
                "particles": particles, "seed": seed, "timing": timing, "gate": gate}
     entry.check_options(name for name in _WITHOUT_DEFAULT
                         if options[name] is not None and options[name] is not False)
-    if "timing" in entry.options:
-        if timing is None:
-            options["timing"] = spec.timing
-        elif timing != spec.timing:
-            warnings.warn(f"method {method!r} runs in the {timing!r} timing, the model file's "
-                          f"data in the {spec.timing!r} one (which interval a sample's mode "
-                          "governs): its estimates are of a model other than the data's",
-                          TimingWarning, stacklevel=2)
     meas = read_measurements(data, spec, trial=trial)
     modes = _modes(meas, method) if entry.needs_modes else None
     estimator = entry.build(spec, meas["t"], **{
@@ -168,10 +160,6 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     if entry.innovation_check:
         _warn_if_inconsistent(spec, meas, est, modes, method)
     return _table(meas["t"], est)
-
-
-class TimingWarning(UserWarning):
-    """A filter runs in another timing than the model file's data (docs/conventions.rst)."""
 
 
 class ImplausibleEstimateWarning(UserWarning):

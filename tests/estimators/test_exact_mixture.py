@@ -273,7 +273,7 @@ def test_refuses_more_sequences_than_max_sequences():
     ({"mode_prob0": [0.5, 0.6]}, ValueError, "mode_prob0 must sum to 1"),
     ({"timing": "before"}, ValueError, r"timing must be one of \('sample', 'interval'\), "
                                        r"got 'before'"),
-    ({"timing": None}, TypeError, "timing must be one of"),
+    ({"timing": 0}, TypeError, "timing must be one of"),
 ])
 def test_bad_options_are_refused(kwargs, error, message):
     system, *_ = record(6, 2, 3)

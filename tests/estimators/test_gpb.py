@@ -460,7 +460,7 @@ GOOD = dict(transition=[[0.9, 0.1], [0.2, 0.8]], x0=[0.0], P0=[[1.0]])
     (dict(P0=[[-1.0]]), "P0"),
     (dict(system="not a system"), "system must be a SwitchedLinearSystem"),
     (dict(timing="Sample"), r"timing must be one of \('sample', 'interval'\), got 'Sample'"),
-    (dict(timing=None), r"timing must be one of \('sample', 'interval'\), got NoneType"),
+    (dict(timing=0), r"timing must be one of \('sample', 'interval'\), got int"),
     (dict(timing=("sample",)), r"timing must be one of \('sample', 'interval'\), got tuple"),
 ])
 def test_bad_configuration_is_refused_as_by_the_imm(change, match):

@@ -139,7 +139,7 @@ def test_one_mode_is_the_rts_smoother(timing):
 
 def test_the_last_sample_is_the_filtered_posterior():
     args, xc = filtered_case(2, 3)
-    ours = smooth_mode_matched(**args)
+    ours = smooth_mode_matched(**args, timing="sample")
     assert_close(ours.x_modes[:, -1], args["x_modes"][:, -1], rtol=1e-14)
     assert_close(ours.mode_prob[:, -1], args["mode_prob"][:, -1], rtol=1e-14)
     assert_close(ours.x[:, -1], xc[:, -1], rtol=1e-12)
@@ -183,15 +183,15 @@ def test_results_do_not_depend_on_the_block_of_lanes(timing):
 
 def test_batch_axes_and_a_single_trial():
     args, _ = filtered_case(4, 2, N=4)
-    flat = smooth_mode_matched(**args)
+    flat = smooth_mode_matched(**args, timing="sample")
     batched = smooth_mode_matched(**{k: (v.reshape(2, 2, *v.shape[1:])
                                          if k in ("x_modes", "P_modes", "mode_prob", "u") else v)
-                                     for k, v in args.items()})
+                                     for k, v in args.items()}, timing="sample")
     assert batched.x.shape == (2, 2, *flat.x.shape[1:])
     assert batched.P_modes.shape == (2, 2, *flat.P_modes.shape[1:])
     assert_close(batched.x.reshape(flat.x.shape), flat.x, rtol=1e-14)
     single = smooth_mode_matched(**{k: (v[1] if k in ("x_modes", "P_modes", "mode_prob", "u")
-                                        else v) for k, v in args.items()})
+                                        else v) for k, v in args.items()}, timing="sample")
     assert single.x.shape == flat.x.shape[1:] and single.mode.shape == flat.mode.shape[1:]
     assert_close(single.P, flat.P[1], rtol=1e-14)
 
@@ -220,7 +220,7 @@ def test_a_singular_predicted_covariance_is_repaired_as_a_pseudo_inverse_would(F
     with pytest.warns(RuntimeWarning, match="singular or indefinite"):
         ours = smooth_mode_matched(x[:, None], P[:, None], np.ones((K, 1)), None, F[None],
                                    np.zeros((1, 2, 1)), np.zeros((1, 2, 2)),
-                                   np.zeros((K, 1), int), np.ones((1, 1)))
+                                   np.zeros((K, 1), int), np.ones((1, 1)), timing="sample")
     xs, Ps = rts_smooth(x, P, np.zeros((K, 1)), F[None], np.zeros((1, 2, 1)),
                         np.zeros((1, 2, 2)), np.zeros(K, int), pinv=True)
     assert_close(ours.x, xs)
@@ -239,7 +239,7 @@ def test_no_process_noise_with_an_invertible_transition():
         warnings.simplefilter("ignore", RuntimeWarning)  # the repair of a zero covariance
         ours = smooth_mode_matched(x[:, None], P[:, None], np.ones((K, 1)), None, F[None],
                                    np.zeros((1, 2, 1)), np.zeros((1, 2, 2)),
-                                   np.zeros((K, 1), int), np.ones((1, 1)))
+                                   np.zeros((K, 1), int), np.ones((1, 1)), timing="sample")
     Fi = np.linalg.inv(F)
     for k in range(K - 1):
         assert_close(ours.P[k], Fi @ ours.P[k + 1] @ Fi.T)
@@ -393,12 +393,12 @@ def test_invariants(seed, L, timing):
 def test_bad_arguments_are_refused_with_a_message(change, message):
     args, _ = filtered_case(8, 2, N=2, K=4)
     with pytest.raises((ValueError, TypeError), match=message):
-        smooth_mode_matched(**change(args))
+        smooth_mode_matched(**change({**args, "timing": "sample"}))
 
 
 def test_the_result_type():
     args, _ = filtered_case(9, 2, N=1, K=4)
-    out = smooth_mode_matched(**args)
+    out = smooth_mode_matched(**args, timing="sample")
     assert isinstance(out, SmoothedModes)
     assert out.mode.dtype.kind == "i"
 

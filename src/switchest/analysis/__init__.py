@@ -19,13 +19,9 @@ designs:
   :mod:`.impulsive_certificates` (what they prove) and :mod:`.impulsive_rates` (the decay rates);
 * :mod:`.scalar_search`: the largest feasible scalar of a monotone problem (bracket, bisect).
 
-Names that carried a theorem number remain importable as deprecated aliases
-(:data:`DEPRECATED_NAMES`, old name -> new name). Each name is imported from its module at
-its first use (PEP 562 ``__getattr__``): importing one design does not load cvxpy or
-scipy.optimize for the others.
+Each name is imported from its module at its first use (PEP 562 ``__getattr__``): importing
+one design does not load cvxpy or scipy.optimize for the others.
 """
-
-import warnings
 
 from .._lazy import deferred
 
@@ -71,26 +67,5 @@ _EXPORTS = {
     "switch_time_bounds": ("EstimationErrorBounds", "SwitchMatrixBounds",
                            "estimation_error_bounds", "switch_matrix_bounds"),
 }
-#: Old (theorem-numbered) name -> the name of the same object now.
-DEPRECATED_NAMES = {
-    "lemma2_bounds": "switch_matrix_bounds",
-    "lemma3_hypotheses": "filter_stability_hypotheses",
-    "theorem4_bound": "mismatch_bias_bound",
-    "theorem8_rate": "impulsive_observer_decay_rate",
-    "theorem10_rate": "impulsive_closed_loop_decay_rate",
-}
-
-_exported, __dir__ = deferred(__name__, globals(), _EXPORTS)
-__all__ = sorted([*(n for names in _EXPORTS.values() for n in names), "DEPRECATED_NAMES"],
-                 key=str.lower)
-
-
-def __getattr__(name: str) -> object:
-    """An exported name, imported from its module at its first use; an old name warns
-    ``DeprecationWarning`` and gives the object it was renamed to."""
-    if name in DEPRECATED_NAMES:
-        new = DEPRECATED_NAMES[name]
-        warnings.warn(f"switchest.analysis.{name} is deprecated; use switchest.analysis.{new}",
-                      DeprecationWarning, stacklevel=2)
-        name = new
-    return _exported(name)
+__getattr__, __dir__ = deferred(__name__, globals(), _EXPORTS)
+__all__ = sorted((n for names in _EXPORTS.values() for n in names), key=str.lower)

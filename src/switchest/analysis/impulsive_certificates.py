@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import float_array, positive_scalar
-from ._deprecation import renamed_field
 from ._lmi import max_eigenvalue, min_eigenvalue
 from .impulsive_rates import _switch_cost
 
@@ -24,10 +23,8 @@ __all__ = ["ClosedLoopCertificate", "ImpulsiveObserverCertificate", "ImpulsiveOb
 
 
 class _ClockCertificate:
-    """What the certificates of Theorems 8 and 10 share: the old name of ``holds``, and the
-    evaluation and overshoot of their Lyapunov matrices, affine in the clock ``theta``."""
-
-    feasible = renamed_field("feasible")
+    """What the certificates of Theorems 8 and 10 share: the evaluation and overshoot of their
+    Lyapunov matrices, affine in the clock ``theta``."""
 
     def _clock(self, M0: np.ndarray | None, M1: np.ndarray, theta, name: str) -> np.ndarray:
         """:func:`_clock_affine`, or the error that the LMIs gave no matrix ``name``."""

@@ -54,7 +54,6 @@ from .._linalg import symmetrize
 from ..discretize import interval, mode_steps
 from ..signals import SwitchingSignal
 from ..system import SwitchedLinearSystem
-from ._deprecation import renamed_field
 from .observability import is_observable, joint_observability, omega_min
 
 __all__ = [
@@ -231,8 +230,6 @@ class LeeWindows:
     Delta: float | None
     step: float
     assumptions: LeeAssumptions | None
-
-    found = renamed_field("found")
 
 
 # ---------------------------------------------------------------------- public

@@ -62,7 +62,6 @@ from .._checks import (
 )
 from .._linalg import joseph_update, psd_sqrt
 from ..system import SwitchedLinearSystem
-from ._deprecation import renamed_field
 from .observability import is_observable
 from .stability import LyapunovCertificate, cqlf, decrease_margin, spectral_radius
 from .steady_state_kalman import steady_state_gain
@@ -176,9 +175,6 @@ class AutonomousBiasStability:
     F_margin: float | None
     one_mode_per_column: bool | None
 
-    lemma4 = renamed_field("lemma4", "one_mode_per_column")
-    lemma3 = renamed_field("lemma3", "each_mode_contracts")
-
     @property
     def each_mode_contracts(self) -> bool:
         """Lemma 3's conclusion: ``rho(Lambda_i) < 1`` for every mode."""
@@ -240,8 +236,6 @@ class ToleranceCheck:
     value: np.ndarray
     threshold: float
     holds: bool
-
-    inside = renamed_field("inside")
 
 
 # ---------------------------------------------------------------------- gains

@@ -41,7 +41,6 @@ from .._checks import (
 from .._linalg import symmetrize
 from ..discretize import interval
 from ..system import SwitchedLinearSystem
-from ._deprecation import renamed_field
 
 __all__ = [
     "CombinedObservability",
@@ -215,8 +214,6 @@ class UniformObservability:
     h: int | None
     rho: float
 
-    observable = renamed_field("observable")
-
 
 @dataclass(frozen=True)
 class DwellTimeObservability:
@@ -257,8 +254,6 @@ class DwellTimeObservability:
     rho: float
     h_modes: tuple[int | None, ...]
     rho_modes: np.ndarray
-
-    holds_corrected = renamed_field("holds_corrected")
 
 
 # ---------------------------------------------------------------------- pairs (A, C)

@@ -27,7 +27,6 @@ from .._checks import (
     positive_scalar,
 )
 from .._threads import one_blas_thread
-from ._deprecation import renamed_field
 from ._lmi import (
     cp,
     max_eigenvalue,
@@ -93,8 +92,6 @@ class LyapunovCertificate:
     domain: str
     note: str
 
-    feasible = renamed_field("feasible")
-
 
 @dataclass(frozen=True)
 class JSRBounds:
@@ -146,8 +143,6 @@ class MeanSquareStability:
 
     radius: float
     holds: bool
-
-    stable = renamed_field("stable")
 
 
 def spectral_radius(A) -> np.ndarray:

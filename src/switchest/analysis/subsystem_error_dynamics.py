@@ -59,7 +59,6 @@ from .._checks import (
 from .._linalg import psd_sqrt, symmetrize
 from ..discretize import mode_steps
 from ..system import SwitchedLinearSystem
-from ._deprecation import renamed_field
 from ._lmi import rounding_allowance
 from .observability import combined_observability, mode_decompositions
 from .stability import ms_stable_iid
@@ -195,8 +194,6 @@ class MSConvergence:
     moment_holds: bool
     radius: float
     holds: bool
-
-    stable = renamed_field("stable")
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,6 @@ from scipy.optimize import brentq, minimize
 from .._checks import float_array, positive_scalar
 from ..discretize import interval, mode_steps
 from ..system import SwitchedLinearSystem
-from ._deprecation import renamed_field
 from ._lmi import rounding_allowance
 from .stability import ms_stable_iid, spectral_radius
 from .subsystem_error_dynamics import (
@@ -117,8 +116,6 @@ class CriticalInterval:
     per_block: np.ndarray
     q_max: float
 
-    theorem3 = renamed_field("theorem3", "printed_t_max")
-
 
 @dataclass(frozen=True)
 class GainBounds:
@@ -174,8 +171,6 @@ class OptimalGains:
     mu: float
     radius: float
     holds: bool
-
-    success = renamed_field("success")
 
 
 # ---------------------------------------------------------------------- critical interval

@@ -13,6 +13,7 @@ from .._lazy import deferred
 # the protocol, re-exported (the redundant aliases say so to linters; __all__ is computed)
 from .base import Estimate as Estimate
 from .base import Estimator as Estimator
+from .base import TimingWarning as TimingWarning
 
 # module -> the names it defines that the package exports
 _EXPORTS = {
@@ -37,5 +38,5 @@ _EXPORTS = {
     "parallel": ("set_threads", "threads"),
 }
 __getattr__, __dir__ = deferred(__name__, globals(), _EXPORTS)
-__all__ = sorted(["Estimate", "Estimator", *(n for names in _EXPORTS.values() for n in names)],
-                 key=str.lower)
+__all__ = sorted(["Estimate", "Estimator", "TimingWarning",
+                  *(n for names in _EXPORTS.values() for n in names)], key=str.lower)

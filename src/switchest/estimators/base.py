@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import re
 import textwrap
+import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
@@ -30,12 +31,13 @@ from .._checks import (
     check_probability_vector,
     check_row_stochastic,
     check_symmetric_psd,
+    check_timing,
     float_array,
     int_array,
 )
 from ..system import SwitchedLinearSystem
 
-__all__ = ["Estimate", "Estimator"]
+__all__ = ["Estimate", "Estimator", "TimingWarning"]
 
 _INT64, _FLOAT64 = np.dtype(np.int64), np.dtype(np.float64)
 _INT_MAX = 2**62  # int_array's bound
@@ -52,6 +54,12 @@ x0, P0 : array_like
     Prior mean and covariance of the state at the first sample, the same for every mode.
 mode_prob0 : array_like, shape (L,), optional
     Prior mode probabilities at the first sample (keyword-only); uniform by default."""
+
+
+class TimingWarning(UserWarning):
+    """A multiple-model filter runs in another timing than its system's or its data's
+    (docs/conventions.rst): which interval the mode of a sample governs differs, so its
+    estimates are of a model other than the data's."""
 
 
 def _with_mode_model_parameters(cls: type) -> type:
@@ -181,6 +189,28 @@ class Estimator(ABC):
             self._log_transition = (np.zeros((L, L)) if self.transition is None
                                     else np.log(self.transition))
             self._log_p0 = np.log(self.mode_prob0)
+
+    def _set_timing(self, timing) -> None:
+        """Keep the filter's ``timing``: the system's when None (set :meth:`_set_prior` first);
+        an explicit other one is named in a :class:`TimingWarning`."""
+        if timing is None:
+            self.timing = self.system.timing
+            return
+        self.timing = check_timing(timing)
+        if self.timing != self.system.timing:
+            warnings.warn(f"{type(self).__name__} runs in the {self.timing!r} timing, its system "
+                          f"in the {self.system.timing!r} one (which interval a sample's mode "
+                          "governs, docs/conventions.rst): its estimates are of a model other "
+                          "than the system's", TimingWarning, stacklevel=3)
+
+    def _check_data_timing(self, data_timing) -> None:
+        """Name in a :class:`TimingWarning` data drawn in another timing than the filter's
+        (``data_timing``, e.g. :attr:`switchest.simulate.Trajectory.timing`; None: unknown)."""
+        if data_timing is not None and check_timing(data_timing, "data_timing") != self.timing:
+            warnings.warn(f"{type(self).__name__} runs in the {self.timing!r} timing, the data "
+                          f"were drawn in the {data_timing!r} one (which interval a sample's "
+                          "mode governs, docs/conventions.rst): its estimates are of a model "
+                          "other than the data's", TimingWarning, stacklevel=3)
 
     def _prior_copies(self, shape) -> tuple[np.ndarray, np.ndarray]:
         """The prior ``x0``, ``P0`` replicated over ``shape`` (trials, or trials and modes) as

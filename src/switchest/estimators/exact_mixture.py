@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_memory, check_timing, positive_int
+from .._checks import check_memory, positive_int
 from .._linalg import log_normalize, mixture_moments
 from ..discretize import mode_steps, sample_mode_steps
 from ..engine import GATED, raise_for_status, warn_for_repairs
@@ -91,10 +91,12 @@ class ExactMixtureFilter(Estimator):
     max_sequences : int
         Most mode sequences (``L^K`` for ``K`` samples) a run or a stream may hold
         (keyword-only); more are refused with a ``ValueError``.
-    timing : {"sample", "interval"}
+    timing : {"sample", "interval"}, optional
         Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only; module
         docstring): the one after it (``"sample"``) or the one into it
-        (``"interval"``, the default, Bar-Shalom's).
+        (``"interval"``, Bar-Shalom's); ``None`` (the default): the system's ``timing``, and
+        another is named in a :class:`~switchest.estimators.TimingWarning`. The filter is
+        exact in either.
 
     Notes
     -----
@@ -114,11 +116,11 @@ class ExactMixtureFilter(Estimator):
     """
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None,
-                 max_sequences: int = 2**16, timing: str = "interval"):
+                 max_sequences: int = 2**16, timing: str | None = None):
         self._set_prior(system, x0, P0)
         self._set_mode_prior(transition, mode_prob0)
         self.max_sequences = positive_int(max_sequences, "max_sequences")
-        self.timing = check_timing(timing)
+        self._set_timing(timing)
 
     # ------------------------------------------------------------------ streaming
     def init(self, batch_shape=()) -> ExactMixtureState:
@@ -192,21 +194,26 @@ class ExactMixtureFilter(Estimator):
             combined_x=mean[:, 0].reshape(*batch, n), combined_P=cov[:, 0].reshape(*batch, n, n))
 
     # ------------------------------------------------------------------ whole records
-    def run(self, y, u=None, t=None) -> Estimate:
+    def run(self, y, u=None, t=None, *, data_timing: str | None = None) -> Estimate:
         """The exact filter over ``y (..., K, m)``: the mixture's ``x``, ``P``, ``mode_prob``,
         the most probable ``mode``, ``loglik``, the log-likelihood of each measurement given
         the past, and ``outlier``, the measurements every sequence rejected (an overflowing
-        innovation, treated as missing), after each sample (see the class Notes)."""
+        innovation, treated as missing), after each sample (see the class Notes).
+        ``data_timing``, the timing ``y`` was drawn in
+        (:attr:`switchest.simulate.Trajectory.timing`), is named in a
+        :class:`~switchest.estimators.TimingWarning` when it is not the filter's."""
+        self._check_data_timing(data_timing)
         seq, batch = self._sequences(y, u, t)
         w, total = log_normalize(seq.cum, axis=0)  # (S, N, K): p(r_0..k | y_0..k) per sequence
         loglik = np.diff(total, axis=-1, prepend=0.0)
         return self._mixture(w, seq.x, seq.P, seq.modes, batch, loglik=loglik,
                              outlier=seq.outlier)
 
-    def smooth(self, y, u=None, t=None) -> Estimate:
+    def smooth(self, y, u=None, t=None, *, data_timing: str | None = None) -> Estimate:
         """The exact smoother over ``y (..., K, m)``: the mixture of every sequence's RTS
         posterior weighted by ``p(r | y_0..K-1)``, its ``x``, ``P``, ``mode_prob`` and the
-        most probable ``mode`` at each sample."""
+        most probable ``mode`` at each sample; ``data_timing`` as in :meth:`run`."""
+        self._check_data_timing(data_timing)
         seq, batch = self._sequences(y, u, t)
         S, N, K, n = seq.x.shape
         # each sequence is Kim's smoother with one mode, whose RTS step goes through the row's
@@ -214,7 +221,7 @@ class ExactMixtureFilter(Estimator):
         rts = smooth_mode_matched(
             seq.x.reshape(S * N, K, 1, n), seq.P.reshape(S * N, K, 1, n, n),
             np.ones((S * N, K, 1)), seq.u, seq.F, seq.G, seq.Qd,
-            seq.trans.reshape(S * N, K, 1), np.ones((1, 1)))
+            seq.trans.reshape(S * N, K, 1), np.ones((1, 1)), timing="interval")
         w, _ = log_normalize(seq.cum[..., -1:], axis=0)  # p(r | y_0..K-1)
         return self._mixture(np.broadcast_to(w, seq.cum.shape), rts.x.reshape(S, N, K, n),
                              rts.P.reshape(S, N, K, n, n), seq.modes, batch)

@@ -6,9 +6,9 @@ after ``k`` samples (one per mode sequence), by a mixture of fewer, switches hap
 sample instants. The ``timing`` (docs/conventions.rst;
 :class:`~switchest.estimators.mode_bank.ModeBankFilter`) says which interval the mode ``s_k``
 of sample ``k`` governs besides ``y_k``: the one after it (``"sample"``:
-``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``) or the one into it (``"interval"``, Bar-Shalom's,
-the default: ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``); so which mode's transition a
-prediction takes.
+``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``) or the one into it (``"interval"``, Bar-Shalom's:
+``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``); so which mode's transition a prediction takes.
+By default it is the system's.
 
 - GPB1 keeps one Gaussian: ``L`` Kalman filters, one per mode at sample ``k``; mode
   probabilities ``mu_j(k) ∝ Lambda_j(k) c_j``, ``c_j = sum_i pi_ij mu_i(k-1)``. ``"sample"``:
@@ -71,9 +71,10 @@ class GPB1Filter(ModeBankFilter):
         Largest normalized innovation squared a mode-matched filter accepts (keyword-only);
         ``None`` rejects only measurements whose innovation overflows. A sample every mode
         rejects is treated as missing and flagged in ``Estimate.outlier``.
-    timing : {"sample", "interval"}
+    timing : {"sample", "interval"}, optional
         Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only): the
-        one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's, the default);
+        one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's); by default
+        the system's;
         the models and the derivation are in
         :class:`~switchest.estimators.mode_bank.ModeBankFilter`.
 
@@ -113,9 +114,10 @@ class GPB2Filter(ModeBankFilter):
         Largest normalized innovation squared a pair's filter accepts (keyword-only); ``None``
         rejects only measurements whose innovation overflows. A sample every pair rejects is
         treated as missing and flagged in ``Estimate.outlier``.
-    timing : {"sample", "interval"}
+    timing : {"sample", "interval"}, optional
         Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only): the
-        one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's, the default);
+        one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's); by default
+        the system's;
         see :class:`~switchest.estimators.mode_bank.ModeBankFilter`.
 
     Notes

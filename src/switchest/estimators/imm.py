@@ -5,8 +5,8 @@ mode transition probabilities, after each update the mode probabilities are
 re-weighted by the filters' likelihoods. Switches are assumed to happen at the
 sample instants; the ``timing`` says which interval the mode of a sample governs
 (docs/conventions.rst) and so whether the mixing falls after the prediction
-(``"sample"``) or before it (``"interval"``, the default: Blom & Bar-Shalom's
-original). Mode probabilities are kept as log-weights.
+(``"sample"``) or before it (``"interval"``: Blom & Bar-Shalom's original); by default
+it is the system's. Mode probabilities are kept as log-weights.
 
 Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
 :mod:`switchest.engine.imm` (the one ``imm_run`` and ``imm_step`` call, through the filter's
@@ -46,9 +46,9 @@ class IMMFilter(ModeBankFilter):
         accepts (keyword-only); e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None``
         rejects only measurements whose innovation overflows. A sample every mode
         rejects is treated as missing and flagged in ``Estimate.outlier``.
-    timing : {"sample", "interval"}
+    timing : {"sample", "interval"}, optional
         Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k``
-        (keyword-only; docs/conventions.rst):
+        (keyword-only; docs/conventions.rst); ``None`` (the default): the system's ``timing``:
 
         - ``"sample"`` (the model :func:`switchest.simulate` draws with switches
           at the samples; Costa, Fragoso & Marques 2005, eq. (3.1)):
@@ -57,7 +57,7 @@ class IMMFilter(ModeBankFilter):
           ``i`` of sample ``k - 1`` is predicted through mode ``i``'s transition, then the
           predictions are mixed into mode ``j``'s prior with the weights
           ``mu_{i|j} = pi_ij mu_i / c_j``, ``c_j = sum_i pi_ij mu_i``.
-        - ``"interval"`` (the default; Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan 2001,
+        - ``"interval"`` (Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan 2001,
           §11.6.6; FilterPy's ``IMMEstimator``): ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} +
           w``, ``y_k = C(s_k) x_k + v``. The posteriors are mixed with the same weights,
           then mode ``j``'s mixture is predicted through mode ``j``'s transition.

@@ -13,7 +13,7 @@ only in the compiled kernel that takes one sample: the IMM's interaction (Blom &
 Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k). The mode
 ``s_k`` of sample ``k`` governs the measurement there and, by the ``timing``
 (docs/conventions.rst), the interval after ``k`` (``"sample"``) or the one into it
-(``"interval"``, Bar-Shalom's, the default).
+(``"interval"``, Bar-Shalom's); by default the system's (:attr:`SwitchedLinearSystem.timing`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,6 @@ import numpy as np
 
 from .._checks import (
     check_memory,
-    check_timing,
     positive_scalar,
 )
 from ..discretize import mode_steps, sample_mode_steps
@@ -135,13 +134,15 @@ class ModeBankFilter(Estimator):
         e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None`` rejects only measurements whose
         innovation overflows. A sample every filter rejects is treated as missing and flagged
         in ``Estimate.outlier``.
-    timing : {"sample", "interval"}
+    timing : {"sample", "interval"}, optional
         Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k`` (keyword-only;
-        docs/conventions.rst). ``"sample"`` (:func:`switchest.simulate` with switches
-        at the samples; Costa, Fragoso & Marques 2005, eq. (3.1)): the one after it,
+        docs/conventions.rst); ``None`` (the default): the system's ``timing``, and another is
+        named in a :class:`~switchest.estimators.TimingWarning`. ``"sample"``
+        (:func:`switchest.simulate` with switches at the samples; Costa, Fragoso & Marques
+        2005, eq. (3.1)): the one after it,
         ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``w_k ~ N(0, Qd(s_k))``,
-        ``y_k = C(s_k) x_k + v_k``, ``v_k ~ N(0, R(s_k))``. ``"interval"`` (the default;
-        Bar-Shalom, Li & Kirubarajan 2001, §11.6; FilterPy's ``IMMEstimator``): the one into it,
+        ``y_k = C(s_k) x_k + v_k``, ``v_k ~ N(0, R(s_k))``. ``"interval"`` (Bar-Shalom, Li &
+        Kirubarajan 2001, §11.6; FilterPy's ``IMMEstimator``): the one into it,
         ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``, ``y_k = C(s_k) x_k + v``. ``F, G, Qd``
         are the exact discretization of a mode over the interval. With one mode the two are
         the same filter.
@@ -165,24 +166,26 @@ class ModeBankFilter(Estimator):
     The updates (mode ``j`` with ``C_j``, ``R_j``), the weighting of the hypotheses by their
     likelihoods and the output are the same in both.
 
-    Bar-Shalom's timing is the default because these filters approximate it better: in the
-    ``"sample"`` timing the IMM and GPB1 merge predictions through different dynamics before
-    the measurement that would tell them apart. With modes that differ only in ``A``, ``B``,
-    ``Q`` the two timings are one model with the chain shifted by a sample, and on the Markov
-    jump system of the bake-off (switches at the samples, 64 trials) the IMM's state RMSE was
-    0.180 in Bar-Shalom's timing against 0.202, its smoother's 0.163 against 0.311. Choose
-    ``"sample"`` when the modes also differ in ``C`` or ``R`` and switch at the samples
+    These filters approximate Bar-Shalom's timing better: in the ``"sample"`` timing the IMM
+    and GPB1 merge predictions through different dynamics before the measurement that would
+    tell them apart. With modes that differ only in ``A``, ``B``, ``Q`` the two timings are
+    one model with the chain shifted by a sample, and on the Markov jump system of the
+    bake-off (switches at the samples, 64 trials) the IMM's state RMSE was 0.180 in
+    Bar-Shalom's timing against 0.202, its smoother's 0.163 against 0.311: such a model is
+    best given ``timing="interval"`` on the system itself (``system.replace(timing=
+    "interval")``, or the model file's ``timing``). When the modes also differ in ``C`` or
+    ``R`` and switch at the samples, the data's timing is the one to filter in
     (docs/conventions.rst).
     """
 
     _interaction: str  # the bank's interaction (:class:`switchest.engine.imm.Bank`)
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None, gate: float | None = None,
-                 timing: str = "interval"):
+                 timing: str | None = None):
         self._set_prior(system, x0, P0)
         self.gate = None if gate is None else positive_scalar(gate, "gate")
         self._set_mode_prior(transition, mode_prob0)
-        self.timing = check_timing(timing)
+        self._set_timing(timing)
         self._gate = math.inf if self.gate is None else self.gate
         # the tables that do not change, checked and converted once for every run and step
         self._bank = Bank(system.C, system.R, self._log_transition, self.x0, self.P0,
@@ -273,13 +276,16 @@ class ModeBankFilter(Estimator):
             combined_x=out.x.reshape(*batch, n), combined_P=out.P.reshape(*batch, n, n),
         )
 
-    def run(self, y, u=None, t=None) -> Estimate:
+    def run(self, y, u=None, t=None, *, data_timing: str | None = None) -> Estimate:
         """Filter ``y (..., K, m)``; returns the combined ``x``, ``P``, ``mode_prob``, the most
         probable ``mode``, ``loglik`` and the ``outlier`` flags at each sample.
 
         The whole record runs in the compiled kernel, with one exact transition per mode and
-        distinct sampling step.
+        distinct sampling step. ``data_timing`` (keyword-only), the timing ``y`` was drawn in
+        (:attr:`switchest.simulate.Trajectory.timing`), is named in a
+        :class:`~switchest.estimators.TimingWarning` when it is not the filter's.
         """
+        self._check_data_timing(data_timing)
         y2, u2, t, batch = self._prepare(y, u, t)
         table = self._record_table(t)[-1]
         return self._unflatten(self._estimate(self._kernel_run(y2, u2, table, False)), batch)
@@ -321,7 +327,8 @@ class ModeBankFilter(Estimator):
                 self._records[key] = entry
         return entry
 
-    def smooth(self, y, u=None, t=None, *, method: str = "two-filter") -> Estimate:
+    def smooth(self, y, u=None, t=None, *, method: str = "two-filter",
+               data_timing: str | None = None) -> Estimate:
         """Fixed-interval smoothing of ``y (..., K, m)``: the combined smoothed ``x``, ``P``,
         the smoothed ``mode_prob`` and the most probable ``mode`` at each sample, given the
         whole record.
@@ -347,9 +354,11 @@ class ModeBankFilter(Estimator):
         The last sample's smoothed estimate is the filtered one. Like the filter it
         approximates, the smoother is not exact;
         :class:`~switchest.estimators.ExactMixtureFilter` is, for short records.
+        ``data_timing`` as in :meth:`run`.
         """
         if method not in ("two-filter", "kim"):
             raise ValueError(f"method must be 'two-filter' or 'kim', got {method!r}")
+        self._check_data_timing(data_timing)
         fwd = self.run_modes(y, u, t)
         if method == "kim":
             s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,

@@ -11,6 +11,7 @@ offsets inside the intervals it is the clairvoyant filter of Shankar et al.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -30,7 +31,7 @@ from ..discretize import mode_steps, segment_transitions
 from ..dyadic import dyadic_table, interval_transitions
 from ..engine import GATED, raise_for_status, warn_for_repairs
 from ..engine.kalman import KalmanRun, kalman_steady_run, kalman_steady_step, kalman_step
-from .base import Estimate, Estimator
+from .base import Estimate, Estimator, TimingWarning
 
 __all__ = ["KalmanState", "ModeKalmanFilter"]
 
@@ -71,11 +72,20 @@ class ModeKalmanFilter(Estimator):
     switch at the sample instants, as in discrete-time models), unless ``run`` is
     given the segments of each interval (``segments=trajectory.segments()``), in
     which case the exact switching offsets are used. The update at ``t_k`` uses
-    ``C`` and ``R`` of the mode believed at ``t_k``.
+    ``C`` and ``R`` of the mode believed at ``t_k``. Along given modes this is the
+    ``"sample"`` timing only (docs/conventions.rst): a system of the ``"interval"`` timing,
+    whose mode of sample ``k`` governs the interval into it, is named in a
+    :class:`~switchest.estimators.TimingWarning`.
     """
 
     def __init__(self, system, x0, P0, *, steady_state: bool = False, gate: float | None = None):
         self._set_prior(system, x0, P0)
+        if system.timing != "sample":
+            warnings.warn("ModeKalmanFilter predicts each interval in the mode of the sample "
+                          "that starts it (the 'sample' timing), its system is in the "
+                          f"{system.timing!r} one (docs/conventions.rst): along its modes the "
+                          "estimates are of a model other than the system's", TimingWarning,
+                          stacklevel=2)
         self.steady_state = check_bool(steady_state, "steady_state")
         self.gate = None if gate is None else positive_scalar(gate, "gate")
         self._gate = math.inf if self.gate is None else self.gate

@@ -63,7 +63,6 @@ import numpy as np
 from .._checks import (
     as_rng,
     check_memory,
-    check_timing,
     float_array,
     positive_int,
     positive_scalar,
@@ -142,10 +141,11 @@ class RBPFilter(Estimator):
     proposal : {"prior", "optimal"}
         Importance distribution of the modes: the transition prior, or the optimal one
         (Doucet, Gordon & Krishnamurthy 2001, §III).
-    timing : {"sample", "interval"}
+    timing : {"sample", "interval"}, optional
         Which interval the mode of sample ``k`` governs besides ``y_k`` (module docstring):
         the one after it, ``[t_k, t_{k+1})`` (``"sample"``), or the one into it
-        (``"interval"``, Bar-Shalom's, the default).
+        (``"interval"``, Bar-Shalom's); ``None`` (the default): the system's ``timing``, and
+        another is named in a :class:`~switchest.estimators.TimingWarning`.
 
     Attributes
     ----------
@@ -155,7 +155,7 @@ class RBPFilter(Estimator):
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None, particles: int = 1000,
                  rng=None, resample: str = "systematic", ess_threshold: float = 0.5,
-                 proposal: str = "prior", timing: str = "interval"):
+                 proposal: str = "prior", timing: str | None = None):
         self._set_prior(system, x0, P0)
         self._set_mode_prior(transition, mode_prob0)
         self.particles = positive_int(particles, "particles")
@@ -165,7 +165,7 @@ class RBPFilter(Estimator):
             raise ValueError(f"ess_threshold must be in [0, 1], got {ess_threshold!r}")
         self.ess_threshold = threshold
         self.proposal = _one_of(proposal, "proposal", PROPOSALS)
-        self.timing = check_timing(timing)
+        self._set_timing(timing)
         self.root_key = as_rng(rng).integers(2**64, dtype=np.uint64)
 
     def trial_keys(self, batch_shape=()) -> np.ndarray:
@@ -236,19 +236,28 @@ class RBPFilter(Estimator):
             loglik=out.loglik.reshape(batch), outlier=(out.flag == GATED).reshape(batch),
             ess=out.ess.reshape(batch))
 
-    def run(self, y, u=None, t=None, *, keys=None) -> Estimate:
+    def run(self, y, u=None, t=None, *, keys=None, data_timing: str | None = None) -> Estimate:
         """Filter ``y (..., K, m)``; returns ``x``, ``P``, ``mode_prob``, the most probable
         ``mode``, ``loglik`` and the ``outlier`` flags at each sample.
 
         ``keys`` (uint64, the batch shape of ``y``) default to :meth:`trial_keys`. The whole
         record runs in the compiled kernel, with one exact transition per mode and distinct
-        sampling step (as :class:`~switchest.estimators.IMMFilter`).
+        sampling step (as :class:`~switchest.estimators.IMMFilter`). ``data_timing``, the
+        timing ``y`` was drawn in (:attr:`switchest.simulate.Trajectory.timing`), is named in a
+        :class:`~switchest.estimators.TimingWarning` when it is not the filter's.
         """
-        return self.run_with_ess(y, u, t, keys=keys)[0]
+        self._check_data_timing(data_timing)
+        return self._run(y, u, t, keys)[0]
 
-    def run_with_ess(self, y, u=None, t=None, *, keys=None) -> tuple[Estimate, np.ndarray]:
+    def run_with_ess(self, y, u=None, t=None, *, keys=None,
+                     data_timing: str | None = None) -> tuple[Estimate, np.ndarray]:
         """:meth:`run`, and the effective sample size ``1 / sum_p w_p^2`` of every trial and
         sample before resampling (shape ``(..., K)``): a diagnostic of weight degeneracy."""
+        self._check_data_timing(data_timing)
+        return self._run(y, u, t, keys)
+
+    def _run(self, y, u, t, keys) -> tuple[Estimate, np.ndarray]:
+        """:meth:`run_with_ess` after its timing check."""
         y2, u2, t, batch = self._prepare(y, u, t)
         sys = self.system
         self._check_particle_memory(1)

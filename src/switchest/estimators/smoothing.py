@@ -99,7 +99,7 @@ class SmoothedModes:
 
 
 def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transition, *,
-                        timing: str = "interval", lagged: bool = False) -> SmoothedModes:
+                        timing: str, lagged: bool = False) -> SmoothedModes:
     """Kim's fixed-interval smoother of filtered mode-matched posteriors (Kim 1994, §2.2).
 
     Parameters
@@ -124,8 +124,9 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transit
     timing : {"sample", "interval"}
         Which mode governs the interval ``k -> k+1`` (module docstring), so which mode's
         transition the pair (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) takes its RTS step
-        through: ``j``'s (``"sample"``) or ``i``'s (``"interval"``, the default). The filtered
-        posteriors should come from a filter of the same timing.
+        through: ``j``'s (``"sample"``) or ``i``'s (``"interval"``); required (keyword-only),
+        as the arrays do not say it. The filtered posteriors should come from a filter of the
+        same timing (its ``timing`` attribute).
     lagged : bool
         Also return, for each interval ``k -> k+1``, the pairwise mode probabilities and the
         lag-one moments an expectation-maximization step needs (``pair_prob``, ``lag_x``,
@@ -178,7 +179,7 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transit
 
 
 def smooth_filtered(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transition, *,
-                    timing: str = "interval", lagged: bool = False,
+                    timing: str, lagged: bool = False,
                     modes_out: bool = True) -> SmoothedModes:
     """:func:`smooth_mode_matched` of arrays a filter of switchest produced and checked, with
     one batch axis: ``(N, K, L, n)``, ``(N, K, L, n, n)``, ``(N, K, L)``, ``u (N, K, l)``,

@@ -6,17 +6,30 @@ transitions are indexed into one table: the trials then fill the compiled kernel
 where one record alone would leave all but one empty. These functions run such a batch and
 return each sample's log-likelihood, or None when a covariance failed (a transition or a
 covariance beyond the floating-point range): the caller then tells the candidates apart.
+:func:`kalman_posteriors` runs one model's Kalman filter along a table a caller built (and
+smooths on), so that the filter and the smoother take the same transitions.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..engine import OK, warn_for_repairs
+from ..engine import OK, raise_for_status, warn_for_repairs
 from ..engine.imm import imm_run_per_trial
-from ..engine.kalman import kalman_run
+from ..engine.kalman import KalmanOutput, kalman_run
 
-__all__ = ["imm_logliks", "kalman_logliks"]
+__all__ = ["imm_logliks", "kalman_logliks", "kalman_posteriors"]
+
+
+def kalman_posteriors(y, u, F, G, Qd, trans, C, R, mode, x0, P0) -> KalmanOutput:
+    """The Kalman filter's posteriors ``x (N, K, n)``, ``P`` and log-likelihoods along the
+    table ``F, G, Qd`` (the arguments of :func:`switchest.engine.kalman.kalman_run`, Shankar
+    et al. eqs (6)-(10)); raises the package's error for a failed covariance and warns of a
+    repaired one."""
+    out = kalman_run(y, u, F, G, Qd, trans, C, R, mode, x0, P0)
+    raise_for_status(out.status)
+    warn_for_repairs(out)
+    return out
 
 
 def kalman_logliks(y, u, F, G, Qd, trans, C, R, mode, x0, P0) -> np.ndarray | None:

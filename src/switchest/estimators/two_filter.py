@@ -76,8 +76,7 @@ __all__ = ["two_filter_smooth"]
 
 
 def two_filter_smooth(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transition, C, R, *,
-                      outlier=None,
-                      timing: str = "interval") -> TwoFilterOutput:
+                      outlier=None, timing: str) -> TwoFilterOutput:
     """Smoothed mode-matched posteriors and mode probabilities (module docstring).
 
     The arguments are those of :func:`switchest.engine.two_filter.two_filter_run` (arrays a

@@ -18,8 +18,9 @@ marginalized.
   Shankar et al.): ``sum_k log((1/g) sum_i p(y_{k+1} | y_0..k, tau_i))``, each mixture merged by
   moment matching after its sample; its gate is the E-step's outlier gate, and its posterior
   mean instants ``tau_hat`` are the E-step's working instants.
-- The moments: the Kalman filter and RTS smoother with the instants at ``tau_hat``
-  (:class:`~switchest.estimators.ModeKalmanFilter` with the segments,
+- The moments: the Kalman filter and RTS smoother with the instants at ``tau_hat``, both
+  along one table of transitions, the switched intervals discretized once
+  (:func:`~switchest.estimators.tables.kalman_posteriors`,
   :func:`~switchest.estimators.smoothing.smooth_mode_matched` with one mode), then, interval by
   interval, the posterior of its own instant given the whole record and the others at
   ``tau_hat``. Given ``x_{k+1}`` the measurements after ``k + 1`` do not depend on the instant
@@ -65,10 +66,12 @@ from __future__ import annotations
 import numpy as np
 
 from .._linalg import log_normalize, mixture_moments, symmetrize
-from ..discretize import Transition, interval
-from ..estimators import ModeKalmanFilter, SwitchTimeKalmanFilter
+from ..discretize import Transition
+from ..dyadic import dyadic_table, interval_transitions
+from ..estimators import SwitchTimeKalmanFilter
 from ..estimators.kalman import kf_predict, kf_update
 from ..estimators.smoothing import smooth_mode_matched
+from ..estimators.tables import kalman_posteriors
 from ..system import SwitchedLinearSystem
 from .data import Record
 from .markov_step import mode_term
@@ -115,17 +118,17 @@ def instant_posteriors(system: SwitchedLinearSystem, x0, P0, data: Record, offse
     table, entry, switched = grid_table(system, t, g)
     trial, before = np.nonzero(a != b)  # the intervals with a switch, into sample before + 1
     S, M = trial.size, table.F.shape[0]
-    segments = np.stack([a, b], axis=-1), offset[..., None]
-    kf = ModeKalmanFilter(system, x0, P0).run(y, u, t, modes=modes, segments=segments)
-    at = interval(system, np.diff(t)[before], segments[0][trial, before],
-                  segments[1][trial, before]) if S else Transition(*(
-                      np.zeros((0, *getattr(table, name).shape[1:])) for name in ("F", "G", "Qd")))
+    at = _switched(system, np.diff(t)[before], np.stack([a, b], axis=-1)[trial, before],
+                   offset[trial, before, None])
+    F, G, Qd = (np.concatenate([getattr(table, name), getattr(at, name)])
+                for name in ("F", "G", "Qd"))
     trans = np.zeros((N, K), dtype=np.int64)  # into each sample, the instants at ``offset``
     trans[:, 1:] = entry[np.arange(1, K), a]
     trans[trial, before + 1] = M + np.arange(S)
-    s = smooth_mode_matched(kf.x[:, :, None], kf.P[:, :, None], np.ones((N, K, 1)), u,
-                            np.concatenate([table.F, at.F]), np.concatenate([table.G, at.G]),
-                            np.concatenate([table.Qd, at.Qd]), trans[:, :, None], np.ones((1, 1)),
+    kf = kalman_posteriors(y, u, F, G, Qd, trans, system.C, system.R, modes,
+                           np.asarray(x0, dtype=float), np.asarray(P0, dtype=float))
+    s = smooth_mode_matched(kf.x[:, :, None], kf.P[:, :, None], np.ones((N, K, 1)), u, F, G,
+                            Qd, trans[:, :, None], np.ones((1, 1)),
                             lagged=True, timing="interval")  # one mode: the timings agree
     n = system.n_states
     x, P = s.x.copy(), s.P.copy()
@@ -176,6 +179,21 @@ def instant_posteriors(system: SwitchedLinearSystem, x0, P0, data: Record, offse
 
     return dict(weight=np.eye(L)[modes], x=modes_axis(x), P=modes_axis(P),
                 step_weight=step_weight, table=table, entry=rows, pairs=pairs, **comp)
+
+
+def _switched(system, length, modes, offsets) -> Transition:
+    """The exact transitions of the switched intervals ``(S,)`` of lengths ``length`` with the
+    segments ``modes (S, 2)``, ``offsets (S, 1)`` (Shankar et al. eqs (3)-(5)), composed from
+    each length's dyadic table (:func:`switchest.dyadic.interval_transitions`, as the
+    clairvoyant :class:`~switchest.estimators.ModeKalmanFilter` does): computed once, for the
+    filter and the smoother alike."""
+    S, n, l = length.size, system.n_states, system.n_inputs
+    F, G, Qd = np.zeros((S, n, n)), np.zeros((S, n, l)), np.zeros((S, n, n))
+    for h in np.unique(length):
+        at = length == h
+        tr = interval_transitions(dyadic_table(system, float(h)), modes[at], offsets[at])
+        F[at], G[at], Qd[at] = tr.F, tr.G, tr.Qd
+    return Transition(F, G, Qd)
 
 
 def _later(m_f, P_f, m_s, P_s) -> tuple[np.ndarray, np.ndarray]:

@@ -49,6 +49,10 @@ def record(system: SwitchedLinearSystem, y, u, t, modes) -> Record:
     """Check and flatten a fit's data (:func:`switchest.learn.fit` documents the arguments)."""
     if not isinstance(system, SwitchedLinearSystem):
         raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
+    if system.timing != "sample":
+        raise ValueError(f"system.timing must be 'sample' to fit: the E-steps model the mode of a "
+                         f"sample governing the interval after it (docs/conventions.rst), got "
+                         f"{system.timing!r}")
     m, l, L = system.n_outputs, system.n_inputs, system.n_modes
     y = float_array(y, "y", masked="nan")
     if y.ndim not in (2, 3) or y.shape[-1] != m:

@@ -114,7 +114,9 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         The filters' outlier gate in the E-step: the largest normalized innovation squared
         accepted; a rejected sample is missing for the fit (``FitResult.outlier``; each
         E-step gates under its own parameters, and the last one's samples are those of the
-        standard errors). ``"auto"``: the chi-square quantile of probability ``1 -``
+        standard errors; when a flagged set comes back after another, the gate flip-flops on
+        samples at its edge, and the union of the sets since then is held missing for the rest
+        of the fit, so that EM can stop). ``"auto"``: the chi-square quantile of probability ``1 -``
         :data:`GATE_PROBABILITY` with ``m`` degrees of freedom (a measurement of the model
         is rejected once in 1e9). ``None``: only measurements whose innovation overflows
         (a wild but finite one then enters the fit as any other).
@@ -196,15 +198,18 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     fitted the state's coordinates are not identified: ``A``, ``B``, ``C`` then get NaN and the
     others are conditional on them. The gated samples are missing in them too.
 
-    Floating-point warnings of numpy (a candidate of the ascent or of the finite differences
-    whose filter overflows, which gets no value) are not shown.
+    Floating-point warnings of numpy are not shown where an overflow is expected and handled:
+    a candidate of the direct ascent or of the standard errors' finite differences whose filter
+    or difference overflows gets no value (the ascent then takes the one-sided difference or
+    none, the information matrix gives no standard error along it), and a trial point of the
+    continuous-time Q step's line search whose gradient overflows ends it (the step is kept
+    only if it improves). Anywhere else an overflow is not hidden.
     """
     if progress is not None and not callable(progress):
         raise TypeError(f"progress must be a callable progress(iteration, loglik) or None, "
                         f"got {type(progress).__name__}")
-    with np.errstate(all="ignore"):
-        return _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_times,
-                    grid, gate, max_iter, tol, rng, e_step, progress)
+    return _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_times,
+                grid, gate, max_iter, tol, rng, e_step, progress)
 
 
 def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_times, grid,
@@ -228,11 +233,22 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
     ascends = bool(names) and not {"A", "B", "C"} & set(wanted)  # a direct ascent may finish
     trace: list[float] = []
     warned: set[int] = set()
+    maps: dict = {}  # the Q step's intensity maps, computed once per fit
     converged = False
     dropped = None  # the iteration whose approximate E-step found a lower likelihood
     accepted = None  # the parameters of trace[-1] and their E-step
+    flagged: list[np.ndarray] = []  # the gate's flagged sets, until one comes back
+    held = None  # the flagged set held missing, once the gate flip-flops
     for it in range(max_iter):
-        mom = expectation(system, transition, x0, P0, data, exact=exact, gate=gate, grid=grid)
+        if held is None:
+            mom = expectation(system, transition, x0, P0, data, exact=exact, gate=gate,
+                              grid=grid)
+            held = _held_if_cycling(mom.outlier, flagged)
+        if held is not None:  # the set held, the gate no longer moves it (overflow rejected)
+            kept = dataclasses.replace(data, y=np.where(held[..., None], np.nan, data.y))
+            mom = expectation(system, transition, x0, P0, kept, exact=exact, gate=None,
+                              grid=grid)
+            mom = dataclasses.replace(mom, outlier=mom.outlier | held)
         if not np.isfinite(mom.loglik):
             raise ValueError(_overflowed(it, mom.loglik, data))
         # the likelihoods of two iterations compare where their gates left the same samples
@@ -249,7 +265,8 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
             break
         if it == max_iter - 1 or (ascends and _slow(trace, tol)):
             break
-        system, transition = _maximize(system, transition, data, mom, wanted, tied, warned)
+        system, transition = _maximize(system, transition, data, mom, wanted, tied, warned,
+                                       maps)
     system, transition, mom = accepted
     used = dataclasses.replace(data, y=mom.y)  # the gated samples missing, as in the E-step
 
@@ -266,15 +283,17 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
 
         ascent_from = len(trace)
         start = float(logliks([(system, transition)])[0])
-        system, transition, converged = ascend(
-            system, transition, names, logliks, tied=tied, start_loglik=start,
-            max_iter=budget, tol=tol / max(1.0, abs(start)), report=report)
+        with np.errstate(over="ignore", invalid="ignore"):  # candidates beyond the range
+            system, transition, converged = ascend(
+                system, transition, names, logliks, tied=tied, start_loglik=start,
+                max_iter=budget, tol=tol / max(1.0, abs(start)), report=report)
     elif dropped is not None:
         warnings.warn(f"EM iteration {dropped}: the approximate E-step lowered the "
                       f"log-likelihood, so EM stopped at the iteration before (log-likelihood "
                       f"{trace[-1]:.10g}); with A, B or C estimated no direct ascent follows, and "
                       "the fit need not be a maximum", RuntimeWarning, stacklevel=3)
-    se = _standard_errors(system, transition, used, wanted, tied, mom, allowed, logliks)
+    with np.errstate(over="ignore", invalid="ignore"):  # differences beyond the range
+        se = _standard_errors(system, transition, used, wanted, tied, mom, allowed, logliks)
     if data.modes is not None and grid is None:
         warn_if_mistimed(system, x0, P0, used)
     period = np.diff(data.t)
@@ -285,6 +304,24 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
                      ascent_from=ascent_from, shared=tuple(n for n in _MATRICES if n in tied),
                      switch_times=switch_times, outlier=mom.outlier,
                      outliers=int(mom.outlier.sum()))
+
+
+def _held_if_cycling(outlier: np.ndarray, flagged: list[np.ndarray]) -> np.ndarray | None:
+    """The samples to hold missing ``(N, K)`` once the gate flip-flops, else None.
+
+    Each E-step gates under its own parameters, and the likelihoods of two iterations compare
+    only where their gates left the same samples (``fit``'s stopping rule). A sample on the
+    gate's edge may be rejected and accepted in turn, and EM would then never stop. When a
+    flagged set comes back after another, the union of the sets since its first occurrence is
+    held missing for the rest of the fit (the gate then rejects only overflowing
+    innovations), and EM continues on one record. ``flagged`` collects the sets seen."""
+    for first, seen in enumerate(flagged):
+        if np.array_equal(seen, outlier):
+            if first == len(flagged) - 1:  # the same as the last: no cycle
+                return None
+            return np.logical_or.reduce([*flagged[first:], outlier])
+    flagged.append(outlier)
+    return None
 
 
 def _estimate(estimate, system: SwitchedLinearSystem) -> tuple[str, ...]:
@@ -440,8 +477,9 @@ def _slow(trace: list[float], tol: float) -> bool:
     return bool(np.all(rates >= _SLOW) and rate < 1 and gains[-1] * rate / (1 - rate) > tol)
 
 
-def _maximize(system, transition, data: Record, mom, wanted, tied, warned):
-    """One round of conditional M-steps; returns the new system and transition."""
+def _maximize(system, transition, data: Record, mom, wanted, tied, warned, maps: dict):
+    """One round of conditional M-steps; returns the new system and transition. ``maps`` is the
+    fit's cache of the Q step's intensity maps (:func:`~switchest.learn.noise_step.fit_Q`)."""
     mass = mom.weight.sum(axis=(0, 1))
     for j in np.flatnonzero(mass < 1.0):
         if int(j) not in warned:
@@ -464,7 +502,7 @@ def _maximize(system, transition, data: Record, mom, wanted, tied, warned):
     system = system.replace(A=A, B=B, C=C, Q=Q, R=R)
     if "Q" in wanted:
         table = mom.table.under(system) if dynamics else mom.table
-        Q = fit_Q(system, data.u, mom, table, tied="Q" in tied)
+        Q = fit_Q(system, data.u, mom, table, tied="Q" in tied, cache=maps)
     if "R" in wanted:
         R = fit_R(C, R, mom, tied="R" in tied)
     keep = (mass < 1.0)[:, None, None]  # unidentifiable modes keep their own matrices

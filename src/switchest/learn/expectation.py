@@ -232,12 +232,13 @@ def _pair_chain(system: SwitchedLinearSystem, transition
     ``a L + b`` (module docstring): its system, whose mode ``(a, b)`` moves through mode
     ``a``'s ``A``, ``B``, ``Q`` and measures through mode ``b``'s ``C``, ``R``, its transition
     matrix and its prior at sample 0, which is only measured: the pair there is ``(r_0, r_0)``
-    with ``r_0`` uniform."""
+    with ``r_0`` uniform. The pair system is in the ``"interval"`` timing, the one in which it
+    rewrites the ``"sample"``-timed model exactly."""
     L = system.n_modes
     a, b = np.divmod(np.arange(L * L), L)
     parts = {"A": system.A[a], "B": system.B[a], "C": system.C[b], "Q": system.Q[a],
              "R": system.R[b]}
-    return system.replace(**parts), *_pair_markov(transition)
+    return system.replace(**parts, timing="interval"), *_pair_markov(transition)
 
 
 def _pair_markov(transition: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

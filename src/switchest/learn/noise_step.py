@@ -23,7 +23,9 @@ noise) stays noise-free: only the block on the other components is fitted.
   tau)`` (a row that switches from ``a`` to ``b`` at ``tau``, Shankar et al. eqs (3)-(5) with
   the exact noise; ``a = b`` without a switch; Van Loan 1978, the exact discretization of
   :mod:`switchest.discretize`) is linear in ``Q_a`` and ``Q_b`` together: its map is computed
-  once per row on a basis of symmetric matrices of each fitted block, and the objective is
+  once per row on a basis of symmetric matrices of each fitted block (once per fit: ``A`` and
+  the rows do not change between its M-steps, and ``fit_Q``'s ``cache`` keeps the maps and
+  the share of the modes not fitted), and the objective is
   minimized over all the fitted blocks at once, ``Q = L L'`` (Cholesky factors, BFGS with the
   analytic gradient ``d/dQ = sum Qd*(n Qd^-1 - Qd^-1 S Qd^-1)``, ``Qd*`` the adjoint map), from
   the current ``Q``; the result is kept only if it does not increase the objective: a
@@ -132,11 +134,13 @@ def row_sums(mom: Moments, u: np.ndarray, table: StepTable) -> tuple[np.ndarray,
 
 
 def fit_Q(system: SwitchedLinearSystem, u: np.ndarray, mom: Moments, table: StepTable, *,
-          tied: bool) -> np.ndarray:
+          tied: bool, cache: dict | None = None) -> np.ndarray:
     """The Q step: new ``Q (L, n, n)`` (the intensity of a continuous system), module
     docstring. ``table`` holds the E-step's rows under ``system`` (those of the E-step, or
     rediscretized with dynamics an earlier conditional step updated); a mode (or tied group)
-    that drives no interval keeps its ``Q``."""
+    that drives no interval keeps its ``Q``. ``cache``, a dict the caller keeps over the
+    M-steps of one fit, holds the continuous-time maps of :func:`intensity_maps` and the noise
+    of the modes not fitted, keyed by ``A`` and the table's rows (what they depend on)."""
     count, S = row_sums(mom, u, table)
     Q, n, L = system.Q, system.n_states, system.n_modes
     involved = np.zeros((len(count), L), dtype=bool)  # the modes of each row's segments
@@ -157,12 +161,8 @@ def fit_Q(system: SwitchedLinearSystem, u: np.ndarray, mom: Moments, table: Step
             new[group] = _place(block, idx, n)
         return new
     use = count > 0
-    return _intensity(system, _rows(table, use), fitted, count[use], S[use])
-
-
-def _rows(table: StepTable, use: np.ndarray) -> StepTable:
-    return StepTable(table.F[use], table.G[use], table.Qd[use], table.length[use],
-                     table.modes[use], table.offset[use])
+    return _intensity(system, table, use, fitted, count[use], S[use],
+                      {} if cache is None else cache)
 
 
 def _basis(k: int) -> list[tuple[int, int]]:
@@ -190,16 +190,28 @@ def intensity_maps(system: SwitchedLinearSystem, table: StepTable, modes, idx) -
     return np.stack(maps)
 
 
-def _intensity(system, table: StepTable, fitted, count, S) -> np.ndarray:
+def _intensity(system, table: StepTable, use, fitted, count, S, cache: dict) -> np.ndarray:
     """Minimize ``sum n log det Qd(Q) + tr(Qd(Q)^-1 S)`` over the fitted blocks ``Q = L L'``
-    together, from the current ``Q`` (module docstring); the current ``Q`` if no better point
-    is found."""
+    together, on the rows ``use`` of ``table``, from the current ``Q`` (module docstring); the
+    current ``Q`` if no better point is found. The maps of every row are taken from ``cache``
+    (computed there at the first M-step of a fit)."""
     n = system.n_states
     held = system.Q.copy()  # the modes not fitted keep theirs: their fixed share of each Qd
     for group, _ in fitted:
         held[group] = 0.0
-    fixed = table.under(system.replace(Q=held)).Qd
-    maps = [intensity_maps(system, table, group, idx) for group, idx in fitted]
+    rows = (system.A.tobytes(), table.length.tobytes(), table.modes.tobytes(),
+            table.offset.tobytes())  # what the maps depend on (Qd is linear in Q)
+
+    def cached(key, compute):
+        if key not in cache:
+            cache[key] = compute()
+        return cache[key]
+
+    fixed = cached((rows, "held", held.tobytes()),
+                   lambda: table.under(system.replace(Q=held)).Qd)[use]
+    maps = [cached((rows, tuple(group), tuple(idx)),
+                   lambda group=group, idx=idx: intensity_maps(system, table, group, idx))[:, use]
+            for group, idx in fitted]
     pairs = [_basis(idx.size) for _, idx in fitted]
     lows = [np.tril_indices(idx.size) for _, idx in fitted]
     sizes = np.cumsum([0] + [low[0].size for low in lows])
@@ -242,8 +254,11 @@ def _intensity(system, table: StepTable, fitted, count, S) -> np.ndarray:
         np.linalg.cholesky(q + 1e-12 * np.trace(q) / q.shape[0] * np.eye(q.shape[0]))[low]
         for q, low in zip(starts, lows)])
     f0, _ = objective(theta0)
-    res = minimize(objective, theta0, jac=True, method="BFGS",
-                   options={"gtol": 1e-10 * max(1.0, abs(f0)), "maxiter": 500})
+    # a trial point of the line search may send Qd towards singular and the gradient beyond
+    # the floating-point range: BFGS then stops, and its result is kept only if it improves
+    with np.errstate(over="ignore", invalid="ignore"):
+        res = minimize(objective, theta0, jac=True, method="BFGS",
+                       options={"gtol": 1e-10 * max(1.0, abs(f0)), "maxiter": 500})
     new = system.Q.copy()
     if not np.isfinite(res.fun) or res.fun > f0:
         return new

@@ -95,7 +95,8 @@ def _step(system: SwitchedLinearSystem, transition: np.ndarray, entry) -> float:
     if name in ("A", "B", "C"):  # relative to the entry, or to the matrix for a small one
         return _REL_STEP * max(abs(stack[group[0], a, b]), 1e-3 * np.abs(stack[group[0]]).max(),
                                1e-12)
-    return _REL_STEP * float(np.sqrt(stack[group[0], a, a] * stack[group[0], b, b]))
+    # sqrt(Q_aa) sqrt(Q_bb): the product of the variances overflows beyond 1.3e154 each
+    return _REL_STEP * float(np.sqrt(stack[group[0], a, a]) * np.sqrt(stack[group[0], b, b]))
 
 
 def _with(system: SwitchedLinearSystem, transition: np.ndarray, free, theta
