@@ -309,10 +309,10 @@ typedef struct {
 
 /* Sample k of the block's smoothed outputs: log_s (L, B) normalized over the modes into prob
  * (L, B) (total (B,) scratch), x (L, n, B), P (L, n, n, B) and prob written at sample k of
- * x_s, P_s, prob_s, and the mixture's moments (cw scratch) and most probable mode at sample k
- * of x_c, P_c, mode_c. Returns whether every lane's x, P and prob are finite (nothing is written
- * otherwise). */
-static int write_(se_int n, se_int L, se_int B, se_int K, const double *restrict x,
+ * x_s, P_s (where Ns > 0: the mode-matched outputs were asked for), prob_s, and the mixture's
+ * moments (cw scratch) and most probable mode at sample k of x_c, P_c, mode_c. Returns whether
+ * every lane's x, P and prob are finite (nothing is written otherwise). */
+static int write_(se_int n, se_int L, se_int B, se_int K, se_int Ns, const double *restrict x,
                   const double *restrict P, double *restrict log_s, double *restrict prob,
                   double *restrict total, se_int i0, se_int nb, se_int k, double *restrict x_s,
                   double *restrict P_s, double *restrict prob_s, const combine_ws *cw,
@@ -334,7 +334,8 @@ static int write_(se_int n, se_int L, se_int B, se_int K, const double *restrict
     }
     if (!finite)
         return 0;
-    se_scatter_modes(n, L, B, K, x, P, i0, nb, x_s + k * L * n, P_s + k * L * n * n);
+    if (Ns > 0)
+        se_scatter_modes(n, L, B, K, x, P, i0, nb, x_s + k * L * n, P_s + k * L * n * n);
     se_scatter_rows(L, B, K, prob, i0, nb, prob_s + k * L);
     se_combine(n, L, B, x, P, prob, log_s, nb, cw->x, cw->P, cw->best);
     for (se_int b = 0; b < nb; b++) {
@@ -421,8 +422,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         se_gather_modes(n, L, B, K, x_f + (K - 1) * L * n, P_f + (K - 1) * L * nn, i0, nb, xf,
                         Pf);
         se_gather_rows(L, B, K, log_prob_f + (K - 1) * L, i0, nb, lmu);
-        if (!write_(n, L, B, K, xf, Pf, lmu, prob, total, i0, nb, K - 1, x_s, P_s, prob_s,
-                    &cw, x_c, P_c, mode_c)) {
+        if (!write_(n, L, B, K, Ns, xf, Pf, lmu, prob, total, i0, nb, K - 1, x_s, P_s,
+                    prob_s, &cw, x_c, P_c, mode_c)) {
             status = SE_NOT_FINITE;
             goto done;
         }
@@ -483,8 +484,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
             }
             for (se_int e = 0; e < L * B; e++) /* log mu_i(k|K) = log mu_i(k|k) + log Z_i + const */
                 lz[e] += lmu[e];
-            if (!write_(n, L, B, K, xo, Po, lz, prob, total, i0, nb, k, x_s, P_s, prob_s, &cw,
-                        x_c, P_c, mode_c)) {
+            if (!write_(n, L, B, K, Ns, xo, Po, lz, prob, total, i0, nb, k, x_s, P_s, prob_s,
+                        &cw, x_c, P_c, mode_c)) {
                 status = SE_NOT_FINITE;
                 goto done;
             }
