@@ -1139,13 +1139,14 @@ static void se_swap_rows(se_int q, se_int B, se_int j, const se_int *restrict pi
  * largest modulus on or below the diagonal, LAPACK dgetrf's rule, what numpy.linalg.solve and
  * slogdet factor with): P A = L U with L unit lower triangular in the strict lower triangle of
  * A and U in its upper triangle, whole rows exchanged. piv[j, b] is the row exchanged with row j
- * at step j; log_det = sum_j log |U_jj| = log |det A|. A zero pivot leaves infinities or NaN
- * (no check: the caller's result is then not finite). best (B,) is scratch. */
+ * at step j; log_det = log |det A| = log prod_j |U_jj|, one logarithm of the product, or
+ * sum_j log |U_jj| in a lane whose product leaves the normal range (over- or underflow: the
+ * logarithms of the pivots there cost n times as much; the two agree to rounding). A zero
+ * pivot leaves infinities or NaN (no check: the caller's result is then not finite).
+ * best (B,) is scratch. */
 void se_lu(se_int n, se_int B, double *restrict A, se_int *restrict piv, se_int nb,
            double *restrict log_det, double *restrict best)
 {
-    for (se_int b = 0; b < nb; b++)
-        log_det[b] = 0.0;
     for (se_int j = 0; j < n; j++) {
         se_int *pj = piv + j * B;
         const double *Ajj = A + (j * n + j) * B;
@@ -1163,8 +1164,6 @@ void se_lu(se_int n, se_int B, double *restrict A, se_int *restrict piv, se_int 
             }
         }
         se_swap_rows(n, B, j, piv, A, nb);
-        for (se_int b = 0; b < nb; b++)
-            log_det[b] += log(fabs(Ajj[b]));
         for (se_int r = j + 1; r < n; r++) {
             double *Arj = A + (r * n + j) * B;
             for (se_int b = 0; b < nb; b++)
@@ -1176,6 +1175,20 @@ void se_lu(se_int n, se_int B, double *restrict A, se_int *restrict piv, se_int 
                     Arc[b] -= Arj[b] * Ajc[b];
             }
         }
+    }
+    for (se_int b = 0; b < nb; b++) /* |det A| = prod_j |U_jj| (row j of U is final) */
+        best[b] = 1.0;
+    for (se_int j = 0; j < n; j++)
+        for (se_int b = 0; b < nb; b++)
+            best[b] *= fabs(A[(j * n + j) * B + b]);
+    for (se_int b = 0; b < nb; b++) {
+        if (isnormal(best[b])) {
+            log_det[b] = log(best[b]);
+            continue;
+        }
+        log_det[b] = 0.0;
+        for (se_int j = 0; j < n; j++)
+            log_det[b] += log(fabs(A[(j * n + j) * B + b]));
     }
 }
 
