@@ -142,18 +142,36 @@ void se_observe(se_int m, se_int B, const double *restrict y, se_int nb, double 
         }
 }
 
+/* lanes summed in registers at a time by se_lane_dot (four AVX2 registers) */
+#define SE_DOT_CHUNK 16
+
 /* o[b] = sum_k X_k[b] Y_k[b] per lane, k = 0 .. q-1, X_k = X + k sx and Y_k = Y + k sy being
  * lane rows (.., B) (strides in doubles): one entry of a product of lane matrices (F P, P C',
- * K R, a mixture's mean), from 0, its terms added in the order of k. */
+ * K R, a mixture's mean), from 0, its terms added in the order of k. The sums of SE_DOT_CHUNK
+ * lanes at a time stay in registers over k (summed into o in memory, every term loaded and
+ * stored again: 1.5-2x the time on n = 4); the lanes beyond the last whole chunk one by one,
+ * the same additions in the same order. */
 static inline void se_lane_dot(se_int q, const double *restrict X, se_int sx,
                                const double *restrict Y, se_int sy, se_int nb, double *restrict o)
 {
-    for (se_int b = 0; b < nb; b++)
-        o[b] = 0.0;
-    for (se_int k = 0; k < q; k++) {
-        const double *Xk = X + k * sx, *Yk = Y + k * sy;
-        for (se_int b = 0; b < nb; b++)
-            o[b] += Xk[b] * Yk[b];
+    se_int b = 0;
+    for (; b + SE_DOT_CHUNK <= nb; b += SE_DOT_CHUNK) {
+        double acc[SE_DOT_CHUNK];
+        for (se_int c = 0; c < SE_DOT_CHUNK; c++)
+            acc[c] = 0.0;
+        for (se_int k = 0; k < q; k++) {
+            const double *Xk = X + k * sx + b, *Yk = Y + k * sy + b;
+            for (se_int c = 0; c < SE_DOT_CHUNK; c++)
+                acc[c] += Xk[c] * Yk[c];
+        }
+        for (se_int c = 0; c < SE_DOT_CHUNK; c++)
+            o[b + c] = acc[c];
+    }
+    for (; b < nb; b++) {
+        double acc = 0.0;
+        for (se_int k = 0; k < q; k++)
+            acc += X[k * sx + b] * Y[k * sy + b];
+        o[b] = acc;
     }
 }
 
