@@ -1134,11 +1134,17 @@ void se_lane_product(se_int p, se_int q, se_int r, se_int B, const double *restr
 }
 
 /* The rows j and piv[j, b] of each lane's X (n, q, B) exchanged, in the lanes that chose another
- * row than j (none, usually: I + P Omega is dominated by its diagonal). */
+ * row than j (none, usually: I + P Omega is dominated by its diagonal, so one vector pass that
+ * finds no such lane saves the lane-by-lane loop with its branch). */
 static void se_swap_rows(se_int q, se_int B, se_int j, const se_int *restrict piv,
                          double *restrict X, se_int nb)
 {
     const se_int *pj = piv + j * B;
+    se_int moved = 0;
+    for (se_int b = 0; b < nb; b++)
+        moved |= pj[b] ^ j;
+    if (!moved)
+        return;
     for (se_int b = 0; b < nb; b++) {
         const se_int r = pj[b];
         if (r == j)
