@@ -118,10 +118,25 @@ void se_scatter_modes(se_int n, se_int L, se_int B, se_int K, const double *rest
             }
 }
 
-/* out[r, c, b] = table[index[b], r, c]: each lane's matrix from a table. */
+/* out[r, c, b] = table[index[b], r, c]: each lane's matrix from a table. When every lane reads
+ * the same matrix (trials sampled at the same times: the usual case) it is broadcast over the
+ * lanes by vector stores instead of being gathered entry by entry per lane. */
 void se_gather_matrices(se_int p, se_int q, se_int B, const double *restrict table,
                         const se_int *restrict index, se_int nb, double *restrict out)
 {
+    const se_int first = nb > 0 ? index[0] : 0;
+    se_int differ = 0;
+    for (se_int b = 0; b < nb; b++)
+        differ |= index[b] ^ first;
+    if (!differ) {
+        const double *t = table + first * p * q;
+        for (se_int e = 0; e < p * q; e++) {
+            const double v = t[e];
+            for (se_int b = 0; b < nb; b++)
+                out[e * B + b] = v;
+        }
+        return;
+    }
     for (se_int r = 0; r < p; r++)
         for (se_int c = 0; c < q; c++)
             for (se_int b = 0; b < nb; b++)
