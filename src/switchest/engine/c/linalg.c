@@ -40,6 +40,17 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The Kalman kernel runs the covariance equations once per group of trials that share their
+ * covariance (kalman.c): one lane, nb = 1, in the common case of a block in one group. Each of
+ * those equations (se_predict, se_innovation, se_correct, se_joseph_lost) is therefore written
+ * once, as a static body of its lane count nb, and compiled twice by its public function:
+ * for nb == 1 apart, with every call inlined (gcc's flatten), where each lane loop becomes
+ * straight-line code, and for any nb. The same operations in the same order either way (the
+ * same bits); on 10 trials of the vehicle (n = 4, m = 2), whose covariances reach their
+ * fixed point only after 116 of 200 samples, the one-lane loops' set-up had cost more than
+ * their arithmetic. */
+#define SE_ONE_LANE_APART __attribute__((flatten))
+
 /* ---- gathering and scattering a block of trials ------------------------------------------ */
 
 /* out[a, b] = data[i0 + b, k, a]: sample k of trials i0 .. i0 + nb - 1. */
@@ -222,15 +233,28 @@ void se_predict_mean(se_int n, se_int l, se_int B, double *restrict x, const dou
  * Qd is the process-noise covariance of the exact discretization (symmetric; its upper
  * triangle is read). P comes back exactly symmetric: its upper triangle is computed and
  * mirrored. FP (n, n, B) and xs (n, B) are scratch. */
-void se_predict(se_int n, se_int l, se_int B, double *restrict x, double *restrict P,
-                const double *restrict F, const double *restrict G, const double *restrict u,
-                const double *restrict Qd, se_int nb, double *restrict FP, double *restrict xs)
+static inline void predict_(se_int n, se_int l, se_int B, double *restrict x, double *restrict P,
+                            const double *restrict F, const double *restrict G,
+                            const double *restrict u, const double *restrict Qd, se_int nb,
+                            double *restrict FP, double *restrict xs)
 {
     se_predict_mean(n, l, B, x, F, G, u, nb, xs);
     for (se_int i = 0; i < n; i++) /* FP = F P */
         for (se_int j = 0; j < n; j++)
             se_lane_dot(n, F + i * n * B, B, P + j * B, n * B, nb, FP + (i * n + j) * B);
     se_symmetric_sum(n, n, B, Qd, FP, F, nb, P);
+}
+
+SE_ONE_LANE_APART void se_predict(se_int n, se_int l, se_int B, double *restrict x,
+                                  double *restrict P, const double *restrict F,
+                                  const double *restrict G, const double *restrict u,
+                                  const double *restrict Qd, se_int nb, double *restrict FP,
+                                  double *restrict xs)
+{
+    if (nb == 1)
+        predict_(n, l, B, x, P, F, G, u, Qd, 1, FP, xs);
+    else
+        predict_(n, l, B, x, P, F, G, u, Qd, nb, FP, xs);
 }
 
 /* out[:, :, b] = source[:, :, b] in the first nb lanes of (p, q, B) arrays. */
@@ -368,7 +392,7 @@ static void se_whiten(se_int m, se_int B, const double *restrict e, const double
  * Returns SE_OK; SE_NOT_FINITE if a lane's S has a non-finite diagonal; else
  * SE_NOT_POSITIVE_DEFINITE if a lane's factorization failed (with report: again, or where its
  * P needed no repair), bad (B,) then marking those lanes (the others are complete). */
-se_int se_innovation(SE_INNOVATION_PARAMETERS)
+static inline se_int innovation_(SE_INNOVATION_PARAMETERS)
 {
     double *log_det = work, *det = work + B, *pivot = work + 2 * B;
     int repaired = 0;
@@ -425,6 +449,15 @@ se_int se_innovation(SE_INNOVATION_PARAMETERS)
                 return SE_NOT_POSITIVE_DEFINITE;
         repaired = 1;
     }
+}
+
+SE_ONE_LANE_APART se_int se_innovation(SE_INNOVATION_PARAMETERS)
+{
+    if (nb == 1)
+        return innovation_(n, m, B, x, P, y, C, R, obs, n_obs, 1, e, PCt, chol, scale, z, nis,
+                           loglik, work, bad, report);
+    return innovation_(n, m, B, x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis,
+                       loglik, work, bad, report);
 }
 
 /* Equilibrated Cholesky factorization, in place, of each lane's symmetric S (m, m) held in
@@ -561,12 +594,12 @@ static void se_back_substitute(se_int m, se_int B, const double *restrict chol,
  * is computed and mirrored, so P is exactly symmetric. The other lanes get K = 0, which leaves
  * x and P exactly as they were. z is overwritten; prior (n, n, B) gets the covariance before
  * the update (for se_joseph_lost). */
-void se_correct(se_int n, se_int m, se_int B, double *restrict x, double *restrict P,
-                const double *restrict C, const double *restrict R,
-                const uint8_t *restrict use, se_int nb, const double *restrict PCt,
-                const double *restrict chol, const double *restrict scale, double *restrict z,
-                double *restrict K, double *restrict T, double *restrict AP,
-                double *restrict prior)
+static inline void correct_(se_int n, se_int m, se_int B, double *restrict x,
+                            double *restrict P, const double *restrict C,
+                            const double *restrict R, const uint8_t *restrict use, se_int nb,
+                            const double *restrict PCt, const double *restrict chol,
+                            const double *restrict scale, double *restrict z, double *restrict K,
+                            double *restrict T, double *restrict AP, double *restrict prior)
 {
     for (se_int i = 0; i < n; i++)
         for (se_int j = 0; j < n; j++)
@@ -608,6 +641,20 @@ void se_correct(se_int n, se_int m, se_int B, double *restrict x, double *restri
     se_symmetric_sum(n, m, B, AP, T, K, nb, P); /* P = A P + T K' */
 }
 
+SE_ONE_LANE_APART void se_correct(se_int n, se_int m, se_int B, double *restrict x,
+                                  double *restrict P, const double *restrict C,
+                                  const double *restrict R, const uint8_t *restrict use,
+                                  se_int nb, const double *restrict PCt,
+                                  const double *restrict chol, const double *restrict scale,
+                                  double *restrict z, double *restrict K, double *restrict T,
+                                  double *restrict AP, double *restrict prior)
+{
+    if (nb == 1)
+        correct_(n, m, B, x, P, C, R, use, 1, PCt, chol, scale, z, K, T, AP, prior);
+    else
+        correct_(n, m, B, x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP, prior);
+}
+
 /* The per-lane half of se_correct: x <- x + P C' S^-1 e in the lanes where use is true
  * (Shankar et al. eq. (9)), from z as se_innovation_mean left it and a factorization of S with
  * its P C' computed elsewhere (each lane's copy of its covariance's); z is overwritten with
@@ -628,9 +675,9 @@ void se_correct_mean(se_int n, se_int m, se_int B, double *restrict x, double *r
  * longer a covariance (a correlation beyond 1 + sqrt(eps), or a NaN), that error has swamped
  * P+: lost[b] is set there, among the lanes that use the measurement, for
  * se_information_form. root (n, B) is scratch. */
-int se_joseph_lost(se_int n, se_int B, const double *restrict P, const double *restrict prior,
-                   const uint8_t *restrict use, se_int nb, double *restrict root,
-                   uint8_t *restrict lost)
+static inline int joseph_lost_(se_int n, se_int B, const double *restrict P,
+                               const double *restrict prior, const uint8_t *restrict use,
+                               se_int nb, double *restrict root, uint8_t *restrict lost)
 {
     for (se_int b = 0; b < nb; b++)
         lost[b] = 0;
@@ -653,6 +700,14 @@ int se_joseph_lost(se_int n, se_int B, const double *restrict P, const double *r
         found |= lost[b];
     }
     return found;
+}
+
+SE_ONE_LANE_APART int se_joseph_lost(se_int n, se_int B, const double *restrict P,
+                                     const double *restrict prior, const uint8_t *restrict use,
+                                     se_int nb, double *restrict root, uint8_t *restrict lost)
+{
+    return nb == 1 ? joseph_lost_(n, B, P, prior, use, 1, root, lost)
+                   : joseph_lost_(n, B, P, prior, use, nb, root, lost);
 }
 
 /* The posterior of each lost lane (se_joseph_lost) that observed something, in information
