@@ -168,37 +168,39 @@ void se_observe(se_int m, se_int B, const double *restrict y, se_int nb, double 
         }
 }
 
-/* lanes summed in registers at a time by se_lane_dot (four AVX2 registers) */
-#define SE_DOT_CHUNK 16
+/* o[c] = sum_k X_k[c] Y_k[c] for the w lanes c < w, from 0, its terms added in the order of k
+ * (w a constant where it is inlined: the w sums stay in registers over k) */
+static inline void se_dot_chunk(se_int w, se_int q, const double *restrict X, se_int sx,
+                                const double *restrict Y, se_int sy, double *restrict o)
+{
+    double acc[16];
+    for (se_int c = 0; c < w; c++)
+        acc[c] = 0.0;
+    for (se_int k = 0; k < q; k++) {
+        const double *Xk = X + k * sx, *Yk = Y + k * sy;
+        for (se_int c = 0; c < w; c++)
+            acc[c] += Xk[c] * Yk[c];
+    }
+    for (se_int c = 0; c < w; c++)
+        o[c] = acc[c];
+}
 
 /* o[b] = sum_k X_k[b] Y_k[b] per lane, k = 0 .. q-1, X_k = X + k sx and Y_k = Y + k sy being
  * lane rows (.., B) (strides in doubles): one entry of a product of lane matrices (F P, P C',
- * K R, a mixture's mean), from 0, its terms added in the order of k. The sums of SE_DOT_CHUNK
- * lanes at a time stay in registers over k (summed into o in memory, every term loaded and
- * stored again: 1.5-2x the time on n = 4); the lanes beyond the last whole chunk one by one,
- * the same additions in the same order. */
+ * K R, a mixture's mean), from 0, its terms added in the order of k. The sums of 16 lanes at a
+ * time, then of 8 (a block of few trials), then of one, stay in registers over k (summed into
+ * o in memory, every term loaded and stored again: 1.5-2x the time on n = 4); the same
+ * additions in the same order in every lane. */
 static inline void se_lane_dot(se_int q, const double *restrict X, se_int sx,
                                const double *restrict Y, se_int sy, se_int nb, double *restrict o)
 {
     se_int b = 0;
-    for (; b + SE_DOT_CHUNK <= nb; b += SE_DOT_CHUNK) {
-        double acc[SE_DOT_CHUNK];
-        for (se_int c = 0; c < SE_DOT_CHUNK; c++)
-            acc[c] = 0.0;
-        for (se_int k = 0; k < q; k++) {
-            const double *Xk = X + k * sx + b, *Yk = Y + k * sy + b;
-            for (se_int c = 0; c < SE_DOT_CHUNK; c++)
-                acc[c] += Xk[c] * Yk[c];
-        }
-        for (se_int c = 0; c < SE_DOT_CHUNK; c++)
-            o[b + c] = acc[c];
-    }
-    for (; b < nb; b++) {
-        double acc = 0.0;
-        for (se_int k = 0; k < q; k++)
-            acc += X[k * sx + b] * Y[k * sy + b];
-        o[b] = acc;
-    }
+    for (; b + 16 <= nb; b += 16)
+        se_dot_chunk(16, q, X + b, sx, Y + b, sy, o + b);
+    for (; b + 8 <= nb; b += 8)
+        se_dot_chunk(8, q, X + b, sx, Y + b, sy, o + b);
+    for (; b < nb; b++)
+        se_dot_chunk(1, q, X + b, sx, Y + b, sy, o + b);
 }
 
 /* ---- time update --------------------------------------------------------------------------- */
