@@ -130,6 +130,18 @@ def test_a_rejected_sample_is_missing():
         np.testing.assert_array_equal(getattr(flagged, name), getattr(missing, name))
 
 
+@pytest.mark.parametrize("timing", TIMINGS)
+def test_without_the_mode_matched_outputs_the_same_numbers(timing):
+    """``modes_out=False`` (what ``IMMFilter.smooth`` asks for): no mode-matched posteriors,
+    and the bits of the mode probabilities and of the mixture's moments of a full run."""
+    args = case(8, 3, timing=timing)
+    full, short = (two_filter_run(**args, timing=timing, lanes=4, modes_out=modes)
+                   for modes in (True, False))
+    assert short.x_modes is None and short.P_modes is None and short.status == OK
+    for name in ("mode_prob", "x", "P", "mode"):
+        np.testing.assert_array_equal(getattr(short, name), getattr(full, name))
+
+
 def test_the_same_numbers_on_one_and_two_threads():
     """A batch split over two threads (whole blocks of lanes each) gives the bits of one."""
     rng = np.random.default_rng(12)

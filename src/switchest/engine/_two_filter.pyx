@@ -6,10 +6,10 @@ start_binding()
 
 cdef extern from "two_filter.h":
     se_int se_two_filter_backward(se_int n, se_int m, se_int l, se_int L, se_int N, se_int K,
-                                  se_int T, se_int TK, const double *x_f, const double *P_f,
-                                  const double *log_prob_f, const double *y, const double *u,
-                                  const uint8_t *outlier, const double *F, const double *G,
-                                  const double *Qd, const se_int *trans,
+                                  se_int T, se_int TK, se_int Ns, const double *x_f,
+                                  const double *P_f, const double *log_prob_f, const double *y,
+                                  const double *u, const uint8_t *outlier, const double *F,
+                                  const double *G, const double *Qd, const se_int *trans,
                                   const double *log_transition, const double *C,
                                   const double *R, se_int lanes, int sample_timing,
                                   double *x_s, double *P_s, double *prob_s, double *x_c,
@@ -48,19 +48,20 @@ def two_filter_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f
     shaped(log_transition, 2, L, L, -1, -1, -1, _KERNEL)
     shaped(C, 3, L, m, n, -1, -1, _KERNEL)
     shaped(R, 3, L, m, m, -1, -1, _KERNEL)
-    shaped(x_s, 4, N, K, L, n, -1, _KERNEL)
-    shaped(P_s, 5, N, K, L, n, n, _KERNEL)
+    shaped(x_s, 4, -1, K, L, n, -1, _KERNEL)
+    cdef se_int Ns = x_s.shape[0]
+    shaped(P_s, 5, Ns, K, L, n, n, _KERNEL)
     shaped(prob_s, 3, N, K, L, -1, -1, _KERNEL)
     shaped(x_c, 3, N, K, n, -1, -1, _KERNEL)
     shaped(P_c, 4, N, K, n, n, -1, _KERNEL)
     shaped(mode_c, 2, N, K, -1, -1, -1, _KERNEL)
     shaped(report, 1, 2, -1, -1, -1, -1, _KERNEL)
-    if (T != 1 and T != N) or lanes < 1:
+    if (T != 1 and T != N) or (Ns != 0 and Ns != N) or lanes < 1:
         raise ValueError("the two-filter smoother's arrays do not agree in shape")
     cdef se_int status
     with nogil:
         status = se_two_filter_backward(
-            n, m, l, L, N, K, T, TK, cfptr(x_f), cfptr(P_f), cfptr(log_prob_f), cfptr(y),
+            n, m, l, L, N, K, T, TK, Ns, cfptr(x_f), cfptr(P_f), cfptr(log_prob_f), cfptr(y),
             cfptr(u), bptr(outlier), cfptr(F), cfptr(G), cfptr(Qd), iptr(trans),
             cfptr(log_transition), cfptr(C), cfptr(R), lanes, sample_timing, fptr(x_s),
             fptr(P_s), fptr(prob_s), fptr(x_c), fptr(P_c), iptr(mode_c), fptr(report))

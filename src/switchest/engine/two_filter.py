@@ -48,8 +48,9 @@ class TwoFilterOutput(Reported):
 
     Attributes
     ----------
-    x_modes, P_modes : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
-        Smoothed mode-matched posteriors ``x_i(k|K)``, ``P_i(k|K)``.
+    x_modes, P_modes : ndarray or None, shapes (N, K, L, n), (N, K, L, n, n)
+        Smoothed mode-matched posteriors ``x_i(k|K)``, ``P_i(k|K)`` (None when not asked
+        for).
     mode_prob : ndarray, shape (N, K, L)
         Smoothed mode probabilities ``mu_i(k|K)``.
     x, P : ndarray, shapes (N, K, n), (N, K, n, n)
@@ -60,8 +61,8 @@ class TwoFilterOutput(Reported):
         The kernel's report (:class:`~switchest.engine.Reported`; nothing is repaired here).
     """
 
-    x_modes: np.ndarray
-    P_modes: np.ndarray
+    x_modes: np.ndarray | None
+    P_modes: np.ndarray | None
     mode_prob: np.ndarray
     x: np.ndarray
     P: np.ndarray
@@ -69,8 +70,8 @@ class TwoFilterOutput(Reported):
 
 
 def two_filter_run(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transition, C, R, *,
-                   outlier=None, timing: str = "interval",
-                   lanes: int = LANES) -> TwoFilterOutput:
+                   outlier=None, timing: str = "interval", lanes: int = LANES,
+                   modes_out: bool = True) -> TwoFilterOutput:
     """The two-filter smoother's backward pass over ``N`` trials of ``K`` samples.
 
     Parameters
@@ -98,6 +99,9 @@ def two_filter_run(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transitio
         Which mode governs the interval ``k -> k+1``: that of sample ``k`` or of ``k+1``.
     lanes : int
         Trials per SIMD block (the results do not depend on it).
+    modes_out : bool
+        Whether to report the smoothed mode-matched posteriors (``x_modes``, ``P_modes``;
+        None otherwise, and their writing is saved).
 
     Returns
     -------
@@ -127,18 +131,21 @@ def two_filter_run(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transitio
     with np.errstate(divide="ignore"):
         log_prob, log_transition = np.log(mode_prob), np.log(transition)
     lanes = positive_int(lanes, "lanes")
-    out = TwoFilterOutput(np.empty((N, K, L, n)), np.empty((N, K, L, n, n)),
-                          np.empty((N, K, L)), np.empty((N, K, n)), np.empty((N, K, n, n)),
+    size = (N, K, L) if modes_out else (0, K, L)  # zero trials: the kernel writes none
+    out = TwoFilterOutput(np.empty((*size, n)), np.empty((*size, n, n)), np.empty((N, K, L)),
+                          np.empty((N, K, n)), np.empty((N, K, n, n)),
                           np.empty((N, K), dtype=np.int64), status=OK)
     mine, shared = True, False  # per-trial arrays, sliced to each thread's trials; the rest
+    # (trans of first axis 1 serves every trial; without modes_out the zero-trial x_modes)
     outcome = run_split(_backward, [
         (x_modes, mine), (P_modes, mine), (log_prob, mine), (y, mine), (u, mine),
         (flags, mine), (F, shared), (G, shared), (Qd, shared), (trans, len(trans) > 1),
         (log_transition, shared), (C, shared), (R, shared), (lanes, shared),
-        (timing == "sample", shared), (out.x_modes, mine), (out.P_modes, mine),
+        (timing == "sample", shared), (out.x_modes, modes_out), (out.P_modes, modes_out),
         (out.mode_prob, mine), (out.x, mine), (out.P, mine), (out.mode, mine)],
         trials=N, samples=K, block=lanes)
-    return replace(out, **outcome._asdict())
+    out = replace(out, **outcome._asdict())
+    return out if modes_out else replace(out, x_modes=None, P_modes=None)
 
 
 def _backward(x_f, P_f, log_prob_f, y, u, outlier, F, G, Qd, trans, log_transition, C, R,

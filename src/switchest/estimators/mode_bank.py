@@ -371,7 +371,7 @@ class ModeBankFilter(Estimator):
             s = two_filter_smooth(
                 fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.y, fwd.u, fwd.F, fwd.G, fwd.Qd,
                 fwd.trans, fwd.transition, sys.C, sys.R, outlier=fwd.estimate.outlier,
-                timing=self.timing)
+                timing=self.timing, modes_out=False)
             x, P, prob, mode = s.x, s.P, s.mode_prob, s.mode
         return self._unflatten(Estimate(x=x, P=P, mode_prob=prob, mode=mode), fwd.batch)
 

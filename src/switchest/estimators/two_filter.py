@@ -76,12 +76,12 @@ __all__ = ["two_filter_smooth"]
 
 
 def two_filter_smooth(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transition, C, R, *,
-                      outlier=None, timing: str) -> TwoFilterOutput:
+                      outlier=None, timing: str, modes_out: bool = True) -> TwoFilterOutput:
     """Smoothed mode-matched posteriors and mode probabilities (module docstring).
 
     The arguments are those of :func:`switchest.engine.two_filter.two_filter_run` (arrays a
-    filter of switchest produced and checked, one batch axis), but ``trans`` may also be
-    ``(K, L)``, shared by every trial.
+    filter of switchest produced and checked, one batch axis, and ``modes_out``), but
+    ``trans`` may also be ``(K, L)``, shared by every trial.
 
     Returns
     -------
@@ -99,7 +99,7 @@ def two_filter_smooth(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transi
     trans = np.asarray(trans)
     out = two_filter_run(x_modes, P_modes, mode_prob, y, u, F, G, Qd,
                          trans[None] if trans.ndim == 2 else trans, transition, C, R,
-                         outlier=outlier, timing=timing)
+                         outlier=outlier, timing=timing, modes_out=modes_out)
     if out.status == NOT_FINITE:
         raise np.linalg.LinAlgError(
             "the two-filter smoother lost its digits: a smoothed posterior, or the evidence of "

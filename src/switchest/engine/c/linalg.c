@@ -40,6 +40,17 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The Kalman kernel runs the covariance equations once per group of trials that share their
+ * covariance (kalman.c): one lane, nb = 1, in the common case of a block in one group. Each of
+ * those equations (se_predict, se_innovation, se_correct, se_joseph_lost) is therefore written
+ * once, as a static body of its lane count nb, and compiled twice by its public function:
+ * for nb == 1 apart, with every call inlined (gcc's flatten), where each lane loop becomes
+ * straight-line code, and for any nb. The same operations in the same order either way (the
+ * same bits); on 10 trials of the vehicle (n = 4, m = 2), whose covariances reach their
+ * fixed point only after 116 of 200 samples, the one-lane loops' set-up had cost more than
+ * their arithmetic. */
+#define SE_ONE_LANE_APART __attribute__((flatten))
+
 /* ---- gathering and scattering a block of trials ------------------------------------------ */
 
 /* out[a, b] = data[i0 + b, k, a]: sample k of trials i0 .. i0 + nb - 1. */
@@ -118,10 +129,25 @@ void se_scatter_modes(se_int n, se_int L, se_int B, se_int K, const double *rest
             }
 }
 
-/* out[r, c, b] = table[index[b], r, c]: each lane's matrix from a table. */
+/* out[r, c, b] = table[index[b], r, c]: each lane's matrix from a table. When every lane reads
+ * the same matrix (trials sampled at the same times: the usual case) it is broadcast over the
+ * lanes by vector stores instead of being gathered entry by entry per lane. */
 void se_gather_matrices(se_int p, se_int q, se_int B, const double *restrict table,
                         const se_int *restrict index, se_int nb, double *restrict out)
 {
+    const se_int first = nb > 0 ? index[0] : 0;
+    se_int differ = 0;
+    for (se_int b = 0; b < nb; b++)
+        differ |= index[b] ^ first;
+    if (!differ) {
+        const double *t = table + first * p * q;
+        for (se_int e = 0; e < p * q; e++) {
+            const double v = t[e];
+            for (se_int b = 0; b < nb; b++)
+                out[e * B + b] = v;
+        }
+        return;
+    }
     for (se_int r = 0; r < p; r++)
         for (se_int c = 0; c < q; c++)
             for (se_int b = 0; b < nb; b++)
@@ -142,19 +168,39 @@ void se_observe(se_int m, se_int B, const double *restrict y, se_int nb, double 
         }
 }
 
+/* o[c] = sum_k X_k[c] Y_k[c] for the w lanes c < w, from 0, its terms added in the order of k
+ * (w a constant where it is inlined: the w sums stay in registers over k) */
+static inline void se_dot_chunk(se_int w, se_int q, const double *restrict X, se_int sx,
+                                const double *restrict Y, se_int sy, double *restrict o)
+{
+    double acc[16];
+    for (se_int c = 0; c < w; c++)
+        acc[c] = 0.0;
+    for (se_int k = 0; k < q; k++) {
+        const double *Xk = X + k * sx, *Yk = Y + k * sy;
+        for (se_int c = 0; c < w; c++)
+            acc[c] += Xk[c] * Yk[c];
+    }
+    for (se_int c = 0; c < w; c++)
+        o[c] = acc[c];
+}
+
 /* o[b] = sum_k X_k[b] Y_k[b] per lane, k = 0 .. q-1, X_k = X + k sx and Y_k = Y + k sy being
  * lane rows (.., B) (strides in doubles): one entry of a product of lane matrices (F P, P C',
- * K R, a mixture's mean), from 0, its terms added in the order of k. */
+ * K R, a mixture's mean), from 0, its terms added in the order of k. The sums of 16 lanes at a
+ * time, then of 8 (a block of few trials), then of one, stay in registers over k (summed into
+ * o in memory, every term loaded and stored again: 1.5-2x the time on n = 4); the same
+ * additions in the same order in every lane. */
 static inline void se_lane_dot(se_int q, const double *restrict X, se_int sx,
                                const double *restrict Y, se_int sy, se_int nb, double *restrict o)
 {
-    for (se_int b = 0; b < nb; b++)
-        o[b] = 0.0;
-    for (se_int k = 0; k < q; k++) {
-        const double *Xk = X + k * sx, *Yk = Y + k * sy;
-        for (se_int b = 0; b < nb; b++)
-            o[b] += Xk[b] * Yk[b];
-    }
+    se_int b = 0;
+    for (; b + 16 <= nb; b += 16)
+        se_dot_chunk(16, q, X + b, sx, Y + b, sy, o + b);
+    for (; b + 8 <= nb; b += 8)
+        se_dot_chunk(8, q, X + b, sx, Y + b, sy, o + b);
+    for (; b < nb; b++)
+        se_dot_chunk(1, q, X + b, sx, Y + b, sy, o + b);
 }
 
 /* ---- time update --------------------------------------------------------------------------- */
@@ -189,15 +235,28 @@ void se_predict_mean(se_int n, se_int l, se_int B, double *restrict x, const dou
  * Qd is the process-noise covariance of the exact discretization (symmetric; its upper
  * triangle is read). P comes back exactly symmetric: its upper triangle is computed and
  * mirrored. FP (n, n, B) and xs (n, B) are scratch. */
-void se_predict(se_int n, se_int l, se_int B, double *restrict x, double *restrict P,
-                const double *restrict F, const double *restrict G, const double *restrict u,
-                const double *restrict Qd, se_int nb, double *restrict FP, double *restrict xs)
+static inline void predict_(se_int n, se_int l, se_int B, double *restrict x, double *restrict P,
+                            const double *restrict F, const double *restrict G,
+                            const double *restrict u, const double *restrict Qd, se_int nb,
+                            double *restrict FP, double *restrict xs)
 {
     se_predict_mean(n, l, B, x, F, G, u, nb, xs);
     for (se_int i = 0; i < n; i++) /* FP = F P */
         for (se_int j = 0; j < n; j++)
             se_lane_dot(n, F + i * n * B, B, P + j * B, n * B, nb, FP + (i * n + j) * B);
     se_symmetric_sum(n, n, B, Qd, FP, F, nb, P);
+}
+
+SE_ONE_LANE_APART void se_predict(se_int n, se_int l, se_int B, double *restrict x,
+                                  double *restrict P, const double *restrict F,
+                                  const double *restrict G, const double *restrict u,
+                                  const double *restrict Qd, se_int nb, double *restrict FP,
+                                  double *restrict xs)
+{
+    if (nb == 1)
+        predict_(n, l, B, x, P, F, G, u, Qd, 1, FP, xs);
+    else
+        predict_(n, l, B, x, P, F, G, u, Qd, nb, FP, xs);
 }
 
 /* out[:, :, b] = source[:, :, b] in the first nb lanes of (p, q, B) arrays. */
@@ -335,7 +394,7 @@ static void se_whiten(se_int m, se_int B, const double *restrict e, const double
  * Returns SE_OK; SE_NOT_FINITE if a lane's S has a non-finite diagonal; else
  * SE_NOT_POSITIVE_DEFINITE if a lane's factorization failed (with report: again, or where its
  * P needed no repair), bad (B,) then marking those lanes (the others are complete). */
-se_int se_innovation(SE_INNOVATION_PARAMETERS)
+static inline se_int innovation_(SE_INNOVATION_PARAMETERS)
 {
     double *log_det = work, *det = work + B, *pivot = work + 2 * B;
     int repaired = 0;
@@ -392,6 +451,15 @@ se_int se_innovation(SE_INNOVATION_PARAMETERS)
                 return SE_NOT_POSITIVE_DEFINITE;
         repaired = 1;
     }
+}
+
+SE_ONE_LANE_APART se_int se_innovation(SE_INNOVATION_PARAMETERS)
+{
+    if (nb == 1)
+        return innovation_(n, m, B, x, P, y, C, R, obs, n_obs, 1, e, PCt, chol, scale, z, nis,
+                           loglik, work, bad, report);
+    return innovation_(n, m, B, x, P, y, C, R, obs, n_obs, nb, e, PCt, chol, scale, z, nis,
+                       loglik, work, bad, report);
 }
 
 /* Equilibrated Cholesky factorization, in place, of each lane's symmetric S (m, m) held in
@@ -528,12 +596,12 @@ static void se_back_substitute(se_int m, se_int B, const double *restrict chol,
  * is computed and mirrored, so P is exactly symmetric. The other lanes get K = 0, which leaves
  * x and P exactly as they were. z is overwritten; prior (n, n, B) gets the covariance before
  * the update (for se_joseph_lost). */
-void se_correct(se_int n, se_int m, se_int B, double *restrict x, double *restrict P,
-                const double *restrict C, const double *restrict R,
-                const uint8_t *restrict use, se_int nb, const double *restrict PCt,
-                const double *restrict chol, const double *restrict scale, double *restrict z,
-                double *restrict K, double *restrict T, double *restrict AP,
-                double *restrict prior)
+static inline void correct_(se_int n, se_int m, se_int B, double *restrict x,
+                            double *restrict P, const double *restrict C,
+                            const double *restrict R, const uint8_t *restrict use, se_int nb,
+                            const double *restrict PCt, const double *restrict chol,
+                            const double *restrict scale, double *restrict z, double *restrict K,
+                            double *restrict T, double *restrict AP, double *restrict prior)
 {
     for (se_int i = 0; i < n; i++)
         for (se_int j = 0; j < n; j++)
@@ -575,6 +643,20 @@ void se_correct(se_int n, se_int m, se_int B, double *restrict x, double *restri
     se_symmetric_sum(n, m, B, AP, T, K, nb, P); /* P = A P + T K' */
 }
 
+SE_ONE_LANE_APART void se_correct(se_int n, se_int m, se_int B, double *restrict x,
+                                  double *restrict P, const double *restrict C,
+                                  const double *restrict R, const uint8_t *restrict use,
+                                  se_int nb, const double *restrict PCt,
+                                  const double *restrict chol, const double *restrict scale,
+                                  double *restrict z, double *restrict K, double *restrict T,
+                                  double *restrict AP, double *restrict prior)
+{
+    if (nb == 1)
+        correct_(n, m, B, x, P, C, R, use, 1, PCt, chol, scale, z, K, T, AP, prior);
+    else
+        correct_(n, m, B, x, P, C, R, use, nb, PCt, chol, scale, z, K, T, AP, prior);
+}
+
 /* The per-lane half of se_correct: x <- x + P C' S^-1 e in the lanes where use is true
  * (Shankar et al. eq. (9)), from z as se_innovation_mean left it and a factorization of S with
  * its P C' computed elsewhere (each lane's copy of its covariance's); z is overwritten with
@@ -595,9 +677,9 @@ void se_correct_mean(se_int n, se_int m, se_int B, double *restrict x, double *r
  * longer a covariance (a correlation beyond 1 + sqrt(eps), or a NaN), that error has swamped
  * P+: lost[b] is set there, among the lanes that use the measurement, for
  * se_information_form. root (n, B) is scratch. */
-int se_joseph_lost(se_int n, se_int B, const double *restrict P, const double *restrict prior,
-                   const uint8_t *restrict use, se_int nb, double *restrict root,
-                   uint8_t *restrict lost)
+static inline int joseph_lost_(se_int n, se_int B, const double *restrict P,
+                               const double *restrict prior, const uint8_t *restrict use,
+                               se_int nb, double *restrict root, uint8_t *restrict lost)
 {
     for (se_int b = 0; b < nb; b++)
         lost[b] = 0;
@@ -620,6 +702,14 @@ int se_joseph_lost(se_int n, se_int B, const double *restrict P, const double *r
         found |= lost[b];
     }
     return found;
+}
+
+SE_ONE_LANE_APART int se_joseph_lost(se_int n, se_int B, const double *restrict P,
+                                     const double *restrict prior, const uint8_t *restrict use,
+                                     se_int nb, double *restrict root, uint8_t *restrict lost)
+{
+    return nb == 1 ? joseph_lost_(n, B, P, prior, use, 1, root, lost)
+                   : joseph_lost_(n, B, P, prior, use, nb, root, lost);
 }
 
 /* The posterior of each lost lane (se_joseph_lost) that observed something, in information
@@ -1116,11 +1206,17 @@ void se_lane_product(se_int p, se_int q, se_int r, se_int B, const double *restr
 }
 
 /* The rows j and piv[j, b] of each lane's X (n, q, B) exchanged, in the lanes that chose another
- * row than j (none, usually: I + P Omega is dominated by its diagonal). */
+ * row than j (none, usually: I + P Omega is dominated by its diagonal, so one vector pass that
+ * finds no such lane saves the lane-by-lane loop with its branch). */
 static void se_swap_rows(se_int q, se_int B, se_int j, const se_int *restrict piv,
                          double *restrict X, se_int nb)
 {
     const se_int *pj = piv + j * B;
+    se_int moved = 0;
+    for (se_int b = 0; b < nb; b++)
+        moved |= pj[b] ^ j;
+    if (!moved)
+        return;
     for (se_int b = 0; b < nb; b++) {
         const se_int r = pj[b];
         if (r == j)
@@ -1139,13 +1235,14 @@ static void se_swap_rows(se_int q, se_int B, se_int j, const se_int *restrict pi
  * largest modulus on or below the diagonal, LAPACK dgetrf's rule, what numpy.linalg.solve and
  * slogdet factor with): P A = L U with L unit lower triangular in the strict lower triangle of
  * A and U in its upper triangle, whole rows exchanged. piv[j, b] is the row exchanged with row j
- * at step j; log_det = sum_j log |U_jj| = log |det A|. A zero pivot leaves infinities or NaN
- * (no check: the caller's result is then not finite). best (B,) is scratch. */
+ * at step j; log_det = log |det A| = log prod_j |U_jj|, one logarithm of the product, or
+ * sum_j log |U_jj| in a lane whose product leaves the normal range (over- or underflow: the
+ * logarithms of the pivots there cost n times as much; the two agree to rounding). A zero
+ * pivot leaves infinities or NaN (no check: the caller's result is then not finite).
+ * best (B,) is scratch. */
 void se_lu(se_int n, se_int B, double *restrict A, se_int *restrict piv, se_int nb,
            double *restrict log_det, double *restrict best)
 {
-    for (se_int b = 0; b < nb; b++)
-        log_det[b] = 0.0;
     for (se_int j = 0; j < n; j++) {
         se_int *pj = piv + j * B;
         const double *Ajj = A + (j * n + j) * B;
@@ -1163,8 +1260,6 @@ void se_lu(se_int n, se_int B, double *restrict A, se_int *restrict piv, se_int 
             }
         }
         se_swap_rows(n, B, j, piv, A, nb);
-        for (se_int b = 0; b < nb; b++)
-            log_det[b] += log(fabs(Ajj[b]));
         for (se_int r = j + 1; r < n; r++) {
             double *Arj = A + (r * n + j) * B;
             for (se_int b = 0; b < nb; b++)
@@ -1176,6 +1271,20 @@ void se_lu(se_int n, se_int B, double *restrict A, se_int *restrict piv, se_int 
                     Arc[b] -= Arj[b] * Ajc[b];
             }
         }
+    }
+    for (se_int b = 0; b < nb; b++) /* |det A| = prod_j |U_jj| (row j of U is final) */
+        best[b] = 1.0;
+    for (se_int j = 0; j < n; j++)
+        for (se_int b = 0; b < nb; b++)
+            best[b] *= fabs(A[(j * n + j) * B + b]);
+    for (se_int b = 0; b < nb; b++) {
+        if (isnormal(best[b])) {
+            log_det[b] = log(best[b]);
+            continue;
+        }
+        log_det[b] = 0.0;
+        for (se_int j = 0; j < n; j++)
+            log_det[b] += log(fabs(A[(j * n + j) * B + b]));
     }
 }
 

@@ -106,6 +106,71 @@ static void carve_measure(se_arena *a, se_int n, se_int m, se_int B, measure_ws 
     s->use = se_flags(a, B);
 }
 
+/* What measure_ computes of mode l's C_l, R_l alone when every component is observed, the same
+ * in every lane and at every sample: R's factorization chol (m, m, B), scale (m, B), its
+ * log-determinant in se_innovation_mean's two terms log_det (2, B), Ct = C' and V = R^-1 C
+ * (n, m, B). Computed once per call (full_), it leaves a fully observed sample the mean half
+ * of the innovation (se_innovation_mean) and the two additions: the same operations on the
+ * same operands as the whole of measure_, so the same bits, without a factorization, m + 1
+ * logarithms and the products with the zero P0 per mode and sample. */
+typedef struct {
+    double *chol, *scale, *log_det, *Ct, *V;
+} full_ws;
+
+/* full_ws of L modes carved from the arena, each array stacked over the modes */
+static void carve_full(se_arena *a, se_int n, se_int m, se_int L, se_int B, full_ws *s)
+{
+    s->chol = se_doubles(a, L * m * m * B);
+    s->scale = se_doubles(a, L * m * B);
+    s->log_det = se_doubles(a, L * 2 * B);
+    s->Ct = se_doubles(a, L * n * m * B);
+    s->V = se_doubles(a, L * n * m * B);
+}
+
+/* mode j's full_ws in the stacked one */
+static full_ws full_mode(const full_ws *s, se_int n, se_int m, se_int B, se_int j)
+{
+    full_ws f = {s->chol + j * m * m * B, s->scale + j * m * B, s->log_det + j * 2 * B,
+                 s->Ct + j * n * m * B, s->V + j * n * m * B};
+    return f;
+}
+
+/* full_ws of C (m, n, B), R (m, m, B) in all B lanes, with measure_'s own calls (ws scratch:
+ * its y, obs and n_obs are set here to a zero sample every component of which is observed).
+ * Returns se_innovation's status (where not SE_OK, measure_ is used at every sample). */
+static se_int full_(se_int n, se_int m, se_int B, const double *restrict C,
+                    const double *restrict R, double *restrict y, double *restrict obs,
+                    double *restrict n_obs, const measure_ws *ws, const full_ws *f)
+{
+    const se_innovation_ws *inn = &ws->inn;
+    for (se_int b = 0; b < B; b++) {
+        n_obs[b] = (double)m;
+        for (se_int a = 0; a < m; a++) {
+            y[a * B + b] = 0.0;
+            obs[a * B + b] = 1.0;
+        }
+    }
+    se_int status = se_innovate(n, m, B, ws->x0, ws->P0, y, C, R, obs, n_obs, B, inn, NULL);
+    if (status != SE_OK)
+        return status;
+    se_copy_lanes(m, m, B, inn->chol, B, f->chol);
+    se_copy_lanes(m, 1, B, inn->scale, B, f->scale);
+    for (se_int b = 0; b < B; b++) { /* se_innovation's log det S, in its two terms */
+        f->log_det[b] = inn->work[b];
+        f->log_det[B + b] = log(inn->work[B + b]);
+    }
+    for (se_int i = 0; i < n; i++) /* Ct = C' (every column observed: C' times 1) */
+        for (se_int a = 0; a < m; a++) {
+            const double *Cai = C + (a * n + i) * B, *oa = obs + a * B;
+            double *o = f->Ct + (i * m + a) * B;
+            for (se_int b = 0; b < B; b++)
+                o[b] = Cai[b] * oa[b];
+        }
+    se_copy_lanes(n, m, B, f->Ct, B, f->V);
+    se_solve_rows(m, B, n, f->chol, f->scale, f->V, B, ws->inv);
+    return SE_OK;
+}
+
 /* The work arrays of pool_: the log-weights a, the weights w (L, B), their total (B,). */
 typedef struct {
     double *a, *w, *total;
@@ -149,14 +214,25 @@ static void dot_(se_int n, se_int B, const double *restrict X, const double *res
  * x = 0, P = 0 (S = R, e = y, loglik = log N(y; 0, R)); V = R^-1 C by its solves
  * (se_solve_rows on the rows of C'), C' V added as a mirrored upper triangle
  * (se_symmetric_sum), C' R^-1 y added as a Kalman mean update would add it (se_correct_mean,
- * gain C'). Returns se_innovation's status. */
+ * gain C'). With `full` (not NULL: every lane observes every component) R's factorization,
+ * C' and V are full's, and only the mean half of the innovation is computed. Returns
+ * se_innovation's status. */
 static se_int measure_(se_int n, se_int m, se_int B, double *restrict Omega,
                        double *restrict omega, double *restrict c, const double *restrict y,
                        const double *restrict obs, const double *restrict n_obs,
                        const double *restrict C, const double *restrict R, se_int nb,
-                       const measure_ws *ws)
+                       const measure_ws *ws, const full_ws *full)
 {
     const se_innovation_ws *inn = &ws->inn;
+    if (full) {
+        se_innovation_mean(n, m, B, ws->x0, y, C, obs, n_obs, full->chol, full->scale,
+                           full->log_det, nb, inn->e, inn->z, inn->nis, inn->loglik);
+        se_symmetric_sum(n, m, B, Omega, full->Ct, full->V, nb, Omega);
+        se_correct_mean(n, m, B, omega, inn->z, full->Ct, full->chol, full->scale, ws->use, nb);
+        for (se_int b = 0; b < nb; b++)
+            c[b] += inn->loglik[b];
+        return SE_OK;
+    }
     se_int status = se_innovate(n, m, B, ws->x0, ws->P0, y, C, R, obs, n_obs, nb, inn, NULL);
     if (status != SE_OK)
         return status;
@@ -309,10 +385,10 @@ typedef struct {
 
 /* Sample k of the block's smoothed outputs: log_s (L, B) normalized over the modes into prob
  * (L, B) (total (B,) scratch), x (L, n, B), P (L, n, n, B) and prob written at sample k of
- * x_s, P_s, prob_s, and the mixture's moments (cw scratch) and most probable mode at sample k
- * of x_c, P_c, mode_c. Returns whether every lane's x, P and prob are finite (nothing is written
- * otherwise). */
-static int write_(se_int n, se_int L, se_int B, se_int K, const double *restrict x,
+ * x_s, P_s (where Ns > 0: the mode-matched outputs were asked for), prob_s, and the mixture's
+ * moments (cw scratch) and most probable mode at sample k of x_c, P_c, mode_c. Returns whether
+ * every lane's x, P and prob are finite (nothing is written otherwise). */
+static int write_(se_int n, se_int L, se_int B, se_int K, se_int Ns, const double *restrict x,
                   const double *restrict P, double *restrict log_s, double *restrict prob,
                   double *restrict total, se_int i0, se_int nb, se_int k, double *restrict x_s,
                   double *restrict P_s, double *restrict prob_s, const combine_ws *cw,
@@ -334,7 +410,8 @@ static int write_(se_int n, se_int L, se_int B, se_int K, const double *restrict
     }
     if (!finite)
         return 0;
-    se_scatter_modes(n, L, B, K, x, P, i0, nb, x_s + k * L * n, P_s + k * L * n * n);
+    if (Ns > 0)
+        se_scatter_modes(n, L, B, K, x, P, i0, nb, x_s + k * L * n, P_s + k * L * n * n);
     se_scatter_rows(L, B, K, prob, i0, nb, prob_s + k * L);
     se_combine(n, L, B, x, P, prob, log_s, nb, cw->x, cw->P, cw->best);
     for (se_int b = 0; b < nb; b++) {
@@ -357,6 +434,7 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
     se_int *idx;
     solve_ws sw;
     measure_ws mw;
+    full_ws fw;
     pool_ws pw;
     combine_ws cw;
     se_arena arena = {NULL, 0};
@@ -399,6 +477,7 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         cw.best = se_ints(&arena, B);
         carve_solve(&arena, n, B, &sw);
         carve_measure(&arena, n, m, B, &mw);
+        carve_full(&arena, n, m, L, B, &fw);
     } while (se_arena_open(&arena));
     if (arena.base == NULL)
         return SE_NO_MEMORY;
@@ -410,6 +489,12 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
     }
     for (se_int b = 0; b < B; b++)
         mw.use[b] = 1;
+    int fully = 1; /* whether full_ holds every mode's fully observed measurement */
+    for (se_int j = 0; j < L; j++) {
+        const full_ws fj = full_mode(&fw, n, m, B, j);
+        fully &= full_(n, m, B, Cl + j * m * n * B, Rl + j * m * m * B, yk, obs, n_obs, &mw,
+                       &fj) == SE_OK;
+    }
     se_int status = SE_OK;
 
     for (se_int i0 = 0; i0 < N; i0 += B) {
@@ -421,8 +506,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         se_gather_modes(n, L, B, K, x_f + (K - 1) * L * n, P_f + (K - 1) * L * nn, i0, nb, xf,
                         Pf);
         se_gather_rows(L, B, K, log_prob_f + (K - 1) * L, i0, nb, lmu);
-        if (!write_(n, L, B, K, xf, Pf, lmu, prob, total, i0, nb, K - 1, x_s, P_s, prob_s,
-                    &cw, x_c, P_c, mode_c)) {
+        if (!write_(n, L, B, K, Ns, xf, Pf, lmu, prob, total, i0, nb, K - 1, x_s, P_s,
+                    prob_s, &cw, x_c, P_c, mode_c)) {
             status = SE_NOT_FINITE;
             goto done;
         }
@@ -442,9 +527,14 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
                     for (se_int a = 0; a < m; a++)
                         obs[a * B + b] = 0.0;
                 }
+            int all = fully; /* every lane observes every component of y_{k+1} */
+            for (se_int b = 0; b < nb; b++)
+                all &= n_obs[b] == (double)m;
             for (se_int j = 0; j < L; j++) { /* step 1, in place: alpha_l */
+                const full_ws fj = full_mode(&fw, n, m, B, j);
                 status = measure_(n, m, B, Om + j * nn * B, om + j * n * B, c + j * B, yk,
-                                  obs, n_obs, Cl + j * m * n * B, Rl + j * m * m * B, nb, &mw);
+                                  obs, n_obs, Cl + j * m * n * B, Rl + j * m * m * B, nb, &mw,
+                                  all ? &fj : NULL);
                 if (status != SE_OK)
                     goto done;
             }
@@ -483,8 +573,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
             }
             for (se_int e = 0; e < L * B; e++) /* log mu_i(k|K) = log mu_i(k|k) + log Z_i + const */
                 lz[e] += lmu[e];
-            if (!write_(n, L, B, K, xo, Po, lz, prob, total, i0, nb, k, x_s, P_s, prob_s, &cw,
-                        x_c, P_c, mode_c)) {
+            if (!write_(n, L, B, K, Ns, xo, Po, lz, prob, total, i0, nb, k, x_s, P_s, prob_s,
+                        &cw, x_c, P_c, mode_c)) {
                 status = SE_NOT_FINITE;
                 goto done;
             }
