@@ -59,7 +59,7 @@ tr.fit td.verdict { background: #e4ecf7; } tr.none td.verdict { background: #eee
 tr.derived td.verdict { color: #777; font-style: italic; }
 tr.word td.verdict { background: none; border-left: 4px solid #9c9; }
 tr.reading td { color: #666; font-size: 0.95em; } tr.reading td:first-child { padding-left: 2em; }
-td.note { color: #555; max-width: 30em; } td.why { max-width: 26em; text-align: left; }
+td.note { color: #555; max-width: 30em; } td.why { max-width: 22em; text-align: left; } td.why summary { cursor: pointer; }
 td.src { font-size: 0.8em; color: #888; text-align: left; }
 .setup { background: #f8f8f8; padding: 0.6em 0.9em; border-left: 3px solid #bbb; }
 ul.notes li { margin-bottom: 0.3em; }
@@ -240,14 +240,16 @@ def _se_decimals(se: float) -> int:
 
 
 def _why(row: Row) -> str:
-    """What decides a verdict beyond the numbers: the reason and its evidence, or the fitted
-    parameter and whether it is unique."""
+    """What decides a verdict beyond the numbers, as HTML: the reason, or the fitted parameter
+    and whether it is unique, with the evidence one click away."""
     parts = []
     if row.fit is not None:
-        parts.append(str(row.fit))
+        unique = "unique" if row.fit.unique else "not unique"
+        parts.append((f"fitted {row.fit.parameter} ({unique})", row.fit.evidence))
     if row.explanation is not None:
-        parts.append(str(row.explanation))
-    return "; ".join(parts)
+        parts.append((row.explanation.reason.value, row.explanation.evidence))
+    return "".join(f"<details><summary>{html.escape(head)}</summary>{html.escape(body)}</details>"
+                   if body else html.escape(head) for head, body in parts)
 
 
 def _table(summary: Summary) -> str:
@@ -277,7 +279,7 @@ def _table(summary: Summary) -> str:
             f"<td class='num'{tolerance}>{paper}</td><td class='num'>{ours}</td>"
             f"<td class='num'>{'—' if ratio is None else f'{ratio:.4f}'}</td>"
             f"<td>{html.escape(row.unit)}</td><td class='verdict'>{shown}</td>"
-            f'<td class="why">{html.escape(_why(row))}</td>'
+            f'<td class="why">{_why(row)}</td>'
             f'<td class="note">{html.escape(row.details)}</td>'
             f'<td class="src"><code>{html.escape(row.source)}</code></td></tr>'
         )
