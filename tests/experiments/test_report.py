@@ -229,7 +229,8 @@ def test_report_shows_provenance_summary_verdicts_and_uncertainty(tmp_path, toy_
     assert reproduced.startswith("ok ") and ">0.8837<" in reproduced and "reproduced" in reproduced
     misprint = _row(page, "T_2,3[2,2] = (Λ_i − Γ_i,q)[2,2] (Algorithm 2)")
     assert misprint.startswith("known ") and ">-0.0088<" in misprint
-    assert "differs, explained" in misprint and "<summary>misprint in the paper</summary>" in misprint
+    assert "differs, explained" in misprint
+    assert "<summary>misprint in the paper</summary>" in misprint
 
     # a Monte Carlo row: mean ± standard error and the trial count, judged by its interval
     mc = _row(page, "Monte Carlo mean")

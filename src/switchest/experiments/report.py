@@ -59,8 +59,9 @@ tr.fit td.verdict { background: #e4ecf7; } tr.none td.verdict { background: #eee
 tr.derived td.verdict { color: #777; font-style: italic; }
 tr.word td.verdict { background: none; border-left: 4px solid #9c9; }
 tr.reading td { color: #666; font-size: 0.95em; } tr.reading td:first-child { padding-left: 2em; }
-td.note { color: #555; max-width: 30em; } td.why { max-width: 22em; text-align: left; } td.why summary { cursor: pointer; }
-td.src { font-size: 0.8em; color: #888; text-align: left; }
+td.note { color: #555; max-width: 30em; } td.why { max-width: 22em; text-align: left; }
+td.why summary { cursor: pointer; }
+td.src, tr.reading td.src { font-size: 0.8em; color: #888; text-align: left; }
 .setup { background: #f8f8f8; padding: 0.6em 0.9em; border-left: 3px solid #bbb; }
 ul.notes li { margin-bottom: 0.3em; }
 .figs img { max-width: 100%; margin: 0.5em 0; border: 1px solid #eee; }
