@@ -135,6 +135,19 @@ static full_ws full_mode(const full_ws *s, se_int n, se_int m, se_int B, se_int 
     return f;
 }
 
+/* Ct = C' with the unobserved columns zero, on lanes 0..nb-1: Ct[i, a] = C[a, i] obs[a]. */
+static void observed_transpose(se_int n, se_int m, se_int B, const double *restrict C,
+                               const double *restrict obs, se_int nb, double *restrict Ct)
+{
+    for (se_int i = 0; i < n; i++)
+        for (se_int a = 0; a < m; a++) {
+            const double *Cai = C + (a * n + i) * B, *oa = obs + a * B;
+            double *o = Ct + (i * m + a) * B;
+            for (se_int b = 0; b < nb; b++)
+                o[b] = Cai[b] * oa[b];
+        }
+}
+
 /* full_ws of C (m, n, B), R (m, m, B) in all B lanes, with measure_'s own calls (ws scratch:
  * its y, obs and n_obs are set here to a zero sample every component of which is observed).
  * Returns se_innovation's status (where not SE_OK, measure_ is used at every sample). */
@@ -159,13 +172,7 @@ static se_int full_(se_int n, se_int m, se_int B, const double *restrict C,
         f->log_det[b] = inn->work[b];
         f->log_det[B + b] = log(inn->work[B + b]);
     }
-    for (se_int i = 0; i < n; i++) /* Ct = C' (every column observed: C' times 1) */
-        for (se_int a = 0; a < m; a++) {
-            const double *Cai = C + (a * n + i) * B, *oa = obs + a * B;
-            double *o = f->Ct + (i * m + a) * B;
-            for (se_int b = 0; b < B; b++)
-                o[b] = Cai[b] * oa[b];
-        }
+    observed_transpose(n, m, B, C, obs, B, f->Ct); /* every column observed: C' times 1 */
     se_copy_lanes(n, m, B, f->Ct, B, f->V);
     se_solve_rows(m, B, n, f->chol, f->scale, f->V, B, ws->inv);
     return SE_OK;
@@ -236,13 +243,7 @@ static se_int measure_(se_int n, se_int m, se_int B, double *restrict Omega,
     se_int status = se_innovate(n, m, B, ws->x0, ws->P0, y, C, R, obs, n_obs, nb, inn, NULL);
     if (status != SE_OK)
         return status;
-    for (se_int i = 0; i < n; i++) /* Ct = C' with the unobserved columns zero */
-        for (se_int a = 0; a < m; a++) {
-            const double *Cai = C + (a * n + i) * B, *oa = obs + a * B;
-            double *o = ws->Ct + (i * m + a) * B;
-            for (se_int b = 0; b < nb; b++)
-                o[b] = Cai[b] * oa[b];
-        }
+    observed_transpose(n, m, B, C, obs, nb, ws->Ct);
     se_copy_lanes(n, m, B, ws->Ct, nb, ws->V);
     se_solve_rows(m, B, n, inn->chol, inn->scale, ws->V, nb, ws->inv); /* V[i] = R^-1 C[:, i] */
     se_symmetric_sum(n, m, B, Omega, ws->Ct, ws->V, nb, Omega);       /* Omega += C' R^-1 C */
