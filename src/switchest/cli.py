@@ -33,7 +33,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from . import __version__
-from ._checks import TIMINGS
+from ._checks import TIMINGS, closest_name, did_you_mean
 from .estimators.registry import methods, methods_with
 
 if TYPE_CHECKING:
@@ -66,10 +66,51 @@ class _Interrupted(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line, raised rather than printed with the usage."""
+    """An argument parser whose errors are one line, raised rather than printed with the usage,
+    and which suggests the closest name (:func:`~switchest._checks.did_you_mean`) for an
+    unknown command, option or choice (``--method kalmann``: did you mean 'kalman'?)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.commands: dict[str, argparse.ArgumentParser] = {}
+        """The parsers of the commands (``switchest run``, ...), set by :func:`_parser`."""
 
     def error(self, message: str) -> NoReturn:
         raise _UsageError(f"{message} (see '{self.prog} --help')")
+
+    def parse_args(self, args=None, namespace=None):  # noqa: D102 (argparse's)
+        args = sys.argv[1:] if args is None else list(args)
+        self._check_options(args)
+        return super().parse_args(args, namespace)
+
+    def _check_options(self, args: list[str]) -> None:
+        """Refuse an unknown ``--option`` of the command line with the closest one, before
+        argparse parses it: argparse would first report a required option as missing (the one
+        misspelt) or list the unknown one among 'unrecognized arguments' without a hint.
+        Unique prefixes (``--meth``) are argparse's abbreviations and pass."""
+        parser: argparse.ArgumentParser = self
+        for arg in args:
+            if arg == "--":
+                return
+            if not arg.startswith("--"):  # a value (a negative number too), or the command
+                if parser is self and arg in self.commands:
+                    parser = self.commands[arg]
+                continue
+            option = arg.partition("=")[0]
+            known = [o for action in parser._actions for o in action.option_strings
+                     if o.startswith("--")]
+            if not any(o.startswith(option) for o in known):
+                close = closest_name(option[2:], [o[2:] for o in known])  # names, not dashes
+                hint = "" if close is None else f"; did you mean '--{close}'?"
+                parser.error(f"unrecognized option {option}{hint}")
+
+    def _check_value(self, action: argparse.Action, value) -> None:
+        """argparse's check of a ``choices`` value, with the closest choice suggested."""
+        if action.choices is not None and value not in action.choices:
+            choices = ", ".join(map(repr, action.choices))
+            hint = did_you_mean(value, action.choices, before="; ")
+            raise argparse.ArgumentError(
+                action, f"invalid choice: {value!r} (choose from {choices}){hint}")
 
 
 # ---------------------------------------------------------------------- option types (type=)
@@ -388,7 +429,8 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
         raise _UsageError("name the reproductions to run, or pass --all")
     unknown = [n for n in chosen if n not in names()]
     if unknown:
-        raise _UsageError(f"unknown reproduction(s) {', '.join(unknown)}; see 'switchest list'")
+        said = [n + did_you_mean(n, names(), before=" (", after=")") for n in unknown]
+        raise _UsageError(f"unknown reproduction(s) {', '.join(said)}; see 'switchest list'")
     try:
         store = _run(chosen, args, console)
     except RunInterrupted as exc:
@@ -755,6 +797,7 @@ def _parser() -> _Parser:
                        help="show the traceback of an error")
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True)
+    parser.commands = sub.choices
 
     def command(name: str, run: Callable, **kwargs) -> argparse.ArgumentParser:
         p = sub.add_parser(name, parents=[debug], **kwargs)
