@@ -590,15 +590,36 @@ def _cmd_check(args: argparse.Namespace, console: Console) -> int:
     from .modelfile import load_model
 
     spec = load_model(args.model)
-    table = Table(title=escape(f"switchest check: {args.model}"), title_justify="left")
+    table = Table(title=escape(f"switchest check: {args.model}"), title_justify="left",
+                  caption="margin: positive when the condition holds, zero or negative when "
+                          "it fails (— where none is defined)", caption_justify="left")
     for col in ("condition", "verdict", "margin", "paper", "detail"):
         table.add_column(col, overflow="fold")
     marks = {True: "[green]holds[/green]", False: "[red]fails[/red]", None: "[yellow]n/a[/yellow]"}
-    for c in certify(spec):
+    checks = certify(spec)
+    for c in checks:
         margin = "—" if c.margin is None else f"{c.margin:.3g}"
         table.add_row(escape(c.name), marks[c.verdict], margin, escape(c.paper), escape(c.detail))
     console.print(table)
+    console.print(_methods_line(checks))
     return 0
+
+
+def _methods_line(checks: list[Check]) -> str:
+    """The closing line of ``switchest check``: the methods whose conditions hold, fail or are
+    undecided (:func:`switchest.certify.method_verdicts`), and those no check certifies."""
+    from .certify import method_verdicts
+    from .estimators.registry import METHOD_NAMES
+
+    said = method_verdicts(checks)
+    groups = [("[green]conditions hold[/green]", [m for m, v in said.items() if v is True]),
+              ("[red]fail[/red]", [m for m, v in said.items() if v is False]),
+              ("[yellow]undecided or not applicable[/yellow]",
+               [m for m, v in said.items() if v is None]),
+              ("no conditions checked", [m for m in METHOD_NAMES if m not in said])]
+    parts = [f"{label}: {', '.join(names) if names else 'none'}" for label, names in groups[:1]]
+    parts += [f"{label}: {', '.join(names)}" for label, names in groups[1:] if names]
+    return "methods whose " + "; ".join(parts)
 
 
 # ---------------------------------------------------------------------- fit
