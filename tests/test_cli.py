@@ -2,7 +2,9 @@
 errors."""
 
 import argparse
+import os
 import re
+import shlex
 import subprocess
 import sys
 from dataclasses import replace
@@ -225,6 +227,26 @@ def test_timing_selects_the_interval_a_mode_governs(tmp_path, capsys):
             in capsys.readouterr().err)
     assert main([*args, "--timing", "later", "--out", str(tmp_path / "x.csv")]) == 2
     assert "invalid choice: 'later'" in capsys.readouterr().err
+
+
+def test_run_ends_with_its_figures_and_the_report_command(tmp_path, capsys, monkeypatch):
+    """``run NAME`` closes with the folder and names of its figures and the ``report`` command
+    that builds the page, a command that runs as printed."""
+    monkeypatch.setenv("COLUMNS", "250")
+    out = tmp_path / "my out"
+    assert main(["run", "shankar-lemma2", "--quick", "--workers", "1", "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-2] == f"figures (1) in {out / 'figures'}{os.sep}: shankar-lemma2.png"
+    assert (out / "figures" / "shankar-lemma2.png").is_file()
+    said, _, command = lines[-1].partition(": ")
+    assert said == "HTML page of the results"
+    argv = shlex.split(command)
+    assert argv == ["switchest", "report", "--store", str(out / "results.sqlite"), "--out",
+                    str(out)]
+    assert main(argv[1:]) == 0
+    assert "report: " in capsys.readouterr().out
+    assert main(["run", "shankar-lemma1", "--quick", "--workers", "1", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.splitlines()[-2] == "figures: none for this experiment"
 
 
 def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatch):

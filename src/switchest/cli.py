@@ -416,8 +416,22 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
         else:  # several experiments: a line each and what differs; every row is in the report
             _print_compact(summary, console)
         console.print(f"[dim]{escape(experiment.name)}: {len(results)} tasks, "
-                      f"{time.perf_counter() - start:.1f} s[/dim]\n")
+                      f"{time.perf_counter() - start:.1f} s[/dim]")
+        if args.command == "run":  # the report of several experiments names their figures
+            console.print(_figures_line(summary.figures, out / "figures"))
+        else:
+            console.print()
     return store
+
+
+def _figures_line(figures: list[Path], folder: Path) -> str:
+    """Where ``switchest run`` wrote an experiment's figures: the folder and the file names
+    (paths elsewhere in full)."""
+    if not figures:
+        return "figures: none for this experiment"
+    names = [str(Path(f).relative_to(folder)) if Path(f).is_relative_to(folder) else str(f)
+             for f in figures]
+    return escape(f"figures ({len(names)}) in {folder}{os.sep}: {', '.join(names)}")
 
 
 def _cmd_run(args: argparse.Namespace, console: Console) -> int:
@@ -437,6 +451,10 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
         if args.debug:
             raise
         raise _Interrupted(exc) from None
+    if args.command == "run":
+        report = shlex.join(["switchest", "report", "--store", str(store.path), "--out",
+                             args.out])
+        console.print(f"HTML page of the results: [bold]{escape(report)}[/bold]")
     if args.command == "reproduce":
         with _report_progress(console) as progress:
             report = write_report(store, args.out, chosen, command=args.command_line,
