@@ -29,6 +29,34 @@ def test_demo_prints_the_comparison(capsys):
     assert "clairvoyant" in out and "IMM" in out and "RMSE" in out
 
 
+def test_demo_fits_80_columns_with_every_header_whole(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["demo", "--trials", "2", "--duration", "0.02", "--seed", "1"]) == 0
+    out = capsys.readouterr().out
+    assert max(map(len, out.splitlines())) <= 80 and "…" not in out
+    header = [line.split("┃")[1:-1] for line in out.splitlines() if line.startswith("┃")]
+    columns = [" ".join(" ".join(cells).split()) for cells in zip(*header, strict=True)]
+    assert columns == ["filter", "i_L (A)", "v_0 (V)", "modes", "t_sw (ms)", "time (s)"]
+    words = " ".join(out.split())  # the key, unwrapped
+    for key in ("i_L, v_0: RMSE of", "modes: fraction of samples", "t_sw: mean |error|",
+                "time: to filter", "-: not estimated"):
+        assert key in words
+
+
+def test_estimate_help_fits_80_columns_and_keeps_names_whole(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    with pytest.raises(SystemExit) as done:
+        main(["estimate", "--help"])
+    assert done.value.code == 0
+    out = capsys.readouterr().out
+    assert max(map(len, out.splitlines())) <= 80
+    assert not [line for line in out.splitlines() if line.rstrip().endswith("-")]
+    words = " ".join(out.split())  # unwrapped: a name split at a hyphen would read "min- dis"
+    for name in METHOD_NAMES:
+        assert f" {name}: " in words, name
+    assert "min-distance: minimum-distance mode estimation" in words
+
+
 def test_bad_arguments_exit_with_one_line(capsys):
     assert main(["demo", "--trials", "0"]) == 2
     err = capsys.readouterr().err

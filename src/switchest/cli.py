@@ -22,6 +22,7 @@ import math
 import os
 import shlex
 import sys
+import textwrap
 import time
 import warnings
 from collections.abc import Callable, Iterator
@@ -65,12 +66,21 @@ class _Interrupted(Exception):
         self.run = run
 
 
+class _HelpFormatter(argparse.HelpFormatter):
+    """argparse's help, wrapped at spaces only: a method name (``min-distance``) or a term
+    (``pseudo-Bayesian``) is never split at its hyphen."""
+
+    def _split_lines(self, text: str, width: int) -> list[str]:
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line, raised rather than printed with the usage,
     and which suggests the closest name (:func:`~switchest._checks.did_you_mean`) for an
     unknown command, option or choice (``--method kalmann``: did you mean 'kalman'?)."""
 
     def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)  # the commands' parsers too
         super().__init__(*args, **kwargs)
         self.commands: dict[str, argparse.ArgumentParser] = {}
         """The parsers of the commands (``switchest run``, ...), set by :func:`_parser`."""
@@ -278,10 +288,14 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
                "switch-time KF, g = 1": ("grid", 1), "switch-time KF, g = 5": ("grid", 5),
                "IMM (modes unknown)": ("imm", None)}
     start = setting.transient
-    table = Table(title=f"Boost converter: RMSE after the first {start} samples")
+    # short headers and a key, so that the table fits 80 columns with every header whole
+    table = Table(title=f"Boost converter, scored after the first {start} samples",
+                  caption="i_L, v_0: RMSE of the inductor current and the output voltage; "
+                          "modes: fraction of samples whose mode is estimated right; t_sw: "
+                          "mean |error| of the estimated switching instants; time: to filter; "
+                          "-: not estimated", caption_justify="left")
     table.add_column("filter", no_wrap=True)
-    for col in ("RMSE i_L (A)", "RMSE v_0 (V)", "mode accuracy", "switch-time error (ms)",
-                "time (s)"):
+    for col in ("i_L (A)", "v_0 (V)", "modes", "t_sw (ms)", "time (s)"):
         table.add_column(col, justify="right")
     true_switch = traj.switch_times()
     for name, (method, g) in filters.items():
@@ -881,6 +895,7 @@ def _parser() -> _Parser:
                             "the y columns are the integrated output at fine instants t "
                             "including every switching instant t0 + kT")
     p_est.add_argument("--method", required=True, choices=[m.name for m in methods()],
+                       metavar="METHOD",  # the help lists them, each with what it does
                        help=_help(" | ".join(f"{m.name}: {m.description}" for m in methods())))
     p_est.add_argument("--grid", type=_positive, default=5,
                        help=_applies("grid", "switching-time grid points per interval"))
