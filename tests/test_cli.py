@@ -325,3 +325,48 @@ def test_estimate_writes_the_outlier_flags_and_counts_them(tmp_path, capsys):
     table = pd.read_csv(out)
     assert table["outlier"].dtype == bool and table["outlier"][40] and table["outlier"].sum() == 1
     assert "1 of 201 measurements were rejected" in capsys.readouterr().err
+
+
+class _Clock:
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_eta_waits_for_a_round_of_the_workers_then_uses_the_finished_tasks():
+    """The issue's run: 10 tasks of 40 s on 2 workers. No ETA until both workers finish a
+    task; then the time per task of the run (20 s) times the 8 left: 160 s, counting down."""
+    clock = _Clock()
+    eta = cli_module._Eta(workers=2, clock=clock)
+    assert str(eta) == ""  # before the runner's first report
+    eta.update(0, 10)
+    clock.now += 39.0
+    eta.update(0, 10)  # a poll, nothing finished
+    assert eta.seconds() is None and str(eta) == ""
+    clock.now += 1.0
+    eta.update(1, 10)
+    assert eta.seconds() is None  # one worker's task says little of the other's
+    eta.update(2, 10)
+    assert eta.seconds() == pytest.approx(160.0) and str(eta) == "ETA 0:02:40"
+    clock.now += 15.0
+    assert eta.seconds() == pytest.approx(145.0)  # counts down between tasks
+    clock.now += 1000.0
+    assert eta.seconds() == 0.0  # late: not negative
+    eta.update(10, 10)
+    assert str(eta) == ""  # done
+
+
+def test_eta_of_a_resumed_run_counts_only_its_own_tasks():
+    clock = _Clock()
+    eta = cli_module._Eta(workers=4, clock=clock)
+    eta.update(7, 10)  # 7 stored by an earlier run: 3 left, fewer than the workers
+    clock.now += 30.0
+    eta.update(9, 10)
+    assert eta.seconds() is None  # 2 of the 3 left finished: not yet all of them at once
+    eta = cli_module._Eta(workers=1, clock=clock)
+    eta.update(7, 10)
+    clock.now += 30.0
+    eta.update(8, 10)
+    assert eta.seconds() == pytest.approx(60.0) and str(eta) == "ETA 0:01:00"

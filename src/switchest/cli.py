@@ -378,16 +378,53 @@ def _short(value) -> str:
     return value if isinstance(value, str) else f"{value:.6g}"
 
 
+class _Eta:
+    """The time left of a run, from the tasks it has finished, as the progress bar's text.
+
+    The runner reports ``update(finished, total)`` at its start (the tasks already stored),
+    after each task and while it waits. The estimate is the run's time per finished task
+    (its time since the start over the tasks finished since: all workers together) times the
+    tasks left, counted down since the last one finished. It is shown only once ``workers``
+    tasks have finished: before a round of every worker, the first tasks to finish say little
+    of the others (and when no more tasks are left than workers, all run at once and none is
+    shown). ``str()`` is the text: empty until then and once every task is done.
+    """
+
+    def __init__(self, workers: int, clock: Callable[[], float] = time.perf_counter):
+        self.workers, self.clock = workers, clock
+        self.start: float | None = None
+        self.last = 0.0  # when the latest task finished
+        self.base = self.done = self.total = 0
+
+    def update(self, done: int, total: int) -> None:
+        now = self.clock()
+        if self.start is None:
+            self.start, self.base, self.done, self.last = now, done, done, now
+        if done != self.done:
+            self.last = now
+        self.done, self.total = done, total
+
+    def seconds(self) -> float | None:
+        """The estimated seconds left, or None while it would mean nothing."""
+        if self.start is None:
+            return None
+        finished, left = self.done - self.base, self.total - self.done
+        if left <= 0 or finished < max(1, min(self.workers, self.total - self.base)):
+            return None
+        per_task = (self.last - self.start) / finished
+        return max(0.0, per_task * left - (self.clock() - self.last))
+
+    def __str__(self) -> str:
+        seconds = self.seconds()
+        if seconds is None:
+            return ""
+        minutes, sec = divmod(round(seconds), 60)
+        return f"ETA {minutes // 60}:{minutes % 60:02d}:{sec:02d}"
+
+
 def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store:
     """Run (or resume) each named experiment into the store; print its summary; return the store."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from .experiments import get
 
@@ -408,17 +445,21 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
             raise _UsageError(f"--trials {args.trials}: {exc}" if overrides else str(exc)) from None
     for experiment, params in plans:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
+                   TimeElapsedColumn(), TextColumn("{task.fields[eta]}"))  # str(_Eta) each frame
         with Progress(*columns, console=console, transient=True,
                       disable=not console.is_terminal) as progress:
-            bar = progress.add_task(experiment.name, total=None)
+            eta = _Eta(args.workers)
+            bar = progress.add_task(experiment.name, total=None, eta=eta)
             start = time.perf_counter()
+
+            def on_done(done: int, total: int, bar=bar, eta=eta) -> None:
+                eta.update(done, total)
+                progress.update(bar, completed=done, total=total)
+
             try:
                 results = run_experiment(
                     experiment, params, store=store, seed=args.seed, workers=args.workers,
-                    scheduler=args.scheduler,
-                    on_done=lambda done, total, bar=bar: progress.update(bar, completed=done,
-                                                                         total=total),
+                    scheduler=args.scheduler, on_done=on_done,
                 )
             except OSError as exc:
                 if args.scheduler is None:
@@ -468,7 +509,7 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
     if args.command == "run":
         report = shlex.join(["switchest", "report", "--store", str(store.path), "--out",
                              args.out])
-        console.print(f"HTML page of the results: [bold]{escape(report)}[/bold]")
+        console.print(f"HTML page of the results: [bold]{escape(report)}[/bold]", highlight=False)
     if args.command == "reproduce":
         with _report_progress(console) as progress:
             report = write_report(store, args.out, chosen, command=args.command_line,
