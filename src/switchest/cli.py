@@ -708,9 +708,12 @@ def _names(allowed: tuple[str, ...]) -> Callable[[str], tuple[str, ...]]:
         names = tuple(name.strip() for name in text.split(","))
         unknown = [name for name in names if name not in allowed]
         if unknown:
+            hints = [f"{close!r} for {n!r}" for n in unknown
+                     if (close := closest_name(n, allowed)) is not None]
             raise argparse.ArgumentTypeError(
                 f"unknown parameter(s) {', '.join(repr(n) for n in unknown)}; expected "
-                f"comma-separated names among {', '.join(allowed)}")
+                f"comma-separated names among {', '.join(allowed)}"
+                + (f"; did you mean {', '.join(hints)}?" if hints else ""))
         return tuple(dict.fromkeys(names))
     return parse
 
