@@ -113,6 +113,9 @@ def test_cli_check_states_the_margin_sign_and_ends_with_the_methods(capsys, monk
                           "kalman, impulsive; no conditions checked: imm, gpb1, gpb2, rbpf, "
                           "imm-ev1")
     assert max(map(len, out.splitlines())) <= 80
+    # the paper under each condition rather than a fifth column: 50 lines, not the 70 of five
+    assert len(out.splitlines()) <= 55
+    assert "│ Wang Assumption 2 " in out
 
 
 def test_etienne_pairs_are_jointly_observable():

@@ -666,13 +666,18 @@ def _cmd_check(args: argparse.Namespace, console: Console) -> int:
     table = Table(title=escape(f"switchest check: {args.model}"), title_justify="left",
                   caption="margin: positive when the condition holds, zero or negative when "
                           "it fails (— where none is defined)", caption_justify="left")
-    for col in ("condition", "verdict", "margin", "paper", "detail"):
+    # the paper under the condition, not a column of its own: at 80 columns the detail gets
+    # the width and the table half the lines
+    table.add_column("condition (paper)", overflow="fold")
+    for col in ("verdict", "margin"):
         table.add_column(col, overflow="fold")
+    table.add_column("detail", overflow="fold")
     marks = {True: "[green]holds[/green]", False: "[red]fails[/red]", None: "[yellow]n/a[/yellow]"}
     checks = certify(spec)
     for c in checks:
         margin = "—" if c.margin is None else f"{c.margin:.3g}"
-        table.add_row(escape(c.name), marks[c.verdict], margin, escape(c.paper), escape(c.detail))
+        paper = f"\n[dim]{escape(c.paper)}[/dim]" if c.paper else ""
+        table.add_row(escape(c.name) + paper, marks[c.verdict], margin, escape(c.detail))
     console.print(table)
     console.print(_methods_line(checks))
     return 0
