@@ -100,6 +100,9 @@ def test_checks_name_registered_methods_and_method_verdicts_combine_them(all_che
     assert said == {"kalman": None, "min-distance": True, "rsls": False, "impulsive": False}
     wang = method_verdicts(all_checks["wang-example1"])
     assert wang["rsls"] is True and wang["min-distance"] is False
+    # Shankar's vehicle meets Lemma 1, the boost converter does not (test above)
+    assert method_verdicts(all_checks["shankar-vehicle"])["switch-time"] is True
+    assert method_verdicts(all_checks["shankar-boost"])["switch-time"] is False
 
 
 def test_cli_check_states_the_margin_sign_and_ends_with_the_methods(capsys, monkeypatch):
@@ -109,9 +112,9 @@ def test_cli_check_states_the_margin_sign_and_ends_with_the_methods(capsys, monk
     assert "margin: positive when the condition holds, zero or negative when" in out
     words = " ".join(out.split())  # the closing line, unwrapped
     assert words.endswith("where none is defined) methods whose conditions hold: rsls; "
-                          "fail: switch-time, min-distance; undecided or not applicable: "
-                          "kalman, impulsive; no conditions checked: imm, gpb1, gpb2, rbpf, "
-                          "imm-ev1")
+                          "fail: min-distance; undecided or not applicable: kalman, "
+                          "switch-time, impulsive; no conditions checked: imm, gpb1, gpb2, "
+                          "rbpf, imm-ev1")
     assert max(map(len, out.splitlines())) <= 80
     # the paper under each condition rather than a fifth column: 50 lines, not the 70 of five
     assert len(out.splitlines()) <= 55
