@@ -9,8 +9,17 @@ import pytest
 
 from switchest import SwitchedLinearSystem
 from switchest.analysis import critical_interval, lee_assumptions
-from switchest.certify import _impulsive, _jsr, _lee, _wang_critical_interval, certify
+from switchest.certify import (
+    Check,
+    _impulsive,
+    _jsr,
+    _lee,
+    _wang_critical_interval,
+    certify,
+    method_verdicts,
+)
 from switchest.cli import main
+from switchest.estimators import METHOD_NAMES
 from switchest.modelfile import ModelSpec
 from switchest.models.catalog import catalog
 from switchest.models.lee import LEE_SCENARIO
@@ -60,6 +69,56 @@ def test_shankar_vehicle_meets_lemma_1_and_the_boost_converter_does_not():
     boost = {c.name: c for c in certify(catalog()["shankar-boost"])}
     # with H = [0 1], the inductor current is invisible while the switch is closed (mode 0)
     assert "mode(s) [0] unobservable" in boost["each mode observable"].detail
+
+
+def test_every_margin_is_positive_exactly_when_its_condition_holds(all_checks):
+    """One sign convention: positive = holds, <= 0 = fails (an unobservable mode's margin is
+    0, not the positive PBH margin of its observable part)."""
+    seen = 0
+    for name, checks in all_checks.items():
+        for c in checks:
+            if c.margin is not None and c.verdict is not None:
+                assert (c.margin > 0) == c.verdict, (name, c.name, c.margin, c.verdict)
+                seen += 1
+    assert seen >= 20
+    boost = {c.name: c for c in all_checks["shankar-boost"]}
+    assert boost["each mode observable"].verdict is False
+    assert boost["each mode observable"].margin == 0
+
+
+def test_checks_name_registered_methods_and_method_verdicts_combine_them(all_checks):
+    named = {m for checks in all_checks.values() for c in checks for m in c.methods}
+    assert named and named <= set(METHOD_NAMES)
+
+    def check(verdict, *methods):
+        return Check("c", "p", verdict, "d", methods=methods)
+
+    said = method_verdicts([check(True, "rsls", "kalman"), check(None, "kalman"),
+                            check(True, "impulsive"), check(False, "impulsive", "rsls"),
+                            check(True, "min-distance"), check(True)])
+    # the registry's order; a failure wins, then an undecided condition; imm is unnamed
+    assert said == {"kalman": None, "min-distance": True, "rsls": False, "impulsive": False}
+    wang = method_verdicts(all_checks["wang-example1"])
+    assert wang["rsls"] is True and wang["min-distance"] is False
+    # Shankar's vehicle meets Lemma 1, the boost converter does not (test above)
+    assert method_verdicts(all_checks["shankar-vehicle"])["switch-time"] is True
+    assert method_verdicts(all_checks["shankar-boost"])["switch-time"] is False
+
+
+def test_cli_check_states_the_margin_sign_and_ends_with_the_methods(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["check", "--model", str(EXAMPLES / "wang-example1.toml")]) == 0
+    out = capsys.readouterr().out
+    assert "margin: positive when the condition holds, zero or negative when" in out
+    words = " ".join(out.split())  # the closing line, unwrapped
+    assert words.endswith("where none is defined) methods whose conditions hold: rsls; "
+                          "fail: min-distance; undecided or not applicable: kalman, "
+                          "switch-time, impulsive; no conditions checked: imm, gpb1, gpb2, "
+                          "rbpf, imm-ev1")
+    assert max(map(len, out.splitlines())) <= 80
+    # the paper under each condition rather than a fifth column: 50 lines, not the 70 of five
+    assert len(out.splitlines()) <= 55
+    assert "│ Wang Assumption 2 " in out
 
 
 def test_etienne_pairs_are_jointly_observable():

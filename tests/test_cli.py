@@ -2,7 +2,9 @@
 errors."""
 
 import argparse
+import os
 import re
+import shlex
 import subprocess
 import sys
 from dataclasses import replace
@@ -25,6 +27,34 @@ def test_demo_prints_the_comparison(capsys):
     assert main(["demo", "--trials", "2", "--duration", "0.02", "--seed", "1"]) == 0
     out = capsys.readouterr().out
     assert "clairvoyant" in out and "IMM" in out and "RMSE" in out
+
+
+def test_demo_fits_80_columns_with_every_header_whole(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["demo", "--trials", "2", "--duration", "0.02", "--seed", "1"]) == 0
+    out = capsys.readouterr().out
+    assert max(map(len, out.splitlines())) <= 80 and "…" not in out
+    header = [line.split("┃")[1:-1] for line in out.splitlines() if line.startswith("┃")]
+    columns = [" ".join(" ".join(cells).split()) for cells in zip(*header, strict=True)]
+    assert columns == ["filter", "i_L (A)", "v_0 (V)", "modes", "t_sw (ms)", "time (s)"]
+    words = " ".join(out.split())  # the key, unwrapped
+    for key in ("i_L, v_0: RMSE of", "modes: fraction of samples", "t_sw: mean |error|",
+                "time: to filter", "-: not estimated"):
+        assert key in words
+
+
+def test_estimate_help_fits_80_columns_and_keeps_names_whole(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    with pytest.raises(SystemExit) as done:
+        main(["estimate", "--help"])
+    assert done.value.code == 0
+    out = capsys.readouterr().out
+    assert max(map(len, out.splitlines())) <= 80
+    assert not [line for line in out.splitlines() if line.rstrip().endswith("-")]
+    words = " ".join(out.split())  # unwrapped: a name split at a hyphen would read "min- dis"
+    for name in METHOD_NAMES:
+        assert f" {name}: " in words, name
+    assert "min-distance: minimum-distance mode estimation" in words
 
 
 def test_bad_arguments_exit_with_one_line(capsys):
@@ -227,6 +257,26 @@ def test_timing_selects_the_interval_a_mode_governs(tmp_path, capsys):
     assert "invalid choice: 'later'" in capsys.readouterr().err
 
 
+def test_run_ends_with_its_figures_and_the_report_command(tmp_path, capsys, monkeypatch):
+    """``run NAME`` closes with the folder and names of its figures and the ``report`` command
+    that builds the page, a command that runs as printed."""
+    monkeypatch.setenv("COLUMNS", "250")
+    out = tmp_path / "my out"
+    assert main(["run", "shankar-lemma2", "--quick", "--workers", "1", "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-2] == f"figures (1) in {out / 'figures'}{os.sep}: shankar-lemma2.png"
+    assert (out / "figures" / "shankar-lemma2.png").is_file()
+    said, _, command = lines[-1].partition(": ")
+    assert said == "HTML page of the results"
+    argv = shlex.split(command)
+    assert argv == ["switchest", "report", "--store", str(out / "results.sqlite"), "--out",
+                    str(out)]
+    assert main(argv[1:]) == 0
+    assert "report: " in capsys.readouterr().out
+    assert main(["run", "shankar-lemma1", "--quick", "--workers", "1", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.splitlines()[-2] == "figures: none for this experiment"
+
+
 def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatch):
     """In a pipe or a log (80 columns) no column is squeezed away: every row still starts with
     its label, and no line is wider than the terminal."""
@@ -275,3 +325,48 @@ def test_estimate_writes_the_outlier_flags_and_counts_them(tmp_path, capsys):
     table = pd.read_csv(out)
     assert table["outlier"].dtype == bool and table["outlier"][40] and table["outlier"].sum() == 1
     assert "1 of 201 measurements were rejected" in capsys.readouterr().err
+
+
+class _Clock:
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_eta_waits_for_a_round_of_the_workers_then_uses_the_finished_tasks():
+    """The issue's run: 10 tasks of 40 s on 2 workers. No ETA until both workers finish a
+    task; then the time per task of the run (20 s) times the 8 left: 160 s, counting down."""
+    clock = _Clock()
+    eta = cli_module._Eta(workers=2, clock=clock)
+    assert str(eta) == ""  # before the runner's first report
+    eta.update(0, 10)
+    clock.now += 39.0
+    eta.update(0, 10)  # a poll, nothing finished
+    assert eta.seconds() is None and str(eta) == ""
+    clock.now += 1.0
+    eta.update(1, 10)
+    assert eta.seconds() is None  # one worker's task says little of the other's
+    eta.update(2, 10)
+    assert eta.seconds() == pytest.approx(160.0) and str(eta) == "ETA 0:02:40"
+    clock.now += 15.0
+    assert eta.seconds() == pytest.approx(145.0)  # counts down between tasks
+    clock.now += 1000.0
+    assert eta.seconds() == 0.0  # late: not negative
+    eta.update(10, 10)
+    assert str(eta) == ""  # done
+
+
+def test_eta_of_a_resumed_run_counts_only_its_own_tasks():
+    clock = _Clock()
+    eta = cli_module._Eta(workers=4, clock=clock)
+    eta.update(7, 10)  # 7 stored by an earlier run: 3 left, fewer than the workers
+    clock.now += 30.0
+    eta.update(9, 10)
+    assert eta.seconds() is None  # 2 of the 3 left finished: not yet all of them at once
+    eta = cli_module._Eta(workers=1, clock=clock)
+    eta.update(7, 10)
+    clock.now += 30.0
+    eta.update(8, 10)
+    assert eta.seconds() == pytest.approx(60.0) and str(eta) == "ETA 0:01:00"

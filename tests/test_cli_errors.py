@@ -64,6 +64,54 @@ def test_bad_option_values_are_one_line_naming_the_option(argv, message, capsys)
     assert err.startswith(f"error: {message}")
 
 
+# ------------------------------------------------------------------ did you mean
+@pytest.mark.parametrize("argv, message", [
+    (["estimat"], "argument command: invalid choice: 'estimat' (choose from 'demo', "),
+    (["run", "shankar-table-1"],
+     "unknown reproduction(s) shankar-table-1 (did you mean 'shankar-table1'?); see "
+     "'switchest list'"),
+    (["reproduce", "bakeof", "nonsense"],
+     "unknown reproduction(s) bakeof (did you mean 'bakeoff'?), nonsense; see 'switchest list'"),
+    (["demo", "--trails", "3"],
+     "unrecognized option --trails; did you mean '--trials'? (see 'switchest demo --help')"),
+    (["--debgu", "list"], "unrecognized option --debgu; did you mean '--debug'?"),
+    (["check", "--modle", MODEL], "unrecognized option --modle; did you mean '--model'?"),
+    # a misspelt required option is named, not reported missing
+    (["estimate", "--model", MODEL, "--data", MODEL, "--metod", "imm", "--out", "e.csv"],
+     "unrecognized option --metod; did you mean '--method'? (see 'switchest estimate --help')"),
+    (["estimate", "--model", MODEL, "--data", MODEL, "--method=imm", "--out", "e.csv",
+      "--plto=p.png"], "unrecognized option --plto; did you mean '--plot'?"),
+    (["demo", "--nothing-like-it"], "unrecognized option --nothing-like-it (see"),
+])
+def test_unknown_names_are_one_line_with_the_closest_name(argv, message, capsys):
+    err = one_line_error(capsys, main(argv))
+    assert err.startswith(f"error: {message}")
+    if "estimat'" in message:
+        assert err.rstrip().endswith("did you mean 'estimate'? (see 'switchest --help')")
+
+
+@pytest.mark.parametrize("flag, value, close", [
+    ("--method", "kalmann", "kalman"), ("--method", "IMM", "imm"),
+    ("--method", "min_distance", "min-distance"), ("--timing", "Sample", "sample")])
+def test_estimate_choices_suggest_the_closest(flag, value, close, data_csv, tmp_path, capsys):
+    argv = ["estimate", "--model", MODEL, "--data", str(data_csv), "--method", "imm",
+            "--out", str(tmp_path / "e.csv"), flag, value]
+    err = one_line_error(capsys, main(argv))
+    assert f"argument {flag}: invalid choice: '{value}' (choose from " in err
+    assert err.rstrip().endswith(f"; did you mean '{close}'? (see 'switchest estimate --help')")
+
+
+def test_abbreviations_and_values_that_look_like_options_still_parse(data_csv, tmp_path):
+    """argparse's unique prefixes (--meth) pass the check; a negative number is a value."""
+    out = tmp_path / "e.csv"
+    assert main(["estimate", "--model", MODEL, "--data", str(data_csv), "--meth", "kalman",
+                 "--out", str(out)]) == 0
+    assert main(["simulate", "--model", MODEL, "--input=-1", "--duration", "0.001",
+                 "--out", str(tmp_path / "s.csv")]) == 0
+    assert main(["simulate", "--model", MODEL, "--input", "-1", "--duration", "0.001",
+                 "--out", str(tmp_path / "s.csv")]) == 0
+
+
 def test_estimate_numeric_options_are_checked_at_parse_time(data_csv, tmp_path, capsys):
     base = ["estimate", "--model", MODEL, "--data", str(data_csv), "--out", str(tmp_path / "e.csv")]
     for flag, value, expected in [("--stay", "1.5", "a probability in (0, 1]"),

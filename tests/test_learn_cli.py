@@ -173,6 +173,12 @@ def test_bad_inputs_get_one_clear_line(tmp_path, capsys):
         (["--data", str(tmp_path / "none.csv")], "no such file"),
         (["--estimate", "transition,Qd"], "--estimate: unknown parameter(s) 'Qd'; expected "
                                           "comma-separated names among transition"),
+        (["--estimate", "tranistion,q,xyz"], "--estimate: unknown parameter(s) 'tranistion', "
+                                             "'q', 'xyz'; expected comma-separated names among "
+                                             "transition, A, B, C, Q, R; did you mean "
+                                             "'transition' for 'tranistion', 'Q' for 'q'? (see"),
+        (["--shared", "QQ"], "--shared: unknown parameter(s) 'QQ'; expected comma-separated "
+                             "names among A, B, C, Q, R; did you mean 'Q' for 'QQ'? (see"),
         (["--estimate", "transition", "--trial", "5"], "trial=5"),
         (["--max-iter", "0"], "--max-iter: expected a positive integer"),
     ]

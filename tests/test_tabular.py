@@ -370,6 +370,16 @@ def test_an_unregistered_method_is_refused_with_the_list(tmp_path):
         estimate_table(spec, path, method="kalman-filter")
 
 
+@pytest.mark.parametrize("name, close", [("IMM", "imm"), ("kalmann", "kalman"),
+                                         ("switch_time", "switch-time"), ("gbp2", "gpb2")])
+def test_a_misspelt_method_is_refused_with_the_closest_name(name, close, tmp_path):
+    spec, _, path, _ = boost_csv(tmp_path)
+    with pytest.raises(ValueError, match=rf"got '{name}'; did you mean '{close}'\?$"):
+        estimate_table(spec, path, method=name)
+    with pytest.raises(ValueError, match=r"got 'xyzzy'$"):  # nothing close: no guess
+        get_method("xyzzy")
+
+
 def test_estimate_warns_when_the_residuals_do_not_fit_the_model(tmp_path):
     """The boost converter switches between samples: a Kalman filter along the modes at the
     samples claims far less error than it makes (NIS ~ 10 for 1); the switch-time filter,

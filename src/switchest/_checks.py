@@ -7,8 +7,9 @@ received, and raises ``ValueError`` (wrong value or shape) or ``TypeError``
 
 from __future__ import annotations
 
+import difflib
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from functools import lru_cache
 from numbers import Real
 
@@ -31,6 +32,8 @@ __all__ = [
     "check_bool",
     "check_mode",
     "check_timing",
+    "closest_name",
+    "did_you_mean",
     "TIMINGS",
     "memory_limit",
     "check_memory",
@@ -324,8 +327,32 @@ def check_timing(value, name: str = "timing") -> str:
     if not isinstance(value, str):
         raise TypeError(f"{name} must be one of {TIMINGS}, got {type(value).__name__}")
     if value not in TIMINGS:
-        raise ValueError(f"{name} must be one of {TIMINGS}, got {value!r}")
+        raise ValueError(f"{name} must be one of {TIMINGS}, got {value!r}"
+                         + did_you_mean(value, TIMINGS, before="; "))
     return value
+
+
+def closest_name(name: str, valid: Iterable[str]) -> str | None:
+    """The name among ``valid`` a user most likely meant by ``name``, or None.
+
+    A name differing only in case (``IMM`` for ``imm``) wins; otherwise the closest in
+    spelling (:func:`difflib.get_close_matches`, ratio at least 0.6: ``kalmann`` for
+    ``kalman``, ``v_mx`` for ``v_max``).
+    """
+    valid = sorted(valid)
+    name = str(name)
+    close = ([v for v in valid if v.lower() == name.lower()]
+             or difflib.get_close_matches(name, valid, n=1))
+    return close[0] if close else None
+
+
+def did_you_mean(name: str, valid: Iterable[str], *, before: str = "", after: str = "") -> str:
+    """``"did you mean 'x'?"`` for the :func:`closest_name` ``x`` of ``name`` among ``valid``
+    (framed by ``before`` and ``after``), or ``""`` when none is close: the hint of every
+    error about an unknown name (methods, reproductions, model-file keys, command-line
+    options)."""
+    close = closest_name(name, valid)
+    return "" if close is None else f"{before}did you mean {close!r}?{after}"
 
 
 @lru_cache(maxsize=1)

@@ -8,11 +8,12 @@ which makes a round trip exact.
 
 from __future__ import annotations
 
-import difflib
 import tomllib
 from pathlib import Path
 
 import numpy as np
+
+from ._checks import did_you_mean
 
 __all__ = ["ModelFileError", "read", "dumps", "matrix", "number", "where", "unknown_key"]
 
@@ -44,12 +45,10 @@ def unknown_key(source: str, table: str, key, valid) -> ModelFileError:
     """The error for an unknown model-file key: file, table and key, and the closest valid key.
 
     A key differing only in case (``a`` for ``A``) or close in spelling (``v_mx``
-    for ``v_max``, :func:`difflib.get_close_matches`) is suggested.
+    for ``v_max``: :func:`switchest._checks.closest_name`) is suggested.
     """
     valid, key = sorted(valid), str(key)
-    close = ([v for v in valid if v.lower() == key.lower()]
-             or difflib.get_close_matches(key, valid, n=1))
-    hint = f"did you mean {close[0]!r}? " if close else ""
+    hint = did_you_mean(key, valid, after=" ")
     at = f"{table}.{key}" if table else key
     expected = ", ".join(valid)
     return ModelFileError(where(source, f"{at}: unknown key; {hint}expected one of {expected}"))

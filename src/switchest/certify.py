@@ -2,8 +2,13 @@
 
 Each check returns a :class:`Check`: its verdict (True, False, or None where it
 is inconclusive or does not apply), a margin where one is defined, a one-line
-detail and the paper it comes from. ``switchest check --model M.toml`` prints
-them; :func:`certify` returns them.
+detail, the paper it comes from and the estimation methods whose guarantee it is a
+condition of. ``switchest check --model M.toml`` prints them; :func:`certify` returns
+them, :func:`method_verdicts` what they say of each method.
+
+Every margin has one sign: positive when the condition holds, zero or negative when it
+fails (how far it is from the threshold, in the check's own quantity: ``1 - JSR``, the
+noise bound allowed minus the one given, a PBH singular value, a decay rate).
 
 Every check finishes in bounded time and memory: a check whose estimated size is
 beyond its budget (an LMI of many states, the ``n^2 x n^2`` second-moment matrices
@@ -14,8 +19,8 @@ compare a computed number with a threshold beyond that number's rounding.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,21 +45,28 @@ from .analysis import (
 from .analysis._lmi import lmi_nbytes
 from .analysis.subsystem_observers import critical_interval_nbytes
 from .discretize import mode_steps
+from .estimators.registry import METHOD_NAMES
 from .modelfile import ModelSpec
 from .switching import IID, AverageDwell, Dwell, Schedule
 
-__all__ = ["Check", "certify", "CHECKS"]
+__all__ = ["Check", "certify", "CHECKS", "method_verdicts"]
 
 
 @dataclass(frozen=True)
 class Check:
-    """One certificate: ``verdict`` True/False, or None when inconclusive or not applicable."""
+    """One certificate: ``verdict`` True/False, or None when inconclusive or not applicable.
+
+    ``margin`` (where one is defined) is positive when the condition holds and at most zero
+    when it fails; ``methods`` names the registered estimation methods
+    (:data:`~switchest.estimators.registry.METHOD_NAMES`) whose guarantee needs it.
+    """
 
     name: str
     paper: str
     verdict: bool | None
     detail: str
     margin: float | None = None
+    methods: tuple[str, ...] = ()
 
 
 #: Memory one check may plan for its largest solve (or its Kronecker matrices): 1 GiB, a
@@ -110,8 +122,11 @@ def _modes_observable(spec: ModelSpec) -> Check:
     bad = [i for i, ok in enumerate(r.observable) if not ok]
     detail = "every mode observable" if r.holds else (
         f"mode(s) {bad} unobservable (observable dimensions {list(map(int, r.n_observable))})")
+    # the PBH margin of each mode's observable part; an unobservable mode is at zero
+    # distance from unobservability (its PBH singular value is zero to the test's tolerance)
+    margin = float(np.min(r.margin)) if r.holds else 0.0
     return Check("each mode observable", "Lee §II; Shankar Assumption 1; Wang §3.1", bool(r.holds),
-                 detail, float(np.min(r.margin)))
+                 detail, margin)
 
 
 def _joint(spec: ModelSpec) -> Check:
@@ -188,7 +203,10 @@ def _lee(spec: ModelSpec) -> Check:
               f"Assumption 3: {dwell_note}")
     verdict = (a.assumption1.holds and a.condition3.holds and a.condition4.holds
                and dwell_verdict is not False)
-    return Check(name, paper, bool(verdict), detail, a.v_max_allowed - bounds["v_max"])
+    margin = a.v_max_allowed - bounds["v_max"]
+    # the noise-bound margin is that of (3)-(4); when Assumption 1 or 3 fails instead, it
+    # does not measure the failure (the detail says which)
+    return Check(name, paper, bool(verdict), detail, margin if (margin > 0) == verdict else None)
 
 
 def _lee_dwell(spec: ModelSpec) -> tuple[dict, bool | None, str]:
@@ -392,6 +410,22 @@ CHECKS: list[Callable[[ModelSpec], Check]] = [
     _mismatch, _impulsive, _wang_critical_interval,
 ]
 
+#: The methods whose guarantee each check is a condition of (those of the paper the method
+#: implements, :mod:`switchest.estimators.registry`); checks of the system alone (the CQLF
+#: and JSR of the modes, open-loop mean-square stability) name none.
+_METHODS: dict[Callable[[ModelSpec], Check], tuple[str, ...]] = {
+    # Lee §II; not switch-time: Shankar's own boost converter has an unobservable mode, and
+    # its guarantee is Lemma 1's observability over a dwell time
+    _modes_observable: ("min-distance",),
+    _joint: ("min-distance",),  # Lee Assumption 1
+    _lee: ("min-distance",),  # Lee Assumptions 1-3, (3)-(4)
+    _combined: ("rsls",),  # Wang Assumption 2
+    _lemma1: ("switch-time",),  # Shankar Lemma 1
+    _filter_cqlf: ("kalman",),  # Zhang Theorem 2: the mode-based filter's bias
+    _impulsive: ("impulsive",),  # Etienne Theorem 8
+    _wang_critical_interval: ("rsls",),  # Wang Theorem 3
+}
+
 
 def certify(spec: ModelSpec) -> list[Check]:
     """Run every check on the model; a check that fails to run says why, the rest go on.
@@ -403,9 +437,31 @@ def certify(spec: ModelSpec) -> list[Check]:
     out = []
     with one_blas_thread():
         for check in CHECKS:
+            methods = _METHODS.get(check, ())
             try:
-                out.append(check(spec))
+                out.append(replace(check(spec), methods=methods))
             except (ValueError, np.linalg.LinAlgError) as exc:
                 name = check.__name__.strip("_").replace("_", " ")
-                out.append(Check(name, "", None, f"could not be evaluated: {exc}"))
+                out.append(Check(name, "", None, f"could not be evaluated: {exc}",
+                                 methods=methods))
+    return out
+
+
+def method_verdicts(checks: Sequence[Check]) -> dict[str, bool | None]:
+    """What ``checks`` (:func:`certify`'s) say of each method whose conditions they include.
+
+    Returns
+    -------
+    dict
+        For each registered method that some check names (:attr:`Check.methods`), in the
+        registry's order: True when every one of its conditions holds, False when one fails,
+        None otherwise (one inconclusive or not applicable, none failing). Methods that no
+        check names are left out: nothing here certifies them.
+    """
+    out: dict[str, bool | None] = {}
+    for name in METHOD_NAMES:
+        verdicts = [c.verdict for c in checks if name in c.methods]
+        if verdicts:
+            out[name] = (False if False in verdicts
+                         else True if all(v is True for v in verdicts) else None)
     return out

@@ -22,6 +22,7 @@ import math
 import os
 import shlex
 import sys
+import textwrap
 import time
 import warnings
 from collections.abc import Callable, Iterator
@@ -33,7 +34,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from . import __version__
-from ._checks import TIMINGS
+from ._checks import TIMINGS, closest_name, did_you_mean
 from .estimators.registry import methods, methods_with
 
 if TYPE_CHECKING:
@@ -65,11 +66,61 @@ class _Interrupted(Exception):
         self.run = run
 
 
+class _HelpFormatter(argparse.HelpFormatter):
+    """argparse's help, wrapped at spaces only: a method name (``min-distance``) or a term
+    (``pseudo-Bayesian``) is never split at its hyphen."""
+
+    def _split_lines(self, text: str, width: int) -> list[str]:
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
+
+
 class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line, raised rather than printed with the usage."""
+    """An argument parser whose errors are one line, raised rather than printed with the usage,
+    and which suggests the closest name (:func:`~switchest._checks.did_you_mean`) for an
+    unknown command, option or choice (``--method kalmann``: did you mean 'kalman'?)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)  # the commands' parsers too
+        super().__init__(*args, **kwargs)
+        self.commands: dict[str, argparse.ArgumentParser] = {}
+        """The parsers of the commands (``switchest run``, ...), set by :func:`_parser`."""
 
     def error(self, message: str) -> NoReturn:
         raise _UsageError(f"{message} (see '{self.prog} --help')")
+
+    def parse_args(self, args=None, namespace=None):  # noqa: D102 (argparse's)
+        args = sys.argv[1:] if args is None else list(args)
+        self._check_options(args)
+        return super().parse_args(args, namespace)
+
+    def _check_options(self, args: list[str]) -> None:
+        """Refuse an unknown ``--option`` of the command line with the closest one, before
+        argparse parses it: argparse would first report a required option as missing (the one
+        misspelt) or list the unknown one among 'unrecognized arguments' without a hint.
+        Unique prefixes (``--meth``) are argparse's abbreviations and pass."""
+        parser: argparse.ArgumentParser = self
+        for arg in args:
+            if arg == "--":
+                return
+            if not arg.startswith("--"):  # a value (a negative number too), or the command
+                if parser is self and arg in self.commands:
+                    parser = self.commands[arg]
+                continue
+            option = arg.partition("=")[0]
+            known = [o for action in parser._actions for o in action.option_strings
+                     if o.startswith("--")]
+            if not any(o.startswith(option) for o in known):
+                close = closest_name(option[2:], [o[2:] for o in known])  # names, not dashes
+                hint = "" if close is None else f"; did you mean '--{close}'?"
+                parser.error(f"unrecognized option {option}{hint}")
+
+    def _check_value(self, action: argparse.Action, value) -> None:
+        """argparse's check of a ``choices`` value, with the closest choice suggested."""
+        if action.choices is not None and value not in action.choices:
+            choices = ", ".join(map(repr, action.choices))
+            hint = did_you_mean(value, action.choices, before="; ")
+            raise argparse.ArgumentError(
+                action, f"invalid choice: {value!r} (choose from {choices}){hint}")
 
 
 # ---------------------------------------------------------------------- option types (type=)
@@ -237,10 +288,14 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
                "switch-time KF, g = 1": ("grid", 1), "switch-time KF, g = 5": ("grid", 5),
                "IMM (modes unknown)": ("imm", None)}
     start = setting.transient
-    table = Table(title=f"Boost converter: RMSE after the first {start} samples")
+    # short headers and a key, so that the table fits 80 columns with every header whole
+    table = Table(title=f"Boost converter, scored after the first {start} samples",
+                  caption="i_L, v_0: RMSE of the inductor current and the output voltage; "
+                          "modes: fraction of samples whose mode is estimated right; t_sw: "
+                          "mean |error| of the estimated switching instants; time: to filter; "
+                          "-: not estimated", caption_justify="left")
     table.add_column("filter", no_wrap=True)
-    for col in ("RMSE i_L (A)", "RMSE v_0 (V)", "mode accuracy", "switch-time error (ms)",
-                "time (s)"):
+    for col in ("i_L (A)", "v_0 (V)", "modes", "t_sw (ms)", "time (s)"):
         table.add_column(col, justify="right")
     true_switch = traj.switch_times()
     for name, (method, g) in filters.items():
@@ -323,16 +378,53 @@ def _short(value) -> str:
     return value if isinstance(value, str) else f"{value:.6g}"
 
 
+class _Eta:
+    """The time left of a run, from the tasks it has finished, as the progress bar's text.
+
+    The runner reports ``update(finished, total)`` at its start (the tasks already stored),
+    after each task and while it waits. The estimate is the run's time per finished task
+    (its time since the start over the tasks finished since: all workers together) times the
+    tasks left, counted down since the last one finished. It is shown only once ``workers``
+    tasks have finished: before a round of every worker, the first tasks to finish say little
+    of the others (and when no more tasks are left than workers, all run at once and none is
+    shown). ``str()`` is the text: empty until then and once every task is done.
+    """
+
+    def __init__(self, workers: int, clock: Callable[[], float] = time.perf_counter):
+        self.workers, self.clock = workers, clock
+        self.start: float | None = None
+        self.last = 0.0  # when the latest task finished
+        self.base = self.done = self.total = 0
+
+    def update(self, done: int, total: int) -> None:
+        now = self.clock()
+        if self.start is None:
+            self.start, self.base, self.done, self.last = now, done, done, now
+        if done != self.done:
+            self.last = now
+        self.done, self.total = done, total
+
+    def seconds(self) -> float | None:
+        """The estimated seconds left, or None while it would mean nothing."""
+        if self.start is None:
+            return None
+        finished, left = self.done - self.base, self.total - self.done
+        if left <= 0 or finished < max(1, min(self.workers, self.total - self.base)):
+            return None
+        per_task = (self.last - self.start) / finished
+        return max(0.0, per_task * left - (self.clock() - self.last))
+
+    def __str__(self) -> str:
+        seconds = self.seconds()
+        if seconds is None:
+            return ""
+        minutes, sec = divmod(round(seconds), 60)
+        return f"ETA {minutes // 60}:{minutes % 60:02d}:{sec:02d}"
+
+
 def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store:
     """Run (or resume) each named experiment into the store; print its summary; return the store."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from .experiments import get
 
@@ -353,17 +445,21 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
             raise _UsageError(f"--trials {args.trials}: {exc}" if overrides else str(exc)) from None
     for experiment, params in plans:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
+                   TimeElapsedColumn(), TextColumn("{task.fields[eta]}"))  # str(_Eta) each frame
         with Progress(*columns, console=console, transient=True,
                       disable=not console.is_terminal) as progress:
-            bar = progress.add_task(experiment.name, total=None)
+            eta = _Eta(args.workers)
+            bar = progress.add_task(experiment.name, total=None, eta=eta)
             start = time.perf_counter()
+
+            def on_done(done: int, total: int, bar=bar, eta=eta) -> None:
+                eta.update(done, total)
+                progress.update(bar, completed=done, total=total)
+
             try:
                 results = run_experiment(
                     experiment, params, store=store, seed=args.seed, workers=args.workers,
-                    scheduler=args.scheduler,
-                    on_done=lambda done, total, bar=bar: progress.update(bar, completed=done,
-                                                                         total=total),
+                    scheduler=args.scheduler, on_done=on_done,
                 )
             except OSError as exc:
                 if args.scheduler is None:
@@ -375,8 +471,22 @@ def _run(chosen: list[str], args: argparse.Namespace, console: Console) -> Store
         else:  # several experiments: a line each and what differs; every row is in the report
             _print_compact(summary, console)
         console.print(f"[dim]{escape(experiment.name)}: {len(results)} tasks, "
-                      f"{time.perf_counter() - start:.1f} s[/dim]\n")
+                      f"{time.perf_counter() - start:.1f} s[/dim]")
+        if args.command == "run":  # the report of several experiments names their figures
+            console.print(_figures_line(summary.figures, out / "figures"))
+        else:
+            console.print()
     return store
+
+
+def _figures_line(figures: list[Path], folder: Path) -> str:
+    """Where ``switchest run`` wrote an experiment's figures: the folder and the file names
+    (paths elsewhere in full)."""
+    if not figures:
+        return "figures: none for this experiment"
+    names = [str(Path(f).relative_to(folder)) if Path(f).is_relative_to(folder) else str(f)
+             for f in figures]
+    return escape(f"figures ({len(names)}) in {folder}{os.sep}: {', '.join(names)}")
 
 
 def _cmd_run(args: argparse.Namespace, console: Console) -> int:
@@ -388,13 +498,18 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
         raise _UsageError("name the reproductions to run, or pass --all")
     unknown = [n for n in chosen if n not in names()]
     if unknown:
-        raise _UsageError(f"unknown reproduction(s) {', '.join(unknown)}; see 'switchest list'")
+        said = [n + did_you_mean(n, names(), before=" (", after=")") for n in unknown]
+        raise _UsageError(f"unknown reproduction(s) {', '.join(said)}; see 'switchest list'")
     try:
         store = _run(chosen, args, console)
     except RunInterrupted as exc:
         if args.debug:
             raise
         raise _Interrupted(exc) from None
+    if args.command == "run":
+        report = shlex.join(["switchest", "report", "--store", str(store.path), "--out",
+                             args.out])
+        console.print(f"HTML page of the results: [bold]{escape(report)}[/bold]", highlight=False)
     if args.command == "reproduce":
         with _report_progress(console) as progress:
             report = write_report(store, args.out, chosen, command=args.command_line,
@@ -548,15 +663,41 @@ def _cmd_check(args: argparse.Namespace, console: Console) -> int:
     from .modelfile import load_model
 
     spec = load_model(args.model)
-    table = Table(title=escape(f"switchest check: {args.model}"), title_justify="left")
-    for col in ("condition", "verdict", "margin", "paper", "detail"):
+    table = Table(title=escape(f"switchest check: {args.model}"), title_justify="left",
+                  caption="margin: positive when the condition holds, zero or negative when "
+                          "it fails (— where none is defined)", caption_justify="left")
+    # the paper under the condition, not a column of its own: at 80 columns the detail gets
+    # the width and the table half the lines
+    table.add_column("condition (paper)", overflow="fold")
+    for col in ("verdict", "margin"):
         table.add_column(col, overflow="fold")
+    table.add_column("detail", overflow="fold")
     marks = {True: "[green]holds[/green]", False: "[red]fails[/red]", None: "[yellow]n/a[/yellow]"}
-    for c in certify(spec):
+    checks = certify(spec)
+    for c in checks:
         margin = "—" if c.margin is None else f"{c.margin:.3g}"
-        table.add_row(escape(c.name), marks[c.verdict], margin, escape(c.paper), escape(c.detail))
+        paper = f"\n[dim]{escape(c.paper)}[/dim]" if c.paper else ""
+        table.add_row(escape(c.name) + paper, marks[c.verdict], margin, escape(c.detail))
     console.print(table)
+    console.print(_methods_line(checks))
     return 0
+
+
+def _methods_line(checks: list[Check]) -> str:
+    """The closing line of ``switchest check``: the methods whose conditions hold, fail or are
+    undecided (:func:`switchest.certify.method_verdicts`), and those no check certifies."""
+    from .certify import method_verdicts
+    from .estimators.registry import METHOD_NAMES
+
+    said = method_verdicts(checks)
+    groups = [("[green]conditions hold[/green]", [m for m, v in said.items() if v is True]),
+              ("[red]fail[/red]", [m for m, v in said.items() if v is False]),
+              ("[yellow]undecided or not applicable[/yellow]",
+               [m for m, v in said.items() if v is None]),
+              ("no conditions checked", [m for m in METHOD_NAMES if m not in said])]
+    parts = [f"{label}: {', '.join(names) if names else 'none'}" for label, names in groups[:1]]
+    parts += [f"{label}: {', '.join(names)}" for label, names in groups[1:] if names]
+    return "methods whose " + "; ".join(parts)
 
 
 # ---------------------------------------------------------------------- fit
@@ -572,9 +713,12 @@ def _names(allowed: tuple[str, ...]) -> Callable[[str], tuple[str, ...]]:
         names = tuple(name.strip() for name in text.split(","))
         unknown = [name for name in names if name not in allowed]
         if unknown:
+            hints = [f"{close!r} for {n!r}" for n in unknown
+                     if (close := closest_name(n, allowed)) is not None]
             raise argparse.ArgumentTypeError(
                 f"unknown parameter(s) {', '.join(repr(n) for n in unknown)}; expected "
-                f"comma-separated names among {', '.join(allowed)}")
+                f"comma-separated names among {', '.join(allowed)}"
+                + (f"; did you mean {', '.join(hints)}?" if hints else ""))
         return tuple(dict.fromkeys(names))
     return parse
 
@@ -755,6 +899,7 @@ def _parser() -> _Parser:
                        help="show the traceback of an error")
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True)
+    parser.commands = sub.choices
 
     def command(name: str, run: Callable, **kwargs) -> argparse.ArgumentParser:
         p = sub.add_parser(name, parents=[debug], **kwargs)
@@ -799,6 +944,7 @@ def _parser() -> _Parser:
                             "the y columns are the integrated output at fine instants t "
                             "including every switching instant t0 + kT")
     p_est.add_argument("--method", required=True, choices=[m.name for m in methods()],
+                       metavar="METHOD",  # the help lists them, each with what it does
                        help=_help(" | ".join(f"{m.name}: {m.description}" for m in methods())))
     p_est.add_argument("--grid", type=_positive, default=5,
                        help=_applies("grid", "switching-time grid points per interval"))

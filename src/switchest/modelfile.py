@@ -38,14 +38,13 @@ the closest valid one.
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import _toml
-from ._checks import as_rng, check_symmetric_psd
+from ._checks import as_rng, check_symmetric_psd, did_you_mean
 from .signals import SwitchingSignal, aperiodic, periodic
 from .switching import KINDS, SwitchingModel
 from .system import SwitchedLinearSystem
@@ -420,9 +419,7 @@ def _switching(table, source: str, L: int) -> SwitchingModel | None:
         return None
     kind = table.get("kind")
     if not isinstance(kind, str) or kind not in _SWITCHING_KEYS:
-        close = (difflib.get_close_matches(kind, _SWITCHING_KEYS, n=1)
-                 if isinstance(kind, str) else [])
-        hint = f"did you mean {close[0]!r}? " if close else ""
+        hint = did_you_mean(kind, _SWITCHING_KEYS, after=" ") if isinstance(kind, str) else ""
         raise _fail(source, f"switching.kind: {hint}expected one of {sorted(_SWITCHING_KEYS)}, "
                             f"got {kind!r}")
     keys = _SWITCHING_KEYS[kind]

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .._checks import check_bool
+from .._checks import check_bool, did_you_mean
 
 if TYPE_CHECKING:
     from ..modelfile import ModelSpec
@@ -274,8 +274,10 @@ def get_method(name: str) -> Method:
     Raises
     ------
     ValueError
-        When no method of that name is registered (the message lists them).
+        When no method of that name is registered (the message lists them and suggests the
+        closest, :func:`switchest._checks.did_you_mean`: ``'imm'`` for ``"IMM"``).
     """
     if not isinstance(name, str) or name not in _TABLE:
-        raise ValueError(f"method must be one of {tuple(_TABLE)}, got {name!r}")
+        hint = did_you_mean(name, _TABLE, before="; ") if isinstance(name, str) else ""
+        raise ValueError(f"method must be one of {tuple(_TABLE)}, got {name!r}{hint}")
     return _TABLE[name]
