@@ -134,6 +134,8 @@ def test_params_and_rows_validate():
         exp.params(bogus=3)
     with pytest.raises(ValueError, match="unknown experiment"):
         get("nope")
+    with pytest.raises(ValueError, match="did you mean 'shankar-table1'"):
+        get("shankar-table-1")
     assert Row("q", 2.0, 4.0).ratio == 0.5 and Row("q", 2.0).ratio is None
     with pytest.raises(ValueError, match="workers must be a positive int"):
         run_experiment(exp, exp.params(quick=True), store=None, workers=0)

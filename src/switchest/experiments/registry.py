@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import positive_int
+from .._checks import did_you_mean, positive_int
 from .verdict import Explanation, Fit, Verdict, judge, printed_number
 
 __all__ = ["Experiment", "Row", "Summary", "register", "get", "names", "EXPERIMENTS", "MAX_BLOCKS"]
@@ -223,7 +223,9 @@ def register(experiment: Experiment) -> Experiment:
 def get(name: str) -> Experiment:
     """The registered experiment ``name``."""
     if name not in EXPERIMENTS:
-        raise ValueError(f"unknown experiment {name!r}; known: {', '.join(sorted(EXPERIMENTS))}")
+        hint = did_you_mean(name, EXPERIMENTS, after=" ")
+        raise ValueError(f"unknown experiment {name!r}; {hint}known: "
+                         f"{', '.join(sorted(EXPERIMENTS))}")
     return EXPERIMENTS[name]
 
 
