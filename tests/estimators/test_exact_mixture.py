@@ -29,6 +29,10 @@ from switchest.estimators.exact_mixture import ExactMixtureFilter
 from switchest.estimators.smoothing import smooth_mode_matched
 from switchest.switching import MarkovAtSamples
 
+# These tests run each timing on systems of the default ('sample') timing on purpose, to compare
+# the two models on the same data; that a filter names the mismatch is tests/test_timing.py's.
+pytestmark = pytest.mark.filterwarnings("ignore::switchest.estimators.TimingWarning")
+
 RTOL = 1e-9
 TRANSITIONS = {
     2: np.array([[0.85, 0.15], [0.35, 0.65]]),

@@ -30,6 +30,10 @@ from switchest.engine.imm import imm_run
 from switchest.estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
 from switchest.estimators.gpb import GPB1Filter, GPB2Filter
 
+# These tests run each timing on systems of the default ('sample') timing on purpose, to compare
+# the two models on the same data; that a filter names the mismatch is tests/test_timing.py's.
+pytestmark = pytest.mark.filterwarnings("ignore::switchest.estimators.TimingWarning")
+
 RTOL = 1e-9
 TIMINGS = ("sample", "interval")
 # (n states, m outputs, l inputs, L modes, M table entries)

@@ -16,6 +16,10 @@ from switchest.switching import MarkovAtSamples
 filterpy = pytest.importorskip("filterpy")
 from filterpy.kalman import IMMEstimator, KalmanFilter  # noqa: E402
 
+# These tests run each timing on systems of the default ('sample') timing on purpose, to compare
+# the two models on the same data; that a filter names the mismatch is tests/test_timing.py's.
+pytestmark = pytest.mark.filterwarnings("ignore::switchest.estimators.TimingWarning")
+
 TRANSITION = np.array([[0.85, 0.10, 0.05], [0.20, 0.70, 0.10], [0.05, 0.25, 0.70]])  # asymmetric
 
 

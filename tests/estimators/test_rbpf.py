@@ -22,6 +22,10 @@ from switchest.estimators import ExactMixtureFilter, ModeKalmanFilter
 from switchest.estimators.rbpf import RBPFilter
 from switchest.switching import MarkovAtSamples
 
+# These tests run each timing on systems of the default ('sample') timing on purpose, to compare
+# the two models on the same data; that a filter names the mismatch is tests/test_timing.py's.
+pytestmark = pytest.mark.filterwarnings("ignore::switchest.estimators.TimingWarning")
+
 # a continuous-time pair with an input and two outputs (partly missing samples), sampled
 # irregularly: every sample interval gets its own exact transition
 A_CT = np.array([[[-0.4, 1.0], [-1.0, -0.3]], [[-0.1, 0.0], [0.5, -1.2]]])
