@@ -228,3 +228,19 @@ def test_a_gate_that_flip_flops_is_held_and_em_stops(record, monkeypatch):
     for name in ("Q", "R"):  # the same maximum, to EM's tolerance: far below one error
         gap = np.abs(getattr(res.system, name) - getattr(missing.system, name))
         assert np.all(gap <= 0.05 * np.nan_to_num(missing.se[name], nan=np.inf)), name
+
+
+def test_a_diverged_unknown_mode_e_step_is_refused_by_name():
+    """On the boost converter Kim's pair-chain smoother blows up (a mode leaves the fast
+    inductor direction unobserved): fit says so instead of failing on a NaN covariance."""
+    from switchest.models.shankar import BoostTable1
+
+    setting = BoostTable1()
+    traj = setting.simulate(0.1, 2, np.random.default_rng(1))
+    (x0, P0), u = setting.prior, setting.input
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        with pytest.raises(ValueError, match="unknown-mode E-step diverged.*give them"):
+            fit(setting.system(), traj.y, u, traj.t, x0=x0, P0=P0, max_iter=5,
+                rng=np.random.default_rng(0))
+    assert not [w for w in seen if "encountered" in str(w.message)]  # no numpy noise

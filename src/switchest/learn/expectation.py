@@ -260,15 +260,18 @@ def _unknown(system, transition, x0, P0, data: Record, gate) -> Moments:
     prob = s.mode_prob  # (N, K, L^2): P(s_k = (a, b) | Y)
     a, b = np.divmod(np.arange(L * L), L)
     weight = prob @ np.eye(L)[b]  # P(r_k = b | Y), (N, K, L)
-    x, P = _given(prob, weight, np.eye(L)[b], s.x_modes, s.P_modes)
-    # the interval k -> k+1, driven by r_k = a: the pairs (a, c) at k + 1, their joint moments
-    # of (x_{k+1}, x_k) (covariance [[P_{k+1|K}, C_k], [C_k', P_{k|K}]], C_k the lag-one cross)
     n = system.n_states
     step_weight = prob[:, 1:] @ np.eye(L)[a]
-    joint_x = np.concatenate([s.x_modes[:, 1:], s.lag_x], axis=-1)
-    joint_P = np.block([[s.P_modes[:, 1:], s.lag_cross],
-                        [np.swapaxes(s.lag_cross, -1, -2), s.lag_P]])
-    jx, jP = _given(prob[:, 1:], step_weight, np.eye(L)[a], joint_x, joint_P)
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverged smoother: refused below
+        x, P = _given(prob, weight, np.eye(L)[b], s.x_modes, s.P_modes)
+        # the interval k -> k+1, driven by r_k = a: the pairs (a, c) at k + 1, their joint
+        # moments of (x_{k+1}, x_k) (covariance [[P_{k+1|K}, C_k], [C_k', P_{k|K}]], C_k the
+        # lag-one cross)
+        joint_x = np.concatenate([s.x_modes[:, 1:], s.lag_x], axis=-1)
+        joint_P = np.block([[s.P_modes[:, 1:], s.lag_cross],
+                            [np.swapaxes(s.lag_cross, -1, -2), s.lag_P]])
+        jx, jP = _given(prob[:, 1:], step_weight, np.eye(L)[a], joint_x, joint_P)
+    _refuse_diverged(x, P, jx, jP)
     pairs = prob[:, 1:].sum(axis=(0, 1)).reshape(L, L)
     table, entry = sample_table(system, data.t)
     outlier = fwd.estimate.outlier
@@ -277,6 +280,21 @@ def _unknown(system, transition, x0, P0, data: Record, gate) -> Moments:
         step_weight=step_weight, x1=jx[..., :n], P1=jP[..., :n, :n], x0=jx[..., n:],
         P0=jP[..., n:, n:], cross=jP[..., :n, n:], table=table, entry=entry[1:], pairs=pairs,
         y=_masked(data.y, outlier), outlier=outlier)
+
+
+def _refuse_diverged(x, P, jx, jP) -> None:
+    """Refuse moments Kim's smoother left non-finite: its backward pass is unstable where a mode
+    leaves a strongly contracting direction unobserved (the boost converter), and the E-step
+    then has nothing to give the M-step."""
+    bad = ~(np.isfinite(x).all(axis=-1) & np.isfinite(P).all(axis=(-2, -1)))  # (N, K, L)
+    bad_steps = ~(np.isfinite(jx).all(axis=-1) & np.isfinite(jP).all(axis=(-2, -1)))
+    if bad.any() or bad_steps.any():
+        samples = int(bad.any(axis=-1).sum() + bad_steps.any(axis=-1).sum())
+        raise ValueError(
+            "the unknown-mode E-step diverged: Kim's smoother on the mode-pair chain (the "
+            f"approximation fit uses when the modes are unknown) gave non-finite moments at "
+            f"{samples} sample(s); on this system it cannot learn without the modes: give them "
+            "(a mode column, or modes=) to fit along the known modes")
 
 
 def _given(prob, weight, member, x, P):
