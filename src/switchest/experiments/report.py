@@ -25,8 +25,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from .items import PAPERS as _DECLARED
-from .items import Item, items_of, tally
+from .items import PAPERS, Item, items_of, tally
 from .registry import Experiment, Row, Summary, get
 from .runner import run_tasks, stored_results
 from .store import Store
@@ -327,12 +326,12 @@ def _summary_table(sections: list[Section]) -> str:
             + (" <span class='badge quick'>quick</span>" if s.facts.mode == "quick" else "")
             for s in group)
         unjudged = (f" <span class='meta'>({t.unjudged} not in this report)</span>"
-                    if t.unjudged > 0 and paper in _DECLARED else
+                    if t.unjudged > 0 and paper in PAPERS else
                     f" <span class='badge off'>{-t.unjudged} more judged than printed</span>"
-                    if t.unjudged < 0 and paper in _DECLARED else "")
+                    if t.unjudged < 0 and paper in PAPERS else "")
         lines.append(f"<tr><td>{html.escape(paper)}</td><td class='num'>{t.printed}</td>{cells}"
                      f"<td class='num'>{derived or ''}</td><td>{links}{unjudged}</td></tr>")
-        if paper not in _DECLARED:
+        if paper not in PAPERS:
             continue
         entry = [f"<b>{html.escape(paper)}</b>: {html.escape(t.sentence())}."]
         for title, listed in (("unexplained", t.unexplained), ("fitted", t.fitted)):
