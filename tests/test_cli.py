@@ -191,6 +191,11 @@ def test_simulate_then_estimate_from_the_shell(tmp_path, capsys):
     assert main(["estimate", "--model", str(model), "--data", str(data), "--method",
                  "switch-time", "--trial", "1", "--out", str(est), "--plot", str(png)]) == 0
     assert png.stat().st_size > 10_000  # states with bands, truth, measurements
+    window = tmp_path / "w.png"
+    assert main(["estimate", "--model", str(model), "--data", str(data), "--method",
+                 "switch-time", "--trial", "1", "--out", str(est), "--plot", str(window),
+                 "--window", "0.01:0.02"]) == 0
+    assert window.stat().st_size > 10_000  # a part of the record
     truth = pd.read_csv(data).query("trial == 1")
     estimate = pd.read_csv(est)
     rmse = np.sqrt(np.mean((estimate["x1"].to_numpy() - truth["x1"].to_numpy()) ** 2))

@@ -182,6 +182,19 @@ def test_estimate_output_files_are_checked_before_estimating(data_csv, tmp_path,
     err = one_line_error(capsys, main([*base, "--out", str(tmp_path / "e.csv"), "--plot",
                                        str(tmp_path / "e.txt")]))
     assert "--plot" in err and "expected a file name ending in one of .png, .pdf, .svg" in err
+    err = one_line_error(capsys, main([*base, "--out", str(tmp_path / "e.csv"), "--window",
+                                       "0:1"]))
+    assert "--window chooses the part of the record --plot draws" in err
+    err = one_line_error(capsys, main([*base, "--out", str(tmp_path / "e.csv"), "--window",
+                                       "2:1"]))
+    assert "--window: expected T0:T1 with finite T0 < T1, got 2:1" in err
+
+
+def test_a_window_outside_the_record_is_named(data_csv, tmp_path, capsys):
+    err = one_line_error(capsys, main([
+        "estimate", "--model", MODEL, "--data", str(data_csv), "--method", "kalman", "--out",
+        str(tmp_path / "e.csv"), "--plot", str(tmp_path / "e.png"), "--window", "50:60"]))
+    assert "--window 50:60 holds fewer than 2 samples of the record" in err
 
 
 @pytest.mark.parametrize("kind, message", [("folder", "is a folder"),

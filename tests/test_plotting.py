@@ -10,7 +10,7 @@ from switchest import plotting
 def test_estimate_figure_draws_bands_truth_measurements_modes_and_switch_ticks(tmp_path,
                                                                                monkeypatch):
     figures = []
-    monkeypatch.setattr(plotting, "_save", lambda fig, path: figures.append(fig) or path)
+    monkeypatch.setattr(plotting, "_save", lambda fig, path, rect=None: figures.append(fig) or path)
     t = np.linspace(0.0, 1.0, 50)
     x = np.stack([np.sin(t), np.cos(t)], axis=1)
     plotting.estimate_figure(tmp_path / "e.png", t, x, std=0.1 * np.ones_like(x), truth=x + 0.01,
@@ -19,11 +19,36 @@ def test_estimate_figure_draws_bands_truth_measurements_modes_and_switch_ticks(t
                              names=["i_L", "v_0"], units=["A", "V"], title="demo")
     fig = figures[0]
     axes = fig.axes
-    assert [ax.get_ylabel() for ax in axes] == ["i_L (A)", "v_0 (V)", "mode probability"]
+    assert [ax.get_ylabel() for ax in axes[:2]] == ["i_L (A)", "v_0 (V)"]
+    assert [tick.get_text() for tick in axes[2].get_yticklabels()] == ["mode 0", "mode 1"]
     assert len(axes[0].collections) == 1  # the ± 2σ band
     assert len(axes[1].lines) == 3  # measured dots, true and estimated v_0
-    assert len(axes[2].lines) == 4  # two probabilities, the true mode, the switch ticks
+    assert len(axes[2].collections) == 1 and len(axes[2].lines) == 2  # strip, true, ticks
+    legend = fig.legends[0]  # one legend, above the panels, names every mark
+    assert {text.get_text() for text in legend.get_texts()} == {
+        "measurements", "true state", "estimate",
+        "± 2σ band of the estimate (95 %; median half-width i_L 0.2 A, v_0 0.2 V)",
+        "P(mode): shade of its row, white 0 to black 1", "true mode",
+        "estimated switching instants"}
     plt.close(fig)
+
+
+def test_estimate_figure_draws_a_window_of_the_record(tmp_path, monkeypatch):
+    figures = []
+    monkeypatch.setattr(plotting, "_save", lambda fig, path, rect=None: figures.append(fig) or path)
+    t = np.linspace(0.0, 1.0, 101)
+    x = np.stack([t, -t], axis=1)
+    plotting.estimate_figure(tmp_path / "w.png", t, x, switch_times=[0.1, 0.45, 0.9],
+                             mode_prob=np.full((101, 2), 0.5), t_window=(0.4, 0.6))
+    ax = figures[0].axes[0]
+    drawn = ax.lines[0].get_xdata()
+    assert drawn.min() >= 0.4 and drawn.max() <= 0.6 and drawn.size == 21
+    assert list(figures[0].axes[-1].lines[-1].get_xdata()) == [0.45]  # the ticks inside it
+    plt.close(figures[0])
+    for window, message in (((0.6, 0.4), "t0 < t1"), ((2.0, 3.0), "holds 0 sample"),
+                            ("0.4", "a pair")):
+        with pytest.raises(ValueError, match=message):
+            plotting.estimate_figure(tmp_path / "x.png", t, x, t_window=window)
 
 
 def test_estimate_figure_labels_default_to_state_indices(tmp_path):

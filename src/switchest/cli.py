@@ -154,6 +154,21 @@ def _real(what: str, *, high: float = math.inf) -> Callable[[str], float]:
     return parse
 
 
+def _time_window(text: str) -> tuple[float, float]:
+    """``--window T0:T1``: two finite times in seconds, ``T0 < T1``."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        t0, t1 = (float(v) for v in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected T0:T1, two times in seconds, got {text!r}"
+                                         ) from None
+    if not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):
+        raise argparse.ArgumentTypeError(f"expected T0:T1 with finite T0 < T1, got {text}")
+    return t0, t1
+
+
 def _existing_file(text: str) -> Path:
     path = Path(text)
     if not path.exists():
@@ -574,6 +589,8 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
 
     out = _output_file(Path(args.out), "--out")
     plot = args.plot and _output_file(Path(args.plot), "--plot", ("png", "pdf", "svg"))
+    if args.window is not None and plot is None:
+        raise _UsageError("--window chooses the part of the record --plot draws: give --plot")
     spec = load_model(args.model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImplausibleEstimateWarning)
@@ -584,6 +601,10 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
                                switch_interval=args.switch_interval, smooth=args.smooth,
                                particles=args.particles, seed=args.seed, timing=args.timing,
                                gate=args.gate, trial=args.trial)
+    t = table["t"].to_numpy()
+    if args.window is not None and ((t >= args.window[0]) & (t <= args.window[1])).sum() < 2:
+        raise _UsageError(f"--window {args.window[0]:g}:{args.window[1]:g} holds fewer than 2 "
+                          f"samples of the record ({t[0]:g} .. {t[-1]:g} s)")
     errors = Console(stderr=True, soft_wrap=True, highlight=False)
     for warning in caught:
         if issubclass(warning.category, (ImplausibleEstimateWarning, TimingWarning)):
@@ -630,7 +651,7 @@ def _plot_estimate(path: Path, spec, table, args: argparse.Namespace) -> None:
         true_mode=meas.get("mode"),
         switch_times=table["switch_time"].dropna().to_numpy() if "switch_time" in table else (),
         names=spec.state_names, units=spec.state_units,
-        title=f"{Path(args.model).name}: {args.method}")
+        title=f"{Path(args.model).name}: {args.method}", t_window=args.window)
 
 
 def _cmd_simulate(args: argparse.Namespace, console: Console) -> int:
@@ -985,6 +1006,8 @@ def _parser() -> _Parser:
                        help="which trial to estimate, in a CSV with a trial column")
     p_est.add_argument("--out", required=True, help="CSV of the estimates")
     p_est.add_argument("--plot", default=None, help="figure of the estimates (.png, .pdf, .svg)")
+    p_est.add_argument("--window", type=_time_window, default=None, metavar="T0:T1",
+                       help="draw only the part of the record from T0 to T1 s in --plot")
     p_sim = command("simulate", _cmd_simulate,
                     help="simulate a model file into a measurement CSV (for estimate)")
     p_sim.add_argument("--model", required=True, type=_existing_file, help="TOML model file")

@@ -137,16 +137,19 @@ def estimate_figure(
     names: Sequence[str] = (),
     units: Sequence[str] = (),
     title: str = "",
+    t_window: tuple[float, float] | None = None,
 ) -> Path:
-    """An estimate to read at a glance: one panel per state, and the modes.
+    """An estimate to read at a glance: one panel per state, and the modes as a strip.
 
     Each state panel shows the estimate ``x[:, i]`` with its ``± 2 std`` band, the true
-    state (``truth``, black) and the samples that measure it directly
-    (``measured[i]``, grey dots); a last panel shows the mode probabilities
-    ``mode_prob (K, L)`` with the true mode (``true_mode``) as a step. Estimated
-    switching instants are ticks along the bottom edge (not lines across the figure:
-    a fast-switching system has thousands of them). ``names``/``units`` label the axes
-    (``x0 ..`` without units when empty).
+    state (``truth``, black) and the samples that measure it directly (``measured[i]``, grey
+    dots). The last panel shows the modes as a strip: a row per mode shaded by its
+    probability ``mode_prob (K, L)`` (white 0, dark 1), with the true mode (``true_mode``) as a
+    red line through its row. Estimated switching instants are ticks along the bottom edge
+    (not lines across the figure: a fast-switching system has thousands of them). One legend,
+    above the panels, names every mark. ``names``/``units`` label the axes (``x0 ..``
+    without units when empty); ``t_window = (t0, t1)`` draws only the samples in
+    ``t0 <= t <= t1``.
     """
     t, x = np.asarray(t, float), np.asarray(x, float)
     n = x.shape[1]
@@ -155,41 +158,89 @@ def estimate_figure(
     for label, given in (("names", names), ("units", units)):
         if len(given) != n:
             raise ValueError(f"{label} must have one entry per state ({n}), got {len(given)}")
+    keep = _window(t, t_window)
+    t, x = t[keep], x[keep]
+    std, truth, mode_prob, true_mode = (None if a is None else np.asarray(a)[keep]
+                                        for a in (std, truth, mode_prob, true_mode))
+    measured = {i: np.asarray(v)[keep] for i, v in (measured or {}).items()}
+    ticks = np.asarray(switch_times, float)
+    ticks = ticks[(ticks >= t[0]) & (ticks <= t[-1])]
     panels = n + (mode_prob is not None)
     with plt.rc_context(_STYLE):
-        fig, axes = plt.subplots(panels, 1, figsize=(7.5, 1.9 * panels + 0.6), sharex=True,
-                                 squeeze=False)
+        heights = [1.0] * n + ([0.12 + 0.18 * mode_prob.shape[1]] if mode_prob is not None
+                                else [])
+        fig, axes = plt.subplots(panels, 1, figsize=(7.5, 1.8 * sum(heights) + 1.0),
+                                 sharex=True, squeeze=False, height_ratios=heights)
         axes = axes[:, 0]
+        marks: dict[str, object] = {}
+        band = ""
+        if std is not None:  # its width named: a narrow band is hard to see
+            widths = ", ".join(f"{names[i]} {2 * np.median(std[:, i]):.2g}"
+                               + (f" {units[i]}" if units[i] else "") for i in range(n))
+            band = f"± 2σ band of the estimate (95 %; median half-width {widths})"
         for i, ax in enumerate(axes[:n]):
-            if measured is not None and i in measured:
-                ax.plot(t, measured[i], ".", color="0.6", ms=2.5, label="measured")
+            if i in measured:
+                marks["measurements"], = ax.plot(t, measured[i], ".", color="0.6", ms=2.5)
             if truth is not None:
-                ax.plot(t, truth[:, i], color="k", lw=1.2, label="true")
-            line, = ax.plot(t, x[:, i], lw=1.2, label="estimate")
+                marks["true state"], = ax.plot(t, truth[:, i], color="k", lw=1.0)
+            marks["estimate"], = ax.plot(t, x[:, i], color="C0", lw=1.2)
             if std is not None:
-                ax.fill_between(t, x[:, i] - 2 * std[:, i], x[:, i] + 2 * std[:, i],
-                                color=line.get_color(), alpha=0.2, lw=0, label="± 2σ")
+                marks[band] = ax.fill_between(
+                    t, x[:, i] - 2 * std[:, i], x[:, i] + 2 * std[:, i], color="C0", alpha=0.3,
+                    lw=0)
             ax.set_ylabel(names[i] + (f" ({units[i]})" if units[i] else ""))
-        axes[0].legend(loc="upper right", fontsize=7, ncols=4)
         if mode_prob is not None:
-            ax = axes[-1]
-            for j in range(mode_prob.shape[1]):
-                ax.plot(t, mode_prob[:, j], lw=1.0, label=f"P(mode {j})")
-            if true_mode is not None and mode_prob.shape[1] > 1:
-                scale = 1.0 / (mode_prob.shape[1] - 1)
-                ax.step(t, np.asarray(true_mode) * scale, where="post", color="k", lw=0.8,
-                        ls="--", label="true mode (0 bottom, last top)")
-            ax.set_ylim(-0.05, 1.05)
-            ax.set_ylabel("mode probability")
-            ax.legend(loc="upper right", fontsize=7, ncols=3)
-        if len(switch_times):
+            _mode_strip(axes[-1], t, mode_prob, true_mode, marks)
+        if len(ticks):
             bottom = axes[-1]
-            bottom.plot(switch_times, np.zeros(len(switch_times)), "|", color="C3", ms=8,
-                        transform=bottom.get_xaxis_transform(), label="estimated switches")
+            marks["estimated switching instants"], = bottom.plot(
+                ticks, np.zeros(len(ticks)), "|", color="C3", ms=8, clip_on=False,
+                transform=bottom.get_xaxis_transform())
         axes[-1].set_xlabel("t (s)")
+        axes[-1].set_xlim(t[0], t[-1])
+        height = fig.get_figheight()  # inches: the title, then the legend, then the panels
+        title_in = 0.28 if title else 0.05
+        legend_in = 0.17 * -(-len(marks) // 3) + 0.08 if marks else 0.0
         if title:
-            axes[0].set_title(title)
-        return _save(fig, path)
+            fig.suptitle(title, y=1.0 - 0.04 / height, va="top", fontsize=9)
+        if marks:
+            fig.legend(list(marks.values()), list(marks), loc="upper center", ncols=3,
+                       fontsize=7, frameon=False, bbox_to_anchor=(0.5, 1.0 - title_in / height))
+        return _save(fig, path, rect=(0.0, 0.0, 1.0, 1.0 - (title_in + legend_in) / height))
+
+
+def _window(t: np.ndarray, t_window) -> np.ndarray:
+    """The samples of ``t`` inside ``t_window = (t0, t1)`` (all of them for None)."""
+    if t_window is None:
+        return np.ones(t.shape, dtype=bool)
+    try:
+        t0, t1 = (float(v) for v in t_window)
+    except (TypeError, ValueError):
+        raise ValueError(f"t_window must be a pair (t0, t1) of times, got {t_window!r}") from None
+    if not t0 < t1:
+        raise ValueError(f"t_window must have t0 < t1, got ({t0:g}, {t1:g})")
+    keep = (t >= t0) & (t <= t1)
+    if keep.sum() < 2:
+        raise ValueError(f"t_window ({t0:g}, {t1:g}) holds {int(keep.sum())} sample(s) of the "
+                         f"record ({t[0]:g} .. {t[-1]:g} s); it needs at least 2")
+    return keep
+
+
+def _mode_strip(ax, t: np.ndarray, mode_prob: np.ndarray, true_mode, marks: dict) -> None:
+    """The modes as a strip: row ``j`` shaded by P(mode j), the true mode a line through its
+    row (:func:`estimate_figure`)."""
+    L = mode_prob.shape[1]
+    edges = np.concatenate([t[:1], (t[1:] + t[:-1]) / 2, t[-1:]])
+    ax.pcolormesh(edges, np.arange(L + 1) - 0.5, np.asarray(mode_prob, float).T,
+                  cmap="Greys", vmin=0.0, vmax=1.0, shading="flat")
+    marks["P(mode): shade of its row, white 0 to black 1"] = plt.Rectangle(
+        (0, 0), 1, 1, color="0.45")
+    if true_mode is not None:
+        marks["true mode"], = ax.step(t, np.asarray(true_mode, float), where="post",
+                                      color="C3", lw=1.0)
+    ax.set_yticks(range(L), [f"mode {j}" for j in range(L)])
+    ax.set_ylim(L - 0.5, -0.5)
+    ax.grid(False)
 
 
 def measured_states(C: np.ndarray, y: np.ndarray) -> dict[int, np.ndarray]:
