@@ -68,3 +68,18 @@ def test_measured_states_keeps_outputs_that_are_one_state_in_every_mode():
     np.testing.assert_array_equal(measured[1], y[:, 0])
     C[1, 0] = [1, 0, 0]  # another state in mode 1: not one state throughout
     assert plotting.measured_states(C, y) == {}
+
+
+def test_curves_name_bands_and_markers_in_a_legend_under_the_panels(tmp_path, monkeypatch):
+    figures = []
+    monkeypatch.setattr(plotting, "_save", lambda fig, path, rect=None: figures.append(fig) or path)
+    x = np.arange(5.0)
+    plotting.curves(tmp_path / "c.png", x, {"ours": np.stack([x, -x], 1)},
+                    bands={"ours": np.ones((5, 2))}, paper={"Table I": (x, np.stack([x, x], 1))},
+                    markers=[1.0, 3.0], marker_label="switches", xlabel="g",
+                    ylabel=["a", "b"])
+    fig = figures[0]
+    assert not any(ax.get_legend() for ax in fig.axes)  # none over the data
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == [
+        "ours", "ours: 95 % band", "paper: Table I", "switches"]
+    plt.close(fig)

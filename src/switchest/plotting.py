@@ -21,7 +21,7 @@ _STYLE = {"figure.dpi": 110, "axes.grid": True, "grid.alpha": 0.3, "axes.spines.
           "axes.spines.right": False, "font.size": 9}
 
 
-_LONG_LABEL = 30  # characters: a legend of longer labels goes below the panels
+_LONG_LABEL = 30  # characters: a legend of longer labels takes one column
 
 
 def curves(
@@ -36,13 +36,15 @@ def curves(
     logy: bool = False,
     markers: Sequence[float] = (),
     bands: Mapping[str, np.ndarray] | None = None,
+    marker_label: str | None = None,
 ) -> Path:
     """Lines ``series[label]`` against ``x``; 2-D series get one panel per column.
 
     ``paper`` adds the paper's printed points as black markers (label ->
-    ``(x, y)``); ``markers`` draws vertical lines (e.g. true switching times);
-    ``bands[label]`` (the shape of ``series[label]``) shades ``y ± band`` around a
-    line, e.g. 1.96 standard errors of a Monte Carlo mean.
+    ``(x, y)``); ``markers`` draws vertical lines (e.g. true switching times), named
+    ``marker_label`` in the legend; ``bands[label]`` (the shape of ``series[label]``) shades
+    ``y ± band`` around a line: a 95 % band, e.g. 1.96 standard errors of a Monte Carlo mean,
+    named in the legend. The legend lies under the panels, off the data.
     """
     first = np.asarray(next(iter(series.values())))
     panels = 1 if first.ndim == 1 else first.shape[1]
@@ -50,10 +52,12 @@ def curves(
     with plt.rc_context(_STYLE):
         cols = min(panels, 2)
         rows = -(-panels // cols)
-        below = max(len(label) for label in series) > _LONG_LABEL  # the legend under the axes
-        entries = len(series) + len(paper or {})
+        entries = (len(series) + len(paper or {}) + len(bands or {})
+                   + bool(len(markers) and marker_label))
+        ncols = 1 if max(len(label) for label in series) > _LONG_LABEL else 2
+        legend_in = 0.2 * -(-entries // ncols) + 0.3  # inches under the panels
         fig, axes = plt.subplots(rows, cols, squeeze=False, figsize=(
-            4.6 * cols, 3.2 * rows + (0.2 * entries + 0.4 if below else 0.0)))
+            4.6 * cols, 3.2 * rows + legend_in))
         flat = axes.ravel()
         for ax in flat[panels:]:
             ax.set_visible(False)
@@ -67,23 +71,21 @@ def curves(
                     half = np.asarray(bands[label])
                     mid, half = (y, half) if y.ndim == 1 else (y[:, p], half[:, p])
                     ax.fill_between(x, mid - half, mid + half, color=line.get_color(),
-                                    alpha=0.2, lw=0)
+                                    alpha=0.25, lw=0, label=f"{label}: 95 % band")
             for label, (px, py) in (paper or {}).items():
                 py = np.asarray(py)
                 ax.plot(px, py if py.ndim == 1 else py[:, p], "k^", ms=6, label=f"paper: {label}")
-            for m in markers:
-                ax.axvline(m, color="0.5", lw=0.8, ls=":")
+            for k, m in enumerate(markers):
+                ax.axvline(m, color="0.5", lw=0.8, ls=":",
+                           label=marker_label if k == 0 and marker_label else None)
             ax.set_xlabel(xlabel)
             ax.set_ylabel(ylabels[p])
             if logy:
                 ax.set_yscale("log")
-        rect = None
-        if below:  # centred under the panels, never over a curve or a label
-            handles, labels = flat[panels - 1].get_legend_handles_labels()
-            fig.legend(handles, labels, fontsize=7, frameon=False, loc="lower center")
-            rect = (0.0, (0.2 * entries + 0.3) / fig.get_figheight(), 1.0, 1.0)
-        else:
-            flat[panels - 1].legend(fontsize=7, frameon=False)
+        # centred under the panels, never over a curve or a label
+        handles, labels = flat[panels - 1].get_legend_handles_labels()
+        fig.legend(handles, labels, fontsize=7, frameon=False, loc="lower center", ncols=ncols)
+        rect = (0.0, legend_in / fig.get_figheight(), 1.0, 1.0)
         if title:
             fig.suptitle(title)
         return _save(fig, path, rect)

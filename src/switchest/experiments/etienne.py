@@ -197,7 +197,7 @@ def _trial_figure(path: Path, example: dict, title: str) -> Path:
               np.stack([x[:, i], e[:, i]], 1)
               for i in range(x.shape[1])}
     return curves(path, np.asarray(example["t"]), series, xlabel="t (s)",
-                  markers=example["switches"],
+                  markers=example["switches"], marker_label="switches",
                   title=title, ylabel=["plant state x(t_k)", "error e = x − x̂ (after each jump)"])
 
 

@@ -412,6 +412,7 @@ def _figures(groups: dict, levels: list[float], shown: list[tuple[float, dict]],
         labels = [f"{name}, v = {v:g}" for v, _ in shown for name in ("mode σ", "x_1")]
         figs.append(curves(out / "lee-detection-trial.png", t, {"true": truth, "detector": est},
                            xlabel="t (s)", ylabel=labels, markers=ex0["switches"],
+                           marker_label="true switches",
                            title=f"One trial; true switches dotted; σ̂ drawn +{MODE_OFFSET:g}, "
                                  "undefined from a declaration to the end of the next window"))
     x = np.asarray(levels, float)

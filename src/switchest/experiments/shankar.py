@@ -533,6 +533,7 @@ def _vehicle_summary(p: dict, results, out: Path) -> Summary:
     figs = [
         curves(out / "shankar-vehicle-rmse.png", man.t, pos_vel, bands=bands, xlabel="t (s)",
                ylabel=["position RMSE (m)", "velocity RMSE (m/s)"], markers=switches,
+               marker_label="switching times",
                title=f"Shankar Fig. 4: vehicle RMSE over {p['trials']} trials"),
     ]
     ev1 = [label for label in examples if "IMM-EV1" in label]

@@ -403,6 +403,7 @@ def _example1_summary(p: dict, results, out: Path) -> Summary:
             markers = _switches(modes) if cfg["dwell"][signal - 1] > 1 else []
         figs.append(curves(out / f"zhang-example1-fig{figure}.png", k, series, xlabel="step k",
                            ylabel=["E(e_k), component 1", "E(e_k), component 2"], markers=markers,
+                           marker_label="switches",
                            bands=bands,
                            title=f"Zhang Fig. {figure}: bias, eq. (9) vs Monte Carlo "
                                  f"({p['trials']} trials, 95% bands), signal {signal}"))
@@ -663,6 +664,7 @@ def _grid_summary(p: dict, results, out: Path) -> Summary:
                  "MC, Algorithm 1 gains": Z_95 * c["alg1_norm_se"]}
         figs.append(curves(out / f"zhang-smartgrid-setting{name}.png", k, series, xlabel="step k",
                            ylabel="‖E(e_k)‖", logy=name == "II", markers=_switches(modes),
+                           marker_label="switches",
                            bands=bands,
                            title=f"Zhang Fig. 7, Setting {name}: bias norm (95% bands)"))
     setup = (
