@@ -194,7 +194,7 @@ def test_a_window_outside_the_record_is_named(data_csv, tmp_path, capsys):
     err = one_line_error(capsys, main([
         "estimate", "--model", MODEL, "--data", str(data_csv), "--method", "kalman", "--out",
         str(tmp_path / "e.csv"), "--plot", str(tmp_path / "e.png"), "--window", "50:60"]))
-    assert "--window 50:60 holds fewer than 2 samples of the record" in err
+    assert "--window (50, 60) holds 0 sample(s) of the record" in err
 
 
 @pytest.mark.parametrize("kind, message", [("folder", "is a folder"),

@@ -601,10 +601,13 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
                                switch_interval=args.switch_interval, smooth=args.smooth,
                                particles=args.particles, seed=args.seed, timing=args.timing,
                                gate=args.gate, trial=args.trial)
-    t = table["t"].to_numpy()
-    if args.window is not None and ((t >= args.window[0]) & (t <= args.window[1])).sum() < 2:
-        raise _UsageError(f"--window {args.window[0]:g}:{args.window[1]:g} holds fewer than 2 "
-                          f"samples of the record ({t[0]:g} .. {t[-1]:g} s)")
+    if plot is not None:  # the window checked before anything is written
+        from .plotting import window_mask
+
+        try:
+            window_mask(table["t"].to_numpy(), args.window)
+        except ValueError as exc:
+            raise _UsageError(str(exc).replace("t_window", "--window")) from None
     errors = Console(stderr=True, soft_wrap=True, highlight=False)
     for warning in caught:
         if issubclass(warning.category, (ImplausibleEstimateWarning, TimingWarning)):

@@ -160,7 +160,7 @@ def estimate_figure(
     for label, given in (("names", names), ("units", units)):
         if len(given) != n:
             raise ValueError(f"{label} must have one entry per state ({n}), got {len(given)}")
-    keep = _window(t, t_window)
+    keep = window_mask(t, t_window)
     t, x = t[keep], x[keep]
     std, truth, mode_prob, true_mode = (None if a is None else np.asarray(a)[keep]
                                         for a in (std, truth, mode_prob, true_mode))
@@ -211,8 +211,9 @@ def estimate_figure(
         return _save(fig, path, rect=(0.0, 0.0, 1.0, 1.0 - (title_in + legend_in) / height))
 
 
-def _window(t: np.ndarray, t_window) -> np.ndarray:
-    """The samples of ``t`` inside ``t_window = (t0, t1)`` (all of them for None)."""
+def window_mask(t: np.ndarray, t_window) -> np.ndarray:
+    """The samples of ``t`` inside ``t_window = (t0, t1)`` (all of them for None); a window
+    holding fewer than two is refused."""
     if t_window is None:
         return np.ones(t.shape, dtype=bool)
     try:

@@ -257,13 +257,13 @@ def _level_rows(noise: float, told: float, g: dict, holds: bool, a: LeeAssumptio
 
 def _bound(hits: int, n: int) -> str:
     """A 95 % bound on a fraction ``hits / n`` that is 0 or 1, where the binomial standard
-    error is 0 and says nothing: the rule of three (the exact bound is ``1 − 0.05^(1/n)``,
-    about ``3/n``)."""
+    error is 0 and says nothing: the exact one-sided binomial bound ``1 − 0.05^(1/n)`` on the
+    other outcome's rate (about ``3/n``, the rule of three)."""
     if n == 0 or 0 < hits < n:
         return ""
     bound = 1 - 0.05 ** (1 / n)
-    return (f"95 % bound: at least {1 - bound:.4g} (rule of three, 1 − 3/n)" if hits == n
-            else f"95 % bound: at most {bound:.3g} (rule of three, 3/n)")
+    return (f"95 % bound: at least {1 - bound:.4g} (exact, 1 − 0.05^(1/n); about 1 − 3/n)"
+            if hits == n else f"95 % bound: at most {bound:.3g} (exact, 1 − 0.05^(1/n); about 3/n)")
 
 
 def _failing(a: LeeAssumptions) -> str:

@@ -316,8 +316,9 @@ def _summary_table(sections: list[Section]) -> str:
     lines = ["<table class='summary'><tr><th>paper</th>"
              + "".join(f"<th>{h}</th>" for h in heads) + "</tr>"]
     details = []
+    groups = _papers(sections)
     for paper, items in paper_items(sections).items():
-        group = _papers(sections)[paper]
+        group = groups[paper]
         t = tally(paper, items)
         derived = sum(row.verdict is Verdict.DERIVED for s in group for row in s.summary.rows)
         cells = "".join(f"<td class='num'>{t.counts[v] or ''}</td>" for v in _COUNTED)
