@@ -45,9 +45,24 @@ def test_ranges_are_whole_blocks_and_reports_merge(split_every_batch):
         return (2 if begin >= 32 else 0), end - begin, -float(begin)
 
     status, repaired, smallest = _parallel.over_trials(run_range, 70, 10, block=16)
-    assert sorted(seen) == [(0, 32), (32, 64), (64, 70)]
-    assert all(a % 16 == 0 for a, _ in seen)
+    # five blocks, at most CHUNKS ranges per thread: a range per block, taken in turn
+    assert sorted(seen) == [(0, 16), (16, 32), (32, 48), (48, 64), (64, 70)]
     assert (status, repaired, smallest) == (2, 70, -64.0)
+
+
+def test_many_blocks_make_a_few_ranges_per_thread(split_every_batch):
+    set_threads(2)
+    seen = []
+
+    def run_range(begin, end):
+        seen.append((begin, end))
+        return 0, 0, float("inf")
+
+    _parallel.over_trials(run_range, 1000, 10, block=16)  # 63 blocks
+    seen.sort()
+    assert len(seen) == 2 * _parallel.CHUNKS
+    assert seen[0][0] == 0 and seen[-1][1] == 1000
+    assert all(a % 16 == 0 and a == b_prev for (a, _), (_, b_prev) in zip(seen[1:], seen))
 
 
 def test_a_bad_thread_count_is_refused():

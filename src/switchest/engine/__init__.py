@@ -30,7 +30,7 @@ import warnings
 
 import numpy as np
 
-from ._parallel import Report, Reported, set_threads, threads
+from ._parallel import MixtureOutput, Report, Reported, set_threads, threads
 
 __all__ = [
     "ACCEPTED",
@@ -40,6 +40,7 @@ __all__ = [
     "NO_MEMORY",
     "OK",
     "PARTLY_GATED",
+    "MixtureOutput",
     "Report",
     "Reported",
     "raise_for_status",

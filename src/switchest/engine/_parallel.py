@@ -29,8 +29,11 @@ import numpy as np
 
 from .._threads import cores
 
-__all__ = ["MIN_WORK", "Report", "Reported", "over_trials", "run_split", "run_values",
-           "set_threads", "threads"]
+__all__ = ["CHUNKS", "MIN_WORK", "MixtureOutput", "Report", "Reported", "over_trials",
+           "run_split", "run_values", "set_threads", "threads"]
+
+CHUNKS = 4
+"""Ranges of trials per thread that :func:`over_trials` cuts a batch into."""
 
 MIN_WORK = 20_000
 """Fewest trial-samples worth a thread of their own (a dispatch costs tens of microseconds;
@@ -97,22 +100,63 @@ class Reported:
     smallest_eigenvalue: float = math.inf
 
 
+@dataclass
+class MixtureOutput(Reported):
+    """The first attributes of every multiple-model kernel's output (IMM and GPB banks,
+    IMM-EV1, RBPF, Kim's smoother), for every trial and sample.
+
+    Attributes
+    ----------
+    x, P : ndarray, shapes (N, K, n), (N, K, n, n)
+        The combined estimate: mean and covariance of the mixture of the hypotheses'
+        posteriors (IMM-EV1: the posterior of its MAP path).
+    mode_prob : ndarray, shape (N, K, L)
+        The mode probabilities (IMM-EV1: the normalized path weights of the destinations).
+    mode : ndarray of int64, shape (N, K)
+        The most probable mode (the first on a tie).
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    mode_prob: np.ndarray
+    mode: np.ndarray
+
+
 def over_trials(run_range: Callable[[int, int], Report], trials: int, samples: int, *,
                 block: int) -> Report:
     """``run_range(begin, end)`` over ``0 .. trials`` in ranges of whole blocks of ``block``
-    trials, one range per thread, merged: the first failing range's status (in trial order),
-    the repairs summed, the smallest eigenvalue over all."""
+    trials on the threads, merged: the first failing range's status (in trial order), the
+    repairs summed, the smallest eigenvalue over all.
+
+    The batch is cut into about :data:`CHUNKS` ranges per thread, which the threads take in
+    turn as they finish their last: on a machine where another process holds part of a core,
+    the threads that run faster take more ranges instead of waiting for the slowest.
+    """
     count = _thread_count(trials, samples, block)
     if count == 1:
         return run_range(0, trials)
     blocks = math.ceil(trials / block)
-    per = math.ceil(blocks / count)
-    bounds = [(i * per * block, min((i + 1) * per * block, trials)) for i in range(count)]
+    ranges = min(blocks, count * CHUNKS, max(count, trials * samples // MIN_WORK))
+    per = math.ceil(blocks / ranges)
+    bounds = [(i * per * block, min((i + 1) * per * block, trials)) for i in range(ranges)]
     bounds = [(a, b) for a, b in bounds if a < b]
-    pool = _executor(len(bounds) - 1)
-    others = [pool.submit(run_range, *ab) for ab in bounds[1:]]
-    # the calling thread takes the first range meanwhile, then waits for the others
-    results = [run_range(*bounds[0])] + [future.result() for future in others]
+    results: list[Report | None] = [None] * len(bounds)
+    turns = iter(range(len(bounds)))  # next() on a shared iterator: one range to one thread
+    turn_lock = threading.Lock()
+
+    def work() -> None:
+        while True:
+            with turn_lock:
+                i = next(turns, None)
+            if i is None:
+                return
+            results[i] = run_range(*bounds[i])
+
+    pool = _executor(count - 1)
+    others = [pool.submit(work) for _ in range(count - 1)]
+    work()  # the calling thread takes ranges too, then waits for the others
+    for future in others:
+        future.result()
     status = next((s for s, _, _ in results if s != 0), 0)
     return Report(status, sum(r for _, r, _ in results), min(e for _, _, e in results))
 

@@ -38,7 +38,7 @@ import numpy as np
 from .._checks import check_timing, positive_int
 from ._arrays import all_ready, check_gate, checked, replicated
 from ._imm import filter_bank
-from ._parallel import Reported, run_values
+from ._parallel import MixtureOutput, run_values
 
 __all__ = ["LANES", "MIX", "COLLAPSE", "GPB2", "Bank", "BankTable", "IMMOutput", "imm_run",
            "imm_run_per_trial", "imm_step", "is_sample_timing"]
@@ -55,19 +55,14 @@ _INTERACTIONS = {"mix": MIX, "collapse": COLLAPSE}
 
 
 @dataclass
-class IMMOutput(Reported):
+class IMMOutput(MixtureOutput):
     """What the IMM reports after each sample, for every trial (:func:`imm_run`; from
     :func:`imm_step`, the one sample as ``K = 1``).
 
     Attributes
     ----------
-    x : ndarray, shape (N, K, n)
-        Combined estimate, the mean of the mixture of the mode-matched posteriors.
-    P : ndarray, shape (N, K, n, n)
-        Covariance of that mixture.
-    mode_prob : ndarray, shape (N, K, L)
-    mode : ndarray of int64, shape (N, K)
-        Most probable mode (the first on a tie).
+    x, P, mode_prob, mode
+        The mixture's moments and the mode probabilities (:class:`MixtureOutput`).
     loglik : ndarray, shape (N, K)
         Log of the total likelihood ``sum_j c_j Lambda_j`` of the measurement given the past.
     flag : ndarray of uint8, shape (N, K)
@@ -81,10 +76,6 @@ class IMMOutput(Reported):
         Their covariances.
     """
 
-    x: np.ndarray
-    P: np.ndarray
-    mode_prob: np.ndarray
-    mode: np.ndarray
     loglik: np.ndarray
     flag: np.ndarray
     x_modes: np.ndarray | None = None

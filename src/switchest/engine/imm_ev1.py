@@ -26,7 +26,7 @@ import numpy as np
 from .._checks import positive_int, positive_scalar
 from ._arrays import check_gate, checked, indices
 from ._imm_ev1 import viterbi_bank
-from ._parallel import Reported, run_split
+from ._parallel import MixtureOutput, run_split
 
 __all__ = ["IMMEV1Output", "imm_ev1_run", "imm_ev1_step", "viterbi_bank"]
 
@@ -34,18 +34,15 @@ LANES = 16  # trials per block: four AVX2 registers of float64 per row of lanes
 
 
 @dataclass
-class IMMEV1Output(Reported):
+class IMMEV1Output(MixtureOutput):
     """What the IMM-EV1 reports after each sample, for every trial (:func:`imm_ev1_run`; from
     :func:`imm_ev1_step`, the one sample as ``K = 1``).
 
     Attributes
     ----------
-    x, P : ndarray, shapes (N, K, n), (N, K, n, n)
-        Posterior of the destination of largest weight (the MAP path).
-    mode_prob : ndarray, shape (N, K, L)
-        Normalized path weights of the destinations.
-    mode : ndarray of int64, shape (N, K)
-        The MAP destination (the first on a tie).
+    x, P, mode_prob, mode
+        The posterior of the destination of largest weight (the MAP path), the normalized
+        path weights of the destinations and the MAP destination (:class:`MixtureOutput`).
     switch_offset : ndarray, shape (N, K)
         Its switching instant as an offset into the interval, NaN where it did not switch.
     outlier : ndarray of bool, shape (N, K)
@@ -54,10 +51,6 @@ class IMMEV1Output(Reported):
         The kernel's report (:class:`~switchest.engine.Reported`).
     """
 
-    x: np.ndarray
-    P: np.ndarray
-    mode_prob: np.ndarray
-    mode: np.ndarray
     switch_offset: np.ndarray
     outlier: np.ndarray
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from .._checks import positive_int
 from ._arrays import checked
-from ._parallel import Reported, run_split
+from ._parallel import MixtureOutput, run_split
 from ._rbpf import ancestors, particle_filter, resampling_positions, trial_keys, uniform
 
 __all__ = [
@@ -55,18 +55,15 @@ RESAMPLING = {"systematic": 0, "stratified": 1, "multinomial": 2}
 
 
 @dataclass
-class RBPFOutput(Reported):
+class RBPFOutput(MixtureOutput):
     """What the RBPF reports after each sample, for every trial (:func:`rbpf_run`; from
     :func:`rbpf_step`, the one sample as ``K = 1``).
 
     Attributes
     ----------
-    x, P : ndarray, shapes (N, K, n), (N, K, n, n)
-        Weighted mean of the particles' filters and the covariance of their mixture.
-    mode_prob : ndarray, shape (N, K, L)
-        Sum of the weights of the particles in each mode.
-    mode : ndarray of int64, shape (N, K)
-        Most probable mode (the first on a tie).
+    x, P, mode_prob, mode
+        The moments of the mixture of the particles' filters, the sum of the particles'
+        weights in each mode and the most probable one (:class:`MixtureOutput`).
     loglik : ndarray, shape (N, K)
         Log of the particle estimate of ``p(y_k | y_{0:k-1})``.
     flag : ndarray of uint8, shape (N, K)
@@ -78,10 +75,6 @@ class RBPFOutput(Reported):
         The kernel's report (:class:`~switchest.engine.Reported`).
     """
 
-    x: np.ndarray
-    P: np.ndarray
-    mode_prob: np.ndarray
-    mode: np.ndarray
     loglik: np.ndarray
     flag: np.ndarray
     ess: np.ndarray

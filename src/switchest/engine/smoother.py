@@ -110,7 +110,7 @@ import numpy as np
 
 from .._checks import check_timing, positive_int
 from ._arrays import checked
-from ._parallel import Reported, run_split
+from ._parallel import MixtureOutput, run_split
 from ._smoother import kim_backward
 from ._smoother import screen_psd as _screen_psd
 
@@ -124,17 +124,15 @@ LANES = 64  # trials per block: the backward pass runs ~500 short loops over the
 
 
 @dataclass
-class KimOutput(Reported):
+class KimOutput(MixtureOutput):
     """The smoothed posteriors of every trial and sample (:func:`kim_smooth`).
 
     Attributes
     ----------
-    x, P : ndarray, shapes (N, K, n), (N, K, n, n)
-        Combined smoothed estimate: the moments of the mixture of the mode-matched ones.
-    mode_prob : ndarray, shape (N, K, L)
-        Smoothed mode probabilities ``mu_j(k|K)``.
-    mode : ndarray of int64, shape (N, K)
-        Most probable smoothed mode (the first on a tie).
+    x, P, mode_prob, mode
+        The combined smoothed estimate (the moments of the mixture of the mode-matched ones),
+        the smoothed mode probabilities ``mu_j(k|K)`` and the most probable smoothed mode
+        (:class:`MixtureOutput`).
     x_modes, P_modes : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
         Mode-matched smoothed posteriors ``x_j(k|K)``, ``P_j(k|K)``; a mode of smoothed
         probability zero keeps its filtered posterior.
@@ -148,10 +146,6 @@ class KimOutput(Reported):
         With ``lagged``: ``Cov(x_{k+1}, x_k | r_{k+1} = i, Y)``, the lag-one cross-covariance.
     """
 
-    x: np.ndarray
-    P: np.ndarray
-    mode_prob: np.ndarray
-    mode: np.ndarray
     x_modes: np.ndarray
     P_modes: np.ndarray
     pair_prob: np.ndarray | None = None
