@@ -85,7 +85,7 @@ cdef extern from "bank.h":
         double *log_prob_last
 
 
-# What the bank bindings (_imm.pyx, _gpb.pyx) hand their kernel besides its inputs: the sizes,
+# What the bank bindings (_bank.pyx) hand their kernel besides its inputs: the sizes,
 # the outputs and the report.
 cdef struct bank_call:
     se_int n, m, l, L, N, K

@@ -17,7 +17,7 @@ the prior: ``L`` filters, mode ``j``'s from its prior Gaussian with probability 
 (the first sample of ``se_filter_bank``, ``engine/c/bank.c``).
 
 ``gpb2_run`` filters every trial over every sample, ``gpb2_step`` one sample (the streaming
-API); both run the C kernel ``se_gpb2_bank`` of ``engine/c/gpb.c`` (through :mod:`._gpb`) on
+API); both run the C kernel ``se_gpb2_bank`` of ``engine/c/gpb.c`` (through :mod:`._bank`) on
 the equations of ``engine/c/linalg.c`` (prediction, innovation, Joseph-form correction with
 its information-form fallback, merging, combination), over blocks of trials laid across SIMD
 lanes. Convention of switchest: ``transition[i, j]`` = P(mode j at k+1 | mode i at k), passed
@@ -37,7 +37,7 @@ import numpy as np
 
 from .._checks import positive_int
 from ._arrays import check_gate, checked, replicated
-from ._gpb import gpb2_bank
+from ._bank import gpb2_bank
 from ._parallel import run_values
 from .imm import LANES, IMMOutput, is_sample_timing, outputs
 
@@ -92,7 +92,7 @@ def gpb2_step(x, P, log_prob, y, u, F, G, Qd, trans, C, R, log_transition, *,
 
 def _gpb2(y, u, F, G, Qd, trans, C, R, log_transition, x_init, P_init, log_prob_init,
           sample_timing, predict_first, gate, lanes, modes_out):
-    """The C kernel ``se_gpb2_bank`` (:func:`._gpb.gpb2_bank`) on checked arrays: the
+    """The C kernel ``se_gpb2_bank`` (:func:`._bank.gpb2_bank`) on checked arrays: the
     :class:`.imm.IMMOutput` and the merged state ``(x, P, log_prob)`` after the last sample."""
     N, K, _ = y.shape
     L, n = x_init.shape[1], x_init.shape[2]

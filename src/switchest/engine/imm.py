@@ -2,7 +2,7 @@
 
 ``imm_run`` filters every trial over every sample inside compiled code; ``imm_step`` processes
 one sample of every trial (the streaming API). Both call the C kernel ``se_filter_bank`` of
-``engine/c/bank.c`` (through :mod:`._imm`), so they run the one implementation of each equation
+``engine/c/bank.c`` (through :mod:`._bank`), so they run the one implementation of each equation
 (``engine/c/linalg.c``). Convention of switchest:
 ``transition[i, j]`` = P(mode j at k+1 | mode i at k), passed as its logarithm; mode
 probabilities are kept as log-weights.
@@ -37,7 +37,7 @@ import numpy as np
 
 from .._checks import check_timing, positive_int
 from ._arrays import all_ready, check_gate, checked, replicated
-from ._imm import filter_bank
+from ._bank import filter_bank
 from ._parallel import MixtureOutput, run_values
 
 __all__ = ["LANES", "MIX", "COLLAPSE", "GPB2", "Bank", "BankTable", "IMMOutput", "imm_run",
@@ -56,13 +56,12 @@ _INTERACTIONS = {"mix": MIX, "collapse": COLLAPSE}
 
 @dataclass
 class IMMOutput(MixtureOutput):
-    """What the IMM reports after each sample, for every trial (:func:`imm_run`; from
-    :func:`imm_step`, the one sample as ``K = 1``).
+    """The IMM's estimates (:func:`imm_run`, and :func:`imm_step` as ``K = 1``): ``x``, ``P``
+    of the mixture of the mode-matched posteriors, their mode probabilities and most probable
+    mode (:class:`MixtureOutput`), and
 
     Attributes
     ----------
-    x, P, mode_prob, mode
-        The mixture's moments and the mode probabilities (:class:`MixtureOutput`).
     loglik : ndarray, shape (N, K)
         Log of the total likelihood ``sum_j c_j Lambda_j`` of the measurement given the past.
     flag : ndarray of uint8, shape (N, K)

@@ -35,14 +35,13 @@ LANES = 16  # trials per block: four AVX2 registers of float64 per row of lanes
 
 @dataclass
 class IMMEV1Output(MixtureOutput):
-    """What the IMM-EV1 reports after each sample, for every trial (:func:`imm_ev1_run`; from
-    :func:`imm_ev1_step`, the one sample as ``K = 1``).
+    """IMM-EV1's estimates (:func:`imm_ev1_run`, and :func:`imm_ev1_step` as ``K = 1``): ``x``,
+    ``P`` of the destination of largest weight (the MAP path), the normalized path weights of
+    the destinations as ``mode_prob`` and the MAP destination as ``mode``
+    (:class:`MixtureOutput`), and
 
     Attributes
     ----------
-    x, P, mode_prob, mode
-        The posterior of the destination of largest weight (the MAP path), the normalized
-        path weights of the destinations and the MAP destination (:class:`MixtureOutput`).
     switch_offset : ndarray, shape (N, K)
         Its switching instant as an offset into the interval, NaN where it did not switch.
     outlier : ndarray of bool, shape (N, K)

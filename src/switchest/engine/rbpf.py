@@ -56,14 +56,12 @@ RESAMPLING = {"systematic": 0, "stratified": 1, "multinomial": 2}
 
 @dataclass
 class RBPFOutput(MixtureOutput):
-    """What the RBPF reports after each sample, for every trial (:func:`rbpf_run`; from
-    :func:`rbpf_step`, the one sample as ``K = 1``).
+    """The RBPF's estimates (:func:`rbpf_run`, and :func:`rbpf_step` as ``K = 1``): ``x``, ``P``
+    of the mixture of the particles' filters, the sum of the particles' weights in each mode as
+    ``mode_prob`` and the most probable mode (:class:`MixtureOutput`), and
 
     Attributes
     ----------
-    x, P, mode_prob, mode
-        The moments of the mixture of the particles' filters, the sum of the particles'
-        weights in each mode and the most probable one (:class:`MixtureOutput`).
     loglik : ndarray, shape (N, K)
         Log of the particle estimate of ``p(y_k | y_{0:k-1})``.
     flag : ndarray of uint8, shape (N, K)

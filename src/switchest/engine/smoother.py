@@ -99,7 +99,7 @@ results do not depend on the block size.
 The kernel (``se_kim_backward``) and its helpers (``rts_gain``, ``rts_pair``, ``rts_joseph``,
 ...) are C functions of ``engine/c/smoother.c``, the shared equations (``se_*``) those of
 ``engine/c/linalg.c``; this module checks the arrays, allocates the outputs and calls the
-kernel through its binding (``engine/_smoother.pyx``).
+kernel through its binding (``engine/_backward.pyx``).
 """
 
 from __future__ import annotations
@@ -110,9 +110,9 @@ import numpy as np
 
 from .._checks import check_timing, positive_int
 from ._arrays import checked
+from ._backward import kim_backward
+from ._backward import screen_psd as _screen_psd
 from ._parallel import MixtureOutput, run_split
-from ._smoother import kim_backward
-from ._smoother import screen_psd as _screen_psd
 
 __all__ = ["KimOutput", "kim_smooth", "screen_psd", "LANES"]
 
@@ -125,14 +125,12 @@ LANES = 64  # trials per block: the backward pass runs ~500 short loops over the
 
 @dataclass
 class KimOutput(MixtureOutput):
-    """The smoothed posteriors of every trial and sample (:func:`kim_smooth`).
+    """Kim's smoothed posteriors of every trial and sample (:func:`kim_smooth`): ``x``, ``P``
+    of the mixture of the mode-matched ones, the smoothed mode probabilities ``mu_j(k|K)`` and
+    the most probable smoothed mode (:class:`MixtureOutput`), and
 
     Attributes
     ----------
-    x, P, mode_prob, mode
-        The combined smoothed estimate (the moments of the mixture of the mode-matched ones),
-        the smoothed mode probabilities ``mu_j(k|K)`` and the most probable smoothed mode
-        (:class:`MixtureOutput`).
     x_modes, P_modes : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
         Mode-matched smoothed posteriors ``x_j(k|K)``, ``P_j(k|K)``; a mode of smoothed
         probability zero keeps its filtered posterior.
@@ -230,7 +228,7 @@ def kim_smooth(x_modes, P_modes, log_prob, u, F, G, Qd, trans, log_transition, *
 def _backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes, sample_timing,
               x_out, P_out, prob_out, mode_out, x_s, P_s, lagged, pair_out, lag_x, lag_P,
               lag_cross, report):
-    """:func:`._smoother.kim_backward` with its report
+    """:func:`._backward.kim_backward` with its report
     last, as :func:`._parallel.run_split` calls a kernel."""
     return kim_backward(x_f, P_f, log_prob_f, u, F, G, Qd, trans, log_transition, lanes,
                         sample_timing, x_out, P_out, prob_out, mode_out, x_s, P_s, report,

@@ -19,7 +19,7 @@ equilibrated Cholesky factorization (``se_innovation``). Trials are processed in
 block size nor on the thread count. The kernel (``se_two_filter_backward``) returns
 ``NOT_FINITE`` at the first smoothed posterior or mode probability that is not finite (its
 outputs are then incomplete); this module checks the arrays, allocates the outputs and calls
-the kernel through its binding (``engine/_two_filter.pyx``), over threads
+the kernel through its binding (``engine/_backward.pyx``), over threads
 (:func:`._parallel.run_split`).
 """
 
@@ -32,8 +32,8 @@ import numpy as np
 from .._checks import check_timing, positive_int
 from . import OK
 from ._arrays import checked
+from ._backward import two_filter_backward
 from ._parallel import Reported, run_split
-from ._two_filter import two_filter_backward
 
 __all__ = ["LANES", "TwoFilterOutput", "two_filter_run"]
 
@@ -150,7 +150,7 @@ def two_filter_run(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transitio
 
 def _backward(x_f, P_f, log_prob_f, y, u, outlier, F, G, Qd, trans, log_transition, C, R,
               lanes, sample_timing, x_s, P_s, prob_s, x_c, P_c, mode_c, report):
-    """:func:`._two_filter.two_filter_backward` with its report last, as
+    """:func:`._backward.two_filter_backward` with its report last, as
     :func:`._parallel.run_split` calls a kernel."""
     return two_filter_backward(x_f, P_f, log_prob_f, y, u, outlier, F, G, Qd, trans,
                                log_transition, C, R, lanes, sample_timing, x_s, P_s, prob_s,

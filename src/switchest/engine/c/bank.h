@@ -4,7 +4,7 @@
  *
  * Conventions of linalg.h: sizes first as se_int (n states, m outputs, l inputs, L modes,
  * B the lane stride, then the other extents), then the arrays and scalars in the order of
- * the prototype (the bindings, engine/_imm.pyx and engine/_gpb.pyx, keep it); booleans int,
+ * the prototype (the binding, engine/_bank.pyx, keeps it); booleans int,
  * boolean arrays uint8_t, index arrays se_int, the rest double, all C-contiguous. The skeleton
  * below is shared with gpb.c (GPB2), which links bank.c.
  */

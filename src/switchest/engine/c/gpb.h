@@ -4,7 +4,7 @@
  * the bank kernels, se_bank_*, and se_gather_transition) and linalg.c.
  *
  * Sizes first (n states, m outputs, l inputs, L modes, N trials, K samples, then trans's first
- * two extents), then the inputs in the order of the binding's gpb2_bank (engine/_gpb.pyx), the
+ * two extents), then the inputs in the order of the binding's gpb2_bank (engine/_bank.pyx), the
  * outputs gathered in out.
  * Shapes (C-contiguous): y (N, K, m), u (N, K, l), F, G, Qd (M, n, n), (M, n, l), (M, n, n),
  * trans (trans_N, trans_K, L) se_int, C (L, m, n), R (L, m, m),

@@ -6,7 +6,7 @@
  * axis N, samples K, the trial axis T and the sample axis TK of trans, the trial axis Ns of the
  * mode-matched outputs (N, or 0 when they are not asked for), the interval axis J of the lagged
  * outputs (K - 1, or 0 when they are not asked for)); then the arrays and scalars in the order
- * of the prototype (the binding's kim_backward, engine/_smoother.pyx, keeps it). Booleans are
+ * of the prototype (the binding's kim_backward, engine/_backward.pyx, keeps it). Booleans are
  * int, boolean arrays uint8_t, index arrays se_int.
  */
 #ifndef SE_SMOOTHER_H

@@ -7,7 +7,7 @@
  * the trial axis N, samples K, the trial axis T and the sample axis TK of trans, the trial axis
  * Ns of the mode-matched outputs); then the
  * arrays and scalars in the order of the prototype (the binding's two_filter_backward,
- * engine/_two_filter.pyx, keeps it). Booleans are int, boolean arrays uint8_t, index arrays
+ * engine/_backward.pyx, keeps it). Booleans are int, boolean arrays uint8_t, index arrays
  * se_int.
  */
 #ifndef SE_TWO_FILTER_H
