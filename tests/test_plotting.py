@@ -27,9 +27,12 @@ def test_estimate_figure_draws_bands_truth_measurements_modes_and_switch_ticks(t
     legend = fig.legends[0]  # one legend, above the panels, names every mark
     assert {text.get_text() for text in legend.get_texts()} == {
         "measurements", "true state", "estimate",
-        "± 2σ band of the estimate (95 %; median half-width i_L 0.2 A, v_0 0.2 V)",
-        "P(mode): shade of its row, white 0 to black 1", "true mode",
+        "± 2σ band of the estimate (95 %)\nmedian half-width: i_L 0.2 A, v_0 0.2 V",
+        "P(mode): the shade of its row,\nwhite 0 to black 1", "true mode",
         "estimated switching instants"}
+    fig.canvas.draw()  # the legend inside the figure: not clipped at its sides
+    box = legend.get_window_extent()
+    assert box.x0 >= 0 and box.x1 <= fig.bbox.width
     plt.close(fig)
 
 

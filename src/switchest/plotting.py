@@ -179,7 +179,7 @@ def estimate_figure(
         if std is not None:  # its width named: a narrow band is hard to see
             widths = ", ".join(f"{names[i]} {2 * np.median(std[:, i]):.2g}"
                                + (f" {units[i]}" if units[i] else "") for i in range(n))
-            band = f"± 2σ band of the estimate (95 %; median half-width {widths})"
+            band = f"± 2σ band of the estimate (95 %)\nmedian half-width: {widths}"
         for i, ax in enumerate(axes[:n]):
             if i in measured:
                 marks["measurements"], = ax.plot(t, measured[i], ".", color="0.6", ms=2.5)
@@ -202,7 +202,9 @@ def estimate_figure(
         axes[-1].set_xlim(t[0], t[-1])
         height = fig.get_figheight()  # inches: the title, then the legend, then the panels
         title_in = 0.28 if title else 0.05
-        legend_in = 0.17 * -(-len(marks) // 3) + 0.08 if marks else 0.0
+        rows = -(-len(marks) // 3)  # a two-line label makes its row one line taller
+        lines = rows + any("\n" in label for label in marks)
+        legend_in = 0.15 * lines + 0.08 if marks else 0.0
         if title:
             fig.suptitle(title, y=1.0 - 0.04 / height, va="top", fontsize=9)
         if marks:
@@ -236,7 +238,7 @@ def _mode_strip(ax, t: np.ndarray, mode_prob: np.ndarray, true_mode, marks: dict
     edges = np.concatenate([t[:1], (t[1:] + t[:-1]) / 2, t[-1:]])
     ax.pcolormesh(edges, np.arange(L + 1) - 0.5, np.asarray(mode_prob, float).T,
                   cmap="Greys", vmin=0.0, vmax=1.0, shading="flat")
-    marks["P(mode): shade of its row, white 0 to black 1"] = plt.Rectangle(
+    marks["P(mode): the shade of its row,\nwhite 0 to black 1"] = plt.Rectangle(
         (0, 0), 1, 1, color="0.45")
     if true_mode is not None:
         marks["true mode"], = ax.step(t, np.asarray(true_mode, float), where="post",
