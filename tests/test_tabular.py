@@ -415,3 +415,26 @@ def test_the_filters_run_in_the_model_files_timing_and_name_another(tmp_path):
     with pytest.warns(TimingWarning, match="GPB2Filter runs in the 'interval' timing, its "
                                            "system in the 'sample' one"):
         estimate_table(spec, path, method="gpb2", timing="interval")
+
+
+def test_the_switch_time_filter_of_a_table_weighs_the_candidate_instants(tmp_path):
+    """Without --refine, ``estimate_table``'s switch-time filter merges its grid's candidates
+    (``switch_time="marginal"``), whose covariance counts the instant's uncertainty; with
+    --refine, or asked for, it takes the paper's maximizer; the option is refused elsewhere."""
+    from switchest.estimators import SwitchTimeKalmanFilter
+
+    spec, df, _, traj = boost_csv(tmp_path)
+    t, modes, y = df["t"].to_numpy(), df["mode"].to_numpy(), df[["y"]].to_numpy()
+    (x0, P0), u = spec.initial, np.full((t.size, 1), 100.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", tabular.ImplausibleEstimateWarning)
+        for options, switch_time in (({}, "marginal"), ({"switch_time": "max"}, "max"),
+                                     ({"refine": True}, "max")):
+            table = estimate_table(spec, df, method="switch-time", **options)
+            f = SwitchTimeKalmanFilter(spec.system, x0, P0, grid=5, switch_time=switch_time,
+                                       refine=options.get("refine", False))
+            est = f.run(y, u, t, modes=modes)
+            np.testing.assert_allclose(table[["x0", "x1"]].to_numpy(), est.x, rtol=1e-12,
+                                       atol=1e-12 * np.abs(est.x).max())
+    with pytest.raises(ValueError, match="switch_time applies to method 'switch-time' only"):
+        estimate_table(spec, df, method="imm", switch_time="max")

@@ -596,7 +596,8 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
         warnings.simplefilter("always", ImplausibleEstimateWarning)
         warnings.simplefilter("always", TimingWarning)
         table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
-                               refine=args.refine, stay=args.stay, v_max=args.v_max,
+                               refine=args.refine, switch_time=args.switch_time,
+                               stay=args.stay, v_max=args.v_max,
                                delta=args.delta, Delta=args.Delta,
                                switch_interval=args.switch_interval, smooth=args.smooth,
                                particles=args.particles, seed=args.seed, timing=args.timing,
@@ -974,6 +975,13 @@ def _parser() -> _Parser:
                        help=_applies("grid", "switching-time grid points per interval"))
     p_est.add_argument("--refine", action="store_true",
                        help=_applies("refine", "refine the grid maximum"))
+    p_est.add_argument("--switch-time", choices=("marginal", "max"), default=None,
+                       help=_applies("switch_time", "weigh the grid's candidate instants by "
+                                     "their likelihood (marginal, the default without "
+                                     "--refine: the covariance counts the instant's "
+                                     "uncertainty) or take the likelihood's maximizer (max, "
+                                     "the paper's eq. (23); its covariance is conditional on "
+                                     "the chosen instant)"))
     p_est.add_argument("--stay", type=_probability, default=None,
                        help=_applies("stay", "per-sample probability of staying in a mode"))
     p_est.add_argument("--v-max", type=_window, default=None,

@@ -80,14 +80,14 @@ __all__ = [
 
 METHODS = METHOD_NAMES
 """The method names, :data:`switchest.estimators.registry.METHOD_NAMES`."""
-_WITHOUT_DEFAULT = ("v_max", "delta", "Delta", "switch_interval", "smooth", "particles", "seed",
-                    "timing", "gate")
+_WITHOUT_DEFAULT = ("switch_time", "v_max", "delta", "Delta", "switch_interval", "smooth",
+                    "particles", "seed", "timing", "gate")
 """The options of :func:`estimate_table` that are refused for a method they do not apply to when
 set; ``grid``, ``refine`` (which have a default) and ``stay`` apply only where they are used."""
 
 
 def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: str, grid: int = 5,
-                   refine: bool = False, stay: float | None = None, v_max: float | None = None,
+                   refine: bool = False, switch_time: str | None = None, stay: float | None = None, v_max: float | None = None,
                    delta: float | None = None, Delta: float | None = None,
                    switch_interval: float | None = None, smooth: bool = False,
                    particles: int | None = None, seed: int | None = None,
@@ -107,6 +107,13 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     grid, refine : int, bool
         Switching-time grid points per interval (``switch-time``, ``imm-ev1``) and
         the refinement beyond the grid (``switch-time``).
+    switch_time : {"marginal", "max"}, optional
+        ``switch-time`` only: weigh the grid's candidate instants by their likelihood
+        (``"marginal"``, the default without ``refine``: the covariance counts the instant's
+        uncertainty) or take the maximizer of Shankar et al. eq. (23) (``"max"``, the paper's,
+        the default with ``refine``: the covariance is conditional on the chosen instant and
+        claims far too little on a fast-switching converter); see
+        :class:`~switchest.estimators.SwitchTimeKalmanFilter`.
     stay : float, optional
         Per-sample probability of staying in a mode (``imm``, ``imm-ev1``).
     v_max, delta, Delta : float, optional
@@ -146,7 +153,9 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         treated as missing).
     """
     entry = get_method(method)
-    options = {"grid": grid, "refine": refine, "stay": stay, "v_max": v_max, "delta": delta,
+    if method == "switch-time" and switch_time is None:
+        switch_time = "max" if refine else "marginal"
+    options = {"grid": grid, "refine": refine, "switch_time": switch_time, "stay": stay, "v_max": v_max, "delta": delta,
                "Delta": Delta, "switch_interval": switch_interval, "smooth": smooth,
                "particles": particles, "seed": seed, "timing": timing, "gate": gate}
     entry.check_options(name for name in _WITHOUT_DEFAULT
@@ -173,7 +182,8 @@ _OWN_APPROXIMATION = {
     "kalman": "; switches between the samples also do it, which method 'switch-time' models",
     "switch-time": ("; so does the filter's own approximation (each switching instant taken "
                     "on its grid of candidates, and the hypotheses merged into one Gaussian "
-                    "after each sample: a finer --grid or --refine narrows it)"),
+                    "after each sample: a finer --grid narrows it, and --switch-time max "
+                    "claims a covariance as if the chosen instant were the true one)"),
 }
 
 

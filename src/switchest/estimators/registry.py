@@ -223,7 +223,7 @@ _TABLE = {m.name: m for m in (
            "Kalman filter along a known (or believed) mode sequence",
            "Zhang & Natarajan (001), Algorithm 1", innovation_check=True),
     Method("switch-time", ".switch_time:SwitchTimeKalmanFilter", "modes", "unused",
-           ("grid", "refine", "gate"),
+           ("grid", "refine", "switch_time", "gate"),
            "Kalman filter with the modes known at the samples and gridded maximum-likelihood "
            "switching times", "Shankar et al. (000), §III-§IV, eq. (23)", innovation_check=True),
     Method("imm", ".imm:IMMFilter", None, "required", ("stay", "smooth", "timing", "gate"),
