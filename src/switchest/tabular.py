@@ -87,7 +87,8 @@ set; ``grid``, ``refine`` (which have a default) and ``stay`` apply only where t
 
 
 def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: str, grid: int = 5,
-                   refine: bool = False, switch_time: str | None = None, stay: float | None = None, v_max: float | None = None,
+                   refine: bool = False, switch_time: str | None = None,
+                   stay: float | None = None, v_max: float | None = None,
                    delta: float | None = None, Delta: float | None = None,
                    switch_interval: float | None = None, smooth: bool = False,
                    particles: int | None = None, seed: int | None = None,
@@ -155,9 +156,10 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     entry = get_method(method)
     if method == "switch-time" and switch_time is None:
         switch_time = "max" if refine else "marginal"
-    options = {"grid": grid, "refine": refine, "switch_time": switch_time, "stay": stay, "v_max": v_max, "delta": delta,
-               "Delta": Delta, "switch_interval": switch_interval, "smooth": smooth,
-               "particles": particles, "seed": seed, "timing": timing, "gate": gate}
+    options = {"grid": grid, "refine": refine, "switch_time": switch_time, "stay": stay,
+               "v_max": v_max, "delta": delta, "Delta": Delta, "switch_interval": switch_interval,
+               "smooth": smooth, "particles": particles, "seed": seed, "timing": timing,
+               "gate": gate}
     entry.check_options(name for name in _WITHOUT_DEFAULT
                         if options[name] is not None and options[name] is not False)
     meas = read_measurements(data, spec, trial=trial)
