@@ -834,6 +834,18 @@ static void se_forward(se_int m, se_int q, const double *restrict Lo, double *re
     }
 }
 
+/* Lane b of P <- (M + M') / 2 for a row-major M (n, n). */
+static void se_store_symmetric(se_int n, se_int B, const double *restrict M, double *restrict P,
+                               se_int b)
+{
+    for (se_int i = 0; i < n; i++)
+        for (se_int j = i; j < n; j++) {
+            double v = 0.5 * (M[i * n + j] + M[j * n + i]);
+            P[(i * n + j) * B + b] = v;
+            P[(j * n + i) * B + b] = v;
+        }
+}
+
 /* Lane b of the posterior in information form, where Joseph's has lost its digits.
  *
  * P+ = (P^-1 + C' R^-1 C)^-1 = L (I + L' C' R^-1 C L)^-1 L' with P = L L' the prior (prior),
@@ -885,14 +897,13 @@ int se_information_form(se_int n, se_int m, se_int B, double *restrict P,
         for (se_int j = 0; j < n; j++)
             Z[i * n + j] = Lp[j * n + i];
     se_forward(n, n, Ln, Z);
-    for (se_int i = 0; i < n; i++)
-        for (se_int j = i; j < n; j++) {
-            double v = 0.0;
+    for (se_int i = 0; i < n; i++) /* A <- Z' Z, symmetric to the last bit */
+        for (se_int j = 0; j < n; j++) {
+            A[i * n + j] = 0.0;
             for (se_int q = 0; q < n; q++)
-                v += Z[q * n + i] * Z[q * n + j];
-            P[(i * n + j) * B + b] = v;
-            P[(j * n + i) * B + b] = v;
+                A[i * n + j] += Z[q * n + i] * Z[q * n + j];
         }
+    se_store_symmetric(n, B, A, P, b);
     ok = 1;
 done:
     SE_SCRATCH_FREE(buf);
@@ -969,12 +980,7 @@ int se_repair(se_int n, se_int B, double *restrict P, se_int b, int indefinite_o
             for (se_int q = 0; q < n; q++)
                 M[i * n + j] += V[i * n + q] * w[q] * V[j * n + q];
         }
-    for (se_int i = 0; i < n; i++)
-        for (se_int j = i; j < n; j++) {
-            double v = 0.5 * (M[i * n + j] + M[j * n + i]);
-            P[(i * n + j) * B + b] = v;
-            P[(j * n + i) * B + b] = v;
-        }
+    se_store_symmetric(n, B, M, P, b);
     changed = 1;
 done:
     SE_SCRATCH_FREE(buf);
