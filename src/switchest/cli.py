@@ -301,14 +301,16 @@ def demo(trials: int, duration: float, seed: int, console: Console) -> Table:
     )
     filters = {"clairvoyant (true switch times)": ("clairvoyant", None),
                "switch-time KF, g = 1": ("grid", 1), "switch-time KF, g = 5": ("grid", 5),
+               "switch-time KF, g = 5, merged": ("marginal", 5),
                "IMM (modes unknown)": ("imm", None)}
     start = setting.transient
     # short headers and a key, so that the table fits 80 columns with every header whole
     table = Table(title=f"Boost converter, scored after the first {start} samples",
                   caption="i_L, v_0: RMSE of the inductor current and the output voltage; "
                           "modes: fraction of samples whose mode is estimated right; t_sw: "
-                          "mean |error| of the estimated switching instants; time: to filter; "
-                          "-: not estimated", caption_justify="left")
+                          "mean |error| of the estimated switching instants; merged: the grid's "
+                          "instants weighed by their likelihood (beyond the paper); time: to "
+                          "filter; -: not estimated", caption_justify="left")
     table.add_column("filter", no_wrap=True)
     for col in ("i_L (A)", "v_0 (V)", "modes", "t_sw (ms)", "time (s)"):
         table.add_column(col, justify="right")
