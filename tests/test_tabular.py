@@ -418,7 +418,7 @@ def test_the_filters_run_in_the_model_files_timing_and_name_another(tmp_path):
 
 
 def test_the_switch_time_filter_of_a_table_weighs_the_candidate_instants(tmp_path):
-    """Without --refine, ``estimate_table``'s switch-time filter merges its grid's candidates
+    """Without --refine, ``estimate_table``'s switch-time filter (and IMM-EV1) merges its grid's candidates
     (``switch_time="marginal"``), whose covariance counts the instant's uncertainty; with
     --refine, or asked for, it takes the paper's maximizer; the option is refused elsewhere."""
     from switchest.estimators import SwitchTimeKalmanFilter
@@ -436,5 +436,14 @@ def test_the_switch_time_filter_of_a_table_weighs_the_candidate_instants(tmp_pat
             est = f.run(y, u, t, modes=modes)
             np.testing.assert_allclose(table[["x0", "x1"]].to_numpy(), est.x, rtol=1e-12,
                                        atol=1e-12 * np.abs(est.x).max())
-    with pytest.raises(ValueError, match="switch_time applies to method 'switch-time' only"):
+        from switchest.estimators import IMMEV1Filter
+
+        table = estimate_table(spec, df, method="imm-ev1")
+        est = get_method("imm-ev1").build(spec, t, switch_time="marginal").run(y, u, t)
+        np.testing.assert_allclose(table[["x0", "x1"]].to_numpy(), est.x, rtol=1e-12,
+                                   atol=1e-12 * np.abs(est.x).max())
+        assert get_method("imm-ev1").build(spec, t).switch_time == "max"  # the class's own
+        assert isinstance(get_method("imm-ev1").build(spec, t), IMMEV1Filter)
+    with pytest.raises(ValueError, match="switch_time applies to method 'switch-time' or "
+                                         "'imm-ev1' only"):
         estimate_table(spec, df, method="imm", switch_time="max")

@@ -109,12 +109,13 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         Switching-time grid points per interval (``switch-time``, ``imm-ev1``) and
         the refinement beyond the grid (``switch-time``).
     switch_time : {"marginal", "max"}, optional
-        ``switch-time`` only: weigh the grid's candidate instants by their likelihood
+        ``switch-time`` and ``imm-ev1``: weigh the grid's candidate instants by their likelihood
         (``"marginal"``, the default without ``refine``: the covariance counts the instant's
         uncertainty) or take the maximizer of Shankar et al. eq. (23) (``"max"``, the paper's,
         the default with ``refine``: the covariance is conditional on the chosen instant and
         claims far too little on a fast-switching converter); see
-        :class:`~switchest.estimators.SwitchTimeKalmanFilter`.
+        :class:`~switchest.estimators.SwitchTimeKalmanFilter` and
+        :class:`~switchest.estimators.IMMEV1Filter`.
     stay : float, optional
         Per-sample probability of staying in a mode (``imm``, ``imm-ev1``).
     v_max, delta, Delta : float, optional
@@ -154,7 +155,7 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         treated as missing).
     """
     entry = get_method(method)
-    if method == "switch-time" and switch_time is None:
+    if method in ("switch-time", "imm-ev1") and switch_time is None:
         switch_time = "max" if refine else "marginal"
     options = {"grid": grid, "refine": refine, "switch_time": switch_time, "stay": stay,
                "v_max": v_max, "delta": delta, "Delta": Delta, "switch_interval": switch_interval,

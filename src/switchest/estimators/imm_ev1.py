@@ -87,7 +87,10 @@ class IMMEV1Filter(Estimator):
         over the grid and integrates it out: ``b_ji`` is the mean of ``J_k`` over
         the grid, the destination's posterior is the moment-matched mixture of the
         g updated hypotheses weighted by ``J_k``, and the reported switching time
-        is their weighted mean.
+        is their weighted mean. On the boost converter (Table I's setting, g = 5) the
+        covariance of ``"max"`` claims far too little (NEES median 5e5 where 2 is
+        expected), that of ``"marginal"`` much less so (median 3.6), with a smaller RMSE
+        (i_L 16.4 against 22.3 A).
     gate : float, optional
         Largest normalized innovation squared ``e' S^-1 e`` a hypothesis accepts
         (keyword-only); ``None`` rejects only measurements whose innovation
