@@ -418,9 +418,10 @@ def test_the_filters_run_in_the_model_files_timing_and_name_another(tmp_path):
 
 
 def test_the_switch_time_filter_of_a_table_weighs_the_candidate_instants(tmp_path):
-    """Without --refine, ``estimate_table``'s switch-time filter (and IMM-EV1) merges its grid's candidates
-    (``switch_time="marginal"``), whose covariance counts the instant's uncertainty; with
-    --refine, or asked for, it takes the paper's maximizer; the option is refused elsewhere."""
+    """Without --refine, ``estimate_table``'s switch-time filter (and IMM-EV1) merges its
+    grid's candidates (``switch_time="marginal"``), whose covariance counts the instant's
+    uncertainty; with --refine, or asked for, it takes the paper's maximizer; the option is
+    refused elsewhere."""
     from switchest.estimators import SwitchTimeKalmanFilter
 
     spec, df, _, traj = boost_csv(tmp_path)
