@@ -440,10 +440,12 @@ def test_the_switch_time_filter_of_a_table_weighs_the_candidate_instants(tmp_pat
         from switchest.estimators import IMMEV1Filter
 
         table = estimate_table(spec, df, method="imm-ev1")
-        est = get_method("imm-ev1").build(spec, t, switch_time="marginal").run(y, u, t)
+        est = get_method("imm-ev1").build(spec, t, switch_time="marginal",
+                                          estimate="mixture").run(y, u, t)
         np.testing.assert_allclose(table[["x0", "x1"]].to_numpy(), est.x, rtol=1e-12,
                                    atol=1e-12 * np.abs(est.x).max())
-        assert get_method("imm-ev1").build(spec, t).switch_time == "max"  # the class's own
+        paper = get_method("imm-ev1").build(spec, t)  # the class's own defaults: the paper's
+        assert (paper.switch_time, paper.estimate) == ("max", "map")
         assert isinstance(get_method("imm-ev1").build(spec, t), IMMEV1Filter)
     with pytest.raises(ValueError, match="switch_time applies to method 'switch-time' or "
                                          "'imm-ev1' only"):

@@ -599,7 +599,7 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
         warnings.simplefilter("always", TimingWarning)
         table = estimate_table(spec, args.data, method=args.method, grid=args.grid,
                                refine=args.refine, switch_time=args.switch_time,
-                               stay=args.stay, v_max=args.v_max,
+                               estimate=args.reported, stay=args.stay, v_max=args.v_max,
                                delta=args.delta, Delta=args.Delta,
                                switch_interval=args.switch_interval, smooth=args.smooth,
                                particles=args.particles, seed=args.seed, timing=args.timing,
@@ -984,6 +984,10 @@ def _parser() -> _Parser:
                                      "uncertainty) or take the likelihood's maximizer (max, "
                                      "the paper's eq. (23); its covariance is conditional on "
                                      "the chosen instant)"))
+    p_est.add_argument("--reported", choices=("mixture", "map"), default=None,
+                       help=_applies("estimate", "the estimate reported: the mixture of every "
+                                     "destination's posterior (mixture, the default), or the "
+                                     "MAP destination's (map, the paper's)"))
     p_est.add_argument("--stay", type=_probability, default=None,
                        help=_applies("stay", "per-sample probability of staying in a mode"))
     p_est.add_argument("--v-max", type=_window, default=None,

@@ -56,7 +56,7 @@ class IMMEV1Output(MixtureOutput):
 
 def imm_ev1_run(y, u, F, G, Qd, table, tau, C, R, log_transition, x0, P0, log_weight0, *,
                 epsilon, gate=math.inf, printed=False, marginal=False, by_path=True,
-                lanes: int = LANES) -> IMMEV1Output:
+                combined=False, lanes: int = LANES) -> IMMEV1Output:
     """IMM-EV1 filter of ``N`` trials over ``K`` samples (Shankar et al., Algorithm 1).
 
     Parameters
@@ -82,9 +82,10 @@ def imm_ev1_run(y, u, F, G, Qd, table, tau, C, R, log_transition, x0, P0, log_we
         ``epsilon I`` added to every predicted covariance (§IV).
     gate : float
         Largest normalized innovation squared a hypothesis accepts (``inf``: no gate).
-    printed, marginal, by_path : bool
-        The filter's ``likelihood="printed"``, ``switch_time="marginal"`` and
-        ``predecessor="path"``.
+    printed, marginal, by_path, combined : bool
+        The filter's ``likelihood="printed"``, ``switch_time="marginal"``,
+        ``predecessor="path"`` and ``estimate="mixture"`` (``x``, ``P`` the moments of the
+        mixture of the destinations' posteriors instead of the MAP destination's).
     lanes : int
         Trials per SIMD block (the results do not depend on it).
     """
@@ -97,13 +98,14 @@ def imm_ev1_run(y, u, F, G, Qd, table, tau, C, R, log_transition, x0, P0, log_we
     tables = _tables(F, G, Qd, tau, C, R, log_transition, epsilon, sizes)
     table = indices(table, "table", "K", sizes, "D")
     out, _ = _viterbi(y, u, tables, table, state, False, check_gate(gate), printed, marginal,
-                      by_path, positive_int(lanes, "lanes"))
+                      by_path, combined, positive_int(lanes, "lanes"))
     return out
 
 
 def imm_ev1_step(x, P, log_weight, predecessor, switch_offset, y, u, F, G, Qd, tau, C, R,
                  log_transition, *, predict_first: bool, epsilon, gate=math.inf, printed=False,
-                 marginal=False, by_path=True) -> tuple[IMMEV1Output, tuple[np.ndarray, ...]]:
+                 marginal=False, by_path=True,
+                 combined=False) -> tuple[IMMEV1Output, tuple[np.ndarray, ...]]:
     """One sample of every trial: the hypotheses of one interval and the update (when
     ``predict_first``), else the update of every destination's filter alone.
 
@@ -129,7 +131,8 @@ def imm_ev1_step(x, P, log_weight, predecessor, switch_offset, y, u, F, G, Qd, t
     tables = _tables(F, G, Qd, tau[None], C, R, log_transition, epsilon, sizes)
     state = (x.copy(), P.copy(), log_weight.copy(), predecessor.copy(), switch_offset.copy())
     return _viterbi(y[:, None], u[:, None], tables, np.zeros(1, dtype=np.int64), state,
-                    bool(predict_first), check_gate(gate), printed, marginal, by_path, LANES)
+                    bool(predict_first), check_gate(gate), printed, marginal, by_path, combined,
+                    LANES)
 
 
 def _tables(F, G, Qd, tau, C, R, log_transition, epsilon, sizes):
@@ -155,7 +158,7 @@ def _tables(F, G, Qd, tau, C, R, log_transition, epsilon, sizes):
 
 
 def _viterbi(y, u, tables, table, state, predict_first, gate, printed, marginal, by_path,
-             lanes):
+             combined, lanes):
     """:func:`viterbi_bank` from ``state`` (``x, P, log_weight, predecessor, offset`` per
     trial and destination); returns the :class:`IMMEV1Output` and the state after the last
     sample."""
@@ -170,7 +173,8 @@ def _viterbi(y, u, tables, table, state, predict_first, gate, printed, marginal,
         (y, mine), (u, mine), (table, shared), *((a, shared) for a in tables),
         *((a, mine) for a in state), (predict_first, shared), (gate, shared),
         (bool(printed), shared), (bool(marginal), shared), (bool(by_path), shared),
-        (lanes, shared), (x, mine), (P, mine), (prob, mine), (mode, mine), (offset, mine),
-        (outlier, mine), *((a, mine) for a in last)], trials=N, samples=K, block=lanes)
+        (bool(combined), shared), (lanes, shared), (x, mine), (P, mine), (prob, mine),
+        (mode, mine), (offset, mine), (outlier, mine), *((a, mine) for a in last)],
+        trials=N, samples=K, block=lanes)
     return IMMEV1Output(x, P, prob, mode, offset, outlier.view(np.bool_),
                         **outcome._asdict()), last

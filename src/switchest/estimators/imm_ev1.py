@@ -52,7 +52,7 @@ class IMMEV1State:
 
 
 class IMMEV1Filter(Estimator):
-    """Shankar et al. Algorithm 1: IMM-EV1 Kalman filter with gridded switching times.
+    r"""Shankar et al. Algorithm 1: IMM-EV1 Kalman filter with gridded switching times.
 
     Parameters
     ----------
@@ -91,6 +91,15 @@ class IMMEV1Filter(Estimator):
         covariance of ``"max"`` claims far too little (NEES median 5e5 where 2 is
         expected), that of ``"marginal"`` much less so (median 3.6), with a smaller RMSE
         (i_L 16.4 against 22.3 A).
+    estimate : {"map", "mixture"}
+        What ``run`` reports as ``x``, ``P``: ``"map"`` (the paper) the posterior of the
+        destination of largest weight (the MAP path), whose covariance ignores the other
+        destinations; ``"mixture"`` (beyond the paper) the moments of the mixture of every
+        destination's posterior weighed by the normalized path weights,
+        :math:`\hat x = \sum_i w_i x_i`,
+        :math:`P = \sum_i w_i (P_i + (x_i - \hat x)(x_i - \hat x)^\top)`, as the IMM
+        combines its modes (Bar-Shalom, Li & Kirubarajan §11.6.6). ``mode`` and
+        ``switch_time`` are the MAP destination's either way.
     gate : float, optional
         Largest normalized innovation squared ``e' S^-1 e`` a hypothesis accepts
         (keyword-only); ``None`` rejects only measurements whose innovation
@@ -99,15 +108,15 @@ class IMMEV1Filter(Estimator):
 
     Notes
     -----
-    The reported ``x``, ``P``, ``mode`` and ``switch_time`` are those of the
-    destination with the largest weight (the MAP path); ``mode_prob`` are the
-    normalized weights.
+    The reported ``mode`` and ``switch_time`` are those of the destination with the
+    largest weight (the MAP path), and so are ``x``, ``P`` with ``estimate="map"``;
+    ``mode_prob`` are the normalized weights.
     """
 
     def __init__(self, system, transition=None, x0=None, P0=None, *, grid: int = 5,
                  epsilon: float = 1e-9, mode_prob0=None, predecessor: str = "path",
                  likelihood: str = "innovation", switch_time: str = "max",
-                 gate: float | None = None):
+                 estimate: str = "map", gate: float | None = None):
         if x0 is None or P0 is None:  # optional only so that `transition` may be left out
             raise TypeError("IMMEV1Filter needs the prior x0 and P0: IMMEV1Filter(system, "
                             "transition=None, x0, P0, ...) or x0=..., P0=... by keyword")
@@ -126,6 +135,9 @@ class IMMEV1Filter(Estimator):
             raise ValueError(f"likelihood must be 'innovation' or 'printed', got {likelihood!r}")
         if switch_time not in ("max", "marginal"):
             raise ValueError(f"switch_time must be 'max' or 'marginal', got {switch_time!r}")
+        if estimate not in ("map", "mixture"):
+            raise ValueError(f"estimate must be 'map' or 'mixture', got {estimate!r}")
+        self.estimate = estimate
         self.predecessor = predecessor
         self.likelihood = likelihood
         self.switch_time = switch_time
@@ -226,4 +238,4 @@ class IMMEV1Filter(Estimator):
         """The kernel's options (:func:`~switchest.engine.imm_ev1.imm_ev1_run`)."""
         return {"epsilon": self.epsilon, "gate": self._gate,
                 "printed": self.likelihood == "printed", "marginal": self.switch_time == "marginal",
-                "by_path": self.predecessor == "path"}
+                "by_path": self.predecessor == "path", "combined": self.estimate == "mixture"}

@@ -238,7 +238,7 @@ _TABLE = {m.name: m for m in (
            "Rao-Blackwellized particle filter (modes sampled, a Kalman filter per particle); "
            "modes unknown", "Doucet, Gordon & Krishnamurthy (2001), §III"),
     Method("imm-ev1", ".imm_ev1:IMMEV1Filter", None, "optional",
-           ("grid", "switch_time", "stay", "gate"),
+           ("grid", "switch_time", "estimate", "stay", "gate"),
            "IMM extended-Viterbi filter with switching-time estimation; modes unknown",
            "Shankar et al. (000), Algorithm 1"),
     Method("min-distance", ".min_distance:MinimumDistanceDetector", None, "unused",

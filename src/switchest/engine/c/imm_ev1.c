@@ -428,8 +428,8 @@ static se_int update_only(const dims *s, double *x, double *P, const double *res
 typedef struct {
     double *x, *P, *x_new, *P_new, *log_w, *prob, *total, *offset, *a, *J, *log_b, *w;
     double *tau_pair, *w_lanes, *xg, *Pg, *Cl, *Rl, *yw, *uw, *yh, *obs, *n_obs, *J_lanes;
-    double *C1, *R1, *C2, *R2, *H1, *Gy1, *S1, *zero;
-    se_int *hypotheses, *chosen, *best_k, *source, *entry, *source2, *entry2;
+    double *C1, *R1, *C2, *R2, *H1, *Gy1, *S1, *zero, *xc, *Pc;
+    se_int *best, *hypotheses, *chosen, *best_k, *source, *entry, *source2, *entry2;
     uint8_t *outlier, *use, *update_use, *use_lanes;
     pred_ws pred;
     se_innovation_ws inn;
@@ -443,6 +443,9 @@ static void layout(const dims *s, se_int n_hyp, se_arena *ar, scratch *t)
     const size_t D = sizeof(double), I = sizeof(se_int), U = sizeof(uint8_t);
     t->x = se_carve(ar, L * n * B, D);
     t->P = se_carve(ar, L * n * n * B, D);
+    t->xc = se_carve(ar, n * B, D); /* the mixture over the destinations (combined) */
+    t->Pc = se_carve(ar, n * n * B, D);
+    t->best = se_carve(ar, B, I);
     t->x_new = se_carve(ar, L * n * B, D);
     t->P_new = se_carve(ar, L * n * n * B, D);
     t->log_w = se_carve(ar, L * B, D);
@@ -522,12 +525,14 @@ static void layout(const dims *s, se_int n_hyp, se_arena *ar, scratch *t)
  *     Whether the first sample is predicted into (a streaming step) or only updated.
  * gate : float
  *     Largest normalized innovation squared a hypothesis accepts.
- * printed, marginal, by_path : bool
- *     likelihood="printed", switch_time="marginal", predecessor="path".
+ * printed, marginal, by_path, combined : bool
+ *     likelihood="printed", switch_time="marginal", predecessor="path", estimate="mixture".
  * lanes : int
  *     Trials per block.
  * x_out, P_out, prob_out, mode_out, offset_out, outlier_out
- *     Written: the MAP destination's x (N, K, n), P (N, K, n, n), normalized weights
+ *     Written: the MAP destination's x (N, K, n), P (N, K, n, n) (with combined, the moments
+ *     of the mixture of the destinations' posteriors weighed by their normalized weights, as
+ *     the IMM's output, Bar-Shalom, Li & Kirubarajan §11.6.6), normalized weights
  *     (N, K, L), the MAP destination (the first on a tie), its switch offset (NaN without a
  *     switch) and whether every hypothesis rejected the sample (N, K).
  * x_last, P_last, log_w_last, chosen_last, offset_last
@@ -671,6 +676,8 @@ se_int se_viterbi_bank(SE_VITERBI_BANK_PARAMETERS)
             for (se_int j = 0; j < L; j++)
                 for (se_int b = 0; b < nb; b++)
                     t.log_w[j * B + b] = t.a[j * B + b];
+            if (combined)
+                se_combine(n, L, B, x, P, t.prob, t.log_w, nb, t.xc, t.Pc, t.best);
             for (se_int b = 0; b < nb; b++) {
                 se_int i = i0 + b, best = 0;
                 for (se_int j = 1; j < L; j++)
@@ -681,8 +688,11 @@ se_int se_viterbi_bank(SE_VITERBI_BANK_PARAMETERS)
                 outlier_out[i * K + k] = t.outlier[b];
                 for (se_int j = 0; j < L; j++)
                     prob_out[(i * K + k) * L + j] = t.prob[j * B + b];
-                se_write_lane(n, B, K, x + best * n * B, P + best * n * n * B, b, i, k, x_out,
-                              P_out);
+                if (combined)
+                    se_write_lane(n, B, K, t.xc, t.Pc, b, i, k, x_out, P_out);
+                else
+                    se_write_lane(n, B, K, x + best * n * B, P + best * n * n * B, b, i, k,
+                                  x_out, P_out);
             }
         }
         se_scatter_rows(L, B, 1, t.log_w, i0, nb, log_w_last);

@@ -12,7 +12,8 @@
  *   tau (D, g), C (L, m, n), R (L, m, m), log_transition (L, L),
  *   x_init (N, L, n), P_init (N, L, n, n), log_w_init (N, L), chosen_init (N, L) se_int,
  *   offset_init (N, L);
- *   written: x_out (N, K, n), P_out (N, K, n, n), prob_out (N, K, L), mode_out (N, K) se_int,
+ *   written: x_out (N, K, n), P_out (N, K, n, n) (the MAP destination's, or with combined the
+ *   mixture's over the destinations), prob_out (N, K, L), mode_out (N, K) se_int,
  *   offset_out (N, K), outlier_out (N, K) uint8 (0/1), x_last, P_last, log_w_last,
  *   chosen_last, offset_last shaped as the _init arrays, report (2,).
  * Booleans are int. Returns SE_OK, SE_NOT_POSITIVE_DEFINITE, SE_NOT_FINITE or SE_NO_MEMORY.
@@ -34,9 +35,10 @@
     const double *restrict log_transition, double epsilon, const double *restrict x_init,         \
     const double *restrict P_init, const double *restrict log_w_init,                             \
     const se_int *restrict chosen_init, const double *restrict offset_init, int predict_first,    \
-    double gate, int printed, int marginal, int by_path, se_int lanes, double *restrict x_out,    \
-    double *restrict P_out, double *restrict prob_out, se_int *restrict mode_out,                 \
-    double *restrict offset_out, uint8_t *restrict outlier_out, double *restrict x_last,          \
+    double gate, int printed, int marginal, int by_path, int combined, se_int lanes,               \
+    double *restrict x_out, double *restrict P_out, double *restrict prob_out,                    \
+    se_int *restrict mode_out, double *restrict offset_out, uint8_t *restrict outlier_out,        \
+    double *restrict x_last,                                                                      \
     double *restrict P_last, double *restrict log_w_last, se_int *restrict chosen_last,           \
     double *restrict offset_last, double *restrict report
 se_int se_viterbi_bank(SE_VITERBI_BANK_PARAMETERS);
