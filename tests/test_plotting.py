@@ -86,3 +86,16 @@ def test_curves_name_bands_and_markers_in_a_legend_under_the_panels(tmp_path, mo
     assert [t.get_text() for t in fig.legends[0].get_texts()] == [
         "ours", "ours: 95 % band", "paper: Table I", "switches"]
     plt.close(fig)
+
+
+def test_bars_give_every_series_a_colour_of_its_own(tmp_path, monkeypatch):
+    figures = []
+    monkeypatch.setattr(plotting, "_save", lambda fig, path, rect=None: figures.append(fig) or path)
+    series = {f"method {j}": [1.0 + j, 2.0] for j in range(15)}  # the bake-off's fifteen
+    plotting.bars(tmp_path / "b.png", ["case a", "case b"], series, ylabel="RMSE")
+    ax = figures[0].axes[0]
+    colours = {tuple(bar.patches[0].get_facecolor()) for bar in ax.containers}
+    assert len(ax.containers) == 15 and len(colours) == 15
+    with pytest.raises(ValueError, match="at most 20 series"):
+        plotting.bars(tmp_path / "c.png", ["a"], {f"s{j}": [1.0] for j in range(21)}, ylabel="y")
+    plt.close(figures[0])

@@ -102,17 +102,24 @@ def bars(
     errors: Mapping[str, Sequence[float]] | None = None,
 ) -> Path:
     """Grouped bars: one group per entry of ``groups``, one bar per series (NaN = no bar);
-    ``errors[label]`` draws ``± errors`` on the series' bars (e.g. 1.96 standard errors)."""
+    ``errors[label]`` draws ``± errors`` on the series' bars (e.g. 1.96 standard errors).
+    Each series has a colour of its own: matplotlib's ten colours up to ten series, the
+    twenty of ``tab20`` beyond, its dark shades first (the bake-off has fifteen series)."""
     k = len(series)
     width = 0.8 / max(k, 1)
     x = np.arange(len(groups))
+    tab20 = plt.get_cmap("tab20").colors  # dark then light of each hue: the dark ones first
+    colours = plt.get_cmap("tab10").colors if k <= 10 else tab20[0::2] + tab20[1::2]
+    if k > len(colours):
+        raise ValueError(f"series must hold at most {len(colours)} series (one colour each), "
+                         f"got {k}")
     with plt.rc_context(_STYLE):
         size = (max(6.0, 1.6 * len(groups) + 2), 3.6 + 0.2 * ((k + 3) // 4))
         fig, ax = plt.subplots(figsize=size)
         for j, (label, values) in enumerate(series.items()):
             half = None if errors is None or label not in errors else np.asarray(errors[label])
             ax.bar(x + (j - (k - 1) / 2) * width, np.asarray(values, dtype=float), width,
-                   label=label, yerr=half, error_kw={"lw": 0.8, "capsize": 2})
+                   label=label, yerr=half, color=colours[j], error_kw={"lw": 0.8, "capsize": 2})
         ax.set_xticks(x, groups)
         ax.set_ylabel(ylabel)
         if logy:

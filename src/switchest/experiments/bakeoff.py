@@ -83,6 +83,8 @@ _CONTENDERS = (
     Contender("imm-smoothed", "imm", "IMM smoothed (offline)", smooth=True),
     Contender("gpb2-smoothed", "gpb2", "GPB2 smoothed (offline)", smooth=True),
     Contender("imm-ev1", "imm-ev1", "IMM-EV1 (g = 5)", (("grid", 5),)),
+    Contender("imm-ev1-mixture", "imm-ev1", "IMM-EV1 marginalized, mixture (g = 5)",
+              (("grid", 5), ("switch_time", "marginal"), ("estimate", "mixture"))),
     Contender("min-distance", "min-distance", "min-distance detector (Lee)", _DETECTOR),
 )
 CONTENDERS = {c.key: c for c in _CONTENDERS}
