@@ -113,6 +113,18 @@ class ExactMixtureFilter(Estimator):
 
     Streaming (``step``) keeps the prefixes themselves, ``L`` times more after each sample
     (refused past ``max_sequences``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from switchest.models.shankar import BoostTable1
+    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> traj = setting.simulate(0.005, 2, np.random.default_rng(0))  # 2 trials x 5 ms
+    >>> (x0, P0), u = setting.prior, setting.input
+    >>> exact = ExactMixtureFilter(setting.system(), np.array(setting.transition), x0, P0)
+    >>> est = exact.run(traj.y, u, traj.t)  # 2^11 mode sequences, each its Kalman filter
+    >>> est.x.shape, est.mode_prob.shape
+    ((2, 11, 2), (2, 11, 2))
     """
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None,

@@ -85,6 +85,18 @@ class GPB1Filter(ModeBankFilter):
     follow ``mu_j(k) ∝ mu_j(k-1) Lambda_j(k)``, but ``Lambda_j`` is the likelihood of mode
     ``j``'s filter restarted from the collapsed Gaussian of all modes. The IMM and GPB2 with
     the identity transition are that bank (their mixing weights are ``delta_ij``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from switchest.models.shankar import BoostTable1
+    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
+    >>> (x0, P0), u = setting.prior, setting.input
+    >>> gpb1 = GPB1Filter(setting.system(), np.array(setting.transition), x0, P0)
+    >>> est = gpb1.run(traj.y, u, traj.t)
+    >>> est.x.shape, est.mode.shape
+    ((3, 21, 2), (3, 21))
     """
 
     _interaction = "collapse"
@@ -125,6 +137,20 @@ class GPB2Filter(ModeBankFilter):
     With the identity ``transition`` the pairs ``i != j`` have weight zero and GPB2 is the
     static multiple-model bank: each mode's Kalman filter alone from the prior,
     ``mu_j(k) ∝ mu_j(0) prod_t Lambda_j(t)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from switchest.models.shankar import BoostTable1
+    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
+    >>> (x0, P0), u = setting.prior, setting.input
+    >>> gpb2 = GPB2Filter(setting.system(), np.array(setting.transition), x0, P0)
+    >>> smoothed = gpb2.smooth(traj.y, u, traj.t)  # GPB2's pass, then the two-filter smoother
+    >>> smoothed.mode_prob.shape
+    (3, 21, 2)
+    >>> bool(np.all(np.isfinite(smoothed.x)))
+    True
     """
 
     _interaction = GPB2

@@ -151,6 +151,19 @@ class RBPFilter(Estimator):
     ----------
     root_key : numpy.uint64
         The key drawn from ``rng``, from which every trial's key derives.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from switchest.models.shankar import BoostTable1
+    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
+    >>> (x0, P0), u = setting.prior, setting.input
+    >>> pf = RBPFilter(setting.system(), np.array(setting.transition), x0, P0, particles=200,
+    ...                rng=1)
+    >>> est = pf.run(traj.y, u, traj.t)
+    >>> est.x.shape, est.mode_prob.shape
+    ((3, 21, 2), (3, 21, 2))
     """
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None, particles: int = 1000,

@@ -110,6 +110,26 @@ class RSLSObserver(Estimator):
     (measured, Assumption 1(d)) mode at each instant; the estimate is returned at
     every fine instant. NaN in ``y`` marks a lost sample: the steps on either
     side of it make no correction from that channel.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from switchest.models import wang_scalar_pair
+    >>> from switchest.signals import iid_at_samples
+    >>> from switchest.simulate import simulate
+    >>> system = wang_scalar_pair(2.0, 4.0, 0.01)  # Wang et al. Example 1: no mode observable
+    >>> T = 0.03
+    >>> t = T * np.arange(101)
+    >>> traj = simulate(system, lambda r: iid_at_samples([0.5, 0.5], t, rng=r), t,
+    ...                 np.array([1.0, 1.0]), trials=2, rng=0, fine_dt=T / 10,
+    ...                 output="integrated")  # the integrated output on a fine grid
+    >>> gains = np.array([[[40.0], [0.0]], [[0.0], [40.0]]])  # one sub-observer per mode
+    >>> obs = RSLSObserver(system, gains, T, [0.0, 0.0], np.zeros((2, 2)))
+    >>> est = obs.run(traj.y_fine, t=traj.t_fine, modes=traj.mode_fine)
+    >>> at = np.searchsorted(traj.t_fine, t)  # the switching instants kT
+    >>> error = np.linalg.norm(est.x[:, at[-1]] - traj.x[:, -1], axis=-1)
+    >>> bool(np.all(error < 1e-3 * np.linalg.norm(traj.x[:, -1], axis=-1)))  # x grows as e^(4t)
+    True
     """
 
     def __init__(self, system, gains, T: float, x0, P0, *, shared: bool = True):
