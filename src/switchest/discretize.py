@@ -1,28 +1,32 @@
-"""Exact sampled-data transitions, with switches anywhere inside a sample interval.
+r"""Exact sampled-data transitions, with switches anywhere inside a sample interval.
 
-Over an interval of length ``T`` that starts in ``modes[0]`` and switches to
+Over an interval of length :math:`T` that starts in ``modes[0]`` and switches to
 ``modes[s]`` at offset ``offsets[s-1]``, the continuous system (zero-order-hold
-input) gives exactly::
+input) gives exactly
 
-    x(T) = F x(0) + G u + w,   w ~ N(0, Qd)
+.. math::
 
-with, for segments ``s = 0..S`` of lengths ``h_s`` in modes ``m_s``,
-``F = Phi_S ... Phi_0``, ``Phi_s = exp(A[m_s] h_s)``. With one switch this is
-Shankar et al. eq. (4), ``F_k = exp(A_{k+1}(T - t_k)) exp(A_k t_k)``, and ``G`` is
-eq. (5); here any number of switches is allowed, and ``Qd`` is the exact
+    x(T) = F\, x(0) + G\, u + w, \qquad w \sim \mathcal N(0, Q_d),
+
+with, for segments :math:`s = 0, \dots, S` of lengths :math:`h_s` in modes :math:`m_s`,
+:math:`F = \Phi_S \cdots \Phi_0`, :math:`\Phi_s = e^{A_{m_s} h_s}`. With one switch this is
+Shankar et al. eq. (4), :math:`F_k = e^{A_{k+1}(T - t_k)}\, e^{A_k t_k}`, and :math:`G` is
+eq. (5); here any number of switches is allowed, and :math:`Q_d` is the exact
 covariance of the integrated process noise.
 
-Each segment's ``Phi_s``, ``G_s = int_0^h exp(A s) ds B`` and
-``Qd_s = int_0^h exp(A s) Q exp(A' s) ds`` come from ONE block-matrix exponential
-(Van Loan, 1978)::
+Each segment's :math:`\Phi_s`, :math:`G_s = \int_0^{h} e^{A s}\, ds\, B` and
+:math:`Q_{d,s} = \int_0^{h} e^{A s} Q e^{A^\top s}\, ds` come from ONE block-matrix exponential
+(Van Loan, 1978):
 
-    expm([[-A, Q, 0], [0, A', 0], [0, B', 0]] h) = [[exp(-A h), exp(-A h) Qd_s, 0],
-                                                    [0,         Phi_s',         0],
-                                                    [0,         G_s',           I]]
+.. math::
 
-and segments compose as ``F <- Phi F``, ``G <- Phi G + G_s``,
-``Qd <- Phi Qd Phi' + Qd_s``. This module is the only place where switchest takes
-matrix exponentials; repeated small queries are cached.
+    \exp\left(\begin{bmatrix} -A & Q & 0 \\ 0 & A^\top & 0 \\ 0 & B^\top & 0 \end{bmatrix} h
+    \right) = \begin{bmatrix} e^{-A h} & e^{-A h} Q_{d,s} & 0 \\ 0 & \Phi_s^\top & 0 \\
+    0 & G_s^\top & I \end{bmatrix},
+
+and segments compose as :math:`F \leftarrow \Phi F`, :math:`G \leftarrow \Phi G + G_s`,
+:math:`Q_d \leftarrow \Phi Q_d \Phi^\top + Q_{d,s}`. This module is the only place where
+switchest takes matrix exponentials; repeated small queries are cached.
 """
 
 from __future__ import annotations
@@ -63,7 +67,7 @@ OFFSET_BITS = 9  # an offset table splits T into 2^9 coarse steps, each into 2^9
 
 @dataclass(frozen=True, eq=False)
 class Transition:
-    """Exact one-interval transition ``x+ = F x + G u + w``, ``w ~ N(0, Qd)``.
+    r"""Exact one-interval transition :math:`x^+ = F x + G u + w`, :math:`w \sim N(0, Q_d)`.
 
     Attributes
     ----------
@@ -156,7 +160,7 @@ def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition
 
 
 def switch_grid(T: float, g: int) -> np.ndarray:
-    """The switching-time grid of Shankar et al. eq. (23): ``tau_i = i T / g - T / (2 g)``.
+    r"""The switching-time grid of Shankar et al. eq. (23): :math:`\tau_i = i T / g - T / (2 g)`.
 
     The midpoints of ``g`` equal sub-intervals of ``[0, T)``, ``i = 1..g``.
     """
