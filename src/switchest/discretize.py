@@ -160,7 +160,7 @@ def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition
 
 
 def switch_grid(T: float, g: int) -> np.ndarray:
-    r"""The switching-time grid of Shankar et al. eq. (23): :math:`\tau_i = i T / g - T / (2 g)`.
+    r"""The switching-time grid of Shankar et al.'s equation (23), :math:`\tau_i = (i - 1/2) T / g`.
 
     The midpoints of ``g`` equal sub-intervals of ``[0, T)``, ``i = 1..g``.
     """
