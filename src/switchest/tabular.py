@@ -165,11 +165,10 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         switch_time = "max" if refine else "marginal"
     if method == "imm-ev1" and estimate is None:
         estimate = "mixture"
-    options = {"grid": grid, "refine": refine, "switch_time": switch_time,
-               "estimate": estimate, "stay": stay,
-               "v_max": v_max, "delta": delta, "Delta": Delta, "switch_interval": switch_interval,
-               "smooth": smooth, "particles": particles, "seed": seed, "timing": timing,
-               "gate": gate}
+    options = {"grid": grid, "refine": refine, "switch_time": switch_time, "estimate": estimate,
+               "stay": stay, "v_max": v_max, "delta": delta, "Delta": Delta,
+               "switch_interval": switch_interval, "smooth": smooth, "particles": particles,
+               "seed": seed, "timing": timing, "gate": gate}
     entry.check_options(name for name in _WITHOUT_DEFAULT
                         if options[name] is not None and options[name] is not False)
     meas = read_measurements(data, spec, trial=trial)

@@ -109,7 +109,7 @@ class MixtureOutput(Reported):
     ----------
     x, P : ndarray, shapes (N, K, n), (N, K, n, n)
         The combined estimate: mean and covariance of the mixture of the hypotheses'
-        posteriors (IMM-EV1: the posterior of its MAP path).
+        posteriors (IMM-EV1: of its destinations', or the posterior of its MAP path).
     mode_prob : ndarray, shape (N, K, L)
         The mode probabilities (IMM-EV1: the normalized path weights of the destinations).
     mode : ndarray of int64, shape (N, K)
