@@ -15,8 +15,8 @@ mismatched filter (Figs. 3-6).
 # Run the reproduction at a small size
 # ------------------------------------
 # :func:`switchest.experiments.get` gives the registered experiment, ``params(quick=True)``
-# its small preset (the size of ``switchest run zhang-example1 --quick``); the tasks' results are
-# committed to a store, here a temporary one.
+# its small preset (that of ``switchest run zhang-example1 --quick``), which the keywords after it
+# shrink further; the tasks' results are committed to a store, here a temporary one.
 import tempfile
 from pathlib import Path
 
@@ -25,21 +25,22 @@ from switchest.experiments import Store, get, run_experiment
 experiment = get("zhang-example1")
 params = experiment.params(quick=True, trials=400, block_size=200)
 with tempfile.TemporaryDirectory() as folder:
-    results = run_experiment(experiment, params, store=Store(Path(folder) / "results.sqlite"))
-
-# %%
-# The paper's printed values beside ours
-# --------------------------------------
-# Each row is one compared quantity: the printed value (``-`` where the paper prints none)
-# and the measured one.
-summary = experiment.summarize(params, results, Path("figures"))
-for row in summary.rows:
-    measured = f"{row.measured:.4g}" if isinstance(row.measured, float) else row.measured
-    print(f"{row.quantity[:70]:70s}  paper {row.paper if row.paper is not None else '-'!s:>8}"
-          f"  ours {measured} {row.unit}")
+    store = Store(Path(folder) / "results.sqlite")
+    results = run_experiment(experiment, params, store=store)
 
 # %%
 # The figures
 # -----------
-# The same figures as ``switchest run zhang-example1`` and ``switchest report`` draw.
-print(f"{len(summary.figures)} figures:", ", ".join(f.name for f in summary.figures))
+# ``summarize`` turns the results into compared rows and draws the figures of
+# ``switchest run zhang-example1`` and ``switchest report``.
+summary = experiment.summarize(params, results, Path("figures"))
+
+# %%
+# The paper's printed values beside ours
+# --------------------------------------
+# One line per compared quantity: the printed value (``-`` where the paper prints none)
+# and the measured one.
+for row in summary.rows:
+    ours = f"{row.measured:.4g}" if isinstance(row.measured, float) else row.measured
+    paper = "-" if row.paper is None else row.paper
+    print(f"{row.quantity[:64]:64s} paper {paper!s:>9}  ours {ours} {row.unit}")
