@@ -93,6 +93,7 @@ def test_table1_is_computed_beside_the_printed_values(run):
     g = run("shankar_table1")
     np.testing.assert_array_equal(g["grids"], [1, 2, 3, 4, 5])
     np.testing.assert_allclose(g["paper"][0], [13.5, 2.74])  # Table I, g = 1
+    np.testing.assert_allclose(g["paper"][:, 1], np.array(TABLE1_PAPER["v_0"], dtype=float))
     assert g["paper"].shape == g["grid_rmse"].shape == (5, 2)
     assert np.all(g["clairvoyant"] < 0.1 * g["grid_rmse"].min(axis=0))
     figures("table1.png")
