@@ -1,178 +1,151 @@
-"""The examples run end to end at a small size and print what they claim.
+"""Every example of the gallery runs end to end, smaller than in the documentation, and shows
+what its text claims.
 
-Each example's ``main`` is run with a few trials, a short horizon and two grid
-sizes; the assertions check the structure of its rows against the parameters
-and values that follow from the setup alone (the paper's printed numbers, the
-fixed maneuver schedule, the clairvoyant bound).
+Each script is run as ``python examples/NAME.py ARGS`` would run it (``runpy`` with
+``__name__ == "__main__"``), from a temporary folder (it writes its figures under
+``figures/``); the assertions check its results against what follows from the setup alone:
+the paper's printed numbers, invariants of the methods, the figures it says it draws.
 """
 
 from __future__ import annotations
 
-import importlib.util
-import io
+import runpy
 import sys
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
-from rich.console import Console
 
-from switchest.estimators import IMMEV1Filter
-from switchest.models import BOOST_SAMPLE_PERIOD, vehicle_2d
+from switchest.experiments.shankar import TABLE1_PAPER
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-GRIDS = (1, 2)
+
+# the arguments each example's test runs it with (smaller than the gallery's)
+ARGV = {
+    "bakeoff": [],
+    "boost_converter": ["0.03"],
+    "check_certificates": [],
+    "etienne_observer": [],
+    "fit_round_trip": ["4"],
+    "lee_detection": ["4"],
+    "rbpf_particles": ["5"],
+    "shankar_imm_ev1": ["5"],
+    "shankar_table1": ["2", "0.05"],
+    "smoother_exact": ["8"],
+    "wang_ieee5bus": ["20", "3"],
+    "zhang_bias": [],
+}
 
 
-def load(name: str):
-    """Import ``examples/<name>.py`` as a module."""
-    spec = importlib.util.spec_from_file_location(f"examples_{name}", EXAMPLES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses resolve their module while the file executes
-    spec.loader.exec_module(module)
-    return module
+@pytest.fixture
+def run(tmp_path, monkeypatch):
+    """``run(name)``: the globals of ``examples/<name>.py`` after running it with ``ARGV``."""
+    monkeypatch.chdir(tmp_path)
+
+    def _run(name: str) -> dict:
+        monkeypatch.setattr(sys, "argv", [f"{name}.py", *ARGV[name]])
+        try:
+            return runpy.run_path(str(EXAMPLES / f"{name}.py"), run_name="__main__")
+        finally:
+            plt.close("all")
+
+    return _run
 
 
-def quiet() -> Console:
-    return Console(file=io.StringIO(), width=200)
+def figures(*names: str) -> None:
+    for name in names:
+        assert Path("figures", name).stat().st_size > 1000, name
 
 
-# ---------------------------------------------------------------- Table I (boost converter)
-@pytest.fixture(scope="module")
-def table1():
-    ex = load("shankar_table1")
-    console = quiet()
-    rows = ex.main(trials=3, duration=0.02, grids=GRIDS, seed=0, console=console)
-    return ex, rows, console.file.getvalue()
+def test_every_example_is_tested():
+    assert {p.stem for p in EXAMPLES.glob("*.py")} == set(ARGV)
 
 
-def test_table1_defaults_are_the_papers_setup(table1):
-    ex, _, _ = table1
-    assert (ex.TRIALS, ex.DURATION, ex.GRIDS) == (100, 10.0, (1, 2, 3, 4, 5))
-    assert tuple(ex.TABLE1_PAPER["g"]) == ex.GRIDS
+def test_boost_converter_switch_time_filter_beats_the_mixtures_on_the_current(run):
+    g = run("boost_converter")
+    errors = g["errors"]
+    assert set(errors) == {"switch-time KF, g = 5", "IMM", "GPB2"}
+    assert errors["switch-time KF, g = 5"][0] < min(errors["IMM"][0], errors["GPB2"][0])
+    figures("boost-trial.png", "boost-rmse.png")
 
 
-def test_table1_rows_cover_every_filter_and_grid(table1):
-    _, rows, _ = table1
-    found = {(r.filter, r.g) for r in rows}
-    grid_filters = ("switch-time KF", "switch-time KF, refined", "switch-time KF, tau marginalized",
-                    "IMM-EV1 (Alg. 1)", "IMM-EV1, tau marginalized")
-    expected = {("clairvoyant", None), ("IMM", None)}
-    expected |= {(f, g) for f in grid_filters for g in GRIDS}
-    assert found == expected and len(rows) == len(expected)
+def test_smoother_and_filter_agree_where_they_must(run):
+    g = run("smoother_exact")
+    p = g["probabilities"]
+    for name, values in p.items():
+        assert values.shape == (8,) and np.all((values >= 0) & (values <= 1)), name
+    # at the last sample the smoother conditions on what the filter does
+    assert p["exact smoother"][-1] == pytest.approx(p["exact filter"][-1], abs=1e-9)
+    # before the first merge the IMM filter is exact
+    assert p["IMM filter"][0] == pytest.approx(p["exact filter"][0], abs=1e-9)
+    figures("smoother-exact.png")
 
 
-def test_table1_prints_the_papers_values_beside_the_grid_filter(table1):
-    _, rows, text = table1
-    paper = {r.g: r.paper for r in rows if r.filter == "switch-time KF"}
-    assert paper == {1: ("13.5", "2.74"), 2: ("10.7", "2.15")}
-    assert all(r.paper is None for r in rows if r.filter != "switch-time KF")
-    assert "13.5" in text and "2.74" in text and "10.7" in text and "2.15" in text
+def test_rbpf_error_falls_with_its_particles(run):
+    g = run("rbpf_particles")
+    assert g["rbpf"].shape == g["counts"].shape and np.all(np.isfinite(g["rbpf"]))
+    assert g["rbpf"][-1] < g["rbpf"][0]
+    figures("rbpf-particles.png")
 
 
-def test_table1_clairvoyant_filter_is_far_below_the_others(table1):
-    _, rows, _ = table1
-    clair = next(r for r in rows if r.filter == "clairvoyant").rmse
-    for r in rows:
-        if r.filter != "clairvoyant":
-            assert np.all(clair < 0.1 * r.rmse), (r.filter, r.g, r.rmse)
+def test_table1_is_computed_beside_the_printed_values(run):
+    g = run("shankar_table1")
+    np.testing.assert_array_equal(g["grids"], [1, 2, 3, 4, 5])
+    np.testing.assert_allclose(g["paper"][0], [13.5, 2.74])  # Table I, g = 1
+    np.testing.assert_allclose(g["paper"][:, 1], np.array(TABLE1_PAPER["v_0"], dtype=float))
+    assert g["paper"].shape == g["grid_rmse"].shape == (5, 2)
+    assert np.all(g["clairvoyant"] < 0.1 * g["grid_rmse"].min(axis=0))
+    figures("table1.png")
 
 
-def test_table1_one_point_grid_puts_every_switch_at_the_midpoint(table1):
-    ex, rows, _ = table1
-    traj = ex.SETTING.simulate(0.02, 3, 0)  # the data main() ran on
-    true = traj.switch_times()
-    k = np.nonzero(np.isfinite(true))[1]
-    midpoint = traj.t[k - 1] + BOOST_SAMPLE_PERIOD / 2
-    midpoint_error = np.mean(np.abs(midpoint - true[np.isfinite(true)]))
-    g1 = next(r for r in rows if r.filter == "switch-time KF" and r.g == 1)
-    np.testing.assert_allclose(g1.switch_error, midpoint_error, rtol=1e-9)
-    for r in rows:
-        if r.g is not None:  # every estimate lies inside its interval
-            assert 0 < r.switch_error <= BOOST_SAMPLE_PERIOD
-        known = r.filter.startswith("switch-time") or r.filter == "clairvoyant"
-        assert np.isnan(r.mode_accuracy) == known
-        assert known or 0 <= r.mode_accuracy <= 1
+def test_imm_ev1_switching_instants_lie_in_their_interval(run):
+    g = run("shankar_imm_ev1")
+    assert g["errors"].size > 0 and np.all((g["errors"] >= 0) & (g["errors"] <= 0.5))
+    figures("imm-ev1-trial.png")
 
 
-# ---------------------------------------------------------------- vehicle maneuver (IMM-EV1)
-@pytest.fixture(scope="module")
-def vehicle():
-    ex = load("shankar_imm_ev1")
-    console = quiet()
-    rows, info = ex.main(trials=20, duration=5.0, grids=GRIDS, seed=0, console=console)
-    return ex, rows, info, console.file.getvalue()
+@pytest.mark.parametrize("name, experiment, drawn", [
+    ("lee_detection", "lee-detection", 3),
+    ("etienne_observer", "etienne-sync", 3),
+    ("zhang_bias", "zhang-example1", 4),
+    ("bakeoff", "bakeoff", 1),
+])
+def test_reproduction_examples_print_rows_and_draw_the_reports_figures(run, name, experiment,
+                                                                        drawn):
+    g = run(name)
+    summary = g["summary"]
+    assert summary.experiment == experiment and summary.rows
+    assert len(summary.figures) == drawn
+    figures(*(f.name for f in summary.figures))
 
 
-def test_vehicle_defaults_are_the_papers_setup(vehicle):
-    ex, _, _, _ = vehicle
-    assert (ex.TRIALS, ex.DURATION, ex.GRIDS) == (500, 10.0, (1, 2, 5, 10))
-    np.testing.assert_allclose(ex.STICKY.sum(axis=1), 1.0)
+def test_zhang_bias_stays_below_the_printed_tolerance(run):
+    rows = run("zhang_bias")["summary"].rows
+    fig6 = [r for r in rows if r.quantity.startswith("Fig. 6") and "(9)" in r.quantity]
+    assert fig6 and all(r.paper == "≤ 0.3" and r.measured < 0.3 for r in fig6)
 
 
-def test_vehicle_rows_cover_baselines_and_every_variant(vehicle):
-    ex, rows, _, text = vehicle
-    found = [(r.filter, r.g) for r in rows]
-    per_g = ["switch-time KF (modes known)", *ex.VARIANTS]
-    assert found[:2] == [("clairvoyant (true switch times)", None),
-                         (f"IMM (P(stay) = {ex.STAY:g})", None)]
-    assert found[2:] == [(f, g) for f in per_g for g in GRIDS]
-    assert "constant guess of the most frequent mode" in text
+def test_fit_lands_within_a_few_standard_errors(run):
+    g = run("fit_round_trip")
+    assert g["fitted"].shape == g["se"].shape == (6,)
+    assert np.all(g["se"] > 0) and np.all(np.abs(g["z"]) < 5)
+    figures("fit.png")
 
 
-def test_vehicle_known_mode_one_point_grid_error_is_the_midpoint_error(vehicle):
-    """Switches at 1.65, 2.75, 3.9 s lie 0.15, 0.25, 0.4 s into their 0.5 s intervals (§V.B)."""
-    _, rows, info, _ = vehicle
-    expected = np.mean(np.abs(0.25 - np.array([0.15, 0.25, 0.4])))
-    g1 = next(r for r in rows if r.filter == "switch-time KF (modes known)" and r.g == 1)
-    np.testing.assert_allclose(g1.switch_error, expected, rtol=1e-9)
-    assert g1.switch_hits == 1.0 and g1.false_switches == 0.0
-    np.testing.assert_allclose([r["offset"] for r in info], [0.15, 0.25, 0.4], atol=1e-12)
-    np.testing.assert_allclose([r["grid_error_1"] for r in info], [0.1, 0.0, 0.15], atol=1e-12)
-    np.testing.assert_allclose([r["midpoint_error"] for r in info], [0.1, 0.0, 0.15], atol=1e-12)
+def test_check_margins_have_the_verdicts_sign(run):
+    checks = run("check_certificates")["checks"]
+    assert len(checks) >= 10
+    for c in checks:
+        if c.margin is not None and c.verdict is not None:
+            assert (c.margin > 0) == c.verdict, c.name
 
 
-def test_vehicle_clairvoyant_velocity_error_is_below_every_estimator(vehicle):
-    _, rows, _, _ = vehicle
-    clair = rows[0].rmse
-    for r in rows[1:]:
-        assert np.all(clair[[1, 3]] < r.rmse[[1, 3]]), (r.filter, r.g, r.rmse)
-
-
-def test_vehicle_accuracies_are_fractions_and_defined_where_they_should_be(vehicle):
-    ex, rows, _, _ = vehicle
-    for r in rows:
-        accs = np.array([r.accuracy, r.accuracy_delayed, r.accuracy_path])
-        if r.filter in ex.VARIANTS:
-            assert np.all((accs >= 0) & (accs <= 1))
-            assert 0 <= r.switch_hits <= 1 and r.false_switches >= 0
-        else:
-            assert np.all(np.isnan(accs[1:]))
-
-
-def test_traced_run_equals_the_filters_own_run_and_decodes_its_predecessors():
-    ex = load("shankar_imm_ev1")
-    traj = ex.maneuver_data(trials=6, duration=5.0, seed=1)
-    filt = IMMEV1Filter(vehicle_2d(), x0=ex.X0, P0=ex.P0, grid=3)  # no prior: paths switch often
-    dec = ex.run_traced(filt, traj)
-    est = filt.run(traj.y, traj.u, traj.t)
-    np.testing.assert_allclose(dec.x, est.x, rtol=1e-12, atol=1e-12)
-    np.testing.assert_array_equal(dec.mode, est.mode)
-    np.testing.assert_array_equal(np.isnan(dec.switch_time), np.isnan(est.switch_time))
-    np.testing.assert_allclose(dec.switch_time, est.switch_time, rtol=1e-12)
-    # oracle: step the filter by hand and read the predecessors off its states
-    N, K = traj.mode.shape
-    rows = np.arange(N)
-    states, state = [], filt.init((N,))
-    for k in range(K):
-        state = filt.step(state, traj.y[:, k], traj.u[:, max(k - 1, 0)],
-                          dt=None if k == 0 else traj.t[k] - traj.t[k - 1])
-        states.append(state)
-    for k in range(K - 1):
-        best_next = np.argmax(states[k + 1].log_weight, axis=1)
-        np.testing.assert_array_equal(dec.delayed[:, k], states[k + 1].predecessor[rows, best_next])
-        on_path = states[k + 1].predecessor[rows, dec.path[:, k + 1]]
-        np.testing.assert_array_equal(dec.path[:, k], on_path)
-    np.testing.assert_array_equal(dec.delayed[:, -1], est.mode[:, -1])
-    np.testing.assert_array_equal(dec.path[:, -1], est.mode[:, -1])
-    assert np.any(dec.delayed != dec.mode) and np.any(dec.path != dec.delayed)
+def test_wang_critical_interval_and_ms_error(run):
+    g = run("wang_ieee5bus")
+    assert g["ci"].printed_t_max == pytest.approx(0.7365, abs=1e-4)  # printed T_max, §6
+    for name, radius in g["radius"].items():  # converges at T_max, not beyond the fast limit
+        below = g["periods"] <= g["ci"].printed_t_max
+        assert np.all(radius[below] < 1), name
+    assert g["results"]["first"]["exact"].shape == (4,)
+    figures("wang-critical-interval.png", "wang-ieee5bus.png")

@@ -9,13 +9,15 @@ code and must not go stale (into ``docs/_generated`` and ``docs/api``, ignored b
 
 It also drops the docstring a constant inherits from its type (a numpy array's would
 otherwise fill the page of every array constant), and gives sphinx-gallery the command-line
-arguments of each example (:func:`gallery_argv`).
+arguments of each example (:func:`gallery_argv`) and the figures the example wrote with
+:mod:`switchest.plotting` (:func:`plotting_scraper`).
 """
 
 from __future__ import annotations
 
 import inspect
 import os
+import shutil
 import subprocess
 import sys
 from importlib import import_module
@@ -26,7 +28,7 @@ GENERATED = DOCS / "_generated"
 API = DOCS / "api"
 
 GALLERY_ARGV = {
-    "shankar_table1.py": ["10", "1.0"],  # 10 trials x 1 s instead of the paper's 100 x 10 s
+    "wang_ieee5bus.py": ["100", "15"],  # 100 runs x 15 intervals instead of 400 x 30
 }
 """Command-line arguments of an example in the gallery; the others run at their default size,
 which takes seconds (``tests/test_examples.py`` runs every one smaller still)."""
@@ -35,6 +37,42 @@ which takes seconds (``tests/test_examples.py`` runs every one smaller still).""
 def gallery_argv(gallery_conf, script_vars) -> list[str]:
     """sphinx-gallery's ``reset_argv``: the arguments the example runs with."""
     return GALLERY_ARGV.get(Path(script_vars["src_file"]).name, [])
+
+
+_WRITTEN: list[Path] = []
+"""The PNG files :mod:`switchest.plotting` wrote since :func:`plotting_scraper` last ran."""
+
+
+def _record_plotting_figures() -> None:
+    """Make :mod:`switchest.plotting` list every figure it writes in :data:`_WRITTEN`.
+
+    Its functions write a PNG and close the figure, so sphinx-gallery's matplotlib scraper
+    (which collects the figures still open) never sees them; every one of them goes through
+    ``switchest.plotting._save``, which this wraps."""
+    import switchest.plotting as plotting
+
+    save = plotting._save
+
+    def recording(fig, path, rect=None):
+        written = save(fig, path, rect)
+        _WRITTEN.append(Path(written))
+        return written
+
+    plotting._save = recording
+
+
+def plotting_scraper(block, block_vars, gallery_conf) -> str:
+    """sphinx-gallery image scraper: the figures a cell wrote with :mod:`switchest.plotting`,
+    copied into the gallery's images in the order they were written."""
+    from sphinx_gallery.scrapers import figure_rst
+
+    images = []
+    for path in _WRITTEN:
+        image = next(block_vars["image_path_iterator"])
+        shutil.copyfile(path, image)
+        images.append(image)
+    _WRITTEN.clear()
+    return figure_rst(images, gallery_conf["src_dir"])
 
 
 API_MODULES = {
@@ -188,6 +226,7 @@ def _drop_type_docstring(app, what, name, obj, options, lines) -> None:
 
 
 def setup(app):
+    _record_plotting_figures()
     _generate(app)  # now: Sphinx lists the source files (and autosummary reads them) next
     app.connect("autodoc-process-docstring", _drop_type_docstring, priority=100)  # before numpydoc
     return {"parallel_read_safe": True, "parallel_write_safe": True}

@@ -95,7 +95,7 @@ class ModelSpec:
         names none.
     timing : {"sample", "interval"}
         The system's timing (:attr:`SwitchedLinearSystem.timing`, a read-only property): which
-        interval the mode of a sample governs in the file's data (docs/conventions.rst), the
+        interval the mode of a sample governs in the file's data (:doc:`/conventions`), the
         one after it (``"sample"``, the default) or the one before it (``"interval"``).
     """
 

@@ -55,7 +55,7 @@ class Trajectory:
         The true switching signal of each trial.
     timing : {"sample", "interval"}
         The timing the data were drawn in, the system's (:attr:`SwitchedLinearSystem.timing`,
-        docs/conventions.rst); a multiple-model filter told it (``data_timing=``) names another
+        :doc:`/conventions`); a multiple-model filter told it (``data_timing=``) names another
         of its own in a :class:`~switchest.estimators.TimingWarning`.
     t_fine, x_fine, mode_fine : ndarray or None
         The continuous path on a fine grid ``(Kf,)``, ``(N, Kf, n)``, ``(N, Kf)``

@@ -53,7 +53,7 @@ class SwitchedLinearSystem:
         Sampling step of a discrete system; ``None`` for continuous ones.
     timing : {"sample", "interval"}
         Which interval the mode of a sample governs besides its measurement
-        (docs/conventions.rst): the one after it (``"sample"``, the default: Costa, Fragoso &
+        (:doc:`/conventions`): the one after it (``"sample"``, the default: Costa, Fragoso &
         Marques 2005, eq. (3.1)) or the one into it (``"interval"``: Bar-Shalom, Li &
         Kirubarajan 2001, §11.6). :func:`switchest.simulate.simulate` draws data in it and the
         multiple-model filters, :func:`switchest.learn.fit` and the model file follow it.

@@ -19,7 +19,7 @@ The methods (:data:`METHODS`), what each needs and where it finds it:
     comes from the switching model (:func:`transition_for`) or ``stay``. ``smooth``
     (``imm``, ``gpb1``, ``gpb2``) gives fixed-interval smoothed estimates instead of
     filtered ones; ``particles`` and ``seed`` configure ``rbpf``; ``timing`` picks which
-    interval the mode of a sample governs (docs/conventions.rst).
+    interval the mode of a sample governs (:doc:`/conventions`).
 ``min-distance``
     Lee, Ping & Shim's mode estimation and switching detection
     (:class:`~switchest.estimators.MinimumDistanceDetector`) on a continuous-time
@@ -140,7 +140,7 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     timing : {"sample", "interval"}, optional
         ``imm``, ``gpb1``, ``gpb2``, ``rbpf``: which interval the mode of a sample governs
         (``"sample"``, the one after it, as ``simulate`` draws; ``"interval"``, Bar-Shalom's,
-        the one before it: docs/conventions.rst). Default: the model file's ``timing``, the
+        the one before it: :doc:`/conventions`). Default: the model file's ``timing``, the
         convention of its data (its system's); another is named in a
         :class:`~switchest.estimators.TimingWarning` by the filter.
     gate : float, optional

@@ -58,7 +58,7 @@ mode_prob0 : array_like, shape (L,), optional
 
 class TimingWarning(UserWarning):
     """A multiple-model filter runs in another timing than its system's or its data's
-    (docs/conventions.rst): which interval the mode of a sample governs differs, so its
+    (:doc:`/conventions`): which interval the mode of a sample governs differs, so its
     estimates are of a model other than the data's."""
 
 

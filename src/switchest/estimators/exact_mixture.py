@@ -2,12 +2,12 @@
 
 The modes are a Markov chain that jumps at the samples, ``P(r_k = j | r_{k-1} = i) =
 transition[i, j]``, ``P(r_0 = j) = mode_prob0[j]``; mode ``r_k`` of sample ``k`` governs the
-measurement at ``k`` and, by the ``timing`` (docs/conventions.rst), the interval after ``k``
-(``"sample"``: ``x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k``,
-``w_k ~ N(0, Qd(r_k))``, ``y_k = C(r_k) x_k + v_k``, ``v_k ~ N(0, R(r_k))``; Costa, Fragoso &
-Marques 2005, eq. (3.1)) or the interval into ``k`` (``"interval"``, Bar-Shalom, Li &
-Kirubarajan 2001, §11.6: ``x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w``,
-``y_k = C(r_k) x_k + v``; the default), ``F, G, Qd`` the exact discretization of a mode over
+measurement at ``k`` and, by the ``timing`` (:doc:`/conventions`), the interval after ``k``
+(``"sample"``: :math:`x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k`,
+:math:`w_k \\sim N(0, Q_d(r_k))`, :math:`y_k = C(r_k) x_k + v_k`, :math:`v_k \\sim N(0, R(r_k))`;
+Costa, Fragoso & Marques 2005, eq. (3.1)) or the interval into ``k`` (``"interval"``, Bar-Shalom, Li
+& Kirubarajan 2001, §11.6: :math:`x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w`,
+:math:`y_k = C(r_k) x_k + v`; the default), ``F, G, Qd`` the exact discretization of a mode over
 the interval.
 So a sequence predicts into sample ``k`` through ``r_{k-1}``'s transition in the ``"sample"``
 timing and through ``r_k``'s in the ``"interval"`` timing, and updates with ``C(r_k)``,

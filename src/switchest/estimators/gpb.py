@@ -3,28 +3,28 @@
 
 Both approximate the posterior of a jump-Markov linear system, a mixture of ``L^k`` Gaussians
 after ``k`` samples (one per mode sequence), by a mixture of fewer, switches happening at the
-sample instants. The ``timing`` (docs/conventions.rst;
+sample instants. The ``timing`` (:doc:`/conventions`;
 :class:`~switchest.estimators.mode_bank.ModeBankFilter`) says which interval the mode ``s_k``
 of sample ``k`` governs besides ``y_k``: the one after it (``"sample"``:
-``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``) or the one into it (``"interval"``, Bar-Shalom's:
-``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``); so which mode's transition a prediction takes.
+:math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`) or the one into it (``"interval"``, Bar-Shalom's:
+:math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`); so which mode's transition a prediction takes.
 By default it is the system's.
 
 - GPB1 keeps one Gaussian: ``L`` Kalman filters, one per mode at sample ``k``; mode
-  probabilities ``mu_j(k) ∝ Lambda_j(k) c_j``, ``c_j = sum_i pi_ij mu_i(k-1)``. ``"sample"``:
-  each mode-matched posterior ``i`` of sample ``k - 1`` is predicted through mode ``i``'s
-  transition and the ``L`` predictions are collapsed into one Gaussian (the moments of
-  ``sum_i mu_i(k-1) N(x_i(k|k-1), P_i(k|k-1))``) from which every mode ``j`` updates.
-  ``"interval"`` (§11.6.4): the posteriors are collapsed first and mode ``j`` predicts the one
-  Gaussian through its own transition. It is the IMM's bank with the interaction replaced by
-  that collapse (:func:`~switchest.engine.imm.imm_run` with
+  probabilities :math:`\\mu_j(k) \\propto \\Lambda_j(k) c_j`,
+  :math:`c_j = \\sum_i \\pi_{ij} \\mu_i(k-1)`. ``"sample"``: each mode-matched posterior ``i`` of
+  sample ``k - 1`` is predicted through mode ``i``'s transition and the ``L`` predictions are
+  collapsed into one Gaussian (the moments of ``sum_i mu_i(k-1) N(x_i(k|k-1), P_i(k|k-1))``) from
+  which every mode ``j`` updates. ``"interval"`` (§11.6.4): the posteriors are collapsed first and
+  mode ``j`` predicts the one Gaussian through its own transition. It is the IMM's bank with the
+  interaction replaced by that collapse (:func:`~switchest.engine.imm.imm_run` with
   ``interaction="collapse"``).
 - GPB2 keeps one Gaussian per mode: ``L^2`` Kalman filters, one per pair (mode ``i`` at
   ``k - 1``, mode ``j`` at ``k``), predicted from mode ``i``'s Gaussian through mode ``i``'s
   transition (``"sample"``: one prediction per ``i``, shared by its pairs) or mode ``j``'s
   (``"interval"``, §11.6.5), updated with ``C_j``, ``R_j``,
-  ``mu_ij(k) ∝ Lambda_ij(k) pi_ij mu_i(k-1)``; each mode's pairs are merged into one Gaussian
-  (:mod:`switchest.engine.gpb`).
+  :math:`\\mu_{ij}(k) \\propto \\Lambda_{ij}(k) \\pi_{ij} \\mu_i(k-1)`; each mode's pairs are merged
+  into one Gaussian (:mod:`switchest.engine.gpb`).
 
 The output of both is the moments of the mixture over the modes, as the IMM's; ``smooth`` (of
 :class:`~switchest.estimators.mode_bank.ModeBankFilter`) runs Kim's (1994) smoother on either.
@@ -55,12 +55,12 @@ class GPB1Filter(ModeBankFilter):
     batched over trials and modes.
 
     Every mode-matched Kalman filter restarts from one Gaussian and updates with its ``C``,
-    ``R``; ``mu_j(k) ∝ Lambda_j(k) sum_i pi_ij mu_i(k-1)``. The one Gaussian, in the
-    ``"sample"`` timing: the moments of ``sum_i mu_i(k-1) N(x_i(k|k-1),
+    ``R``; :math:`\\mu_j(k) \\propto \\Lambda_j(k) \\sum_i \\pi_{ij} \\mu_i(k-1)`. The one Gaussian,
+    in the ``"sample"`` timing: the moments of ``sum_i mu_i(k-1) N(x_i(k|k-1),
     P_i(k|k-1))``, each mode-matched posterior ``i`` predicted through mode ``i``'s transition
-    (the model ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``y_k = C(s_k) x_k + v_k``); in the
-    ``"interval"`` timing (§11.6.4; ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``,
-    ``y_k = C(s_k) x_k + v``): the moments of the mixture ``sum_i mu_i N(x_i, P_i)`` of the
+    (the model :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`y_k = C(s_k) x_k + v_k`); in
+    the ``"interval"`` timing (§11.6.4; :math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`,
+    :math:`y_k = C(s_k) x_k + v`): the moments of the mixture ``sum_i mu_i N(x_i, P_i)`` of the
     previous sample, then predicted through mode ``j``'s transition. The output is the moments
     of the mixture over the modes.
 
@@ -109,15 +109,17 @@ class GPB2Filter(ModeBankFilter):
 
     ``L^2`` Kalman filters, one per pair (mode ``i`` at ``k - 1``, mode ``j`` at ``k``), each
     predicted from mode ``i``'s Gaussian and updated with mode ``j``'s ``C``, ``R``;
-    ``mu_ij(k) ∝ Lambda_ij(k) pi_ij mu_i(k-1)``. The prediction goes through mode ``i``'s
-    transition in the ``"sample"`` timing (``x_{k+1} = F(s_k) x_k + G(s_k) u_k +
-    w_k``, ``y_k = C(s_k) x_k + v_k``: computed once per ``i``), through mode ``j``'s in the
-    ``"interval"`` timing (§11.6.5; ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``,
-    ``y_k = C(s_k) x_k + v``). Mode ``j``'s pairs are merged
-    into one Gaussian: ``mu_j = sum_i mu_ij``, ``x_j = sum_i mu_{i|j} x_ij``,
-    ``P_j = sum_i mu_{i|j} (P_ij + (x_ij - x_j)(x_ij - x_j)')`` with
-    ``mu_{i|j} = mu_ij / mu_j``. The output is the moments of the mixture over the modes. At
-    sample 0 there is only the prior: ``L`` filters, ``mu_j(0) ∝ Lambda_j mode_prob0_j``.
+    :math:`\\mu_{ij}(k) \\propto \\Lambda_{ij}(k) \\pi_{ij} \\mu_i(k-1)`. The prediction goes
+    through mode ``i``'s transition in the ``"sample"`` timing
+    (:math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`y_k = C(s_k) x_k + v_k`: computed once
+    per ``i``), through mode ``j``'s in the
+    ``"interval"`` timing (§11.6.5; :math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`,
+    :math:`y_k = C(s_k) x_k + v`). Mode ``j``'s pairs are merged
+    into one Gaussian: :math:`\\mu_j = \\sum_i \\mu_{ij}`, :math:`x_j = \\sum_i \\mu_{i|j} x_{ij}`,
+    :math:`P_j = \\sum_i \\mu_{i|j} (P_{ij} + (x_{ij} - x_j)(x_{ij} - x_j)')` with
+    :math:`\\mu_{i|j} = \\mu_{ij} / \\mu_j`. The output is the moments of the mixture over the
+    modes. At sample 0 there is only the prior: ``L`` filters,
+    :math:`\\mu_j(0) \\propto \\Lambda_j \\, \\mathrm{mode\\_prob0}_j`.
 
     Parameters
     ----------

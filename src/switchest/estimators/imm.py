@@ -4,7 +4,7 @@ One Kalman filter per mode; at each sample their estimates are mixed with the
 mode transition probabilities, after each update the mode probabilities are
 re-weighted by the filters' likelihoods. Switches are assumed to happen at the
 sample instants; the ``timing`` says which interval the mode of a sample governs
-(docs/conventions.rst) and so whether the mixing falls after the prediction
+(:doc:`/conventions`) and so whether the mixing falls after the prediction
 (``"sample"``) or before it (``"interval"``: Blom & Bar-Shalom's original); by default
 it is the system's. Mode probabilities are kept as log-weights.
 
@@ -48,18 +48,18 @@ class IMMFilter(ModeBankFilter):
         rejects is treated as missing and flagged in ``Estimate.outlier``.
     timing : {"sample", "interval"}, optional
         Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k``
-        (keyword-only; docs/conventions.rst); ``None`` (the default): the system's ``timing``:
+        (keyword-only; :doc:`/conventions`); ``None`` (the default): the system's ``timing``:
 
         - ``"sample"`` (the model :func:`switchest.simulate` draws with switches
           at the samples; Costa, Fragoso & Marques 2005, eq. (3.1)):
-          ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``w_k ~ N(0, Qd(s_k))``,
-          ``y_k = C(s_k) x_k + v_k``, ``v_k ~ N(0, R(s_k))``. Each mode-matched posterior
-          ``i`` of sample ``k - 1`` is predicted through mode ``i``'s transition, then the
+          :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`w_k \\sim N(0, Q_d(s_k))`,
+          :math:`y_k = C(s_k) x_k + v_k`, :math:`v_k \\sim N(0, R(s_k))`. Each mode-matched
+          posterior ``i`` of sample ``k - 1`` is predicted through mode ``i``'s transition, then the
           predictions are mixed into mode ``j``'s prior with the weights
-          ``mu_{i|j} = pi_ij mu_i / c_j``, ``c_j = sum_i pi_ij mu_i``.
+          :math:`\\mu_{i|j} = \\pi_{ij} \\mu_i / c_j`, :math:`c_j = \\sum_i \\pi_{ij} \\mu_i`.
         - ``"interval"`` (Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan 2001,
           §11.6.6; FilterPy's ``IMMEstimator``): ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} +
-          w``, ``y_k = C(s_k) x_k + v``. The posteriors are mixed with the same weights,
+          w``, :math:`y_k = C(s_k) x_k + v`. The posteriors are mixed with the same weights,
           then mode ``j``'s mixture is predicted through mode ``j``'s transition.
 
         Both update mode ``j`` with ``C_j``, ``R_j``. With one mode they are the same

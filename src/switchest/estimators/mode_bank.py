@@ -12,7 +12,7 @@ only in the compiled kernel that takes one sample: the IMM's interaction (Blom &
 
 Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k). The mode
 ``s_k`` of sample ``k`` governs the measurement there and, by the ``timing``
-(docs/conventions.rst), the interval after ``k`` (``"sample"``) or the one into it
+(:doc:`/conventions`), the interval after ``k`` (``"sample"``) or the one into it
 (``"interval"``, Bar-Shalom's); by default the system's (:attr:`SwitchedLinearSystem.timing`).
 """
 
@@ -136,15 +136,15 @@ class ModeBankFilter(Estimator):
         in ``Estimate.outlier``.
     timing : {"sample", "interval"}, optional
         Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k`` (keyword-only;
-        docs/conventions.rst); ``None`` (the default): the system's ``timing``, and another is
+        :doc:`/conventions`); ``None`` (the default): the system's ``timing``, and another is
         named in a :class:`~switchest.estimators.TimingWarning`. ``"sample"``
         (:func:`switchest.simulate` with switches at the samples; Costa, Fragoso & Marques
         2005, eq. (3.1)): the one after it,
-        ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``, ``w_k ~ N(0, Qd(s_k))``,
-        ``y_k = C(s_k) x_k + v_k``, ``v_k ~ N(0, R(s_k))``. ``"interval"`` (Bar-Shalom, Li &
-        Kirubarajan 2001, §11.6; FilterPy's ``IMMEstimator``): the one into it,
-        ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w``, ``y_k = C(s_k) x_k + v``. ``F, G, Qd``
-        are the exact discretization of a mode over the interval. With one mode the two are
+        :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`w_k \\sim N(0, Q_d(s_k))`,
+        :math:`y_k = C(s_k) x_k + v_k`, :math:`v_k \\sim N(0, R(s_k))`. ``"interval"`` (Bar-Shalom,
+        Li & Kirubarajan 2001, §11.6; FilterPy's ``IMMEstimator``): the one into it,
+        :math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`, :math:`y_k = C(s_k) x_k + v`. ``F, G,
+        Qd`` are the exact discretization of a mode over the interval. With one mode the two are
         the same filter.
 
     Notes
@@ -156,8 +156,8 @@ class ModeBankFilter(Estimator):
     Y_{k-1})``
 
     with ``P(s_{k-1} = i | s_k = j, Y_{k-1}) = pi_ij mu_i(k-1) / c_j``,
-    ``c_j = sum_i pi_ij mu_i(k-1)``, and ``p(x_k | s_{k-1} = i, Y_{k-1})`` mode ``i``'s Kalman
-    prediction through its own transition. The filters therefore predict first and interact
+    :math:`c_j = \\sum_i \\pi_{ij} \\mu_i(k-1)`, and ``p(x_k | s_{k-1} = i, Y_{k-1})`` mode ``i``'s
+    Kalman prediction through its own transition. The filters therefore predict first and interact
     after: the IMM moment-matches that mixture (the approximation of Blom & Bar-Shalom, 1988,
     applied after the prediction instead of before it); GPB1 collapses the ``L`` predictions
     with weights ``mu_i(k-1)``; GPB2 predicts pair (``i``, ``j``) through mode ``i``'s
@@ -175,7 +175,7 @@ class ModeBankFilter(Estimator):
     best given ``timing="interval"`` on the system itself (``system.replace(timing=
     "interval")``, or the model file's ``timing``). When the modes also differ in ``C`` or
     ``R`` and switch at the samples, the data's timing is the one to filter in
-    (docs/conventions.rst).
+    (:doc:`/conventions`).
     """
 
     _interaction: str  # the bank's interaction (:class:`switchest.engine.imm.Bank`)

@@ -73,7 +73,7 @@ class ModeKalmanFilter(Estimator):
     given the segments of each interval (``segments=trajectory.segments()``), in
     which case the exact switching offsets are used. The update at ``t_k`` uses
     ``C`` and ``R`` of the mode believed at ``t_k``. Along given modes this is the
-    ``"sample"`` timing only (docs/conventions.rst): a system of the ``"interval"`` timing,
+    ``"sample"`` timing only (:doc:`/conventions`): a system of the ``"interval"`` timing,
     whose mode of sample ``k`` governs the interval into it, is named in a
     :class:`~switchest.estimators.TimingWarning`.
 

@@ -6,16 +6,16 @@ Freitas, Murphy & Russell 2000, "Rao-Blackwellised particle filtering for dynami
 networks", §3; Doucet, Gordon & Krishnamurthy 2001, "Particle filters for state estimation of
 jump Markov linear systems", IEEE Trans. Signal Processing 49(3), §III). The modes are a
 Markov chain that jumps at the sample instants and advances at every sample. Which interval
-the mode ``r_k`` of sample ``k`` governs is the ``timing`` (docs/conventions.rst):
+the mode ``r_k`` of sample ``k`` governs is the ``timing`` (:doc:`/conventions`):
 
 - ``"sample"`` (switchest's convention, that of :func:`switchest.simulate` with
   switches at the samples and of Costa, Fragoso & Marques 2005, eq. (3.1)):
-  ``x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k``, ``w_k ~ N(0, Qd(r_k))``,
-  ``y_k = C(r_k) x_k + v_k``, ``v_k ~ N(0, R(r_k))``. A particle ``(r_{k-1}, N(x, P))`` is
-  predicted through ``r_{k-1}``'s transition, then ``r_k`` is drawn and the update uses
+  :math:`x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k`, :math:`w_k \\sim N(0, Q_d(r_k))`,
+  :math:`y_k = C(r_k) x_k + v_k`, :math:`v_k \\sim N(0, R(r_k))`. A particle ``(r_{k-1}, N(x, P))``
+  is predicted through ``r_{k-1}``'s transition, then ``r_k`` is drawn and the update uses
   ``C(r_k)``, ``R(r_k)``.
 - ``"interval"`` (Bar-Shalom, Li & Kirubarajan 2001, §11.6):
-  ``x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w``, ``y_k = C(r_k) x_k + v``. ``r_k`` is drawn,
+  :math:`x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w`, :math:`y_k = C(r_k) x_k + v`. ``r_k`` is drawn,
   then the particle is predicted through ``r_k``'s transition and updated with ``C(r_k)``.
 
 With one mode the two are the Kalman filter. ``F, G, Qd`` are the exact discretization of a
@@ -33,8 +33,8 @@ At sample 0 the modes are drawn from ``mode_prob0`` (with the optimal proposal
 ``∝ mode_prob0 Lambda``), update only. Weights are kept in the log domain; the particles are
 resampled (systematic, stratified or multinomial: Douc, Cappé & Moulines 2005) when the
 effective sample size ``1 / sum_p w_p^2`` falls below ``ess_threshold * particles``. Outputs:
-``x = sum_p w_p x_p``, ``P = sum_p w_p (P_p + (x_p - x)(x_p - x)')``, mode probabilities the
-weights summed per mode, and the log of the unbiased estimate
+:math:`x = \\sum_p w_p x_p`, :math:`P = \\sum_p w_p (P_p + (x_p - x)(x_p - x)')`, mode probabilities
+the weights summed per mode, and the log of the unbiased estimate
 ``sum_p w_{p,k-1} exp(inc_p)`` of ``p(y_k | y_{0:k-1})``. A missing component of ``y`` (NaN)
 leaves the observed ones' marginal likelihood; a fully missing sample does not reweight. A
 sample no particle's likelihood is finite for (an overflowing outlier) is treated as missing

@@ -9,7 +9,7 @@ posterior takes a Rauch-Tung-Striebel step towards mode ``i``'s smoothed posteri
 ``x_ji = x_j(k|k) + J (x_i(k+1|K) - F_m x_j(k|k) - G_m u_k)``,
 ``P_ji = P_j(k|k) + J (P_i(k+1|K) - P_pred) J'``, ``P_pred = F_m P_j(k|k) F_m' + Qd_m``,
 ``J = P_j(k|k) F_m' P_pred^-1``, through the transition of the mode ``m`` that governs the
-interval ``k -> k+1``, by the ``timing`` (docs/conventions.rst):
+interval ``k -> k+1``, by the ``timing`` (:doc:`/conventions`):
 
 - ``"sample"`` (switchest's convention for data: the mode of sample ``k`` governs ``y_k``
   and the interval after it, ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``; Costa, Fragoso &

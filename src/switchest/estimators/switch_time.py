@@ -132,11 +132,11 @@ class SwitchTimeKalmanFilter(Estimator):
         Prior mean and covariance at the first sample.
     grid : int
         Number g of candidate switching instants per interval,
-        ``tau_i = i T / g - T / (2 g)`` (eq. (23)).
+        :math:`\\tau_i = i T / g - T / (2 g)` (eq. (23)).
     refine : bool
         Beyond the paper: polish the grid maximum by Brent's method (golden section
         and parabolic interpolation, Brent 1973 ch. 5) on the exact likelihood over
-        the grid cell around it, ``[tau - T/(2g), tau + T/(2g)]``, started from the
+        the grid cell around it, :math:`[\\tau - T/(2g), \\tau + T/(2g)]`, started from the
         grid instant, with one addition: a search heading for an edge of the cell
         probes that edge (see ``refine`` in ``engine/c/switch_time.c``);
         the search stops once the maximizer is bracketed to within
@@ -166,8 +166,8 @@ class SwitchTimeKalmanFilter(Estimator):
         ``refine=False``.
     inflation : float
         ``epsilon >= 0`` added as ``epsilon I`` to every predicted covariance,
-        ``P_k|k-1 = F P F' + Qd + epsilon I``: the inflation of Shankar et al.'s Algorithm 1
-        (§IV, which adds it so that the bound of Assumption 2 exists), here for the grid
+        :math:`P_{k|k-1} = F P F' + Q_d + \\epsilon I`: the inflation of Shankar et al.'s Algorithm
+        1 (§IV, which adds it so that the bound of Assumption 2 exists), here for the grid
         filter of Table I too (default 0: none). It is defined on the grid's whole-interval
         transitions; ``refine=True`` composes its probes from partial flows and does not
         take it.

@@ -91,7 +91,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         measurement at ``k``, as ``switchest.simulate`` draws them). With them and
         ``switch_times="samples"`` the E-step is exact and the log-likelihood never decreases;
         without them Kim's smoother gives an approximate E-step, or enumeration an exact one
-        (``e_step``), in the same timing (the package's, docs/conventions.rst), and the first
+        (``e_step``), in the same timing (the package's, :doc:`/conventions`), and the first
         mode has the uniform prior.
     estimate : iterable of str
         What to fit, among ``"transition"``, ``"Q"``, ``"R"``, ``"C"`` and, for a

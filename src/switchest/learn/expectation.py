@@ -15,7 +15,7 @@ Every E-step runs its filter with the filters' outlier gate: a sample it rejects
 the smoother and the maximization steps (``Moments.y``, ``Moments.outlier``).
 
 Unknown modes: Kim's smoother (Kim 1994, §2.2) on the chain of consecutive mode pairs
-``s_k = (r_{k-1}, r_k)``. In the package's timing (``timing="sample"``, docs/conventions.rst)
+``s_k = (r_{k-1}, r_k)``. In the package's timing (``timing="sample"``, :doc:`/conventions`)
 ``r_k`` drives the interval ``k -> k+1``; the pair ``s_{k+1} = (r_k, r_{k+1})`` then holds both
 the mode that drives the interval into ``k + 1`` (``r_k``: ``F``, ``G``, ``Qd``) and the mode that
 sees sample ``k + 1`` (``r_{k+1}``: ``C``, ``R``), so the pair chain is a switched system of
