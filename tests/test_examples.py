@@ -65,8 +65,9 @@ def test_every_example_is_tested():
 def test_boost_converter_switch_time_filter_beats_the_mixtures_on_the_current(run):
     g = run("boost_converter")
     errors = g["errors"]
-    assert set(errors) == {"switch-time KF, g = 5", "IMM", "GPB2"}
-    assert errors["switch-time KF, g = 5"][0] < min(errors["IMM"][0], errors["GPB2"][0])
+    assert set(errors) == {"switch-time KF, g = 5", "switch-time KF, g = 5, merged", "IMM", "GPB2"}
+    for name in ("switch-time KF, g = 5", "switch-time KF, g = 5, merged"):
+        assert errors[name][0] < min(errors["IMM"][0], errors["GPB2"][0]), name
     figures("boost-trial.png", "boost-rmse.png")
 
 
