@@ -12,33 +12,17 @@ time); this example runs it on the boost converter only.
 # %%
 # Run the reproduction at a small size
 # ------------------------------------
-# :func:`switchest.experiments.get` gives the registered experiment, ``params(quick=True)``
-# its small preset (that of ``switchest run bakeoff --quick``), which the keywords after it
-# shrink further; the tasks' results are committed to a store, here a temporary one.
-import tempfile
-from pathlib import Path
+# :func:`switchest.experiments.run_quick` runs the registered experiment at its small preset
+# (that of ``switchest run bakeoff --quick``), which the keywords shrink further, in a
+# temporary results store, and summarizes it: compared rows, and the figures of
+# ``switchest run bakeoff`` and ``switchest report``, drawn into ``figures/``.
+from switchest.experiments import run_quick
 
-from switchest.experiments import Store, get, run_experiment
-
-experiment = get("bakeoff")
-params = experiment.params(quick=True, cases=["boost converter"])
-with tempfile.TemporaryDirectory() as folder:
-    store = Store(Path(folder) / "results.sqlite")
-    results = run_experiment(experiment, params, store=store)
-
-# %%
-# The figures
-# -----------
-# ``summarize`` turns the results into compared rows and draws the figures of
-# ``switchest run bakeoff`` and ``switchest report``.
-summary = experiment.summarize(params, results, Path("figures"))
+summary = run_quick("bakeoff", "figures", cases=["boost converter"])
 
 # %%
 # The paper's printed values beside ours
 # --------------------------------------
 # One line per compared quantity: the printed value (``-`` where the paper prints none)
 # and the measured one.
-for row in summary.rows:
-    ours = f"{row.measured:.4g}" if isinstance(row.measured, float) else row.measured
-    paper = "-" if row.paper is None else row.paper
-    print(f"{row.quantity[:64]:64s} paper {paper!s:>9}  ours {ours} {row.unit}")
+print("\n".join(summary.lines()))

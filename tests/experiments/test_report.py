@@ -249,3 +249,13 @@ def test_report_shows_provenance_summary_verdicts_and_uncertainty(tmp_path, toy_
     assert "not in this report" in zhang_row
     assert zhang_cells[1] >= 10 and '<a href="#zhang-smartgrid">' in zhang_row
     assert "quick" in zhang_row
+
+
+def test_summary_lines_show_the_paper_beside_ours():
+    summary = Summary("x", "t", "s", [Row("RMSE of v_0", 2.71828, "2.74", "V"),
+                                      Row("a quantity the paper does not print", 0.5, None, ""),
+                                      Row("verdict", "feasible", "feasible", "")])
+    lines = summary.lines(width=12)
+    assert lines[0] == "RMSE of v_0  paper      2.74  ours 2.718 V"
+    assert lines[1] == "a quantity t paper         -  ours 0.5"
+    assert lines[2].endswith("paper  feasible  ours feasible")

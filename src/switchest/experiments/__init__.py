@@ -8,7 +8,7 @@ Importing this package registers every experiment.
 from . import bakeoff, etienne, lee, shankar, wang, zhang  # noqa: F401
 from .registry import EXPERIMENTS, Experiment, Row, Summary, get, names, register
 from .report import write_report
-from .runner import RunInterrupted, run_experiment, stored_results
+from .runner import RunInterrupted, run_experiment, run_quick, stored_results
 from .store import Store
 
 __all__ = [
@@ -22,6 +22,7 @@ __all__ = [
     "names",
     "register",
     "run_experiment",
+    "run_quick",
     "stored_results",
     "write_report",
 ]

@@ -117,6 +117,17 @@ class Summary:
     notes: list[str] = field(default_factory=list)
     figures: list[Path] = field(default_factory=list)
 
+    def lines(self, width: int = 64) -> list[str]:
+        """One line per row: the quantity (cut to ``width`` characters), the printed value
+        (``-`` where the paper prints none), ours and the unit."""
+        def text(value) -> str:
+            if value is None:
+                return "-"
+            return f"{value:.4g}" if isinstance(value, float) else str(value)
+
+        return [f"{row.quantity[:width]:{width}s} paper {text(row.paper):>9}  ours "
+                f"{text(row.measured)} {row.unit}".rstrip() for row in self.rows]
+
 
 Task = dict  # a JSON-able configuration; its "block" entry (if any) selects the trials' seed
 

@@ -25,21 +25,23 @@ import signal
 import socket
 import sqlite3
 import sys
+import tempfile
 import threading
 import time
 from collections import deque
 from collections.abc import Callable, Hashable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .._threads import cores
-from .registry import Experiment, get
+from .registry import Experiment, Summary, get
 from .store import Claimant, Store, StoredTask, process_token, task_key
 
-__all__ = ["run_experiment", "execute_task", "stored_results", "run_tasks", "RunInterrupted",
-           "MAX_WORKERS"]
+__all__ = ["run_experiment", "run_quick", "execute_task", "stored_results", "run_tasks",
+           "RunInterrupted", "MAX_WORKERS"]
 
 MAX_WORKERS = 256
 """Most local worker processes a run accepts. Each is a Python process of its own (a few
@@ -151,6 +153,19 @@ def run_experiment(
     if missing:
         raise RuntimeError(f"{missing} task(s) of {experiment.name} did not reach the store")
     return results
+
+
+def run_quick(name: str, figures: str | Path, *, seed: int = 0, **overrides) -> Summary:
+    """Run the registered experiment ``name`` at its small preset (``switchest run NAME
+    --quick``; ``overrides`` shrink or change it further, as :meth:`Experiment.params`) in a
+    temporary store, and summarize it, drawing its figures into ``figures``: the gallery's and
+    a notebook's way to look at a reproduction without a results store."""
+    experiment = get(name)
+    params = experiment.params(quick=True, **overrides)
+    with tempfile.TemporaryDirectory() as folder:
+        results = run_experiment(experiment, params, store=Store(Path(folder) / "results.sqlite"),
+                                 seed=seed)
+    return experiment.summarize(params, results, Path(figures))
 
 
 def stored_results(experiment: Experiment, params: dict, store: Store,
