@@ -36,9 +36,9 @@ LANES = 16  # trials per block: four AVX2 registers of float64 per row of lanes
 @dataclass
 class IMMEV1Output(MixtureOutput):
     """IMM-EV1's estimates (:func:`imm_ev1_run`, and :func:`imm_ev1_step` as ``K = 1``): ``x``,
-    ``P`` of the destination of largest weight (the MAP path), the normalized path weights of
-    the destinations as ``mode_prob`` and the MAP destination as ``mode``
-    (:class:`MixtureOutput`), and
+    ``P`` of the destination of largest weight (the MAP path) or, with ``combined``, of the
+    mixture of the destinations, the normalized path weights of the destinations as
+    ``mode_prob`` and the MAP destination as ``mode`` (:class:`MixtureOutput`), and
 
     Attributes
     ----------
