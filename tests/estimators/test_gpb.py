@@ -486,3 +486,11 @@ def test_bad_records_are_refused_as_by_the_imm(y, t, match):
     caught = messages(lambda cls: cls(SYS2, **GOOD).run(y, None, t))
     assert all(c == caught[0] for c in caught), caught
     assert re.search(match, caught[0][1])
+
+
+def test_the_bank_base_class_is_refused_by_name():
+    """``ModeBankFilter`` names no interaction: building it says which classes to build."""
+    from switchest.estimators import ModeBankFilter
+
+    with pytest.raises(TypeError, match="construct one of those"):
+        ModeBankFilter(SYS2, **GOOD)

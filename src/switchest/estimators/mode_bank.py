@@ -182,6 +182,9 @@ class ModeBankFilter(Estimator):
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None, gate: float | None = None,
                  timing: str | None = None):
+        if not hasattr(type(self), "_interaction"):
+            raise TypeError("ModeBankFilter is the base of IMMFilter, GPB1Filter and GPB2Filter, "
+                            "which name its interaction: construct one of those")
         self._set_prior(system, x0, P0)
         self.gate = None if gate is None else positive_scalar(gate, "gate")
         self._set_mode_prior(transition, mode_prob0)
