@@ -120,8 +120,8 @@ def instant_posteriors(system: SwitchedLinearSystem, x0, P0, data: Record, offse
     """The moments of :class:`Moments` but ``loglik``, ``y`` and ``outlier``: the smoothed
     state and each interval's ``grid`` components with the instants ``offset (N, K-1)`` (in
     the intervals with a switch; module docstring). ``step_weight[i, k]`` is then the posterior
-    of the instant of the interval ``k -> k+1`` of trial ``i`` on the grid, given the record and
-    the other instants at ``offset``."""
+    of the instant of the interval :math:`k \\to k+1` of trial ``i`` on the grid, given the record
+    and the other instants at ``offset``."""
     y, u, t, modes = data.y, data.u, data.t, data.modes
     (N, K), L, g = data.shape, system.n_modes, grid
     a, b = modes[:, :-1], modes[:, 1:]
