@@ -17,7 +17,7 @@ __all__ = ["FEWEST_SAMPLES", "IMPLAUSIBLE_Z", "RMSE", "InnovationConsistency",
            "innovation_consistency", "rmse", "mode_accuracy", "switch_time_error"]
 
 IMPLAUSIBLE_Z = 4.0
-"""``|z|`` of :class:`InnovationConsistency` beyond which a filter's (or a fit's) residuals are
+""":math:`|z|` of :class:`InnovationConsistency` beyond which a filter's (or a fit's) residuals are
 implausible for a model that fits the data."""
 FEWEST_SAMPLES = 20
 """Samples below which the consistency check says nothing."""
@@ -60,9 +60,9 @@ def rmse(estimate, truth, *, start: int = 0) -> RMSE:
 
 
 def _rms(err: np.ndarray, axis: tuple[int, ...]) -> np.ndarray:
-    """``sqrt(nanmean(err^2))`` over ``axis``, the errors divided by their largest magnitude
-    first so that their squares neither overflow (errors of 1e200) nor underflow; infinite
-    where an error is."""
+    """:math:`\\sqrt{\\operatorname{nanmean}(\\mathrm{err}^2)}` over ``axis``, the errors divided by
+    their largest magnitude first so that their squares neither overflow (errors of 1e200) nor
+    underflow; infinite where an error is."""
     with warnings.catch_warnings():  # an all-NaN slice: nanmean below says so
         warnings.filterwarnings("ignore", "All-NaN slice", RuntimeWarning)
         scale = np.nanmax(np.abs(err), axis=axis)
@@ -89,7 +89,7 @@ def switch_time_error(estimated, true) -> np.ndarray:
     ``estimated`` and ``true`` are ``(..., K)`` arrays of switching instants per
     sample interval (NaN where there is no switch), e.g. ``Estimate.switch_time``
     and the true instants from the trajectory's segments. Returns the flat array
-    of ``|estimated - true|`` over intervals where both are finite.
+    of :math:`|\\mathrm{estimated} - \\mathrm{true}|` over intervals where both are finite.
     """
     est = float_array(estimated, "estimated")
     ref = float_array(true, "true")
@@ -121,7 +121,8 @@ class InnovationConsistency:
     samples : int
         Samples used (observed, not gated, with a finite estimate).
     z : float
-        ``(mean_nis - expected) / sd``, ``sd = sqrt(2 expected / samples)`` (the NIS of a
+        :math:`(\\mathrm{mean\\_nis} - \\mathrm{expected}) / \\mathrm{sd}`,
+        :math:`\\mathrm{sd} = \\sqrt{2\\, \\mathrm{expected} / \\mathrm{samples}}` (the NIS of a
         consistent filter is chi-square with ``m`` degrees of freedom, independent over time).
     """
 
@@ -134,12 +135,13 @@ class InnovationConsistency:
 def innovation_consistency(system, y, x, P, modes, *, used=None) -> InnovationConsistency:
     """The normalized innovations squared of a filter, recovered from its posterior estimates.
 
-    For a Kalman update with gain ``K = P- C' S^-1`` the posterior residual
-    ``r = y - C x+`` equals ``R S^-1 e`` (``e`` the innovation, ``S = C P- C' + R``), and
-    ``R - C P+ C' = R S^-1 R``; hence ``r' (R - C P+ C')^-1 r = e' S^-1 e``, the NIS, with no
+    For a Kalman update with gain :math:`K = P^- C^\\top S^{-1}` the posterior residual
+    :math:`r = y - C x^+` equals :math:`R S^{-1} e` (:math:`e` the innovation,
+    :math:`S = C P^- C^\\top + R`), and :math:`R - C P^+ C^\\top = R S^{-1} R`; hence
+    :math:`r^\\top (R - C P^+ C^\\top)^{-1} r = e^\\top S^{-1} e`, the NIS, with no
     access to the filter's internals (Bar-Shalom, Li & Kirubarajan §5.4: a consistent filter's
     NIS is chi-square with ``m`` degrees of freedom). Missing components (NaN in ``y``) are left
-    out of ``r``, ``R`` and ``C``, as the update does.
+    out of :math:`r`, :math:`R` and :math:`C`, as the update does.
 
     Parameters
     ----------

@@ -173,13 +173,13 @@ def _frozen(value: np.ndarray) -> np.ndarray:
 class Dwell(SwitchingModel):
     """Dwell times drawn uniformly in ``[min_dwell, max_dwell]``, the next mode among the others.
 
-    The dwell-time switching of Shankar et al. §II (every dwell at least ``tau_d =
-    min_dwell``); drawn by :func:`~switchest.signals.dwell_time`.
+    The dwell-time switching of Shankar et al. §II (every dwell at least :math:`\\tau_d` =
+    ``min_dwell``); drawn by :func:`~switchest.signals.dwell_time`.
 
     Parameters
     ----------
     n_modes : int
-        Number of modes L >= 2.
+        Number of modes :math:`L \\ge 2`.
     min_dwell, max_dwell : float
         Bounds of the dwell times, ``0 < min_dwell <= max_dwell``.
     initial_mode : int, keyword-only
@@ -212,7 +212,8 @@ class Dwell(SwitchingModel):
 
 @dataclass(frozen=True, eq=False)
 class AverageDwell(SwitchingModel):
-    """Average dwell time ``tau_a`` with chatter bound ``N0``: ``N(s, t) <= N0 + (t - s) / tau_a``.
+    """Average dwell time ``tau_a`` with chatter bound ``N0``:
+    :math:`N(s, t) \\le N_0 + (t - s) / \\tau_a`.
 
     Etienne et al. Definition 2; drawn by :func:`~switchest.signals.average_dwell_time`
     (switch attempts at ``rate``, accepted while the budget allows).
@@ -220,13 +221,13 @@ class AverageDwell(SwitchingModel):
     Parameters
     ----------
     n_modes : int
-        Number of modes L >= 2.
+        Number of modes :math:`L \\ge 2`.
     tau_a : float
         Average dwell time, positive.
     N0 : float
-        Chatter bound, ``N0 >= 1``.
+        Chatter bound, :math:`N_0 \\ge 1`.
     rate : float or None, keyword-only
-        Intensity of the switch attempts; None (default) means ``2 / tau_a``.
+        Intensity of the switch attempts; None (default) means :math:`2 / \\tau_a`.
     initial_mode : int, keyword-only
         Mode on ``[0, first switch)``; default 0.
     """
@@ -260,7 +261,8 @@ class MarkovAtSamples(SwitchingModel):
     Parameters
     ----------
     transition : array_like, shape (L, L)
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k); rows sum to 1.
+        ``transition[i, j]`` = :math:`P(\\text{mode } j \\text{ at } k+1 \\mid
+        \\text{mode } i \\text{ at } k)`; rows sum to 1.
     initial : int, array_like of shape (L,) or None, keyword-only
         The mode at ``t[0]``, or the probabilities it is drawn from; None (default):
         uniform.
@@ -297,7 +299,7 @@ class MarkovContinuous(SwitchingModel):
     Parameters
     ----------
     rates : array_like, shape (L, L)
-        Generator matrix: ``rates[i, j]`` (i != j) the rate of jumps from i to j, rows
+        Generator matrix: ``rates[i, j]`` (:math:`i \\ne j`) the rate of jumps from i to j, rows
         summing to zero.
     initial_mode : int, keyword-only
         Mode on ``[0, first switch)``; default 0.

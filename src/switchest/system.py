@@ -1,16 +1,25 @@
 """The switched linear system: mode matrices stacked over the L modes.
 
-Continuous time (``domain="continuous"``)::
+Continuous time (``domain="continuous"``):
 
-    dx/dt = A[s] x + B[s] u + w,   E[w(t) w(r)'] = Q[s] delta(t - r)
-    y(t_k) = C[s] x(t_k) + v_k,    v_k ~ N(0, R[s])
+.. math::
 
-Discrete time (``domain="discrete"``, step ``dt``)::
+    \\begin{aligned}
+    \\dot{x} &= A(s)\\, x + B(s)\\, u + w, &
+    \\mathbb{E}[w(t)\\, w(r)^\\top] &= Q(s)\\, \\delta(t - r), \\\\
+    y(t_k) &= C(s)\\, x(t_k) + v_k, & v_k &\\sim \\mathcal{N}(0, R(s))
+    \\end{aligned}
 
-    x[k+1] = A[s] x[k] + B[s] u[k] + w[k],   w[k] ~ N(0, Q[s])
-    y[k]   = C[s] x[k] + v[k],               v[k] ~ N(0, R[s])
+Discrete time (``domain="discrete"``, step ``dt``):
 
-with ``s`` the active mode (0-based). This is the model of Shankar et al. eqs
+.. math::
+
+    \\begin{aligned}
+    x_{k+1} &= A(s)\\, x_k + B(s)\\, u_k + w_k, & w_k &\\sim \\mathcal{N}(0, Q(s)), \\\\
+    y_k &= C(s)\\, x_k + v_k, & v_k &\\sim \\mathcal{N}(0, R(s)),
+    \\end{aligned}
+
+with :math:`s` the active mode (0-based). This is the model of Shankar et al. eqs
 (1)-(2), Zhang & Natarajan eq. (1), Wang et al. eq. (1) (there with a
 continuous output), Lee et al. eq. (1) and Etienne et al. eq. (1).
 """
@@ -39,7 +48,7 @@ class SwitchedLinearSystem:
     A : ndarray, shape (L, n, n)
         State matrices.
     B : ndarray, shape (L, n, l)
-        Input matrices (``l = 0`` when the system has no input).
+        Input matrices (:math:`l = 0` when the system has no input).
     C : ndarray, shape (L, m, n)
         Output matrices.
     Q : ndarray, shape (L, n, n)
@@ -91,10 +100,10 @@ class SwitchedLinearSystem:
         A : array_like, shape (L, n, n) or (n, n)
             Mode state matrices; a single 2-D matrix is shared by all modes.
         B : array_like, shape (L, n, l) or (n, l), optional
-            Input matrices; ``None`` means no input (``l = 0``).
+            Input matrices; ``None`` means no input (:math:`l = 0`).
         C : array_like, shape (L, m, n) or (m, n), optional
-            Output matrices, at least one output (``m >= 1``); ``None`` means the
-            full state is measured (``C = I``).
+            Output matrices, at least one output (:math:`m \\ge 1`); ``None`` means
+            the full state is measured (:math:`C = I`).
         Q : array_like, shape (L, n, n) or (n, n), optional
             Process-noise intensity; ``None`` means no process noise.
         R : array_like, shape (L, m, m) or (m, m), optional

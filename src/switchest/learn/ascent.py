@@ -19,25 +19,27 @@ bound, standard errors for the rest).
 
 The parameters, bounded (L-BFGS-B's box), so that a maximum on the boundary of the parameter
 space (a transition that never happens, a singular process noise) is a point the search can
-reach, its bound then active, where in logarithms or logits it would lie at ``-inf`` (the
-search crawled towards it: a 3-mode fit at K = 8000 still moving after 300 iterations):
+reach, its bound then active, where in logarithms or logits it would lie at :math:`-\\infty`
+(the search crawled towards it: a 3-mode fit at K = 8000 still moving after 300 iterations):
 
 - row ``j`` of the transition matrix: its nonzero entries other than its largest one,
-  ``pi_jr`` (:func:`.markov_step.free_rows`), each divided by its value at the start (so that
-  all start at 1 and their curvatures are alike) and at least 0, with ``pi_jr = 1 - sum``
-  (a point where that is negative is outside the simplex: no value); a zero entry stays zero,
-  as under EM's M-step;
+  :math:`\\pi_{jr}` (:func:`.markov_step.free_rows`), each divided by its value at the start
+  (so that all start at 1 and their curvatures are alike) and at least 0, with
+  :math:`\\pi_{jr} = 1 - \\sum_{i \\ne r} \\pi_{ji}` (a point where that is negative is outside
+  the simplex: no value); a zero entry stays zero, as under EM's M-step;
 - each fitted block of ``Q`` and ``R`` (per mode, or once for a matrix the fit ties across the
   modes; on the components of positive variance, :func:`.noise_step.support`): its Cholesky
-  factor ``F`` (``F F'`` is positive semidefinite wherever it goes), row ``a`` divided by the
-  standard deviation ``d_a`` of component ``a`` at the start, so every parameter starts at
-  most 1 in size. A diagonal entry lies in ``[0, e^SPAN]`` for ``Q`` (a singular process noise is a
-  model) and in ``[e^-SPAN, e^SPAN]`` for ``R`` (whose inverse the filter needs), an entry
-  below it in ``[-e^SPAN, e^SPAN]`` (:data:`SPAN` = 9: about four orders of magnitude).
+  factor :math:`F` (:math:`F F^\\top` is positive semidefinite wherever it goes), row ``a``
+  divided by the standard deviation :math:`d_a` of component ``a`` at the start, so every
+  parameter starts at most 1 in size. A diagonal entry lies in :math:`[0, e^{\\mathrm{SPAN}}]`
+  for ``Q`` (a singular process noise is a model) and in
+  :math:`[e^{-\\mathrm{SPAN}}, e^{\\mathrm{SPAN}}]` for ``R`` (whose inverse the filter needs),
+  an entry below it in :math:`[-e^{\\mathrm{SPAN}}, e^{\\mathrm{SPAN}}]` (:data:`SPAN` = 9: about
+  four orders of magnitude).
 
-Gradients are central differences with steps ``eps^(1/3) max(1, |theta_i|)`` (error
-``O(h^2)``, against ``O(h)`` for forward differences; one-sided where the other side has no
-value), the ``2 p + 1`` likelihoods of each point evaluated together
+Gradients are central differences with steps :math:`\\epsilon^{1/3} \\max(1, |\\theta_i|)`
+(error :math:`O(h^2)`, against :math:`O(h)` for forward differences; one-sided where the other
+side has no value), the :math:`2 p + 1` likelihoods of each point evaluated together
 (:func:`.expectation.log_likelihoods`: the candidates fill the compiled filter's SIMD lanes).
 """
 

@@ -1,56 +1,66 @@
 """The E-step of known modes whose switches fall inside the sampling intervals.
 
-A continuous-time system sampled at ``t_k`` whose mode changes between two samples
-(``r_k != r_{k+1}``) switches at an instant ``t_k + tau`` inside the interval, and the interval
-then moves the state exactly through ``F(tau) = e^{A_b (h - tau)} e^{A_a tau}``, ``G(tau)`` and
-``Qd(tau)`` (Shankar et al. eqs (3)-(5), with the exact process noise of
-:mod:`switchest.discretize`), not through the transition of either mode alone: an E-step that
-holds the mode over the whole interval puts the difference into the noise (on the boost
-converter of Shankar et al. §V.A, R = 5 fits as 60).
+A continuous-time system sampled at :math:`t_k` whose mode changes between two samples
+(:math:`r_k \\ne r_{k+1}`) switches at an instant :math:`t_k + \\tau` inside the interval, and
+the interval then moves the state exactly through
+:math:`F(\\tau) = e^{A_b (h - \\tau)} e^{A_a \\tau}`, :math:`G(\\tau)` and :math:`Q_d(\\tau)`
+(Shankar et al. eqs (3)-(5), with the exact process noise of :mod:`switchest.discretize`), not
+through the transition of either mode alone: an E-step that holds the mode over the whole
+interval puts the difference into the noise (on the boost converter of Shankar et al. §V.A,
+R = 5 fits as 60).
 
 The instant is not known: it is a latent variable with a uniform prior on the grid of Shankar et
-al. eq. (23), ``tau_i = i h / g - h / (2 g)``, independently in each interval with a switch (the
-dwell time exceeds ``h``: at most one switch per interval, Shankar §II), and it is
+al. eq. (23), :math:`\\tau_i = i h / g - h / (2 g)`, independently in each interval with a switch
+(the dwell time exceeds :math:`h`: at most one switch per interval, Shankar §II), and it is
 marginalized.
 
 - The likelihood: the switch-time Kalman filter with the instant marginalized over the grid
   (:class:`~switchest.estimators.SwitchTimeKalmanFilter`, ``switch_time="marginal"``, beyond
-  Shankar et al.): ``sum_k log((1/g) sum_i p(y_{k+1} | y_0..k, tau_i))``, each mixture merged by
-  moment matching after its sample; its gate is the E-step's outlier gate, and its posterior
-  mean instants ``tau_hat`` are the E-step's working instants.
-- The moments: the Kalman filter and RTS smoother with the instants at ``tau_hat``, both
+  Shankar et al.):
+  :math:`\\sum_k \\log\\big(\\frac{1}{g} \\sum_i p(y_{k+1} \\mid y_{0:k}, \\tau_i)\\big)`, each
+  mixture merged by moment matching after its sample; its gate is the E-step's outlier gate,
+  and its posterior mean instants :math:`\\hat{\\tau}` are the E-step's working instants.
+- The moments: the Kalman filter and RTS smoother with the instants at :math:`\\hat{\\tau}`, both
   along one table of transitions, the switched intervals discretized once
   (:func:`~switchest.estimators.tables.kalman_posteriors`,
   :func:`~switchest.estimators.smoothing.smooth_mode_matched` with one mode), then, interval by
   interval, the posterior of its own instant given the whole record and the others at
-  ``tau_hat``. Given ``x_{k+1}`` the measurements after ``k + 1`` do not depend on the instant
-  of the interval into it, so with the filtered ``N(m_i, P_i)`` at ``k + 1`` under ``tau_i``
-  (predicted from the filtered posterior at ``k`` and updated with ``y_{k+1}``,
-  :func:`~switchest.estimators.kalman.kf_predict`, :func:`~switchest.estimators.kalman.kf_update`,
-  innovation log-likelihood ``l_i``) and the likelihood of the later measurements
-  ``beta(x) ∝ exp(-x' Lam x / 2 + eta' x)``, which the smoother gives as the ratio of its
-  smoothed to its filtered Gaussian at ``k + 1`` (``Lam = P_s^-1 - P_f^-1``,
-  ``eta = P_s^-1 m_s - P_f^-1 m_f``: the two-filter form of the smoother, Fraser & Potter 1969,
-  IEEE TAC 14):
+  :math:`\\hat{\\tau}`. Given :math:`x_{k+1}` the measurements after ``k + 1`` do not depend on
+  the instant of the interval into it, so with the filtered :math:`\\mathcal{N}(m_i, P_i)` at
+  ``k + 1`` under :math:`\\tau_i` (predicted from the filtered posterior at ``k`` and updated
+  with :math:`y_{k+1}`, :func:`~switchest.estimators.kalman.kf_predict`,
+  :func:`~switchest.estimators.kalman.kf_update`, innovation log-likelihood :math:`l_i`) and
+  the likelihood of the later measurements
+  :math:`\\beta(x) \\propto \\exp(-x^\\top \\Lambda x / 2 + \\eta^\\top x)`, which the smoother
+  gives as the ratio of its smoothed to its filtered Gaussian at ``k + 1``
+  (:math:`\\Lambda = P_s^{-1} - P_f^{-1}`, :math:`\\eta = P_s^{-1} m_s - P_f^{-1} m_f`: the
+  two-filter form of the smoother, Fraser & Potter 1969, IEEE TAC 14):
 
-  ``log P(tau_i | Y) = l_i + b_i + const``,
-  ``b_i = log int N(x; m_i, P_i) beta(x) dx
-  = -log det(I + P_i Lam) / 2 + (m_i' (I + Lam P_i)^-1 (eta - Lam m_i) + eta' m_i^s) / 2``,
+  .. math::
 
-  ``x_{k+1} | tau_i, Y ~ N(m_i^s, P_i^s)`` with ``P_i^s = (I + P_i Lam)^-1 P_i``,
-  ``m_i^s = (I + P_i Lam)^-1 (m_i + P_i eta)`` (the product of the two Gaussians), and
-  ``x_k`` given ``x_{k+1}`` by the RTS step through ``F(tau_i)``: the interval is a mixture of
-  ``g`` components, component ``i`` through the grid's row ``(r_k, r_{k+1}, tau_i)`` of
-  :func:`~switchest.learn.steps.grid_table`, with weight ``P(tau_i | Y)`` (an interval without
-  a switch: one component, its mode's own row).
+      \\begin{aligned}
+      \\log P(\\tau_i \\mid Y) &= l_i + b_i + \\text{const}, \\\\
+      b_i &= \\log \\int \\mathcal{N}(x; m_i, P_i)\\, \\beta(x)\\, dx \\\\
+      &= -\\log\\det(I + P_i \\Lambda) / 2
+         + \\big(m_i^\\top (I + \\Lambda P_i)^{-1} (\\eta - \\Lambda m_i)
+         + \\eta^\\top m_i^s\\big) / 2,
+      \\end{aligned}
+
+  :math:`x_{k+1} \\mid \\tau_i, Y \\sim \\mathcal{N}(m_i^s, P_i^s)` with
+  :math:`P_i^s = (I + P_i \\Lambda)^{-1} P_i`,
+  :math:`m_i^s = (I + P_i \\Lambda)^{-1} (m_i + P_i \\eta)` (the product of the two Gaussians),
+  and :math:`x_k` given :math:`x_{k+1}` by the RTS step through :math:`F(\\tau_i)`: the interval
+  is a mixture of :math:`g` components, component ``i`` through the grid's row
+  :math:`(r_k, r_{k+1}, \\tau_i)` of :func:`~switchest.learn.steps.grid_table`, with weight
+  :math:`P(\\tau_i \\mid Y)` (an interval without a switch: one component, its mode's own row).
 
 Each instant's posterior is exact given the others (it equals the normalized likelihood of the
 whole record over the grid, one Kalman filter per instant, to 1e-7); holding the others at
-``tau_hat`` makes the E-step approximate (the exact posterior is a mixture of ``g^S``
-Gaussians for ``S`` switches). The likelihood the fit maximizes is the filter's above, so, as
-with unknown modes, :func:`~switchest.learn.fit` accepts EM's steps while they raise it and
-finishes by direct ascent of it (:mod:`~switchest.learn.ascent`), whose maximum is the fit:
-on the boost converter, whose switches come every second sample with an instant the data
+:math:`\\hat{\\tau}` makes the E-step approximate (the exact posterior is a mixture of
+:math:`g^S` Gaussians for ``S`` switches). The likelihood the fit maximizes is the filter's
+above, so, as with unknown modes, :func:`~switchest.learn.fit` accepts EM's steps while they
+raise it and finishes by direct ascent of it (:mod:`~switchest.learn.ascent`), whose maximum is
+the fit: on the boost converter, whose switches come every second sample with an instant the data
 place to about 0.1 of the interval, EM from the true parameters would drift to R = 8-9.5 for
 5 (the neighbours' instants held at the filter's estimates, off by about 0.2 of the interval,
 put their error into R), and its first step is rejected there; from R x 2 it climbs for a few
@@ -110,8 +120,8 @@ def instant_posteriors(system: SwitchedLinearSystem, x0, P0, data: Record, offse
     """The moments of :class:`Moments` but ``loglik``, ``y`` and ``outlier``: the smoothed
     state and each interval's ``grid`` components with the instants ``offset (N, K-1)`` (in
     the intervals with a switch; module docstring). ``step_weight[i, k]`` is then the posterior
-    of the instant of the interval ``k -> k+1`` of trial ``i`` on the grid, given the record and
-    the other instants at ``offset``."""
+    of the instant of the interval :math:`k \\to k+1` of trial ``i`` on the grid, given the record
+    and the other instants at ``offset``."""
     y, u, t, modes = data.y, data.u, data.t, data.modes
     (N, K), L, g = data.shape, system.n_modes, grid
     a, b = modes[:, :-1], modes[:, 1:]
@@ -197,9 +207,10 @@ def _switched(system, length, modes, offsets) -> Transition:
 
 
 def _later(m_f, P_f, m_s, P_s) -> tuple[np.ndarray, np.ndarray]:
-    """``Lam``, ``eta`` of the likelihood of the later measurements, ``beta(x) ∝ exp(-x' Lam x / 2
-    + eta' x)``: the smoothed Gaussian ``N(m_s, P_s)`` divided by the filtered ``N(m_f, P_f)``
-    (module docstring)."""
+    """:math:`\\Lambda`, :math:`\\eta` of the likelihood of the later measurements,
+    :math:`\\beta(x) \\propto \\exp(-x^\\top \\Lambda x / 2 + \\eta^\\top x)`: the smoothed Gaussian
+    :math:`\\mathcal{N}(m_s, P_s)` divided by the filtered :math:`\\mathcal{N}(m_f, P_f)` (module
+    docstring)."""
     # Lam = P_s^-1 - P_f^-1 = P_f^-1 (P_f - P_s) P_s^-1: solves of the difference, which keep
     # the digits that subtracting two inverses loses where the later samples add little
     ratio = np.linalg.solve(P_s, P_f - P_s)  # P_s^-1 (P_f - P_s)

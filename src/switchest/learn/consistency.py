@@ -8,7 +8,7 @@ normalized innovations squared (NIS) of the fitted model's Kalman filter then av
 their dimension ``m`` overall, the fit having made them so, but far more after a mode change
 than elsewhere. A model that fits has NIS chi-square with ``m`` degrees of freedom at every
 sample (Bar-Shalom, Li & Kirubarajan 2001, §5.4), so the mean over the ``S`` samples after a
-mode change lies within a few ``sqrt(2 m / S)`` of ``m``
+mode change lies within a few :math:`\\sqrt{2 m / S}` of ``m``
 (:func:`switchest.metrics.innovation_consistency`, the check of ``switchest estimate``).
 """
 

@@ -2,11 +2,13 @@
 
 Conditional maximization (Meng & Rubin 1993, Biometrika 80, ECM) of the expected complete-data
 log-likelihood, before the noise steps that then use the new matrices: a weighted least-squares
-regression of ``x_{k+1}`` on ``z_k = (x_k, u_k)`` per mode (or pooled where the fit ties the
-matrices), ``[A B] = (sum w E[x_{k+1} z_k']) (sum w E[z_k z_k'])^-1`` (Shumway & Stoffer 1982,
-eq. (13); Ghahramani & Hinton 1996, "Parameter estimation for linear dynamical systems", eq.
-(12)), and ``C = (sum w y_k E[x_k]') (sum w E[x_k x_k'])^-1`` over the samples observed in full
-(Ghahramani & Hinton 1996, eq. (14); a partly observed sample is left out of this regression).
+regression of :math:`x_{k+1}` on :math:`z_k = (x_k, u_k)` per mode (or pooled where the fit ties
+the matrices), :math:`[A\\ B] = (\\sum w\\, \\mathbb{E}[x_{k+1} z_k^\\top])
+(\\sum w\\, \\mathbb{E}[z_k z_k^\\top])^{-1}` (Shumway & Stoffer 1982, eq. (13); Ghahramani &
+Hinton 1996, "Parameter estimation for linear dynamical systems", eq. (12)), and
+:math:`C = (\\sum w\\, y_k \\mathbb{E}[x_k]^\\top) (\\sum w\\, \\mathbb{E}[x_k x_k^\\top])^{-1}`
+over the samples observed in full (Ghahramani & Hinton 1996, eq. (14); a partly observed sample
+is left out of this regression).
 The generalized least-squares solution equals the ordinary one because every row shares the
 regressors, so neither depends on ``Q`` or ``R``. ``B`` is fitted only where the inputs are not
 all zero (otherwise it is not identifiable and kept).
@@ -57,13 +59,14 @@ def fit_AB(A: np.ndarray, B: np.ndarray, u: np.ndarray, mom: Moments, *, with_B:
 
 def fit_C(C: np.ndarray, R: np.ndarray, mom: Moments, *, tied: bool) -> np.ndarray:
     """New ``C (L, m, n)``: the regression of the E-step's measurements ``mom.y`` on the
-    smoothed state (Shumway & Stoffer 1982, eq. (13)), ``C_j = (sum w y x') (sum w E[x
-    x'])^-1`` per mode, or pooled over all (``tied``).
+    smoothed state (Shumway & Stoffer 1982, eq. (13)),
+    :math:`C_j = (\\sum w\\, y x^\\top) (\\sum w\\, \\mathbb{E}[x x^\\top])^{-1}` per mode, or
+    pooled over all (``tied``).
 
-    With every ``R_j`` diagonal the expected complete-data log-likelihood separates by output
-    component, so row ``a`` of ``C`` is fitted from every sample that observes component
-    ``a``. Otherwise the rows are coupled through ``R^-1`` wherever a sample misses some of its
-    components, and the exact step uses the samples observed in full only (with all rows
+    With every :math:`R_j` diagonal the expected complete-data log-likelihood separates by
+    output component, so row ``a`` of ``C`` is fitted from every sample that observes component
+    ``a``. Otherwise the rows are coupled through :math:`R^{-1}` wherever a sample misses some
+    of its components, and the exact step uses the samples observed in full only (with all rows
     regressed on the same samples, least squares is the exact step whatever ``R``: Zellner
     1962, seemingly unrelated regressions with identical regressors). A mode (or row) whose
     state moment is singular keeps its ``C``.

@@ -8,12 +8,13 @@ and ``C`` (:mod:`~switchest.learn.dynamics_step`), then ``Q`` and ``R``
 
 EM stops by Aitken's rule (Böhning, Dietz, Schaub, Schlattmann & Lindsay 1994, Ann. Inst.
 Statist. Math. 46; McNicholas, Murphy, McDaid & Frost 2010, Comput. Statist. Data Anal. 54):
-near its fixed point EM's gains ``d_i = l_i - l_{i-1}`` fall geometrically, ``d_{i+1} ~ a d_i``
-with ``a = d_i / d_{i-1}``, so the likelihood still to gain is ``d_i a / (1 - a)``; EM stops
-when that and ``d_i`` are at most ``tol`` nats. The distance of the parameters from the
-maximum is then at most ``sqrt(2 tol)`` of their standard errors (the log-likelihood is
-quadratic there, ``l_max - l = z^2 / 2`` in standard-error units), whatever the number of
-samples: a relative tolerance ``tol |l|`` grows with ``|l| ~ K``. Where EM crawls (each gain at
+near its fixed point EM's gains :math:`d_i = l_i - l_{i-1}` fall geometrically,
+:math:`d_{i+1} \\approx a d_i` with :math:`a = d_i / d_{i-1}`, so the likelihood still to gain is
+:math:`d_i a / (1 - a)`; EM stops when that and :math:`d_i` are at most ``tol`` nats. The
+distance of the parameters from the maximum is then at most :math:`\\sqrt{2\\, \\mathrm{tol}}` of
+their standard errors (the log-likelihood is quadratic there, :math:`l_{\\max} - l = z^2 / 2` in
+standard-error units), whatever the number of samples: a relative tolerance
+:math:`\\mathrm{tol}\\, |l|` grows with :math:`|l| \\sim K`. Where EM crawls (each gain at
 least :data:`_SLOW` = 0.9 of the one before: a parameter the data barely inform), and after an
 approximate E-step, whose fixed point is not a maximum of the likelihood it reports, a direct
 ascent of that likelihood (:mod:`~switchest.learn.ascent`) finishes the fit.
@@ -81,14 +82,15 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         Sample times (required for a continuous-time system; periodic or not).
     transition : array_like, shape (L, L), optional
         Starting (or, without ``"transition"`` in ``estimate``, fixed) transition matrix,
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k). Default: with known modes the
-        counts' estimate; otherwise drawn from ``rng`` around a stay of 0.9 (Dirichlet rows),
-        which breaks the symmetry between modes of equal starting parameters.
+        ``transition[i, j]`` = :math:`P(\\text{mode } j \\text{ at } k+1 \\mid
+        \\text{mode } i \\text{ at } k)`. Default: with known modes the counts' estimate;
+        otherwise drawn from ``rng`` around a stay of 0.9 (Dirichlet rows), which breaks the
+        symmetry between modes of equal starting parameters.
     x0, P0 : array_like
         Prior mean ``(n,)`` and covariance ``(n, n)`` of the state at the first sample (fixed).
     modes : array_like of int, shape (K,) or (N, K), optional
-        The known mode at each sample (mode ``r_k`` drives the interval into ``k + 1`` and the
-        measurement at ``k``, as ``switchest.simulate`` draws them). With them and
+        The known mode at each sample (mode :math:`r_k` drives the interval into ``k + 1`` and
+        the measurement at ``k``, as ``switchest.simulate`` draws them). With them and
         ``switch_times="samples"`` the E-step is exact and the log-likelihood never decreases;
         without them Kim's smoother gives an approximate E-step, or enumeration an exact one
         (``e_step``), in the same timing (the package's, :doc:`/conventions`), and the first
@@ -109,16 +111,16 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         (:mod:`~switchest.learn.between`: the switch-time Kalman filter and Kim's smoother;
         an approximate E-step, ended by direct ascent as ``e_step="kim"``).
     grid : int
-        ``g``, the switch instants per interval of ``switch_times="between"``.
+        :math:`g`, the switch instants per interval of ``switch_times="between"``.
     gate : float, "auto" or None
         The filters' outlier gate in the E-step: the largest normalized innovation squared
         accepted; a rejected sample is missing for the fit (``FitResult.outlier``; each
         E-step gates under its own parameters, and the last one's samples are those of the
         standard errors; when a flagged set comes back after another, the gate flip-flops on
         samples at its edge, and the union of the sets since then is held missing for the rest
-        of the fit, so that EM can stop). ``"auto"``: the chi-square quantile of probability ``1 -``
-        :data:`GATE_PROBABILITY` with ``m`` degrees of freedom (a measurement of the model
-        is rejected once in 1e9). ``None``: only measurements whose innovation overflows
+        of the fit, so that EM can stop). ``"auto"``: the chi-square quantile of probability
+        :math:`1 -` :data:`GATE_PROBABILITY` with ``m`` degrees of freedom (a measurement of the
+        model is rejected once in 1e9). ``None``: only measurements whose innovation overflows
         (a wild but finite one then enters the fit as any other).
     max_iter : int
         Most iterations, of EM and of the direct ascent of the log-likelihood over the
@@ -144,11 +146,11 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         ends at a maximum of the likelihood it reports, possibly on the boundary (a
         transition probability of 0, a singular ``Q``: those entries then have no standard
         error), and ``loglik`` never decreases;
-        ``"exact"``, the enumeration of all ``L^K`` mode sequences of each trial (the Kalman
+        ``"exact"``, the enumeration of all :math:`L^K` mode sequences of each trial (the Kalman
         filter and RTS smoother of each, weighted by its posterior probability): the exact
         E-step, so the exact log-likelihood (that of
         :class:`~switchest.estimators.ExactMixtureFilter`, which ``loglik`` then reports)
-        never decreases; for short records only (``L^K`` up to
+        never decreases; for short records only (:math:`L^K` up to
         :data:`~switchest.learn.expectation.MAX_SEQUENCES` = 65536, refused beyond).
     progress : callable, optional
         Called as ``progress(iteration, loglik)`` after each accepted E-step and ascent
@@ -185,9 +187,9 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     Notes
     -----
     Continuous-time systems: ``Q`` is the intensity, fitted through the exact discretization
-    ``Qd(h) = int_0^h e^{As} Q e^{A's} ds`` of every distinct step, and of every switch
-    instant of the grid with ``switch_times="between"`` (generalized EM); ``A``, ``B`` are not
-    fitted (no closed-form M-step exists for them in continuous time) and are refused.
+    :math:`Q_d(h) = \\int_0^h e^{A s} Q e^{A^\\top s}\\, ds` of every distinct step, and of every
+    switch instant of the grid with ``switch_times="between"`` (generalized EM); ``A``, ``B`` are
+    not fitted (no closed-form M-step exists for them in continuous time) and are refused.
     ``FitResult.rates`` gives the generator of a continuous-time chain matching the fitted
     per-sample ``transition`` (periodic sampling).
 
@@ -518,7 +520,7 @@ def _standard_errors(system, transition, data: Record, wanted, tied, mom, allowe
     ``logliks``, jointly for the parameters fitted (the transition's on the support
     ``allowed``); with known modes the transition's from the counts (its information separates
     from the others'). Where both the dynamics (``A`` or ``B``) and ``C`` are fitted, the
-    state's coordinates are not identified (``x -> T x`` leaves the likelihood unchanged):
+    state's coordinates are not identified (:math:`x \\to T x` leaves the likelihood unchanged):
     ``A``, ``B``, ``C`` get NaN and the others are conditional on them. ``B`` with all inputs
     zero is not fitted: NaN."""
     se = {name: np.full(getattr(system, name).shape, np.nan) for name in ("A", "B", "C")

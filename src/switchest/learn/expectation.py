@@ -4,28 +4,29 @@ Known modes (``record.modes`` given): the exact E-step of Shumway & Stoffer (198
 Series Anal. 3, "An approach to time series smoothing and forecasting using the EM
 algorithm", §2-3): the Kalman filter along the modes
 (:class:`~switchest.estimators.ModeKalmanFilter`), the Rauch-Tung-Striebel smoother and the
-lag-one cross-covariances ``P_{k+1,k|K} = P_{k+1|K} J_k'`` (de Jong & MacKinnon 1988), all from
-:func:`~switchest.estimators.smoothing.smooth_mode_matched` with one mode per trial. The mode
-``r_k`` at sample ``k`` drives the interval into ``k + 1`` and the measurement at ``k`` (the
-convention of ``ModeKalmanFilter`` and of ``switchest.simulate``: the signal is right
-continuous, a switch at ``t_{k+1}`` takes effect there). Known modes of a continuous-time
+lag-one cross-covariances :math:`P_{k+1,k|K} = P_{k+1|K} J_k^\\top` (de Jong & MacKinnon 1988),
+all from :func:`~switchest.estimators.smoothing.smooth_mode_matched` with one mode per trial.
+The mode :math:`r_k` at sample ``k`` drives the interval into ``k + 1`` and the measurement at
+``k`` (the convention of ``ModeKalmanFilter`` and of ``switchest.simulate``: the signal is right
+continuous, a switch at :math:`t_{k+1}` takes effect there). Known modes of a continuous-time
 system whose switches fall inside the intervals: :mod:`~switchest.learn.between`.
 
 Every E-step runs its filter with the filters' outlier gate: a sample it rejects is missing for
 the smoother and the maximization steps (``Moments.y``, ``Moments.outlier``).
 
 Unknown modes: Kim's smoother (Kim 1994, §2.2) on the chain of consecutive mode pairs
-``s_k = (r_{k-1}, r_k)``. In the package's timing (``timing="sample"``, :doc:`/conventions`)
-``r_k`` drives the interval ``k -> k+1``; the pair ``s_{k+1} = (r_k, r_{k+1})`` then holds both
-the mode that drives the interval into ``k + 1`` (``r_k``: ``F``, ``G``, ``Qd``) and the mode that
-sees sample ``k + 1`` (``r_{k+1}``: ``C``, ``R``), so the pair chain is a switched system of
-``L^2`` modes in Bar-Shalom's timing (``timing="interval"``), Markov with
-``P(s_{k+1} = (b, c) | s_k = (a, b')) = [b = b'] pi_bc``, and an exact rewriting of the model
-(the pairs GPB2 merges, Bar-Shalom, Li & Kirubarajan §11.6.5). The IMM on it
+:math:`s_k = (r_{k-1}, r_k)`. In the package's timing (``timing="sample"``, :doc:`/conventions`)
+:math:`r_k` drives the interval :math:`k \\to k+1`; the pair :math:`s_{k+1} = (r_k, r_{k+1})` then
+holds both the mode that drives the interval into ``k + 1`` (:math:`r_k`: ``F``, ``G``, ``Qd``)
+and the mode that sees sample ``k + 1`` (:math:`r_{k+1}`: ``C``, ``R``), so the pair chain is a
+switched system of :math:`L^2` modes in Bar-Shalom's timing (``timing="interval"``), Markov with
+:math:`P(s_{k+1} = (b, c) \\mid s_k = (a, b')) = [b = b']\\, \\pi_{bc}`, and an exact rewriting of
+the model (the pairs GPB2 merges, Bar-Shalom, Li & Kirubarajan §11.6.5). The IMM on it
 (:class:`~switchest.estimators.IMMFilter`, one mode-matched filter per pair) and Kim's smoother
-give ``P(s_{k+1} | Y)``, that is ``xi_k(a, c) = P(r_k = a, r_{k+1} = c | Y)``, and the lag-one
-moments given ``s_{k+1}``, whose mixture over ``c`` is the moment given the driving mode
-``r_k = a``. The E-step is approximate: the exact posterior is a mixture of ``L^K`` Gaussians.
+give :math:`P(s_{k+1} \\mid Y)`, that is :math:`\\xi_k(a, c) = P(r_k = a, r_{k+1} = c \\mid Y)`, and
+the lag-one moments given :math:`s_{k+1}`, whose mixture over ``c`` is the moment given the
+driving mode :math:`r_k = a`. The E-step is approximate: the exact posterior is a mixture of
+:math:`L^K` Gaussians.
 
 Unknown modes, exact (``exact=True``, short records): the posterior enumerated over every mode
 sequence ``r`` (Ackerson & Fu 1970; Bar-Shalom, Li & Kirubarajan §11.6.3), in the package's
@@ -33,13 +34,15 @@ timing (:class:`~switchest.estimators.ExactMixtureFilter` with ``timing="sample"
 sequence's Kalman filter and RTS smoother with lag-one moments run as one trial of
 :class:`~switchest.estimators.ExactMixtureFilter`'s sequences and of
 :func:`~switchest.estimators.smoothing.smooth_mode_matched` with one mode; the sequence's
-posterior is ``p(r | Y) ∝ p(r_0) prod_k pi_{r_k r_{k+1}} prod_k p(y_k | y_0..k-1, r)``. A
-moment given ``r_k = j`` (for the interval ``k -> k+1`` too: ``r_k`` drives it) is the moment
-of the mixture of the sequences through ``j`` there, weighted by ``p(r | Y)`` (Gaussian-mixture
-moments: mean of the means, mean covariance plus the spread of the means; the cross-covariance
-of ``(x_{k+1}, x_k)`` as the off-diagonal block of their joint mixture). The expected
-complete-data log-likelihood then is exact, and EM never decreases the likelihood (Dempster,
-Laird & Rubin 1977, Theorem 1). Cost: ``L^K`` Kalman filters and smoothers per trial.
+posterior is
+:math:`p(r \\mid Y) \\propto p(r_0) \\prod_k \\pi_{r_k r_{k+1}} \\prod_k p(y_k \\mid y_{0:k-1}, r)`.
+A moment given :math:`r_k = j` (for the interval :math:`k \\to k+1` too: :math:`r_k` drives it) is
+the moment of the mixture of the sequences through ``j`` there, weighted by :math:`p(r \\mid Y)`
+(Gaussian-mixture moments: mean of the means, mean covariance plus the spread of the means; the
+cross-covariance of :math:`(x_{k+1}, x_k)` as the off-diagonal block of their joint mixture).
+The expected complete-data log-likelihood then is exact, and EM never decreases the likelihood
+(Dempster, Laird & Rubin 1977, Theorem 1). Cost: :math:`L^K` Kalman filters and smoothers per
+trial.
 """
 
 from __future__ import annotations
@@ -61,7 +64,7 @@ from .steps import sample_table
 __all__ = ["MAX_SEQUENCES", "Moments", "expectation", "log_likelihood", "log_likelihoods"]
 
 MAX_SEQUENCES = 2**16
-"""Most mode sequences ``L^K`` the exact E-step enumerates (per trial)."""
+"""Most mode sequences :math:`L^K` the exact E-step enumerates (per trial)."""
 
 _ROWS = 2**16  # (sequence, trial) rows per compiled run of the exact E-step
 _LANES = 64  # (candidate, trial) rows per compiled run of log_likelihoods
@@ -113,7 +116,7 @@ def log_likelihoods(candidates, x0, P0, data: Record, *, exact: bool = False,
     The candidates' filters run together in one compiled call, each (candidate, trial) a trial
     under its own model: the Kalman filters along known modes
     (:func:`~switchest.estimators.tables.kalman_logliks`), or with unknown modes the pair-chain
-    IMMs (:func:`~switchest.estimators.tables.imm_logliks`; ``L^2`` mode-matched
+    IMMs (:func:`~switchest.estimators.tables.imm_logliks`; :math:`L^2` mode-matched
     filters per sample). The trials then fill the SIMD lanes, where one record alone leaves all
     but one empty (about ten times the cost per trial-step for the IMM). The values are those
     of :func:`log_likelihood`, computed by the same kernels; the exact E-step's enumeration
@@ -228,12 +231,12 @@ def _pair_filter(system: SwitchedLinearSystem, transition, x0, P0, gate=None) ->
 
 def _pair_chain(system: SwitchedLinearSystem, transition
                 ) -> tuple[SwitchedLinearSystem, np.ndarray, np.ndarray]:
-    """The chain of consecutive mode pairs ``s_k = (r_{k-1}, r_k)``, pair ``(a, b)`` at index
-    ``a L + b`` (module docstring): its system, whose mode ``(a, b)`` moves through mode
-    ``a``'s ``A``, ``B``, ``Q`` and measures through mode ``b``'s ``C``, ``R``, its transition
-    matrix and its prior at sample 0, which is only measured: the pair there is ``(r_0, r_0)``
-    with ``r_0`` uniform. The pair system is in the ``"interval"`` timing, the one in which it
-    rewrites the ``"sample"``-timed model exactly."""
+    """The chain of consecutive mode pairs :math:`s_k = (r_{k-1}, r_k)`, pair ``(a, b)`` at
+    index :math:`a L + b` (module docstring): its system, whose mode ``(a, b)`` moves through
+    mode ``a``'s ``A``, ``B``, ``Q`` and measures through mode ``b``'s ``C``, ``R``, its
+    transition matrix and its prior at sample 0, which is only measured: the pair there is
+    :math:`(r_0, r_0)` with :math:`r_0` uniform. The pair system is in the ``"interval"``
+    timing, the one in which it rewrites the ``"sample"``-timed model exactly."""
     L = system.n_modes
     a, b = np.divmod(np.arange(L * L), L)
     parts = {"A": system.A[a], "B": system.B[a], "C": system.C[b], "Q": system.Q[a],
@@ -242,8 +245,9 @@ def _pair_chain(system: SwitchedLinearSystem, transition
 
 
 def _pair_markov(transition: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The pair chain's transition matrix, ``P((b, c) | (a, b')) = [b = b'] pi_bc``, and its
-    prior at sample 0, ``(r_0, r_0)`` with ``r_0`` uniform (:func:`_pair_chain`)."""
+    """The pair chain's transition matrix, :math:`P((b, c) \\mid (a, b')) = [b = b']\\, \\pi_{bc}`,
+    and its prior at sample 0, :math:`(r_0, r_0)` with :math:`r_0` uniform
+    (:func:`_pair_chain`)."""
     L = transition.shape[0]
     a, b = np.divmod(np.arange(L * L), L)
     chain = np.where(a[None, :] == b[:, None], transition[b][:, b], 0.0)
@@ -301,8 +305,8 @@ def _given(prob, weight, member, x, P):
     """Moments given each mode: the mixture of the components (mode pairs, or mode sequences)
     that hold it. ``prob (N, K', S)`` the components' probabilities, ``member (..., S, L)``
     (broadcast against them) which components hold each mode, ``weight (N, K', L)`` the sums
-    ``P(mode | Y)``; a mode of weight zero gets the mixture of all components (it carries no
-    weight)."""
+    :math:`P(\\text{mode} \\mid Y)`; a mode of weight zero gets the mixture of all components (it
+    carries no weight)."""
     w = prob[..., :, None] * member  # (N, K', S, L)
     none = weight <= 0.0
     cond = np.where(none[:, :, None], prob[..., :, None],
@@ -337,7 +341,7 @@ def _enumerated(system, transition, x0, P0, data: Record, gate) -> Moments:
 
 
 def _enumerated_block(system, transition, x0, P0, y, u, t) -> dict[str, np.ndarray]:
-    """Moments of one block of ``N`` trials, summed over the ``S = L^K`` sequences."""
+    """Moments of one block of ``N`` trials, summed over the :math:`S = L^K` sequences."""
     flt = ExactMixtureFilter(system, transition, x0, P0, max_sequences=MAX_SEQUENCES,
                              timing="sample")
     seq, _ = flt._sequences(y, u, t)  # every sequence's Kalman filter, one trial each

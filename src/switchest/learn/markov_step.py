@@ -1,13 +1,13 @@
 """Maximization step of the mode transition matrix, and the rate matrix of a continuous chain.
 
-``pi_ji = sum_k xi_k(j, i) / sum_k sum_i' xi_k(j, i')`` with ``xi_k(j, i) = P(r_k = j, r_{k+1} = i
-| Y)`` (Hamilton 1990, J. Econometrics 45, eq. (4.8); with known modes the counts of the
-observed transitions, the exact MLE of a Markov chain, Anderson & Goodman 1957, Ann. Math.
-Stat. 28, eq. (2.4)). Its standard error is the multinomial one, ``sqrt(pi_ji (1 - pi_ji) /
-n_j)`` with ``n_j`` the visits of ``j`` (Anderson & Goodman 1957, §3), for known modes; with
-unknown modes the expected counts would be treated as observed, which understates the
-uncertainty (the missing information of the modes), and :func:`switchest.learn.fit` takes the
-observed information instead (:mod:`.standard_errors`).
+:math:`\\pi_{ji} = \\sum_k \\xi_k(j, i) / \\sum_k \\sum_{i'} \\xi_k(j, i')` with
+:math:`\\xi_k(j, i) = P(r_k = j, r_{k+1} = i \\mid Y)` (Hamilton 1990, J. Econometrics 45, eq.
+(4.8); with known modes the counts of the observed transitions, the exact MLE of a Markov chain,
+Anderson & Goodman 1957, Ann. Math. Stat. 28, eq. (2.4)). Its standard error is the multinomial
+one, :math:`\\sqrt{\\pi_{ji} (1 - \\pi_{ji}) / n_j}` with :math:`n_j` the visits of ``j``
+(Anderson & Goodman 1957, §3), for known modes; with unknown modes the expected counts would be
+treated as observed, which understates the uncertainty (the missing information of the modes),
+and :func:`switchest.learn.fit` takes the observed information instead (:mod:`.standard_errors`).
 """
 
 from __future__ import annotations
@@ -46,14 +46,14 @@ def free_rows(transition: np.ndarray, allowed: np.ndarray | None = None
 
 
 def mode_term(transition: np.ndarray, modes: np.ndarray) -> float:
-    """``sum_k log pi_{r_k r_{k+1}}`` of the known mode sequences ``modes (N, K)`` (``-inf``
-    if one is impossible): the modes' share of the complete-data log-likelihood."""
+    """:math:`\\sum_k \\log \\pi_{r_k r_{k+1}}` of the known mode sequences ``modes (N, K)``
+    (``-inf`` if one is impossible): the modes' share of the complete-data log-likelihood."""
     with np.errstate(divide="ignore"):
         return float(np.log(transition)[modes[:, :-1], modes[:, 1:]].sum())
 
 
 def transition_se(transition: np.ndarray, visits: np.ndarray) -> np.ndarray:
-    """Multinomial standard errors ``sqrt(p (1 - p) / n_j)``; NaN for a row never visited."""
+    """Multinomial standard errors :math:`\\sqrt{p (1 - p) / n_j}`; NaN for a row never visited."""
     with np.errstate(divide="ignore", invalid="ignore"):
         se = np.sqrt(transition * (1 - transition) / visits[:, None])
     se[visits < 1.0] = np.nan
@@ -61,10 +61,11 @@ def transition_se(transition: np.ndarray, visits: np.ndarray) -> np.ndarray:
 
 
 def rates_from_transition(transition: np.ndarray, period: float) -> np.ndarray | None:
-    """The generator ``Lambda`` with ``expm(Lambda T) = transition``: ``logm(transition) / T``
-    (Israel, Rosenthal & Wei 2001, Math. Finance 11, §2), or None where the principal logarithm
-    is not a valid generator (complex, or a negative off-diagonal rate beyond rounding): then
-    no continuous-time chain sampled at ``T`` has this transition matrix."""
+    """The generator :math:`\\Lambda` with :math:`\\exp(\\Lambda T) = \\mathrm{transition}`:
+    :math:`\\log(\\mathrm{transition}) / T` (Israel, Rosenthal & Wei 2001, Math. Finance 11, §2),
+    or None where the principal logarithm is not a valid generator (complex, or a negative
+    off-diagonal rate beyond rounding): then no continuous-time chain sampled at ``T`` has this
+    transition matrix."""
     with np.errstate(all="ignore"):
         try:
             G = logm(transition)

@@ -16,35 +16,37 @@ __all__ = ["Moments"]
 class Moments:
     """The E-step's output for ``N`` trials, ``K`` samples, ``L`` modes.
 
-    Each interval ``k -> k+1`` is a mixture of ``H`` components, each moving through one row
+    Each interval :math:`k \\to k+1` is a mixture of ``H`` components, each moving through one row
     of ``table``: with switches at the samples the component ``h`` is the mode ``h`` that
-    drives the interval (``H = L``); with switches inside the intervals
-    (:mod:`~switchest.learn.between`) it is the switch instant ``h`` of the grid (``H = g``).
+    drives the interval (:math:`H = L`); with switches inside the intervals
+    (:mod:`~switchest.learn.between`) it is the switch instant ``h`` of the grid (:math:`H = g`).
 
     Attributes
     ----------
     loglik : float
         Log-likelihood of the record under the parameters of the E-step (known modes:
-        ``log p(y | r) + sum_k log pi_{r_k r_{k+1}}``, with switches inside the intervals the
-        switch-time filter's with the instants marginalized; unknown: the pair chain's IMM's
-        ``sum log p(y_k | y_0..k-1)``, or with the exact E-step the exact ``log p(y)``, which
-        :class:`~switchest.estimators.ExactMixtureFilter`'s ``loglik`` sums to).
+        :math:`\\log p(y \\mid r) + \\sum_k \\log \\pi_{r_k r_{k+1}}`, with switches inside the
+        intervals the switch-time filter's with the instants marginalized; unknown: the pair
+        chain's IMM's :math:`\\sum \\log p(y_k \\mid y_{0:k-1})`, or with the exact E-step the exact
+        :math:`\\log p(y)`, which :class:`~switchest.estimators.ExactMixtureFilter`'s ``loglik``
+        sums to).
     weight : ndarray, shape (N, K, L)
-        ``P(r_k = j | Y)`` (one-hot for known modes).
+        :math:`P(r_k = j \\mid Y)` (one-hot for known modes).
     x, P : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
-        Smoothed state moments given ``r_k = j`` (broadcast views for known modes).
+        Smoothed state moments given :math:`r_k = j` (broadcast views for known modes).
     step_weight : ndarray, shape (N, K-1, H)
-        Weight of component ``h`` of the interval ``k -> k+1``.
+        Weight of component ``h`` of the interval :math:`k \\to k+1`.
     x1, P1 : ndarray, shapes (N, K-1, H, n), (N, K-1, H, n, n)
-        Moments of ``x_{k+1}`` given the component and ``Y``.
+        Moments of :math:`x_{k+1}` given the component and ``Y``.
     x0, P0, cross : ndarray, shapes (N, K-1, H, n), (N, K-1, H, n, n), (N, K-1, H, n, n)
-        Moments of ``x_k`` and ``Cov(x_{k+1}, x_k)`` given the component and ``Y``.
+        Moments of :math:`x_k` and :math:`\\operatorname{Cov}(x_{k+1}, x_k)` given the component and
+        ``Y``.
     table : StepTable
         The exact transitions of the components, with their segments.
     entry : ndarray of int64, shape (K-1, H) or (N, K-1, H)
         The table row of each component of each interval.
     pairs : ndarray, shape (L, L)
-        Expected transition counts ``sum_k P(r_k = j, r_{k+1} = i | Y)``.
+        Expected transition counts :math:`\\sum_k P(r_k = j, r_{k+1} = i \\mid Y)`.
     y : ndarray, shape (N, K, m)
         The measurements the E-step used: the record's, with the samples its filter gated
         (``outlier``) missing.

@@ -6,30 +6,35 @@ over the modes where the fit ties the matrix across them (``shared``). A noise c
 zero variance in the starting model (a state without process noise, an output without sensor
 noise) stays noise-free: only the block on the other components is fitted.
 
-- ``R``: ``E[v v' | Y]`` of ``v = y - C x`` at each sample, weighted by ``P(r_k = j | Y)``.
-  A sample missing some components contributes exactly, by the Gaussian conditional of the
-  missing noise given the observed one under the current ``R`` (``v_m | v_o ~ N(R_mo R_oo^-1
-  v_o, R_mm - R_mo R_oo^-1 R_om)``, Shumway & Stoffer 1982 §4, "missing observations"), a sample
-  missing all of them contributes the current ``R``: a proper EM step, not a drop.
+- ``R``: :math:`\\mathbb{E}[v v^\\top \\mid Y]` of :math:`v = y - C x` at each sample, weighted by
+  :math:`P(r_k = j \\mid Y)`. A sample missing some components contributes exactly, by the
+  Gaussian conditional of the missing noise given the observed one under the current ``R``
+  (:math:`v_m \\mid v_o \\sim
+  \\mathcal{N}(R_{mo} R_{oo}^{-1} v_o, R_{mm} - R_{mo} R_{oo}^{-1} R_{om})`, Shumway & Stoffer
+  1982 §4, "missing observations"), a sample missing all of them contributes the current ``R``:
+  a proper EM step, not a drop.
 - ``Q``: the E-step's intervals move through the rows of a
-  :class:`~switchest.learn.steps.StepTable`, each row ``r`` with its own ``Qd_r``; with
-  ``n_r = sum w`` the weight of the components through row ``r`` and ``S_r = sum w E[w w' |
-  Y]`` of ``w = x_{k+1} - F_r x_k - G_r u_k`` (``E[w w'] = e e' + P1 - F C' - C F' + F P0 F'``,
-  ``e`` the mean residual, ``C = Cov(x_{k+1}, x_k)``), the step minimizes
-  ``sum_r n_r log det Qd_r + tr(Qd_r^-1 S_r)``.
-  Discrete time: ``Qd_r = Q_j`` of the row's mode, so ``Q_j = sum_r S_r / sum_r n_r`` over
-  the rows of ``j`` (of the modes tied with it).
-  Continuous time: ``Q`` is the intensity, and ``Qd_r = Phi_b Qd_a(tau) Phi_b' + Qd_b(h -
-  tau)`` (a row that switches from ``a`` to ``b`` at ``tau``, Shankar et al. eqs (3)-(5) with
-  the exact noise; ``a = b`` without a switch; Van Loan 1978, the exact discretization of
-  :mod:`switchest.discretize`) is linear in ``Q_a`` and ``Q_b`` together: its map is computed
-  once per row on a basis of symmetric matrices of each fitted block (once per fit: ``A`` and
-  the rows do not change between its M-steps, and ``fit_Q``'s ``cache`` keeps the maps and
-  the share of the modes not fitted), and the objective is
-  minimized over all the fitted blocks at once, ``Q = L L'`` (Cholesky factors, BFGS with the
-  analytic gradient ``d/dQ = sum Qd*(n Qd^-1 - Qd^-1 S Qd^-1)``, ``Qd*`` the adjoint map), from
-  the current ``Q``; the result is kept only if it does not increase the objective: a
-  generalized EM step (Dempster, Laird & Rubin 1977, §3), which never decreases the
+  :class:`~switchest.learn.steps.StepTable`, each row ``r`` with its own :math:`Q_{d,r}`; with
+  :math:`n_r = \\sum w` the weight of the components through row ``r`` and
+  :math:`S_r = \\sum w\\, \\mathbb{E}[w w^\\top \\mid Y]` of
+  :math:`w = x_{k+1} - F_r x_k - G_r u_k`
+  (:math:`\\mathbb{E}[w w^\\top] = e e^\\top + P_1 - F C^\\top - C F^\\top + F P_0 F^\\top`,
+  ``e`` the mean residual, :math:`C = \\operatorname{Cov}(x_{k+1}, x_k)`), the step minimizes
+  :math:`\\sum_r n_r \\log\\det Q_{d,r} + \\operatorname{tr}(Q_{d,r}^{-1} S_r)`.
+  Discrete time: :math:`Q_{d,r} = Q_j` of the row's mode, so
+  :math:`Q_j = \\sum_r S_r / \\sum_r n_r` over the rows of ``j`` (of the modes tied with it).
+  Continuous time: ``Q`` is the intensity, and
+  :math:`Q_{d,r} = \\Phi_b Q_{d,a}(\\tau) \\Phi_b^\\top + Q_{d,b}(h - \\tau)` (a row that switches
+  from ``a`` to ``b`` at :math:`\\tau`, Shankar et al. eqs (3)-(5) with the exact noise;
+  :math:`a = b` without a switch; Van Loan 1978, the exact discretization of
+  :mod:`switchest.discretize`) is linear in :math:`Q_a` and :math:`Q_b` together: its map is
+  computed once per row on a basis of symmetric matrices of each fitted block (once per fit:
+  ``A`` and the rows do not change between its M-steps, and ``fit_Q``'s ``cache`` keeps the
+  maps and the share of the modes not fitted), and the objective is minimized over all the
+  fitted blocks at once, :math:`Q = L L^\\top` (Cholesky factors, BFGS with the analytic
+  gradient :math:`d/dQ = \\sum Q_d^*(n Q_d^{-1} - Q_d^{-1} S Q_d^{-1})`, :math:`Q_d^*` the
+  adjoint map), from the current ``Q``; the result is kept only if it does not increase the
+  objective: a generalized EM step (Dempster, Laird & Rubin 1977, §3), which never decreases the
   likelihood. The rows that switch couple the modes' intensities, so they are fitted jointly.
 """
 
@@ -108,9 +113,10 @@ def fit_R(C: np.ndarray, R: np.ndarray, mom: Moments, *, tied: bool) -> np.ndarr
 
 def step_residual_moments(F: np.ndarray, G: np.ndarray, u: np.ndarray,
                           mom: Moments) -> np.ndarray:
-    """``E[w w' | h, Y]`` of every interval and component ``h``, ``(N, K-1, H, n, n)``, with
-    ``w = x_{k+1} - F x_k - G u_k`` and ``F, G`` of shape ``(K-1, H, n, .)`` or ``(N, K-1, H,
-    n, .)`` (the table's rows of the components, ``table.F[mom.entry]``)."""
+    """:math:`\\mathbb{E}[w w^\\top \\mid h, Y]` of every interval and component ``h``,
+    ``(N, K-1, H, n, n)``, with :math:`w = x_{k+1} - F x_k - G u_k` and ``F, G`` of shape
+    ``(K-1, H, n, .)`` or ``(N, K-1, H, n, .)`` (the table's rows of the components,
+    ``table.F[mom.entry]``)."""
     e = (mom.x1 - np.einsum("...jab,...jb->...ja", F, mom.x0)
          - np.einsum("...jab,...b->...ja", G, u[:, :-1]))
     FC = np.einsum("...jab,...jcb->...jac", F, mom.cross)  # F C'
@@ -119,9 +125,9 @@ def step_residual_moments(F: np.ndarray, G: np.ndarray, u: np.ndarray,
 
 
 def row_sums(mom: Moments, u: np.ndarray, table: StepTable) -> tuple[np.ndarray, np.ndarray]:
-    """The weight ``n_r (M,)`` and the weighted ``S_r = sum w E[w w']`` ``(M, n, n)`` of every
-    row of ``table`` (module docstring), the E-step's components mapped to their rows by
-    ``mom.entry``."""
+    """The weight :math:`n_r` ``(M,)`` and the weighted
+    :math:`S_r = \\sum w\\, \\mathbb{E}[w w^\\top]` ``(M, n, n)`` of every row of ``table`` (module
+    docstring), the E-step's components mapped to their rows by ``mom.entry``."""
     F, G = table.F[mom.entry], table.G[mom.entry]
     E = step_residual_moments(F, G, u, mom)
     M, n = table.F.shape[0], E.shape[-1]
@@ -170,10 +176,10 @@ def _basis(k: int) -> list[tuple[int, int]]:
 
 
 def intensity_maps(system: SwitchedLinearSystem, table: StepTable, modes, idx) -> np.ndarray:
-    """``Qd_r`` of every row of ``table`` when the intensity of ``modes`` is ``E_p``, for the
-    symmetric basis ``E_p`` of the block ``idx`` (``E_aa``, and ``E_ab + E_ba`` for ``a < b``),
-    and zero in the other modes: ``(P, M, n, n)``, by the exact discretization of each row's
-    segments (:meth:`StepTable.under`, Van Loan's)."""
+    """:math:`Q_{d,r}` of every row of ``table`` when the intensity of ``modes`` is :math:`E_p`,
+    for the symmetric basis :math:`E_p` of the block ``idx`` (:math:`E_{aa}`, and
+    :math:`E_{ab} + E_{ba}` for :math:`a < b`), and zero in the other modes: ``(P, M, n, n)``, by
+    the exact discretization of each row's segments (:meth:`StepTable.under`, Van Loan's)."""
     n, L = system.n_states, system.n_modes
     on = np.isin(np.arange(L), modes)[:, None, None]
 
@@ -191,10 +197,10 @@ def intensity_maps(system: SwitchedLinearSystem, table: StepTable, modes, idx) -
 
 
 def _intensity(system, table: StepTable, use, fitted, count, S, cache: dict) -> np.ndarray:
-    """Minimize ``sum n log det Qd(Q) + tr(Qd(Q)^-1 S)`` over the fitted blocks ``Q = L L'``
-    together, on the rows ``use`` of ``table``, from the current ``Q`` (module docstring); the
-    current ``Q`` if no better point is found. The maps of every row are taken from ``cache``
-    (computed there at the first M-step of a fit)."""
+    """Minimize :math:`\\sum n \\log\\det Q_d(Q) + \\operatorname{tr}(Q_d(Q)^{-1} S)` over the
+    fitted blocks :math:`Q = L L^\\top` together, on the rows ``use`` of ``table``, from the
+    current ``Q`` (module docstring); the current ``Q`` if no better point is found. The maps of
+    every row are taken from ``cache`` (computed there at the first M-step of a fit)."""
     n = system.n_states
     held = system.Q.copy()  # the modes not fitted keep theirs: their fixed share of each Qd
     for group, _ in fitted:

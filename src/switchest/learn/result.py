@@ -21,8 +21,8 @@ class FitResult:
     system : SwitchedLinearSystem
         The fitted system (the parameters not estimated are those given).
     transition : ndarray, shape (L, L)
-        The fitted (or given) transition matrix, ``transition[i, j]`` = P(mode j at k+1 | mode
-        i at k).
+        The fitted (or given) transition matrix, ``transition[i, j]`` =
+        :math:`P(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`.
     loglik : ndarray, shape (iterations,)
         ``loglik[i]``: the log-likelihood of the data under the parameters of iteration ``i``
         (``i = 0`` the starting ones); the last entry is that of ``system``, ``transition``.

@@ -7,21 +7,22 @@ likelihood estimator: observed versus expected Fisher information"); the covaria
 estimate is its inverse. The free parameters:
 
 - of ``Q`` and ``R``, the upper triangle of each fitted block (its support), each step ``1e-3``
-  of the entry's scale ``sqrt(V_aa V_bb)``;
+  of the entry's scale :math:`\\sqrt{V_{aa} V_{bb}}`;
 - of ``A``, ``B`` and ``C``, every entry (per mode, or once for a matrix the fit ties across
   the modes), each step ``1e-3`` of the entry, or of ``1e-3`` of the matrix's largest entry
   for a smaller one;
 - of the transition matrix (with unknown modes: ``"transition"`` in ``names``), the entries
-  ``pi_ji`` of each row but its largest that were nonzero at the fit's start,
-  ``pi_jr = 1 - sum_{i != r} pi_ji``, which depends on them (:func:`.markov_step.free_rows`; a
-  zero entry of the start stays zero under EM's M-step and the ascent, so it is not free, while
-  one the fit moved to zero lies on the boundary); each step ``1e-3`` of ``min(pi_ji, pi_jr)``,
-  so that the perturbed rows stay probabilities. The dependent entry's standard error follows
-  by the delta method, ``Var pi_jr = 1' Sigma_j 1`` over the row's free entries off the
-  boundary (the covariance of the whole row does not depend on which entry is the dependent
-  one).
+  :math:`\\pi_{ji}` of each row but its largest that were nonzero at the fit's start,
+  :math:`\\pi_{jr} = 1 - \\sum_{i \\ne r} \\pi_{ji}`, which depends on them
+  (:func:`.markov_step.free_rows`; a zero entry of the start stays zero under EM's M-step and
+  the ascent, so it is not free, while one the fit moved to zero lies on the boundary); each
+  step ``1e-3`` of :math:`\\min(\\pi_{ji}, \\pi_{jr})`, so that the perturbed rows stay
+  probabilities. The dependent entry's standard error follows by the delta method,
+  :math:`\\operatorname{Var} \\pi_{jr} = \\mathbf{1}^\\top \\Sigma_j \\mathbf{1}` over the row's
+  free entries off the boundary (the covariance of the whole row does not depend on which entry
+  is the dependent one).
 
-Truncation errors are ``O(1e-6)`` relative, far above the rounding of the summed likelihood.
+Truncation errors are :math:`O(10^{-6})` relative, far above the rounding of the summed likelihood.
 
 A fit on the boundary of the parameter space (a transition probability near zero, a singular
 ``Q`` or ``R`` block: a maximum where the likelihood need not be flat) has no information
@@ -62,7 +63,7 @@ _BOUNDARY = 1e-4
 
 def _free(system: SwitchedLinearSystem, names, tied) -> list[tuple[str, list[int], int, int]]:
     """The free entries: ``(matrix name, modes sharing it, a, b)``, per mode or once for a
-    matrix tied across the modes (``tied``): for ``Q``, ``R`` those with ``a <= b`` in the
+    matrix tied across the modes (``tied``): for ``Q``, ``R`` those with :math:`a \\le b` in the
     matrix's support, for ``A``, ``B``, ``C`` every entry."""
     out = []
     for name in names:
@@ -80,8 +81,8 @@ def _free(system: SwitchedLinearSystem, names, tied) -> list[tuple[str, list[int
 def _free_transition(transition: np.ndarray, allowed
                      ) -> list[tuple[str, list[int], int, int]]:
     """The free entries of the transition matrix: ``("transition", [r], j, i)`` for each
-    free ``pi_ji`` of :func:`.markov_step.free_rows` (on the support ``allowed``), with ``r``
-    the column of the row's largest entry, which depends on them."""
+    free :math:`\\pi_{ji}` of :func:`.markov_step.free_rows` (on the support ``allowed``), with
+    ``r`` the column of the row's largest entry, which depends on them."""
     return [("transition", [r], j, int(i)) for j, r, cols in free_rows(transition, allowed)
             for i in cols]
 
@@ -200,8 +201,9 @@ def observed_standard_errors(system: SwitchedLinearSystem, transition: np.ndarra
 def _definite(info: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, tuple | None]:
     """The parameters whose observed information ``info`` is positive definite, and its
     Cholesky factor (None if there are none): all of them if it is; otherwise, one at a time,
-    the one of least information relative to its ``scale`` (``info_ii scale_i^2``, the
-    curvature in relative units; a non-finite one first) is left out until the rest is."""
+    the one of least information relative to its ``scale``
+    (:math:`\\mathrm{info}_{ii}\\, \\mathrm{scale}_i^2`, the curvature in relative units; a
+    non-finite one first) is left out until the rest is."""
     kept = np.arange(info.shape[0])
     while kept.size:
         sub = info[np.ix_(kept, kept)]

@@ -1,22 +1,23 @@
 """The exact transitions an E-step's intervals move through, each with the segments it covers.
 
 A row of a :class:`StepTable` is one interval of length ``h`` that starts in mode ``a`` and
-switches to mode ``b`` at offset ``tau`` (``a = b``: no switch): ``x+ = F x + G u + w``,
-``w ~ N(0, Qd)``, with ``F = e^{A_b (h - tau)} e^{A_a tau}`` and ``G`` the zero-order hold of
-Shankar et al. eqs (4)-(5), and ``Qd = Phi_b Qd_a(tau) Phi_b' + Qd_b(h - tau)`` the exact
+switches to mode ``b`` at offset :math:`\\tau` (:math:`a = b`: no switch):
+:math:`x^+ = F x + G u + w`, :math:`w \\sim \\mathcal{N}(0, Q_d)`, with
+:math:`F = e^{A_b (h - \\tau)} e^{A_a \\tau}` and ``G`` the zero-order hold of Shankar et al.
+eqs (4)-(5), and :math:`Q_d = \\Phi_b Q_{d,a}(\\tau) \\Phi_b^\\top + Q_{d,b}(h - \\tau)` the exact
 covariance of the integrated noise (Van Loan 1978; :mod:`switchest.discretize`, the one place
 where matrix exponentials are taken). The maximization steps read the segments to rebuild a
-row under other parameters: ``Qd`` is linear in the intensities ``Q_a`` and ``Q_b`` of the two
-segments (:func:`switchest.learn.noise_step.fit_Q`).
+row under other parameters: :math:`Q_d` is linear in the intensities :math:`Q_a` and :math:`Q_b`
+of the two segments (:func:`switchest.learn.noise_step.fit_Q`).
 
 Two layouts, both built from :mod:`switchest.discretize`'s cached tables:
 
 - :func:`sample_table`, switches at the sample instants: each mode over each distinct
-  sampling step (:func:`~switchest.discretize.sample_mode_steps`), row ``d L + j``;
+  sampling step (:func:`~switchest.discretize.sample_mode_steps`), row :math:`d L + j`;
 - :func:`grid_table`, switches inside the intervals: those rows, then for each distinct step
-  ``d`` every mode pair ``(a, b)`` switching at each instant ``tau_i = i h / g - h / (2 g)`` of
-  the grid of Shankar et al. eq. (23) (:func:`~switchest.discretize.pairwise_grid`), row
-  ``D L + ((d L + a) L + b) g + i``.
+  ``d`` every mode pair ``(a, b)`` switching at each instant
+  :math:`\\tau_i = i h / g - h / (2 g)` of the grid of Shankar et al. eq. (23)
+  (:func:`~switchest.discretize.pairwise_grid`), row :math:`D L + ((d L + a) L + b) g + i`.
 """
 
 from __future__ import annotations
@@ -44,7 +45,8 @@ class StepTable:
     modes : ndarray of int64, shape (M, 2)
         The mode before and after the switch (equal: no switch).
     offset : ndarray, shape (M,)
-        The switch instant from the start of the interval, in ``[0, h]`` (0 without a switch).
+        The switch instant from the start of the interval, in :math:`[0, h]` (0 without a
+        switch).
     """
 
     F: np.ndarray
