@@ -10,6 +10,7 @@ scripts of ``examples/`` (sphinx-gallery).
 
 from __future__ import annotations
 
+import doctest
 import os
 import sys
 from pathlib import Path
@@ -29,6 +30,7 @@ release = version = switchest.__version__
 extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
+    "sphinx.ext.doctest",  # the Examples of the docstrings, run by `-b doctest` (.ci/run)
     "sphinx.ext.mathjax",
     "sphinx.ext.viewcode",
     "matplotlib.sphinxext.plot_directive",  # the figure of getting-started, drawn at build time
@@ -49,6 +51,14 @@ autodoc_typehints = "none"  # the numpydoc sections give the types
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_validation_checks: set[str] = set()
+
+# -- doctest: the Examples sections run as in their module, whose names they use unqualified
+doctest_global_setup = """
+import numpy as np
+from switchest import *
+from switchest.estimators import *
+"""
+doctest_default_flags = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 
 # -- plots drawn at build time ---------------------------------------------------------------
 plot_include_source = True
