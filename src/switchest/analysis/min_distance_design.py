@@ -1,43 +1,63 @@
 """Lee, Ping & Shim (002): the constants of §II, Assumptions 1-3, the smallest windows.
 
 Lee et al. estimate the mode of a continuous-time switched system from the
-output on a window of length ``delta`` and detect each switch within ``Delta``
-after it happened, provided (Assumption 2, conditions (3) and (4)), for all t::
+output on a window of length :math:`\\delta` and detect each switch within :math:`\\Delta`
+after it happened, provided (Assumption 2, conditions (3) and (4)), for all :math:`t`:
 
-    omega_min(delta) |x(t)|^2 > (u_max sqrt(N_u(delta)) + 2 v_max sqrt(delta))^2          (3)
-    omega_min(Delta) |x(t)|^2 > 1/2 (u_max sqrt(N_u(Delta)) + 2 v_max sqrt(Delta)
-                                     + 2 v_max C_max (mu_c e^{lam_c Delta} + 1)^2
-                                       E_hat(delta) sqrt(Delta))^2                        (4)
+.. math::
 
-with ``||e^{A_i t}|| <= mu_c e^{lam_c t}`` (``mu_c >= 1``, ``lam_c >= 0``; the paper's
-check accents), ``||e^{(A_i - L_i C_i) t}|| <= mu_h e^{-lam_h t}`` (hat accents),
-``L_max = max ||L_i||``, ``C_max = max ||C_i||``, ``h_i(t) = C_i e^{A_i t} B_i``,
-``phi_i(t) = C_i e^{A_i t}``, ``U_i(t) = int_0^t phi_i' phi_i``::
+    \\begin{aligned}
+    \\omega_{\\min}(\\delta) \\lvert x(t) \\rvert^2 &> \\bigl(u_{\\max} \\sqrt{N_u(\\delta)}
+        + 2 v_{\\max} \\sqrt{\\delta}\\bigr)^2 && (3) \\\\
+    \\omega_{\\min}(\\Delta) \\lvert x(t) \\rvert^2 &> \\tfrac{1}{2} \\bigl(u_{\\max}
+        \\sqrt{N_u(\\Delta)} + 2 v_{\\max} \\sqrt{\\Delta} \\\\
+    &\\qquad + 2 v_{\\max} C_{\\max} (\\mu_c e^{\\lambda_c \\Delta} + 1)^2
+        \\hat E(\\delta) \\sqrt{\\Delta}\\bigr)^2 && (4)
+    \\end{aligned}
 
-    N_u(t)    = max_{i != j} int_0^t (int_0^tau ||h_i(s) - h_j(s)|| ds)^2 dtau
-    M_i(t)    = int_0^t ||U_i(t)^{-1} phi_i(tau)'|| dtau,   M_max = max_i M_i
-    E_hat(d)  = mu_h max(M_max(d), L_max / lam_h)
-    S_Delta   = v_max^2 (1 + C_max (mu_c e^{lam_c Delta} + 2) E_hat(delta))^2 Delta     (§IV)
+with :math:`\\lVert e^{A_i t} \\rVert \\le \\mu_c e^{\\lambda_c t}` (:math:`\\mu_c \\ge 1`,
+:math:`\\lambda_c \\ge 0`; the paper's check accents),
+:math:`\\lVert e^{(A_i - L_i C_i) t} \\rVert \\le \\mu_h e^{-\\lambda_h t}` (hat accents),
+:math:`L_{\\max} = \\max_i \\lVert L_i \\rVert`, :math:`C_{\\max} = \\max_i \\lVert C_i \\rVert`,
+:math:`h_i(t) = C_i e^{A_i t} B_i`, :math:`\\phi_i(t) = C_i e^{A_i t}`,
+:math:`U_i(t) = \\int_0^t \\phi_i^\\top \\phi_i`:
 
-All norms are spectral norms; ``|x(t)|`` is bounded below by the caller's ``x_min``.
+.. math::
+
+    \\begin{aligned}
+    N_u(t) &= \\max_{i \\ne j} \\int_0^t \\Bigl(\\int_0^\\tau \\lVert h_i(s) - h_j(s) \\rVert\\, ds
+        \\Bigr)^2 d\\tau \\\\
+    M_i(t) &= \\int_0^t \\lVert U_i(t)^{-1} \\phi_i(\\tau)^\\top \\rVert\\, d\\tau,
+        \\qquad M_{\\max} = \\max_i M_i \\\\
+    \\hat E(d) &= \\mu_h \\max(M_{\\max}(d), L_{\\max} / \\lambda_h) \\\\
+    S_\\Delta &= v_{\\max}^2 \\bigl(1 + C_{\\max} (\\mu_c e^{\\lambda_c \\Delta} + 2)
+        \\hat E(\\delta)\\bigr)^2 \\Delta && (\\text{§IV})
+    \\end{aligned}
+
+All norms are spectral norms; :math:`\\lvert x(t) \\rvert` is bounded below by the caller's
+``x_min``.
 
 How each constant is obtained
 -----------------------------
-* ``mu_c, lam_c`` and ``mu_h, lam_h``: Lyapunov bounds. For a shift ``r`` above the
-  spectral abscissa of ``A``, ``P`` solves ``(A - rI)'P + P(A - rI) = -I``; then
-  ``V = x'Px`` obeys ``dV/dt <= (2r - 1/lambda_max(P)) V`` and
-  ``||e^{At}|| <= sqrt(cond P) e^{(r - 1/(2 lambda_max(P))) t}``. As ``r -> inf``
-  this tends to ``mu = 1`` with the logarithmic norm ``lambda_max((A + A')/2)`` as
-  rate, which is also a candidate. One shift is shared by all modes (mu = max over
-  modes, rate = max over modes) and chosen on a log-spaced grid of shifts to
-  minimize what the conditions use: ``mu_c e^{lam_c Delta}`` for ``A_i``, and
-  ``E_hat(delta)`` for ``A_i - L_i C_i``. Both bounds are re-checked on a time grid
-  (``bound_ratio_*`` <= 1).
-* ``U_i(t)`` and ``omega_min(t)``: exact, by Van Loan's block exponential
+* :math:`\\mu_c, \\lambda_c` and :math:`\\mu_h, \\lambda_h`: Lyapunov bounds. For a shift
+  :math:`r` above the spectral abscissa of :math:`A`, :math:`P` solves
+  :math:`(A - rI)^\\top P + P(A - rI) = -I`; then :math:`V = x^\\top P x` obeys
+  :math:`dV/dt \\le (2r - 1/\\lambda_{\\max}(P)) V` and
+  :math:`\\lVert e^{At} \\rVert \\le
+  \\sqrt{\\operatorname{cond} P}\\, e^{(r - 1/(2 \\lambda_{\\max}(P))) t}`.
+  As :math:`r \\to \\infty` this tends to :math:`\\mu = 1` with the logarithmic norm
+  :math:`\\lambda_{\\max}((A + A^\\top)/2)` as rate, which is also a candidate. One shift is
+  shared by all modes (:math:`\\mu` = max over modes, rate = max over modes) and chosen on a
+  log-spaced grid of shifts to minimize what the conditions use:
+  :math:`\\mu_c e^{\\lambda_c \\Delta}` for :math:`A_i`, and :math:`\\hat E(\\delta)` for
+  :math:`A_i - L_i C_i`. Both bounds are re-checked on a time grid
+  (``bound_ratio_*`` :math:`\\le 1`).
+* :math:`U_i(t)` and :math:`\\omega_{\\min}(t)`: exact, by Van Loan's block exponential
   (:func:`switchest.analysis.observability.joint_gramian`).
-* ``N_u`` and ``M_i``: the norms inside the integrals are not linear, so these are
+* :math:`N_u` and :math:`M_i`: the norms inside the integrals are not linear, so these are
   composite trapezoid sums on a uniform grid of ``n_grid`` points with
-  ``e^{A_i tau}`` exact at every node (relative error ~ ``(t / n_grid)^2``).
+  :math:`e^{A_i \\tau}` exact at every node (relative error
+  :math:`\\sim (t / \\mathrm{n\\_grid})^2`).
 * Observer gains (when not given): :func:`default_observer_gains`.
 """
 
@@ -86,32 +106,36 @@ class LeeConstants:
     delta, Delta : float
         Estimation window and detection delay.
     mu_check, lambda_check : float
-        ``||e^{A_i t}|| <= mu_check e^{lambda_check t}`` for all t >= 0 and modes.
+        :math:`\\lVert e^{A_i t} \\rVert \\le \\check\\mu e^{\\check\\lambda t}` for all
+        :math:`t \\ge 0` and modes.
     mu_hat, lambda_hat : float
-        ``||e^{(A_i - L_i C_i) t}|| <= mu_hat e^{-lambda_hat t}``.
+        :math:`\\lVert e^{(A_i - L_i C_i) t} \\rVert \\le \\hat\\mu e^{-\\hat\\lambda t}`.
     observer_gains : ndarray, shape (L, n, m)
-        The ``L_i`` used.
+        The :math:`L_i` used.
     L_max, C_max : float
-        ``max_i ||L_i||``, ``max_i ||C_i||``.
+        :math:`\\max_i \\lVert L_i \\rVert`, :math:`\\max_i \\lVert C_i \\rVert`.
     U : ndarray, shape (L, n, n)
-        ``U_i(delta)``, the observability Gramians of the modes.
+        :math:`U_i(\\delta)`, the observability Gramians of the modes.
     M : ndarray, shape (L,)
-        ``M_i(delta)``; ``M_max = M.max()``.
+        :math:`M_i(\\delta)`; ``M_max = M.max()``.
     M_max : float
     N_u_delta, N_u_Delta : float
-        ``N_u(delta)``, ``N_u(Delta)`` (zero without inputs).
+        :math:`N_u(\\delta)`, :math:`N_u(\\Delta)` (zero without inputs).
     omega_min_delta, omega_min_Delta : float
-        ``omega_min(delta)``, ``omega_min(Delta)``.
+        :math:`\\omega_{\\min}(\\delta)`, :math:`\\omega_{\\min}(\\Delta)`.
     E_hat : float
-        ``E_hat(delta)``.
+        :math:`\\hat E(\\delta)`.
     growth : float
-        ``mu_check e^{lambda_check Delta}``.
+        :math:`\\check\\mu e^{\\check\\lambda \\Delta}`.
     reset_factor : float
-        ``(growth + 1) E_hat``: the threshold of (21) and (23) is ``v_max`` times it.
+        :math:`(\\mathrm{growth} + 1) \\hat E`: the threshold of (21) and (23) is ``v_max`` times
+        it.
     s_factor : float
-        ``(1 + C_max (growth + 2) E_hat)^2 Delta``: ``S_Delta = v_max^2 s_factor``.
+        :math:`(1 + C_{\\max} (\\mathrm{growth} + 2) \\hat E)^2 \\Delta`:
+        :math:`S_\\Delta = v_{\\max}^2 \\, \\mathrm{s\\_factor}`.
     bound_ratio_check, bound_ratio_hat : float
-        ``max ||e^{M t}|| / (mu e^{rate t})`` over ``t`` in ``[0, bound_horizon]``
+        :math:`\\max \\lVert e^{M t} \\rVert / (\\mu e^{\\mathrm{rate}\\, t})` over
+        :math:`t \\in [0, \\mathrm{bound\\_horizon}]`
         (501 points) for the two bounds; at most 1 (checked).
     bound_horizon : float
     """
@@ -141,15 +165,19 @@ class LeeConstants:
     bound_horizon: float
 
     def S_Delta(self, v_max: float) -> float:
-        """The bound ``S_Delta`` of §IV.
+        """The bound :math:`S_\\Delta` of §IV.
 
-        ``S_Delta = v_max^2 (1 + C_max (mu e^{lambda Delta} + 2) E_hat(delta))^2 Delta``
+        .. math::
+
+            S_\\Delta = v_{\\max}^2 \\bigl(1 + C_{\\max} (\\mu e^{\\lambda \\Delta} + 2)
+            \\hat E(\\delta)\\bigr)^2 \\Delta
         """
         v_max = positive_scalar(v_max, "v_max", allow_zero=True)
         return v_max * v_max * self.s_factor  # a product: inf, not OverflowError, for a huge v_max
 
     def reset_threshold(self, v_max: float) -> float:
-        """``v_max (mu e^{lambda Delta} + 1) E_hat(delta)``, the threshold of (21) and (23)."""
+        """:math:`v_{\\max} (\\mu e^{\\lambda \\Delta} + 1) \\hat E(\\delta)`, the threshold of (21)
+        and (23)."""
         return positive_scalar(v_max, "v_max", allow_zero=True) * self.reset_factor
 
 
@@ -164,9 +192,9 @@ class LeeCondition:
         ``lhs - rhs`` (Assumption 1: the smallest PBH margin over mode pairs;
         Assumption 3: the slack of the tighter of its two requirements); the
         condition holds exactly when ``margin > 0`` (a dwell exactly equal to
-        ``delta + Delta`` counts as failing).
+        :math:`\\delta + \\Delta` counts as failing).
     lhs, rhs : float
-        The two sides (Assumption 1: ``omega_min(delta)`` and 0).
+        The two sides (Assumption 1: :math:`\\omega_{\\min}(\\delta)` and 0).
     """
 
     holds: bool
@@ -189,7 +217,7 @@ class LeeAssumptions:
         ``None`` when neither ``signal`` nor ``min_dwell`` was given: the dwell time
         ``required_dwell`` is then a requirement on the signal left to the caller.
     required_dwell : float
-        ``delta + Delta`` (Assumption 3).
+        :math:`\\delta + \\Delta` (Assumption 3).
     v_max_allowed : float
         The largest noise bound for which (3) and (4) hold with the given
         ``u_max``, ``x_min``, ``delta``, ``Delta`` (strictly below it; negative when
@@ -216,13 +244,13 @@ class LeeWindows:
     holds : bool
         Windows satisfying (3) and (4) exist on the grid up to ``t_max`` (found).
     delta : float or None
-        Smallest multiple of ``step`` in ``(0, t_max]`` for which (3) holds.
+        Smallest multiple of ``step`` in :math:`(0, t_{\\max}]` for which (3) holds.
     Delta : float or None
-        Smallest multiple of ``step`` in ``(0, t_max]`` for which (4) holds with
-        that ``delta``.
+        Smallest multiple of ``step`` in :math:`(0, t_{\\max}]` for which (4) holds with
+        that :math:`\\delta`.
     step : float
     assumptions : LeeAssumptions or None
-        :func:`lee_assumptions` re-evaluated at ``(delta, Delta)``.
+        :func:`lee_assumptions` re-evaluated at :math:`(\\delta, \\Delta)`.
     """
 
     holds: bool
@@ -234,13 +262,13 @@ class LeeWindows:
 
 # ---------------------------------------------------------------------- public
 def default_observer_gains(system: SwitchedLinearSystem) -> np.ndarray:
-    """Observer gains ``L_i`` with ``A_i - L_i C_i`` Hurwitz, by pole placement.
+    """Observer gains :math:`L_i` with :math:`A_i - L_i C_i` Hurwitz, by pole placement.
 
-    For mode i the poles are ``-rho_i (1, 1.25, 1.5, ...)`` with
-    ``rho_i = max(1, 2 max|eig(A_i)|)``: twice as fast as the mode's own dynamics.
-    Distinct real poles are placed by ``scipy.signal.place_poles`` on the dual pair
-    ``(A_i', C_i')`` (its robust method makes the closed-loop eigenvectors as
-    orthogonal as it can, which keeps ``mu_hat`` small).
+    For mode :math:`i` the poles are :math:`-\\rho_i (1, 1.25, 1.5, \\dots)` with
+    :math:`\\rho_i = \\max(1, 2 \\max \\lvert \\operatorname{eig}(A_i) \\rvert)`: twice as fast as
+    the mode's own dynamics. Distinct real poles are placed by ``scipy.signal.place_poles`` on
+    the dual pair :math:`(A_i^\\top, C_i^\\top)` (its robust method makes the closed-loop
+    eigenvectors as orthogonal as it can, which keeps :math:`\\hat\\mu` small).
 
     Returns
     -------
@@ -256,11 +284,12 @@ def default_observer_gains(system: SwitchedLinearSystem) -> np.ndarray:
 
 
 def decay_observer_gains(system: SwitchedLinearSystem, decay: float) -> np.ndarray:
-    """Observer gains: poles of ``A_i - L_i C_i`` at ``-a``, ``-1.25 a``, ... for ``a = decay``.
+    """Observer gains: poles of :math:`A_i - L_i C_i` at :math:`-a`, :math:`-1.25 a`, ... for
+    :math:`a` = ``decay``.
 
-    Each pole is repeated ``rank C_i`` times (the multiplicity
-    ``scipy.signal.place_poles`` allows), so with ``C_i = I`` every pole is ``-a``:
-    ``L_i = A_i + a I`` and ``A_i - L_i C_i = -a I``, the gains of the lee-detection
+    Each pole is repeated :math:`\\operatorname{rank} C_i` times (the multiplicity
+    ``scipy.signal.place_poles`` allows), so with :math:`C_i = I` every pole is :math:`-a`:
+    :math:`L_i = A_i + a I` and :math:`A_i - L_i C_i = -a I`, the gains of the lee-detection
     experiment (:attr:`switchest.models.lee.LeeScenario.observer_gains`).
 
     Returns
@@ -277,9 +306,10 @@ def decay_observer_gains(system: SwitchedLinearSystem, decay: float) -> np.ndarr
 
 
 def observability_gramians(system: SwitchedLinearSystem, t) -> np.ndarray:
-    """``U_i(t) = int_0^t e^{A_i' s} C_i' C_i e^{A_i s} ds`` for every mode (Lee et al. §II).
+    """:math:`U_i(t) = \\int_0^t e^{A_i^\\top s} C_i^\\top C_i e^{A_i s}\\, ds` for every mode
+    (Lee et al. §II).
 
-    Exact: the process-noise integral of the dual system ``(A_i', C_i'C_i)`` from
+    Exact: the process-noise integral of the dual system :math:`(A_i^\\top, C_i^\\top C_i)` from
     :func:`switchest.discretize.interval` (Van Loan).
 
     Parameters
@@ -308,7 +338,8 @@ def lee_constants(
     system: SwitchedLinearSystem, delta: float, Delta: float, observer_gains=None, *,
     n_grid: int = 2001,
 ) -> LeeConstants:
-    """The constants of Lee et al. §II (and ``S_Delta`` of §IV) for windows ``delta``, ``Delta``.
+    """The constants of Lee et al. §II (and :math:`S_\\Delta` of §IV) for windows ``delta``,
+    ``Delta``.
 
     Parameters
     ----------
@@ -317,9 +348,9 @@ def lee_constants(
     delta, Delta : float
         Estimation window and detection delay (positive).
     observer_gains : array_like, shape (L, n, m) or (n, m), optional
-        ``L_i`` with ``A_i - L_i C_i`` Hurwitz; default :func:`default_observer_gains`.
+        :math:`L_i` with :math:`A_i - L_i C_i` Hurwitz; default :func:`default_observer_gains`.
     n_grid : int
-        Quadrature nodes for ``N_u`` and ``M_i`` (keyword-only).
+        Quadrature nodes for :math:`N_u` and :math:`M_i` (keyword-only).
 
     Returns
     -------
@@ -401,17 +432,18 @@ def lee_assumptions(
     system : SwitchedLinearSystem
         Continuous-time.
     u_max, v_max : float
-        Bounds on ``|u(t)|`` and ``|v(t)|`` (eq. (2)); zero allowed.
+        Bounds on :math:`\\lvert u(t) \\rvert` and :math:`\\lvert v(t) \\rvert` (eq. (2)); zero
+        allowed.
     x_min : float
-        A lower bound on ``|x(t)|`` over the time considered; (3) and (4) are
-        required "for all t", so they are checked at ``|x(t)| = x_min``.
+        A lower bound on :math:`\\lvert x(t) \\rvert` over the time considered; (3) and (4) are
+        required "for all t", so they are checked at :math:`\\lvert x(t) \\rvert = x_{\\min}`.
     delta, Delta : float
         Estimation window and detection delay.
     observer_gains : array_like, optional
-        ``L_i``; default :func:`default_observer_gains`.
+        :math:`L_i`; default :func:`default_observer_gains`.
     signal : SwitchingSignal or sequence of them, optional
-        Switching signal(s) to check Assumption 3 on: no switch in ``[0, delta]``
-        and every dwell at least ``delta + Delta``.
+        Switching signal(s) to check Assumption 3 on: no switch in :math:`[0, \\delta]`
+        and every dwell at least :math:`\\delta + \\Delta`.
     min_dwell : float, optional
         Instead of ``signal``: a dwell-time bound of the signal class, also
         bounding the first switch instant from below.
@@ -468,12 +500,13 @@ def lee_windows(
     t_max: float = 10.0,
     step: float | None = None,
 ) -> LeeWindows:
-    """The smallest ``delta`` satisfying (3), then the smallest ``Delta`` satisfying (4).
+    """The smallest :math:`\\delta` satisfying (3), then the smallest :math:`\\Delta` satisfying
+    (4).
 
-    Both are searched among the multiples of ``step`` in ``(0, t_max]`` (so they
-    can be used as they are on a detector grid of that step): ``delta`` is the
-    first at which (3) holds, ``Delta`` the first at which (4) holds with
-    ``E_hat(delta)`` of that ``delta``. Neither condition is monotone in its window
+    Both are searched among the multiples of ``step`` in :math:`(0, t_{\\max}]` (so they
+    can be used as they are on a detector grid of that step): :math:`\\delta` is the
+    first at which (3) holds, :math:`\\Delta` the first at which (4) holds with
+    :math:`\\hat E(\\delta)` of that :math:`\\delta`. Neither condition is monotone in its window
     in general, so "smallest" means the first on the scan. The pair is then
     re-checked with :func:`lee_assumptions`.
 
@@ -492,7 +525,7 @@ def lee_windows(
     -------
     LeeWindows
         ``holds=False`` when no window up to ``t_max`` works (``delta`` is still
-        given when only (4) failed). The scan integrates ``N_u`` on the scan grid;
+        given when only (4) failed). The scan integrates :math:`N_u` on the scan grid;
         ``assumptions`` re-evaluates the pair with :func:`lee_constants`'
         quadrature, so read its ``holds`` for the verdict.
     """
@@ -541,9 +574,9 @@ def _check_system(system) -> None:
 
 
 def _placed_gains(system: SwitchedLinearSystem, poles) -> np.ndarray:
-    """``L_i (L, n, m)`` placing the eigenvalues of ``A_i - L_i C_i`` at ``poles(A_i, C_i)``,
-    by ``scipy.signal.place_poles`` on the dual pair ``(A_i', C_i')``; every mode must be
-    observable (Lee et al. §II)."""
+    """:math:`L_i` ``(L, n, m)`` placing the eigenvalues of :math:`A_i - L_i C_i` at
+    ``poles(A_i, C_i)``, by ``scipy.signal.place_poles`` on the dual pair
+    :math:`(A_i^\\top, C_i^\\top)`; every mode must be observable (Lee et al. §II)."""
     from scipy.signal import place_poles  # scipy.signal: most of a second to import
     gains = []
     for i in range(system.n_modes):
@@ -556,14 +589,14 @@ def _placed_gains(system: SwitchedLinearSystem, poles) -> np.ndarray:
 
 
 def _bounds(u_max: float, v_max: float, x_min: float) -> tuple[float, float, float]:
-    """The input and noise bounds of eq. (2) and the state's lower bound, each ``>= 0``."""
+    """The input and noise bounds of eq. (2) and the state's lower bound, each :math:`\\ge 0`."""
     return (positive_scalar(u_max, "u_max", allow_zero=True),
             positive_scalar(v_max, "v_max", allow_zero=True),
             positive_scalar(x_min, "x_min", allow_zero=True))
 
 
 def _gains(system: SwitchedLinearSystem, observer_gains) -> np.ndarray:
-    """Validated ``L_i (L, n, m)`` with every ``A_i - L_i C_i`` Hurwitz."""
+    """Validated :math:`L_i` ``(L, n, m)`` with every :math:`A_i - L_i C_i` Hurwitz."""
     if observer_gains is None:
         return default_observer_gains(system)
     L, n, m = system.n_modes, system.n_states, system.n_outputs
@@ -588,14 +621,15 @@ def _check_grid(system: SwitchedLinearSystem, count: int, what: str) -> None:
     """Refuse a time grid whose per-node matrices would not fit in memory.
 
     Per node: the exponentials of every mode and the Van Loan blocks of every mode
-    pair's Gramian, ``8 L^2 (4n)^2`` floats with the copies ``expm`` makes.
+    pair's Gramian, :math:`8 L^2 (4n)^2` floats with the copies ``expm`` makes.
     """
     L, n = system.n_modes, system.n_states
     check_memory(8 * count * 8 * L * L * (4 * n) ** 2, f"{what} (8 L^2 (4n)^2 floats per node)")
 
 
 def _check_horizon(system: SwitchedLinearSystem, value: float, name: str) -> None:
-    """Refuse a window over which ``e^{A_i t}`` may overflow: ``max_i ||A_i|| t <= 700``."""
+    """Refuse a window over which :math:`e^{A_i t}` may overflow:
+    :math:`\\max_i \\lVert A_i \\rVert t \\le 700`."""
     exponent = float(np.max(np.linalg.norm(system.A, ord=2, axis=(1, 2)))) * value
     if exponent > _MAX_EXPONENT:
         raise ValueError(
@@ -605,13 +639,15 @@ def _check_horizon(system: SwitchedLinearSystem, value: float, name: str) -> Non
 
 
 def _dual(system: SwitchedLinearSystem) -> SwitchedLinearSystem:
-    """``(A_i', C_i'C_i)``: its process-noise integral is the observability Gramian."""
+    """:math:`(A_i^\\top, C_i^\\top C_i)`: its process-noise integral is the observability
+    Gramian."""
     At = np.swapaxes(system.A, 1, 2)
     return SwitchedLinearSystem.continuous(At, Q=np.swapaxes(system.C, 1, 2) @ system.C)
 
 
 def _omega_min(system: SwitchedLinearSystem, t):
-    """``omega_min(t) = min_{i != j} lambda_min(W_ij(t))`` (Lee et al. §II), scalar or array."""
+    """:math:`\\omega_{\\min}(t) = \\min_{i \\ne j} \\lambda_{\\min}(W_{ij}(t))` (Lee et al. §II),
+    scalar or array."""
     pairs = list(combinations(range(system.n_modes), 2))
     if not pairs:
         return np.full(np.shape(t), np.inf) if np.ndim(t) else float("inf")
@@ -620,9 +656,10 @@ def _omega_min(system: SwitchedLinearSystem, t):
 
 
 def _exponentials(system: SwitchedLinearSystem, tau: np.ndarray) -> np.ndarray:
-    """``e^{A_i tau_k}`` on a uniform grid ``tau = k h`` (k = 0..K-1), shape (K, L, n, n).
+    """:math:`e^{A_i \\tau_k}` on a uniform grid :math:`\\tau = k h` (:math:`k = 0, \\dots, K-1`),
+    shape (K, L, n, n).
 
-    One exact step ``e^{A_i h}`` (:func:`switchest.discretize.mode_steps`) and its
+    One exact step :math:`e^{A_i h}` (:func:`switchest.discretize.mode_steps`) and its
     powers: no exponential of a long horizon, which could overflow.
     """
     L, n = system.n_modes, system.n_states
@@ -636,7 +673,9 @@ def _exponentials(system: SwitchedLinearSystem, tau: np.ndarray) -> np.ndarray:
 
 
 def _gramian_terms(system: SwitchedLinearSystem, t: float, n_grid: int):
-    """``U_i(t)`` (exact) and ``M_i(t) = int_0^t ||U_i(t)^{-1} phi_i(tau)'|| dtau`` (trapezoid)."""
+    """:math:`U_i(t)` (exact) and
+    :math:`M_i(t) = \\int_0^t \\lVert U_i(t)^{-1} \\phi_i(\\tau)^\\top \\rVert\\, d\\tau`
+    (trapezoid)."""
     U = observability_gramians(system, t)
     tau = np.linspace(0.0, t, n_grid)
     phi_t = np.swapaxes(system.C @ _exponentials(system, tau), -1, -2)  # phi_i(tau)' (K, L, n, m)
@@ -645,14 +684,15 @@ def _gramian_terms(system: SwitchedLinearSystem, t: float, n_grid: int):
 
 
 def _input_kernel_gaps(system: SwitchedLinearSystem, tau: np.ndarray) -> np.ndarray:
-    """``||h_i(tau) - h_j(tau)||`` for every pair i < j, shape (pairs, K)."""
+    """:math:`\\lVert h_i(\\tau) - h_j(\\tau) \\rVert` for every pair :math:`i < j`, shape
+    (pairs, K)."""
     h = system.C @ _exponentials(system, tau) @ system.B  # (K, L, m, l)
     pairs = list(combinations(range(system.n_modes), 2))
     return np.array([np.linalg.norm(h[:, i] - h[:, j], ord=2, axis=(-2, -1)) for i, j in pairs])
 
 
 def _n_u(system: SwitchedLinearSystem, t: float, n_grid: int) -> float:
-    """``N_u(t)`` by two nested composite trapezoid sums (Lee et al. §II)."""
+    """:math:`N_u(t)` by two nested composite trapezoid sums (Lee et al. §II)."""
     if system.n_inputs == 0 or system.n_modes < 2:
         return 0.0
     tau = np.linspace(0.0, t, n_grid)
@@ -661,7 +701,8 @@ def _n_u(system: SwitchedLinearSystem, t: float, n_grid: int) -> float:
 
 
 def _n_u_cumulative(system: SwitchedLinearSystem, t: np.ndarray) -> np.ndarray:
-    """``N_u`` at every node of the uniform grid ``t = step * (1..K)`` (trapezoid from 0)."""
+    """:math:`N_u` at every node of the uniform grid
+    :math:`t = \\mathrm{step} \\cdot (1, \\dots, K)` (trapezoid from 0)."""
     if system.n_inputs == 0 or system.n_modes < 2:
         return np.zeros_like(t)
     tau = np.concatenate([[0.0], t])
@@ -677,7 +718,8 @@ def _cumtrapz(f: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class _ShiftTable:
-    """Candidate bounds ``||e^{At}|| <= mu e^{rate t}`` shared by all modes (one per row)."""
+    """Candidate bounds :math:`\\lVert e^{At} \\rVert \\le \\mu e^{\\mathrm{rate}\\, t}` shared by
+    all modes (one per row)."""
 
     mu: np.ndarray
     rate: np.ndarray
@@ -686,16 +728,19 @@ class _ShiftTable:
 def _shift_table(A: np.ndarray) -> _ShiftTable:
     """Lyapunov bounds for a log-spaced grid of shifts plus the logarithmic-norm bound.
 
-    The shifts run from the spectral abscissa up by ``10^-4 .. 10^3`` times the largest mode
-    norm and, for a Hurwitz ``A``, also across ``(abscissa, 0]``: far from normal, the first
-    grid starts above 0 and would hold no decaying bound at all.
+    The shifts run from the spectral abscissa up by :math:`10^{-4}, \\dots, 10^3` times the
+    largest mode norm and, for a Hurwitz :math:`A`, also across :math:`(\\text{abscissa}, 0]`: far
+    from normal, the first grid starts above 0 and would hold no decaying bound at all.
 
-    For shift ``r`` above every mode's spectral abscissa, ``P_i`` solves
-    ``(A_i - rI)'P + P(A_i - rI) = -I``; mode i gives ``mu_i = sqrt(cond P_i)`` and
-    ``rate_i = r - (1 - |E_i|)/(2 lambda_max(P_i))``, where ``E_i`` is the residual of the
-    computed ``P_i`` (0 in exact arithmetic: the rate stays a bound for the ``P_i`` actually
-    computed); the row is ``(max_i mu_i, max_i rate_i)``. Shifts where some ``|E_i|`` reaches
-    1/2 (``P_i`` inaccurate or singular, next to a sum of eigenvalues) are dropped.
+    For shift :math:`r` above every mode's spectral abscissa, :math:`P_i` solves
+    :math:`(A_i - rI)^\\top P + P(A_i - rI) = -I`; mode :math:`i` gives
+    :math:`\\mu_i = \\sqrt{\\operatorname{cond} P_i}` and
+    :math:`\\mathrm{rate}_i = r - (1 - \\lVert E_i \\rVert)/(2 \\lambda_{\\max}(P_i))`, where
+    :math:`E_i` is the residual of the computed :math:`P_i` (0 in exact arithmetic: the rate
+    stays a bound for the :math:`P_i` actually computed); the row is
+    :math:`(\\max_i \\mu_i, \\max_i \\mathrm{rate}_i)`. Shifts where some
+    :math:`\\lVert E_i \\rVert` reaches 1/2 (:math:`P_i` inaccurate or singular, next to a sum of
+    eigenvalues) are dropped.
     The equations of all shifts and modes are solved at once in Kronecker form.
     """
     n = A.shape[-1]
@@ -744,7 +789,8 @@ def _solve_each(systems: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 
 
 def _best_growth(table: _ShiftTable, Delta: np.ndarray):
-    """``(mu_check, lambda_check)`` minimizing ``mu e^{max(rate, 0) Delta}``, for each Delta."""
+    """:math:`(\\check\\mu, \\check\\lambda)` minimizing
+    :math:`\\mu e^{\\max(\\mathrm{rate}, 0) \\Delta}`, for each :math:`\\Delta`."""
     lam = np.maximum(table.rate, 0.0)  # the paper asks lambda_check >= 0
     cost = np.log(table.mu)[None, :] + lam[None, :] * Delta[:, None]
     best = np.argmin(cost, axis=1)
@@ -752,7 +798,8 @@ def _best_growth(table: _ShiftTable, Delta: np.ndarray):
 
 
 def _best_decay(table: _ShiftTable, M_max: float, L_max: float):
-    """``(mu_hat, lambda_hat)`` minimizing ``E_hat = mu max(M_max, L_max / lambda)``."""
+    """:math:`(\\hat\\mu, \\hat\\lambda)` minimizing
+    :math:`\\hat E = \\mu \\max(M_{\\max}, L_{\\max} / \\lambda)`."""
     decaying = table.rate < 0
     if not decaying.any():  # cannot happen for a Hurwitz matrix: the shifts reach below 0
         raise RuntimeError("no decaying Lyapunov bound found for A_i - L_i C_i")
@@ -762,10 +809,11 @@ def _best_decay(table: _ShiftTable, M_max: float, L_max: float):
 
 
 def _bound_ratio(A: np.ndarray, mu: float, rate: float, horizon: float) -> float:
-    """``max_t ||e^{A_i t}|| / (mu e^{rate t})`` over 501 points of ``[0, horizon]`` and all modes.
+    """:math:`\\max_t \\lVert e^{A_i t} \\rVert / (\\mu e^{\\mathrm{rate}\\, t})` over 501 points of
+    :math:`[0, \\mathrm{horizon}]` and all modes.
 
-    Compared in logarithms, at the points where ``||e^{A_i t}|| > 1e-250`` (beyond,
-    the computed norm has lost its relative precision to underflow).
+    Compared in logarithms, at the points where :math:`\\lVert e^{A_i t} \\rVert > 10^{-250}`
+    (beyond, the computed norm has lost its relative precision to underflow).
     """
     tau = np.linspace(0.0, horizon, 501)
     E = _exponentials(SwitchedLinearSystem.continuous(A), tau)
@@ -777,12 +825,14 @@ def _bound_ratio(A: np.ndarray, mu: float, rate: float, horizon: float) -> float
 
 
 def _noise_gain4(k: LeeConstants) -> float:
-    """The factor of ``v_max`` inside (4): ``2 sqrt(Delta) (1 + C_max (growth + 1)^2 E_hat)``."""
+    """The factor of :math:`v_{\\max}` inside (4):
+    :math:`2 \\sqrt{\\Delta} (1 + C_{\\max} (\\mathrm{growth} + 1)^2 \\hat E)`."""
     return 2 * np.sqrt(k.Delta) * (1 + k.C_max * (k.growth + 1) ** 2 * k.E_hat)
 
 
 def _assumption3(signal, min_dwell, delta: float, Delta: float) -> LeeCondition | None:
-    """No switch on ``[0, delta]`` and dwell time ``delta + Delta`` (Lee et al. Assumption 3)."""
+    """No switch on :math:`[0, \\delta]` and dwell time :math:`\\delta + \\Delta` (Lee et al.
+    Assumption 3)."""
     need = delta + Delta
     if min_dwell is not None:
         d = positive_scalar(min_dwell, "min_dwell")

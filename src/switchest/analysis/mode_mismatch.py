@@ -1,46 +1,55 @@
 """Bias of a mode-based Kalman filter under mode mismatch (Zhang & Natarajan, paper 001).
 
 A Kalman filter that runs with a wrong mode ``i`` while the system is in mode ``t`` is
-biased. With steady-state gains ``K_i`` the bias ``e_k = E(x_hat_k) - E(x_k)`` obeys
-(Zhang eqs. (6)–(7))::
+biased. With steady-state gains :math:`K_i` the bias
+:math:`e_k = \\mathbb{E}(\\hat x_k) - \\mathbb{E}(x_k)` obeys (Zhang eqs. (6)–(7))
 
-    e_k = Lambda_i e_{k-1} + (Lambda_i - Gamma_{i,t}) E(x_{k-1}),
-    Lambda_i = A_i - K_i C_i A_i,   Gamma_{i,t} = A_t - K_i C_t A_t,
+.. math::
+
+    \\begin{aligned}
+    e_k &= \\Lambda_i e_{k-1} + (\\Lambda_i - \\Gamma_{i,t}) \\mathbb{E}(x_{k-1}), \\\\
+    \\Lambda_i &= A_i - K_i C_i A_i, \\qquad \\Gamma_{i,t} = A_t - K_i C_t A_t,
+    \\end{aligned}
 
 and, when the filter's mode is ``i`` with probability ``lam[i, t]`` given the true
-mode ``t``, its mean follows the transformed switched system (9)–(10)::
+mode ``t``, its mean follows the transformed switched system (9)–(10)
 
-    x*_k = F_t x*_{k-1} + G_t u_{k-1},   F_t = sum_i lam[i, t] Lambda_i,
-    G_t = sum_i lam[i, t] (Lambda_i - Gamma_{i,t}),   u_k = E(x_k).
+.. math::
+
+    \\begin{aligned}
+    x^*_k &= F_t x^*_{k-1} + G_t u_{k-1}, \\qquad F_t = \\sum_i \\lambda_{i,t} \\Lambda_i, \\\\
+    G_t &= \\sum_i \\lambda_{i,t} (\\Lambda_i - \\Gamma_{i,t}), \\qquad u_k = \\mathbb{E}(x_k).
+    \\end{aligned}
 
 Conventions (0-based modes; the paper's are 1-based):
 
-* ``lam[i, q]`` = lambda_{i,q} = P(filter uses mode i | true mode q): each **column**
-  sums to one (the paper's ``sum_i lambda_{i,q} = 1``). This is the transpose of the
-  row-stochastic ``transition`` convention used elsewhere in switchest.
-* ``S[i, q] = Lambda_i - Gamma_{i,q}`` is the matrix ``T_{i,q}`` of Algorithm 2 and
-  ``S_{i,q}`` of eqs. (17)–(18); ``S[q, q] = 0``.
+* ``lam[i, q]``
+  :math:`= \\lambda_{i,q} = P(\\text{filter uses mode } i \\mid \\text{true mode } q)`: each
+  **column** sums to one (the paper's :math:`\\sum_i \\lambda_{i,q} = 1`). This is the
+  transpose of the row-stochastic ``transition`` convention used elsewhere in switchest.
+* ``S[i, q]`` :math:`= \\Lambda_i - \\Gamma_{i,q}` is the matrix :math:`T_{i,q}` of Algorithm 2
+  and :math:`S_{i,q}` of eqs. (17)–(18); ``S[q, q]`` :math:`= 0`.
 * Gains are the filter (a-posteriori update) form of Algorithm 1, line 8:
-  ``K_i = M_i C_i' (C_i M_i C_i' + R_i)^{-1}`` with ``M_i`` the steady **a-priori**
-  covariance, the stabilizing solution of the filter DARE
-  ``M = A M A' - A M C' (C M C' + R)^{-1} C M A' + Q``. This convention reproduces
-  the printed Lambda_1, Lambda_2, Gamma_{1,2}, Gamma_{2,1} of Example 1 (§5.1) to
-  all four printed decimals; the a-posteriori covariance in its place does not.
+  :math:`K_i = M_i C_i^\\top (C_i M_i C_i^\\top + R_i)^{-1}` with :math:`M_i` the steady
+  **a-priori** covariance, the stabilizing solution of the filter DARE
+  :math:`M = A M A^\\top - A M C^\\top (C M C^\\top + R)^{-1} C M A^\\top + Q`. This convention
+  reproduces the printed :math:`\\Lambda_1, \\Lambda_2, \\Gamma_{1,2}, \\Gamma_{2,1}` of Example 1
+  (§5.1) to all four printed decimals; the a-posteriori covariance in its place does not.
 
-The text of the paper (as available) prints Lambda as "A" in many places (Example 1's
-matrices, ``||A_q||`` in §5.1–5.2, Lemma 3, Theorem 3, eq. (17), Algorithm 2's
-``T = A_i - F_{i,q}``); the proofs and numbers show Lambda is meant, and Lambda is
-implemented. Other printed numbers checked against this module
+The text of the paper (as available) prints :math:`\\Lambda` as "A" in many places (Example 1's
+matrices, :math:`\\lVert A_q \\rVert` in §5.1–5.2, Lemma 3, Theorem 3, eq. (17), Algorithm 2's
+:math:`T = A_i - F_{i,q}`); the proofs and numbers show :math:`\\Lambda` is meant, and
+:math:`\\Lambda` is implemented. Other printed numbers checked against this module
 (tests/analysis/test_mode_mismatch.py):
 
-* §5.2 (smart grid, tau = 0.1): ``||Lambda_1|| = 0.9817`` and the mode-1 entries of
-  ``T_{1,2}``, ``T_{1,3}`` are not the steady-state values (0.9828, -0.3307, 0.0376)
-  but those of the Algorithm 1 gain after about 100 steps (99 from ``Sigma_0 = I``,
-  :func:`riccati_gains`); mode 1's Riccati recursion converges slowly.
-* §5.2: printed ``T_{2,3}[2,2] = -0.0088`` and ``T_{3,2}[2,2] = 0.0086`` are ten times
+* §5.2 (smart grid, :math:`\\tau = 0.1`): :math:`\\lVert \\Lambda_1 \\rVert = 0.9817` and the
+  mode-1 entries of :math:`T_{1,2}`, :math:`T_{1,3}` are not the steady-state values (0.9828,
+  -0.3307, 0.0376) but those of the Algorithm 1 gain after about 100 steps (99 from
+  :math:`\\Sigma_0 = I`, :func:`riccati_gains`); mode 1's Riccati recursion converges slowly.
+* §5.2: printed :math:`T_{2,3}[2,2] = -0.0088` and :math:`T_{3,2}[2,2] = 0.0086` are ten times
   the computed -0.00088 and 0.00086 (a slipped decimal).
-* Fig. 6: ``lambda_{1,2} = lambda_{2,1} = 0.154554`` for ``B = 0.3`` needs the unstated
-  ``eta * sup ||u|| = 1.04`` in eq. (18).
+* Fig. 6: :math:`\\lambda_{1,2} = \\lambda_{2,1} = 0.154554` for :math:`B = 0.3` needs the
+  unstated :math:`\\eta \\cdot \\sup \\lVert u \\rVert = 1.04` in eq. (18).
 """
 
 from __future__ import annotations
@@ -101,9 +110,9 @@ class MismatchDynamics:
     K : ndarray, shape (L, n, m)
         Kalman gain of each mode (filter form, Algorithm 1 line 8).
     Lambda : ndarray, shape (L, n, n)
-        ``Lambda[i] = A_i - K_i C_i A_i`` (eq. (7)).
+        ``Lambda[i]`` :math:`= A_i - K_i C_i A_i` (eq. (7)).
     Gamma : ndarray, shape (L, L, n, n)
-        ``Gamma[i, t] = A_t - K_i C_t A_t`` (eq. (7)); ``Gamma[i, i] = Lambda[i]``.
+        ``Gamma[i, t]`` :math:`= A_t - K_i C_t A_t` (eq. (7)); :math:`\\Gamma_{i,i} = \\Lambda_i`.
     """
 
     K: np.ndarray
@@ -112,9 +121,9 @@ class MismatchDynamics:
 
     @property
     def S(self) -> np.ndarray:
-        """``S[i, q] = Lambda_i - Gamma_{i,q}``, shape (L, L, n, n).
+        """``S[i, q]`` :math:`= \\Lambda_i - \\Gamma_{i,q}`, shape (L, L, n, n).
 
-        The ``T_{i,q}`` of Algorithm 2 and ``S_{i,q}`` of eqs. (17)–(18); it is the
+        The :math:`T_{i,q}` of Algorithm 2 and :math:`S_{i,q}` of eqs. (17)–(18); it is the
         input matrix of eq. (7) when the filter uses mode i and the system is in q.
         """
         return self.Lambda[:, None] - self.Gamma
@@ -132,11 +141,12 @@ class TransformedSystem:
     Attributes
     ----------
     F : ndarray, shape (L, n, n)
-        ``F[q] = sum_i lam[i, q] Lambda_i``.
+        ``F[q]`` :math:`= \\sum_i \\lambda_{i,q} \\Lambda_i`.
     G : ndarray, shape (L, n, n)
-        ``G[q] = sum_i lam[i, q] (Lambda_i - Gamma_{i,q})``.
+        ``G[q]`` :math:`= \\sum_i \\lambda_{i,q} (\\Lambda_i - \\Gamma_{i,q})`.
     lam : ndarray, shape (L, L)
-        The mismatch probabilities, ``lam[i, q]`` = P(filter mode i | true mode q).
+        The mismatch probabilities,
+        ``lam[i, q]`` :math:`= P(\\text{filter mode } i \\mid \\text{true mode } q)`.
     """
 
     F: np.ndarray
@@ -151,22 +161,22 @@ class AutonomousBiasStability:
     Attributes
     ----------
     lambda_radius : ndarray, shape (L,)
-        ``rho(Lambda_i)``; Lemma 3 says each is below one for a controllable and
+        :math:`\\rho(\\Lambda_i)`; Lemma 3 says each is below one for a controllable and
         observable mode.
     certificate : LyapunovCertificate
-        Common quadratic Lyapunov function of ``{Lambda_i}`` (eq. (13)). When it is
-        feasible, Theorem 2 (every ``F_q`` is Schur) and Theorem 3 (the same ``P``
-        is a CQLF of every ``F_q``, so (11) is asymptotically stable under
+        Common quadratic Lyapunov function of :math:`\\{\\Lambda_i\\}` (eq. (13)). When it is
+        feasible, Theorem 2 (every :math:`F_q` is Schur) and Theorem 3 (the same :math:`P`
+        is a CQLF of every :math:`F_q`, so (11) is asymptotically stable under
         arbitrary switching) hold for **every** choice of lam.
     F_radius : ndarray, shape (L,), or None
-        ``rho(F_q)`` for the lam given (Lemma 2's direct test); None without lam.
+        :math:`\\rho(F_q)` for the lam given (Lemma 2's direct test); None without lam.
     F_margin : float or None
-        ``min_q -max eig(F_q' P F_q - P)`` with ``P`` of ``certificate``: Theorem 3's
-        conclusion checked with numpy (positive when it holds); NaN when there is no
-        certificate, None without lam.
+        :math:`\\min_q -\\max \\operatorname{eig}(F_q^\\top P F_q - P)` with :math:`P` of
+        ``certificate``: Theorem 3's conclusion checked with numpy (positive when it holds); NaN
+        when there is no certificate, None without lam.
     one_mode_per_column : bool or None
         Lemma 4's hypothesis: every column of lam has exactly one non-zero entry
-        (then ``F_q = Lambda_{k_q}``); None without lam.
+        (then :math:`F_q = \\Lambda_{k_q}`); None without lam.
     """
 
     lambda_radius: np.ndarray
@@ -177,33 +187,35 @@ class AutonomousBiasStability:
 
     @property
     def each_mode_contracts(self) -> bool:
-        """Lemma 3's conclusion: ``rho(Lambda_i) < 1`` for every mode."""
+        """Lemma 3's conclusion: :math:`\\rho(\\Lambda_i) < 1` for every mode."""
         return bool(np.all(self.lambda_radius < 1.0))
 
     @property
     def holds(self) -> bool:
-        """Theorems 2–3: a CQLF of ``{Lambda_i}`` exists, so (11) is stable for every lam."""
+        """Theorems 2–3: a CQLF of :math:`\\{\\Lambda_i\\}` exists, so (11) is stable
+        for every lam."""
         return self.certificate.holds
 
 
 @dataclass(frozen=True, eq=False)
 class UnstableComponents:
-    """The set I of unstable state components of the original system (Algorithm 2, step 2).
+    """The set :math:`I` of unstable state components of the original system
+    (Algorithm 2, step 2).
 
     Attributes
     ----------
     components : ndarray of bool, shape (n,)
-        ``components[j]`` is True when state component j is in I.
+        ``components[j]`` is True when state component j is in :math:`I`.
     certificate : LyapunovCertificate
-        CQLF of ``{A_i}`` (Algorithm 2, step 1). When feasible the original system is
-        asymptotically stable under arbitrary switching and I is empty.
+        CQLF of :math:`\\{A_i\\}` (Algorithm 2, step 1). When feasible the original system is
+        asymptotically stable under arbitrary switching and :math:`I` is empty.
     words : tuple of tuple of int
         Mode words (0-based, first applied first) whose product has an eigenvalue
-        of modulus >= 1; each witnesses the components it marks.
+        of modulus :math:`\\ge 1`; each witnesses the components it marks.
     holds : bool or None
         The original system is asymptotically stable under arbitrary switching: True
         with a CQLF, False when a product in ``words`` witnesses an eigenvalue of modulus
-        >= 1, None when neither was found up to ``max_length`` (stability undecided, every
+        :math:`\\ge 1`, None when neither was found up to ``max_length`` (stability undecided, every
         component marked: the conservative choice).
     """
 
@@ -225,12 +237,13 @@ class ToleranceCheck:
     Attributes
     ----------
     value : ndarray, shape (L,)
-        ``sum_{i != q} lam[i, q] ||S_{i,q}||`` for each true mode q.
+        :math:`\\sum_{i \\ne q} \\lambda_{i,q} \\lVert S_{i,q} \\rVert` for each true mode
+        :math:`q`.
     threshold : float
-        ``B / (eta sup ||u||)``.
+        :math:`B / (\\eta \\sup \\lVert u \\rVert)`.
     holds : bool
-        ``max_q value[q] <= threshold``: lam lies in the tolerance region, so the
-        bias bound B is guaranteed by (14).
+        :math:`\\max_q \\mathrm{value}_q \\le \\mathrm{threshold}`: lam lies in the tolerance
+        region, so the bias bound :math:`B` is guaranteed by (14).
     """
 
     value: np.ndarray
@@ -242,8 +255,8 @@ class ToleranceCheck:
 def steady_state_gains(system: SwitchedLinearSystem) -> np.ndarray:
     """Steady-state Kalman gain of each mode (Zhang & Natarajan, eq. (6)).
 
-    ``K_i = M_i C_i' (C_i M_i C_i' + R_i)^{-1}`` with ``M_i`` the stabilizing solution
-    of the filter Riccati equation of mode i (the limit of ``M_{k|k-1}`` in
+    :math:`K_i = M_i C_i^\\top (C_i M_i C_i^\\top + R_i)^{-1}` with :math:`M_i` the stabilizing
+    solution of the filter Riccati equation of mode i (the limit of :math:`M_{k|k-1}` in
     Algorithm 1 with the mode held at i), from
     :func:`.steady_state_kalman.steady_state_gain` (``scipy.linalg.solve_discrete_are``).
 
@@ -280,13 +293,19 @@ def steady_state_gains(system: SwitchedLinearSystem) -> np.ndarray:
 def riccati_gains(system: SwitchedLinearSystem, *, P0, steps: int) -> np.ndarray:
     """Kalman gain of each mode after ``steps`` steps of Algorithm 1 (Zhang & Natarajan).
 
-    Runs lines 6–10 of Algorithm 1 with the mode held at i from ``M_{0|0} = P0``:
-    ``M_{k|k-1} = A_i M_{k-1|k-1} A_i' + Q_i``,
-    ``K_{i,k} = M_{k|k-1} C_i' (C_i M_{k|k-1} C_i' + R_i)^{-1}``,
-    ``M_{k|k} = (I - K_{i,k} C_i) M_{k|k-1}`` (in Joseph form), and returns
-    ``K_{i,steps}``. As ``steps`` grows this tends to :func:`steady_state_gains`;
-    slowly for a mode with a pole near the unit circle and weak process noise,
-    where the time-varying gains of Algorithm 1 stay far from the steady ones
+    Runs lines 6–10 of Algorithm 1 with the mode held at i from :math:`M_{0|0}` = ``P0``:
+
+    .. math::
+
+        \\begin{aligned}
+        M_{k|k-1} &= A_i M_{k-1|k-1} A_i^\\top + Q_i, \\\\
+        K_{i,k} &= M_{k|k-1} C_i^\\top (C_i M_{k|k-1} C_i^\\top + R_i)^{-1}, \\\\
+        M_{k|k} &= (I - K_{i,k} C_i) M_{k|k-1}
+        \\end{aligned}
+
+    (in Joseph form), and returns :math:`K_{i,\\mathrm{steps}}`. As ``steps`` grows this tends
+    to :func:`steady_state_gains`; slowly for a mode with a pole near the unit circle and weak
+    process noise, where the time-varying gains of Algorithm 1 stay far from the steady ones
     that eq. (6) assumes.
 
     Parameters
@@ -294,9 +313,9 @@ def riccati_gains(system: SwitchedLinearSystem, *, P0, steps: int) -> np.ndarray
     system : SwitchedLinearSystem
         Discrete time, with measurement noise.
     P0 : array_like, shape (n, n)
-        Initial covariance ``Sigma_0`` (keyword-only), symmetric PSD.
+        Initial covariance :math:`\\Sigma_0` (keyword-only), symmetric PSD.
     steps : int
-        Number of filter steps k >= 1.
+        Number of filter steps :math:`k \\ge 1`.
 
     Returns
     -------
@@ -320,18 +339,18 @@ def riccati_gains(system: SwitchedLinearSystem, *, P0, steps: int) -> np.ndarray
 
 
 def mismatch_dynamics(system: SwitchedLinearSystem, *, gains=None) -> MismatchDynamics:
-    """Lambda_i and Gamma_{i,t} of Zhang & Natarajan, eqs. (6)–(7).
+    """:math:`\\Lambda_i` and :math:`\\Gamma_{i,t}` of Zhang & Natarajan, eqs. (6)–(7).
 
-    ``Lambda_i = A_i - K_i C_i A_i`` and ``Gamma_{i,t} = A_t - K_i C_t A_t``: the
+    :math:`\\Lambda_i = A_i - K_i C_i A_i` and :math:`\\Gamma_{i,t} = A_t - K_i C_t A_t`: the
     bias of a filter run in mode i while the system is in mode t obeys
-    ``e_k = Lambda_i e_{k-1} + (Lambda_i - Gamma_{i,t}) E(x_{k-1})``.
+    :math:`e_k = \\Lambda_i e_{k-1} + (\\Lambda_i - \\Gamma_{i,t}) \\mathbb{E}(x_{k-1})`.
 
     Parameters
     ----------
     system : SwitchedLinearSystem
         Discrete time, with measurement noise.
     gains : array_like, shape (L, n, m), optional
-        Filter gains ``K_i`` (keyword-only); default :func:`steady_state_gains`, as
+        Filter gains :math:`K_i` (keyword-only); default :func:`steady_state_gains`, as
         eq. (6) assumes. Pass :func:`riccati_gains` for the gains of Algorithm 1
         at a finite step.
 
@@ -339,7 +358,7 @@ def mismatch_dynamics(system: SwitchedLinearSystem, *, gains=None) -> MismatchDy
     -------
     MismatchDynamics
         ``.K (L, n, m)``, ``.Lambda (L, n, n)``, ``.Gamma (L, L, n, n)`` with
-        ``Gamma[i, t]`` = Gamma_{i,t}.
+        ``Gamma[i, t]`` :math:`= \\Gamma_{i,t}`.
     """
     if gains is None:
         K = steady_state_gains(system)
@@ -361,15 +380,15 @@ def mismatch_dynamics(system: SwitchedLinearSystem, *, gains=None) -> MismatchDy
 def transformed_system(dynamics: MismatchDynamics, lam) -> TransformedSystem:
     """The transformed switched system of the mean bias, Zhang & Natarajan eq. (10).
 
-    ``F_q = sum_i lam[i, q] Lambda_i`` and ``G_q = sum_i lam[i, q] (Lambda_i -
-    Gamma_{i,q})``.
+    :math:`F_q = \\sum_i \\lambda_{i,q} \\Lambda_i` and
+    :math:`G_q = \\sum_i \\lambda_{i,q} (\\Lambda_i - \\Gamma_{i,q})`.
 
     Parameters
     ----------
     dynamics : MismatchDynamics
     lam : array_like, shape (L, L)
-        ``lam[i, q]`` = P(filter mode i | true mode q); non-negative, each column
-        summing to one.
+        ``lam[i, q]`` :math:`= P(\\text{filter mode } i \\mid \\text{true mode } q)`; non-negative,
+        each column summing to one.
 
     Returns
     -------
@@ -382,7 +401,8 @@ def transformed_system(dynamics: MismatchDynamics, lam) -> TransformedSystem:
 
 
 def mean_state(system: SwitchedLinearSystem, modes, mean_x0) -> np.ndarray:
-    """Mean of the state of model (1) along a mode sequence: ``E(x_k) = A_{q_k} E(x_{k-1})``.
+    """Mean of the state of model (1) along a mode sequence:
+    :math:`\\mathbb{E}(x_k) = A_{q_k} \\mathbb{E}(x_{k-1})`.
 
     Zhang & Natarajan, proof of Theorem 1 (zero-mean noise, no input).
 
@@ -390,14 +410,14 @@ def mean_state(system: SwitchedLinearSystem, modes, mean_x0) -> np.ndarray:
     ----------
     system : SwitchedLinearSystem
     modes : array_like of int, shape (..., K)
-        True modes ``q_1, ..., q_K`` (0-based); leading axes are batch axes.
+        True modes :math:`q_1, \\dots, q_K` (0-based); leading axes are batch axes.
     mean_x0 : array_like, shape (..., n)
-        ``E(x_0)``, broadcast against the batch axes of ``modes``.
+        :math:`\\mathbb{E}(x_0)`, broadcast against the batch axes of ``modes``.
 
     Returns
     -------
     ndarray, shape (..., K + 1, n)
-        ``E(x_0), ..., E(x_K)``.
+        :math:`\\mathbb{E}(x_0), \\dots, \\mathbb{E}(x_K)`.
     """
     _check_discrete(system)
     modes = _check_modes(modes, system.n_modes)
@@ -415,29 +435,31 @@ def mean_state(system: SwitchedLinearSystem, modes, mean_x0) -> np.ndarray:
 def bias_recursion(dynamics: MismatchDynamics, lam, modes, mean_x, *, e0=None) -> np.ndarray:
     """Mean bias of the mode-based Kalman filter, Zhang & Natarajan eq. (9).
 
-    ``E(e_k) = F_{q_k} E(e_{k-1}) + G_{q_k} E(x_{k-1})`` (eq. (10) with ``x*_k =
-    E(e_k)``, ``u_{k-1} = E(x_{k-1})``), where the filter's mode at each step is
-    drawn independently with probabilities ``lam[:, q_k]`` and the gains are the
-    ones in ``dynamics`` (steady state, as eq. (6) assumes).
+    :math:`\\mathbb{E}(e_k) = F_{q_k} \\mathbb{E}(e_{k-1}) + G_{q_k} \\mathbb{E}(x_{k-1})` (eq. (10)
+    with :math:`x^*_k = \\mathbb{E}(e_k)`, :math:`u_{k-1} = \\mathbb{E}(x_{k-1})`), where the
+    filter's mode at each step is drawn independently with probabilities ``lam[:, q_k]`` and the
+    gains are the ones in ``dynamics`` (steady state, as eq. (6) assumes).
 
     Parameters
     ----------
     dynamics : MismatchDynamics
     lam : array_like, shape (L, L)
-        ``lam[i, q]`` = P(filter mode i | true mode q); columns sum to one.
+        ``lam[i, q]`` :math:`= P(\\text{filter mode } i \\mid \\text{true mode } q)`; columns sum
+        to one.
     modes : array_like of int, shape (..., K)
-        True modes ``q_1, ..., q_K`` (0-based); leading axes are batch axes.
+        True modes :math:`q_1, \\dots, q_K` (0-based); leading axes are batch axes.
     mean_x : array_like, shape (..., K, n)
-        ``E(x_0), ..., E(x_{K-1})`` — the input of step k is ``E(x_{k-1})``
+        :math:`\\mathbb{E}(x_0), \\dots, \\mathbb{E}(x_{K-1})` — the input of step k is
+        :math:`\\mathbb{E}(x_{k-1})`
         (e.g. ``mean_state(system, modes, m0)[..., :-1, :]``).
     e0 : array_like, shape (..., n), optional
-        Initial bias ``E(x_hat_0) - E(x_0)`` (keyword-only); default zero (the
-        filter starts at the prior mean).
+        Initial bias :math:`\\mathbb{E}(\\hat x_0) - \\mathbb{E}(x_0)` (keyword-only); default zero
+        (the filter starts at the prior mean).
 
     Returns
     -------
     ndarray, shape (..., K + 1, n)
-        ``E(e_0), ..., E(e_K)``.
+        :math:`\\mathbb{E}(e_0), \\dots, \\mathbb{E}(e_K)`.
     """
     ts = transformed_system(dynamics, lam)
     L, n = dynamics.n_modes, dynamics.Lambda.shape[-1]
@@ -470,17 +492,18 @@ def autonomous_stability(
 ) -> AutonomousBiasStability:
     """Lemmas 3–4 and Theorems 2–3 of Zhang & Natarajan for the autonomous system (11).
 
-    * Lemma 3: ``rho(Lambda_i) < 1`` (computed, not assumed).
-    * Theorems 2–3: a CQLF ``P`` of ``{Lambda_i}`` (eq. (13), by :func:`cqlf`) makes
-      every ``F_q`` Schur and is itself a CQLF of ``{F_q}``, for every lam — since
-      ``{X : X' P X - P < 0}`` is convex and each ``F_q`` is a convex combination
-      of the ``Lambda_i``. (The printed proof of Theorem 2 reaches this through
-      steps that do not hold as written — step (a) equates ``Lambda' P Lambda < P``
-      with ``Lambda P Lambda' < P``, true with ``P^{-1}`` in place of ``P``, and the
-      block sum has ``d P`` on its diagonal — but the conclusion is right by the
-      convexity argument above, which is what is used here.)
-    * With lam: Lemma 4's hypothesis (one non-zero entry per column), ``rho(F_q)``
-      and Theorem 3's conclusion checked with numpy on the certificate's ``P``.
+    * Lemma 3: :math:`\\rho(\\Lambda_i) < 1` (computed, not assumed).
+    * Theorems 2–3: a CQLF :math:`P` of :math:`\\{\\Lambda_i\\}` (eq. (13), by :func:`cqlf`) makes
+      every :math:`F_q` Schur and is itself a CQLF of :math:`\\{F_q\\}`, for every lam — since
+      :math:`\\{X : X^\\top P X - P \\prec 0\\}` is convex and each :math:`F_q` is a convex
+      combination of the :math:`\\Lambda_i`. (The printed proof of Theorem 2 reaches this
+      through steps that do not hold as written — step (a) equates
+      :math:`\\Lambda^\\top P \\Lambda \\prec P` with :math:`\\Lambda P \\Lambda^\\top \\prec P`,
+      true with :math:`P^{-1}` in place of :math:`P`, and the block sum has :math:`d P` on its
+      diagonal — but the conclusion is right by the convexity argument above, which is what is
+      used here.)
+    * With lam: Lemma 4's hypothesis (one non-zero entry per column), :math:`\\rho(F_q)`
+      and Theorem 3's conclusion checked with numpy on the certificate's :math:`P`.
 
     Parameters
     ----------
@@ -511,11 +534,11 @@ def autonomous_stability(
 def filter_stability_hypotheses(system: SwitchedLinearSystem) -> np.ndarray:
     """Hypotheses of Zhang & Natarajan Lemma 3 (and §2.2 assumption 3), per mode.
 
-    ``(A_i, B_i Q B_i')`` controllable — here ``(A_i, Q_i^{1/2})`` with the system's
-    process-noise covariance ``Q_i = B_i Q B_i'`` — and ``(C_i, A_i)`` observable,
+    :math:`(A_i, B_i Q B_i^\\top)` controllable — here :math:`(A_i, Q_i^{1/2})` with the system's
+    process-noise covariance :math:`Q_i = B_i Q B_i^\\top` — and :math:`(C_i, A_i)` observable,
     both by the PBH test of :func:`~switchest.analysis.observability.is_observable`
     (controllability as observability of the transposed pair). They make the
-    steady-state Kalman filter stable, hence ``rho(Lambda_i) < 1``.
+    steady-state Kalman filter stable, hence :math:`\\rho(\\Lambda_i) < 1`.
 
     Parameters
     ----------
@@ -542,19 +565,19 @@ def unstable_components(
 ) -> UnstableComponents:
     """Unstable state components of the original system, Zhang & Natarajan Algorithm 2, steps 1–2.
 
-    Step 1: a CQLF of ``{A_i}`` (:func:`cqlf`) proves the original system stable
-    under arbitrary switching, and I is empty (Scenario 2 of §4.3).
+    Step 1: a CQLF of :math:`\\{A_i\\}` (:func:`cqlf`) proves the original system stable
+    under arbitrary switching, and :math:`I` is empty (Scenario 2 of §4.3).
 
-    Step 2 (the paper gives no procedure): ``I = {j : sup_k E(x_k)^[j] = inf}`` for
-    some switching. For every mode word ``W = A_{w_p} ... A_{w_1}`` of length
-    ``<= max_length`` (all rotations included, so every phase of a periodic
-    switching is covered), the invariant subspace of ``W`` for eigenvalues of
-    modulus ``>= 1 - tol`` is computed by an ordered real Schur decomposition;
-    component j is unstable when ``e_j`` is not orthogonal to that subspace (then
-    ``e_j' W^k x_0`` does not decay for some ``x_0``). Eigenvalues on the unit
-    circle count as unstable: bounded but non-decaying components are treated
-    conservatively. If neither step decides (no CQLF, every product Schur),
-    every component is marked and ``conclusive`` is False.
+    Step 2 (the paper gives no procedure):
+    :math:`I = \\{j : \\sup_k \\mathbb{E}(x_k)^{[j]} = \\infty\\}` for some switching. For every
+    mode word :math:`W = A_{w_p} \\cdots A_{w_1}` of length :math:`\\le` ``max_length`` (all
+    rotations included, so every phase of a periodic switching is covered), the invariant
+    subspace of :math:`W` for eigenvalues of modulus :math:`\\ge 1 - \\mathrm{tol}` is computed
+    by an ordered real Schur decomposition; component j is unstable when :math:`e_j` is not
+    orthogonal to that subspace (then :math:`e_j^\\top W^k x_0` does not decay for some
+    :math:`x_0`). Eigenvalues on the unit circle count as unstable: bounded but non-decaying
+    components are treated conservatively. If neither step decides (no CQLF, every product
+    Schur), every component is marked and ``conclusive`` is False.
 
     Parameters
     ----------
@@ -604,14 +627,14 @@ def stable_mismatch_region(
 ) -> np.ndarray:
     """Which mismatch probabilities may be non-zero, Zhang & Natarajan Algorithm 2.
 
-    For every pair (i, q), ``lam[i, q]`` must be 0 if ``T_{i,q} = Lambda_i -
-    Gamma_{i,q}`` has a non-zero column j for an unstable component j in I
+    For every pair (i, q), ``lam[i, q]`` must be 0 if :math:`T_{i,q} = \\Lambda_i - \\Gamma_{i,q}`
+    has a non-zero column j for an unstable component j in :math:`I`
     (:func:`unstable_components`); otherwise it may take any value in [0, 1]
-    (subject to the columns of lam summing to one, line 12). Then ``G_q``
-    annihilates the unbounded part of ``u_k = E(x_k)`` and, with (11) stable, the
+    (subject to the columns of lam summing to one, line 12). Then :math:`G_q`
+    annihilates the unbounded part of :math:`u_k = \\mathbb{E}(x_k)` and, with (11) stable, the
     bias system (10) is BIBO stable. The diagonal is always allowed
-    (``T_{q,q} = 0``). (The printed line 5 reads ``T = A_i - F_{i,q}``; the text
-    and the printed ``T_{i,q}`` of §5.2 show ``Lambda_i - Gamma_{i,q}`` is meant.)
+    (:math:`T_{q,q} = 0`). (The printed line 5 reads :math:`T = A_i - F_{i,q}`; the text
+    and the printed :math:`T_{i,q}` of §5.2 show :math:`\\Lambda_i - \\Gamma_{i,q}` is meant.)
 
     Parameters
     ----------
@@ -624,7 +647,7 @@ def stable_mismatch_region(
         Passed to :func:`unstable_components`.
     atol : float, optional
         A column counts as zero when its largest entry is at most
-        ``atol * max(1, max |S|)``.
+        :math:`\\mathrm{atol} \\cdot \\max(1, \\max \\lvert S \\rvert)`.
 
     Returns
     -------
@@ -648,14 +671,21 @@ def stable_mismatch_region(
 
 # ---------------------------------------------------------------------- §4.3 bounds
 def bibo_gain(dynamics: MismatchDynamics, *, margin: float = 1e-6) -> float:
-    """A BIBO gain eta of the bias system (10) valid for every lam (Zhang eq. (14)).
+    """A BIBO gain :math:`\\eta` of the bias system (10) valid for every lam (Zhang eq. (14)).
 
-    Beyond the paper, which takes eta as given. With a CQLF ``P`` of ``{Lambda_i}``
-    (or ``P = I`` when every ``||Lambda_i|| < 1``, whichever gives the smaller
-    eta), every ``F_q`` is a convex combination of the ``Lambda_i``, so
-    ``||F_q||_P <= r = max_i ||Lambda_i||_P < 1`` and, from ``x*_0 = 0``,
-    ``||x*_k|| <= sqrt(cond(P)) / (1 - r) sup_{j, q} ||G_q u_j||``. Hence
-    ``eta = sqrt(cond(P)) / (1 - r)`` satisfies eq. (14).
+    Beyond the paper, which takes :math:`\\eta` as given. With a CQLF :math:`P` of
+    :math:`\\{\\Lambda_i\\}` (or :math:`P = I` when every :math:`\\lVert \\Lambda_i \\rVert < 1`,
+    whichever gives the smaller :math:`\\eta`), every :math:`F_q` is a convex combination of the
+    :math:`\\Lambda_i`, so
+    :math:`\\lVert F_q \\rVert_P \\le r = \\max_i \\lVert \\Lambda_i \\rVert_P < 1` and, from
+    :math:`x^*_0 = 0`,
+
+    .. math::
+
+        \\lVert x^*_k \\rVert \\le \\frac{\\sqrt{\\operatorname{cond}(P)}}{1 - r}
+        \\sup_{j, q} \\lVert G_q u_j \\rVert.
+
+    Hence :math:`\\eta = \\sqrt{\\operatorname{cond}(P)} / (1 - r)` satisfies eq. (14).
 
     Parameters
     ----------
@@ -666,7 +696,7 @@ def bibo_gain(dynamics: MismatchDynamics, *, margin: float = 1e-6) -> float:
     Returns
     -------
     float
-        ``inf`` when neither ``P = I`` nor a CQLF gives ``r < 1``.
+        ``inf`` when neither :math:`P = I` nor a CQLF gives :math:`r < 1`.
     """
     Lam = _check_dynamics(dynamics).Lambda
     best = _p_gain(Lam, np.eye(Lam.shape[-1]))
@@ -681,20 +711,25 @@ def mismatch_bias_bound(
 ) -> float:
     """Lowest achievable upper bound on the bias, Zhang & Natarajan Theorem 4.
 
-    ``||x*_k|| <= eta * P * sup_j ||u_j|| * max_q min_{i != q} ||Lambda_i - Gamma_{i,q}||``
-    for a total mismatch probability ``P = sum_{i != q} lam[i, q]`` (the same for
-    every q) placed on the best wrong mode of each q; for a stable original system.
+    .. math::
+
+        \\lVert x^*_k \\rVert \\le \\eta \\cdot P \\cdot \\sup_j \\lVert u_j \\rVert \\cdot
+        \\max_q \\min_{i \\ne q} \\lVert \\Lambda_i - \\Gamma_{i,q} \\rVert
+
+    for a total mismatch probability :math:`P = \\sum_{i \\ne q} \\lambda_{i,q}` (the same for
+    every :math:`q`) placed on the best wrong mode of each :math:`q`; for a stable original
+    system.
 
     Parameters
     ----------
     dynamics : MismatchDynamics
         At least two modes.
     probability : float
-        Mismatch probability P in [0, 1].
+        Mismatch probability :math:`P \\in [0, 1]`.
     eta : float
         BIBO gain of (10) (keyword-only), e.g. :func:`bibo_gain`.
     sup_input : float
-        ``sup_j ||u_j|| = sup_j ||E(x_j)||``.
+        :math:`\\sup_j \\lVert u_j \\rVert = \\sup_j \\lVert \\mathbb{E}(x_j) \\rVert`.
 
     Returns
     -------
@@ -710,9 +745,13 @@ def tolerance_region(
 ) -> ToleranceCheck:
     """Whether lam lies in the tolerance region of Zhang & Natarajan eq. (18).
 
-    ``max_q sum_{i != q} lam[i, q] ||S_{i,q}|| <= B / (eta sup_j ||u_j||)`` with
-    ``S_{i,q} = Lambda_i - Gamma_{i,q}``: the triangle-inequality relaxation of
-    eq. (17) that guarantees the bias bound ``||x*_k|| <= B`` through (14).
+    .. math::
+
+        \\max_q \\sum_{i \\ne q} \\lambda_{i,q} \\lVert S_{i,q} \\rVert \\le
+        \\frac{B}{\\eta \\sup_j \\lVert u_j \\rVert}
+
+    with :math:`S_{i,q} = \\Lambda_i - \\Gamma_{i,q}`: the triangle-inequality relaxation of
+    eq. (17) that guarantees the bias bound :math:`\\lVert x^*_k \\rVert \\le B` through (14).
 
     Parameters
     ----------
@@ -720,7 +759,7 @@ def tolerance_region(
     lam : array_like, shape (L, L)
         ``lam[i, q]``; columns sum to one.
     bound : float
-        The target bias bound B (keyword-only), positive.
+        The target bias bound :math:`B` (keyword-only), positive.
     eta, sup_input : float
         As in :func:`mismatch_bias_bound`.
 
@@ -740,28 +779,36 @@ def tolerance_region(
 def max_mismatch_probability(
     dynamics: MismatchDynamics, *, bound: float, eta: float, sup_input: float
 ) -> float:
-    """Largest mismatch probability for which a bias bound B is achievable (Zhang §4.3, Q. (2)).
+    """Largest mismatch probability for which a bias bound :math:`B` is achievable
+    (Zhang §4.3, Q. (2)).
 
-    Inverting Theorem 4 with eq. (18): ``P_max = B / (eta sup_j ||u_j|| max_q
-    min_{i != q} ||S_{i,q}||)``, the largest ``P = sum_{i != q} lam[i, q]`` for which
+    Inverting Theorem 4 with eq. (18):
+
+    .. math::
+
+        P_{\\max} = \\frac{B}{\\eta \\sup_j \\lVert u_j \\rVert
+        \\max_q \\min_{i \\ne q} \\lVert S_{i,q} \\rVert},
+
+    the largest :math:`P = \\sum_{i \\ne q} \\lambda_{i,q}` for which
     some lam (all of each column's mismatch on its best wrong mode) satisfies (18).
     With two modes it is the common value ``lam[0, 1] = lam[1, 0]`` on the boundary
-    of (18) — Fig. 6's ``0.154554`` for ``B = 0.3`` with ``eta sup ||u|| = 1.04``.
-    The result is not clipped: a value above 1 means every P achieves B.
+    of (18) — Fig. 6's ``0.154554`` for :math:`B = 0.3` with
+    :math:`\\eta \\sup \\lVert u \\rVert = 1.04`. The result is not clipped: a value above 1
+    means every :math:`P` achieves :math:`B`.
 
     Parameters
     ----------
     dynamics : MismatchDynamics
         At least two modes.
     bound : float
-        Target bias bound B (keyword-only), positive.
+        Target bias bound :math:`B` (keyword-only), positive.
     eta, sup_input : float
         As in :func:`mismatch_bias_bound`.
 
     Returns
     -------
     float
-        ``inf`` when some mismatch costs nothing (a zero ``S_{i,q}``) for every q.
+        ``inf`` when some mismatch costs nothing (a zero :math:`S_{i,q}`) for every :math:`q`.
     """
     c = positive_scalar(bound, "bound") / _gain_product(eta, sup_input)
     worst = float(np.max(_best_wrong_norm(dynamics)))
@@ -770,14 +817,16 @@ def max_mismatch_probability(
 
 # ---------------------------------------------------------------------- helpers
 def _gain(M: np.ndarray, C: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """``K = M C' (C M C' + R)^{-1}`` over a stack (Algorithm 1, line 8), via a solve."""
+    """:math:`K = M C^\\top (C M C^\\top + R)^{-1}` over a stack (Algorithm 1, line 8), via a
+    solve."""
     S = C @ M @ np.swapaxes(C, -1, -2) + R
     # K S = M C'  <=>  S' K' = C M'  (S symmetric)
     return np.swapaxes(np.linalg.solve(S, C @ np.swapaxes(M, -1, -2)), -1, -2)
 
 
 def _unstable_rows(W: np.ndarray, tol: float) -> np.ndarray:
-    """Rows j with ``e_j`` not orthogonal to W's invariant subspace for ``|eig| >= 1 - tol``."""
+    """Rows j with :math:`e_j` not orthogonal to :math:`W`'s invariant subspace for
+    :math:`\\lvert \\operatorname{eig} \\rvert \\ge 1 - \\mathrm{tol}`."""
     _, Z, sdim = schur(W, output="real", sort=lambda re, im: np.hypot(re, im) >= 1.0 - tol)
     if sdim == 0:
         return np.zeros(W.shape[0], dtype=bool)
@@ -793,12 +842,12 @@ def _p_gain(Lam: np.ndarray, P: np.ndarray) -> float:
 
 
 def _s_norms(dynamics: MismatchDynamics) -> np.ndarray:
-    """``||S_{i,q}||_2`` (spectral norm), shape (L, L); zero on the diagonal."""
+    """:math:`\\lVert S_{i,q} \\rVert_2` (spectral norm), shape (L, L); zero on the diagonal."""
     return np.linalg.norm(dynamics.S, ord=2, axis=(-2, -1))
 
 
 def _best_wrong_norm(dynamics: MismatchDynamics) -> np.ndarray:
-    """``min_{i != q} ||S_{i,q}||`` for each q, shape (L,)."""
+    """:math:`\\min_{i \\ne q} \\lVert S_{i,q} \\rVert` for each :math:`q`, shape (L,)."""
     L = _check_dynamics(dynamics).n_modes
     if L < 2:
         raise ValueError(f"dynamics must have at least two modes for a mode mismatch, got {L}")

@@ -1,20 +1,21 @@
 """Observability of switched linear systems: per mode, jointly, and under sampling.
 
-Rank tests on the observability matrix ``[C; CA; ...; CA^(n-1)]`` fail from
-n ~ 12 on (its entries grow like ``||A||^(n-1)``; for ``A = Q diag(-1..-30) Q'``
-numpy's rank of it is 6 instead of 30). Every verdict here therefore comes from a
-PBH test with deflation (:func:`kalman_decomposition`): at each eigenvalue
-``lambda`` of ``A`` the smallest singular value of ``[A - lambda I; C]`` is zero
-exactly when an eigenvector of ``lambda`` lies in ``ker C``. Such an eigenvector
+Rank tests on the observability matrix :math:`[C; CA; \\dots; CA^{n-1}]` fail from
+:math:`n \\approx 12` on (its entries grow like :math:`\\lVert A \\rVert^{n-1}`; for
+:math:`A = Q \\operatorname{diag}(-1, \\dots, -30) Q^\\top` numpy's rank of it is 6 instead of
+30). Every verdict here therefore comes from a PBH test with deflation
+(:func:`kalman_decomposition`): at each eigenvalue :math:`\\lambda` of :math:`A` the smallest
+singular value of :math:`[A - \\lambda I; C]` is zero exactly when an eigenvector of
+:math:`\\lambda` lies in :math:`\\ker C`. Such an eigenvector
 (or the real 2-D invariant subspace of a complex pair) spans part of the
 unobservable subspace; it is split off by an orthogonal change of basis and the
 test repeats on the rest, which also catches generalized eigenvectors. The
-observability matrix itself is offered for teaching and small n
+observability matrix itself is offered for teaching and small :math:`n`
 (:func:`observability_matrix`).
 
-Paper keys: Lee et al. (002) Assumption 1 and §II (joint observability, W_ij(t),
-omega_min(t)); Wang et al. (003) §3.1 and Assumption 2 (per-mode Kalman
-decomposition, W_S); Shankar et al. (000) Definition 1, Assumption 1, Lemma 1
+Paper keys: Lee et al. (002) Assumption 1 and §II (joint observability, :math:`W_{ij}(t)`,
+:math:`\\omega_{\\min}(t)`); Wang et al. (003) §3.1 and Assumption 2 (per-mode Kalman
+decomposition, :math:`W_S`); Shankar et al. (000) Definition 1, Assumption 1, Lemma 1
 (uniform observability of the sampled system under a dwell time).
 """
 
@@ -69,40 +70,42 @@ _RTOL = 1e-7
 # ---------------------------------------------------------------------- results
 @dataclass(frozen=True)
 class KalmanDecomposition:
-    """Observability (Kalman) decomposition of a pair (A, C), in Wang et al.'s names.
+    """Observability (Kalman) decomposition of a pair :math:`(A, C)`, in Wang et al.'s names.
 
-    Wang et al. §3.1: ``M`` is a basis of the unobservable subspace ``ker W``,
-    ``N`` completes it so that ``T = [M, N]`` is invertible, ``T^{-1} = [G; F]``,
-    and ``T^{-1} A T = [[A11, A12], [0, A22]]``, ``C T = [0, C2]`` with
-    ``(A22, C2)`` observable. Here ``T`` is orthogonal, so ``G = M'``, ``F = N'``.
+    Wang et al. §3.1: :math:`M` is a basis of the unobservable subspace :math:`\\ker W`,
+    :math:`N` completes it so that :math:`T = [M, N]` is invertible, :math:`T^{-1} = [G; F]`,
+    and :math:`T^{-1} A T = \\begin{bmatrix} A_{11} & A_{12} \\\\ 0 & A_{22} \\end{bmatrix}`,
+    :math:`C T = [0, C_2]` with :math:`(A_{22}, C_2)` observable. Here :math:`T` is orthogonal,
+    so :math:`G = M^\\top`, :math:`F = N^\\top`.
 
     Attributes
     ----------
     T : ndarray, shape (n, n)
-        Orthogonal change of basis ``[M, N]``.
+        Orthogonal change of basis :math:`[M, N]`.
     M : ndarray, shape (n, n - n_observable)
         Orthonormal basis of the unobservable subspace.
     N : ndarray, shape (n, n_observable)
         Orthonormal basis of its orthogonal complement.
     G : ndarray, shape (n - n_observable, n)
-        First block row of ``T^{-1}`` (``= M'``).
+        First block row of :math:`T^{-1}` (:math:`= M^\\top`).
     F : ndarray, shape (n_observable, n)
-        Second block row of ``T^{-1}`` (``= N'``): ``z = F x`` is the observable
+        Second block row of :math:`T^{-1}` (:math:`= N^\\top`): :math:`z = F x` is the observable
         sub-state of Wang et al.
     A_hat : ndarray, shape (n, n)
-        ``T^{-1} A T``; its lower-left block is zero up to round-off.
+        :math:`T^{-1} A T`; its lower-left block is zero up to round-off.
     C_hat : ndarray, shape (m, n)
-        ``C T``; its first ``n - n_observable`` columns are zero up to round-off.
+        :math:`C T`; its first ``n - n_observable`` columns are zero up to round-off.
     A11, A12, A22 : ndarray
         Blocks of ``A_hat``.
     C2 : ndarray, shape (m, n_observable)
         Observable output block.
     n_observable : int
-        Dimension of the observable part, ``rank W`` (``n_i`` of Wang et al.).
+        Dimension of the observable part, :math:`\\operatorname{rank} W` (:math:`n_i` of Wang
+        et al.).
     margin : float
-        ``min sigma_min([A22 - lambda I; C2])`` over the eigenvalues of ``A22``:
-        how far the observable part is from losing observability (an upper bound
-        on its distance to unobservability; ``inf`` when ``n_observable = 0``).
+        :math:`\\min \\sigma_{\\min}([A_{22} - \\lambda I; C_2])` over the eigenvalues of
+        :math:`A_{22}`: how far the observable part is from losing observability (an upper
+        bound on its distance to unobservability; ``inf`` when ``n_observable = 0``).
     """
 
     T: np.ndarray
@@ -147,14 +150,14 @@ class JointObservability:
     Attributes
     ----------
     holds : bool
-        ``rank [O_i^(2n) O_j^(2n)] = 2n`` for every pair ``i != j``.
+        :math:`\\operatorname{rank} [O_i^{(2n)}\\ O_j^{(2n)}] = 2n` for every pair :math:`i \\ne j`.
     failing_pairs : tuple of (int, int)
-        The pairs ``(i, j)``, ``i < j``, 0-based, where it fails.
+        The pairs :math:`(i, j)`, :math:`i < j`, 0-based, where it fails.
     margin : ndarray, shape (L, L)
-        PBH margin of the augmented pair of each ``(i, j)``; ``nan`` on the diagonal.
+        PBH margin of the augmented pair of each :math:`(i, j)`; ``nan`` on the diagonal.
     omega_min : float or None
-        Lee et al.'s ``omega_min(t) = min_{i != j} lambda_min(W_ij(t))`` when a
-        horizon ``t`` was given (continuous-time systems only), else ``None``.
+        Lee et al.'s :math:`\\omega_{\\min}(t) = \\min_{i \\ne j} \\lambda_{\\min}(W_{ij}(t))` when
+        a horizon :math:`t` was given (continuous-time systems only), else ``None``.
     """
 
     holds: bool
@@ -170,20 +173,21 @@ class CombinedObservability:
     Attributes
     ----------
     holds : bool
-        Assumption 2(b): ``rank W_S = n``.
+        Assumption 2(b): :math:`\\operatorname{rank} W_S = n`.
     rank : int
-        Rank of ``W_S``, computed as the rank of ``F`` (Wang et al. Lemma 3(b):
-        ``ker F = ker W_S``), whose row blocks are orthonormal.
+        Rank of :math:`W_S`, computed as the rank of :math:`F` (Wang et al. Lemma 3(b):
+        :math:`\\ker F = \\ker W_S`), whose row blocks are orthonormal.
     W_S : ndarray, shape (L * n * n_outputs, n)
         Combined observability matrix, Wang et al. eq. (4) (for display; its rank
         is not computed from it).
     n_observable : ndarray of int, shape (L,)
-        ``n_i = rank W(i)``, Assumption 2(a).
+        :math:`n_i = \\operatorname{rank} W(i)`, Assumption 2(a).
     F : ndarray, shape (n_s, n)
-        ``[F_1; ...; F_L]`` with ``n_s = sum n_i`` (Wang et al. §3.2, ``z = F x``).
+        :math:`[F_1; \\dots; F_L]` with :math:`n_s = \\sum_i n_i` (Wang et al. §3.2,
+        :math:`z = F x`).
     Phi : ndarray, shape (n, n_s), or None
-        ``(F'F)^{-1} F'`` so that ``x = Phi z`` (Wang et al. §3.2); ``None`` unless
-        ``holds``.
+        :math:`(F^\\top F)^{-1} F^\\top` so that :math:`x = \\Phi z` (Wang et al. §3.2); ``None``
+        unless ``holds``.
     """
 
     holds: bool
@@ -201,12 +205,12 @@ class UniformObservability:
     Attributes
     ----------
     holds : bool
-        ``(e^{AT}, H)`` is observable (uniformly, with the window ``h``).
+        :math:`(e^{AT}, H)` is observable (uniformly, with the window :math:`h`).
     h : int or None
-        Smallest ``h >= 1`` with the window Gramian of Shankar et al. Definition 1
+        Smallest :math:`h \\ge 1` with the window Gramian of Shankar et al. Definition 1
         positive definite; ``None`` when not observable.
     rho : float
-        ``lambda_min`` of that Gramian (``rho_1`` of Definition 1); 0 when not
+        :math:`\\lambda_{\\min}` of that Gramian (:math:`\\rho_1` of Definition 1); 0 when not
         observable.
     """
 
@@ -223,27 +227,28 @@ class DwellTimeObservability:
     ----------
     holds : bool
         The proven (corrected) lemma applies: every sampled mode is uniformly observable
-        and ``tau_d >= (h_bar + 1) T``, so every window of ``h_corrected`` samples has a
+        and :math:`\\tau_d \\ge (\\bar h + 1) T`, so every window of ``h_corrected`` samples has a
         Gramian of at least ``rho_corrected``.
     h_corrected : int or None
-        ``2 h_bar``: a window length that provably works under ``holds``.
+        :math:`2 \\bar h`: a window length that provably works under ``holds``.
     rho_corrected : float
-        ``min_i rho_1^i * min(1, e^{2 nu h_bar T})``, ``nu = min_i lambda_min((A_i + A_i')/2)``:
+        :math:`\\min_i \\rho_1^i \\cdot \\min(1, e^{2 \\nu \\bar h T})`,
+        :math:`\\nu = \\min_i \\lambda_{\\min}((A_i + A_i^\\top)/2)`:
         a proven lower bound on the window Gramian under ``holds``.
     printed_lemma_holds : bool
         The hypotheses of Lemma 1 *as printed*: every sampled mode uniformly observable
-        and ``tau_d > h_bar T``. The printed lemma is false in general: its window ``h``
+        and :math:`\\tau_d > \\bar h T`. The printed lemma is false in general: its window ``h``
         and constant ``rho`` are not valid bounds (counter-example in
         :func:`dwell_time_observability`), so this is not a certificate.
     h : int or None
-        ``2 h_bar - 1``, the window claimed by the printed Lemma 1.
+        :math:`2 \\bar h - 1`, the window claimed by the printed Lemma 1.
     rho : float
-        ``min_i rho_1^i``, the constant claimed by the printed Lemma 1. NOT a valid bound
+        :math:`\\min_i \\rho_1^i`, the constant claimed by the printed Lemma 1. NOT a valid bound
         in general.
     h_modes : tuple of (int or None)
-        ``h_i`` per mode.
+        :math:`h_i` per mode.
     rho_modes : ndarray, shape (L,)
-        ``rho_1^i`` per mode.
+        :math:`\\rho_1^i` per mode.
     """
 
     holds: bool
@@ -258,18 +263,18 @@ class DwellTimeObservability:
 
 # ---------------------------------------------------------------------- pairs (A, C)
 def observability_matrix(A, C, order: int | None = None) -> np.ndarray:
-    """Stacked observability matrix ``[C; CA; ...; CA^(order-1)]``.
+    """Stacked observability matrix :math:`[C; CA; \\dots; CA^{\\mathrm{order}-1}]`.
 
-    Lee et al. ``O_i^(k)`` (§II, below Assumption 1); Wang et al. eq. (3) with
-    ``order = n``. Its entries grow like ``||A||^(order-1)``: use it for teaching
-    and small n; decide observability with :func:`is_observable`.
+    Lee et al. :math:`O_i^{(k)}` (§II, below Assumption 1); Wang et al. eq. (3) with
+    ``order = n``. Its entries grow like :math:`\\lVert A \\rVert^{\\mathrm{order}-1}`: use it for
+    teaching and small :math:`n`; decide observability with :func:`is_observable`.
 
     Parameters
     ----------
     A : array_like, shape (..., n, n)
     C : array_like, shape (..., m, n)
     order : int, optional
-        Number of block rows ``k``; defaults to ``n``.
+        Number of block rows :math:`k`; defaults to :math:`n`.
 
     Returns
     -------
@@ -286,11 +291,16 @@ def observability_matrix(A, C, order: int | None = None) -> np.ndarray:
 
 
 def is_observable(A, C, *, rtol: float = _RTOL) -> bool:
-    """Whether ``(A, C)`` is observable, by the PBH test with deflation.
+    """Whether :math:`(A, C)` is observable, by the PBH test with deflation.
 
-    Correct where the rank of the observability matrix is not (e.g. n = 30 with
-    eigenvalues -1..-30). The pair is declared unobservable when, at some
-    eigenvalue, ``sigma_min([A - lambda I; C]) <= rtol * max(||A||, ||C||)``.
+    Correct where the rank of the observability matrix is not (e.g. :math:`n = 30` with
+    eigenvalues :math:`-1, \\dots, -30`). The pair is declared unobservable when, at some
+    eigenvalue,
+
+    .. math::
+
+        \\sigma_{\\min}([A - \\lambda I; C]) \\le \\mathrm{rtol} \\cdot
+        \\max(\\lVert A \\rVert, \\lVert C \\rVert).
 
     Parameters
     ----------
@@ -305,11 +315,11 @@ def is_observable(A, C, *, rtol: float = _RTOL) -> bool:
 
 
 def kalman_decomposition(A, C, *, rtol: float = _RTOL) -> KalmanDecomposition:
-    """Orthogonal observability decomposition of ``(A, C)`` (Wang et al. §3.1).
+    """Orthogonal observability decomposition of :math:`(A, C)` (Wang et al. §3.1).
 
     Unobservable directions are found one eigenvalue at a time by the PBH test
-    (module docstring) and split off with orthogonal transformations, so ``T`` is
-    orthogonal and ``A_hat = T' A T`` is exact up to round-off.
+    (module docstring) and split off with orthogonal transformations, so :math:`T` is
+    orthogonal and :math:`\\hat A = T^\\top A T` is exact up to round-off.
 
     Parameters
     ----------
@@ -349,10 +359,10 @@ def kalman_decomposition(A, C, *, rtol: float = _RTOL) -> KalmanDecomposition:
 
 # ---------------------------------------------------------------------- switched systems
 def mode_observability(system: SwitchedLinearSystem, *, rtol: float = _RTOL) -> ModeObservability:
-    """Observability of each mode ``(A_i, C_i)``.
+    """Observability of each mode :math:`(A_i, C_i)`.
 
     Lee et al. §II assume every mode observable; Wang et al. Assumption 2(a)
-    allows ``n_i = rank W(i) < n``.
+    allows :math:`n_i = \\operatorname{rank} W(i) < n`.
     """
     _check_system(system)
     decs = mode_decompositions(system, rtol=rtol)
@@ -369,25 +379,26 @@ def mode_observability(system: SwitchedLinearSystem, *, rtol: float = _RTOL) -> 
 def joint_observability(
     system: SwitchedLinearSystem, *, t: float | None = None, rtol: float = _RTOL
 ) -> JointObservability:
-    """Lee et al. Assumption 1: ``rank [O_i^(2n) O_j^(2n)] = 2n`` for all ``i != j``.
+    """Lee et al. Assumption 1: :math:`\\operatorname{rank} [O_i^{(2n)}\\ O_j^{(2n)}] = 2n` for all
+    :math:`i \\ne j`.
 
-    ``[O_i^(2n) O_j^(2n)]`` is the observability matrix of order 2n of the
-    augmented pair ``(blockdiag(A_i, A_j), [C_i, C_j])`` (Lee et al. §II), so the
-    rank condition is that pair's observability, tested here by PBH rather than
-    by a rank. It implies that every mode is observable.
+    :math:`[O_i^{(2n)}\\ O_j^{(2n)}]` is the observability matrix of order :math:`2n` of the
+    augmented pair :math:`(\\operatorname{blockdiag}(A_i, A_j), [C_i, C_j])` (Lee et al. §II), so
+    the rank condition is that pair's observability, tested here by PBH rather than by a rank.
+    It implies that every mode is observable.
 
     Parameters
     ----------
     system : SwitchedLinearSystem
     t : float, optional
-        Horizon for Lee et al.'s ``omega_min(t)`` (continuous-time systems only).
+        Horizon for Lee et al.'s :math:`\\omega_{\\min}(t)` (continuous-time systems only).
     rtol : float, optional
         Relative tolerance of the PBH test.
 
     Returns
     -------
     JointObservability
-        ``failing_pairs`` names the pairs ``(i, j)``, ``i < j`` (0-based), that
+        ``failing_pairs`` names the pairs :math:`(i, j)`, :math:`i < j` (0-based), that
         cannot be told apart from the output.
     """
     _check_system(system)
@@ -410,21 +421,25 @@ def joint_observability(
 
 
 def joint_gramian(system: SwitchedLinearSystem, i: int, j: int, t) -> np.ndarray:
-    """Joint observability Gramian ``W_ij(t)`` of Lee et al. §II, exactly.
+    """Joint observability Gramian :math:`W_{ij}(t)` of Lee et al. §II, exactly.
 
-    ``W_ij(t) = int_0^t [phi_i phi_j]' [phi_i phi_j] dtau`` with
-    ``phi_i(tau) = C_i e^{A_i tau}``, i.e. the observability Gramian of
-    ``(Abar, Cbar) = (blockdiag(A_i, A_j), [C_i, C_j])``. It equals the
-    process-noise integral ``int_0^t e^{M s} Q e^{M' s} ds`` of the system
-    ``M = Abar'``, ``Q = Cbar' Cbar``, which :func:`switchest.discretize.interval`
-    computes by Van Loan's block exponential — no quadrature.
+    .. math::
+
+        W_{ij}(t) = \\int_0^t [\\phi_i\\ \\phi_j]^\\top [\\phi_i\\ \\phi_j]\\, d\\tau
+
+    with :math:`\\phi_i(\\tau) = C_i e^{A_i \\tau}`, i.e. the observability Gramian of
+    :math:`(\\bar A, \\bar C) = (\\operatorname{blockdiag}(A_i, A_j), [C_i, C_j])`. It equals the
+    process-noise integral :math:`\\int_0^t e^{M s} Q e^{M^\\top s}\\, ds` of the system
+    :math:`M = \\bar A^\\top`, :math:`Q = \\bar C^\\top \\bar C`, which
+    :func:`switchest.discretize.interval` computes by Van Loan's block exponential — no
+    quadrature.
 
     Parameters
     ----------
     system : SwitchedLinearSystem
         Continuous-time.
     i, j : int
-        Modes, 0-based (``i == j`` is allowed and gives a singular Gramian).
+        Modes, 0-based (:math:`i = j` is allowed and gives a singular Gramian).
     t : float or array_like of float
         Horizon(s), positive.
 
@@ -448,12 +463,14 @@ def joint_gramian(system: SwitchedLinearSystem, i: int, j: int, t) -> np.ndarray
 
 
 def omega_min(system: SwitchedLinearSystem, i: int, j: int, t) -> np.ndarray | float:
-    """``lambda_min(W_ij(t))`` (Lee et al. §II); minimize over pairs for ``omega_min(t)``.
+    """:math:`\\lambda_{\\min}(W_{ij}(t))` (Lee et al. §II); minimize over pairs for
+    :math:`\\omega_{\\min}(t)`.
 
     :func:`joint_observability` with ``t=...`` reports the minimum over all pairs
-    ``i != j``, which is Lee et al.'s ``omega_min(t)``. An eigenvalue within the
-    eigensolver's rounding, ``4 (2n) eps lambda_max``, is 0: the Gramian is singular (the
-    pair cannot be told apart) and its rounding, of either sign, carries no information.
+    :math:`i \\ne j`, which is Lee et al.'s :math:`\\omega_{\\min}(t)`. An eigenvalue within the
+    eigensolver's rounding, :math:`4 (2n) \\varepsilon \\lambda_{\\max}`, is 0: the Gramian is
+    singular (the pair cannot be told apart) and its rounding, of either sign, carries no
+    information.
     """
     W = joint_gramian(system, i, j, t)
     eig = np.linalg.eigvalsh(W)
@@ -475,13 +492,13 @@ def mode_decompositions(
 def combined_observability(
     system: SwitchedLinearSystem, *, rtol: float = _RTOL
 ) -> CombinedObservability:
-    """Wang et al. Assumption 2: the combined observability matrix ``W_S`` has rank n.
+    """Wang et al. Assumption 2: the combined observability matrix :math:`W_S` has rank :math:`n`.
 
-    ``W_S = [W(1); ...; W(L)]`` (eq. (4)) with ``W(i)`` the observability matrix of
-    mode i (eq. (3); Wang et al. §2.2 print ``W`` in ``R^{m x n}``, but with ``r``
-    outputs it is ``(n r) x n`` — their m counts modes). Its rank equals
-    that of ``F = [F_1; ...; F_L]`` (Lemma 3(b)), whose blocks are orthonormal
-    bases of the modes' observable subspaces; the rank is taken from ``F`` with
+    :math:`W_S = [W(1); \\dots; W(L)]` (eq. (4)) with :math:`W(i)` the observability matrix of
+    mode :math:`i` (eq. (3); Wang et al. §2.2 print :math:`W` in :math:`\\mathbb{R}^{m \\times n}`,
+    but with :math:`r` outputs it is :math:`(n r) \\times n` — their :math:`m` counts modes). Its
+    rank equals that of :math:`F = [F_1; \\dots; F_L]` (Lemma 3(b)), whose blocks are orthonormal
+    bases of the modes' observable subspaces; the rank is taken from :math:`F` with
     singular-value tolerance ``rtol``.
     """
     _check_system(system)
@@ -507,14 +524,19 @@ def uniform_observability(A, H, T: float, *, R=None, rtol: float = _RTOL) -> Uni
     """Uniform observability constants of one periodically sampled mode.
 
     Shankar et al. Definition 1 and Assumption 1 for the constant pair
-    ``(F, H) = (e^{AT}, H)``: the smallest ``h >= 1`` such that
-    ``O_h = sum_{i=0}^{h} (F^i)' H' R^{-1} H F^i`` is positive definite, and
-    ``rho_1 = lambda_min(O_h)``. (Definition 1 writes the sum with
-    ``Phi_{k+h,i}``, the proof of Lemma 1 with ``Phi_{i,k}``; for a constant
-    ``F`` both give this ``O_h``.) Observability of ``(F, H)`` is decided by the
-    PBH test; sampling can destroy it (eigenvalues of ``A`` differing by
-    ``2 pi k i / T``). ``h`` is the first window with
-    ``lambda_min(O_h) > rtol * lambda_max(O_h)``, at most ``max(n - 1, 1)``.
+    :math:`(F, H) = (e^{AT}, H)`: the smallest :math:`h \\ge 1` such that
+
+    .. math::
+
+        O_h = \\sum_{i=0}^{h} (F^i)^\\top H^\\top R^{-1} H F^i
+
+    is positive definite, and :math:`\\rho_1 = \\lambda_{\\min}(O_h)`. (Definition 1 writes the
+    sum with :math:`\\Phi_{k+h,i}`, the proof of Lemma 1 with :math:`\\Phi_{i,k}`; for a constant
+    :math:`F` both give this :math:`O_h`.) Observability of :math:`(F, H)` is decided by the
+    PBH test; sampling can destroy it (eigenvalues of :math:`A` differing by
+    :math:`2 \\pi k i / T`). :math:`h` is the first window with
+    :math:`\\lambda_{\\min}(O_h) > \\mathrm{rtol} \\cdot \\lambda_{\\max}(O_h)`, at most
+    :math:`\\max(n - 1, 1)`.
 
     Parameters
     ----------
@@ -566,39 +588,45 @@ def dwell_time_observability(
 ) -> DwellTimeObservability:
     """Shankar et al. Lemma 1: uniform observability under a dwell time.
 
-    With every sampled mode ``(e^{A_i T}, C_i)`` uniformly observable with
-    constants ``(h_i, rho_1^i)`` (Assumption 1) and ``tau_d > h_bar T``,
-    ``h_bar = max h_i``, Lemma 1 states that every window Gramian
-    ``sum_{i=k}^{k+h} Phi_{i,k}' H' R^{-1} H Phi_{i,k}`` of the switched sampled
-    system is ``>= rho_1 I`` with ``h = 2 h_bar - 1`` and ``rho_1 = min rho_1^i``.
+    With every sampled mode :math:`(e^{A_i T}, C_i)` uniformly observable with
+    constants :math:`(h_i, \\rho_1^i)` (Assumption 1) and :math:`\\tau_d > \\bar h T`,
+    :math:`\\bar h = \\max_i h_i`, Lemma 1 states that every window Gramian
+
+    .. math::
+
+        \\sum_{i=k}^{k+h} \\Phi_{i,k}^\\top H^\\top R^{-1} H \\Phi_{i,k}
+
+    of the switched sampled system is :math:`\\succeq \\rho_1 I` with :math:`h = 2 \\bar h - 1` and
+    :math:`\\rho_1 = \\min_i \\rho_1^i`.
     Those printed constants are returned as ``h``, ``rho``, ``printed_lemma_holds``.
 
     They are not valid in general (tests/analysis/test_observability.py shows a
     window Gramian with min eigenvalue 4.6e-6 against a claimed 0.289): the
-    window of ``2 h_bar`` samples need not contain the ``h_j + 1`` consecutive
-    samples of one mode that mode j's Gramian needs, and the samples of mode j
-    start from ``Phi_{s,k} x``, not from ``x``, so ``rho_j`` must be scaled by
-    ``sigma_min(Phi_{s,k})^2``. The corrected statement proved here:
+    window of :math:`2 \\bar h` samples need not contain the :math:`h_j + 1` consecutive
+    samples of one mode that mode :math:`j`'s Gramian needs, and the samples of mode :math:`j`
+    start from :math:`\\Phi_{s,k} x`, not from :math:`x`, so :math:`\\rho_j` must be scaled by
+    :math:`\\sigma_{\\min}(\\Phi_{s,k})^2`. The corrected statement proved here:
 
-    * a stay of length ``>= (h_bar + 1) T`` contains ``h_bar + 1`` consecutive
-      samples ``t_s, ..., t_{s + h_bar}`` in one mode, whatever its phase on
-      the sample grid; with ``tau_d >= (h_bar + 1) T`` every window of
-      ``h = 2 h_bar`` intervals contains such a run starting at ``s <= k + h_bar``
-      (the first switch after ``t_k`` is either later than ``t_{k + h_bar}`` —
-      the run starts at ``t_k`` — or the next stay starts a run at
-      ``t_{k + h_bar}`` at the latest, which lasts to ``t_{k + 2 h_bar}``);
+    * a stay of length :math:`\\ge (\\bar h + 1) T` contains :math:`\\bar h + 1` consecutive
+      samples :math:`t_s, \\dots, t_{s + \\bar h}` in one mode, whatever its phase on
+      the sample grid; with :math:`\\tau_d \\ge (\\bar h + 1) T` every window of
+      :math:`h = 2 \\bar h` intervals contains such a run starting at :math:`s \\le k + \\bar h`
+      (the first switch after :math:`t_k` is either later than :math:`t_{k + \\bar h}` —
+      the run starts at :math:`t_k` — or the next stay starts a run at
+      :math:`t_{k + \\bar h}` at the latest, which lasts to :math:`t_{k + 2 \\bar h}`);
     * the window Gramian dominates that run's terms:
-      ``x' G x >= rho_j ||Phi_{s,k} x||^2``, and
-      ``sigma_min(e^{A t}) >= e^{nu t}`` with ``nu = lambda_min((A + A')/2)``
-      over every mode, so ``G >= min_j rho_j min(1, e^{2 nu h_bar T}) I``.
+      :math:`x^\\top G x \\ge \\rho_j \\lVert \\Phi_{s,k} x \\rVert^2`, and
+      :math:`\\sigma_{\\min}(e^{A t}) \\ge e^{\\nu t}` with
+      :math:`\\nu = \\lambda_{\\min}((A + A^\\top)/2)` over every mode, so
+      :math:`G \\succeq \\min_j \\rho_j \\min(1, e^{2 \\nu \\bar h T}) I`.
 
     That statement is returned as ``holds``, ``h_corrected``, ``rho_corrected``.
 
     Parameters
     ----------
     system : SwitchedLinearSystem
-        Continuous-time; ``C[i]`` plays the role of ``H`` in mode i (Shankar et
-        al. have one ``H``); ``R[i]`` weights mode i's Gramian (identity for a
+        Continuous-time; ``C[i]`` plays the role of :math:`H` in mode ``i`` (Shankar et
+        al. have one :math:`H`); ``R[i]`` weights mode ``i``'s Gramian (identity for a
         noise-free system).
     T : float
         Sampling period.
@@ -649,11 +677,15 @@ def window_gramian(system: SwitchedLinearSystem, T: float, h: int, switch_times,
                    modes) -> np.ndarray:
     """The window Gramian of the sampled switched system (Shankar et al., proof of Lemma 1).
 
-    ``G = sum_{i=0}^{h} Phi_{i,0}' C_i' R_i^{-1} C_i Phi_{i,0}`` over the samples
-    ``t_i = i T``, where ``Phi_{i,0}`` is the exact transition from ``t_0 = 0`` to ``t_i``
-    (segment exponentials composed across every switch inside an interval, Shankar et al.
-    eqs (3)-(5)) and ``C_i``, ``R_i`` are those of the mode active at ``t_i``; ``R`` is the
-    identity for a noise-free system. Lemma 1 claims ``G >= rho_1 I``: the smallest
+    .. math::
+
+        G = \\sum_{i=0}^{h} \\Phi_{i,0}^\\top C_i^\\top R_i^{-1} C_i \\Phi_{i,0}
+
+    over the samples :math:`t_i = i T`, where :math:`\\Phi_{i,0}` is the exact transition from
+    :math:`t_0 = 0` to :math:`t_i` (segment exponentials composed across every switch inside an
+    interval, Shankar et al. eqs (3)-(5)) and :math:`C_i`, :math:`R_i` are those of the mode
+    active at :math:`t_i`; :math:`R` is the identity for a noise-free system. Lemma 1 claims
+    :math:`G \\succeq \\rho_1 I`: the smallest
     eigenvalue of this matrix is what the claim is checked against
     (:func:`dwell_time_observability`).
 
@@ -664,7 +696,7 @@ def window_gramian(system: SwitchedLinearSystem, T: float, h: int, switch_times,
     T : float
         Sampling period.
     h : int
-        The window: samples ``0..h``.
+        The window: samples :math:`0, \\dots, h`.
     switch_times : array_like, shape (S,)
         Increasing switching instants (any sign: a switch before 0 sets the mode at 0).
     modes : array_like of int, shape (S + 1,)
@@ -706,11 +738,11 @@ def window_gramian(system: SwitchedLinearSystem, T: float, h: int, switch_times,
 
 # ---------------------------------------------------------------------- helpers
 def _unobservable_split(A: np.ndarray, C: np.ndarray, rtol: float):
-    """Orthonormal bases ``(M, N)`` of the unobservable subspace and its complement.
+    """Orthonormal bases :math:`(M, N)` of the unobservable subspace and its complement.
 
     PBH with deflation: while some eigenvalue of the remaining block has
-    ``sigma_min([A - lambda I; C]) <= tol``, its null vector (an eigenvector in
-    ``ker C``; real and imaginary parts for a complex pair) is split off by an
+    :math:`\\sigma_{\\min}([A - \\lambda I; C]) \\le \\mathrm{tol}`, its null vector (an eigenvector
+    in :math:`\\ker C`; real and imaginary parts for a complex pair) is split off by an
     orthogonal similarity and the test repeats on the complement.
     """
     n = A.shape[0]
@@ -751,9 +783,9 @@ def _unobservable_split(A: np.ndarray, C: np.ndarray, rtol: float):
 def _pbh_points(lam: np.ndarray, scale: float) -> np.ndarray:
     """Eigenvalues plus the centroids of their clusters.
 
-    A Jordan block of size k splits under round-off into k eigenvalues about
-    ``eps^(1/k) ||A||`` apart, where the PBH singular value is no longer small;
-    their centroid is accurate to round-off. Clusters are taken at the relative
+    A Jordan block of size :math:`k` splits under round-off into :math:`k` eigenvalues about
+    :math:`\\varepsilon^{1/k} \\lVert A \\rVert` apart, where the PBH singular value is no longer
+    small; their centroid is accurate to round-off. Clusters are taken at the relative
     radii 1e-6, 1e-4 and 1e-2 (single linkage).
     """
     points = [lam]
@@ -776,9 +808,9 @@ def _augmented(system: SwitchedLinearSystem, i: int, j: int) -> tuple[np.ndarray
 
 
 def _pair(A, C, *, batched: bool, output: str = "C") -> tuple[np.ndarray, np.ndarray]:
-    """Validated ``(A, C)``; ``output`` is the name of the output matrix in messages.
+    """Validated :math:`(A, C)`; ``output`` is the name of the output matrix in messages.
 
-    At least one output is required (``m >= 1``), as for a
+    At least one output is required (:math:`m \\ge 1`), as for a
     :class:`~switchest.system.SwitchedLinearSystem`.
     """
     A = float_array(A, "A", ndim=None if batched else 2)

@@ -1,24 +1,28 @@
 """The sub-states and the sampled error system of Wang et al.'s subsystem observers (seed 003).
 
-Model (Wang et al. eq. (1), Assumption 1): ``dx = A(alpha) x dt``,
-``dy = C(alpha) x dt + Xi(alpha) dw``, modes ``alpha_k`` i.i.d. with probabilities
-``p`` on ``[kT, (k+1)T)``; a :class:`SwitchedLinearSystem` holds ``R = Xi Xi'``.
-Each mode i observes the sub-state ``z^i = F_i x`` (§3.1); its sub-observer runs
-closed loop with gain ``L_i`` while ``alpha_k = i`` (eq. (7)) and open loop
-otherwise (eq. (14)); ``x_hat = Phi z_hat`` with ``Phi = (F'F)^{-1} F'``. The
-error ``e_k = z_hat_k - z_k`` obeys (Theorem 1, eq. (15))::
+Model (Wang et al. eq. (1), Assumption 1): :math:`dx = A(\\alpha) x\\, dt`,
+:math:`dy = C(\\alpha) x\\, dt + \\Xi(\\alpha)\\, dw`, modes :math:`\\alpha_k` i.i.d. with
+probabilities :math:`p` on :math:`[kT, (k+1)T)`; a :class:`SwitchedLinearSystem` holds
+:math:`R = \\Xi \\Xi^\\top`. Each mode i observes the sub-state :math:`z^i = F_i x` (§3.1); its
+sub-observer runs closed loop with gain :math:`L_i` while :math:`\\alpha_k = i` (eq. (7)) and
+open loop otherwise (eq. (14)); :math:`\\hat x = \\Phi \\hat z` with
+:math:`\\Phi = (F^\\top F)^{-1} F^\\top`. The error :math:`e_k = \\hat z_k - z_k` obeys
+(Theorem 1, eq. (15))
 
-    e_{k+1} = Lambda(alpha_k) e_k + Gamma(alpha_k) d_k,   d_k ~ N(0, I)
+.. math::
+
+    e_{k+1} = \\Lambda(\\alpha_k) e_k + \\Gamma(\\alpha_k) d_k, \\qquad d_k \\sim \\mathcal{N}(0, I)
 
 This module builds that sampled error system exactly (matrix exponentials and the
 noise integral of Proposition 1 by Van Loan, through :mod:`switchest.discretize`),
 and evaluates it for given gains with the mathematically right quantities:
 
 * the sub-states of every mode (:func:`subsystem_structure`, :func:`substate_gains`);
-* ``Lambda(i)`` and ``Gamma(i)`` (:func:`error_dynamics`);
-* MS convergence: Theorem 2's ``gamma = E||Lambda_k||^2 < 1`` (sufficient), the
-  §5.1/§6 test ``lambda_max(E[Lambda_k' Lambda_k]) < 1`` (sufficient) and the exact
-  test ``rho(E[Lambda_k kron Lambda_k]) < 1`` (:func:`ms_convergence`);
+* :math:`\\Lambda(i)` and :math:`\\Gamma(i)` (:func:`error_dynamics`);
+* MS convergence: Theorem 2's :math:`\\gamma = \\mathbb{E} \\lVert \\Lambda_k \\rVert^2 < 1`
+  (sufficient), the §5.1/§6 test
+  :math:`\\lambda_{\\max}(\\mathbb{E}[\\Lambda_k^\\top \\Lambda_k]) < 1` (sufficient) and the exact
+  test :math:`\\rho(\\mathbb{E}[\\Lambda_k \\otimes \\Lambda_k]) < 1` (:func:`ms_convergence`);
 * the steady-state second moment (§5.1, eq. (21) corrected) and its transient
   (:func:`steady_state`, :func:`second_moments`).
 
@@ -26,21 +30,22 @@ The design questions (critical interval, gains) are answered in
 :mod:`switchest.analysis.subsystem_observers`, which also exports these names.
 
 Gains are given in state coordinates: ``gains[i]`` is ``(n, m)`` with columns in
-mode i's observable subspace; the sub-observer uses ``L_i = F_i gains[i]``. This
-makes a gain independent of the (sign-)arbitrary basis ``F_i``.
+mode i's observable subspace; the sub-observer uses :math:`L_i = F_i\\, \\mathrm{gains}[i]`.
+This makes a gain independent of the (sign-)arbitrary basis :math:`F_i`.
 
 Paper discrepancies (each tested in ``tests/analysis/test_subsystem_observers.py``):
 
-* Theorem 2's ``gamma = E||Lambda_k||^2`` is what the theorem states, but the
-  paper's printed gammas (Example 2: ``max{0.9225, 0.6677}``) are the
-  eigenvalues of ``E[Lambda_k' Lambda_k]``; for Example 1's system
-  ``E||Lambda_k||^2 >= p e^{2 a2 T} + (1 - p) e^{2 a1 T} > 1`` for every gain and
-  every ``T > 0``, so Theorem 2's test can never certify it.
-* Eq. (21), ``P' V P - V + Psi = 0`` with ``M = E[Lambda' Lambda] = P'P``,
-  ``Psi = E[Gamma' Gamma]``: the second moment obeys
-  ``V = E[Lambda V Lambda'] + E[Gamma Gamma']`` (a generalized Lyapunov equation,
-  solved here); the printed equation agrees with it only when the
-  ``Lambda(i)`` are diagonal (the scalar examples).
+* Theorem 2's :math:`\\gamma = \\mathbb{E} \\lVert \\Lambda_k \\rVert^2` is what the theorem
+  states, but the paper's printed gammas (Example 2: :math:`\\max\\{0.9225, 0.6677\\}`) are the
+  eigenvalues of :math:`\\mathbb{E}[\\Lambda_k^\\top \\Lambda_k]`; for Example 1's system
+  :math:`\\mathbb{E} \\lVert \\Lambda_k \\rVert^2 \\ge p e^{2 a_2 T} + (1 - p) e^{2 a_1 T} > 1` for
+  every gain and every :math:`T > 0`, so Theorem 2's test can never certify it.
+* Eq. (21), :math:`P^\\top V P - V + \\Psi = 0` with
+  :math:`M = \\mathbb{E}[\\Lambda^\\top \\Lambda] = P^\\top P`,
+  :math:`\\Psi = \\mathbb{E}[\\Gamma^\\top \\Gamma]`: the second moment obeys
+  :math:`V = \\mathbb{E}[\\Lambda V \\Lambda^\\top] + \\mathbb{E}[\\Gamma \\Gamma^\\top]` (a
+  generalized Lyapunov equation, solved here); the printed equation agrees with it only when
+  the :math:`\\Lambda(i)` are diagonal (the scalar examples).
 """
 
 from __future__ import annotations
@@ -88,18 +93,18 @@ class SubsystemStructure:
     ----------
     block : ndarray of int, shape (L,)
         Sub-state block on which mode i closes the loop; -1 when mode i observes
-        nothing (``n_i = 0``, e.g. every sensor lost).
+        nothing (:math:`n_i = 0`, e.g. every sensor lost).
     F_blocks : tuple of ndarray, each (n_b, n)
-        Orthonormal rows: block b estimates ``z^b = F_b x`` (Wang et al.'s ``F_i``).
+        Orthonormal rows: block b estimates :math:`z^b = F_b x` (Wang et al.'s :math:`F_i`).
     F : ndarray, shape (n_s, n)
-        ``[F_1; ...; F_B]``, ``z = F x``.
+        :math:`[F_1; \\dots; F_B]`, :math:`z = F x`.
     Phi : ndarray, shape (n, n_s)
-        ``(F'F)^{-1} F'``, ``x = Phi z``.
+        :math:`(F^\\top F)^{-1} F^\\top`, :math:`x = \\Phi z`.
     A22, C2 : tuple of ndarray
-        Per mode, ``F_b A_i F_b'`` ``(n_b, n_b)`` and ``C_i F_b'`` ``(m, n_b)``: the
-        observable pair ``(A22^i, C2^i)`` of eq. (6) (empty for ``block = -1``).
+        Per mode, :math:`F_b A_i F_b^\\top` ``(n_b, n_b)`` and :math:`C_i F_b^\\top` ``(m, n_b)``:
+        the observable pair :math:`(A_{22}^i, C_2^i)` of eq. (6) (empty for ``block = -1``).
     offsets : ndarray of int, shape (B + 1,)
-        Block b occupies entries ``offsets[b]:offsets[b+1]`` of ``z``.
+        Block b occupies entries ``offsets[b]:offsets[b+1]`` of :math:`z`.
     shared : bool
         Whether modes with the same observable subspace share one block.
     """
@@ -120,11 +125,11 @@ class SubsystemStructure:
 
     @property
     def n_substates(self) -> int:
-        """``n_s``, the length of ``z``."""
+        """:math:`n_s`, the length of :math:`z`."""
         return int(self.offsets[-1])
 
     def rows(self, b: int) -> slice:
-        """Entries of ``z`` held by block ``b``."""
+        """Entries of :math:`z` held by block ``b``."""
         return slice(int(self.offsets[b]), int(self.offsets[b + 1]))
 
 
@@ -138,18 +143,19 @@ class ErrorDynamics:
         Switching interval.
     structure : SubsystemStructure
     Lam : ndarray, shape (L, n_s, n_s)
-        ``Lambda(i)``: block row ``b(i)`` holds ``e^{A_c^i T}`` in column block
-        ``b(i)`` (closed loop, eq. (13)); every other block row j holds
-        ``F_j e^{A_i T} Phi`` (open loop, eq. (14)).
+        :math:`\\Lambda(i)`: block row :math:`b(i)` holds :math:`e^{A_c^i T}` in column block
+        :math:`b(i)` (closed loop, eq. (13)); every other block row j holds
+        :math:`F_j e^{A_i T} \\Phi` (open loop, eq. (14)).
     W : ndarray, shape (L, n_s, n_s)
-        ``Gamma(i) Gamma(i)'``: ``int_0^T e^{A_c^i s} L_i R_i L_i' e^{A_c^i' s} ds``
-        in block ``b(i)`` (Proposition 1), zero elsewhere.
+        :math:`\\Gamma(i) \\Gamma(i)^\\top`:
+        :math:`\\int_0^T e^{A_c^i s} L_i R_i L_i^\\top e^{(A_c^i)^\\top s}\\, ds` in block
+        :math:`b(i)` (Proposition 1), zero elsewhere.
     Gamma : ndarray, shape (L, n_s, n_s)
-        A square root of ``W`` (``Q_k^i`` of eq. (13) in its block).
+        A square root of ``W`` (:math:`Q_k^i` of eq. (13) in its block).
     closed_loop : tuple of ndarray
-        ``A_c^i = A22^i - L_i C2^i`` per mode (empty for ``block = -1``).
+        :math:`A_c^i = A_{22}^i - L_i C_2^i` per mode (empty for ``block = -1``).
     expAT : ndarray, shape (L, n, n)
-        ``e^{A_i T}``.
+        :math:`e^{A_i T}`.
     """
 
     T: float
@@ -170,18 +176,21 @@ class MSConvergence:
     Attributes
     ----------
     gamma : float
-        ``E||Lambda_k||^2`` (Wang et al. Theorem 2).
+        :math:`\\mathbb{E} \\lVert \\Lambda_k \\rVert^2` (Wang et al. Theorem 2).
     gamma_holds : bool
-        ``gamma < 1`` beyond rounding: Theorem 2's sufficient condition.
+        :math:`\\gamma < 1` beyond rounding: Theorem 2's sufficient condition.
     moment_eigenvalues : ndarray, shape (n_s,)
-        Eigenvalues of ``M = E[Lambda_k' Lambda_k] = sum_i p_i Lambda(i)' Lambda(i)``,
-        descending (the numbers of §6 and of Example 2).
+        Eigenvalues of :math:`M = \\mathbb{E}[\\Lambda_k^\\top \\Lambda_k]
+        = \\sum_i p_i \\Lambda(i)^\\top \\Lambda(i)`, descending (the numbers of §6 and of
+        Example 2).
     moment_bound : float
-        ``lambda_max(M)``: ``E||e_{k+1}||^2 <= lambda_max(M) E||e_k||^2 + c``.
+        :math:`\\lambda_{\\max}(M)`: :math:`\\mathbb{E} \\lVert e_{k+1} \\rVert^2
+        \\le \\lambda_{\\max}(M)\\, \\mathbb{E} \\lVert e_k \\rVert^2 + c`.
     moment_holds : bool
         ``moment_bound < 1`` beyond rounding (sufficient; §5.1 "M is stable").
     radius : float
-        ``rho(E[Lambda_k kron Lambda_k])`` (:func:`switchest.analysis.ms_stable_iid`).
+        :math:`\\rho(\\mathbb{E}[\\Lambda_k \\otimes \\Lambda_k])`
+        (:func:`switchest.analysis.ms_stable_iid`).
     holds : bool
         ``radius < 1`` beyond rounding: the error converges in mean square (necessary and
         sufficient, Wang et al. Theorem 1).
@@ -203,13 +212,15 @@ class SteadyState:
     Attributes
     ----------
     V : ndarray, shape (n_s, n_s)
-        ``lim E[e_k e_k']``, solving ``V = sum_i p_i (Lambda(i) V Lambda(i)' + W(i))``.
+        :math:`\\lim \\mathbb{E}[e_k e_k^\\top]`, solving
+        :math:`V = \\sum_i p_i (\\Lambda(i) V \\Lambda(i)^\\top + W(i))`.
     mu : float
-        ``tr V`` (Wang et al.'s ``mu_infinity``, the MS error of ``z``).
+        :math:`\\operatorname{tr} V` (Wang et al.'s :math:`\\mu_\\infty`, the MS error of
+        :math:`z`).
     V_x : ndarray, shape (n, n)
-        ``Phi V Phi'``, the second moment of the state error ``x_hat - x``.
+        :math:`\\Phi V \\Phi^\\top`, the second moment of the state error :math:`\\hat x - x`.
     mu_x : float
-        ``tr V_x``.
+        :math:`\\operatorname{tr} V_x`.
     """
 
     V: np.ndarray
@@ -225,7 +236,7 @@ def subsystem_structure(
     """The observable sub-states of every mode (Wang et al. §3.1-3.2).
 
     Each mode's Kalman decomposition (:func:`switchest.analysis.kalman_decomposition`)
-    gives ``F_i`` with orthonormal rows spanning its observable subspace.
+    gives :math:`F_i` with orthonormal rows spanning its observable subspace.
 
     Parameters
     ----------
@@ -236,9 +247,9 @@ def subsystem_structure(
         Wang et al. §3.2 stack one sub-state per mode (``shared=False``). With
         ``shared=True`` (default) modes whose observable subspaces coincide share
         one block, closed loop whenever any of them is active: this is the
-        observer §6 analyses (one 4x4 ``Lambda(i)`` per mode for the 5-bus system,
-        whose modes 1-3 are all observable); stacking three copies of ``x``
-        there diverges at the paper's ``T``.
+        observer §6 analyses (one :math:`4 \\times 4` :math:`\\Lambda(i)` per mode for the 5-bus
+        system, whose modes 1-3 are all observable); stacking three copies of :math:`x`
+        there diverges at the paper's :math:`T`.
     rtol : float
         Tolerance of the observability decompositions.
     """
@@ -290,10 +301,12 @@ def subsystem_structure(
 def substate_gains(
     structure: SubsystemStructure, gains, name: str = "gains"
 ) -> tuple[np.ndarray, ...]:
-    """Sub-observer gains ``L_i = F_b gains[i]`` ``(n_b, m)`` from state-coordinate gains.
+    """Sub-observer gains :math:`L_i = F_b\\, \\mathrm{gains}[i]` ``(n_b, m)`` from
+    state-coordinate gains.
 
     ``gains (L, n, m)`` must have its columns in each mode's observable subspace
-    (``F_b' F_b gains[i] = gains[i]``; zero for a mode that observes nothing),
+    (:math:`F_b^\\top F_b\\, \\mathrm{gains}[i] = \\mathrm{gains}[i]`; zero for a mode that observes
+    nothing),
     since a sub-observer can only correct its own sub-state.
     """
     L, n = structure.block.size, structure.F.shape[1]
@@ -323,10 +336,11 @@ def error_dynamics(
     *,
     structure: SubsystemStructure | None = None,
 ) -> ErrorDynamics:
-    """``Lambda(i)`` and ``Gamma(i) Gamma(i)'`` of Wang et al. Theorem 1, eqs. (13)-(15).
+    """:math:`\\Lambda(i)` and :math:`\\Gamma(i) \\Gamma(i)^\\top` of Wang et al. Theorem 1, eqs.
+    (13)-(15).
 
     Closed-loop exponentials and Proposition 1's noise integral
-    ``int_0^T e^{A_c s} L R L' e^{A_c' s} ds`` come from one batched Van Loan
+    :math:`\\int_0^T e^{A_c s} L R L^\\top e^{A_c^\\top s}\\, ds` come from one batched Van Loan
     exponential (:func:`switchest.discretize.mode_steps`), not from quadrature.
 
     Parameters
@@ -368,13 +382,14 @@ def error_dynamics(
 def ms_convergence(dyn: ErrorDynamics, p) -> MSConvergence:
     """Theorem 2's test, the §5.1/§6 moment test and the exact MS test.
 
-    ``e_{k+1} = Lambda_k e_k + Gamma_k d_k`` converges in mean square iff
-    ``rho(sum_i p_i Lambda(i) kron Lambda(i)) < 1`` (the second-moment recursion);
-    ``lambda_max(E[Lambda'Lambda]) < 1`` and Theorem 2's ``E||Lambda||^2 < 1`` are
-    successively stronger sufficient conditions. Each verdict asks its value to be
-    below 1 by more than its rounding allowance
-    (:func:`~switchest.analysis._lmi.rounding_allowance`: ``n_s + L`` terms of size
-    ``sum_i p_i ||Lambda(i)||_F^2``), so that it does not depend on the last bits.
+    :math:`e_{k+1} = \\Lambda_k e_k + \\Gamma_k d_k` converges in mean square iff
+    :math:`\\rho(\\sum_i p_i \\Lambda(i) \\otimes \\Lambda(i)) < 1` (the second-moment recursion);
+    :math:`\\lambda_{\\max}(\\mathbb{E}[\\Lambda^\\top \\Lambda]) < 1` and Theorem 2's
+    :math:`\\mathbb{E} \\lVert \\Lambda \\rVert^2 < 1` are successively stronger sufficient
+    conditions. Each verdict asks its value to be below 1 by more than its rounding allowance
+    (:func:`~switchest.analysis._lmi.rounding_allowance`: :math:`n_s + L` terms of size
+    :math:`\\sum_i p_i \\lVert \\Lambda(i) \\rVert_F^2`), so that it does not depend on the last
+    bits.
     """
     p = _probabilities(p, dyn.Lam.shape[0])
     L, n_s = dyn.Lam.shape[0], dyn.Lam.shape[-1]
@@ -396,10 +411,11 @@ def ms_convergence(dyn: ErrorDynamics, p) -> MSConvergence:
 
 
 def second_moments(dyn: ErrorDynamics, p, V0, steps: int) -> np.ndarray:
-    """``E[e_k e_k']`` for ``k = 0..steps`` from ``E[e_0 e_0'] = V0``, exactly.
+    """:math:`\\mathbb{E}[e_k e_k^\\top]` for :math:`k = 0, \\dots, \\mathrm{steps}` from
+    :math:`\\mathbb{E}[e_0 e_0^\\top]` = ``V0``, exactly.
 
-    ``V_{k+1} = sum_i p_i (Lambda(i) V_k Lambda(i)' + W(i))`` (Wang et al. §5.1:
-    ``Lambda_k``, ``e_k``, ``d_k`` independent).
+    :math:`V_{k+1} = \\sum_i p_i (\\Lambda(i) V_k \\Lambda(i)^\\top + W(i))` (Wang et al. §5.1:
+    :math:`\\Lambda_k`, :math:`e_k`, :math:`d_k` independent).
 
     Returns
     -------
@@ -432,10 +448,22 @@ def second_moments(dyn: ErrorDynamics, p, V0, steps: int) -> np.ndarray:
 def steady_state(dyn: ErrorDynamics, p) -> SteadyState:
     """Steady-state second moment of the error: Wang et al. eq. (21), corrected.
 
-    Solves ``V = sum_i p_i Lambda(i) V Lambda(i)' + sum_i p_i W(i)`` through
-    ``(I - sum_i p_i Lambda(i) kron Lambda(i)) vec V = vec(sum_i p_i W(i))``. The
-    printed ``P' V P - V + Psi = 0`` (``P'P = E[Lambda'Lambda]``) gives the same
-    trace only when the ``Lambda(i)`` are diagonal.
+    Solves
+
+    .. math::
+
+        V = \\sum_i p_i \\Lambda(i) V \\Lambda(i)^\\top + \\sum_i p_i W(i)
+
+    through
+
+    .. math::
+
+        \\Bigl(I - \\sum_i p_i \\Lambda(i) \\otimes \\Lambda(i)\\Bigr) \\operatorname{vec} V
+        = \\operatorname{vec}\\Bigl(\\sum_i p_i W(i)\\Bigr).
+
+    The printed :math:`P^\\top V P - V + \\Psi = 0`
+    (:math:`P^\\top P = \\mathbb{E}[\\Lambda^\\top \\Lambda]`) gives the same trace only when the
+    :math:`\\Lambda(i)` are diagonal.
 
     Raises
     ------
@@ -495,8 +523,8 @@ def _probabilities(p, L: int) -> np.ndarray:
 
 
 def _open_loop(structure: SubsystemStructure, expAT: np.ndarray) -> np.ndarray:
-    """``Lambda^2 F e^{A_i T} Phi`` (eq. (15)): ``F e^{A_i T} Phi`` with the closed-loop block rows
-    zeroed."""
+    """:math:`\\Lambda^2 F e^{A_i T} \\Phi` (eq. (15)): :math:`F e^{A_i T} \\Phi` with the
+    closed-loop block rows zeroed."""
     full = structure.F @ expAT @ structure.Phi  # (..., L, n_s, n_s)
     keep = np.ones((structure.block.size, structure.n_substates))
     for i, b in enumerate(structure.block):

@@ -1,9 +1,9 @@
 """Mean-square design of subsystem observers for randomly switched systems (Wang et al., seed 003).
 
-The observers, their sub-states and their sampled error system ``e_{k+1} = Lambda(alpha_k) e_k
-+ Gamma(alpha_k) d_k`` (Theorem 1, eq. (15)) are built in
-:mod:`switchest.analysis.subsystem_error_dynamics`, whose names are exported here too. This
-module answers the paper's design questions with the mathematically right quantities:
+The observers, their sub-states and their sampled error system
+:math:`e_{k+1} = \\Lambda(\\alpha_k) e_k + \\Gamma(\\alpha_k) d_k` (Theorem 1, eq. (15)) are
+built in :mod:`switchest.analysis.subsystem_error_dynamics`, whose names are exported here too.
+This module answers the paper's design questions with the mathematically right quantities:
 
 * the critical interval (Theorem 3, eq. (20); Example 2's per-component
   thresholds; the exact fast-observer threshold) (:func:`critical_interval`);
@@ -18,16 +18,17 @@ Gains are given in state coordinates, as in :func:`substate_gains`.
 Paper discrepancies (each tested in ``tests/analysis/test_subsystem_observers.py``; those of
 Theorem 2 and eq. (21) are in :mod:`switchest.analysis.subsystem_error_dynamics`):
 
-* Theorem 3's step (20), ``E||Lambda^2 F e^{A_k T} Phi||^2 <= q_max h(T)``, has no
-  justification (the projection ``Lambda^2`` only removes block i); the bound it
+* Theorem 3's step (20),
+  :math:`\\mathbb{E} \\lVert \\Lambda^2 F e^{A_k T} \\Phi \\rVert^2 \\le q_{\\max} h(T)`, has no
+  justification (the projection :math:`\\Lambda^2` only removes block i); the bound it
   defines (:attr:`CriticalInterval.printed_t_max`) is kept because §6's
-  ``T_max = 0.7365`` is that bound. The existence claim itself is right for the
+  :math:`T_{\\max} = 0.7365` is that bound. The existence claim itself is right for the
   exact MS test: in the limit of infinitely fast sub-observers the open-loop
-  second-moment operator has spectral radius below 1 at ``T = 0`` (an error
-  surviving every mode's projection lies in ``ker F = {0}``), hence on
-  ``[0, fast_observer)`` (:attr:`CriticalInterval.fast_observer`).
-* The paper mixes ``e^{(a-L)T}`` (Example 2's gain bounds, Example 4's gammas)
-  and ``e^{2(a-L)T}`` (Examples 1-2's gammas); second moments need the latter.
+  second-moment operator has spectral radius below 1 at :math:`T = 0` (an error
+  surviving every mode's projection lies in :math:`\\ker F = \\{0\\}`), hence on
+  :math:`[0, \\mathrm{fast\\_observer})` (:attr:`CriticalInterval.fast_observer`).
+* The paper mixes :math:`e^{(a-L)T}` (Example 2's gain bounds, Example 4's gammas)
+  and :math:`e^{2(a-L)T}` (Examples 1-2's gammas); second moments need the latter.
 """
 
 from __future__ import annotations
@@ -94,21 +95,23 @@ class CriticalInterval:
     Attributes
     ----------
     printed_t_max : float
-        Smallest ``T`` with ``q_max h(T) = 1``, ``h(T) = max_i ||F e^{A_i T} Phi||^2``,
-        ``q_max`` the largest probability that a block runs open loop (Wang et al.
-        eq. (20); their ``max_i (1 - p_i)`` when every mode has its own block).
-        The §6 ``T_max``; not a proven bound (module docstring).
+        Smallest :math:`T` with :math:`q_{\\max} h(T) = 1`,
+        :math:`h(T) = \\max_i \\lVert F e^{A_i T} \\Phi \\rVert^2`, :math:`q_{\\max}` the largest
+        probability that a block runs open loop (Wang et al. eq. (20); their
+        :math:`\\max_i (1 - p_i)` when every mode has its own block).
+        The §6 :math:`T_{\\max}`; not a proven bound (module docstring).
     fast_observer : float
-        Smallest ``T`` with ``rho(sum_i p_i O_i kron O_i) = 1``, ``O_i`` = ``Lambda(i)``
-        with its closed-loop block set to zero: below it, fast enough
+        Smallest :math:`T` with :math:`\\rho(\\sum_i p_i O_i \\otimes O_i) = 1`,
+        :math:`O_i = \\Lambda(i)` with its closed-loop block set to zero: below it, fast enough
         sub-observers are MS convergent.
     per_block : ndarray, shape (B,)
-        Per block g, the smallest ``T`` with
-        ``rho(sum_{b(i) != g} p_i D_i kron D_i) = 1``, ``D_i = F_g e^{A_i T} Phi_g``:
-        the threshold of block g on its own (Example 2's ``T_max^1, T_max^2``).
-        Above it no gain makes block g MS convergent when the blocks decouple.
+        Per block g, the smallest :math:`T` with
+        :math:`\\rho(\\sum_{b(i) \\ne g} p_i D_i \\otimes D_i) = 1`,
+        :math:`D_i = F_g e^{A_i T} \\Phi_g`: the threshold of block g on its own (Example 2's
+        :math:`T_{\\max}^1, T_{\\max}^2`). Above it no gain makes block g MS convergent when the
+        blocks decouple.
     q_max : float
-        The ``q_max`` of ``printed_t_max``.
+        The :math:`q_{\\max}` of ``printed_t_max``.
     """
 
     printed_t_max: float
@@ -126,16 +129,16 @@ class GainBounds:
     mode : ndarray of int, shape (B,)
         The mode closing the loop on each (one-dimensional) block.
     open_loop : ndarray, shape (B,)
-        ``o_g = sum_{i != mode} p_i (F_g e^{A_i T} Phi_g)^2``, the block's open-loop
-        second-moment factor.
+        :math:`o_g = \\sum_{i \\ne \\mathrm{mode}} p_i (F_g e^{A_i T} \\Phi_g)^2`, the block's
+        open-loop second-moment factor.
     max_rate : ndarray, shape (B,)
-        Closed-loop rates ``a_c`` with ``p e^{2 a_c T} + o_g < 1`` are those below it
-        (``-inf`` when ``o_g >= 1``).
+        Closed-loop rates :math:`a_c` with :math:`p e^{2 a_c T} + o_g < 1` are those below it
+        (``-inf`` when :math:`o_g \\ge 1`).
     min_loop_gain : ndarray, shape (B,)
-        ``L C2 > A22 - max_rate``: the loop gain bound (Example 2's
-        ``L_1 > ..., L_2 > ...`` for unit output gains).
+        :math:`L C_2 > A_{22} - \\mathrm{max\\_rate}`: the loop gain bound (Example 2's
+        :math:`L_1 > \\dots, L_2 > \\dots` for unit output gains).
     feasible : ndarray of bool, shape (B,)
-        Per block: ``o_g < 1`` beyond its rounding (some gain closes that block's loop).
+        Per block: :math:`o_g < 1` beyond its rounding (some gain closes that block's loop).
     """
 
     mode: np.ndarray
@@ -159,9 +162,10 @@ class OptimalGains:
     gains : ndarray, shape (L, n, m)
         Gains (state coordinates) minimizing the steady-state MS error.
     mu : float
-        Their ``tr V`` (or ``tr V_x``, per the objective).
+        Their :math:`\\operatorname{tr} V` (or :math:`\\operatorname{tr} V_x`, per the
+        objective).
     radius : float
-        MS spectral radius at the optimum (< 1).
+        MS spectral radius at the optimum (:math:`< 1`).
     holds : bool
         The optimizer's verdict: it converged to a (local) minimum. A numerical verdict,
         not a proof; ``radius`` is below ``max_radius`` whatever it says.
@@ -180,8 +184,8 @@ def critical_interval(
     """Critical switching intervals of Wang et al. Theorem 3 and Example 2.
 
     Each threshold is the first crossing of 1, located on a log-spaced grid of
-    ``T`` up to ``40 / max_i ||A_i||`` and refined by Brent's method; ``inf`` when
-    there is no crossing in that range. See :class:`CriticalInterval`.
+    :math:`T` up to :math:`40 / \\max_i \\lVert A_i \\rVert` and refined by Brent's method;
+    ``inf`` when there is no crossing in that range. See :class:`CriticalInterval`.
     """
     structure = _structure(system, structure)
     p = _probabilities(p, system.n_modes)
@@ -221,8 +225,9 @@ def critical_interval(
 
 
 def critical_interval_nbytes(system: SwitchedLinearSystem) -> float:
-    """Memory of the ``n^2 x n^2`` second-moment matrices :func:`critical_interval` stacks over
-    its grid of ``T``: ``8 G n^4`` bytes (``G = 96`` grid points, at most ``n`` sub-states)."""
+    """Memory of the :math:`n^2 \\times n^2` second-moment matrices :func:`critical_interval`
+    stacks over its grid of :math:`T`: :math:`8 G n^4` bytes (:math:`G = 96` grid points, at most
+    :math:`n` sub-states)."""
     return 8.0 * _GRID_POINTS * float(system.n_states) ** 4
 
 
@@ -232,11 +237,11 @@ def place_gains(
 ) -> np.ndarray:
     """Per-mode pole placement of the sub-observers (Wang et al. §4.2, §6).
 
-    Mode i's gain places the eigenvalues of ``A_c^i = A22^i - L_i C2^i`` at
+    Mode i's gain places the eigenvalues of :math:`A_c^i = A_{22}^i - L_i C_2^i` at
     ``poles[i]`` with :func:`scipy.signal.place_poles` on the dual pair. Output
-    channels that carry no information in mode i (zero rows of ``C2^i``, e.g. a
+    channels that carry no information in mode i (zero rows of :math:`C_2^i`, e.g. a
     lost packet) are removed first: the gain is designed on an orthonormal basis
-    of the row space of ``C2^i`` and is zero on the rest. With one remaining
+    of the row space of :math:`C_2^i` and is zero on the rest. With one remaining
     output the gain is unique (Ackermann); with several it is not, and
     ``method`` chooses one (MATLAB's ``place`` chooses another; see
     :func:`pole_placement_gain`).
@@ -245,7 +250,7 @@ def place_gains(
     ----------
     structure : SubsystemStructure
     poles : sequence of length L
-        ``poles[i]``: the ``n_i`` desired eigenvalues of mode i's sub-observer
+        ``poles[i]``: the :math:`n_i` desired eigenvalues of mode i's sub-observer
         (``None`` or empty for a mode that observes nothing).
     method : {"YT", "KNV0"}
         Passed to :func:`scipy.signal.place_poles`.
@@ -253,7 +258,7 @@ def place_gains(
     Returns
     -------
     ndarray, shape (L, n, m)
-        Gains in state coordinates (``F_b' L_i``).
+        Gains in state coordinates (:math:`F_b^\\top L_i`).
     """
     from scipy.signal import place_poles  # scipy.signal: most of a second to import
     L, n = structure.block.size, structure.F.shape[1]
@@ -286,11 +291,11 @@ def place_gains(
 def pole_placement_gain(A, C, poles, directions) -> np.ndarray:
     """Every observer gain that places distinct real poles, by its free parameters.
 
-    For ``A - L C`` with eigenvalues ``lambda_j`` and left eigenvectors ``w_j``,
-    ``w_j' (A - lambda_j I) = g_j' C`` with ``g_j = L' w_j``; choosing the output
-    directions ``g_j`` fixes ``w_j' = g_j' C (A - lambda_j I)^{-1}`` and
-    ``L = (W')^{-1} G'``. With one output every ``g_j`` is a scalar and the gain is
-    unique; with ``m`` outputs each pole leaves ``m - 1`` free parameters — which is
+    For :math:`A - L C` with eigenvalues :math:`\\lambda_j` and left eigenvectors :math:`w_j`,
+    :math:`w_j^\\top (A - \\lambda_j I) = g_j^\\top C` with :math:`g_j = L^\\top w_j`; choosing the
+    output directions :math:`g_j` fixes :math:`w_j^\\top = g_j^\\top C (A - \\lambda_j I)^{-1}` and
+    :math:`L = (W^\\top)^{-1} G^\\top`. With one output every :math:`g_j` is a scalar and the gain
+    is unique; with :math:`m` outputs each pole leaves :math:`m - 1` free parameters — which is
     why Wang et al.'s ``place`` gain for the two-output 5-bus mode cannot be
     reproduced by another implementation, only by its directions.
 
@@ -299,9 +304,9 @@ def pole_placement_gain(A, C, poles, directions) -> np.ndarray:
     A : array_like, shape (n, n)
     C : array_like, shape (m, n)
     poles : array_like, shape (n,)
-        Distinct real poles, none an eigenvalue of ``A``.
+        Distinct real poles, none an eigenvalue of :math:`A`.
     directions : array_like, shape (n, m)
-        ``g_j`` per pole (any nonzero scale).
+        :math:`g_j` per pole (any nonzero scale).
 
     Returns
     -------
@@ -335,9 +340,10 @@ def kalman_bucy_gains(
 ) -> np.ndarray:
     """Steady-state Kalman-Bucy gains of each mode's observable sub-state (Wang et al. §4.1).
 
-    ``L_i = P C2' R^{-1}`` with ``A22 P + P A22' - P C2' R^{-1} C2 P = 0`` (no
-    state noise), the design Example 1 shows can diverge under random switching
-    (``L_i = 2 a_i`` for the scalar pair).
+    :math:`L_i = P C_2^\\top R^{-1}` with
+    :math:`A_{22} P + P A_{22}^\\top - P C_2^\\top R^{-1} C_2 P = 0` (no state noise), the design
+    Example 1 shows can diverge under random switching (:math:`L_i = 2 a_i` for the scalar
+    pair).
     """
     structure = _structure(system, structure)
     L, n, m = system.n_modes, system.n_states, system.n_outputs
@@ -366,11 +372,11 @@ def decoupled_gain_bounds(
     """Admissible gains when the error decouples into scalar components (Wang et al. Example 2).
 
     Requires every block to be one-dimensional, closed by exactly one mode, and
-    every ``Lambda(i)`` diagonal. Block g then obeys
-    ``E e_{k+1}^2 = (p_i e^{2 a_c T} + o_g) E e_k^2 + ...``, which is below 1 iff
-    ``a_c < ln((1 - o_g) / p_i) / (2T)``. The paper prints ``L_1 > 25.7775``,
-    ``L_2 > 6.3407``, which is this bound with ``e^{(a - L)T}`` in place of
-    ``e^{2(a - L)T}``.
+    every :math:`\\Lambda(i)` diagonal. Block g then obeys
+    :math:`\\mathbb{E} e_{k+1}^2 = (p_i e^{2 a_c T} + o_g) \\mathbb{E} e_k^2 + \\dots`, which is
+    below 1 iff :math:`a_c < \\ln((1 - o_g) / p_i) / (2T)`. The paper prints
+    :math:`L_1 > 25.7775`, :math:`L_2 > 6.3407`, which is this bound with :math:`e^{(a - L)T}`
+    in place of :math:`e^{2(a - L)T}`.
     """
     structure = _structure(system, structure)
     p = _probabilities(p, system.n_modes)
@@ -416,13 +422,13 @@ def optimal_gains(
 ) -> OptimalGains:
     """Gains minimizing the steady-state MS error under the MS constraint (Wang et al. §5.2).
 
-    Minimizes ``tr V`` (``objective="z"``, the paper's ``mu_infinity``) or
-    ``tr Phi V Phi'`` (``"x"``) of :func:`steady_state` over the free entries of
-    every sub-observer gain (those acting on informative outputs), subject to
-    ``rho(E[Lambda kron Lambda]) < max_radius``, by Nelder-Mead from
-    ``initial_gains`` (which must satisfy the constraint). For a fixed ``T`` this
-    is §5.2's inner problem; the trade-off in ``T`` is the curve of its optimum
-    over ``T``.
+    Minimizes :math:`\\operatorname{tr} V` (``objective="z"``, the paper's :math:`\\mu_\\infty`) or
+    :math:`\\operatorname{tr} \\Phi V \\Phi^\\top` (``"x"``) of :func:`steady_state` over the free
+    entries of every sub-observer gain (those acting on informative outputs), subject to
+    :math:`\\rho(\\mathbb{E}[\\Lambda \\otimes \\Lambda]) < \\mathrm{max\\_radius}`, by Nelder-Mead
+    from ``initial_gains`` (which must satisfy the constraint). For a fixed :math:`T` this
+    is §5.2's inner problem; the trade-off in :math:`T` is the curve of its optimum
+    over :math:`T`.
 
     ``max_radius = 1`` is the paper's constraint. The steady-state error does not
     see how fast the second moment converges, and where a weakly contracting
@@ -486,14 +492,16 @@ def optimal_gains(
 
 # ---------------------------------------------------------------------- helpers
 def _radius(weights: np.ndarray, D: np.ndarray) -> np.ndarray:
-    """``rho(sum_i w_i D_i kron D_i)`` for ``D (G, L, k, k)``, per grid point."""
+    """:math:`\\rho(\\sum_i w_i D_i \\otimes D_i)` for :math:`D` ``(G, L, k, k)``, per grid
+    point."""
     k = D.shape[-1]
     K = np.einsum("i,giab,gicd->gacbd", weights, D, D).reshape(D.shape[0], k * k, k * k)
     return spectral_radius(K)
 
 
 def _first_crossing(fn, grid: np.ndarray) -> float:
-    """Smallest ``T`` in the grid's range with ``fn(T) = 1`` (``fn`` below 1 before it)."""
+    """Smallest :math:`T` in the grid's range with :math:`\\mathrm{fn}(T) = 1` (``fn`` below 1
+    before it)."""
     with np.errstate(over="ignore", invalid="ignore"):
         values = fn(grid)
     above = ~(values < 1.0)
