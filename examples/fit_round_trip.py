@@ -12,7 +12,8 @@ should lie within 1.96 standard errors.
 # %%
 # The true system and its data
 # ----------------------------
-# ``x_{k+1} = a_j x_k + w_k``, ``w_k ~ N(0, Q_j)``, ``y_k = x_k + v_k``, ``v_k ~ N(0, R_j)``.
+# :math:`x_{k+1} = a_j x_k + w_k`, :math:`w_k \sim \mathcal{N}(0, Q_j)`,
+# :math:`y_k = x_k + v_k`, :math:`v_k \sim \mathcal{N}(0, R_j)`.
 import sys
 
 import numpy as np

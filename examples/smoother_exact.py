@@ -13,8 +13,9 @@ dynamics.
 # %%
 # A scalar system with two modes
 # ------------------------------
-# ``x_{k+1} = a_j x_k + w_k`` with ``a_0 = 0.5`` (fast decay, small noise) and ``a_1 = 1``
-# (random walk, large noise), measured with unit noise; the mode is a Markov chain.
+# :math:`x_{k+1} = a_j x_k + w_k` with :math:`a_0 = 0.5` (fast decay, small noise) and
+# :math:`a_1 = 1` (random walk, large noise), measured with unit noise; the mode is a Markov
+# chain.
 import sys
 
 import numpy as np

@@ -158,10 +158,10 @@ def main(trials=400, intervals=30, substeps=40, seed=2023):
 # %%
 # The critical switching interval
 # -------------------------------
-# The observer converges in mean square while the spectral radius of ``E[Lam kron Lam]`` over
-# one interval is below 1 (Wang et al., Theorem 2). Eq. (20) gives a sampling period below
-# which some gains achieve it (``T_max``); the exact limit of a fast observer is where the
-# open-loop growth of the blind mode, ``p_4 e^(2 lambda_max T)``, reaches 1.
+# The observer converges in mean square while the spectral radius of :math:`\mathbb{E}[\Lambda
+# \otimes \Lambda]` over one interval is below 1 (Wang et al., Theorem 2). Eq. (20) gives a sampling
+# period below which some gains achieve it (:math:`T_{\max}`); the exact limit of a fast observer is
+# where the open-loop growth of the blind mode, :math:`p_4 e^{2 \lambda_{\max} T}`, reaches 1.
 if __name__ == "__main__":
     system, p = ieee_5bus(), ieee_5bus_mode_probabilities()
     ci = critical_interval(system, p)
@@ -181,9 +181,9 @@ if __name__ == "__main__":
 # %%
 # The mean-square error of both designs, Monte Carlo against exact
 # -----------------------------------------------------------------
-# At the paper's ``T = 0.6997 s`` (0.95 ``T_max``) both designs converge in mean square. The
-# Monte Carlo mean scatters around the exact second moment with a large standard error: a
-# blind interval (mode 4, probability 5e-5) is rare but costly.
+# At the paper's :math:`T = 0.6997` s (0.95 :math:`T_{\max}`) both designs converge in mean square.
+# The Monte Carlo mean scatters around the exact second moment with a large standard error: a blind
+# interval (mode 4, probability 5e-5) is rare but costly.
 if __name__ == "__main__":
     results = main(*(int(a) for a in sys.argv[1:3]))
     k = np.arange(results["first"]["exact"].size)
