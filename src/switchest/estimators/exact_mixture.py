@@ -117,14 +117,18 @@ class ExactMixtureFilter(Estimator):
     Examples
     --------
     >>> import numpy as np
-    >>> from switchest.models.shankar import BoostTable1
-    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
-    >>> traj = setting.simulate(0.005, 2, np.random.default_rng(0))  # 2 trials x 5 ms
-    >>> (x0, P0), u = setting.prior, setting.input
-    >>> exact = ExactMixtureFilter(setting.system(), np.array(setting.transition), x0, P0)
-    >>> est = exact.run(traj.y, u, traj.t)  # 2^11 mode sequences, each its Kalman filter
+    >>> from switchest import SwitchedLinearSystem, simulate
+    >>> from switchest.signals import markov_at_samples
+    >>> system = SwitchedLinearSystem.discrete(A=[[[0.5]], [[1.0]]], Q=[[[0.05]], [[0.3]]],
+    ...                                        R=[[1.0]])  # x_{k+1} = a_j x_k + w_k
+    >>> transition = np.array([[0.85, 0.15], [0.2, 0.8]])
+    >>> t = np.arange(10.0)
+    >>> traj = simulate(system, lambda rng: markov_at_samples(transition, t, rng=rng), t,
+    ...                 np.zeros(1), trials=2, rng=3)
+    >>> exact = ExactMixtureFilter(system, transition, np.zeros(1), np.eye(1))
+    >>> est = exact.run(traj.y, t=t)  # 2^10 mode sequences, each its Kalman filter
     >>> est.x.shape, est.mode_prob.shape
-    ((2, 11, 2), (2, 11, 2))
+    ((2, 10, 1), (2, 10, 2))
     """
 
     def __init__(self, system, transition, x0, P0, *, mode_prob0=None,

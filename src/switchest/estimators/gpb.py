@@ -88,13 +88,11 @@ class GPB1Filter(ModeBankFilter):
 
     Examples
     --------
-    >>> import numpy as np
     >>> from switchest.models.shankar import BoostTable1
-    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
-    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
-    >>> (x0, P0), u = setting.prior, setting.input
-    >>> gpb1 = GPB1Filter(setting.system(), np.array(setting.transition), x0, P0)
-    >>> est = gpb1.run(traj.y, u, traj.t)
+    >>> boost = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> gpb1 = GPB1Filter(boost.system(), boost.transition, *boost.prior)
+    >>> traj = boost.simulate(0.01, 3, rng=0)  # 3 trials x 10 ms
+    >>> est = gpb1.run(traj.y, boost.input, traj.t)
     >>> est.x.shape, est.mode.shape
     ((3, 21, 2), (3, 21))
     """
@@ -143,14 +141,15 @@ class GPB2Filter(ModeBankFilter):
     Examples
     --------
     >>> import numpy as np
-    >>> from switchest.models.shankar import BoostTable1
-    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
-    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
-    >>> (x0, P0), u = setting.prior, setting.input
-    >>> gpb2 = GPB2Filter(setting.system(), np.array(setting.transition), x0, P0)
-    >>> smoothed = gpb2.smooth(traj.y, u, traj.t)  # GPB2's pass, then the two-filter smoother
-    >>> smoothed.mode_prob.shape
-    (3, 21, 2)
+    >>> from switchest import simulate
+    >>> from switchest.models import vehicle_2d, vehicle_maneuver
+    >>> man = vehicle_maneuver()  # Shankar et al.'s vehicle, section V.B: it turns, then drives on
+    >>> traj = simulate(vehicle_2d(), man.signal, man.t, np.zeros(4), u=man.u, trials=2, rng=0)
+    >>> transition = np.full((3, 3), 0.05) + 0.85 * np.eye(3)
+    >>> gpb2 = GPB2Filter(vehicle_2d(), transition, np.zeros(4), 0.01 * np.eye(4))
+    >>> smoothed = gpb2.smooth(traj.y, man.u, man.t)  # GPB2's pass, then the two-filter smoother
+    >>> smoothed.mode_prob.shape  # (trials, samples, modes)
+    (2, 21, 3)
     >>> bool(np.all(np.isfinite(smoothed.x)))
     True
     """

@@ -83,16 +83,15 @@ class IMMFilter(ModeBankFilter):
     --------
     >>> import numpy as np
     >>> from switchest.models.shankar import BoostTable1
-    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
-    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
-    >>> (x0, P0), u = setting.prior, setting.input
-    >>> imm = IMMFilter(setting.system(), np.array(setting.transition), x0, P0)
-    >>> est = imm.run(traj.y, u, traj.t)
+    >>> boost = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> traj = boost.simulate(0.01, 3, rng=0)  # 3 trials x 10 ms
+    >>> imm = IMMFilter(boost.system(), boost.transition, *boost.prior)
+    >>> est = imm.run(traj.y, boost.input, traj.t)
     >>> est.x.shape, est.mode_prob.shape  # (trials, samples, states), (..., modes)
     ((3, 21, 2), (3, 21, 2))
     >>> bool(np.allclose(est.mode_prob.sum(axis=-1), 1.0))
     True
-    >>> imm.smooth(traj.y, u, traj.t).x.shape  # the two-filter smoother, given the record
+    >>> imm.smooth(traj.y, boost.input, traj.t).x.shape  # the two-filter smoother, given the record
     (3, 21, 2)
     """
 

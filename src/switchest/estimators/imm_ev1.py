@@ -115,14 +115,12 @@ class IMMEV1Filter(Estimator):
 
     Examples
     --------
-    >>> import numpy as np
     >>> from switchest.models.shankar import BoostTable1
-    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
-    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
-    >>> (x0, P0), u = setting.prior, setting.input
-    >>> ev1 = IMMEV1Filter(setting.system(), x0=x0, P0=P0, grid=5, switch_time="marginal",
-    ...                    estimate="mixture")
-    >>> est = ev1.run(traj.y, u, traj.t)  # modes and switching instants unknown
+    >>> boost = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> traj = boost.simulate(0.01, 3, rng=0)  # 3 trials x 10 ms
+    >>> ev1 = IMMEV1Filter(boost.system(), None, *boost.prior, grid=5, switch_time="marginal",
+    ...                    estimate="mixture")  # None: no transition matrix, as Algorithm 1
+    >>> est = ev1.run(traj.y, boost.input, traj.t)  # modes and switching instants unknown
     >>> est.x.shape, est.mode.shape, est.switch_time.shape
     ((3, 21, 2), (3, 21), (3, 21))
     """

@@ -79,19 +79,19 @@ class ModeKalmanFilter(Estimator):
 
     Examples
     --------
-    >>> import numpy as np
     >>> from switchest.models.shankar import BoostTable1
-    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
-    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
-    >>> (x0, P0), u = setting.prior, setting.input
-    >>> kf = ModeKalmanFilter(setting.system(), x0, P0)
-    >>> est = kf.run(traj.y, u, traj.t, modes=traj.mode)  # the modes at the samples, known
+    >>> boost = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> traj = boost.simulate(0.01, 3, rng=0)  # 3 trials x 10 ms
+    >>> kf = ModeKalmanFilter(boost.system(), *boost.prior)
+    >>> est = kf.run(traj.y, boost.input, traj.t, modes=traj.mode)  # the modes at the samples
     >>> est.x.shape, est.P.shape
     ((3, 21, 2), (3, 21, 2, 2))
-    >>> clairvoyant = kf.run(traj.y, u, traj.t, modes=traj.mode, segments=traj.segments())
+    >>> clairvoyant = kf.run(traj.y, boost.input, traj.t, modes=traj.mode,
+    ...                      segments=traj.segments())  # and the switching instants between them
+    >>> import numpy as np
     >>> def rmse(e):
     ...     return np.sqrt(np.mean((e.x - traj.x) ** 2))
-    >>> bool(rmse(clairvoyant) < rmse(est))  # told the switching instants between samples
+    >>> bool(rmse(clairvoyant) < rmse(est))
     True
     """
 

@@ -154,14 +154,11 @@ class RBPFilter(Estimator):
 
     Examples
     --------
-    >>> import numpy as np
     >>> from switchest.models.shankar import BoostTable1
-    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
-    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
-    >>> (x0, P0), u = setting.prior, setting.input
-    >>> pf = RBPFilter(setting.system(), np.array(setting.transition), x0, P0, particles=200,
-    ...                rng=1)
-    >>> est = pf.run(traj.y, u, traj.t)
+    >>> boost = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> traj = boost.simulate(0.01, 3, rng=0)  # 3 trials x 10 ms
+    >>> pf = RBPFilter(boost.system(), boost.transition, *boost.prior, particles=200, rng=1)
+    >>> est = pf.run(traj.y, boost.input, traj.t)
     >>> est.x.shape, est.mode_prob.shape
     ((3, 21, 2), (3, 21, 2))
     """

@@ -185,15 +185,14 @@ class SwitchTimeKalmanFilter(Estimator):
 
     Examples
     --------
-    >>> import numpy as np
     >>> from switchest.models.shankar import BoostTable1
-    >>> setting = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
-    >>> traj = setting.simulate(0.01, 3, np.random.default_rng(0))  # 3 trials x 10 ms
-    >>> (x0, P0), u = setting.prior, setting.input
-    >>> f = SwitchTimeKalmanFilter(setting.system(), x0, P0, grid=5, switch_time="marginal")
-    >>> est = f.run(traj.y, u, traj.t, modes=traj.mode)
+    >>> boost = BoostTable1()  # Shankar et al.'s boost converter, Table I's setting
+    >>> traj = boost.simulate(0.01, 3, rng=0)  # 3 trials x 10 ms
+    >>> f = SwitchTimeKalmanFilter(boost.system(), *boost.prior, grid=5, switch_time="marginal")
+    >>> est = f.run(traj.y, boost.input, traj.t, modes=traj.mode)
     >>> est.x.shape
     (3, 21, 2)
+    >>> import numpy as np
     >>> instant = est.switch_time[:, 1:]  # the estimated instant in each interval with a switch
     >>> switched = ~np.isnan(instant)
     >>> bool(np.all(((instant > traj.t[:-1]) & (instant < traj.t[1:]))[switched]))
