@@ -59,7 +59,8 @@ def fit_AB(A: np.ndarray, B: np.ndarray, u: np.ndarray, mom: Moments, *, with_B:
 
 def fit_C(C: np.ndarray, R: np.ndarray, mom: Moments, *, tied: bool) -> np.ndarray:
     """New ``C (L, m, n)``: the regression of the E-step's measurements ``mom.y`` on the
-    smoothed state (Shumway & Stoffer 1982, eq. (13)),
+    smoothed state (Ghahramani & Hinton 1996, eq. (14); Shumway & Stoffer 1982 take the output
+    map as known),
     :math:`C_j = (\\sum w\\, y x^\\top) (\\sum w\\, \\mathbb{E}[x x^\\top])^{-1}` per mode, or
     pooled over all (``tied``).
 

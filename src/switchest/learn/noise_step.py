@@ -20,7 +20,7 @@ noise) stays noise-free: only the block on the other components is fitted.
   :math:`w = x_{k+1} - F_r x_k - G_r u_k`
   (:math:`\\mathbb{E}[w w^\\top] = e e^\\top + P_1 - F C^\\top - C F^\\top + F P_0 F^\\top`,
   ``e`` the mean residual, :math:`C = \\operatorname{Cov}(x_{k+1}, x_k)`), the step minimizes
-  :math:`\\sum_r n_r \\log\\det Q_{d,r} + \\operatorname{tr}(Q_{d,r}^{-1} S_r)`.
+  :math:`\\sum_r \\left(n_r \\log\\det Q_{d,r} + \\operatorname{tr}(Q_{d,r}^{-1} S_r)\\right)`.
   Discrete time: :math:`Q_{d,r} = Q_j` of the row's mode, so
   :math:`Q_j = \\sum_r S_r / \\sum_r n_r` over the rows of ``j`` (of the modes tied with it).
   Continuous time: ``Q`` is the intensity, and
@@ -197,7 +197,8 @@ def intensity_maps(system: SwitchedLinearSystem, table: StepTable, modes, idx) -
 
 
 def _intensity(system, table: StepTable, use, fitted, count, S, cache: dict) -> np.ndarray:
-    """Minimize :math:`\\sum n \\log\\det Q_d(Q) + \\operatorname{tr}(Q_d(Q)^{-1} S)` over the
+    """Minimize
+    :math:`\\sum \\left(n \\log\\det Q_d(Q) + \\operatorname{tr}(Q_d(Q)^{-1} S)\\right)` over the
     fitted blocks :math:`Q = L L^\\top` together, on the rows ``use`` of ``table``, from the
     current ``Q`` (module docstring); the current ``Q`` if no better point is found. The maps of
     every row are taken from ``cache`` (computed there at the first M-step of a fit)."""

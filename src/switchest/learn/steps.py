@@ -17,7 +17,8 @@ Two layouts, both built from :mod:`switchest.discretize`'s cached tables:
 - :func:`grid_table`, switches inside the intervals: those rows, then for each distinct step
   ``d`` every mode pair ``(a, b)`` switching at each instant
   :math:`\\tau_i = i h / g - h / (2 g)` of the grid of Shankar et al. eq. (23)
-  (:func:`~switchest.discretize.pairwise_grid`), row :math:`D L + ((d L + a) L + b) g + i`.
+  (:func:`~switchest.discretize.pairwise_grid`), row :math:`D L + ((d L + a) L + b) g + i`
+  (:math:`D` distinct steps).
 """
 
 from __future__ import annotations
