@@ -4,7 +4,7 @@ Three pieces shared by every certificate in :mod:`switchest.analysis`:
 
 * :func:`symmetric_block` builds an LMI block matrix from its upper triangle and
   symmetrizes it. cvxpy enforces only the symmetric part of a non-symmetric
-  ``>>`` expression without saying so; a block such as ``A' P A - P`` is symmetric
+  ``>>`` expression without saying so; a block such as :math:`A^\\top P A - P` is symmetric
   in exact arithmetic but not as an expression tree, so every block matrix goes
   through here before it meets ``>>`` or ``<<``.
 * :func:`solve_sdp` runs CLARABEL and falls back to CVXOPT when CLARABEL raises or
@@ -85,7 +85,7 @@ def symmetric_block(upper: Sequence[Sequence]) -> cp.Expression:
     Parameters
     ----------
     upper : sequence of sequences
-        ``upper[r][c]`` for ``c >= r`` is block (r, c): a cvxpy expression, an
+        ``upper[r][c]`` for :math:`c \\ge r` is block (r, c): a cvxpy expression, an
         array, or ``0``/``None`` for a zero block. Entries below the diagonal are
         ignored (pass ``None``); block (c, r) is taken as the transpose of (r, c).
         Every block row must have a block, array or expression on its diagonal
@@ -94,7 +94,7 @@ def symmetric_block(upper: Sequence[Sequence]) -> cp.Expression:
     Returns
     -------
     cvxpy.Expression
-        ``(S + S') / 2`` with ``S`` the full block matrix, so that ``>>`` sees a
+        :math:`(S + S^\\top) / 2` with :math:`S` the full block matrix, so that ``>>`` sees a
         symmetric expression.
 
     Raises
@@ -189,29 +189,34 @@ def min_eigenvalue(M: np.ndarray) -> np.ndarray:
 
 
 def lmi_nbytes(n: int, blocks: int) -> float:
-    """Estimated peak memory of one solve of an LMI with ``blocks`` symmetric ``n x n`` blocks.
+    """Estimated peak memory of one solve of an LMI with ``blocks`` symmetric
+    :math:`n \\times n` blocks.
 
-    ``50 blocks n^4`` bytes, measured (cvxpy and CLARABEL, ``n = 20..40``): the
-    interior-point method factors a dense system in the ``n^2/2`` unknowns of each block.
+    :math:`50 \\, \\mathrm{blocks} \\, n^4` bytes, measured (cvxpy and CLARABEL,
+    :math:`n = 20, \\dots, 40`): the interior-point method factors a dense system in the
+    :math:`n^2/2` unknowns of each block.
     """
     return _BYTES_PER_BLOCK_N4 * blocks * float(n) ** 4
 
 
 def rounding_allowance(magnitude, terms: int):
-    """A bound on the rounding error of a floating-point quantity: ``2 terms eps magnitude``.
+    """A bound on the rounding error of a floating-point quantity:
+    :math:`2 \\, \\mathrm{terms} \\, \\varepsilon \\, \\mathrm{magnitude}`.
 
     A value formed from sums of ``terms`` products whose absolute values add up to
-    ``magnitude`` errs by at most ``gamma_terms magnitude``, ``gamma_k = k u / (1 - k u)``
-    with ``u = eps / 2`` (Higham, *Accuracy and Stability of Numerical Algorithms*, §3.1);
-    a backward-stable eigensolver for an ``n x n`` matrix ``M`` perturbs the eigenvalues of a
-    symmetric (or normal) matrix by at most ``O(n eps ||M||)``. Twice ``terms eps`` covers
-    both with room. A verdict compares a computed value with its threshold only beyond this
-    allowance, so that it does not depend on the last bits (another CPU, another BLAS).
+    ``magnitude`` errs by at most :math:`\\gamma_{\\mathrm{terms}} \\, \\mathrm{magnitude}`,
+    :math:`\\gamma_k = k u / (1 - k u)` with :math:`u = \\varepsilon / 2` (Higham, *Accuracy and
+    Stability of Numerical Algorithms*, §3.1); a backward-stable eigensolver for an
+    :math:`n \\times n` matrix :math:`M` perturbs the eigenvalues of a symmetric (or normal)
+    matrix by at most :math:`O(n \\varepsilon \\lVert M \\rVert)`. Twice
+    :math:`\\mathrm{terms} \\, \\varepsilon` covers both with room. A verdict compares a computed
+    value with its threshold only beyond this allowance, so that it does not depend on the last
+    bits (another CPU, another BLAS).
 
     Parameters
     ----------
     magnitude : float or ndarray
-        Size of what was summed (``|A| |B|`` for a product, a norm for an eigenvalue).
+        Size of what was summed (:math:`|A| \\, |B|` for a product, a norm for an eigenvalue).
     terms : int
         Number of operations accumulated (the inner dimension, the matrix size).
     """

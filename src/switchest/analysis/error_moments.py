@@ -1,22 +1,24 @@
 """Second and fourth moments of the subsystem observers' error, per component and given the modes.
 
 Wang, Yin, Lin, Polis & Chen (seed 003): with modes i.i.d. with probabilities ``p`` on
-``[kT, (k+1)T)`` the sampled error obeys (Theorem 1, eq. (15))::
+:math:`[kT, (k+1)T)` the sampled error obeys (Theorem 1, eq. (15)):
 
-    e_{k+1} = Lambda(alpha_k) e_k + Gamma(alpha_k) d_k,   d_k ~ N(0, I)
+.. math::
+
+    e_{k+1} = \\Lambda(\\alpha_k) e_k + \\Gamma(\\alpha_k) d_k, \\qquad d_k \\sim \\mathcal{N}(0, I)
 
 (:class:`~switchest.analysis.subsystem_observers.ErrorDynamics`). Beside the full second
 moment of :mod:`.subsystem_observers`, this module gives what a Monte Carlo of the error
 is compared with:
 
 * the mean square of each state component from a known initial error
-  (:func:`state_error_moments`), ``E[Lambda' Lambda]`` of §5.1 (:func:`moment_matrix`) and
-  the second-moment fixed point of any map ``Lambda(i)`` with noise ``W(i)``
-  (:func:`moment_fixed_point`);
-* for a decoupled error (diagonal ``Lambda(i)``, the scalar Examples 1-4): each
+  (:func:`state_error_moments`), :math:`\\mathbb{E}[\\Lambda^\\top \\Lambda]` of §5.1
+  (:func:`moment_matrix`) and the second-moment fixed point of any map :math:`\\Lambda(i)` with
+  noise :math:`W(i)` (:func:`moment_fixed_point`);
+* for a decoupled error (diagonal :math:`\\Lambda(i)`, the scalar Examples 1-4): each
   component's steady state of eq. (23) (:func:`component_steady_state`), its exact second
   and fourth moments (eqs. (22)-(23), :func:`scalar_error_moments`), the exact spread of a
-  run's time average of ``e_k^2`` (:func:`window_average_sd`) and the loop gain that
+  run's time average of :math:`e_k^2` (:func:`window_average_sd`) and the loop gain that
   minimizes a component's steady state (§5.2, :func:`optimal_component_gain`);
 * given one run's modes, the exact mean and variance of its window sum of weighted squared
   errors (:func:`window_sums_given_modes`), a check that heavy tails cannot upset.
@@ -61,11 +63,12 @@ class ScalarErrorMoments:
     Attributes
     ----------
     E2, E4 : ndarray, shape (steps + 1, n)
-        ``E e_k^2`` and ``E e_k^4`` per component.
+        :math:`\\mathbb{E}\\, e_k^2` and :math:`\\mathbb{E}\\, e_k^4` per component.
     factor : ndarray, shape (n,)
-        ``E[g^2]``, the second-moment factor per step (``g = Lambda(alpha_k)_cc``).
+        :math:`\\mathbb{E}[g^2]`, the second-moment factor per step
+        (:math:`g = \\Lambda(\\alpha_k)_{cc}`).
     noise : ndarray, shape (n,)
-        ``E[q^2]``, the noise injected per step (``q^2 = W(alpha_k)_cc``).
+        :math:`\\mathbb{E}[q^2]`, the noise injected per step (:math:`q^2 = W(\\alpha_k)_{cc}`).
     """
 
     E2: np.ndarray
@@ -81,7 +84,8 @@ class WindowSums:
     Attributes
     ----------
     mean, var : ndarray, shape (N, d)
-        ``E[S | alpha]`` and ``Var(S | alpha)`` per run and weight.
+        :math:`\\mathbb{E}[S \\mid \\alpha]` and :math:`\\operatorname{Var}(S \\mid \\alpha)` per
+        run and weight.
     """
 
     mean: np.ndarray
@@ -95,9 +99,9 @@ class ComponentOptimum:
     Attributes
     ----------
     gain : float
-        The minimizing loop gain ``L``.
+        The minimizing loop gain :math:`L`.
     steady_state : float
-        ``sigma_inf`` of the component at ``gain``.
+        :math:`\\sigma_\\infty` of the component at ``gain``.
     holds : bool
         The bounded scalar search converged.
     """
@@ -108,7 +112,8 @@ class ComponentOptimum:
 
 
 def moment_matrix(dyn: ErrorDynamics, p) -> np.ndarray:
-    """``M = E[Lambda_k' Lambda_k] = sum_i p_i Lambda(i)' Lambda(i)`` (Wang et al. §5.1).
+    """:math:`M = \\mathbb{E}[\\Lambda_k^\\top \\Lambda_k]
+    = \\sum_i p_i \\Lambda(i)^\\top \\Lambda(i)` (Wang et al. §5.1).
 
     Its diagonal is each scalar component's second-moment factor per step, its eigenvalues
     the printed gammas of Example 2 and §6.
@@ -122,13 +127,19 @@ def moment_matrix(dyn: ErrorDynamics, p) -> np.ndarray:
 
 
 def moment_fixed_point(Lam, W, p) -> np.ndarray:
-    """The fixed point ``V = sum_i p_i (Lambda(i) V Lambda(i)' + W(i))`` (Wang et al. eq. (21)).
+    """The fixed point :math:`V = \\sum_i p_i (\\Lambda(i) V \\Lambda(i)^\\top + W(i))` (Wang et al.
+    eq. (21)).
 
     For any per-mode error map ``Lam (L, n, n)`` and noise covariance ``W (L, n, n)``,
     e.g. the fine-step discretization of an observer rather than the exact one of
     :func:`~switchest.analysis.subsystem_observers.error_dynamics`, solved through
-    ``(I - sum_i p_i Lambda(i) kron Lambda(i)) vec V = vec(sum_i p_i W(i))``. The caller
-    ensures mean-square stability (:func:`~switchest.analysis.ms_stable_iid`).
+
+    .. math::
+
+        \\Bigl(I - \\sum_i p_i \\Lambda(i) \\otimes \\Lambda(i)\\Bigr) \\operatorname{vec} V
+        = \\operatorname{vec}\\Bigl(\\sum_i p_i W(i)\\Bigr).
+
+    The caller ensures mean-square stability (:func:`~switchest.analysis.ms_stable_iid`).
 
     Returns
     -------
@@ -144,11 +155,12 @@ def moment_fixed_point(Lam, W, p) -> np.ndarray:
 
 
 def state_error_moments(dyn: ErrorDynamics, p, e0, steps: int) -> np.ndarray:
-    """Exact ``E[(x_hat_k - x_k)_c^2]`` per state component from a known initial error ``e0``.
+    """Exact :math:`\\mathbb{E}[(\\hat x_k - x_k)_c^2]` per state component from a known initial
+    error ``e0``.
 
-    ``diag(Phi V_k Phi')`` with ``V_k`` the second moment of the sub-state error
-    (:func:`~switchest.analysis.subsystem_observers.second_moments`, Wang et al. §5.1) from
-    ``V_0 = z_0 z_0'``, ``z_0 = F e0``.
+    :math:`\\operatorname{diag}(\\Phi V_k \\Phi^\\top)` with :math:`V_k` the second moment of the
+    sub-state error (:func:`~switchest.analysis.subsystem_observers.second_moments`, Wang et al.
+    §5.1) from :math:`V_0 = z_0 z_0^\\top`, :math:`z_0 = F e_0`.
 
     Parameters
     ----------
@@ -156,7 +168,7 @@ def state_error_moments(dyn: ErrorDynamics, p, e0, steps: int) -> np.ndarray:
     p : array_like, shape (L,)
         Mode probabilities.
     e0 : array_like, shape (n,)
-        Initial state error ``x_hat_0 - x_0``.
+        Initial state error :math:`\\hat x_0 - x_0`.
     steps : int
         Number of switching intervals.
 
@@ -173,9 +185,9 @@ def state_error_moments(dyn: ErrorDynamics, p, e0, steps: int) -> np.ndarray:
 def component_steady_state(dyn: ErrorDynamics, p) -> np.ndarray:
     """Steady state of each component of a decoupled error, NaN where a component diverges.
 
-    ``sigma_inf = E[W]_cc / (1 - E[Lambda'Lambda]_cc)`` (Wang et al. eq. (23)) for diagonal
-    ``Lambda(i)``; defined even when another component diverges, as for Example 1's
-    Kalman-Bucy gains.
+    :math:`\\sigma_\\infty = \\mathbb{E}[W]_{cc} / (1 - \\mathbb{E}[\\Lambda^\\top \\Lambda]_{cc})`
+    (Wang et al. eq. (23)) for diagonal :math:`\\Lambda(i)`; defined even when another component
+    diverges, as for Example 1's Kalman-Bucy gains.
 
     Returns
     -------
@@ -189,17 +201,25 @@ def component_steady_state(dyn: ErrorDynamics, p) -> np.ndarray:
 
 
 def scalar_error_moments(dyn: ErrorDynamics, p, e0, steps: int) -> ScalarErrorMoments:
-    """Exact ``E e_k^2`` and ``E e_k^4`` per component of a decoupled error (diagonal ``Lambda``).
+    """Exact :math:`\\mathbb{E}\\, e_k^2` and :math:`\\mathbb{E}\\, e_k^4` per component of a
+    decoupled error (diagonal :math:`\\Lambda`).
 
-    With ``e_{k+1} = g e_k + q d_k`` (``g = Lambda(alpha_k)_cc``, ``q^2 = W(alpha_k)_cc``,
-    ``d_k ~ N(0, 1)``, all independent of ``e_k``; Wang et al. eqs. (22)-(23))::
+    With :math:`e_{k+1} = g e_k + q d_k` (:math:`g = \\Lambda(\\alpha_k)_{cc}`,
+    :math:`q^2 = W(\\alpha_k)_{cc}`, :math:`d_k \\sim \\mathcal{N}(0, 1)`, all independent of
+    :math:`e_k`; Wang et al. eqs. (22)-(23)):
 
-        E e^2_{k+1} = E[g^2] E e^2_k + E[q^2]
-        E e^4_{k+1} = E[g^4] E e^4_k + 6 E[g^2 q^2] E e^2_k + 3 E[q^4]
+    .. math::
+
+        \\begin{aligned}
+        \\mathbb{E}\\, e^2_{k+1} &= \\mathbb{E}[g^2] \\, \\mathbb{E}\\, e^2_k
+            + \\mathbb{E}[q^2] \\\\
+        \\mathbb{E}\\, e^4_{k+1} &= \\mathbb{E}[g^4] \\, \\mathbb{E}\\, e^4_k
+            + 6 \\, \\mathbb{E}[g^2 q^2] \\, \\mathbb{E}\\, e^2_k + 3 \\, \\mathbb{E}[q^4]
+        \\end{aligned}
 
     The fourth moments give the exact spread of Monte Carlo squared errors, whose tails
     can be too heavy for their sample variance (Example 4's error has a power-law tail of
-    index about 3.7). ``e0`` is the initial error, ``z^c = +-x_c``: squares agree in both
+    index about 3.7). ``e0`` is the initial error, :math:`z^c = \\pm x_c`: squares agree in both
     coordinates.
 
     Returns
@@ -220,11 +240,17 @@ def scalar_error_moments(dyn: ErrorDynamics, p, e0, steps: int) -> ScalarErrorMo
 
 
 def window_average_sd(moments: ScalarErrorMoments, start: int) -> np.ndarray:
-    """Exact standard deviation of a run's average of ``e_k^2`` over ``k = start..K`` per component.
+    """Exact standard deviation of a run's average of :math:`e_k^2` over
+    :math:`k = \\mathrm{start}, \\dots, K` per component.
 
-    From :func:`scalar_error_moments`: for ``j <= k`` (Wang et al. eqs. (22)-(23) iterated)
-    ``E[e_j^2 e_k^2] = m2^(k-j) E e_j^4 + s2 (1 + m2 + ... + m2^(k-j-1)) E e_j^2``, with
-    ``m2 = E[g^2]`` and ``s2 = E[q^2]``.
+    From :func:`scalar_error_moments`: for :math:`j \\le k` (Wang et al. eqs. (22)-(23) iterated)
+
+    .. math::
+
+        \\mathbb{E}[e_j^2 e_k^2] = m_2^{k-j} \\, \\mathbb{E}\\, e_j^4
+        + s_2 (1 + m_2 + \\dots + m_2^{k-j-1}) \\, \\mathbb{E}\\, e_j^2,
+
+    with :math:`m_2 = \\mathbb{E}[g^2]` and :math:`s_2 = \\mathbb{E}[q^2]`.
 
     Returns
     -------
@@ -249,19 +275,26 @@ def window_average_sd(moments: ScalarErrorMoments, start: int) -> np.ndarray:
 def window_sums_given_modes(dyn: ErrorDynamics, e0, modes, start: int, selectors) -> WindowSums:
     """Exact mean and variance of each run's window sum of weighted squared errors, given its modes.
 
-    Given ``alpha_0..alpha_{K-1}`` the error of Wang et al. eq. (15) is Gaussian,
-    ``e_{k+1} = Lambda(alpha_k) e_k + Gamma(alpha_k) d_k`` from the given ``e_0`` (here in
-    state coordinates, ``Phi Lambda F`` and ``Phi W Phi'``; needs ``n_s = n``), with mean
-    ``m_k`` and covariance ``V_k``. For each diagonal weight ``D`` (a row of ``selectors``)
-    the window sum ``S = sum_{k >= start} e_k' D e_k`` then has exactly::
+    Given :math:`\\alpha_0, \\dots, \\alpha_{K-1}` the error of Wang et al. eq. (15) is Gaussian,
+    :math:`e_{k+1} = \\Lambda(\\alpha_k) e_k + \\Gamma(\\alpha_k) d_k` from the given :math:`e_0`
+    (here in state coordinates, :math:`\\Phi \\Lambda F` and :math:`\\Phi W \\Phi^\\top`; needs
+    :math:`n_s = n`), with mean :math:`m_k` and covariance :math:`V_k`. For each diagonal weight
+    :math:`D` (a row of ``selectors``) the window sum
+    :math:`S = \\sum_{k \\ge \\mathrm{start}} e_k^\\top D e_k` then has exactly
 
-        E[S | alpha] = sum_k m_k' D m_k + tr(D V_k)
-        Var(S | alpha) = sum_{j, k} 2 tr(D C_jk D C_jk') + 4 m_j' D C_jk D m_k,
-        C_jk = V_j Phi_{k,j}'
+    .. math::
 
-    (Gaussian fourth moments; ``Phi_{k,j}`` the product of the ``Lambda`` from j to k).
-    ``(S - E[S | alpha]) / sqrt(Var(S | alpha))`` has mean 0 and variance 1 whatever the
-    tails of the mode sequences.
+        \\begin{aligned}
+        \\mathbb{E}[S \\mid \\alpha] &= \\sum_k m_k^\\top D m_k + \\operatorname{tr}(D V_k) \\\\
+        \\operatorname{Var}(S \\mid \\alpha)
+            &= \\sum_{j, k} 2 \\operatorname{tr}(D C_{jk} D C_{jk}^\\top)
+            + 4 m_j^\\top D C_{jk} D m_k, \\\\
+        C_{jk} &= V_j \\Phi_{k,j}^\\top
+        \\end{aligned}
+
+    (Gaussian fourth moments; :math:`\\Phi_{k,j}` the product of the :math:`\\Lambda` from j to k).
+    :math:`(S - \\mathbb{E}[S \\mid \\alpha]) / \\sqrt{\\operatorname{Var}(S \\mid \\alpha)}` has
+    mean 0 and variance 1 whatever the tails of the mode sequences.
 
     Parameters
     ----------
@@ -271,9 +304,9 @@ def window_sums_given_modes(dyn: ErrorDynamics, e0, modes, start: int, selectors
     modes : array_like of int, shape (N, K)
         Each run's mode on each switching interval (0-based).
     start : int
-        First step of the window, ``0 <= start <= K``.
+        First step of the window, :math:`0 \\le \\mathrm{start} \\le K`.
     selectors : array_like, shape (d, n)
-        Diagonals of the weights ``D``.
+        Diagonals of the weights :math:`D`.
 
     Returns
     -------
@@ -315,17 +348,17 @@ def optimal_component_gain(system: SwitchedLinearSystem, p, T: float, gains, com
                            upper: float = 1000.0, xatol: float = 1e-9) -> ComponentOptimum:
     """The loop gain minimizing a decoupled component's steady state (Wang et al. §5.2, Example 4).
 
-    Component ``c`` is closed by one mode ``i`` with the scalar gain
-    ``gains[i, c, 0] = L``; the other gains stay as given. ``sigma_inf^c(L)`` is the
-    steady state ``(Phi V Phi')_cc`` of eq. (21) corrected
+    Component :math:`c` is closed by one mode :math:`i` with the scalar gain
+    ``gains[i, c, 0] = L``; the other gains stay as given. :math:`\\sigma_\\infty^c(L)` is the
+    steady state :math:`(\\Phi V \\Phi^\\top)_{cc}` of eq. (21) corrected
     (:func:`~switchest.analysis.subsystem_observers.steady_state`), minimized by bounded
-    Brent search from just above the mean-square bound on ``L``
+    Brent search from just above the mean-square bound on :math:`L`
     (:func:`~switchest.analysis.subsystem_observers.decoupled_gain_bounds`) to ``upper``.
 
     Parameters
     ----------
     system : SwitchedLinearSystem
-        With a decoupled error (one-dimensional blocks, diagonal ``Lambda(i)``).
+        With a decoupled error (one-dimensional blocks, diagonal :math:`\\Lambda(i)`).
     p : array_like, shape (L,)
     T : float
     gains : array_like, shape (L, n, 1)

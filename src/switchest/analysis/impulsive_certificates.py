@@ -1,11 +1,11 @@
 """What the LMIs of the impulsive observer prove: the certificates of Theorems 8 and 10.
 
 Etienne, Motchon, Duviella & Guelton (seed 004). A certificate holds the clock-dependent
-Lyapunov matrices ``P^i(theta) = P0^i + theta P1^i`` (eq. (10); ``Q`` on the closed loop's
-extended state, eq. (29)) found by :mod:`switchest.analysis.impulsive_lmis`, the scalars they
-were found for, the decay rate ``beta`` of :mod:`switchest.analysis.impulsive_rates`, and the
-verdict ``holds``; its ``overshoot`` is the constant ``M`` of
-``||e(t)|| <= M exp(-beta t) ||e(0+)||``.
+Lyapunov matrices :math:`P^i(\\theta) = P_0^i + \\theta P_1^i` (eq. (10); :math:`Q` on the closed
+loop's extended state, eq. (29)) found by :mod:`switchest.analysis.impulsive_lmis`, the scalars
+they were found for, the decay rate :math:`\\beta` of :mod:`switchest.analysis.impulsive_rates`,
+and the verdict ``holds``; its ``overshoot`` is the constant :math:`M` of
+:math:`\\lVert e(t) \\rVert \\le M \\exp(-\\beta t) \\lVert e(0^+) \\rVert`.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ __all__ = ["ClosedLoopCertificate", "ImpulsiveObserverCertificate", "ImpulsiveOb
 
 class _ClockCertificate:
     """What the certificates of Theorems 8 and 10 share: the evaluation and overshoot of their
-    Lyapunov matrices, affine in the clock ``theta``."""
+    Lyapunov matrices, affine in the clock :math:`\\theta`."""
 
     def _clock(self, M0: np.ndarray | None, M1: np.ndarray, theta, name: str) -> np.ndarray:
         """:func:`_clock_affine`, or the error that the LMIs gave no matrix ``name``."""
@@ -34,13 +34,14 @@ class _ClockCertificate:
 
     def _overshoot(self, N0: float, M0: np.ndarray, M1: np.ndarray, tau_max: float,
                    switch_cost: float, mu_c: float) -> float:
-        """``M = sqrt(exp(N0 c) theta_max / (mu_c' theta_min))`` (proof of Theorem 8, eqs
-        (19)-(20)), ``c`` the growth of ``ln V`` charged to a switch.
+        """:math:`M = \\sqrt{\\exp(N_0 c) \\, \\theta_{\\max} / (\\mu_c' \\theta_{\\min})}` (proof
+        of Theorem 8, eqs (19)-(20)), :math:`c` the growth of :math:`\\ln V` charged to a switch.
 
-        ``theta_max`` is the largest eigenvalue of the ``M0^i``, ``theta_min`` the smallest of
-        the ``M^i(theta)`` over ``[0, tau_max]`` (attained at an end: the smallest eigenvalue is
-        concave), ``mu_c' = mu_c`` when ``mu_c <= 1`` and 1 otherwise, ``N0`` the chatter bound
-        of Assumption 1.
+        :math:`\\theta_{\\max}` is the largest eigenvalue of the :math:`M_0^i`,
+        :math:`\\theta_{\\min}` the smallest of the :math:`M^i(\\theta)` over
+        :math:`[0, \\tau_{\\max}]` (attained at an end: the smallest eigenvalue is concave),
+        :math:`\\mu_c' = \\mu_c` when :math:`\\mu_c \\le 1` and 1 otherwise, ``N0`` the chatter
+        bound of Assumption 1.
         """
         if not self.holds:
             raise ValueError("no overshoot bound: the certificate is not feasible")
@@ -52,7 +53,7 @@ class _ClockCertificate:
 
 
 def _clock_affine(M0: np.ndarray, M1: np.ndarray, theta) -> np.ndarray:
-    """``M0^i + theta M1^i`` for ``theta (...)``: shape ``(..., L, k, k)`` (eq. (10))."""
+    """:math:`M_0^i + \\theta M_1^i` for ``theta (...)``: shape ``(..., L, k, k)`` (eq. (10))."""
     theta = float_array(theta, "theta")
     return M0 + theta[..., None, None, None] * M1
 
@@ -66,19 +67,20 @@ class ImpulsiveObserverCertificate(_ClockCertificate):
     ----------
     holds : bool
         Theorem 8's conclusion is proven: the LMIs (5)-(8) were solved, their solution
-        passed the numpy re-check, and the rate condition (9) holds (``beta > 0``).
+        passed the numpy re-check, and the rate condition (9) holds (:math:`\\beta > 0`).
     lmi_feasible : bool
-        The LMIs alone (verified); ``holds`` also needs ``beta > 0``.
+        The LMIs alone (verified); ``holds`` also needs :math:`\\beta > 0`.
     P0, P1 : ndarray, shape (L, n, n), or None
-        ``P^i(theta) = P0[i] + theta P1[i]`` (eq. (10)); ``P1`` is the slope.
-        Normalized so that ``P^i(theta) >= I`` at theta in {0, tau_max}.
+        :math:`P^i(\\theta) = \\mathrm{P0}[i] + \\theta \\, \\mathrm{P1}[i]` (eq. (10)); ``P1`` is
+        the slope. Normalized so that :math:`P^i(\\theta) \\succeq I` at
+        :math:`\\theta \\in \\{0, \\tau_{\\max}\\}`.
     L : ndarray, shape (L, n, m), or None
-        The LMI variables ``L_i = P0^i G_i``.
+        The LMI variables :math:`L_i = P_0^i G_i`.
     G : ndarray, shape (L, n, m), or None
-        Observer gains ``G_i = (P0^i)^-1 L_i``.
+        Observer gains :math:`G_i = (P_0^i)^{-1} L_i`.
     beta : float
-        Decay rate of ``||e||`` that the scalars give (eq. (11), corrected for
-        ``mu_c > 1``); guaranteed only when ``holds``.
+        Decay rate of :math:`\\lVert e \\rVert` that the scalars give (eq. (11), corrected for
+        :math:`\\mu_c > 1`); guaranteed only when ``holds``.
     alpha, mu_s, mu_c : float
         The fixed scalars.
     tau_min, tau_max, dwell : float
@@ -107,17 +109,20 @@ class ImpulsiveObserverCertificate(_ClockCertificate):
     note: str
 
     def overshoot(self, N0: float = 1.0) -> float:
-        """``M`` in ``||e(t)|| <= M exp(-beta t) ||e(0+)||`` (proof of Theorem 8, eqs (19)-(20)).
+        """:math:`M` in :math:`\\lVert e(t) \\rVert
+        \\le M \\exp(-\\beta t) \\lVert e(0^+) \\rVert` (proof of Theorem 8, eqs (19)-(20)).
 
-        ``M^2 = mu_s^N0 theta_max / (mu_c' theta_min)`` (``_ClockCertificate._overshoot``
-        with ``c = ln(mu_s)``). ``e(0+)`` is the error just after the correction at ``t_0``
-        (the clock starts there), and ``N0`` the chatter bound of Assumption 1.
+        :math:`M^2 = \\mu_s^{N_0} \\theta_{\\max} / (\\mu_c' \\theta_{\\min})`
+        (``_ClockCertificate._overshoot`` with :math:`c = \\ln(\\mu_s)`). :math:`e(0^+)` is the
+        error just after the correction at :math:`t_0` (the clock starts there), and ``N0`` the
+        chatter bound of Assumption 1.
         """
         return self._overshoot(N0, self.P0, self.P1, self.tau_max, math.log(self.mu_s),
                                self.mu_c)
 
     def P(self, theta) -> np.ndarray:
-        """``P^i(theta) = P0^i + theta P1^i`` for ``theta (...)``, shape ``(..., L, n, n)``."""
+        """:math:`P^i(\\theta) = P_0^i + \\theta P_1^i` for ``theta (...)``, shape
+        ``(..., L, n, n)``."""
         return self._clock(self.P0, self.P1, theta, "P")
 
 
@@ -128,12 +133,12 @@ class ImpulsiveObserverSearch:
     Attributes
     ----------
     best : ImpulsiveObserverCertificate
-        The certificate with the largest ``beta`` found (``holds=False`` if none).
+        The certificate with the largest :math:`\\beta` found (``holds=False`` if none).
     mu_s, mu_c : ndarray, shapes (a,), (b,)
         The grids searched.
     alpha : ndarray, shape (a, b)
-        Largest ``alpha`` (to ``alpha_tol``) with feasible LMIs for each
-        ``(mu_s, mu_c)``, searched above the value where ``beta = 0``; NaN where
+        Largest :math:`\\alpha` (to ``alpha_tol``) with feasible LMIs for each
+        :math:`(\\mu_s, \\mu_c)`, searched above the value where :math:`\\beta = 0`; NaN where
         the LMIs are infeasible there (no positive rate).
     beta : ndarray, shape (a, b)
         Rate (11) at ``alpha``; NaN where ``alpha`` is.
@@ -163,11 +168,12 @@ class ClosedLoopCertificate(_ClockCertificate):
     ----------
     holds : bool
         Theorem 10's conclusion (corrected) is proven: LMIs (24)-(27) solved and verified
-        with numpy, and ``beta > 0``.
+        with numpy, and :math:`\\beta > 0`.
     lmi_feasible : bool
         The LMIs alone.
     Q0, Q1 : ndarray, shape (L, 2n, 2n), or None
-        ``Q^i(theta) = Q0[i] + theta Q1[i]`` (eq. (29)), normalized ``>= I`` at the ends.
+        :math:`Q^i(\\theta) = \\mathrm{Q0}[i] + \\theta \\, \\mathrm{Q1}[i]` (eq. (29)), normalized
+        :math:`\\succeq I` at the ends.
     beta : float
         Rate of :func:`~switchest.analysis.impulsive_closed_loop_decay_rate` (the corrected
         (31)); reported whatever the LMIs, so ``holds`` is the verdict.
@@ -191,15 +197,16 @@ class ClosedLoopCertificate(_ClockCertificate):
     note: str
 
     def overshoot(self, N0: float = 1.0) -> float:
-        """``M`` in ``||z(t)|| <= M exp(-beta t) ||z(0+)||`` (proof of Theorem 10, corrected).
+        """:math:`M` in :math:`\\lVert z(t) \\rVert
+        \\le M \\exp(-\\beta t) \\lVert z(0^+) \\rVert` (proof of Theorem 10, corrected).
 
-        ``M^2 = exp(N0 c) theta_max / (mu_c' theta_min)`` with
-        ``c = ln(mu_s) + delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+`` the
-        per-switch cost of :func:`~switchest.analysis.impulsive_closed_loop_decay_rate`,
-        ``theta_max``, ``theta_min`` and ``mu_c'`` as in
-        :meth:`ImpulsiveObserverCertificate.overshoot`, ``z(0+)`` the state just after the jump
-        at ``t_0`` and ``N0`` the chatter bound. (The printed constant ``M~`` carries the
-        printed, invalid sample counts.)
+        :math:`M^2 = \\exp(N_0 c) \\, \\theta_{\\max} / (\\mu_c' \\theta_{\\min})` with
+        :math:`c = \\ln(\\mu_s) + \\delta (\\alpha + \\bar\\alpha)^+ + q \\ln(\\bar\\mu_c/\\mu_c)^+`
+        the per-switch cost of :func:`~switchest.analysis.impulsive_closed_loop_decay_rate`,
+        :math:`\\theta_{\\max}`, :math:`\\theta_{\\min}` and :math:`\\mu_c'` as in
+        :meth:`ImpulsiveObserverCertificate.overshoot`, :math:`z(0^+)` the state just after the
+        jump at :math:`t_0` and ``N0`` the chatter bound. (The printed constant :math:`\\tilde M`
+        carries the printed, invalid sample counts.)
         """
         k = self.scalars
         cost = _switch_cost(k["alpha"], k["alpha_bar"], k["mu_s"], k["mu_c"], k["mu_c_bar"],
@@ -207,5 +214,6 @@ class ClosedLoopCertificate(_ClockCertificate):
         return self._overshoot(N0, self.Q0, self.Q1, k["tau_max"], cost, k["mu_c"])
 
     def Q(self, theta) -> np.ndarray:
-        """``Q^i(theta) = Q0^i + theta Q1^i`` for ``theta (...)``, shape ``(..., L, 2n, 2n)``."""
+        """:math:`Q^i(\\theta) = Q_0^i + \\theta Q_1^i` for ``theta (...)``, shape
+        ``(..., L, 2n, 2n)``."""
         return self._clock(self.Q0, self.Q1, theta, "Q")

@@ -1,63 +1,73 @@
 """Impulsive observers under aperiodic sampling: LMI synthesis and closed-loop analysis.
 
 Etienne, Motchon, Duviella & Guelton (seed 004), Theorems 8 and 10. Both rest on a
-clock-dependent quadratic Lyapunov function ``V = e' P^{sigma}(theta) e`` with
-``theta = t - t_k`` the time since the last sample and (eqs (10), (29))::
+clock-dependent quadratic Lyapunov function :math:`V = e^\\top P^{\\sigma}(\\theta) e` with
+:math:`\\theta = t - t_k` the time since the last sample and (eqs (10), (29))
 
-    P^i(theta) = P0^i + theta P1^i,   theta in [0, tau_max]
+.. math::
 
-``P1`` is the slope, not an end value. Every condition is affine in ``theta``, so
+    P^i(\\theta) = P_0^i + \\theta P_1^i, \\qquad \\theta \\in [0, \\tau_{\\max}]
+
+:math:`P_1` is the slope, not an end value. Every condition is affine in :math:`\\theta`, so
 it is imposed at the two ends of its interval and holds on all of it.
 
 Theorem 8 (synchronous mode knowledge), as derived from its proof:
 
-* (5)  ``P^i(theta) > 0``, theta in {0, tau_max};
-* (6)  ``He(P^i(theta) A_i) + P1^i + alpha P^i(theta) < 0``, theta in {0, tau_max}
-  (flow: ``dV/dt <= -alpha V``);
-* (7)  ``[[mu_c P^i(theta), (P0^i - L_i C_i)'], [P0^i - L_i C_i, P0^i]] > 0``,
-  theta in {tau_min, tau_max} (jump: by Schur,
-  ``(I - G_i C_i)' P0^i (I - G_i C_i) < mu_c P^i(theta)`` with ``G_i = (P0^i)^-1 L_i``);
-* (8)  ``P^i(theta) < mu_s P^j(theta)``, i != j, theta in {0, tau_max} (switches);
-* (9)  ``beta > 0`` with the rate (11) of
+* (5)  :math:`P^i(\\theta) \\succ 0`, :math:`\\theta \\in \\{0, \\tau_{\\max}\\}`;
+* (6)  :math:`\\operatorname{He}(P^i(\\theta) A_i) + P_1^i + \\alpha P^i(\\theta) \\prec 0`,
+  :math:`\\theta \\in \\{0, \\tau_{\\max}\\}` (flow: :math:`dV/dt \\le -\\alpha V`);
+* (7)  :math:`\\begin{bmatrix} \\mu_c P^i(\\theta) & (P_0^i - L_i C_i)^\\top \\\\
+  P_0^i - L_i C_i & P_0^i \\end{bmatrix} \\succ 0`,
+  :math:`\\theta \\in \\{\\tau_{\\min}, \\tau_{\\max}\\}` (jump: by Schur,
+  :math:`(I - G_i C_i)^\\top P_0^i (I - G_i C_i) \\prec \\mu_c P^i(\\theta)` with
+  :math:`G_i = (P_0^i)^{-1} L_i`);
+* (8)  :math:`P^i(\\theta) \\prec \\mu_s P^j(\\theta)`, :math:`i \\ne j`,
+  :math:`\\theta \\in \\{0, \\tau_{\\max}\\}` (switches);
+* (9)  :math:`\\beta > 0` with the rate (11) of
   :func:`~switchest.analysis.impulsive_rates.impulsive_observer_decay_rate`;
 
-then ``||e(t)|| <= M exp(-beta t) ||e(0+)||``.
+then :math:`\\lVert e(t) \\rVert \\le M \\exp(-\\beta t) \\lVert e(0^+) \\rVert`.
 
 Discrepancies with the printed Theorem 8, each checked against the proof (those of the
 rate (9)/(11) are in :mod:`switchest.analysis.impulsive_rates`):
 
-* (7) is printed ``[[mu_c P(theta), P0 - L C_j], [*, P0]]``: its Schur complement is
-  ``mu_c P - (P0 - L C) P0^-1 (P0 - L C)'``, not the bound
-  ``(P0 - L C)' P0^-1 (P0 - L C) < mu_c P`` the proof needs; the off-diagonal block
-  must be transposed. ``C_j`` must be ``C_i`` (no ``j`` is quantified; a sample
-  never coincides with a switch), and the range "]tau_min, tau_max}" means the
-  ends {tau_min, tau_max}.
-* (6) is printed with ``alpha / mu_c``; the proof uses ``Gamma < -alpha P``. With
-  ``alpha > 0`` and ``mu_c < 1`` the printed form is only more conservative, with
-  ``alpha < 0`` it does not imply the proof's step. Implemented with ``alpha``.
-* (8) is printed for all i, j; for i = j and ``mu_s = 1`` it reads ``P < P``
-  (infeasible), and the proof only uses i != j.
+* (7) is printed
+  :math:`\\begin{bmatrix} \\mu_c P(\\theta) & P_0 - L C_j \\\\ \\star & P_0 \\end{bmatrix}`: its
+  Schur complement is :math:`\\mu_c P - (P_0 - L C) P_0^{-1} (P_0 - L C)^\\top`, not the bound
+  :math:`(P_0 - L C)^\\top P_0^{-1} (P_0 - L C) \\prec \\mu_c P` the proof needs; the
+  off-diagonal block must be transposed. :math:`C_j` must be :math:`C_i` (no :math:`j` is
+  quantified; a sample never coincides with a switch), and the range
+  ":math:`]\\tau_{\\min}, \\tau_{\\max}\\}`" means the ends
+  :math:`\\{\\tau_{\\min}, \\tau_{\\max}\\}`.
+* (6) is printed with :math:`\\alpha / \\mu_c`; the proof uses :math:`\\Gamma \\prec -\\alpha P`.
+  With :math:`\\alpha > 0` and :math:`\\mu_c < 1` the printed form is only more conservative,
+  with :math:`\\alpha < 0` it does not imply the proof's step. Implemented with :math:`\\alpha`.
+* (8) is printed for all :math:`i, j`; for :math:`i = j` and :math:`\\mu_s = 1` it reads
+  :math:`P \\prec P` (infeasible), and the proof only uses :math:`i \\ne j`.
 
-Theorem 10 (mode estimate delayed by at most ``delta``, observer-based control
-``u = K_{sigma_hat} x_hat``): the same structure on the extended state
-``z = [x; e]`` (eqs (21)-(23), :func:`closed_loop_matrices`),
-with ``Q^i`` indexed by the estimated mode ``i`` and the true mode ``j``:
+Theorem 10 (mode estimate delayed by at most :math:`\\delta`, observer-based control
+:math:`u = K_{\\hat\\sigma} \\hat x`): the same structure on the extended state
+:math:`z = [x; e]` (eqs (21)-(23), :func:`closed_loop_matrices`),
+with :math:`Q^i` indexed by the estimated mode :math:`i` and the true mode :math:`j`:
 
-* (24) ``Q^i(theta) > 0``;
-* (25) ``He(Q^i(theta) Acl[j, i]) + Q1^i + alpha_ij Q^i(theta) < 0``,
-  ``alpha_ii = alpha``, ``alpha_ij = -alpha_bar`` (i != j);
-* (26) ``[[mu_ij Q^i(theta), J[j, i]' Q0^i], [Q0^i J[j, i], Q0^i]] > 0``, theta in
-  {tau_min, tau_max}, ``mu_ii = mu_c``, ``mu_ij = mu_c_bar``;
-* (27) ``Q^i(theta) < mu_s Q^j(theta)``, i != j;
-* (28) ``beta > 0`` with the rate of
+* (24) :math:`Q^i(\\theta) \\succ 0`;
+* (25) :math:`\\operatorname{He}(Q^i(\\theta) \\mathrm{Acl}[j, i]) + Q_1^i
+  + \\alpha_{ij} Q^i(\\theta) \\prec 0`, :math:`\\alpha_{ii} = \\alpha`,
+  :math:`\\alpha_{ij} = -\\bar\\alpha` (:math:`i \\ne j`);
+* (26) :math:`\\begin{bmatrix} \\mu_{ij} Q^i(\\theta) & J[j, i]^\\top Q_0^i \\\\
+  Q_0^i J[j, i] & Q_0^i \\end{bmatrix} \\succ 0`,
+  :math:`\\theta \\in \\{\\tau_{\\min}, \\tau_{\\max}\\}`, :math:`\\mu_{ii} = \\mu_c`,
+  :math:`\\mu_{ij} = \\bar\\mu_c`;
+* (27) :math:`Q^i(\\theta) \\prec \\mu_s Q^j(\\theta)`, :math:`i \\ne j`;
+* (28) :math:`\\beta > 0` with the rate of
   :func:`~switchest.analysis.impulsive_rates.impulsive_closed_loop_decay_rate`.
 
 Discrepancies with the printed Theorem 10: (26) is transposed like (7); (22b) has the wrong
 sign (see ``closed_loop_matrices``); the rate (28)/(31) miscounts the samples
 (:mod:`switchest.analysis.impulsive_rates`; the printed value is kept in the result as
 ``printed_beta``). With the §4 scalars and the block of (26) as printed the LMIs (24)-(27)
-are feasible (for the observer gains of Theorem 8), but the ``Q`` they return violates
-``J' Q0 J < mu Q(tau)``; the corrected LMIs are infeasible
+are feasible (for the observer gains of Theorem 8), but the :math:`Q` they return violates
+:math:`J^\\top Q_0 J \\prec \\mu Q(\\tau)`; the corrected LMIs are infeasible
 (tests/analysis/test_impulsive_lmis.py).
 
 The certificates these functions return are defined in
@@ -112,29 +122,33 @@ _DEFAULT_MU_C = (0.3, 0.5, 0.7, 0.85, 0.95, 1.0)
 def closed_loop_matrices(system: SwitchedLinearSystem, K, G) -> tuple[np.ndarray, np.ndarray]:
     """Flow and jump matrices of the observer-based closed loop (Etienne et al. eqs (21)-(23)).
 
-    With ``u = K_{sigma_hat} x_hat`` and ``z = [x; e]``, ``e = x - x_hat``, the plant
-    (1) and the observer (2) give ``dz/dt = Acl[sigma, sigma_hat] z`` between
-    samples and ``z(t_k+) = J[sigma, sigma_hat] z(t_k)`` at the samples, with (eq. (22a))::
+    With :math:`u = K_{\\hat\\sigma} \\hat x` and :math:`z = [x; e]`, :math:`e = x - \\hat x`, the
+    plant (1) and the observer (2) give :math:`dz/dt = \\mathrm{Acl}[\\sigma, \\hat\\sigma] z`
+    between samples and :math:`z(t_k^+) = J[\\sigma, \\hat\\sigma] z(t_k)` at the samples, with
+    (eq. (22a))
 
-        Acl[j, i] = [[A_j + B_j K_i,      -B_j K_i      ],
-                     [A_ji + B_ji K_i,    A_i - B_ji K_i]]
-        J[j, i]   = [[I,                  0             ],
-                     [-G_i C_ji,          I - G_i C_i   ]]
+    .. math::
 
-    ``A_ji = A_j - A_i``, ``B_ji = B_j - B_i``, ``C_ji = C_j - C_i`` (eq. (23)), ``j`` the
-    true and ``i`` the estimated mode (the paper's ``A_{sigma sigma_hat}``).
+        \\mathrm{Acl}[j, i] = \\begin{bmatrix} A_j + B_j K_i & -B_j K_i \\\\
+            A_{ji} + B_{ji} K_i & A_i - B_{ji} K_i \\end{bmatrix}, \\qquad
+        J[j, i] = \\begin{bmatrix} I & 0 \\\\ -G_i C_{ji} & I - G_i C_i \\end{bmatrix}
 
-    Discrepancy: the printed eq. (22b) has ``+G C_ji`` in the lower-left block.
-    From (1)-(2), ``e+ = x - x_hat - G_i (C_j x - C_i x_hat) = -G_i C_ji x + (I - G_i C_i) e``:
+    :math:`A_{ji} = A_j - A_i`, :math:`B_{ji} = B_j - B_i`, :math:`C_{ji} = C_j - C_i`
+    (eq. (23)), :math:`j` the true and :math:`i` the estimated mode (the paper's
+    :math:`A_{\\sigma \\hat\\sigma}`).
+
+    Discrepancy: the printed eq. (22b) has :math:`+G C_{ji}` in the lower-left block.
+    From (1)-(2),
+    :math:`e^+ = x - \\hat x - G_i (C_j x - C_i \\hat x) = -G_i C_{ji} x + (I - G_i C_i) e`:
     the sign is minus. It matters only when the output matrices differ between
-    modes (in §4, ``C_1 = C_2`` and the block vanishes).
+    modes (in §4, :math:`C_1 = C_2` and the block vanishes).
 
     Parameters
     ----------
     system : SwitchedLinearSystem
         Continuous time, with ``L`` modes, ``n`` states, ``l`` inputs, ``m`` outputs.
     K : array_like, shape (L, l, n)
-        State-feedback gains, applied as ``u = K_i x_hat`` (no minus sign).
+        State-feedback gains, applied as :math:`u = K_i \\hat x` (no minus sign).
     G : array_like, shape (L, n, m)
         Observer gains.
 
@@ -173,33 +187,33 @@ def impulsive_observer_synthesis(
 ) -> ImpulsiveObserverCertificate:
     """Impulsive observer gains for synchronous mode knowledge (Etienne et al. Theorem 8).
 
-    Solves the LMIs (5)-(8) in ``P0^i, P1^i, L_i`` for fixed ``(alpha, mu_s, mu_c)``
+    Solves the LMIs (5)-(8) in :math:`P_0^i, P_1^i, L_i` for fixed :math:`(\\alpha, \\mu_s, \\mu_c)`
     in their corrected forms (module docstring): strict inequalities posed with the
-    explicit ``margin`` after the normalization ``P^i(theta) >= I`` (the LMIs are
+    explicit ``margin`` after the normalization :math:`P^i(\\theta) \\succeq I` (the LMIs are
     homogeneous), as a feasibility problem. The solution is re-checked with numpy eigenvalues
-    (slack at least ``margin / 2``) before ``holds=True``.
+    (slack at least :math:`\\mathrm{margin} / 2`) before ``holds=True``.
 
     Parameters
     ----------
     system : SwitchedLinearSystem
         Continuous time, L modes.
     tau_min, tau_max : float
-        Sampling intervals lie in ``[tau_min, tau_max]`` (Assumption 2).
+        Sampling intervals lie in :math:`[\\tau_{\\min}, \\tau_{\\max}]` (Assumption 2).
     dwell : float
-        Average dwell time ``s`` (Assumption 1).
+        Average dwell time :math:`s` (Assumption 1).
     alpha : float
-        Flow decay rate ``alpha`` (underlined alpha; any real).
+        Flow decay rate :math:`\\alpha` (underlined alpha; any real).
     mu_s : float
-        Switching growth bound, ``>= 1``.
+        Switching growth bound, :math:`\\ge 1`.
     mu_c : float
-        Jump bound (underlined mu_c), positive (the paper takes ``(0, 1]``).
+        Jump bound (underlined mu_c), positive (the paper takes :math:`(0, 1]`).
     margin : float, optional
         Slack posed on the strict LMIs (keyword-only).
 
     Returns
     -------
     ImpulsiveObserverCertificate
-        With ``G_i = (P0^i)^-1 L_i`` and the rate ``beta`` of (11).
+        With :math:`G_i = (P_0^i)^{-1} L_i` and the rate :math:`\\beta` of (11).
     """
     system = _check_system(system)
     _scalars8(alpha, mu_s, mu_c, tau_min, tau_max, dwell)
@@ -218,14 +232,14 @@ def impulsive_observer_search(
     alpha_tol: float = 1e-3,
     margin: float = 1e-3,
 ) -> ImpulsiveObserverSearch:
-    """Search the scalars of Theorem 8 for the largest guaranteed rate ``beta``.
+    """Search the scalars of Theorem 8 for the largest guaranteed rate :math:`\\beta`.
 
-    The paper fixes ``(alpha, mu_s, mu_c)`` by hand (Remark 12). For fixed
-    ``(mu_s, mu_c)`` the LMIs stay feasible when ``alpha`` decreases (it multiplies
-    ``P > 0`` in (6)), so the largest feasible ``alpha`` is found by bisection,
-    starting where ``beta = 0`` (below it no positive rate is possible) and
-    doubling the step upward until infeasible; ``beta`` of (11) is then evaluated
-    over the ``(mu_s, mu_c)`` grid, and the best certificate returned. One
+    The paper fixes :math:`(\\alpha, \\mu_s, \\mu_c)` by hand (Remark 12). For fixed
+    :math:`(\\mu_s, \\mu_c)` the LMIs stay feasible when :math:`\\alpha` decreases (it multiplies
+    :math:`P \\succ 0` in (6)), so the largest feasible :math:`\\alpha` is found by bisection,
+    starting where :math:`\\beta = 0` (below it no positive rate is possible) and
+    doubling the step upward until infeasible; :math:`\\beta` of (11) is then evaluated
+    over the :math:`(\\mu_s, \\mu_c)` grid, and the best certificate returned. One
     parametrized SDP is compiled once and re-solved.
 
     Parameters
@@ -233,11 +247,11 @@ def impulsive_observer_search(
     system, tau_min, tau_max, dwell
         As in :func:`impulsive_observer_synthesis`.
     mu_s : sequence of float, optional
-        Grid of ``mu_s >= 1`` (default ``(2, 5, 10, 16, 25, 40)``; ``(1,)`` for one mode).
+        Grid of :math:`\\mu_s \\ge 1` (default ``(2, 5, 10, 16, 25, 40)``; ``(1,)`` for one mode).
     mu_c : sequence of float, optional
-        Grid of ``mu_c > 0`` (default ``(0.3, 0.5, 0.7, 0.85, 0.95, 1)``).
+        Grid of :math:`\\mu_c > 0` (default ``(0.3, 0.5, 0.7, 0.85, 0.95, 1)``).
     alpha_tol : float, optional
-        Bisection tolerance on ``alpha``.
+        Bisection tolerance on :math:`\\alpha`.
     margin : float, optional
         As in :func:`impulsive_observer_synthesis`.
 
@@ -279,7 +293,8 @@ def impulsive_observer_search(
 
 
 class _Theorem8:
-    """The LMIs (5)-(8) in ``P0, P1, L`` with the scalars as cvxpy parameters (compiled once)."""
+    """The LMIs (5)-(8) in :math:`P_0, P_1, L` with the scalars as cvxpy parameters (compiled
+    once)."""
 
     def __init__(self, system, tau_min, tau_max, dwell, margin):
         self.system, self.dwell, self.margin = system, float(dwell), margin
@@ -342,8 +357,8 @@ def impulsive_closed_loop_analysis(
 ) -> ClosedLoopCertificate:
     """Observer-based control with a delayed mode estimate (Etienne et al. Theorem 10).
 
-    For given controller gains ``K`` (``u = K_{sigma_hat} x_hat``) and observer gains
-    ``G``, solves the LMIs (24)-(27) in ``Q0^i, Q1^i`` on the extended system
+    For given controller gains ``K`` (:math:`u = K_{\\hat\\sigma} \\hat x`) and observer gains
+    ``G``, solves the LMIs (24)-(27) in :math:`Q_0^i, Q_1^i` on the extended system
     (21)-(23) (jump sign and (26) corrected, module docstring) and evaluates the
     corrected rate condition (28) (:func:`impulsive_closed_loop_decay_rate`). Posed and verified as
     in :func:`impulsive_observer_synthesis`. For many scalars with one ``K`` and
@@ -357,12 +372,12 @@ def impulsive_closed_loop_analysis(
     tau_min, tau_max, dwell : float
         As in Theorem 8.
     delta : float
-        Largest delay of the mode estimate (Assumption 5), ``>= 0``.
+        Largest delay of the mode estimate (Assumption 5), :math:`\\ge 0`.
     alpha, alpha_bar : float
-        Flow rates with the right (``dV/dt <= -alpha V``) and the wrong
-        (``dV/dt <= alpha_bar V``) mode estimate.
+        Flow rates with the right (:math:`dV/dt \\le -\\alpha V`) and the wrong
+        (:math:`dV/dt \\le \\bar\\alpha V`) mode estimate.
     mu_s : float
-        ``>= 1``.
+        :math:`\\ge 1`.
     mu_c, mu_c_bar : float
         Jump bounds with the right and the wrong mode estimate, positive.
     margin : float, optional
@@ -378,10 +393,10 @@ def impulsive_closed_loop_analysis(
 class ClosedLoopLMIs:
     """The LMIs (24)-(27) of Theorem 10 for one plant, controller and observer, compiled once.
 
-    The scalars ``alpha, alpha_bar, mu_s, mu_c, mu_c_bar`` enter the LMIs as cvxpy
+    The scalars :math:`\\alpha, \\bar\\alpha, \\mu_s, \\mu_c, \\bar\\mu_c` enter the LMIs as cvxpy
     parameters (the problem is DPP), so every :meth:`analyze` re-solves one compiled
     problem: a search over the scalars costs a solve per point, not a model build and
-    compilation (``delta`` enters only the rate (28), not the LMIs).
+    compilation (:math:`\\delta` enters only the rate (28), not the LMIs).
 
     Parameters
     ----------
@@ -462,13 +477,18 @@ class ClosedLoopLMIs:
 
 # ---------------------------------------------------------------------- shared LMI pieces
 class _ClockLMI:
-    """LMIs on ``P^i(theta) = P0^i + theta P1^i`` shared by Theorems 8 and 10.
+    """LMIs on :math:`P^i(\\theta) = P_0^i + \\theta P_1^i` shared by Theorems 8 and 10.
 
-    * ``P^i(theta) >= I`` at theta in {0, tau_max} ((5)/(24), normalized: homogeneous LMIs);
-    * ``P^i(theta) <= mu_s P^j(theta) - margin I``, i != j ((8)/(27));
-    * :meth:`add_flow`: ``He(P^i(theta) A) + P1^i + rate P^i(theta) <= -margin I`` ((6)/(25));
-    * :meth:`add_jump`: ``[[mu P^i(theta), Omega'], [Omega, P0^i]] >= margin I`` at theta in
-      {tau_min, tau_max}, ``Omega = P0^i M`` for the jump ``e+ = M e`` ((7)/(26), corrected).
+    * :math:`P^i(\\theta) \\succeq I` at :math:`\\theta \\in \\{0, \\tau_{\\max}\\}` ((5)/(24),
+      normalized: homogeneous LMIs);
+    * :math:`P^i(\\theta) \\preceq \\mu_s P^j(\\theta) - \\mathrm{margin} \\, I`, :math:`i \\ne j`
+      ((8)/(27));
+    * :meth:`add_flow`: :math:`\\operatorname{He}(P^i(\\theta) A) + P_1^i + \\mathrm{rate} \\,
+      P^i(\\theta) \\preceq -\\mathrm{margin} \\, I` ((6)/(25));
+    * :meth:`add_jump`: :math:`\\begin{bmatrix} \\mu P^i(\\theta) & \\Omega^\\top \\\\
+      \\Omega & P_0^i \\end{bmatrix} \\succeq \\mathrm{margin} \\, I` at
+      :math:`\\theta \\in \\{\\tau_{\\min}, \\tau_{\\max}\\}`, :math:`\\Omega = P_0^i M` for the
+      jump :math:`e^+ = M e` ((7)/(26), corrected).
 
     ``rate``, ``mu`` and ``mu_s`` may be cvxpy parameters, so one compiled problem is re-solved.
     """
@@ -516,7 +536,7 @@ class _ClockLMI:
         """Solve for the current parameter values: ``(status, P0, P1, slack)``.
 
         ``P0, P1`` are None unless the solution passed the numpy re-check (slack at
-        least ``margin / 2``). The solver status is never the verdict: an
+        least :math:`\\mathrm{margin} / 2`). The solver status is never the verdict: an
         ``optimal_inaccurate`` answer is accepted only through that re-check, and
         CVXOPT is tried when CLARABEL gives no verified solution without deciding.
         """
@@ -540,7 +560,7 @@ class _ClockLMI:
 
     def _slack(self, P0, P1, mu_s) -> float:
         """Smallest slack of the strict LMIs recomputed with numpy from the solver's matrices
-        (``P(theta) >= I`` checked as ``P(theta) > 0``)."""
+        (:math:`P(\\theta) \\succeq I` checked as :math:`P(\\theta) \\succ 0`)."""
         slacks = []
         for theta in (0.0, self.tau_max):
             P = P0 + theta * P1

@@ -1,35 +1,44 @@
 """Decay rates of the impulsive observer and its closed loop under aperiodic sampling.
 
 Etienne, Motchon, Duviella & Guelton (seed 004), the scalar conditions of Theorems 8 and 10:
-the rate ``beta`` of ``||e(t)|| <= M exp(-beta t) ||e(0+)||`` that the scalars of the LMIs
-(:mod:`switchest.analysis.impulsive_lmis`) give, with ``alpha`` the flow rate, ``mu_s`` the
-growth at a switch, ``mu_c`` at a sample, ``s`` the average dwell time and the samples
-``tau_min`` to ``tau_max`` apart. Plain arithmetic: no LMI is solved here.
+the rate :math:`\\beta` of
+:math:`\\lVert e(t) \\rVert \\le M \\exp(-\\beta t) \\lVert e(0^+) \\rVert` that the scalars of
+the LMIs (:mod:`switchest.analysis.impulsive_lmis`) give, with :math:`\\alpha` the flow rate,
+:math:`\\mu_s` the growth at a switch, :math:`\\mu_c` at a sample, :math:`s` the average dwell
+time and the samples :math:`\\tau_{\\min}` to :math:`\\tau_{\\max}` apart. Plain arithmetic: no
+LMI is solved here.
 
-Theorem 8 (synchronous mode knowledge), condition (9): ``beta > 0`` with the rate (11)
-``beta = (alpha - ln(mu_s)/s - ln(mu_c)/tau_c) / 2``. Discrepancy with the printed (9)/(11):
-they use ``N_c(0, t) >= t/tau_max - 1`` (Remark 3), a lower bound on the number of samples,
-which bounds ``mu_c^{N_c}`` only when ``ln(mu_c) <= 0``. For ``mu_c > 1`` the bound needs
-``N_c(0, t) <= t/tau_min``: ``tau_c = tau_min`` replaces ``tau_max``. (The theorem states
-``mu_c <= 1``; the scalar search of the LMIs may use either.)
+Theorem 8 (synchronous mode knowledge), condition (9): :math:`\\beta > 0` with the rate (11)
+:math:`\\beta = (\\alpha - \\ln(\\mu_s)/s - \\ln(\\mu_c)/\\tau_c) / 2`. Discrepancy with the printed
+(9)/(11): they use :math:`N_c(0, t) \\ge t/\\tau_{\\max} - 1` (Remark 3), a lower bound on the
+number of samples, which bounds :math:`\\mu_c^{N_c}` only when :math:`\\ln(\\mu_c) \\le 0`. For
+:math:`\\mu_c > 1` the bound needs :math:`N_c(0, t) \\le t/\\tau_{\\min}`:
+:math:`\\tau_c = \\tau_{\\min}` replaces :math:`\\tau_{\\max}`. (The theorem states
+:math:`\\mu_c \\le 1`; the scalar search of the LMIs may use either.)
 
-Theorem 10 (mode estimate delayed by at most ``delta``), condition (28): ``beta > 0``, with
-``alpha_bar`` the flow rate and ``mu_c_bar`` the sample growth while the mode estimate is
-wrong. The printed rate (28)/(31) counts the samples that fall while the estimate is wrong as
-``delta/tau_min`` per switch and the correct ones as ``(t - M_miss)/tau_max``. A mismatch
-window of length ``delta`` can hold ``ceil(delta/tau_min)`` samples (one, not one half, for
-``delta = 0.15``, ``tau_min = 0.3``), and a correct-mode stretch of length ``l`` may hold only
-``floor(l/tau_max)`` samples, so neither count is a valid bound.
-:func:`impulsive_closed_loop_decay_rate` uses ``N_miss <= q N_s``, ``q = ceil(delta/tau_min)``,
-and ``N_match = N_c - N_miss``, which gives::
+Theorem 10 (mode estimate delayed by at most :math:`\\delta`), condition (28):
+:math:`\\beta > 0`, with :math:`\\bar\\alpha` the flow rate and :math:`\\bar\\mu_c` the sample
+growth while the mode estimate is wrong. The printed rate (28)/(31) counts the samples that
+fall while the estimate is wrong as :math:`\\delta/\\tau_{\\min}` per switch and the correct
+ones as :math:`(t - M_{\\mathrm{miss}})/\\tau_{\\max}`. A mismatch window of length
+:math:`\\delta` can hold :math:`\\lceil \\delta/\\tau_{\\min} \\rceil` samples (one, not one
+half, for :math:`\\delta = 0.15`, :math:`\\tau_{\\min} = 0.3`), and a correct-mode stretch of
+length :math:`l` may hold only :math:`\\lfloor l/\\tau_{\\max} \\rfloor` samples, so neither
+count is a valid bound. :func:`impulsive_closed_loop_decay_rate` uses
+:math:`N_{\\mathrm{miss}} \\le q N_s`, :math:`q = \\lceil \\delta/\\tau_{\\min} \\rceil`, and
+:math:`N_{\\mathrm{match}} = N_c - N_{\\mathrm{miss}}`, which gives
 
-    2 beta = alpha - ln(mu_c)/tau_c
-             - (ln(mu_s) + delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+) / s
+.. math::
 
-(``x^+ = max(x, 0)``; with ``delta = 0`` it is Theorem 8's rate, as Remark 11 says). This form
-needs none of the printed restrictions ``mu_c <= 1 <= mu_c_bar`` (any positive values are
-accepted; ``mu_s >= 1`` is required). With the §4 scalars the printed (28) is already violated
-(``-2 beta = +0.16403``) although §4 reports the conditions verified.
+    2 \\beta = \\alpha - \\ln(\\mu_c)/\\tau_c
+        - \\bigl(\\ln(\\mu_s) + \\delta (\\alpha + \\bar\\alpha)^+
+        + q \\ln(\\bar\\mu_c/\\mu_c)^+\\bigr) / s
+
+(:math:`x^+ = \\max(x, 0)`; with :math:`\\delta = 0` it is Theorem 8's rate, as Remark 11 says).
+This form needs none of the printed restrictions :math:`\\mu_c \\le 1 \\le \\bar\\mu_c` (any
+positive values are accepted; :math:`\\mu_s \\ge 1` is required). With the §4 scalars the
+printed (28) is already violated (:math:`-2 \\beta = +0.16403`) although §4 reports the
+conditions verified.
 """
 
 from __future__ import annotations
@@ -52,11 +61,11 @@ def impulsive_observer_decay_rate(
 ) -> float:
     """Decay rate of the observer error, Etienne et al. Theorem 8 (synchronous mode knowledge).
 
-    Eq. (11): ``beta = (alpha - ln(mu_s)/s - ln(mu_c)/tau_c) / 2``.
+    Eq. (11): :math:`\\beta = (\\alpha - \\ln(\\mu_s)/s - \\ln(\\mu_c)/\\tau_c) / 2`.
 
-    ``tau_c = tau_max`` for ``mu_c <= 1`` (as printed) and ``tau_min`` for
-    ``mu_c > 1`` (the printed form assumes ``ln(mu_c) <= 0``; see the module notes).
-    Condition (9) is ``beta > 0``.
+    :math:`\\tau_c = \\tau_{\\max}` for :math:`\\mu_c \\le 1` (as printed) and :math:`\\tau_{\\min}`
+    for :math:`\\mu_c > 1` (the printed form assumes :math:`\\ln(\\mu_c) \\le 0`; see the module
+    notes). Condition (9) is :math:`\\beta > 0`.
     """
     alpha, mu_s, mu_c, tau_min, tau_max, dwell = _scalars8(
         alpha, mu_s, mu_c, tau_min, tau_max, dwell
@@ -67,19 +76,24 @@ def impulsive_observer_decay_rate(
 def impulsive_closed_loop_decay_rate(alpha: float, alpha_bar: float, mu_s: float, mu_c: float,
                                      mu_c_bar: float, tau_min: float, tau_max: float,
                                      dwell: float, delta: float) -> float:
-    """Decay rate of the closed loop ``||z||``, Etienne et al. Theorem 10 (delayed mode estimate).
+    """Decay rate of the closed loop :math:`\\lVert z \\rVert`, Etienne et al. Theorem 10 (delayed
+    mode estimate).
 
-    The mode estimate lags the true switches by at most ``delta``.
+    The mode estimate lags the true switches by at most :math:`\\delta`.
 
     Re-derived from the proof of Etienne et al. Theorem 10 (eqs (32)-(40)) with
-    valid sample counts::
+    valid sample counts:
 
-        2 beta = alpha - ln(mu_c)/tau_c
-                 - (ln(mu_s) + delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+) / s
+    .. math::
 
-    with ``q = ceil(delta/tau_min)`` (the most samples a mismatch window of length
-    ``delta`` holds), ``tau_c`` as in :func:`impulsive_observer_decay_rate`, ``x^+ = max(x, 0)``.
-    Condition (28) is ``beta > 0``. The printed (31) differs; see the module notes.
+        2 \\beta = \\alpha - \\ln(\\mu_c)/\\tau_c
+            - \\bigl(\\ln(\\mu_s) + \\delta (\\alpha + \\bar\\alpha)^+
+            + q \\ln(\\bar\\mu_c/\\mu_c)^+\\bigr) / s
+
+    with :math:`q = \\lceil \\delta/\\tau_{\\min} \\rceil` (the most samples a mismatch window of
+    length :math:`\\delta` holds), :math:`\\tau_c` as in :func:`impulsive_observer_decay_rate`,
+    :math:`x^+ = \\max(x, 0)`. Condition (28) is :math:`\\beta > 0`. The printed (31) differs; see
+    the module notes.
     """
     alpha, mu_s, mu_c, tau_min, tau_max, dwell = _scalars8(
         alpha, mu_s, mu_c, tau_min, tau_max, dwell
@@ -93,15 +107,16 @@ def impulsive_closed_loop_decay_rate(alpha: float, alpha_bar: float, mu_s: float
 
 def largest_tolerable_delay(alpha: float, alpha_bar: float, mu_s: float, mu_c: float,
                             mu_c_bar: float, tau_min: float, tau_max: float, dwell: float) -> float:
-    """Supremum of the mode-estimate delays ``delta`` with condition (28) (Etienne et al.
-    Theorem 10, as re-derived in :func:`impulsive_closed_loop_decay_rate`): ``beta > 0``.
+    """Supremum of the mode-estimate delays :math:`\\delta` with condition (28) (Etienne et al.
+    Theorem 10, as re-derived in :func:`impulsive_closed_loop_decay_rate`): :math:`\\beta > 0`.
 
-    With ``b = alpha - ln(mu_c)/tau_c - ln(mu_s)/s`` (twice
+    With :math:`b = \\alpha - \\ln(\\mu_c)/\\tau_c - \\ln(\\mu_s)/s` (twice
     :func:`impulsive_observer_decay_rate`),
-    ``2 beta = b - (delta (alpha + alpha_bar)^+ + q ln(mu_c_bar/mu_c)^+) / s`` is affine in
-    ``delta`` on each ``((q - 1) tau_min, q tau_min]``, ``q = ceil(delta/tau_min)``: the
-    supremum is where it reaches zero, or the left end of the first piece that starts at or
-    below zero. NaN when even ``delta = 0`` fails, ``inf`` when no delay does.
+    :math:`2 \\beta = b - (\\delta (\\alpha + \\bar\\alpha)^+ + q \\ln(\\bar\\mu_c/\\mu_c)^+) / s`
+    is affine in :math:`\\delta` on each :math:`((q - 1) \\tau_{\\min}, q \\tau_{\\min}]`,
+    :math:`q = \\lceil \\delta/\\tau_{\\min} \\rceil`: the supremum is where it reaches zero, or the
+    left end of the first piece that starts at or below zero. NaN when even :math:`\\delta = 0`
+    fails, ``inf`` when no delay does.
     """
     budget = dwell * 2 * impulsive_observer_decay_rate(alpha, mu_s, mu_c, tau_min, tau_max,
                                                        dwell)  # s b
@@ -123,8 +138,9 @@ def largest_tolerable_delay(alpha: float, alpha_bar: float, mu_s: float, mu_c: f
 
 
 def _switch_cost(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, delta) -> float:
-    """Growth of ``ln V`` charged to one switch: the jump ``mu_s``, at most ``delta`` of
-    wrong-mode flow, at most ``q = ceil(delta/tau_min)`` wrong-mode samples."""
+    """Growth of :math:`\\ln V` charged to one switch: the jump :math:`\\mu_s`, at most
+    :math:`\\delta` of wrong-mode flow, at most :math:`q = \\lceil \\delta/\\tau_{\\min} \\rceil`
+    wrong-mode samples."""
     q = math.ceil(delta / tau_min - 1e-12) if delta > 0 else 0
     return (
         math.log(mu_s)
@@ -146,14 +162,16 @@ def _printed_theorem10_rate(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau
 
 
 def _sample_rate(mu_c: float, tau_min: float, tau_max: float) -> float:
-    """``ln(mu_c)`` per unit time from the samples: over ``tau_max`` when ``mu_c <= 1``
-    (fewest samples), over ``tau_min`` when ``mu_c > 1`` (most samples)."""
+    """:math:`\\ln(\\mu_c)` per unit time from the samples: over :math:`\\tau_{\\max}` when
+    :math:`\\mu_c \\le 1` (fewest samples), over :math:`\\tau_{\\min}` when :math:`\\mu_c > 1` (most
+    samples)."""
     return math.log(mu_c) / (tau_max if mu_c <= 1 else tau_min)
 
 
 def _scalars8(alpha, mu_s, mu_c, tau_min, tau_max, dwell):
-    """The scalars of Theorem 8, checked: ``alpha`` real, ``mu_s >= 1``, ``mu_c`` positive,
-    ``0 < tau_min <= tau_max`` and a positive dwell time; as floats, in that order."""
+    """The scalars of Theorem 8, checked: :math:`\\alpha` real, :math:`\\mu_s \\ge 1`,
+    :math:`\\mu_c` positive, :math:`0 < \\tau_{\\min} \\le \\tau_{\\max}` and a positive dwell
+    time; as floats, in that order."""
     alpha = _real(alpha, "alpha")
     mu_s = positive_scalar(mu_s, "mu_s")
     if mu_s < 1:

@@ -1,9 +1,9 @@
 """The largest value of a scalar at which a monotone feasibility problem is still feasible.
 
 The scalar design searches of Etienne et al. (seed 004) fix every scalar of an LMI family
-but one (the decay rate ``alpha`` of Theorem 8's (6) or Theorem 10's (25)): the LMIs stay
-feasible when ``alpha`` decreases (it multiplies ``P > 0``), so the largest feasible
-``alpha`` is bracketed upward by doubling steps and bisected.
+but one (the decay rate :math:`\\alpha` of Theorem 8's (6) or Theorem 10's (25)): the LMIs stay
+feasible when :math:`\\alpha` decreases (it multiplies :math:`P \\succ 0`), so the largest feasible
+:math:`\\alpha` is bracketed upward by doubling steps and bisected.
 """
 
 from __future__ import annotations
@@ -27,36 +27,38 @@ def largest_feasible(
     step: float,
     doublings: int,
 ) -> tuple[float, Solution] | None:
-    """Largest ``a >= start`` with ``feasible(solve(a))``, within ``tol``, for a monotone problem.
+    """Largest :math:`a \\ge \\mathrm{start}` with ``feasible(solve(a))``, within ``tol``, for a
+    monotone problem.
 
-    The problem must be feasible on ``[start, a*]`` and infeasible above ``a*`` (as the
-    LMIs of Etienne et al. Theorems 8 and 10 in their rate ``alpha``). From ``start``
-    the bracket grows by ``step, 2 step, 4 step, ...`` until the problem fails (at most
-    ``doublings`` trials), then bisection halves it until it is at most ``tol`` wide.
-    When no trial fails the last feasible point is returned (``a*`` lies beyond the
+    The problem must be feasible on :math:`[\\mathrm{start}, a^*]` and infeasible above
+    :math:`a^*` (as the LMIs of Etienne et al. Theorems 8 and 10 in their rate :math:`\\alpha`).
+    From ``start`` the bracket grows by
+    :math:`\\mathrm{step}, 2\\,\\mathrm{step}, 4\\,\\mathrm{step}, \\dots` until the problem
+    fails (at most ``doublings`` trials), then bisection halves it until it is at most ``tol``
+    wide. When no trial fails the last feasible point is returned (:math:`a^*` lies beyond the
     bracket's reach).
 
     Parameters
     ----------
     solve : callable
-        ``a -> solution`` (one solve per call; the calls are made in increasing ``a``
+        ``a -> solution`` (one solve per call; the calls are made in increasing :math:`a`
         while bracketing, then at the midpoints).
     feasible : callable
         ``solution -> bool``.
     start : float
         Lower end of the search: where the search starts and what is returned if
-        bracketing already fails at ``start + step``.
+        bracketing already fails at :math:`\\mathrm{start} + \\mathrm{step}`.
     tol : float
-        Width of the final bracket, ``> 0``.
+        Width of the final bracket, :math:`> 0`.
     step : float
-        First bracketing step, ``> 0``.
+        First bracketing step, :math:`> 0`.
     doublings : int
-        Most bracketing trials, ``>= 1``.
+        Most bracketing trials, :math:`\\ge 1`.
 
     Returns
     -------
     (float, solution) or None
-        The largest feasible ``a`` found and its solution; ``None`` when ``start`` is
+        The largest feasible :math:`a` found and its solution; ``None`` when ``start`` is
         infeasible.
 
     Raises

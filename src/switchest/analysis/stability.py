@@ -1,9 +1,9 @@
 """Stability of switched linear systems under arbitrary and random switching.
 
 * :func:`spectral_radius` — batched.
-* :func:`cqlf` — a common quadratic Lyapunov function ``V(x) = x' P x`` for a family
+* :func:`cqlf` — a common quadratic Lyapunov function :math:`V(x) = x^\\top P x` for a family
   of matrices (Zhang & Natarajan, Lemma 1 (ii) and eq. (13) in discrete time; the
-  continuous-time analogue ``A_i' P + P A_i < 0``), as an LMI re-verified with numpy.
+  continuous-time analogue :math:`A_i^\\top P + P A_i \\prec 0`), as an LMI re-verified with numpy.
 * :func:`jsr_bounds` — a bracket on the joint spectral radius (beyond the papers):
   products of bounded length from below, the best common quadratic norm and a
   prefix-code product tree in that norm from above. It tells how conservative an
@@ -71,12 +71,12 @@ class LyapunovCertificate:
         A common quadratic Lyapunov function exists: True only when the returned ``P``
         passed the numpy re-verification, with the rounding of that check allowed for.
     P : ndarray, shape (n, n), or None
-        The certificate, scaled so that its smallest eigenvalue is 1 (``P >= I``);
+        The certificate, scaled so that its smallest eigenvalue is 1 (:math:`P \\succeq I`);
         ``None`` when not feasible.
     margin : float
-        Verified decrease margin of the scaled ``P``: ``min_i -max eig(A_i' P A_i - P)``
-        (discrete) or ``min_i -max eig(A_i' P + P A_i)`` (continuous). NaN when not
-        feasible.
+        Verified decrease margin of the scaled ``P``:
+        :math:`\\min_i -\\lambda_{\\max}(A_i^\\top P A_i - P)` (discrete) or
+        :math:`\\min_i -\\lambda_{\\max}(A_i^\\top P + P A_i)` (continuous). NaN when not feasible.
     solver_status : str
         Status reported by the solver that answered (``"optimal"``,
         ``"infeasible"``, ``"optimal_inaccurate"``, ``"solver_error"``, ...).
@@ -95,24 +95,26 @@ class LyapunovCertificate:
 
 @dataclass(frozen=True)
 class JSRBounds:
-    """Outcome of :func:`jsr_bounds`: ``lower <= JSR <= upper``.
+    """Outcome of :func:`jsr_bounds`:
+    :math:`\\mathrm{lower} \\le \\mathrm{JSR} \\le \\mathrm{upper}`.
 
     Both bounds are rounded outward by the rounding allowance of their computation, so
     that the bracket holds whatever the last bits of the arithmetic, and
-    ``lower <= upper`` always.
+    :math:`\\mathrm{lower} \\le \\mathrm{upper}` always.
 
     Attributes
     ----------
     lower : float
-        ``max rho(W)^(1/|W|)`` over the products ``W`` visited, rounded down.
+        :math:`\\max \\rho(W)^{1/|W|}` over the products :math:`W` visited, rounded down.
     upper : float
-        ``min(ellipsoid, tree)``, rounded up.
+        :math:`\\min(\\mathrm{ellipsoid}, \\mathrm{tree})`, rounded up.
     ellipsoid : float
-        Best common quadratic norm bound: smallest ``r`` (to ``rtol``) with a CQLF
-        for ``{A_i / r}`` — the bound a CQLF alone can give (``max_i ||A_i||_2``
-        when :func:`jsr_bounds` was called with ``quadratic=False``).
+        Best common quadratic norm bound: smallest :math:`r` (to ``rtol``) with a CQLF
+        for :math:`\\{A_i / r\\}` — the bound a CQLF alone can give
+        (:math:`\\max_i \\lVert A_i \\rVert_2` when :func:`jsr_bounds` was called with
+        ``quadratic=False``).
     tree : float
-        Prefix-code bound ``max ||W||_P^(1/|W|)`` over the leaves of the product
+        Prefix-code bound :math:`\\max \\lVert W \\rVert_P^{1/|W|}` over the leaves of the product
         tree in the norm of that CQLF (the spectral norm when none was found).
     word : tuple of int
         Mode sequence (0-based, first applied first) attaining ``lower``.
@@ -135,10 +137,10 @@ class MeanSquareStability:
     Attributes
     ----------
     radius : float
-        Spectral radius of ``sum_i p_i (A_i kron A_i)``.
+        Spectral radius of :math:`\\sum_i p_i (A_i \\otimes A_i)`.
     holds : bool
-        ``radius < 1`` by more than the rounding allowance of ``radius``: the second
-        moment ``E[x_k x_k']`` converges to zero.
+        :math:`\\mathrm{radius} < 1` by more than the rounding allowance of ``radius``: the
+        second moment :math:`\\mathbb{E}[x_k x_k^\\top]` converges to zero.
     """
 
     radius: float
@@ -146,7 +148,7 @@ class MeanSquareStability:
 
 
 def spectral_radius(A) -> np.ndarray:
-    """Spectral radius ``max |eig(A)|`` of each matrix in a stack.
+    """Spectral radius :math:`\\max_j |\\lambda_j(A)|` of each matrix in a stack.
 
     Parameters
     ----------
@@ -163,24 +165,25 @@ def spectral_radius(A) -> np.ndarray:
 def cqlf(matrices, domain: Domain = "discrete", *, margin: float = 1e-6) -> LyapunovCertificate:
     """Find a common quadratic Lyapunov function for a family of matrices.
 
-    Discrete time (Zhang & Natarajan, eq. (13)): ``P = P'``, ``P >= I``,
-    ``A_i' P A_i - P <= -margin I`` for all i. Continuous time: ``P >= I``,
-    ``A_i' P + P A_i <= -margin I``. The strict inequalities of the papers are
-    posed with the explicit margin; the homogeneous problem loses nothing by the
-    normalization ``P >= I``. The solver's ``P`` is then re-checked with numpy
-    eigenvalues after rescaling it to ``min eig(P) = 1``; ``holds`` is True only
-    if the verified decrease margin, less the rounding allowance of its computation
-    (:func:`~switchest.analysis._lmi.rounding_allowance`: forming ``A_i' P A_i - P``
-    and its eigenvalues, ``2 (3n + 1) eps`` times the size of the terms), is at least
-    ``margin / 2`` (half the posed margin, leaving room for the solver's feasibility
-    tolerance). The smallest eigenvalue of ``P`` must likewise exceed its rounding.
+    Discrete time (Zhang & Natarajan, eq. (13)): :math:`P = P^\\top`, :math:`P \\succeq I`,
+    :math:`A_i^\\top P A_i - P \\preceq -\\mathrm{margin} \\, I` for all i. Continuous time:
+    :math:`P \\succeq I`, :math:`A_i^\\top P + P A_i \\preceq -\\mathrm{margin} \\, I`. The strict
+    inequalities of the papers are posed with the explicit margin; the homogeneous problem
+    loses nothing by the normalization :math:`P \\succeq I`. The solver's ``P`` is then
+    re-checked with numpy eigenvalues after rescaling it to :math:`\\lambda_{\\min}(P) = 1`;
+    ``holds`` is True only if the verified decrease margin, less the rounding allowance of its
+    computation (:func:`~switchest.analysis._lmi.rounding_allowance`: forming
+    :math:`A_i^\\top P A_i - P` and its eigenvalues, :math:`2 (3n + 1) \\varepsilon` times the
+    size of the terms), is at least :math:`\\mathrm{margin} / 2` (half the posed margin, leaving
+    room for the solver's feasibility tolerance). The smallest eigenvalue of ``P`` must
+    likewise exceed its rounding.
 
     Parameters
     ----------
     matrices : array_like, shape (L, n, n) or (n, n)
         The mode matrices (a single matrix is a family of one).
     domain : {"discrete", "continuous"}, optional
-        ``"discrete"``: ``x_{k+1} = A_i x_k``; ``"continuous"``: ``dx/dt = A_i x``.
+        ``"discrete"``: :math:`x_{k+1} = A_i x_k`; ``"continuous"``: :math:`dx/dt = A_i x`.
     margin : float, optional
         Decrease margin posed in the LMI (keyword-only), positive.
 
@@ -245,10 +248,10 @@ def cqlf(matrices, domain: Domain = "discrete", *, margin: float = 1e-6) -> Lyap
 
 
 def decrease_margin(matrices, P, *, domain: Domain = "discrete") -> float:
-    """Numpy check of a candidate Lyapunov matrix: ``min_i -max eig(D_i)``.
+    """Numpy check of a candidate Lyapunov matrix: :math:`\\min_i -\\lambda_{\\max}(D_i)`.
 
-    ``D_i = A_i' P A_i - P`` (discrete) or ``A_i' P + P A_i`` (continuous). A
-    positive value means ``V(x) = x' P x`` decreases along every mode. The value is
+    :math:`D_i = A_i^\\top P A_i - P` (discrete) or :math:`A_i^\\top P + P A_i` (continuous). A
+    positive value means :math:`V(x) = x^\\top P x` decreases along every mode. The value is
     as computed; :func:`cqlf` compares it with its threshold only beyond its rounding.
 
     Parameters
@@ -287,26 +290,26 @@ def jsr_bounds(
     Beyond the papers (Zhang & Natarajan cite the JSR only as undecidable, their
     ref. [40]); this shows how far a quadratic certificate is from the truth.
 
-    * Ellipsoid bound: bisection on ``r`` for a CQLF of ``{A_i / r}``
-      (:func:`cqlf`); a CQLF ``P`` gives ``||A_i||_P <= r`` for every mode, hence
-      ``JSR <= r``.
-    * Lower bound: ``JSR >= rho(W)^(1/|W|)`` for every product ``W`` of the
-      ``A_i``; products are enumerated breadth-first up to ``max_length``.
-    * Tree bound (a prefix code in the CQLF norm ``||x||_P = sqrt(x' P x)``):
-      a product ``W`` is not extended once ``||W||_P^(1/|W|) <= lower (1 +
-      prune_tol)`` (pruning) or ``W`` is zero to working precision, nor beyond
-      ``max_length`` or once ``max_products`` are reached. The unextended
-      products (the leaves) form a complete prefix code: every infinite mode
-      sequence factors into leaves, so by submultiplicativity
-      ``JSR <= max_leaves ||W||_P^(1/|W|)``.
+    * Ellipsoid bound: bisection on :math:`r` for a CQLF of :math:`\\{A_i / r\\}`
+      (:func:`cqlf`); a CQLF :math:`P` gives :math:`\\lVert A_i \\rVert_P \\le r` for every mode,
+      hence :math:`\\mathrm{JSR} \\le r`.
+    * Lower bound: :math:`\\mathrm{JSR} \\ge \\rho(W)^{1/|W|}` for every product :math:`W` of the
+      :math:`A_i`; products are enumerated breadth-first up to ``max_length``.
+    * Tree bound (a prefix code in the CQLF norm :math:`\\lVert x \\rVert_P = \\sqrt{x^\\top P x}`):
+      a product :math:`W` is not extended once
+      :math:`\\lVert W \\rVert_P^{1/|W|} \\le \\mathrm{lower} \\, (1 + \\mathrm{prune\\_tol})`
+      (pruning) or :math:`W` is zero to working precision, nor beyond ``max_length`` or once
+      ``max_products`` are reached. The unextended products (the leaves) form a complete
+      prefix code: every infinite mode sequence factors into leaves, so by submultiplicativity
+      :math:`\\mathrm{JSR} \\le \\max_{\\mathrm{leaves}} \\lVert W \\rVert_P^{1/|W|}`.
 
-    Rounding: a product ``W`` of ``k`` matrices is computed to within
-    ``(k + 1) n`` rounding errors of ``prod_j ||A_{w_j}||_F`` (the matrix products
-    and the eigen- or singular value solver,
-    :func:`~switchest.analysis._lmi.rounding_allowance`), and its ``P``-norm to
-    within ``cond(R)`` times that (``P = R' R``). Each
-    ``rho(W)`` is lowered and each ``||W||_P`` raised by that allowance before the
-    ``k``-th root, which is then rounded outward by a few ulps: the bracket holds
+    Rounding: a product :math:`W` of :math:`k` matrices is computed to within
+    :math:`(k + 1) n` rounding errors of :math:`\\prod_j \\lVert A_{w_j} \\rVert_F` (the matrix
+    products and the eigen- or singular value solver,
+    :func:`~switchest.analysis._lmi.rounding_allowance`), and its :math:`P`-norm to
+    within :math:`\\operatorname{cond}(R)` times that (:math:`P = R^\\top R`). Each
+    :math:`\\rho(W)` is lowered and each :math:`\\lVert W \\rVert_P` raised by that allowance
+    before the :math:`k`-th root, which is then rounded outward by a few ulps: the bracket holds
     whatever the last bits of the arithmetic. Singular values are perfectly
     conditioned, eigenvalues of a non-normal product need not be; should the two
     bounds still cross, ``lower`` is lowered to ``upper``.
@@ -324,8 +327,8 @@ def jsr_bounds(
         Relative slack of the pruning rule.
     quadratic : bool, optional
         Search the best common quadratic norm (an LMI bisection whose cost grows
-        like ``n^6``); ``False`` bounds in the spectral norm instead
-        (``ellipsoid = max_i ||A_i||_2``), for large ``n``.
+        like :math:`n^6`); ``False`` bounds in the spectral norm instead
+        (:math:`\\mathrm{ellipsoid} = \\max_i \\lVert A_i \\rVert_2`), for large :math:`n`.
 
     Returns
     -------
@@ -386,27 +389,33 @@ def jsr_bounds(
 
 
 def _radius_below(rho: np.ndarray, sizes: np.ndarray, n: int, k: int) -> np.ndarray:
-    """``rho(W)^(1/k)`` of computed products ``W`` of ``k`` matrices, rounded down by the
-    rounding allowance of ``W`` and of its eigenvalues (exact for normal ``W``)."""
+    """:math:`\\rho(W)^{1/k}` of computed products :math:`W` of :math:`k` matrices, rounded down
+    by the rounding allowance of :math:`W` and of its eigenvalues (exact for normal :math:`W`)."""
     certain = np.maximum(rho - rounding_allowance(sizes, (k + 1) * n), 0.0)
     return certain ** (1.0 / k) * (1.0 - 4 * _EPS)
 
 
 def ms_stable_iid(A, p) -> MeanSquareStability:
-    """Mean-square stability of ``x_{k+1} = A_{s_k} x_k`` with i.i.d. modes.
+    """Mean-square stability of :math:`x_{k+1} = A_{s_k} x_k` with i.i.d. modes.
 
-    With ``P(s_k = i) = p_i`` independently of the past, the second moment obeys
-    ``vec E[x_{k+1} x_{k+1}'] = (sum_i p_i A_i kron A_i) vec E[x_k x_k']``, so the
-    system is mean-square stable iff the spectral radius of that matrix is below 1.
+    With :math:`\\Pr(s_k = i) = p_i` independently of the past, the second moment obeys
+
+    .. math::
+
+        \\operatorname{vec} \\mathbb{E}[x_{k+1} x_{k+1}^\\top]
+        = \\Bigl(\\sum_i p_i A_i \\otimes A_i\\Bigr) \\operatorname{vec} \\mathbb{E}[x_k x_k^\\top],
+
+    so the system is mean-square stable iff the spectral radius of that matrix is below 1.
     ``stable`` asks it to be below 1 by more than the rounding allowance of the
-    computed radius (:func:`~switchest.analysis._lmi.rounding_allowance`: ``n^2 + L``
-    terms of size ``sum_i p_i ||A_i||_F^2``, the Frobenius norm of that matrix's
+    computed radius (:func:`~switchest.analysis._lmi.rounding_allowance`: :math:`n^2 + L`
+    terms of size :math:`\\sum_i p_i \\lVert A_i \\rVert_F^2`, the Frobenius norm of that matrix's
     absolute value), so the verdict does not depend on the last bits.
 
-    Up to ``n = 32`` the ``n^2 x n^2`` matrix is formed and its eigenvalues computed;
-    beyond, the spectral radius of the map ``X -> sum_i p_i A_i X A_i'`` is found
-    matrix-free by Arnoldi iteration (ARPACK, to a relative ``1e-12``, added to the
-    allowance), in ``O(L n^3)`` per iteration and ``O(n^2)`` memory.
+    Up to :math:`n = 32` the :math:`n^2 \\times n^2` matrix is formed and its eigenvalues
+    computed; beyond, the spectral radius of the map
+    :math:`X \\mapsto \\sum_i p_i A_i X A_i^\\top` is found matrix-free by Arnoldi iteration
+    (ARPACK, to a relative ``1e-12``, added to the allowance), in :math:`O(L n^3)` per
+    iteration and :math:`O(n^2)` memory.
 
     Parameters
     ----------
@@ -421,7 +430,7 @@ def ms_stable_iid(A, p) -> MeanSquareStability:
     Raises
     ------
     numpy.linalg.LinAlgError
-        If the iteration for a large ``n`` does not converge.
+        If the iteration for a large :math:`n` does not converge.
     """
     A = _matrix_stack(A, "A", min_ndim=3, max_ndim=3)
     p = check_probability_vector(p, "p", n=A.shape[0])
@@ -441,7 +450,8 @@ _ARPACK_TOL = 1e-12
 
 
 def _operator_radius(A: np.ndarray, p: np.ndarray) -> float:
-    """Spectral radius of ``X -> sum_i p_i A_i X A_i'`` on ``n x n`` matrices, by ARPACK."""
+    """Spectral radius of :math:`X \\mapsto \\sum_i p_i A_i X A_i^\\top` on :math:`n \\times n`
+    matrices, by ARPACK."""
     n = A.shape[-1]
     At = np.ascontiguousarray(np.swapaxes(A, -1, -2))
 
@@ -472,11 +482,12 @@ def _decrease(A: np.ndarray, P: cp.Variable, domain: str) -> cp.Expression:
 
 
 def _verified_decrease(A: np.ndarray, P: np.ndarray, domain: str) -> tuple[np.ndarray, np.ndarray]:
-    """Per mode, ``-max eig(D_i)`` and the rounding allowance of that number.
+    """Per mode, :math:`-\\lambda_{\\max}(D_i)` and the rounding allowance of that number.
 
-    Each entry of ``D_i`` is a sum of ``2n + 1`` products bounded by
-    ``|A_i|' |P| |A_i| + |P|`` (discrete) or ``|A_i|' |P| + |P| |A_i|`` (continuous), and the
-    symmetric eigensolver adds ``n eps ||D_i||``: ``3n + 1`` terms of that size (Frobenius).
+    Each entry of :math:`D_i` is a sum of :math:`2n + 1` products bounded by
+    :math:`|A_i|^\\top |P| |A_i| + |P|` (discrete) or :math:`|A_i|^\\top |P| + |P| |A_i|`
+    (continuous), and the symmetric eigensolver adds :math:`n \\varepsilon \\lVert D_i \\rVert`:
+    :math:`3n + 1` terms of that size (Frobenius).
     """
     n = A.shape[-1]
     At = np.swapaxes(A, -1, -2)
@@ -497,13 +508,14 @@ def _infeasible(status: str, domain: str, note: str) -> LyapunovCertificate:
 
 
 def _spectral_bound(A: np.ndarray, rtol: float) -> float:
-    """``max_i ||A_i||_2 (1 + rtol)``, raised by the rounding of the singular values."""
+    """:math:`\\max_i \\lVert A_i \\rVert_2 (1 + \\mathrm{rtol})`, raised by the rounding of the
+    singular values."""
     top = float(np.max(np.linalg.norm(A, ord=2, axis=(-2, -1))))
     return top * (1.0 + rtol) + float(rounding_allowance(top, A.shape[-1]))
 
 
 def _ellipsoid_bound(A: np.ndarray, rtol: float) -> tuple[float, np.ndarray]:
-    """Smallest ``r`` (to ``rtol``) with a verified CQLF of ``{A_i / r}``, and its P."""
+    """Smallest :math:`r` (to ``rtol``) with a verified CQLF of :math:`\\{A_i / r\\}`, and its P."""
     rho = float(np.max(spectral_radius(A)))
     hi = _spectral_bound(A, rtol)
     if hi == 0.0:
@@ -524,8 +536,10 @@ def _ellipsoid_bound(A: np.ndarray, rtol: float) -> tuple[float, np.ndarray]:
 
 
 def _p_norm(P: np.ndarray):
-    """``(W -> ||W||_P, cond)``: the norm induced by ``||x||_P = sqrt(x' P x)``, batched,
-    and ``||R||_F ||R^-1||_F`` (``P = R' R``), by which it magnifies rounding in ``W``."""
+    """:math:`(W \\mapsto \\lVert W \\rVert_P, \\mathrm{cond})`: the norm induced by
+    :math:`\\lVert x \\rVert_P = \\sqrt{x^\\top P x}`, batched, and
+    :math:`\\lVert R \\rVert_F \\lVert R^{-1} \\rVert_F` (:math:`P = R^\\top R`), by which it
+    magnifies rounding in :math:`W`."""
     R = np.linalg.cholesky(P).T  # P = R' R, ||x||_P = ||R x||
     R_inv = np.linalg.inv(R)
     cond = float(np.linalg.norm(R) * np.linalg.norm(R_inv))

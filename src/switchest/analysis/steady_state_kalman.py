@@ -18,14 +18,18 @@ __all__ = ["steady_state_gain"]
 def steady_state_gain(
     F: np.ndarray, C: np.ndarray, Qd: np.ndarray, R: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Steady-state filter gain and covariances of ``x+ = F x + w``, ``y = C x + v``.
+    """Steady-state filter gain and covariances of :math:`x^+ = F x + w`, :math:`y = C x + v`.
 
     Solves the discrete algebraic Riccati equation for the a-priori covariance
-    ``P = F P F' - F P C'(C P C' + R)^-1 C P F' + Qd`` and returns
-    ``K = P C' (C P C' + R)^-1`` (the filter-form gain of Zhang & Natarajan eq. (6),
-    ``x_k|k = x_k|k-1 + K (y_k - C x_k|k-1)``), ``P`` and the a-posteriori
-    ``(I - K C) P``. Works on one mode; loop over modes outside (L is small and
-    the Riccati solver is not batched).
+
+    .. math::
+
+        P = F P F^\\top - F P C^\\top (C P C^\\top + R)^{-1} C P F^\\top + Q_d
+
+    and returns :math:`K = P C^\\top (C P C^\\top + R)^{-1}` (the filter-form gain of Zhang &
+    Natarajan eq. (6), :math:`x_{k|k} = x_{k|k-1} + K (y_k - C x_{k|k-1})`), ``P`` and the
+    a-posteriori :math:`(I - K C) P`. Works on one mode; loop over modes outside (L is small
+    and the Riccati solver is not batched).
 
     Parameters
     ----------

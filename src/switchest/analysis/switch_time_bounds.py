@@ -1,31 +1,39 @@
 """Error bounds from a switching-time error (Shankar et al., Lemma 2 and Remark 1).
 
-A switch from mode i to mode j at offset ``t_bar`` inside a sample interval of
-length ``T`` gives the exact sampled matrices (Shankar et al. eqs (4)-(5))::
+A switch from mode i to mode j at offset :math:`\\bar t` inside a sample interval of
+length :math:`T` gives the exact sampled matrices (Shankar et al. eqs (4)-(5)):
 
-    F = e^{A_j (T - t_bar)} e^{A_i t_bar}
-    G = F int_0^{t_bar} e^{-A_i tau} B_i dtau + int_{t_bar}^T e^{A_j (T - tau)} B_j dtau
+.. math::
 
-An estimate ``t_hat`` of the switching time gives ``F_hat``, ``G_hat``; Lemma 2
-bounds ``||F_hat - F||`` and ``||G_hat - G||`` with ``t_tilde = t_hat - t_bar``.
+    \\begin{aligned}
+    F &= e^{A_j (T - \\bar t)} e^{A_i \\bar t} \\\\
+    G &= F \\int_0^{\\bar t} e^{-A_i \\tau} B_i \\, d\\tau
+        + \\int_{\\bar t}^T e^{A_j (T - \\tau)} B_j \\, d\\tau
+    \\end{aligned}
+
+An estimate :math:`\\hat t` of the switching time gives :math:`\\hat F`, :math:`\\hat G`; Lemma 2
+bounds :math:`\\lVert \\hat F - F \\rVert` and :math:`\\lVert \\hat G - G \\rVert` with
+:math:`\\tilde t = \\hat t - \\bar t`.
 Norms are spectral norms (the lemma holds for any submultiplicative norm).
 
 Verdict of the numerical check (tests/analysis/test_switch_time_bounds.py: 10 000 random
 cases, exact F and G by matrix exponentials): the printed bounds (11) and (12)
-hold in every case, and (11) is tight as ``T -> 0``. The proof has typos that do
+hold in every case, and (11) is tight as :math:`T \\to 0`. The proof has typos that do
 not reach the printed statement:
 
-* ``E_j := e^{-A(j) t_bar}`` must read ``e^{-A(j) t_tilde}``;
-* the perturbation in ``||e^{X+Y} - e^X|| <= ||Y|| e^{||X|| + ||Y||}`` must be
-  ``Y = -(A(j) - A(i)) t_tilde``, not ``-A(j) t_tilde - A(i) t_tilde``; the printed
-  (11) does use ``||Y|| = |t_tilde| ||A(j) - A(i)||`` (a bound built on the printed
-  ``Y`` would be zero for ``A(j) = -A(i)`` and fails — shown in the tests);
-* in the expression of ``G_tilde`` the middle factor is ``e^{A(j)(T - t_bar)}``
-  and the last integrand ``e^{-A(j) tau} B(j)``;
+* :math:`E_j := e^{-A(j) \\bar t}` must read :math:`e^{-A(j) \\tilde t}`;
+* the perturbation in :math:`\\lVert e^{X+Y} - e^X \\rVert
+  \\le \\lVert Y \\rVert e^{\\lVert X \\rVert + \\lVert Y \\rVert}` must be
+  :math:`Y = -(A(j) - A(i)) \\tilde t`, not :math:`-A(j) \\tilde t - A(i) \\tilde t`; the printed
+  (11) does use :math:`\\lVert Y \\rVert = |\\tilde t| \\, \\lVert A(j) - A(i) \\rVert` (a bound
+  built on the printed :math:`Y` would be zero for :math:`A(j) = -A(i)` and fails — shown in
+  the tests);
+* in the expression of :math:`\\tilde G` the middle factor is :math:`e^{A(j)(T - \\bar t)}`
+  and the last integrand :math:`e^{-A(j) \\tau} B(j)`;
 * in (12) the first term drops the time factor of
-  ``int_0^{t_hat} e^{||A(i)|| tau} dtau <= T e^{||A(i)|| T}`` (it is not
-  dimensionally consistent); the printed (12) still held in every case, the
-  slack of its second term absorbing the missing factor.
+  :math:`\\int_0^{\\hat t} e^{\\lVert A(i) \\rVert \\tau} \\, d\\tau
+  \\le T e^{\\lVert A(i) \\rVert T}` (it is not dimensionally consistent); the printed (12)
+  still held in every case, the slack of its second term absorbing the missing factor.
 
 ``form="proof"`` evaluates the tighter intermediate inequalities of the proof,
 typos corrected; both forms are tested.
@@ -57,12 +65,12 @@ class SwitchMatrixBounds:
     Attributes
     ----------
     F : ndarray
-        Bound on ``||F_hat - F||`` (eq. (11), first line, for ``form="printed"``).
+        Bound on :math:`\\lVert \\hat F - F \\rVert` (eq. (11), first line, for ``form="printed"``).
     F_uniform : ndarray
-        Eq. (11), second line: ``|t_tilde|`` replaced by ``T``, valid for every
-        ``t_hat`` in the interval.
+        Eq. (11), second line: :math:`|\\tilde t|` replaced by :math:`T`, valid for every
+        :math:`\\hat t` in the interval.
     G : ndarray
-        Bound on ``||G_hat - G||`` (eq. (12)).
+        Bound on :math:`\\lVert \\hat G - G \\rVert` (eq. (12)).
     form : str
         ``"printed"`` or ``"proof"``.
     """
@@ -80,9 +88,9 @@ class EstimationErrorBounds:
     Attributes
     ----------
     mean : ndarray
-        Bound on ``||E[e_k]||``, eq. (21).
+        Bound on :math:`\\lVert \\mathbb{E}[e_k] \\rVert`, eq. (21).
     trace : ndarray
-        Bound on ``tr(Sigma_k)``, eq. (22).
+        Bound on :math:`\\operatorname{tr}(\\Sigma_k)`, eq. (22).
     """
 
     mean: np.ndarray
@@ -92,32 +100,50 @@ class EstimationErrorBounds:
 def switch_matrix_bounds(
     A_i, A_j, B_i, B_j, *, T, t_bar, t_hat, form: Form = "printed", F_error=None
 ) -> SwitchMatrixBounds:
-    """Shankar et al. Lemma 2: bounds on ``||F_hat - F||`` and ``||G_hat - G||``.
+    """Shankar et al. Lemma 2: bounds on :math:`\\lVert \\hat F - F \\rVert` and
+    :math:`\\lVert \\hat G - G \\rVert`.
 
-    With ``a = ||A(i)||``, ``b = ||A(j)||``, ``d = ||A(j) - A(i)||``,
-    ``t_tilde = t_hat - t_bar``:
+    With :math:`a = \\lVert A(i) \\rVert`, :math:`b = \\lVert A(j) \\rVert`,
+    :math:`d = \\lVert A(j) - A(i) \\rVert`, :math:`\\tilde t = \\hat t - \\bar t`:
 
-    ``form="printed"`` — eqs (11)-(12) as printed::
+    ``form="printed"`` — eqs (11)-(12) as printed:
 
-        (11)  ||F~|| <= |t~| d e^{(d + 3a + b) T}  (<= T d e^{(d + 3a + b) T})
-        (12)  ||G~|| <= ||F~|| e^{aT} ||B(i)|| + |t~| e^{bT} (e^{aT} ||B(i)|| + e^{bT} ||B(j)||)
+    .. math::
+
+        \\begin{aligned}
+        \\text{(11)} \\quad \\lVert \\tilde F \\rVert &\\le |\\tilde t| \\, d \\, e^{(d + 3a + b) T}
+            \\quad \\bigl(\\le T d \\, e^{(d + 3a + b) T}\\bigr) \\\\
+        \\text{(12)} \\quad \\lVert \\tilde G \\rVert &\\le \\lVert \\tilde F \\rVert e^{aT}
+            \\lVert B(i) \\rVert + |\\tilde t| e^{bT} \\bigl(e^{aT} \\lVert B(i) \\rVert
+            + e^{bT} \\lVert B(j) \\rVert\\bigr)
+        \\end{aligned}
 
     ``form="proof"`` — the proof's own inequalities, typos corrected, before the
-    exponents are rounded up to ``T``. From ``F_hat = F_j (E_j E_i) F_i`` with
-    ``F_j = e^{A(j)(T - t_bar)}``, ``F_i = e^{A(i) t_bar}``,
-    ``E_j = e^{-A(j) t~}``, ``E_i = e^{A(i) t~}``, and
-    ``||e^{X+Y} - e^X|| <= ||Y|| e^{||X|| + ||Y||}`` at ``X = -A(i) t~``,
-    ``Y = -(A(j) - A(i)) t~``::
+    exponents are rounded up to :math:`T`. From :math:`\\hat F = F_j (E_j E_i) F_i` with
+    :math:`F_j = e^{A(j)(T - \\bar t)}`, :math:`F_i = e^{A(i) \\bar t}`,
+    :math:`E_j = e^{-A(j) \\tilde t}`, :math:`E_i = e^{A(i) \\tilde t}`, and
+    :math:`\\lVert e^{X+Y} - e^X \\rVert
+    \\le \\lVert Y \\rVert e^{\\lVert X \\rVert + \\lVert Y \\rVert}` at
+    :math:`X = -A(i) \\tilde t`, :math:`Y = -(A(j) - A(i)) \\tilde t`:
 
-        ||F~|| <= |t~| d e^{(d + 2a)|t~|} e^{b (T - t_bar) + a t_bar}
+    .. math::
 
-    and from ``G~ = F~ int_0^{t_hat} e^{-A(i) s} B(i) ds
-    + e^{A(j)(T - t_bar)} int_0^{t~} (e^{-A(i) s} B(i) - e^{-A(j) s} B(j)) ds``::
+        \\lVert \\tilde F \\rVert \\le |\\tilde t| \\, d \\, e^{(d + 2a)|\\tilde t|}
+        e^{b (T - \\bar t) + a \\bar t}
 
-        ||G~|| <= ||F~|| ||B(i)|| psi(a, t_hat)
-                  + e^{b (T - t_bar)} (||B(i)|| psi(a, |t~|) + ||B(j)|| psi(b, |t~|))
+    and from :math:`\\tilde G = \\tilde F \\int_0^{\\hat t} e^{-A(i) s} B(i) \\, ds
+    + e^{A(j)(T - \\bar t)} \\int_0^{\\tilde t} (e^{-A(i) s} B(i) - e^{-A(j) s} B(j)) \\, ds`:
 
-    with ``psi(c, s) = (e^{cs} - 1) / c`` (``= s`` at ``c = 0``). ``F_uniform``
+    .. math::
+
+        \\begin{aligned}
+        \\lVert \\tilde G \\rVert \\le{} & \\lVert \\tilde F \\rVert \\lVert B(i) \\rVert
+            \\psi(a, \\hat t) \\\\
+        & + e^{b (T - \\bar t)} \\bigl(\\lVert B(i) \\rVert \\psi(a, |\\tilde t|)
+            + \\lVert B(j) \\rVert \\psi(b, |\\tilde t|)\\bigr)
+        \\end{aligned}
+
+    with :math:`\\psi(c, s) = (e^{cs} - 1) / c` (:math:`= s` at :math:`c = 0`). ``F_uniform``
     is the printed second line of (11) in both forms.
 
     Parameters
@@ -129,12 +155,12 @@ def switch_matrix_bounds(
     T : float or array_like
         Sampling period, positive; broadcast against the batch shape.
     t_bar, t_hat : float or array_like
-        True and estimated switching offsets inside the interval, in ``[0, T]``.
+        True and estimated switching offsets inside the interval, in :math:`[0, T]`.
     form : {"printed", "proof"}, optional
         Which inequalities to evaluate (keyword-only).
     F_error : float or array_like, optional
-        A value of ``||F_hat - F||`` to use in the G bound instead of the F bound
-        (e.g. the exact one).
+        A value of :math:`\\lVert \\hat F - F \\rVert` to use in the G bound instead of the F
+        bound (e.g. the exact one).
 
     Returns
     -------
@@ -202,25 +228,34 @@ def switch_matrix_bounds(
 def estimation_error_bounds(K, H, *, mean_prediction_error, prediction_mse_trace, R):
     """Shankar et al. Remark 1: estimation-error bounds from prediction-error bounds.
 
-    From ``e_k = (I - K H) z_k + K v_k`` (eq. (13)) and
-    ``Sigma_k = (I - K H) Omega_k (I - K H)' + K R K'`` (eq. (16))::
+    From :math:`e_k = (I - K H) z_k + K v_k` (eq. (13)) and
+    :math:`\\Sigma_k = (I - K H) \\Omega_k (I - K H)^\\top + K R K^\\top` (eq. (16)):
 
-        (21)  ||E[e_k]||   <= ||I - K H|| ||E[z_k]||
-        (22)  tr(Sigma_k)  <= ||I - K H||^2 tr(Omega_k) + ||K||^2 tr(R)
+    .. math::
 
-    (spectral norms; (22) uses ``tr(X Omega X') <= ||X||^2 tr(Omega)`` for
-    ``Omega >= 0``). Both are exact consequences of (13) and (16).
+        \\begin{aligned}
+        \\text{(21)} \\quad \\lVert \\mathbb{E}[e_k] \\rVert
+            &\\le \\lVert I - K H \\rVert \\, \\lVert \\mathbb{E}[z_k] \\rVert \\\\
+        \\text{(22)} \\quad \\operatorname{tr}(\\Sigma_k)
+            &\\le \\lVert I - K H \\rVert^2 \\operatorname{tr}(\\Omega_k)
+            + \\lVert K \\rVert^2 \\operatorname{tr}(R)
+        \\end{aligned}
+
+    (spectral norms; (22) uses :math:`\\operatorname{tr}(X \\Omega X^\\top)
+    \\le \\lVert X \\rVert^2 \\operatorname{tr}(\\Omega)` for :math:`\\Omega \\succeq 0`).
+    Both are exact consequences of (13) and (16).
 
     Parameters
     ----------
     K : array_like, shape (..., n, m)
-        Kalman gain ``K_{k-1}``.
+        Kalman gain :math:`K_{k-1}`.
     H : array_like, shape (m, n)
         Output matrix.
     mean_prediction_error : float or array_like
-        A bound on (or the value of) ``||E[z_k]||``, e.g. from Theorem 1 eq. (19).
+        A bound on (or the value of) :math:`\\lVert \\mathbb{E}[z_k] \\rVert`, e.g. from Theorem 1
+        eq. (19).
     prediction_mse_trace : float or array_like
-        A bound on (or the value of) ``tr(Omega_k)``, e.g. from eq. (20).
+        A bound on (or the value of) :math:`\\operatorname{tr}(\\Omega_k)`, e.g. from eq. (20).
     R : array_like, shape (m, m)
         Measurement-noise covariance, symmetric positive semidefinite.
 
@@ -255,7 +290,8 @@ def estimation_error_bounds(K, H, *, mean_prediction_error, prediction_mse_trace
 
 
 def _psi(c: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """``int_0^s e^{c tau} dtau = (e^{cs} - 1)/c``, equal to ``s`` at ``c = 0``."""
+    """:math:`\\int_0^s e^{c \\tau} \\, d\\tau = (e^{cs} - 1)/c`, equal to :math:`s` at
+    :math:`c = 0`."""
     cs = c * s
     return np.where(cs == 0, s, s * np.expm1(cs) / np.where(cs == 0, 1.0, cs))
 
