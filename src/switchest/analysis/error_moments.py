@@ -285,10 +285,11 @@ def window_sums_given_modes(dyn: ErrorDynamics, e0, modes, start: int, selectors
     .. math::
 
         \\begin{aligned}
-        \\mathbb{E}[S \\mid \\alpha] &= \\sum_k m_k^\\top D m_k + \\operatorname{tr}(D V_k) \\\\
+        \\mathbb{E}[S \\mid \\alpha]
+            &= \\sum_k \\left(m_k^\\top D m_k + \\operatorname{tr}(D V_k)\\right), \\\\
         \\operatorname{Var}(S \\mid \\alpha)
-            &= \\sum_{j, k} 2 \\operatorname{tr}(D C_{jk} D C_{jk}^\\top)
-            + 4 m_j^\\top D C_{jk} D m_k, \\\\
+            &= \\sum_{j, k} \\left(2 \\operatorname{tr}(D C_{jk} D C_{jk}^\\top)
+            + 4 m_j^\\top D C_{jk} D m_k\\right), \\\\
         C_{jk} &= V_j \\Phi_{k,j}^\\top
         \\end{aligned}
 

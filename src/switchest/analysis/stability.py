@@ -406,7 +406,7 @@ def ms_stable_iid(A, p) -> MeanSquareStability:
         = \\Bigl(\\sum_i p_i A_i \\otimes A_i\\Bigr) \\operatorname{vec} \\mathbb{E}[x_k x_k^\\top],
 
     so the system is mean-square stable iff the spectral radius of that matrix is below 1.
-    ``stable`` asks it to be below 1 by more than the rounding allowance of the
+    ``holds`` asks it to be below 1 by more than the rounding allowance of the
     computed radius (:func:`~switchest.analysis._lmi.rounding_allowance`: :math:`n^2 + L`
     terms of size :math:`\\sum_i p_i \\lVert A_i \\rVert_F^2`, the Frobenius norm of that matrix's
     absolute value), so the verdict does not depend on the last bits.
