@@ -150,7 +150,7 @@ def _switch_cost(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, delta) -> floa
 
 
 def _printed_theorem10_rate(alpha, alpha_bar, mu_s, mu_c, mu_c_bar, tau_min, tau_max, dwell, delta):
-    """Eq. (31) exactly as printed (for comparison only)."""
+    """Equation (31) exactly as printed (for comparison only)."""
     r = delta / dwell
     return 0.5 * (
         alpha * (1 - r)

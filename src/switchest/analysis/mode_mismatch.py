@@ -103,7 +103,7 @@ _COLUMN_TOL = 1e-9
 # ---------------------------------------------------------------------- results
 @dataclass(frozen=True, eq=False)
 class MismatchDynamics:
-    """Per-mode matrices of the mismatch bias, Zhang & Natarajan eqs. (6)–(7).
+    """Per-mode matrices of the mismatch bias, Zhang & Natarajan equations (6)–(7).
 
     Attributes
     ----------
@@ -136,7 +136,7 @@ class MismatchDynamics:
 
 @dataclass(frozen=True, eq=False)
 class TransformedSystem:
-    """The transformed switched system (10) of the mean bias, for given lam.
+    """The transformed switched system (10) of the mean bias, for given mismatch probabilities.
 
     Attributes
     ----------
@@ -232,7 +232,7 @@ class UnstableComponents:
 
 @dataclass(frozen=True, eq=False)
 class ToleranceCheck:
-    """Eq. (18) for a given lam.
+    """The tolerance test of Zhang & Natarajan, equation (18), for given mismatch probabilities.
 
     Attributes
     ----------
@@ -253,7 +253,7 @@ class ToleranceCheck:
 
 # ---------------------------------------------------------------------- gains
 def steady_state_gains(system: SwitchedLinearSystem) -> np.ndarray:
-    """Steady-state Kalman gain of each mode (Zhang & Natarajan, eq. (6)).
+    """Steady-state Kalman gain of each mode (Zhang & Natarajan, equation (6)).
 
     :math:`K_i = M_i C_i^\\top (C_i M_i C_i^\\top + R_i)^{-1}` with :math:`M_i` the stabilizing
     solution of the filter Riccati equation of mode i (the limit of :math:`M_{k|k-1}` in
@@ -339,7 +339,7 @@ def riccati_gains(system: SwitchedLinearSystem, *, P0, steps: int) -> np.ndarray
 
 
 def mismatch_dynamics(system: SwitchedLinearSystem, *, gains=None) -> MismatchDynamics:
-    """:math:`\\Lambda_i` and :math:`\\Gamma_{i,t}` of Zhang & Natarajan, eqs. (6)–(7).
+    """:math:`\\Lambda_i` and :math:`\\Gamma_{i,t}` of Zhang & Natarajan, equations (6)–(7).
 
     :math:`\\Lambda_i = A_i - K_i C_i A_i` and :math:`\\Gamma_{i,t} = A_t - K_i C_t A_t`: the
     bias of a filter run in mode i while the system is in mode t obeys
@@ -378,7 +378,7 @@ def mismatch_dynamics(system: SwitchedLinearSystem, *, gains=None) -> MismatchDy
 
 # ---------------------------------------------------------------------- eqs (9)-(10)
 def transformed_system(dynamics: MismatchDynamics, lam) -> TransformedSystem:
-    """The transformed switched system of the mean bias, Zhang & Natarajan eq. (10).
+    """The transformed switched system of the mean bias, Zhang & Natarajan equation (10).
 
     :math:`F_q = \\sum_i \\lambda_{i,q} \\Lambda_i` and
     :math:`G_q = \\sum_i \\lambda_{i,q} (\\Lambda_i - \\Gamma_{i,q})`.
@@ -433,7 +433,7 @@ def mean_state(system: SwitchedLinearSystem, modes, mean_x0) -> np.ndarray:
 
 
 def bias_recursion(dynamics: MismatchDynamics, lam, modes, mean_x, *, e0=None) -> np.ndarray:
-    """Mean bias of the mode-based Kalman filter, Zhang & Natarajan eq. (9).
+    """Mean bias of the mode-based Kalman filter, Zhang & Natarajan equation (9).
 
     :math:`\\mathbb{E}(e_k) = F_{q_k} \\mathbb{E}(e_{k-1}) + G_{q_k} \\mathbb{E}(x_{k-1})` (eq. (10)
     with :math:`x^*_k = \\mathbb{E}(e_k)`, :math:`u_{k-1} = \\mathbb{E}(x_{k-1})`), where the
@@ -671,7 +671,7 @@ def stable_mismatch_region(
 
 # ---------------------------------------------------------------------- §4.3 bounds
 def bibo_gain(dynamics: MismatchDynamics, *, margin: float = 1e-6) -> float:
-    """A BIBO gain :math:`\\eta` of the bias system (10) valid for every lam (Zhang eq. (14)).
+    """A BIBO gain :math:`\\eta` of the bias system (10) valid for every lam (Zhang equation (14)).
 
     Beyond the paper, which takes :math:`\\eta` as given. With a CQLF :math:`P` of
     :math:`\\{\\Lambda_i\\}` (or :math:`P = I` when every :math:`\\lVert \\Lambda_i \\rVert < 1`,
@@ -743,7 +743,7 @@ def mismatch_bias_bound(
 def tolerance_region(
     dynamics: MismatchDynamics, lam, *, bound: float, eta: float, sup_input: float
 ) -> ToleranceCheck:
-    """Whether lam lies in the tolerance region of Zhang & Natarajan eq. (18).
+    """Whether lam lies in the tolerance region of Zhang & Natarajan equation (18).
 
     .. math::
 

@@ -135,7 +135,7 @@ class SubsystemStructure:
 
 @dataclass(frozen=True, eq=False)
 class ErrorDynamics:
-    """The sampled error system of Wang et al. Theorem 1, eq. (15).
+    """The sampled error system of Wang et al. Theorem 1, equation (15).
 
     Attributes
     ----------
@@ -446,7 +446,7 @@ def second_moments(dyn: ErrorDynamics, p, V0, steps: int) -> np.ndarray:
 
 
 def steady_state(dyn: ErrorDynamics, p) -> SteadyState:
-    """Steady-state second moment of the error: Wang et al. eq. (21), corrected.
+    """Steady-state second moment of the error: Wang et al. equation (21), corrected.
 
     Solves
 
@@ -523,7 +523,7 @@ def _probabilities(p, L: int) -> np.ndarray:
 
 
 def _open_loop(structure: SubsystemStructure, expAT: np.ndarray) -> np.ndarray:
-    """:math:`\\Lambda^2 F e^{A_i T} \\Phi` (eq. (15)): :math:`F e^{A_i T} \\Phi` with the
+    """:math:`\\Lambda^2 F e^{A_i T} \\Phi` (equation (15)): :math:`F e^{A_i T} \\Phi` with the
     closed-loop block rows zeroed."""
     full = structure.F @ expAT @ structure.Phi  # (..., L, n_s, n_s)
     keep = np.ones((structure.block.size, structure.n_substates))

@@ -152,7 +152,7 @@ def _one_mode(y, u, F, G, Qd, trans, C, R, mode, x_init, P_init, predict_first, 
 
 def kalman_steady_run(y, u, F, G, trans, C, mode, gain, P_prior, P_post, whiten, x0, *,
                       gate=math.inf, lanes: int = LANES) -> KalmanOutput:
-    """Kalman filter with fixed gains (Zhang & Natarajan eq. (6)), every trial and sample.
+    """Kalman filter with fixed gains (Zhang & Natarajan equation (6)), every trial and sample.
 
     ``x_k|k = x_k|k-1 + K_i (y_k - C_i x_k|k-1)`` with the gain ``gain[i] (n, m)`` of the
     mode ``i = mode[:, k]``; a sample with any component missing is not used at all. The

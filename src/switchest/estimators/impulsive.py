@@ -49,7 +49,7 @@ ModeEstimate = str | float | Callable[[SwitchingSignal], SwitchingSignal]
 
 # ---------------------------------------------------------------------- pure equations
 def impulsive_update(x, P, y, C, G, R):
-    """The jump of the impulsive observer at a sample (Etienne et al. eq. (2), third line).
+    """The jump of the impulsive observer at a sample (Etienne et al. equation (2), third line).
 
     ``x+ = x + G (y - C x)`` with the fixed gain ``G`` of the estimated mode, and
     the error covariance in Joseph form ``P+ = (I - G C) P (I - G C)' + G R G'``

@@ -154,12 +154,12 @@ def _moments(total: dict, name: str) -> tuple[np.ndarray, np.ndarray]:
 
 def _theory(system: SwitchedLinearSystem, lam: np.ndarray, modes: np.ndarray,
             m0: np.ndarray) -> np.ndarray:
-    """Eq. (9) with eq. (6)'s steady gains: ``E(e_0), ..., E(e_K)``, shape (K + 1, n)."""
+    """Equation (9) with equation (6)'s steady gains: ``E(e_0), ..., E(e_K)``, shape (K + 1, n)."""
     return bias_recursion(mismatch_dynamics(system), lam, modes, mean_state(system, modes, m0)[:-1])
 
 
 def _compare(total: dict, theory: np.ndarray) -> dict:
-    """How both filters' Monte Carlo means compare with eq. (9)."""
+    """How both filters' Monte Carlo means compare with equation (9)."""
     steady, se = _moments(total, "steady")
     alg1, se_alg1 = _moments(total, "alg1")
     gap, se_gap = _moments(total, "pair")  # Algorithm 1's bias minus the steady filter's, paired
@@ -304,7 +304,7 @@ def _example1_x0(cfg: dict, eta: float | None = None) -> np.ndarray:
 
 
 def _example1_lam(cfg: dict) -> np.ndarray:
-    """lam of a configuration; Fig. 6's from eq. (18) with the paper's ``eta sup||u||``."""
+    """lam of a configuration; Fig. 6's from equation (18) with the paper's ``eta sup||u||``."""
     if cfg["figure"] == "6":
         p = max_mismatch_probability(mismatch_dynamics(zhang_two_mode()), bound=cfg["bound"],
                                      eta=cfg["eta_sup_input"], sup_input=1.0)

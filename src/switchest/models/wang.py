@@ -303,7 +303,7 @@ def ieee_5bus_from_tables(
     internal_reactance: float | None = None,
     bus2_load: bool = True,
 ) -> np.ndarray:
-    """The 5-bus ``A`` rebuilt from Wang et al.'s Tables 1-2 and eq. (26).
+    """The 5-bus ``A`` rebuilt from Wang et al.'s Tables 1-2 and equation (26).
 
     Generators at buses 1-2, ``M_i dw_i/dt + b_i w_i = P_in^i - P_L^i + sum_j
     P_ji^i`` (§6), line flows by eq. (26) exactly as printed::
@@ -414,7 +414,7 @@ def _line_angle(R: float, X: float, theta: float, reading: str) -> float:
 
 
 def _coupling_constant_power(delta, V, impedance: str, line_angle: str, flow: str) -> np.ndarray:
-    """``d(power into generator i)/d(delta_k)`` ``(2, 2)`` by eq. (26), load buses at constant
+    """``d(power into generator i)/d(delta_k)`` ``(2, 2)`` by equation (26), load buses at constant
     power."""
     sign = 1.0 if flow == "printed" else -1.0
     # J[j, k] = d(sum_i P_ij^j)/d(delta_k): sensitivity of the power flowing into bus j.
