@@ -6,7 +6,7 @@ probability ``mu_i``. Into sample ``k`` run ``L^2`` Kalman filters, one per pair
 at ``k - 1``, mode ``j`` at ``k``): predicted from mode ``i``'s Gaussian and updated with
 ``C[j]``, ``R[j]``, with probability ``mu_ij ∝ Lambda_ij pi_ij mu_i``. The prediction goes
 through the transition of the mode that governs the interval into ``k`` (the ``timing``,
-docs/conventions.rst): mode ``i``'s, ``trans[k, i]`` of the table ``F, G, Qd``, in the
+:doc:`/conventions`): mode ``i``'s, ``trans[k, i]`` of the table ``F, G, Qd``, in the
 ``"sample"`` timing (the same for every ``j``: computed once per ``i``), mode ``j``'s,
 ``trans[k, j]``, in the ``"interval"`` timing (Bar-Shalom, Li & Kirubarajan §11.6.5). Each
 mode's pairs are then merged into one Gaussian, ``mu_j = sum_i mu_ij``,

@@ -10,7 +10,7 @@ probabilities are kept as log-weights.
 Mode ``j``'s transition into sample ``k`` is ``trans[k, j]`` of the table ``F (M, n, n)``,
 ``G (M, n, l)``, ``Qd (M, n, n)`` (irregular sample times give different entries per ``k``);
 mode ``j`` is updated with ``C[j]``, ``R[j]``. The input held over the interval into sample
-``k`` is ``u[:, k-1]``; sample 0 is update only. ``timing`` (docs/conventions.rst) says which
+``k`` is ``u[:, k-1]``; sample 0 is update only. ``timing`` (:doc:`/conventions`) says which
 mode's transition a mode-matched Gaussian takes into ``k``: in the ``"sample"`` timing (the
 mode of sample ``k - 1`` governs the interval into ``k``) each posterior ``i`` of
 sample ``k - 1`` is predicted through ``trans[k, i]`` and the predictions are then mixed; in

@@ -19,7 +19,7 @@ Convention of switchest: ``transition[i, j]`` = P(mode j at k+1 | mode i at k). 
 is mode ``r``'s transition over the interval into sample ``k`` in the table ``F, G, Qd``; mode
 ``r`` at sample ``k`` is updated with ``C[r]``, ``R[r]``; the input held over the interval into
 sample ``k`` is ``u[:, k-1]``. Which mode's transition a particle takes into sample ``k`` is the
-timing (docs/conventions.rst): with ``sample_timing`` its mode at ``k-1`` (the mode of a sample
+timing (:doc:`/conventions`): with ``sample_timing`` its mode at ``k-1`` (the mode of a sample
 governs the interval after it, ``x_k = F(r_{k-1}) x_{k-1} + G(r_{k-1}) u_{k-1} + w``: the
 particle is predicted, then its mode at ``k`` drawn), else its mode at ``k`` (Bar-Shalom's
 timing, ``x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w``: the mode drawn, then the particle
