@@ -3,25 +3,30 @@
 The whole algorithm of Lee et al. §V, on the output sampled on a fine uniform grid:
 
 1. **Estimation** (§III, on-line form of Remark 2). From the window start
-   ``t_hat_j`` every mode i integrates, from zero,
-   ``x~_i' = A_i x~_i + B_i u`` (12) and ``z_i' = -A_i' z_i + C_i'(y - C_i x~_i)`` (13).
-   At ``t_hat_j + delta``: ``X_i* = U_i(delta)^{-1} e^{A_i' delta} z_i`` (14), the
-   least-squares initial state (7) of mode i; ``J_i(X_i*)`` (17), the residual
-   energy (6) of mode i started from ``X_i*``; ``sigma_hat = argmin_i J_i`` (5) and
-   ``x_hat(t_hat_j) = X*_sigma_hat`` (8).
-2. **Detection** (§IV, Detection Algorithm). With ``s = sigma_hat``: the open-loop
-   predictor ``x~' = A_s x~ + B_s u`` (18), the observer
-   ``x^' = (A_s - L_s C_s) x^ + B_s u + L_s y`` (19) and the residual energy
-   ``s' = |y - C_s x~|^2`` (20), both started from ``X*_s`` at ``t_hat_j`` and brought
-   up to ``t_hat_j + delta`` at once. Then on-line: if ``t - t_up >= Delta`` and
-   ``|x~ - x^| > v_max (mu e^{lambda Delta} + 1) E_hat`` the predictor is reset to the
-   observer (21)-(22); a switch is declared at ``t`` when ``t - t_up < Delta`` and
-   the same gap is exceeded (23), or when ``s(t) - s(t - Delta) > S_Delta`` (24).
-   The detection instant is ``t_hat_{j+1}`` and step 1 restarts there.
+   :math:`\\hat{t}_j` every mode :math:`i` integrates, from zero,
+   :math:`\\dot{\\tilde{x}}_i = A_i \\tilde{x}_i + B_i u` (12) and
+   :math:`\\dot{z}_i = -A_i^\\top z_i + C_i^\\top (y - C_i \\tilde{x}_i)` (13).
+   At :math:`\\hat{t}_j + \\delta`:
+   :math:`X_i^* = U_i(\\delta)^{-1} e^{A_i^\\top \\delta} z_i` (14), the
+   least-squares initial state (7) of mode :math:`i`; :math:`J_i(X_i^*)` (17), the residual
+   energy (6) of mode :math:`i` started from :math:`X_i^*`;
+   :math:`\\hat{\\sigma} = \\arg\\min_i J_i` (5) and
+   :math:`\\hat{x}(\\hat{t}_j) = X^*_{\\hat{\\sigma}}` (8).
+2. **Detection** (§IV, Detection Algorithm). With :math:`s = \\hat{\\sigma}`: the open-loop
+   predictor :math:`\\dot{\\tilde{x}} = A_s \\tilde{x} + B_s u` (18), the observer
+   :math:`\\dot{\\hat{x}} = (A_s - L_s C_s) \\hat{x} + B_s u + L_s y` (19) and the residual
+   energy :math:`\\dot{s} = |y - C_s \\tilde{x}|^2` (20), both started from :math:`X^*_s`
+   at :math:`\\hat{t}_j` and brought up to :math:`\\hat{t}_j + \\delta` at once. Then
+   on-line: if :math:`t - t_\\mathrm{up} \\ge \\Delta` and
+   :math:`|\\tilde{x} - \\hat{x}| > v_{\\max} (\\mu e^{\\lambda \\Delta} + 1) \\hat{E}` the
+   predictor is reset to the observer (21)-(22); a switch is declared at :math:`t` when
+   :math:`t - t_\\mathrm{up} < \\Delta` and the same gap is exceeded (23), or when
+   :math:`s(t) - s(t - \\Delta) > S_\\Delta` (24).
+   The detection instant is :math:`\\hat{t}_{j+1}` and step 1 restarts there.
 
 Under Lee et al.'s Assumptions 1-3 (checked by
 :func:`switchest.analysis.lee_assumptions`) the mode after each window is exact
-(Theorem 1) and every switch is detected within ``Delta`` with no false alarm
+(Theorem 1) and every switch is detected within :math:`\\Delta` with no false alarm
 (Theorem 2).
 
 Implementation notes (where this departs from the letter of the paper)
@@ -32,26 +37,28 @@ Implementation notes (where this departs from the letter of the paper)
   integrated *exactly* for that interpolant: one block-matrix exponential per
   mode and grid step (:func:`augmented_system`). ``v_max`` must therefore bound
   the noise plus the interpolation error of the noise-free output,
-  ``<= h^2/8 max|y''|``.
+  :math:`\\le \\frac{h^2}{8} \\max |\\ddot{y}|`.
 * **(15)-(17) and the catch-up of (18)-(20) without replaying stored data.** By
-  linearity, the replay (15) from ``X_i*`` equals ``e^{A_i (t - t_hat_j)} X_i*``
-  plus the forced solution (12); since (14) gives
-  ``int phi_i' (y - C_i x~_i) = U_i X_i*``, ``J_i(X_i*) = rho_i - X_i*' U_i X_i*``
-  with ``rho_i = int |y - C_i x~_i|^2`` accumulated on-line alongside (12)-(13)
-  (the "routine computation" in the proof of Theorem 1). Likewise (18) and (19)
-  at ``t_hat_j + delta`` are ``e^{A delta} X*`` resp. ``e^{(A - LC) delta} X*`` plus
-  the mode's solutions from zero, which are also accumulated during the window.
-  No window of data is stored.
+  linearity, the replay (15) from :math:`X_i^*` equals
+  :math:`e^{A_i (t - \\hat{t}_j)} X_i^*` plus the forced solution (12); since (14) gives
+  :math:`\\int \\phi_i^\\top (y - C_i \\tilde{x}_i) = U_i X_i^*`,
+  :math:`J_i(X_i^*) = \\rho_i - X_i^{*\\top} U_i X_i^*`
+  with :math:`\\rho_i = \\int |y - C_i \\tilde{x}_i|^2` accumulated on-line alongside
+  (12)-(13) (the "routine computation" in the proof of Theorem 1). Likewise (18) and (19)
+  at :math:`\\hat{t}_j + \\delta` are :math:`e^{A \\delta} X^*` resp.
+  :math:`e^{(A - LC) \\delta} X^*` plus the mode's solutions from zero, which are also
+  accumulated during the window. No window of data is stored.
 * **The window of (24).** The proof of Lemma 1 bounds
-  ``int_{max(t_bar_j, t - Delta)}^t |y - C x~|^2``, ``t_bar_j = t_hat_j + delta``,
-  which is (24) with ``s`` started at 0 at ``t_bar_j`` (Remark 3: ``s = 0`` before
-  ``t_bar_j``). The algorithm as printed starts ``s`` at ``t_hat_j`` and runs (20)
-  over ``[t_hat_j, t_bar_j]``; taken literally with Remark 3 that adds
-  ``J_sigma(X*) <= v_max^2 delta`` to the first windows, which Lemma 1 does not
-  bound. Here ``s`` starts at ``t_bar_j``, as the proof requires; ``s(t - Delta)``
-  is interpolated linearly between grid points.
+  :math:`\\int_{\\max(\\bar{t}_j, t - \\Delta)}^t |y - C \\tilde{x}|^2`,
+  :math:`\\bar{t}_j = \\hat{t}_j + \\delta`, which is (24) with :math:`s` started at 0 at
+  :math:`\\bar{t}_j` (Remark 3: :math:`s = 0` before :math:`\\bar{t}_j`). The algorithm as
+  printed starts :math:`s` at :math:`\\hat{t}_j` and runs (20) over
+  :math:`[\\hat{t}_j, \\bar{t}_j]`; taken literally with Remark 3 that adds
+  :math:`J_\\sigma(X^*) \\le v_{\\max}^2 \\delta` to the first windows, which Lemma 1 does
+  not bound. Here :math:`s` starts at :math:`\\bar{t}_j`, as the proof requires;
+  :math:`s(t - \\Delta)` is interpolated linearly between grid points.
 * **Checks start after the window**: (21)-(24) are evaluated for
-  ``t > t_hat_j + delta`` (lines 11-18 of the whole algorithm).
+  :math:`t > \\hat{t}_j + \\delta` (lines 11-18 of the whole algorithm).
 * **Outputs between a detection and the end of the next window** are undefined
   in the paper: ``x`` is NaN and ``mode`` is -1 there (and before the first
   window ends). ``x`` is the observer (19) elsewhere. There is no covariance:
@@ -99,22 +106,28 @@ def augmented_system(
 ) -> SwitchedLinearSystem:
     """The dual system whose exact discretization integrates one grid step of the algorithm.
 
-    Per mode, with ``Z = [x~; z; x^; u; y; y_dot]`` (sizes n, n, n, l, m, m; ``u``
-    held, ``y`` linear in time with slope ``y_dot``), Lee et al. (12), (13) and
-    (19) (equivalently (18)) read ``Z' = M Z`` with::
+    Per mode, with :math:`Z = [\\tilde{x}; z; \\hat{x}; u; y; \\dot{y}]` (sizes n, n, n, l,
+    m, m; :math:`u` held, :math:`y` linear in time with slope :math:`\\dot{y}`), Lee et al.
+    (12), (13) and (19) (equivalently (18)) read :math:`\\dot{Z} = M Z` with
 
-        M = [[A,     0,   0,      B, 0,  0],
-             [-C'C, -A',  0,      0, C', 0],
-             [0,     0,   A - LC, B, L,  0],
-             [0,     0,   0,      0, 0,  0],
-             [0,     0,   0,      0, 0,  I],
-             [0,     0,   0,      0, 0,  0]]
+    .. math::
 
-    and the integrand of (16)/(20) is ``|H Z|^2``, ``H = [-C, 0, 0, 0, I, 0]``. The
-    returned system has ``A = M'`` and ``Q = H'H``: its exact step over ``h``
-    (:func:`switchest.discretize.mode_steps`) gives ``F = e^{M' h}`` and
-    ``Qd = int_0^h e^{M' s} H'H e^{M s} ds``, so that ``Z(h) = F' Z(0)`` and
-    ``int_0^h |y - C x~|^2 = Z(0)' Qd Z(0)`` — no quadrature.
+        M = \\begin{bmatrix}
+            A & 0 & 0 & B & 0 & 0 \\\\
+            -C^\\top C & -A^\\top & 0 & 0 & C^\\top & 0 \\\\
+            0 & 0 & A - LC & B & L & 0 \\\\
+            0 & 0 & 0 & 0 & 0 & 0 \\\\
+            0 & 0 & 0 & 0 & 0 & I \\\\
+            0 & 0 & 0 & 0 & 0 & 0
+        \\end{bmatrix}
+
+    and the integrand of (16)/(20) is :math:`|H Z|^2`,
+    :math:`H = [-C, 0, 0, 0, I, 0]`. The returned system has :math:`A = M^\\top` and
+    :math:`Q = H^\\top H`: its exact step over :math:`h`
+    (:func:`switchest.discretize.mode_steps`) gives :math:`F = e^{M^\\top h}` and
+    :math:`Q_d = \\int_0^h e^{M^\\top s} H^\\top H e^{M s} \\, ds`, so that
+    :math:`Z(h) = F^\\top Z(0)` and
+    :math:`\\int_0^h |y - C \\tilde{x}|^2 = Z(0)^\\top Q_d Z(0)` — no quadrature.
     """
     if not isinstance(system, SwitchedLinearSystem):
         raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
@@ -142,7 +155,8 @@ def augmented_system(
 
 
 def exact_step(core, u, y0, y1, h: float, F, G):
-    """Advance ``core = [x~; z; x^]`` over one grid step and integrate ``|y - C x~|^2``.
+    """Advance ``core`` :math:`= [\\tilde{x}; z; \\hat{x}]` over one grid step, integrate
+    :math:`|y - C \\tilde{x}|^2`.
 
     Parameters
     ----------
@@ -153,13 +167,14 @@ def exact_step(core, u, y0, y1, h: float, F, G):
         Output at the two ends (linear in between).
     h : float
     F, G : ndarray, shape (..., d, d)
-        ``F`` and ``Qd`` of :func:`augmented_system` for step ``h`` (the mode of each row).
+        :math:`F` and :math:`Q_d` of :func:`augmented_system` for step ``h`` (the mode of
+        each row).
 
     Returns
     -------
     core : ndarray, shape (..., 3n)
     energy : ndarray, shape (...)
-        ``int |y - C x~|^2`` over the step, exactly (Lee et al. (16), (20)).
+        :math:`\\int |y - C \\tilde{x}|^2` over the step, exactly (Lee et al. (16), (20)).
     """
     parts = (core, u, y0, (y1 - y0) / h)
     batch = np.broadcast_shapes(*(p.shape[:-1] for p in parts))
@@ -179,22 +194,23 @@ def window_estimate(z, rho, K, U):
     Parameters
     ----------
     z : ndarray, shape (..., L, n)
-        ``z_i(t_hat_j + delta)`` of (13).
+        :math:`z_i(\\hat{t}_j + \\delta)` of (13).
     rho : ndarray, shape (..., L)
-        ``int |y - C_i x~_i|^2`` over the window, ``x~_i`` of (12).
+        :math:`\\int |y - C_i \\tilde{x}_i|^2` over the window, :math:`\\tilde{x}_i` of (12).
     K : ndarray, shape (L, n, n)
-        ``U_i(delta)^{-1} e^{A_i' delta}``.
+        :math:`U_i(\\delta)^{-1} e^{A_i^\\top \\delta}`.
     U : ndarray, shape (L, n, n)
-        ``U_i(delta)``.
+        :math:`U_i(\\delta)`.
 
     Returns
     -------
     X : ndarray, shape (..., L, n)
-        ``X_i*`` (14), the minimizer (7) of ``J_i``.
+        :math:`X_i^*` (14), the minimizer (7) of :math:`J_i`.
     J : ndarray, shape (..., L)
-        ``J_i(X_i*) = rho_i - X_i*' U_i X_i*``, equal to (17) (module docstring).
+        :math:`J_i(X_i^*) = \\rho_i - X_i^{*\\top} U_i X_i^*`, equal to (17) (module
+        docstring).
     mode : ndarray of int, shape (...)
-        ``argmin_i J_i`` (5).
+        :math:`\\arg\\min_i J_i` (5).
     """
     X = np.einsum("lij,...lj->...li", K, z)
     J = rho - np.einsum("...li,lij,...lj->...l", X, U, X)
@@ -217,21 +233,22 @@ class MinDistanceState:
     estimating : ndarray of bool, shape (N,)
         In an estimation window (step 1) rather than detecting (step 2).
     k_window : ndarray of int, shape (N,)
-        Grid steps since the window start ``t_hat_j``.
+        Grid steps since the window start :math:`\\hat{t}_j`.
     window : ndarray, shape (N, L, 3n)
-        ``[x~_i; z_i; x^_i]`` of (12), (13) and (19) from zero, every mode.
+        :math:`[\\tilde{x}_i; z_i; \\hat{x}_i]` of (12), (13) and (19) from zero, every mode.
     rho : ndarray, shape (N, L)
-        ``int |y - C_i x~_i|^2`` over the window so far.
+        :math:`\\int |y - C_i \\tilde{x}_i|^2` over the window so far.
     mode : ndarray of int, shape (N,)
-        ``sigma_hat_j`` (-1 before the first window ends).
+        :math:`\\hat{\\sigma}_j` (-1 before the first window ends).
     x_check, x_hat : ndarray, shape (N, n)
         Predictor (18) and observer (19).
     s_hist : ndarray, shape (N, c)
-        ``s`` of (20) at the last ``c`` grid points, newest last (0 before ``t_bar_j``).
+        :math:`s` of (20) at the last ``c`` grid points, newest last (0 before
+        :math:`\\bar{t}_j`).
     k_up : ndarray of int, shape (N,)
-        Grid steps since ``t_up``.
+        Grid steps since :math:`t_\\mathrm{up}`.
     window_energy : ndarray, shape (N,)
-        ``s(t) - s(t - Delta)``, the left side of (24) (0 while estimating).
+        :math:`s(t) - s(t - \\Delta)`, the left side of (24) (0 while estimating).
     detected : ndarray of bool, shape (N,)
         A switch was declared at this sample.
     """
@@ -259,11 +276,12 @@ class WindowEstimate:
     Attributes
     ----------
     mode : ndarray of int, shape (...)
-        ``sigma_hat`` (5).
+        :math:`\\hat{\\sigma}` (5).
     X : ndarray, shape (..., L, n)
-        ``X_i*`` (7)/(14) of every mode; ``X[..., mode, :]`` is ``x_hat(t_hat_j)`` (8).
+        :math:`X_i^*` (7)/(14) of every mode; ``X[..., mode, :]`` is
+        :math:`\\hat{x}(\\hat{t}_j)` (8).
     J : ndarray, shape (..., L)
-        ``J_i(X_i*)`` (6)/(17).
+        :math:`J_i(X_i^*)` (6)/(17).
     """
 
     mode: np.ndarray
@@ -280,18 +298,19 @@ class MinimumDistanceDetector(Estimator):
     system : SwitchedLinearSystem
         Continuous-time; every mode observable.
     delta : float
-        Estimation window (Lee et al. (3)); must be a multiple of the grid step.
+        Estimation window :math:`\\delta` (Lee et al. (3)); must be a multiple of the grid
+        step.
     Delta : float
-        Detection delay (Lee et al. (4)).
+        Detection delay :math:`\\Delta` (Lee et al. (4)).
     v_max : float
-        Bound on ``|v(t)|`` (eq. (2)), positive (it sets the thresholds of
+        Bound on :math:`|v(t)|` (eq. (2)), positive (it sets the thresholds of
         (21)-(24); with 0, round-off alone would trigger them). Include the
         interpolation error of the grid (module docstring).
     u_max : float
-        Bound on ``|u(t)|`` (keyword-only); the algorithm does not use it,
+        Bound on :math:`|u(t)|` (keyword-only); the algorithm does not use it,
         :meth:`assumptions` does.
     observer_gains : array_like, shape (L, n, m), optional
-        ``L_i`` of (19) (keyword-only); default
+        :math:`L_i` of (19) (keyword-only); default
         :func:`switchest.analysis.min_distance_design.default_observer_gains`.
 
     Notes
@@ -301,7 +320,7 @@ class MinimumDistanceDetector(Estimator):
     the state from the output alone, eq. (14).
 
     ``run(y, u, t)`` takes the output on a uniform grid ``t`` and returns an
-    :class:`Estimate` with ``x`` (observer (19)), ``mode`` (``sigma_hat``) and
+    :class:`Estimate` with ``x`` (observer (19)), ``mode`` (:math:`\\hat{\\sigma}`) and
     ``switch_time`` (the grid instant at which each switch is declared, NaN
     elsewhere); see the module docstring for what is reported inside windows.
 
@@ -349,7 +368,7 @@ class MinimumDistanceDetector(Estimator):
         """Lee et al. Assumptions 1-3 for this detector's windows, bounds and gains.
 
         See :func:`switchest.analysis.min_distance_design.lee_assumptions`; ``x_min`` bounds
-        ``|x(t)|`` from below, ``signal`` / ``min_dwell`` check Assumption 3.
+        :math:`|x(t)|` from below, ``signal`` / ``min_dwell`` check Assumption 3.
         """
         return lee_assumptions(self.system, u_max=self.u_max, v_max=self.v_max, x_min=x_min,
                                delta=self.delta, Delta=self.Delta,
@@ -358,7 +377,7 @@ class MinimumDistanceDetector(Estimator):
 
     # ------------------------------------------------------------------ protocol
     def init(self, batch_shape=()) -> MinDistanceState:
-        """Before the first sample: the first window opens there (``t_hat_0 = 0``)."""
+        """Before the first sample: the first window opens there (:math:`\\hat{t}_0 = 0`)."""
         sys = self.system
         L, n, m = sys.n_modes, sys.n_states, sys.n_outputs
         return MinDistanceState(
@@ -453,10 +472,10 @@ class MinimumDistanceDetector(Estimator):
         )
 
     def _complete(self, win: np.ndarray, rho: np.ndarray):
-        """Lee et al. (14), (17), (5), (8), and (18)-(19) brought to ``t_hat_j + delta``.
+        """Lee et al. (14), (17), (5), (8), and (18)-(19) brought to :math:`\\hat{t}_j + \\delta`.
 
-        By linearity, (18) from ``X*`` is ``e^{A delta} X*`` plus the window's forced
-        solution (12), and (19) is ``e^{(A - LC) delta} X*`` plus the window's
+        By linearity, (18) from :math:`X^*` is :math:`e^{A \\delta} X^*` plus the window's
+        forced solution (12), and (19) is :math:`e^{(A - LC) \\delta} X^*` plus the window's
         observer from zero (module docstring).
         """
         n = self.system.n_states
@@ -479,7 +498,7 @@ class MinimumDistanceDetector(Estimator):
     def run(self, y, u=None, t=None) -> Estimate:
         """Run the whole algorithm on ``y (..., K, m)`` sampled on the uniform grid ``t (K,)``.
 
-        ``u`` is held over each grid step (``u[k]`` on ``[t_k, t_{k+1})``).
+        ``u`` is held over each grid step (``u[k]`` on :math:`[t_k, t_{k+1})`).
 
         Returns
         -------
@@ -548,7 +567,7 @@ class MinimumDistanceDetector(Estimator):
         return k
 
     def _lag(self, h: float) -> tuple[int, float]:
-        """``Delta = (c - theta) h`` with integer ``c`` and ``0 <= theta < 1``."""
+        """:math:`\\Delta = (c - \\theta) h`, integer :math:`c`, :math:`0 \\le \\theta < 1`."""
         c = int(np.ceil(self.Delta / h - 1e-9))
         return c, c - self.Delta / h
 
@@ -560,7 +579,7 @@ class MinimumDistanceDetector(Estimator):
         return np.concatenate([hist[..., 1:], newest[..., None]], axis=-1)
 
     def _lagged(self, hist: np.ndarray, h: float) -> np.ndarray:
-        """``s(t - Delta)``, linear between the two grid points around it."""
+        """:math:`s(t - \\Delta)`, linear between the two grid points around it."""
         c, theta = self._lag(h)
         return (1 - theta) * hist[..., -1 - c] + theta * hist[..., -c]
 
@@ -573,17 +592,17 @@ class DetectionMatch:
     Attributes
     ----------
     delay : ndarray, shape (S_total,)
-        ``t_detected - t_switch`` of every true switch (NaN when missed), trials
-        concatenated in order.
+        :math:`t_\\mathrm{detected} - t_\\mathrm{switch}` of every true switch (NaN when
+        missed), trials concatenated in order.
     on_time : int
-        Switches detected with ``-lead <= delay <= Delta``.
+        Switches detected with :math:`-\\mathrm{lead} \\le \\mathrm{delay} \\le \\Delta`.
     late : int
-        Switches detected after ``Delta`` (before the next switch).
+        Switches detected after :math:`\\Delta` (before the next switch).
     missed : int
         Switches with no detection before the next switch (or the end), at least
-        ``Delta`` before the end of the record.
+        :math:`\\Delta` before the end of the record.
     censored : int
-        Undetected switches less than ``Delta`` before the end: the record stops
+        Undetected switches less than :math:`\\Delta` before the end: the record stops
         before their detection deadline.
     false : int
         Detections matched to no switch.
@@ -603,8 +622,8 @@ def match_detections(switch_time, signals, *, Delta: float, t_end: float,
                      lead: float = 0.0) -> DetectionMatch:
     """Match declared switching instants to the true ones (Lee et al. Theorem 2 bookkeeping).
 
-    The first detection in ``[t_s - lead, t_{s+1} - lead)`` is matched to true
-    switch ``t_s`` (``t_{S+1} = inf``); every other detection is false.
+    The first detection in :math:`[t_s - \\mathrm{lead}, t_{s+1} - \\mathrm{lead})` is matched
+    to true switch :math:`t_s` (:math:`t_{S+1} = \\infty`); every other detection is false.
 
     Parameters
     ----------
