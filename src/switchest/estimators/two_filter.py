@@ -1,53 +1,75 @@
 """The two-filter smoother of a bank of mode-matched filters: backward information messages.
 
-A fixed-interval smoother combines, for each mode ``i`` at sample ``k``, the forward filter's
-mode-matched posterior ``N(x_i(k|k), P_i(k|k))`` with weight ``mu_i(k|k)`` and a backward
-message, the likelihood of the later measurements given the state and the mode,
+A fixed-interval smoother combines, for each mode :math:`i` at sample :math:`k`, the forward
+filter's mode-matched posterior :math:`\\mathcal{N}(x_i(k|k), P_i(k|k))` with weight
+:math:`\\mu_i(k|k)` and a backward message, the likelihood of the later measurements given the
+state and the mode,
 
-    ``beta_i(k)(x) = p(y_{k+1..K-1} | x_k = x, r_k = i)``,
+.. math::
 
-by Bayes' rule: ``p(x_k, r_k = i | Y) ∝ mu_i(k|k) N(x; x_i(k|k), P_i(k|k)) beta_i(k)(x)``
-(the pair ``(x_k, r_k)`` is Markov; Mayne 1966, Fraser & Potter 1969 for one mode; for
-switching models Helmick, Blair & Hoffman 1995, IEEE Trans. Inf. Theory 41(6), "Fixed-interval
-smoothing for Markovian switching systems"). Each message is kept in information form,
-``beta(x) = exp(c - x' Omega x / 2 + omega' x)`` with ``Omega`` positive semidefinite: the
-information the later measurements carry about ``x_k``. Its recursion, over the interval
-``k -> k+1`` and the mode ``l`` of sample ``k+1``, needs no inverse of ``F``, of ``Qd`` or of a
-covariance, and a posterior formed with it never has a larger covariance than the filter's
-(``(P^-1 + Omega)^-1 <= P``): where the forward filter is finite the smoother is, whatever the
-system (Kim's RTS-type step, ``J ~ F^-1`` in a strongly contracting direction that a mode leaves
-unobserved, multiplies the mismatch of the merged pairs at every sample: it diverges on the boost
-converter of Shankar et al.).
+    \\beta_i(k)(x) = p(y_{k+1..K-1} \\mid x_k = x, r_k = i),
 
-The recursion (``"interval"`` timing: the mode of sample ``k+1`` governs the interval into it
-and ``y_{k+1}``):
+by Bayes' rule:
+:math:`p(x_k, r_k = i \\mid Y) \\propto \\mu_i(k|k) \\, \\mathcal{N}(x; x_i(k|k), P_i(k|k)) \\,
+\\beta_i(k)(x)` (the pair :math:`(x_k, r_k)` is Markov; Mayne 1966, Fraser & Potter 1969 for one
+mode; for switching models Helmick, Blair & Hoffman 1995, IEEE Trans. Inf. Theory 41(6),
+"Fixed-interval smoothing for Markovian switching systems"). Each message is kept in
+information form, :math:`\\beta(x) = \\exp(c - x^\\top \\Omega x / 2 + \\omega^\\top x)` with
+:math:`\\Omega` positive semidefinite: the information the later measurements carry about
+:math:`x_k`. Its recursion, over the interval :math:`k \\to k+1` and the mode :math:`l` of
+sample :math:`k+1`, needs no inverse of :math:`F`, of :math:`Q_d` or of a covariance, and a
+posterior formed with it never has a larger covariance than the filter's
+(:math:`(P^{-1} + \\Omega)^{-1} \\preceq P`): where the forward filter is finite the smoother
+is, whatever the system (Kim's RTS-type step, :math:`J \\sim F^{-1}` in a strongly contracting
+direction that a mode leaves unobserved, multiplies the mismatch of the merged pairs at every
+sample: it diverges on the boost converter of Shankar et al.).
 
-1. measurement: ``alpha_l(x') = N(y_{k+1}; C_l x', R_l) beta_l(k+1)(x')``:
-   ``Omega += C_l' R_l^-1 C_l``, ``omega += C_l' R_l^-1 y``, the observed components only;
-2. dynamics: ``delta_l(x) = ∫ N(x'; F_l x + G_l u_k, Qd_l) alpha_l(x') dx'`` (the Gaussian
-   integral, with ``M = I + Omega Qd``): ``Omega_d = F' M^-1 Omega F``,
-   ``omega_d = F' M^-1 (omega - Omega g)``, ``g = G_l u_k``;
-3. the mixture over the next mode, ``beta_i(k) = sum_l pi_il delta_l``, is collapsed to one
-   message. The weight of each ``l`` is its share of the evidence under mode ``i``'s filtered
-   posterior, ``w_l ∝ pi_il ∫ N(x; x_i(k|k), P_i(k|k)) delta_l(x) dx`` (the smoothed
-   ``P(r_{k+1} = l | r_k = i, Y)`` of this approximation), and the messages are pooled in
-   their natural parameters, ``Omega = sum_l w_l Omega_l``, ``omega = sum_l w_l omega_l``
-   (log-linear pooling: positive semidefinite by construction, exact when one next mode
-   dominates), with ``c`` chosen so that the pooled message keeps the evidence of the
-   mixture under that posterior: the smoothed mode probabilities are
-   ``mu_i(k|K) ∝ mu_i(k|k) sum_l pi_il ∫ N(x; x_i(k|k), P_i(k|k)) delta_l(x) dx``.
+The recursion (``"interval"`` timing: the mode of sample :math:`k+1` governs the interval into
+it and :math:`y_{k+1}`):
 
-In the ``"sample"`` timing (the mode of sample ``k`` governs the interval after it) the
-dynamics of ``k -> k+1`` are mode ``i``'s: the measurement messages ``alpha_l`` are pooled at
-``x_{k+1}``, weighted under mode ``i``'s prediction ``N(F_i x_i + G_i u_k, F_i P_i F_i' + Qd_i)``,
-and then taken through ``F_i``. With one mode either is the exact two-filter (RTS) smoother.
+1. measurement: :math:`\\alpha_l(x') = \\mathcal{N}(y_{k+1}; C_l x', R_l) \\, \\beta_l(k+1)(x')`:
+   :math:`\\Omega \\mathrel{+}= C_l^\\top R_l^{-1} C_l`,
+   :math:`\\omega \\mathrel{+}= C_l^\\top R_l^{-1} y`, the observed components only;
+2. dynamics:
+   :math:`\\delta_l(x) = \\int \\mathcal{N}(x'; F_l x + G_l u_k, Q_{d,l}) \\, \\alpha_l(x') \\, dx'`
+   (the Gaussian integral, with :math:`M = I + \\Omega Q_d`):
+   :math:`\\Omega_d = F^\\top M^{-1} \\Omega F`,
+   :math:`\\omega_d = F^\\top M^{-1} (\\omega - \\Omega g)`, :math:`g = G_l u_k`;
+3. the mixture over the next mode, :math:`\\beta_i(k) = \\sum_l \\pi_{il} \\delta_l`, is
+   collapsed to one message. The weight of each :math:`l` is its share of the evidence under
+   mode :math:`i`'s filtered posterior,
+   :math:`w_l \\propto \\pi_{il} \\int \\mathcal{N}(x; x_i(k|k), P_i(k|k)) \\, \\delta_l(x) \\, dx`
+   (the smoothed :math:`\\Pr(r_{k+1} = l \\mid r_k = i, Y)` of this approximation), and the
+   messages are pooled in their natural parameters, :math:`\\Omega = \\sum_l w_l \\Omega_l`,
+   :math:`\\omega = \\sum_l w_l \\omega_l` (log-linear pooling: positive semidefinite by
+   construction, exact when one next mode dominates), with :math:`c` chosen so that the pooled
+   message keeps the evidence of the mixture under that posterior: the smoothed mode
+   probabilities are
 
-The posterior of a Gaussian ``N(x, P)`` and a message: ``P_s = (I + P Omega)^-1 P``,
-``x_s = x + P_s (omega - Omega x)``, evidence
-``log Z = c - x' Omega x / 2 + omega' x + r' P_s r / 2 - log |I + P Omega| / 2``,
-``r = omega - Omega x``; ``I + P Omega`` and ``I + Omega Qd`` have eigenvalues ``>= 1``
-(a product of positive semidefinite matrices has non-negative ones), so every solve is of a
-well-posed system.
+   .. math::
+
+       \\mu_i(k|K) \\propto \\mu_i(k|k) \\sum_l \\pi_{il}
+       \\int \\mathcal{N}(x; x_i(k|k), P_i(k|k)) \\, \\delta_l(x) \\, dx.
+
+In the ``"sample"`` timing (the mode of sample :math:`k` governs the interval after it) the
+dynamics of :math:`k \\to k+1` are mode :math:`i`'s: the measurement messages :math:`\\alpha_l`
+are pooled at :math:`x_{k+1}`, weighted under mode :math:`i`'s prediction
+:math:`\\mathcal{N}(F_i x_i + G_i u_k, F_i P_i F_i^\\top + Q_{d,i})`, and then taken through
+:math:`F_i`. With one mode either is the exact two-filter (RTS) smoother.
+
+The posterior of a Gaussian :math:`\\mathcal{N}(x, P)` and a message:
+
+.. math::
+
+    \\begin{aligned}
+    P_s &= (I + P \\Omega)^{-1} P, \\qquad x_s = x + P_s (\\omega - \\Omega x), \\\\
+    \\log Z &= c - x^\\top \\Omega x / 2 + \\omega^\\top x + r^\\top P_s r / 2
+        - \\log |I + P \\Omega| / 2, \\qquad r = \\omega - \\Omega x
+    \\end{aligned}
+
+(:math:`\\log Z` the evidence); :math:`I + P \\Omega` and :math:`I + \\Omega Q_d` have
+eigenvalues :math:`\\ge 1` (a product of positive semidefinite matrices has non-negative
+ones), so every solve is of a well-posed system.
 
 A sample the forward filter rejected in every mode (``outlier``) is missing here too; a NaN
 component is a missing one.
@@ -59,10 +81,11 @@ smoother's from the same passes are 0.026-0.094.
 
 The backward pass runs in the compiled engine (:func:`switchest.engine.two_filter.two_filter_run`,
 the C kernel ``se_two_filter_backward`` of ``engine/c/two_filter.c``, one function per step
-above), over blocks of trials laid across SIMD lanes and split over threads; ``I + P Omega`` and
-``I + Omega Qd`` are solved there by an LU factorization with partial pivoting per lane, ``R``
-over the observed components by the filters' Cholesky factorization. Its numpy oracle, the
-loop over the samples this module held before, is ``tests/estimators/two_filter_oracle.py``.
+above), over blocks of trials laid across SIMD lanes and split over threads;
+:math:`I + P \\Omega` and :math:`I + \\Omega Q_d` are solved there by an LU factorization with
+partial pivoting per lane, :math:`R` over the observed components by the filters' Cholesky
+factorization. Its numpy oracle, the loop over the samples this module held before, is
+``tests/estimators/two_filter_oracle.py``.
 """
 
 from __future__ import annotations
