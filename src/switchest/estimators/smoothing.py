@@ -4,32 +4,50 @@
 "Dynamic linear models with Markov-switching", §2.2) on what a collapsing filter (IMM, GPB1,
 GPB2) reports after each sample: its mode-matched posteriors and mode probabilities. Murphy
 (1998, "Switching Kalman filters", tech. report, §3-4) shows how it applies to such filters.
-For every pair (mode ``j`` at sample ``k``, mode ``i`` at ``k+1``) mode ``j``'s filtered
-posterior takes a Rauch-Tung-Striebel step towards mode ``i``'s smoothed posterior,
-``x_ji = x_j(k|k) + J (x_i(k+1|K) - F_m x_j(k|k) - G_m u_k)``,
-``P_ji = P_j(k|k) + J (P_i(k+1|K) - P_pred) J'``, ``P_pred = F_m P_j(k|k) F_m' + Qd_m``,
-``J = P_j(k|k) F_m' P_pred^-1``, through the transition of the mode ``m`` that governs the
-interval ``k -> k+1``, by the ``timing`` (:doc:`/conventions`):
+For every pair (mode :math:`j` at sample :math:`k`, mode :math:`i` at :math:`k+1`) mode
+:math:`j`'s filtered posterior takes a Rauch-Tung-Striebel step towards mode :math:`i`'s
+smoothed posterior,
 
-- ``"sample"`` (switchest's convention for data: the mode of sample ``k`` governs ``y_k``
-  and the interval after it, ``x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k``; Costa, Fragoso &
-  Marques 2005, eq. (3.1)): ``m = j``, table entry ``trans[k+1, j]``. ``x_{k+1}`` depends on
-  ``s_k``, not on ``s_{k+1}``, so the step conditions on ``x_{k+1}`` through ``F_j``; the
-  prediction and the gain are the same for every ``i``, computed once per ``j``;
+.. math::
+
+    \\begin{aligned}
+    x_{ji} &= x_j(k|k) + J \\left(x_i(k+1|K) - F_m x_j(k|k) - G_m u_k\\right), \\\\
+    P_{ji} &= P_j(k|k) + J \\left(P_i(k+1|K) - P_\\mathrm{pred}\\right) J^\\top, \\qquad
+        P_\\mathrm{pred} = F_m P_j(k|k) F_m^\\top + Q_{d,m}, \\\\
+    J &= P_j(k|k) F_m^\\top P_\\mathrm{pred}^{-1},
+    \\end{aligned}
+
+through the transition of the mode :math:`m` that governs the interval :math:`k \\to k+1`, by
+the ``timing`` (:doc:`/conventions`):
+
+- ``"sample"`` (switchest's convention for data: the mode of sample :math:`k` governs
+  :math:`y_k` and the interval after it, :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`;
+  Costa, Fragoso & Marques 2005, eq. (3.1)): :math:`m = j`, table entry ``trans[k+1, j]``.
+  :math:`x_{k+1}` depends on :math:`s_k`, not on :math:`s_{k+1}`, so the step conditions on
+  :math:`x_{k+1}` through :math:`F_j`; the prediction and the gain are the same for every
+  :math:`i`, computed once per :math:`j`;
 - ``"interval"`` (the default; Bar-Shalom, Li & Kirubarajan 2001, §11.6; Kim's own model: the
-  mode of sample ``k+1`` governs the interval into it): ``m = i``, table entry ``trans[k+1, i]``.
+  mode of sample :math:`k+1` governs the interval into it): :math:`m = i`, table entry
+  ``trans[k+1, i]``.
 
 In both the pairs are weighted by
-``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` (Kim's approximation
-``P(s_k = j | s_{k+1} = i, Y) ~ P(s_k = j | s_{k+1} = i, y_0..k)``) and merged over ``i`` by
-moment matching (Kim 1994 §2.2; Murphy 1998 §4). With one mode both timings are the RTS smoother
-(Rauch, Tung & Striebel 1965). The equations, their derivation in each timing and how a
-singular predicted covariance is handled are in :mod:`switchest.engine.smoother`;
-the backward loop runs there, compiled.
 
-Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k);
-``trans[k+1, j]`` indexes mode ``j``'s exact transition over the interval into sample ``k+1``
-(in both timings), with the input ``u[k]`` held over it.
+.. math::
+
+    \\mu_{ji}(k|K) = \\frac{\\mu_i(k+1|K) \\, \\mu_j(k|k) \\, \\pi_{ji}}
+        {\\sum_{j'} \\mu_{j'}(k|k) \\, \\pi_{j'i}}
+
+(Kim's approximation
+:math:`\\Pr(s_k = j \\mid s_{k+1} = i, Y) \\approx \\Pr(s_k = j \\mid s_{k+1} = i, y_{0..k})`)
+and merged over :math:`i` by moment matching (Kim 1994 §2.2; Murphy 1998 §4). With one mode
+both timings are the RTS smoother (Rauch, Tung & Striebel 1965). The equations, their
+derivation in each timing and how a singular predicted covariance is handled are in
+:mod:`switchest.engine.smoother`; the backward loop runs there, compiled.
+
+Convention (all of switchest): ``transition[i, j]`` =
+:math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`;
+``trans[k+1, j]`` indexes mode :math:`j`'s exact transition over the interval into sample
+:math:`k+1` (in both timings), with the input ``u[k]`` held over it.
 """
 
 from __future__ import annotations
@@ -68,7 +86,8 @@ class SmoothedModes:
         Combined smoothed estimate: the moments of the mixture of the mode-matched
         posteriors (Bar-Shalom, Li & Kirubarajan §11.6.6).
     mode_prob : ndarray, shape (..., K, L)
-        Smoothed mode probabilities ``P(mode j at k | y_0 .. y_{K-1})`` (as the collapsed
+        Smoothed mode probabilities
+        :math:`\\Pr(\\text{mode } j \\text{ at } k \\mid y_0 .. y_{K-1})` (as the collapsed
         filter approximates them).
     mode : ndarray of int, shape (..., K)
         Most probable smoothed mode (the first on a tie).
@@ -76,14 +95,16 @@ class SmoothedModes:
         Mode-matched smoothed posteriors; a mode of smoothed probability zero keeps its
         filtered posterior (None from :func:`smooth_filtered` without ``modes_out``).
     pair_prob : ndarray, shape (..., K-1, L, L), or None
-        With ``lagged=True``: ``pair_prob[..., k, j, i] = P(r_k = j, r_{k+1} = i | Y)``, Kim's
-        ``mu_ji(k|K)``.
+        With ``lagged=True``: ``pair_prob[..., k, j, i]``
+        :math:`= \\Pr(r_k = j, r_{k+1} = i \\mid Y)`, Kim's :math:`\\mu_{ji}(k|K)`.
     lag_x, lag_P : ndarray, shapes (..., K-1, L, n), (..., K-1, L, n, n), or None
-        With ``lagged=True``: mean and covariance of ``x_k`` given ``r_{k+1} = i`` and the
+        With ``lagged=True``: mean and covariance of :math:`x_k` given :math:`r_{k+1} = i` and
+        the
         record.
     lag_cross : ndarray, shape (..., K-1, L, n, n), or None
-        With ``lagged=True``: the lag-one cross-covariance ``Cov(x_{k+1}, x_k | r_{k+1} = i,
-        Y)``; with one mode ``P_{k+1|K} J_k'`` (de Jong & MacKinnon 1988).
+        With ``lagged=True``: the lag-one cross-covariance
+        :math:`\\operatorname{Cov}(x_{k+1}, x_k \\mid r_{k+1} = i, Y)`; with one mode
+        :math:`P_{k+1|K} J_k^\\top` (de Jong & MacKinnon 1988).
     """
 
     x: np.ndarray
@@ -120,20 +141,22 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transit
         ``trans[..., k + 1, j]``: the table entry of mode ``j`` over the interval into sample
         ``k + 1`` (row 0 unused); ``(K, L)`` or leading axes of length 1 share it across trials.
     transition : array_like, shape (L, L)
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows summing to 1.
+        ``transition[i, j]`` =
+        :math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`,
+        rows summing to 1.
     timing : {"sample", "interval"}
-        Which mode governs the interval ``k -> k+1`` (module docstring), so which mode's
-        transition the pair (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) takes its RTS step
-        through: ``j``'s (``"sample"``) or ``i``'s (``"interval"``); required (keyword-only),
-        as the arrays do not say it. The filtered posteriors should come from a filter of the
-        same timing (its ``timing`` attribute).
+        Which mode governs the interval :math:`k \\to k+1` (module docstring), so which mode's
+        transition the pair (mode :math:`j` at :math:`k`, mode :math:`i` at :math:`k + 1`)
+        takes its RTS step through: :math:`j`'s (``"sample"``) or :math:`i`'s
+        (``"interval"``); required (keyword-only), as the arrays do not say it. The filtered
+        posteriors should come from a filter of the same timing (its ``timing`` attribute).
     lagged : bool
-        Also return, for each interval ``k -> k+1``, the pairwise mode probabilities and the
+        Also return, for each interval :math:`k \\to k+1`, the pairwise mode probabilities and the
         lag-one moments an expectation-maximization step needs (``pair_prob``, ``lag_x``,
         ``lag_P``, ``lag_cross``; :mod:`switchest.engine.smoother`). They are
-        conditioned on the mode of sample ``k+1``, which governs the interval in the
-        ``"interval"`` timing: with ``timing="sample"`` they are refused unless ``L = 1`` (where
-        the timings agree).
+        conditioned on the mode of sample :math:`k+1`, which governs the interval in the
+        ``"interval"`` timing: with ``timing="sample"`` they are refused unless :math:`L = 1`
+        (where the timings agree).
 
     Returns
     -------
@@ -146,9 +169,9 @@ def smooth_mode_matched(x_modes, P_modes, mode_prob, u, F, G, Qd, trans, transit
         ``"sample"`` or ``"interval"``, or ``lagged`` with ``timing="sample"`` and several
         modes.
     numpy.linalg.LinAlgError
-        When a predicted covariance ``F P F' + Qd`` is not finite (it overflowed) or cannot be
-        factored even after its repair. A covariance repaired to its rounding level (a singular
-        ``F P F' + Qd``) issues a ``RuntimeWarning``.
+        When a predicted covariance :math:`F P F^\\top + Q_d` is not finite (it overflowed) or
+        cannot be factored even after its repair. A covariance repaired to its rounding level (a
+        singular :math:`F P F^\\top + Q_d`) issues a ``RuntimeWarning``.
     """
     timing = check_timing(timing)
     lagged = check_bool(lagged, "lagged")
@@ -218,8 +241,9 @@ def _covariances(P: np.ndarray, name: str) -> np.ndarray:
 
     The matrices whose factorization with half the tolerance added to their diagonal succeeds
     (:func:`~switchest.engine.smoother.screen_psd`) have their smallest
-    eigenvalue above ``-(1/2 + n (n + 1) u / 1e-12) 1e-12 max |P|``, within the tolerance for
-    ``n <= 32`` (``u`` the unit roundoff): only the others have their eigenvalues computed.
+    eigenvalue above :math:`-(1/2 + n (n + 1) u / 10^{-12}) \\, 10^{-12} \\max |P|`, within the
+    tolerance for :math:`n \\le 32` (:math:`u` the unit roundoff): only the others have their
+    eigenvalues computed.
     """
     n = P.shape[-1]
     if n > _SCREENED:
