@@ -10,9 +10,10 @@ only in the compiled kernel that takes one sample: the IMM's interaction (Blom &
 ``smooth`` runs Kim's (1994) backward recursion on the filter's mode-matched posteriors
 (:func:`switchest.estimators.smoothing.smooth_mode_matched`).
 
-Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k). The mode
-``s_k`` of sample ``k`` governs the measurement there and, by the ``timing``
-(:doc:`/conventions`), the interval after ``k`` (``"sample"``) or the one into it
+Convention (all of switchest): ``transition[i, j]`` =
+:math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`. The mode
+:math:`s_k` of sample :math:`k` governs the measurement there and, by the ``timing``
+(:doc:`/conventions`), the interval after :math:`k` (``"sample"``) or the one into it
 (``"interval"``, Bar-Shalom's); by default the system's (:attr:`SwitchedLinearSystem.timing`).
 """
 
@@ -98,9 +99,10 @@ class ModeMatchedRun(NamedTuple):
     F, G, Qd : ndarray, shapes (M, n, n), (M, n, l), (M, n, n)
         The table of exact transitions.
     trans : ndarray of int64, shape (K, L)
-        ``trans[k, j]``: mode ``j``'s transition into sample ``k`` (row 0 unused).
+        ``trans[k, j]``: mode :math:`j`'s transition into sample :math:`k` (row 0 unused).
     transition : ndarray, shape (L, L)
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k).
+        ``transition[i, j]`` =
+        :math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`.
     batch : tuple of int
         The batch shape of ``y``, ``N`` its product (to restore it in a result).
     y : ndarray, shape (N, K, m)
@@ -130,51 +132,53 @@ class ModeBankFilter(Estimator):
     ----------
     {mode model parameters}
     gate : float, optional
-        Largest normalized innovation squared ``e' S^-1 e`` a filter accepts (keyword-only);
-        e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None`` rejects only measurements whose
-        innovation overflows. A sample every filter rejects is treated as missing and flagged
-        in ``Estimate.outlier``.
+        Largest normalized innovation squared :math:`e^\\top S^{-1} e` a filter accepts
+        (keyword-only); e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None`` rejects only
+        measurements whose innovation overflows. A sample every filter rejects is treated as missing
+        and flagged in ``Estimate.outlier``.
     timing : {"sample", "interval"}, optional
-        Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k`` (keyword-only;
-        :doc:`/conventions`); ``None`` (the default): the system's ``timing``, and another is
-        named in a :class:`~switchest.estimators.TimingWarning`. ``"sample"``
+        Which interval the mode :math:`s_k` of sample :math:`k` governs besides :math:`y_k`
+        (keyword-only; :doc:`/conventions`); ``None`` (the default): the system's ``timing``,
+        and another is named in a :class:`~switchest.estimators.TimingWarning`. ``"sample"``
         (:func:`switchest.simulate` with switches at the samples; Costa, Fragoso & Marques
         2005, eq. (3.1)): the one after it,
-        :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`w_k \\sim N(0, Q_d(s_k))`,
-        :math:`y_k = C(s_k) x_k + v_k`, :math:`v_k \\sim N(0, R(s_k))`. ``"interval"`` (Bar-Shalom,
-        Li & Kirubarajan 2001, §11.6; FilterPy's ``IMMEstimator``): the one into it,
-        :math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`, :math:`y_k = C(s_k) x_k + v`. ``F, G,
-        Qd`` are the exact discretization of a mode over the interval. With one mode the two are
-        the same filter.
+        :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`w_k \\sim \\mathcal{N}(0,
+        Q_d(s_k))`, :math:`y_k = C(s_k) x_k + v_k`, :math:`v_k \\sim \\mathcal{N}(0, R(s_k))`.
+        ``"interval"`` (Bar-Shalom, Li & Kirubarajan 2001, §11.6; FilterPy's ``IMMEstimator``): the
+        one into it, :math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`, :math:`y_k = C(s_k) x_k +
+        v`. :math:`F, G, Q_d` are the exact discretization of a mode over the interval. With one
+        mode the two are the same filter.
 
     Notes
     -----
-    In the ``"sample"`` timing ``x_k`` does not depend on ``s_k`` given ``s_{k-1}`` and
-    ``x_{k-1}``, so the prior of mode ``j`` at sample ``k`` is the mixture
+    In the ``"sample"`` timing :math:`x_k` does not depend on :math:`s_k` given :math:`s_{k-1}`
+    and :math:`x_{k-1}`, so the prior of mode :math:`j` at sample :math:`k` is the mixture
 
-    ``p(x_k | s_k = j, Y_{k-1}) = sum_i P(s_{k-1} = i | s_k = j, Y_{k-1}) p(x_k | s_{k-1} = i,
-    Y_{k-1})``
+    .. math::
 
-    with ``P(s_{k-1} = i | s_k = j, Y_{k-1}) = pi_ij mu_i(k-1) / c_j``,
-    :math:`c_j = \\sum_i \\pi_{ij} \\mu_i(k-1)`, and ``p(x_k | s_{k-1} = i, Y_{k-1})`` mode ``i``'s
-    Kalman prediction through its own transition. The filters therefore predict first and interact
-    after: the IMM moment-matches that mixture (the approximation of Blom & Bar-Shalom, 1988,
-    applied after the prediction instead of before it); GPB1 collapses the ``L`` predictions
-    with weights ``mu_i(k-1)``; GPB2 predicts pair (``i``, ``j``) through mode ``i``'s
-    transition. In the ``"interval"`` timing they interact first and predict mode ``j``'s
-    restarted prior through mode ``j``'s transition (Bar-Shalom, Li & Kirubarajan §11.6.4-6).
-    The updates (mode ``j`` with ``C_j``, ``R_j``), the weighting of the hypotheses by their
-    likelihoods and the output are the same in both.
+        p(x_k \\mid s_k = j, Y_{k-1}) = \\sum_i \\Pr(s_{k-1} = i \\mid s_k = j, Y_{k-1}) \\,
+        p(x_k \\mid s_{k-1} = i, Y_{k-1})
+
+    with :math:`\\Pr(s_{k-1} = i \\mid s_k = j, Y_{k-1}) = \\pi_{ij} \\mu_i(k-1) / c_j`,
+    :math:`c_j = \\sum_i \\pi_{ij} \\mu_i(k-1)`, and :math:`p(x_k \\mid s_{k-1} = i, Y_{k-1})`
+    mode :math:`i`'s Kalman prediction through its own transition. The filters therefore predict
+    first and interact after: the IMM moment-matches that mixture (the approximation of Blom &
+    Bar-Shalom, 1988, applied after the prediction instead of before it); GPB1 collapses the
+    :math:`L` predictions with weights :math:`\\mu_i(k-1)`; GPB2 predicts pair :math:`(i, j)`
+    through mode :math:`i`'s transition. In the ``"interval"`` timing they interact first and
+    predict mode :math:`j`'s restarted prior through mode :math:`j`'s transition (Bar-Shalom, Li &
+    Kirubarajan §11.6.4-6). The updates (mode :math:`j` with :math:`C_j`, :math:`R_j`), the
+    weighting of the hypotheses by their likelihoods and the output are the same in both.
 
     These filters approximate Bar-Shalom's timing better: in the ``"sample"`` timing the IMM
     and GPB1 merge predictions through different dynamics before the measurement that would
-    tell them apart. With modes that differ only in ``A``, ``B``, ``Q`` the two timings are
-    one model with the chain shifted by a sample, and on the Markov jump system of the
+    tell them apart. With modes that differ only in :math:`A`, :math:`B`, :math:`Q` the two timings
+    are one model with the chain shifted by a sample, and on the Markov jump system of the
     bake-off (switches at the samples, 64 trials) the IMM's state RMSE was 0.180 in
     Bar-Shalom's timing against 0.202, its smoother's 0.163 against 0.311: such a model is
     best given ``timing="interval"`` on the system itself (``system.replace(timing=
-    "interval")``, or the model file's ``timing``). When the modes also differ in ``C`` or
-    ``R`` and switch at the samples, the data's timing is the one to filter in
+    "interval")``, or the model file's ``timing``). When the modes also differ in :math:`C` or
+    :math:`R` and switch at the samples, the data's timing is the one to filter in
     (:doc:`/conventions`).
     """
 
@@ -348,11 +352,11 @@ class ModeBankFilter(Estimator):
           error) from the exact smoothed ones after GPB2, 0.007-0.020 after the IMM, on small
           problems where Kim's are 0.03-0.09 off.
         - ``method="kim"``: Kim's recursion (Kim 1994, §2.2; for collapsing filters Murphy
-          1998, §3-4), the pairs (mode ``j`` at ``k``, mode ``i`` at ``k + 1``) weighed by
-          ``mu_ji(k|K) = mu_i(k+1|K) mu_j(k|k) pi_ji / sum_j' mu_j'(k|k) pi_j'i`` and mode
-          ``j``'s filtered posterior moved by a Rauch-Tung-Striebel step
-          (:func:`~switchest.estimators.smoothing.smooth_mode_matched`). It warns
-          (:class:`SmootherDivergenceWarning`) where its step diverges.
+          1998, §3-4), the pairs (mode :math:`j` at :math:`k`, mode :math:`i` at :math:`k + 1`)
+          weighed by :math:`\\mu_{ji}(k|K) = \\mu_i(k+1|K) \\mu_j(k|k) \\pi_{ji} / (\\sum_{j'}
+          \\mu_{j'}(k|k) \\pi_{j'i})` and mode :math:`j`'s filtered posterior moved by a
+          Rauch-Tung-Striebel step (:func:`~switchest.estimators.smoothing.smooth_mode_matched`). It
+          warns (:class:`SmootherDivergenceWarning`) where its step diverges.
 
         The last sample's smoothed estimate is the filtered one. Like the filter it
         approximates, the smoother is not exact;
@@ -394,10 +398,10 @@ def _warn_if_diverged(filtered: Estimate, smoothed) -> None:
 
     An exact smoother never increases the uncertainty of the filter it smooths; Kim's
     approximation can, and on a system with a strongly contracting direction that some mode
-    leaves unobserved (the boost converter: ``e^{A T}`` shrinks the inductor current by 0.14
-    per sample while the switch is closed) its backward step, ``J ~ F^-1`` in that direction,
-    multiplies the mismatch between the merged pairs at every sample: the estimates grow
-    geometrically towards the start of the record.
+    leaves unobserved (the boost converter: :math:`e^{A T}` shrinks the inductor current by 0.14
+    per sample while the switch is closed) its backward step, :math:`J \\sim F^{-1}` in that
+    direction, multiplies the mismatch between the merged pairs at every sample: the estimates
+    grow geometrically towards the start of the record.
     """
     spread = np.trace(filtered.P, axis1=-2, axis2=-1)
     grown = np.trace(smoothed.P, axis1=-2, axis2=-1) / spread
