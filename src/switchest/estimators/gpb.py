@@ -1,28 +1,29 @@
 """Generalized pseudo-Bayesian filters of the first and second order, GPB1 and GPB2
 (Bar-Shalom, Li & Kirubarajan 2001, §11.6.4-§11.6.5).
 
-Both approximate the posterior of a jump-Markov linear system, a mixture of ``L^k`` Gaussians
-after ``k`` samples (one per mode sequence), by a mixture of fewer, switches happening at the
+Both approximate the posterior of a jump-Markov linear system, a mixture of :math:`L^k` Gaussians
+after :math:`k` samples (one per mode sequence), by a mixture of fewer, switches happening at the
 sample instants. The ``timing`` (:doc:`/conventions`;
-:class:`~switchest.estimators.mode_bank.ModeBankFilter`) says which interval the mode ``s_k``
-of sample ``k`` governs besides ``y_k``: the one after it (``"sample"``:
+:class:`~switchest.estimators.mode_bank.ModeBankFilter`) says which interval the mode :math:`s_k`
+of sample :math:`k` governs besides :math:`y_k`: the one after it (``"sample"``:
 :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`) or the one into it (``"interval"``, Bar-Shalom's:
 :math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`); so which mode's transition a prediction takes.
 By default it is the system's.
 
-- GPB1 keeps one Gaussian: ``L`` Kalman filters, one per mode at sample ``k``; mode
+- GPB1 keeps one Gaussian: :math:`L` Kalman filters, one per mode at sample :math:`k`; mode
   probabilities :math:`\\mu_j(k) \\propto \\Lambda_j(k) c_j`,
-  :math:`c_j = \\sum_i \\pi_{ij} \\mu_i(k-1)`. ``"sample"``: each mode-matched posterior ``i`` of
-  sample ``k - 1`` is predicted through mode ``i``'s transition and the ``L`` predictions are
-  collapsed into one Gaussian (the moments of ``sum_i mu_i(k-1) N(x_i(k|k-1), P_i(k|k-1))``) from
-  which every mode ``j`` updates. ``"interval"`` (§11.6.4): the posteriors are collapsed first and
-  mode ``j`` predicts the one Gaussian through its own transition. It is the IMM's bank with the
+  :math:`c_j = \\sum_i \\pi_{ij} \\mu_i(k-1)`. ``"sample"``: each mode-matched posterior
+  :math:`i` of sample :math:`k - 1` is predicted through mode :math:`i`'s transition and the
+  :math:`L` predictions are collapsed into one Gaussian (the moments of
+  :math:`\\sum_i \\mu_i(k-1) \\, \\mathcal{N}(x_i(k|k-1), P_i(k|k-1))`) from which every mode
+  :math:`j` updates. ``"interval"`` (§11.6.4): the posteriors are collapsed first and
+  mode :math:`j` predicts the one Gaussian through its own transition. It is the IMM's bank with the
   interaction replaced by that collapse (:func:`~switchest.engine.imm.imm_run` with
   ``interaction="collapse"``).
-- GPB2 keeps one Gaussian per mode: ``L^2`` Kalman filters, one per pair (mode ``i`` at
-  ``k - 1``, mode ``j`` at ``k``), predicted from mode ``i``'s Gaussian through mode ``i``'s
-  transition (``"sample"``: one prediction per ``i``, shared by its pairs) or mode ``j``'s
-  (``"interval"``, §11.6.5), updated with ``C_j``, ``R_j``,
+- GPB2 keeps one Gaussian per mode: :math:`L^2` Kalman filters, one per pair (mode :math:`i`
+  at :math:`k - 1`, mode :math:`j` at :math:`k`), predicted from mode :math:`i`'s Gaussian
+  through mode :math:`i`'s transition (``"sample"``: one prediction per :math:`i`, shared by its
+  pairs) or mode :math:`j`'s (``"interval"``, §11.6.5), updated with :math:`C_j`, :math:`R_j`,
   :math:`\\mu_{ij}(k) \\propto \\Lambda_{ij}(k) \\pi_{ij} \\mu_i(k-1)`; each mode's pairs are merged
   into one Gaussian (:mod:`switchest.engine.gpb`).
 
@@ -31,13 +32,13 @@ The output of both is the moments of the mixture over the modes, as the IMM's; `
 The IMM (:class:`~switchest.estimators.IMMFilter`) costs what GPB1 costs and is, in general,
 about as accurate as GPB2 (Bar-Shalom, Li & Kirubarajan §11.6.6).
 
-Conventions as :class:`~switchest.estimators.IMMFilter`: ``transition[i, j]`` = P(mode j at
-k+1 | mode i at k), rows summing to one; mode probabilities kept as log-weights; Joseph-form
-updates; NaN in ``y`` a missing component; sample 0 an update of every mode from the prior;
-one exact transition per mode and distinct sampling step. Outliers: a filter (of a mode, or of
-a pair for GPB2) whose normalized innovation squared exceeds ``gate``, or overflows, is not
-updated and gets weight zero; a sample no filter can use counts as missing and is flagged in
-``Estimate.outlier``.
+Conventions as :class:`~switchest.estimators.IMMFilter`: ``transition[i, j]`` =
+:math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`, rows summing to
+one; mode probabilities kept as log-weights; Joseph-form updates; NaN in ``y`` a missing component;
+sample 0 an update of every mode from the prior; one exact transition per mode and distinct sampling
+step. Outliers: a filter (of a mode, or of a pair for GPB2) whose normalized innovation squared
+exceeds ``gate``, or overflows, is not updated and gets weight zero; a sample no filter can use
+counts as missing and is flagged in ``Estimate.outlier``.
 """
 
 from __future__ import annotations
@@ -54,14 +55,16 @@ class GPB1Filter(ModeBankFilter):
     """First-order generalized pseudo-Bayesian filter (Bar-Shalom, Li & Kirubarajan §11.6.4),
     batched over trials and modes.
 
-    Every mode-matched Kalman filter restarts from one Gaussian and updates with its ``C``,
-    ``R``; :math:`\\mu_j(k) \\propto \\Lambda_j(k) \\sum_i \\pi_{ij} \\mu_i(k-1)`. The one Gaussian,
-    in the ``"sample"`` timing: the moments of ``sum_i mu_i(k-1) N(x_i(k|k-1),
-    P_i(k|k-1))``, each mode-matched posterior ``i`` predicted through mode ``i``'s transition
+    Every mode-matched Kalman filter restarts from one Gaussian and updates with its :math:`C`,
+    :math:`R`; :math:`\\mu_j(k) \\propto \\Lambda_j(k) \\sum_i \\pi_{ij} \\mu_i(k-1)`. The one
+    Gaussian, in the ``"sample"`` timing: the moments of
+    :math:`\\sum_i \\mu_i(k-1) \\, \\mathcal{N}(x_i(k|k-1), P_i(k|k-1))`, each mode-matched
+    posterior :math:`i` predicted through mode :math:`i`'s transition
     (the model :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`y_k = C(s_k) x_k + v_k`); in
     the ``"interval"`` timing (§11.6.4; :math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`,
-    :math:`y_k = C(s_k) x_k + v`): the moments of the mixture ``sum_i mu_i N(x_i, P_i)`` of the
-    previous sample, then predicted through mode ``j``'s transition. The output is the moments
+    :math:`y_k = C(s_k) x_k + v`): the moments of the mixture
+    :math:`\\sum_i \\mu_i \\, \\mathcal{N}(x_i, P_i)` of the previous sample, then predicted through
+    mode :math:`j`'s transition. The output is the moments
     of the mixture over the modes.
 
     Parameters
@@ -72,19 +75,19 @@ class GPB1Filter(ModeBankFilter):
         ``None`` rejects only measurements whose innovation overflows. A sample every mode
         rejects is treated as missing and flagged in ``Estimate.outlier``.
     timing : {"sample", "interval"}, optional
-        Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only): the
-        one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's); by default
-        the system's;
-        the models and the derivation are in
+        Which interval the mode of sample :math:`k` governs besides :math:`y_k` (keyword-only):
+        the one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's); by
+        default the system's; the models and the derivation are in
         :class:`~switchest.estimators.mode_bank.ModeBankFilter`.
 
     Notes
     -----
     With the identity ``transition`` GPB1 is *not* the static multiple-model bank (each mode's
-    filter alone from the prior, ``mu_j(k) ∝ mu_j(0) prod Lambda_j``): its probabilities do
-    follow ``mu_j(k) ∝ mu_j(k-1) Lambda_j(k)``, but ``Lambda_j`` is the likelihood of mode
-    ``j``'s filter restarted from the collapsed Gaussian of all modes. The IMM and GPB2 with
-    the identity transition are that bank (their mixing weights are ``delta_ij``).
+    filter alone from the prior, :math:`\\mu_j(k) \\propto \\mu_j(0) \\prod \\Lambda_j`): its
+    probabilities do follow :math:`\\mu_j(k) \\propto \\mu_j(k-1) \\Lambda_j(k)`, but
+    :math:`\\Lambda_j` is the likelihood of mode :math:`j`'s filter restarted from the collapsed
+    Gaussian of all modes. The IMM and GPB2 with the identity transition are that bank (their
+    mixing weights are :math:`\\delta_{ij}`).
 
     Examples
     --------
@@ -105,18 +108,19 @@ class GPB2Filter(ModeBankFilter):
     """Second-order generalized pseudo-Bayesian filter (Bar-Shalom, Li & Kirubarajan §11.6.5),
     batched over trials, modes and pairs of modes.
 
-    ``L^2`` Kalman filters, one per pair (mode ``i`` at ``k - 1``, mode ``j`` at ``k``), each
-    predicted from mode ``i``'s Gaussian and updated with mode ``j``'s ``C``, ``R``;
+    :math:`L^2` Kalman filters, one per pair (mode :math:`i` at :math:`k - 1`, mode :math:`j` at
+    :math:`k`), each predicted from mode :math:`i`'s Gaussian and updated with mode :math:`j`'s
+    :math:`C`, :math:`R`;
     :math:`\\mu_{ij}(k) \\propto \\Lambda_{ij}(k) \\pi_{ij} \\mu_i(k-1)`. The prediction goes
-    through mode ``i``'s transition in the ``"sample"`` timing
+    through mode :math:`i`'s transition in the ``"sample"`` timing
     (:math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`y_k = C(s_k) x_k + v_k`: computed once
-    per ``i``), through mode ``j``'s in the
+    per :math:`i`), through mode :math:`j`'s in the
     ``"interval"`` timing (§11.6.5; :math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`,
-    :math:`y_k = C(s_k) x_k + v`). Mode ``j``'s pairs are merged
+    :math:`y_k = C(s_k) x_k + v`). Mode :math:`j`'s pairs are merged
     into one Gaussian: :math:`\\mu_j = \\sum_i \\mu_{ij}`, :math:`x_j = \\sum_i \\mu_{i|j} x_{ij}`,
-    :math:`P_j = \\sum_i \\mu_{i|j} (P_{ij} + (x_{ij} - x_j)(x_{ij} - x_j)')` with
+    :math:`P_j = \\sum_i \\mu_{i|j} (P_{ij} + (x_{ij} - x_j)(x_{ij} - x_j)^\\top)` with
     :math:`\\mu_{i|j} = \\mu_{ij} / \\mu_j`. The output is the moments of the mixture over the
-    modes. At sample 0 there is only the prior: ``L`` filters,
+    modes. At sample 0 there is only the prior: :math:`L` filters,
     :math:`\\mu_j(0) \\propto \\Lambda_j \\, \\mathrm{mode\\_prob0}_j`.
 
     Parameters
@@ -127,16 +131,15 @@ class GPB2Filter(ModeBankFilter):
         rejects only measurements whose innovation overflows. A sample every pair rejects is
         treated as missing and flagged in ``Estimate.outlier``.
     timing : {"sample", "interval"}, optional
-        Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only): the
-        one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's); by default
-        the system's;
-        see :class:`~switchest.estimators.mode_bank.ModeBankFilter`.
+        Which interval the mode of sample :math:`k` governs besides :math:`y_k` (keyword-only):
+        the one after it (``"sample"``) or the one into it (``"interval"``, Bar-Shalom's); by
+        default the system's; see :class:`~switchest.estimators.mode_bank.ModeBankFilter`.
 
     Notes
     -----
-    With the identity ``transition`` the pairs ``i != j`` have weight zero and GPB2 is the
+    With the identity ``transition`` the pairs :math:`i \\ne j` have weight zero and GPB2 is the
     static multiple-model bank: each mode's Kalman filter alone from the prior,
-    ``mu_j(k) ∝ mu_j(0) prod_t Lambda_j(t)``.
+    :math:`\\mu_j(k) \\propto \\mu_j(0) \\prod_t \\Lambda_j(t)`.
 
     Examples
     --------
