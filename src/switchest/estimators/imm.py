@@ -13,7 +13,7 @@ Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel 
 :class:`~switchest.engine.imm.Bank`: its tables checked once), which holds the one
 implementation of each equation: interaction (Blom & Bar-Shalom, 1988), mode-matched
 Kalman prediction and update (Joseph form; the information form where that loses its
-digits, a covariance beyond ``1/eps`` repaired with a ``RuntimeWarning``), and the
+digits, a covariance beyond :math:`1/\\varepsilon` repaired with a ``RuntimeWarning``), and the
 combined output (Bar-Shalom, Li & Kirubarajan §11.6.6).
 
 Outliers: a mode whose filter rejects the measurement (its normalized innovation
@@ -22,8 +22,9 @@ that sample; when every mode rejects it, the sample is treated as missing — no
 update, the mode probabilities stay the predicted ones — and it is flagged in
 ``Estimate.outlier``.
 
-Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k);
-rows sum to one.
+Convention (all of switchest): ``transition[i, j]`` =
+:math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`; rows sum to
+one.
 """
 
 from __future__ import annotations
@@ -42,35 +43,43 @@ class IMMFilter(ModeBankFilter):
     ----------
     {mode model parameters}
     gate : float, optional
-        Largest normalized innovation squared ``e' S^-1 e`` a mode-matched filter
+        Largest normalized innovation squared :math:`e^\\top S^{-1} e` a mode-matched filter
         accepts (keyword-only); e.g. ``scipy.stats.chi2.ppf(0.9999, m)``. ``None``
         rejects only measurements whose innovation overflows. A sample every mode
         rejects is treated as missing and flagged in ``Estimate.outlier``.
     timing : {"sample", "interval"}, optional
-        Which interval the mode ``s_k`` of sample ``k`` governs besides ``y_k``
+        Which interval the mode :math:`s_k` of sample :math:`k` governs besides :math:`y_k`
         (keyword-only; :doc:`/conventions`); ``None`` (the default): the system's ``timing``:
 
         - ``"sample"`` (the model :func:`switchest.simulate` draws with switches
           at the samples; Costa, Fragoso & Marques 2005, eq. (3.1)):
-          :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`w_k \\sim N(0, Q_d(s_k))`,
-          :math:`y_k = C(s_k) x_k + v_k`, :math:`v_k \\sim N(0, R(s_k))`. Each mode-matched
-          posterior ``i`` of sample ``k - 1`` is predicted through mode ``i``'s transition, then the
-          predictions are mixed into mode ``j``'s prior with the weights
-          :math:`\\mu_{i|j} = \\pi_{ij} \\mu_i / c_j`, :math:`c_j = \\sum_i \\pi_{ij} \\mu_i`.
+          :math:`x_{k+1} = F(s_k) x_k + G(s_k) u_k + w_k`, :math:`w_k \\sim \\mathcal{N}(0,
+          Q_d(s_k))`, :math:`y_k = C(s_k) x_k + v_k`, :math:`v_k \\sim \\mathcal{N}(0, R(s_k))`.
+          Each mode-matched posterior :math:`i` of sample :math:`k - 1` is predicted through mode
+          :math:`i`'s transition, then the predictions are mixed into mode :math:`j`'s prior with
+          the weights :math:`\\mu_{i|j} = \\pi_{ij} \\mu_i / c_j`, :math:`c_j = \\sum_i \\pi_{ij}
+          \\mu_i`.
         - ``"interval"`` (Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan 2001,
-          §11.6.6; FilterPy's ``IMMEstimator``): ``x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} +
-          w``, :math:`y_k = C(s_k) x_k + v`. The posteriors are mixed with the same weights,
-          then mode ``j``'s mixture is predicted through mode ``j``'s transition.
+          §11.6.6; FilterPy's ``IMMEstimator``):
+          :math:`x_k = F(s_k) x_{k-1} + G(s_k) u_{k-1} + w`, :math:`y_k = C(s_k) x_k + v`. The
+          posteriors are mixed with the same weights, then mode :math:`j`'s mixture is predicted
+          through mode :math:`j`'s transition.
 
-        Both update mode ``j`` with ``C_j``, ``R_j``. With one mode they are the same
+        Both update mode :math:`j` with :math:`C_j`, :math:`R_j`. With one mode they are the same
         (Kalman) filter.
 
     Notes
     -----
-    Derivation of the ``"sample"`` ordering: ``x_k`` is independent of ``s_k`` given
-    ``(s_{k-1}, x_{k-1})``, so ``p(x_k | s_k = j, Y_{k-1}) = sum_i P(s_{k-1} = i | s_k = j,
-    Y_{k-1}) p(x_k | s_{k-1} = i, Y_{k-1})``, with ``P(s_{k-1} = i | s_k = j, Y_{k-1}) =
-    mu_{i|j}`` and ``p(x_k | s_{k-1} = i, Y_{k-1})`` mode ``i``'s Kalman prediction from
+    Derivation of the ``"sample"`` ordering: :math:`x_k` is independent of :math:`s_k` given
+    :math:`(s_{k-1}, x_{k-1})`, so
+
+    .. math::
+
+        p(x_k \\mid s_k = j, Y_{k-1}) = \\sum_i \\Pr(s_{k-1} = i \\mid s_k = j, Y_{k-1}) \\,
+        p(x_k \\mid s_{k-1} = i, Y_{k-1}),
+
+    with :math:`\\Pr(s_{k-1} = i \\mid s_k = j, Y_{k-1}) = \\mu_{i|j}` and
+    :math:`p(x_k \\mid s_{k-1} = i, Y_{k-1})` mode :math:`i`'s Kalman prediction from
     its posterior (Gaussian given mode-matched posteriors). Moment-matching that mixture is
     Blom & Bar-Shalom's approximation, applied after the prediction instead of before it.
 
