@@ -87,7 +87,7 @@ class Estimate:
     mode : ndarray of int, shape (..., K) or None
         Estimated mode at each sample.
     switch_time : ndarray, shape (..., K) or None
-        Estimated switching instant inside ``(t_{k-1}, t_k)``; NaN where the method
+        Estimated switching instant inside :math:`(t_{k-1}, t_k)`; NaN where the method
         estimates no switch in that interval.
     loglik : ndarray, shape (..., K) or None
         Log-likelihood of each measurement given the past, where defined.
@@ -134,7 +134,7 @@ class Estimator(ABC):
     ``run(y, u=None, t=None, **per_sample)``
         A whole record ``y (..., K, m)`` at the sample times ``t (K,)`` (optional for a
         discrete-time system) with the inputs ``u`` (``(l,)``, ``(K, l)`` or
-        ``(..., K, l)``, ``u[k]`` held on ``[t_k, t_{k+1})``) -> :class:`Estimate` with the
+        ``(..., K, l)``, ``u[k]`` held on :math:`[t_k, t_{k+1})`) -> :class:`Estimate` with the
         batch shape of ``y``. What the method knows of the switching is given by keyword:
         per-sample arrays ``(K,)`` or ``(..., K)`` such as ``modes=`` (the true or
         believed mode at each sample), or, for a method that follows a continuous-time
@@ -174,8 +174,9 @@ class Estimator(ABC):
 
     def _set_mode_prior(self, transition, mode_prob0, *, optional_transition: bool = False) -> None:
         """Validate and keep the mode model of the multiple-model filters: ``transition``
-        ``(L, L)`` (``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows summing to 1)
-        and ``mode_prob0`` ``(L,)`` (uniform when None), with their logarithms
+        ``(L, L)`` (``transition[i, j]`` =
+        :math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`, rows
+        summing to 1) and ``mode_prob0`` ``(L,)`` (uniform when None), with their logarithms
         (``-inf`` for an impossible switch). With ``optional_transition`` a ``transition`` of
         None is kept as None, every switch weighted alike (its logarithm zero)."""
         L = self.system.n_modes

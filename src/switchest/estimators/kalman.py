@@ -26,10 +26,10 @@ __all__ = ["kf_predict", "kf_update", "steady_state_gain"]
 
 
 def kf_predict(x, P, F, G, u, Qd, *, inflation: float = 0.0):
-    """Time update ``x- = F x + G u``, ``P- = F P F' + Qd (+ inflation I)``.
+    """Time update :math:`x^- = F x + G u`, :math:`P^- = FPF^\\top + Q_d (+ \\mathrm{inflation} I)`.
 
     Shankar et al. eqs (6)-(7) with the process noise of the exact discretization
-    added; ``inflation`` is the ``epsilon I`` of their Algorithm 1 (§IV). Shapes
+    added; ``inflation`` is the :math:`\\epsilon I` of their Algorithm 1 (§IV). Shapes
     broadcast over leading axes (a 2-D ``F`` or ``Qd`` is shared by the whole
     stack); ``u`` may have a zero-length last axis. The kernel runs the prediction
     with a measurement that is never observed, so nothing is updated.
@@ -51,12 +51,12 @@ def kf_predict(x, P, F, G, u, Qd, *, inflation: float = 0.0):
 def kf_update(x, P, y, C, R, *, gate: float | None = None):
     """Measurement update with innovation log-likelihood; NaN entries of ``y`` are missing.
 
-    ``S = C P C' + R``, ``K = P C' S^-1`` by a Cholesky solve of the equilibrated ``S``
-    (no inverse), ``x+ = x + K (y - C x)``, and the covariance in Joseph form
-    ``P+ = (I - K C) P (I - K C)' + K R K'`` (Shankar et al. eqs (8)-(10) in their
-    numerically stable form); where Joseph's form loses its digits (a diffuse prior) the
-    information form. The log-likelihood is
-    ``log N(y; C x, S) = -(e' S^-1 e + log det S + m log 2 pi) / 2``.
+    :math:`S = C P C^\\top + R`, :math:`K = P C^\\top S^{-1}` by a Cholesky solve of the
+    equilibrated :math:`S` (no inverse), :math:`x^+ = x + K (y - C x)`, and the covariance in
+    Joseph form :math:`P^+ = (I - K C) P (I - K C)^\\top + K R K^\\top` (Shankar et al. eqs
+    (8)-(10) in their numerically stable form); where Joseph's form loses its digits (a
+    diffuse prior) the information form. The log-likelihood is
+    :math:`\\log \\mathcal{N}(y; C x, S) = -(e^\\top S^{-1} e + \\log \\det S + m \\log 2\\pi) / 2`.
 
     A missing component (NaN) is removed exactly, so the update uses the observed
     components only and the log-likelihood is that of their marginal. An all-NaN ``y``
@@ -92,11 +92,11 @@ def kf_update(x, P, y, C, R, *, gate: float | None = None):
 
     Notes
     -----
-    A state covariance whose condition number exceeds ``1/eps`` can lose positive
+    A state covariance whose condition number exceeds :math:`1/\\varepsilon` can lose positive
     semidefiniteness to round-off; such a covariance — a posterior found indefinite, or a
     prior whose ``S`` fails its factorization — is repaired: its eigenvalues are raised to
-    its rounding level ``n eps max|eig P|``, with a ``RuntimeWarning`` (and the update is
-    retried once).
+    its rounding level :math:`n \\varepsilon \\max |\\operatorname{eig} P|`, with a
+    ``RuntimeWarning`` (and the update is retried once).
     """
     arrays = _stack({"x": x, "P": P, "y": y, "C": C, "R": R},
                     {"x": "n", "P": "nn", "y": "m", "C": "mn", "R": "mm"})
