@@ -58,7 +58,8 @@ class Method:
         the switching from the measurements alone.
     transition : {"required", "optional", "unused"}
         Whether the constructor takes a mode transition matrix
-        (``transition[i, j]`` = P(mode j at k+1 | mode i at k)).
+        (``transition[i, j]`` =
+        :math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`).
     options : tuple of str
         The user options that apply to it: the options of
         :func:`switchest.tabular.estimate_table` and ``switchest estimate`` of the same names.
