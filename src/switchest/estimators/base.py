@@ -49,7 +49,8 @@ _INT_MAX = 2**62  # int_array's bound
 _MODE_MODEL_PARAMETERS = """\
 system : SwitchedLinearSystem
 transition : array_like, shape (L, L)
-    ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1.
+    ``transition[i, j]`` :math:`= \\Pr(\\text{mode } j \\text{ at } k+1 \\mid
+    \\text{mode } i \\text{ at } k)`, rows sum to 1.
 x0, P0 : array_like
     Prior mean and covariance of the state at the first sample, the same for every mode.
 mode_prob0 : array_like, shape (L,), optional
