@@ -280,8 +280,8 @@ class SwitchTimeKalmanFilter(Estimator):
 
         The returned ``switch_time`` holds the estimated absolute switching instant
         in :math:`(t_{k-1}, t_k)` at sample :math:`k`, NaN where the mode did not change. The whole
-        record runs in the compiled kernel, with the transition tables of each distinct sampling step
-        (with ``refine=True`` and many distinct steps, in stretches of samples whose offset
+        record runs in the compiled kernel, with the transition tables of each distinct sampling
+        step (with ``refine=True`` and many distinct steps, in stretches of samples whose offset
         tables fit 256 MiB).
         """
         y2, u2, t, batch = self._prepare(y, u, t)
