@@ -1,20 +1,23 @@
 """The exact posterior of a jump-Markov linear system: a Gaussian per mode sequence.
 
-The modes are a Markov chain that jumps at the samples, ``P(r_k = j | r_{k-1} = i) =
-transition[i, j]``, ``P(r_0 = j) = mode_prob0[j]``; mode ``r_k`` of sample ``k`` governs the
-measurement at ``k`` and, by the ``timing`` (:doc:`/conventions`), the interval after ``k``
+The modes are a Markov chain that jumps at the samples,
+:math:`\\Pr(r_k = j \\mid r_{k-1} = i)` = ``transition[i, j]``, :math:`\\Pr(r_0 = j)` =
+``mode_prob0[j]``; mode :math:`r_k` of sample :math:`k` governs the
+measurement at :math:`k` and, by the ``timing`` (:doc:`/conventions`), the interval after :math:`k`
 (``"sample"``: :math:`x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k`,
-:math:`w_k \\sim N(0, Q_d(r_k))`, :math:`y_k = C(r_k) x_k + v_k`, :math:`v_k \\sim N(0, R(r_k))`;
-Costa, Fragoso & Marques 2005, eq. (3.1)) or the interval into ``k`` (``"interval"``, Bar-Shalom, Li
-& Kirubarajan 2001, §11.6: :math:`x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w`,
-:math:`y_k = C(r_k) x_k + v`; the default), ``F, G, Qd`` the exact discretization of a mode over
-the interval.
-So a sequence predicts into sample ``k`` through ``r_{k-1}``'s transition in the ``"sample"``
-timing and through ``r_k``'s in the ``"interval"`` timing, and updates with ``C(r_k)``,
-``R(r_k)`` in both. Given a mode sequence ``r = (r_0, ..., r_{K-1})`` the system is
-linear Gaussian, so the posterior of the state is the mixture over the ``L^K`` sequences of
-the Kalman filter's (or RTS smoother's) Gaussian along each (Ackerson & Fu 1970; Bar-Shalom,
-Li & Kirubarajan §11.6.3, the optimal dynamic multiple model estimator). It is exponential in ``K``:
+:math:`w_k \\sim \\mathcal{N}(0, Q_d(r_k))`, :math:`y_k = C(r_k) x_k + v_k`,
+:math:`v_k \\sim \\mathcal{N}(0, R(r_k))`;
+Costa, Fragoso & Marques 2005, eq. (3.1)) or the interval into :math:`k` (``"interval"``,
+Bar-Shalom, Li & Kirubarajan 2001, §11.6: :math:`x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w`,
+:math:`y_k = C(r_k) x_k + v`; the default), :math:`F, G, Q_d` the exact discretization of a
+mode over the interval.
+So a sequence predicts into sample :math:`k` through :math:`r_{k-1}`'s transition in the
+``"sample"`` timing and through :math:`r_k`'s in the ``"interval"`` timing, and updates with
+:math:`C(r_k)`, :math:`R(r_k)` in both. Given a mode sequence :math:`r = (r_0, \\dots, r_{K-1})`
+the system is linear Gaussian, so the posterior of the state is the mixture over the
+:math:`L^K` sequences of the Kalman filter's (or RTS smoother's) Gaussian along each (Ackerson &
+Fu 1970; Bar-Shalom, Li & Kirubarajan §11.6.3, the optimal dynamic multiple model estimator). It
+is exponential in :math:`K`:
 the yardstick the IMM, GPB and Kim smoother approximate, for short records only, refused
 beyond ``max_sequences``.
 
@@ -46,7 +49,8 @@ __all__ = ["ExactMixtureState", "ExactMixtureFilter"]
 @dataclass(frozen=True, eq=False)
 class ExactMixtureState:
     """The exact posterior after a sample, for a batch of trials (``...``): one Gaussian per
-    mode sequence up to that sample (a prefix), ``S`` of them (``L^(k+1)`` after sample ``k``).
+    mode sequence up to that sample (a prefix), :math:`S` of them (:math:`L^{k+1}` after sample
+    :math:`k`).
 
     Attributes
     ----------
@@ -54,7 +58,7 @@ class ExactMixtureState:
         Each prefix's Kalman posterior.
     log_weight : ndarray, shape (..., S)
         Log posterior probability of each prefix (normalized; before the first sample the
-        prior of ``r_0``).
+        prior of :math:`r_0`).
     last_mode : ndarray of int, shape (S,)
         The mode of each prefix at the last sample (the prefixes are the same for every
         trial).
@@ -89,27 +93,33 @@ class ExactMixtureFilter(Estimator):
     ----------
     {mode model parameters}
     max_sequences : int
-        Most mode sequences (``L^K`` for ``K`` samples) a run or a stream may hold
+        Most mode sequences (:math:`L^K` for :math:`K` samples) a run or a stream may hold
         (keyword-only); more are refused with a ``ValueError``.
     timing : {"sample", "interval"}, optional
-        Which interval the mode of sample ``k`` governs besides ``y_k`` (keyword-only; module
-        docstring): the one after it (``"sample"``) or the one into it
+        Which interval the mode of sample :math:`k` governs besides :math:`y_k` (keyword-only;
+        module docstring): the one after it (``"sample"``) or the one into it
         (``"interval"``, Bar-Shalom's); ``None`` (the default): the system's ``timing``, and
         another is named in a :class:`~switchest.estimators.TimingWarning`. The filter is
         exact in either.
 
     Notes
     -----
-    Filtering: the posterior at sample ``k`` is the mixture of the prefixes' Kalman posteriors
-    ``N(x_k(r_0..k), P_k(r_0..k))`` weighted by ``p(r_0..k | y_0..k) ∝ p(r_0..k)
-    prod_{t<=k} Lambda_t(r_0..t)``, ``Lambda_t`` the likelihood of ``y_t`` given the past along
+    Filtering: the posterior at sample :math:`k` is the mixture of the prefixes' Kalman posteriors
+    :math:`\\mathcal{N}(x_k(r_{0:k}), P_k(r_{0:k}))` weighted by
+
+    .. math::
+
+        p(r_{0:k} \\mid y_{0:k}) \\propto p(r_{0:k}) \\prod_{t \\le k} \\Lambda_t(r_{0:t}),
+
+    :math:`\\Lambda_t` the likelihood of :math:`y_t` given the past along
     the prefix. ``run`` holds full sequences only and weights each by
-    ``p(r_0..K-1) prod_{t<=k} Lambda_t``: the Gaussian and the likelihoods up to ``k`` depend
-    on the prefix alone, and the prior summed over the suffixes ``r_k+1..K-1`` is the prefix's
-    ``p(r_0..k)`` (the rows of ``transition`` sum to 1), so the ``L^(K-1-k)`` sequences sharing
-    a prefix together carry exactly the prefix's weight: the mixture is the exact filter.
-    Smoothing weights each sequence by the whole record, ``p(r) prod_{t<K} Lambda_t(r)``, and
-    takes its RTS-smoothed moments (Rauch, Tung & Striebel 1965).
+    :math:`p(r_{0:K-1}) \\prod_{t \\le k} \\Lambda_t`: the Gaussian and the likelihoods up to
+    :math:`k` depend on the prefix alone, and the prior summed over the suffixes
+    :math:`r_{k+1:K-1}` is the prefix's :math:`p(r_{0:k})` (the rows of ``transition`` sum to 1),
+    so the :math:`L^{K-1-k}` sequences sharing a prefix together carry exactly the prefix's
+    weight: the mixture is the exact filter.
+    Smoothing weights each sequence by the whole record, :math:`p(r) \\prod_{t<K} \\Lambda_t(r)`,
+    and takes its RTS-smoothed moments (Rauch, Tung & Striebel 1965).
 
     Streaming (``step``) keeps the prefixes themselves, ``L`` times more after each sample
     (refused past ``max_sequences``).
@@ -140,7 +150,7 @@ class ExactMixtureFilter(Estimator):
 
     # ------------------------------------------------------------------ streaming
     def init(self, batch_shape=()) -> ExactMixtureState:
-        """The prior: one component per mode ``r_0 = j``, at ``(x0, P0)`` with weight
+        """The prior: one component per mode :math:`r_0 = j`, at ``(x0, P0)`` with weight
         ``mode_prob0[j]``."""
         L = self.system.n_modes
         self._refuse(L, f"L = {L} modes at the first sample")
@@ -157,10 +167,11 @@ class ExactMixtureFilter(Estimator):
         """Extend every prefix by each mode and predict over ``dt`` (skipped when None: the
         first sample, whose prefixes are the prior's), then update with ``y (..., m)``.
 
-        A prefix ``r_0..k-1`` of weight ``w`` becomes ``L`` prefixes ``r_0..k-1, j`` of weight
-        ``w pi_{r_k-1, j} Lambda_k`` (normalized), each predicted with the exact transition of
-        mode ``r_k-1`` (``"sample"`` timing) or ``j`` (``"interval"``) and updated with
-        ``C_j``, ``R_j`` by the compiled Kalman kernel
+        A prefix :math:`r_{0:k-1}` of weight :math:`w` becomes :math:`L` prefixes
+        :math:`(r_{0:k-1}, j)` of weight :math:`w \\pi_{r_{k-1}, j} \\Lambda_k` (normalized), each
+        predicted with the exact transition of mode :math:`r_{k-1}` (``"sample"`` timing) or
+        :math:`j` (``"interval"``) and updated with :math:`C_j`, :math:`R_j` by the compiled Kalman
+        kernel
         (:func:`~switchest.engine.kalman.kalman_step`).
         """
         sys = self.system
@@ -227,7 +238,7 @@ class ExactMixtureFilter(Estimator):
 
     def smooth(self, y, u=None, t=None, *, data_timing: str | None = None) -> Estimate:
         """The exact smoother over ``y (..., K, m)``: the mixture of every sequence's RTS
-        posterior weighted by ``p(r | y_0..K-1)``, its ``x``, ``P``, ``mode_prob`` and the
+        posterior weighted by :math:`p(r \\mid y_{0:K-1})`, its ``x``, ``P``, ``mode_prob`` and the
         most probable ``mode`` at each sample; ``data_timing`` as in :meth:`run`."""
         self._check_data_timing(data_timing)
         seq, batch = self._sequences(y, u, t)

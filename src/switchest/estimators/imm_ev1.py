@@ -1,12 +1,12 @@
 """IMM extended-Viterbi filter with switching-time estimation (Shankar et al., Algorithm 1).
 
-One filter per destination mode. At each sample, for every predecessor j and
-destination i the switching instant inside the interval is estimated on a grid
-of g points by maximizing ``J_k(tau)`` (eq. (23)); each destination keeps the
+One filter per destination mode. At each sample, for every predecessor :math:`j` and
+destination :math:`i` the switching instant inside the interval is estimated on a grid
+of :math:`g` points by maximizing :math:`J_k(\\tau)` (eq. (23)); each destination keeps the
 predecessor whose path is best (extended Viterbi, Ho & Chen), predicts with the
-transition of the estimated instant (eqs (4)-(5)), adds ``epsilon I`` to the
+transition of the estimated instant (eqs (4)-(5)), adds :math:`\\epsilon I` to the
 predicted covariance (§IV), and updates; its weight is
-``a^i_{k+1} = b_ji a^j_k`` (times ``pi_ji`` when a transition matrix is given),
+:math:`a^i_{k+1} = b_{ji} a^j_k` (times :math:`\\pi_{ji}` when a transition matrix is given),
 normalized, kept in log domain.
 
 Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
@@ -59,39 +59,41 @@ class IMMEV1Filter(Estimator):
     system : SwitchedLinearSystem
         A continuous-time system.
     transition : array_like, shape (L, L), optional
-        ``transition[i, j]`` = P(mode j at k+1 | mode i at k). When given, path
+        ``transition[i, j]`` = :math:`\Pr(\text{mode } j \text{ at } k+1 \mid \text{mode } i
+        \text{ at } k)`. When given, path
         weights are multiplied by it; the paper's Algorithm 1 uses none.
     x0, P0 : array_like
         Prior mean and covariance at the first sample (required: they have defaults only so
         that ``transition`` can be left out positionally, ``IMMEV1Filter(system, x0=..,
         P0=..)``).
     grid : int
-        Number g of candidate switching instants per interval (eq. (23)).
+        Number :math:`g` of candidate switching instants per interval (eq. (23)).
     epsilon : float
-        The ``epsilon I`` added to every predicted covariance (§IV).
+        The :math:`\epsilon I` added to every predicted covariance (§IV).
     mode_prob0 : array_like, shape (L,), optional
         Prior mode weights at the first sample; uniform by default.
     predecessor : {"path", "likelihood"}
         How each destination picks its predecessor. ``"path"`` (default) maximizes
-        the path weight ``a^j b_ji (pi_ji)`` — the extended Viterbi rule of Ho &
-        Chen. ``"likelihood"`` maximizes ``b_ji`` alone, the literal reading of the
-        printed line "j_hat = max_j b_ij" of Algorithm 1.
+        the path weight :math:`a^j b_{ji} (\pi_{ji})` — the extended Viterbi rule of Ho &
+        Chen. ``"likelihood"`` maximizes :math:`b_{ji}` alone, the literal reading of the
+        printed line ":math:`\hat j = \max_j b_{ij}`" of Algorithm 1.
     likelihood : {"innovation", "printed"}
-        The ``J_k`` maximized over the grid (§IV): ``"innovation"`` is
-        ``log N(y; C x-(tau), C P-(tau) C' + R)``, the likelihood of the measurement given
-        the past; ``"printed"`` the paper's literal ``J_k(tau) = N(y; C x-(tau), R)``, which
+        The :math:`J_k` maximized over the grid (§IV): ``"innovation"`` is
+        :math:`\log \mathcal{N}(y; C x^-(\tau), C P^-(\tau) C^\top + R)`, the likelihood of the
+        measurement given the past; ``"printed"`` the paper's literal
+        :math:`J_k(\tau) = \mathcal{N}(y; C x^-(\tau), R)`, which
         ignores the prediction covariance (the update is the Kalman one either way).
     switch_time : {"max", "marginal"}
-        ``"max"`` (the paper) keeps the grid point of largest ``J_k`` (eq. (23)).
+        ``"max"`` (the paper) keeps the grid point of largest :math:`J_k` (eq. (23)).
         ``"marginal"`` (beyond the paper) treats the switching instant as uniform
-        over the grid and integrates it out: ``b_ji`` is the mean of ``J_k`` over
+        over the grid and integrates it out: :math:`b_{ji}` is the mean of :math:`J_k` over
         the grid, the destination's posterior is the moment-matched mixture of the
-        g updated hypotheses weighted by ``J_k``, and the reported switching time
-        is their weighted mean. On the boost converter (Table I's setting, g = 5) the
+        :math:`g` updated hypotheses weighted by :math:`J_k`, and the reported switching time
+        is their weighted mean. On the boost converter (Table I's setting, :math:`g = 5`) the
         covariance of ``"max"`` claims far too little (NEES median 5e5 where a consistent
         filter's is 1.4), that of ``"marginal"`` much less so (median 3.6), with a smaller
-        RMSE (i_L 16.4 against 22.3 A); with ``estimate="mixture"`` too, median 1.65 and
-        i_L 14.7 A.
+        RMSE (:math:`i_L` 16.4 against 22.3 A); with ``estimate="mixture"`` too, median 1.65 and
+        :math:`i_L` 14.7 A.
     estimate : {"map", "mixture"}
         What ``run`` reports as ``x``, ``P``: ``"map"`` (the paper) the posterior of the
         destination of largest weight (the MAP path), whose covariance ignores the other
@@ -102,7 +104,7 @@ class IMMEV1Filter(Estimator):
         combines its modes (Bar-Shalom, Li & Kirubarajan §11.6.6). ``mode`` and
         ``switch_time`` are the MAP destination's either way.
     gate : float, optional
-        Largest normalized innovation squared ``e' S^-1 e`` a hypothesis accepts
+        Largest normalized innovation squared :math:`e^\top S^{-1} e` a hypothesis accepts
         (keyword-only); ``None`` rejects only measurements whose innovation
         overflows. A sample every hypothesis rejects is treated as missing and
         flagged in ``Estimate.outlier``.
@@ -115,14 +117,14 @@ class IMMEV1Filter(Estimator):
 
     Without a transition matrix (the paper's Algorithm 1) every destination may take the best
     path as its predecessor, so the weights of the destinations differ by one interval's
-    likelihood ratio only and stay near ``1/L`` where one interval tells the modes apart
+    likelihood ratio only and stay near :math:`1/L` where one interval tells the modes apart
     poorly: on Shankar et al.'s vehicle maneuver (modes that differ in their input only; 200
-    trials, g = 5) the median of ``|mode_prob - 1/3|`` is 8e-4 and the MAP destination changes
-    at two samples in three, right on 22 % of the samples (the IMM with a transition matrix of
-    0.9 on the diagonal: 71 %). With that transition matrix a destination keeps its own path
-    wherever staying is likelier, and ``switch_time`` is NaN at the samples whose MAP
-    destination did (99.9 % of them on the vehicle), though the MAP mode still changes from
-    sample to sample as the destinations' weights cross.
+    trials, :math:`g = 5`) the median of :math:`|\mathrm{mode\_prob} - 1/3|` is 8e-4 and the MAP
+    destination changes at two samples in three, right on 22 % of the samples (the IMM with a
+    transition matrix of 0.9 on the diagonal: 71 %). With that transition matrix a destination
+    keeps its own path wherever staying is likelier, and ``switch_time`` is NaN at the samples
+    whose MAP destination did (99.9 % of them on the vehicle), though the MAP mode still changes
+    from sample to sample as the destinations' weights cross.
 
     Examples
     --------
@@ -217,7 +219,7 @@ class IMMEV1Filter(Estimator):
 
     def run(self, y, u=None, t=None) -> Estimate:
         """Filter ``y (..., K, m)``; ``switch_time`` holds the MAP path's estimated
-        absolute switching instant in ``(t_{k-1}, t_k)``, NaN where it has none.
+        absolute switching instant in :math:`(t_{k-1}, t_k)`, NaN where it has none.
 
         The whole record runs in the compiled kernel
         (:func:`~switchest.engine.imm_ev1.imm_ev1_run`), with the transitions
@@ -240,7 +242,7 @@ class IMMEV1Filter(Estimator):
 
     def _transitions(self, steps):
         """The hypotheses' transitions ``F, G, Qd (D L L g, ...)`` for each sampling step of
-        ``steps (D,)`` (:func:`~switchest.discretize.pairwise_grid`: from ``j`` to ``i`` at
+        ``steps (D,)`` (:func:`~switchest.discretize.pairwise_grid`: from :math:`j` to :math:`i` at
         each instant of eq. (23)) and their grids ``tau (D, g)``; zeros of one step when
         ``steps`` is ``None`` (nothing is predicted)."""
         sys = self.system

@@ -2,19 +2,22 @@
 
 Etienne, Motchon, Duviella & Guelton, eqs (2)-(3): between two samples the
 observer is a copy of the mode it believes active,
-``dx_hat/dt = A_{sigma_hat} x_hat + B_{sigma_hat} u``; at each (aperiodic) sample
-``t_k`` it jumps::
+:math:`d\\hat x/dt = A_{\\hat\\sigma} \\hat x + B_{\\hat\\sigma} u`; at each (aperiodic) sample
+:math:`t_k` it jumps:
 
-    x_hat(t_k+) = x_hat(t_k) + G_{sigma_hat(t_k)} (y(t_k) - C_{sigma_hat(t_k)} x_hat(t_k))
+.. math::
 
-The estimated switching signal ``sigma_hat`` is either the true one (synchronous,
+    \\hat x(t_k^+) = \\hat x(t_k)
+    + G_{\\hat\\sigma(t_k)} \\bigl(y(t_k) - C_{\\hat\\sigma(t_k)} \\hat x(t_k)\\bigr)
+
+The estimated switching signal :math:`\\hat\\sigma` is either the true one (synchronous,
 eq. (3)) or a delayed replica whose switches lag the true ones by at most
-``delta`` (Assumption 5). Between samples the observer is propagated exactly
-through :mod:`switchest.discretize`, switches of ``sigma_hat`` inside a sample
+:math:`\\delta` (Assumption 5). Between samples the observer is propagated exactly
+through :mod:`switchest.discretize`, switches of :math:`\\hat\\sigma` inside a sample
 interval included.
 
 :func:`simulate_observer_control` simulates the observer-based feedback
-``u = K_{sigma_hat} x_hat`` of §3.2 exactly, as the extended system (21)-(23);
+:math:`u = K_{\\hat\\sigma} \\hat x` of §3.2 exactly, as the extended system (21)-(23);
 its matrices come from :func:`switchest.analysis.impulsive_lmis.closed_loop_matrices` (with
 the sign of the jump block (22b) corrected, see there), which stays importable from here.
 """
@@ -51,8 +54,8 @@ ModeEstimate = str | float | Callable[[SwitchingSignal], SwitchingSignal]
 def impulsive_update(x, P, y, C, G, R):
     """The jump of the impulsive observer at a sample (Etienne et al. equation (2), third line).
 
-    ``x+ = x + G (y - C x)`` with the fixed gain ``G`` of the estimated mode, and
-    the error covariance in Joseph form ``P+ = (I - G C) P (I - G C)' + G R G'``
+    :math:`x^+ = x + G (y - C x)` with the fixed gain ``G`` of the estimated mode, and
+    the error covariance in Joseph form :math:`P^+ = (I - G C) P (I - G C)^\\top + G R G^\\top`
     (valid for any gain, optimal or not). A NaN entry of ``y`` is a missing
     component: its column of ``G`` is dropped, so an all-NaN ``y`` leaves ``x``
     and ``P`` unchanged.
@@ -89,13 +92,14 @@ def _jump(x, P, y, C, G, R):
 def delayed_replica(signal: SwitchingSignal, delay) -> SwitchingSignal:
     """The estimated switching signal that detects every switch late (Etienne et al. Assumption 5).
 
-    ``sigma_hat`` switches to the same modes as ``sigma``, at ``s_k + delay_k``;
-    before its first switch it holds ``sigma``'s initial mode.
+    :math:`\\hat\\sigma` switches to the same modes as :math:`\\sigma`, at
+    :math:`s_k + \\mathrm{delay}_k`; before its first switch it holds :math:`\\sigma`'s initial
+    mode.
 
     Parameters
     ----------
     signal : SwitchingSignal
-        The true switching signal ``sigma``.
+        The true switching signal :math:`\\sigma`.
     delay : float or array_like, shape (S,)
         Non-negative detection delay of each switch (one value for all). The
         delayed switches must stay strictly increasing.
@@ -142,26 +146,26 @@ class ImpulsiveObserver(Estimator):
     system : SwitchedLinearSystem
         Continuous-time system (the observer is continuous-discrete).
     gains : array_like, shape (L, n, m)
-        Observer gains ``G_i``, e.g. ``impulsive_observer_synthesis(...).G``.
+        Observer gains :math:`G_i`, e.g. ``impulsive_observer_synthesis(...).G``.
     x0 : array_like, shape (n,), optional
         Initial estimate (default zero).
     P0 : array_like, shape (n, n), optional
-        Covariance of the initial error ``e(0) = x(0) - x0`` (default identity).
+        Covariance of the initial error :math:`e(0) = x(0) - \\mathrm{x0}` (default identity).
     mode_estimate : {"synchronous"} or float or callable, optional
-        (Keyword-only.) How the observer's switching signal ``sigma_hat`` follows the true one
-        given to :meth:`run`: ``"synchronous"`` (``sigma_hat = sigma``, eq. (3)); a
-        delay ``d >= 0`` (every switch detected ``d`` late, the extreme case of
-        Assumption 5 with ``delta = d``); or a function ``sigma -> sigma_hat``
+        (Keyword-only.) How the observer's switching signal :math:`\\hat\\sigma` follows the true
+        one given to :meth:`run`: ``"synchronous"`` (:math:`\\hat\\sigma = \\sigma`, eq. (3)); a
+        delay :math:`d \\ge 0` (every switch detected :math:`d` late, the extreme case of
+        Assumption 5 with :math:`\\delta = d`); or a function :math:`\\sigma \\mapsto \\hat\\sigma`
         (e.g. random delays through :func:`delayed_replica`, or any mode estimator).
 
     Notes
     -----
-    The reported ``P`` is the covariance of the error ``e = x - x_hat`` propagated
+    The reported ``P`` is the covariance of the error :math:`e = x - \\hat x` propagated
     through the error dynamics (4) of the observer's own modes:
-    ``P- = F P F' + Qd`` over each interval (exact transition of ``sigma_hat``'s
-    segments, process noise ``Q``), then :func:`impulsive_update` at the sample.
-    It is the exact error covariance when ``sigma_hat = sigma``; with a wrong
-    mode the error also depends on ``x`` (eqs (21)-(22)) and ``P`` ignores that.
+    :math:`P^- = F P F^\\top + Q_d` over each interval (exact transition of :math:`\\hat\\sigma`'s
+    segments, process noise :math:`Q`), then :func:`impulsive_update` at the sample.
+    It is the exact error covariance when :math:`\\hat\\sigma = \\sigma`; with a wrong
+    mode the error also depends on :math:`x` (eqs (21)-(22)) and ``P`` ignores that.
     The input is held constant over each interval (zero-order hold, as in
     :func:`switchest.simulate.simulate`).
 
@@ -193,7 +197,7 @@ class ImpulsiveObserver(Estimator):
         self.mode_estimate = _check_mode_estimate(mode_estimate)
 
     def estimated_signal(self, signal: SwitchingSignal) -> SwitchingSignal:
-        """The observer's ``sigma_hat`` for a true switching signal ``sigma``."""
+        """The observer's :math:`\\hat\\sigma` for a true switching signal :math:`\\sigma`."""
         return _apply_mode_estimate(self.mode_estimate, signal)
 
     def init(self, batch_shape=()) -> ImpulsiveState:
@@ -214,8 +218,8 @@ class ImpulsiveObserver(Estimator):
     ) -> ImpulsiveState:
         """Flow over ``dt`` (skipped when ``None``), then jump with ``y (N, m)``.
 
-        ``mode (N,)`` is ``sigma_hat(t_k)``; ``segment_modes (N, S+1)`` and
-        ``segment_offsets (N, S)`` describe ``sigma_hat`` on ``[t_{k-1}, t_k)`` (as
+        ``mode (N,)`` is :math:`\\hat\\sigma(t_k)`; ``segment_modes (N, S+1)`` and
+        ``segment_offsets (N, S)`` describe :math:`\\hat\\sigma` on :math:`[t_{k-1}, t_k)` (as
         :func:`switchest.signals.sample_segments` returns them). Without them the
         previous sample's estimated mode is held over the interval.
         """
@@ -250,21 +254,21 @@ class ImpulsiveObserver(Estimator):
         Parameters
         ----------
         y : array_like, shape (..., K, m)
-            Samples ``y(t_k)``; NaN (or a masked entry) marks a missing component.
+            Samples :math:`y(t_k)`; NaN (or a masked entry) marks a missing component.
         u : array_like, optional
-            Input held on ``[t_k, t_{k+1})``: ``(l,)``, ``(K, l)`` or ``(..., K, l)``.
+            Input held on :math:`[t_k, t_{k+1})`: ``(l,)``, ``(K, l)`` or ``(..., K, l)``.
         t : array_like, shape (K,)
             Strictly increasing sample times.
         signals : SwitchingSignal or sequence of SwitchingSignal
             The plant's true switching signal, shared by all trials or one per
-            trial (e.g. ``trajectory.signals``); ``sigma_hat`` is derived from it by
+            trial (e.g. ``trajectory.signals``); :math:`\\hat\\sigma` is derived from it by
             ``mode_estimate``.
 
         Returns
         -------
         Estimate
             ``x`` after each jump, the error covariance ``P`` (see the class notes)
-            and ``mode`` = ``sigma_hat(t_k)``.
+            and ``mode`` = :math:`\\hat\\sigma(t_k)`.
         """
         y2, u2, t, batch = self._prepare(y, u, t)
         N = y2.shape[0]
@@ -297,9 +301,9 @@ class ObserverControlTrajectory:
     x_hat : ndarray, shape (N, K, n)
         Observer state after the jump.
     mode, mode_hat : ndarray of int, shape (N, K)
-        ``sigma(t_k)`` and ``sigma_hat(t_k)``.
+        :math:`\\sigma(t_k)` and :math:`\\hat\\sigma(t_k)`.
     signals, mode_signals : tuple of SwitchingSignal
-        ``sigma`` and ``sigma_hat`` of each trial.
+        :math:`\\sigma` and :math:`\\hat\\sigma` of each trial.
     """
 
     t: np.ndarray
@@ -312,7 +316,7 @@ class ObserverControlTrajectory:
 
     @property
     def error(self) -> np.ndarray:
-        """Observation error ``e = x - x_hat``, shape (N, K, n)."""
+        """Observation error :math:`e = x - \\hat x`, shape (N, K, n)."""
         return self.x - self.x_hat
 
 
@@ -329,16 +333,17 @@ def simulate_observer_control(
     trials: int | None = None,
     rng=None,
 ) -> ObserverControlTrajectory:
-    """Exact simulation of the observer-based control ``u = K_{sigma_hat} x_hat`` (Etienne §3.2).
+    """Exact simulation of the observer-based control :math:`u = K_{\\hat\\sigma} \\hat x`
+    (Etienne §3.2).
 
     The plant (1), the impulsive observer (2) and the continuous feedback
-    ``u(t) = K_{sigma_hat(t)} x_hat(t)`` form the extended system (21) in
-    ``z = [x; x - x_hat]``: it is linear between events, with the matrix
-    ``Acl[sigma, sigma_hat]`` of
+    :math:`u(t) = K_{\\hat\\sigma(t)} \\hat x(t)` form the extended system (21) in
+    :math:`z = [x; x - \\hat x]`: it is linear between events, with the matrix
+    :math:`\\mathrm{Acl}[\\sigma, \\hat\\sigma]` of
     :func:`~switchest.analysis.impulsive_lmis.closed_loop_matrices`. It is propagated
-    exactly as a switched system over the L*L mode pairs (switches of ``sigma``
-    and of ``sigma_hat`` anywhere inside a sample interval), and jumps by
-    ``J[sigma(t_k), sigma_hat(t_k)]`` at every sample, ``t_0`` included.
+    exactly as a switched system over the :math:`L \\cdot L` mode pairs (switches of
+    :math:`\\sigma` and of :math:`\\hat\\sigma` anywhere inside a sample interval), and jumps by
+    :math:`J[\\sigma(t_k), \\hat\\sigma(t_k)]` at every sample, :math:`t_0` included.
 
     Parameters
     ----------
@@ -346,7 +351,7 @@ def simulate_observer_control(
         Continuous time; its noise matrices are ignored (the paper's model is
         deterministic).
     K : array_like, shape (L, l, n)
-        Controller gains (``u = K x_hat``, no minus sign).
+        Controller gains (:math:`u = K \\hat x`, no minus sign).
     G : array_like, shape (L, n, m)
         Observer gains.
     signals : SwitchingSignal, sequence of SwitchingSignal, or callable
@@ -418,7 +423,7 @@ def simulate_observer_control(
 
 # ---------------------------------------------------------------------- helpers
 def _pair_signal(sigma: SwitchingSignal, sigma_hat: SwitchingSignal, L: int) -> SwitchingSignal:
-    """The signal of the mode pair ``sigma * L + sigma_hat``, switching when either does."""
+    """The signal of the mode pair :math:`\\sigma L + \\hat\\sigma`, switching when either does."""
     times = np.union1d(sigma.times, sigma_hat.times)
     starts = np.concatenate([[-np.inf], times])
     return schedule(times, sigma.at(starts) * L + sigma_hat.at(starts))

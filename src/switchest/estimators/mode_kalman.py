@@ -2,7 +2,7 @@
 
 Zhang & Natarajan, Algorithm 1: at each sample the filter uses the matrices of
 the mode it *believes* is active — the true one, or a mismatched one. For a
-continuous-time system sampled at ``t_k``, the interval ``[t_{k-1}, t_k)`` is
+continuous-time system sampled at :math:`t_k`, the interval :math:`[t_{k-1}, t_k)` is
 discretized exactly (:mod:`switchest.discretize`); given the true switching
 offsets inside the intervals it is the clairvoyant filter of Shankar et al.
 (known switching times), the best any method here can do.
@@ -56,25 +56,25 @@ class ModeKalmanFilter(Estimator):
     x0, P0 : array_like
         Prior mean ``(n,)`` and covariance ``(n, n)`` of the state at the first sample.
     steady_state : bool
-        Use each mode's steady-state gain ``K_i`` (Zhang & Natarajan eq. (6): the
-        Riccati solution of mode i alone) instead of the time-varying gain; the
+        Use each mode's steady-state gain :math:`K_i` (Zhang & Natarajan eq. (6): the
+        Riccati solution of mode :math:`i` alone) instead of the time-varying gain; the
         reported ``P`` is then that mode's steady-state a-posteriori covariance.
         Requires periodic sampling.
     gate : float, optional
-        Largest normalized innovation squared ``e' S^-1 e`` accepted. A measurement
+        Largest normalized innovation squared :math:`e^\\top S^{-1} e` accepted. A measurement
         beyond it, or one whose innovation overflows (whatever the gate), is
         rejected: treated as missing and flagged in ``Estimate.outlier`` (its
         ``loglik`` is 0, as for a missing sample).
 
     Notes
     -----
-    Prediction over ``[t_{k-1}, t_k)`` uses the mode believed at ``t_{k-1}`` (a
+    Prediction over :math:`[t_{k-1}, t_k)` uses the mode believed at :math:`t_{k-1}` (a
     switch at the sample instants, as in discrete-time models), unless ``run`` is
     given the segments of each interval (``segments=trajectory.segments()``), in
-    which case the exact switching offsets are used. The update at ``t_k`` uses
-    ``C`` and ``R`` of the mode believed at ``t_k``. Along given modes this is the
+    which case the exact switching offsets are used. The update at :math:`t_k` uses
+    :math:`C` and :math:`R` of the mode believed at :math:`t_k`. Along given modes this is the
     ``"sample"`` timing only (:doc:`/conventions`): a system of the ``"interval"`` timing,
-    whose mode of sample ``k`` governs the interval into it, is named in a
+    whose mode of sample :math:`k` governs the interval into it, is named in a
     :class:`~switchest.estimators.TimingWarning`.
 
     Examples
@@ -172,7 +172,7 @@ class ModeKalmanFilter(Estimator):
             Measurements; NaN marks a missing one (so does a masked entry of a numpy
             masked array).
         u : array_like, optional
-            Inputs held on ``[t_k, t_{k+1})``: ``(l,)``, ``(K, l)`` or ``(..., K, l)``.
+            Inputs held on :math:`[t_k, t_{k+1})`: ``(l,)``, ``(K, l)`` or ``(..., K, l)``.
         t : array_like, shape (K,)
             Sample times (optional for discrete systems).
         modes : array_like of int, shape (K,) or (..., K)
@@ -180,7 +180,7 @@ class ModeKalmanFilter(Estimator):
         segments : tuple of arrays, optional
             ``(modes (..., K-1, S+1), offsets (..., K-1, S))`` — the exact segments of
             each interval, e.g. ``trajectory.segments()``: the clairvoyant filter.
-            Offsets are finite, non-decreasing and within ``[0, t_k - t_{k-1}]``.
+            Offsets are finite, non-decreasing and within :math:`[0, t_k - t_{k-1}]`.
         """
         y2, u2, t, batch = self._prepare(y, u, t)
         K = t.size
@@ -237,8 +237,8 @@ class ModeKalmanFilter(Estimator):
 
     def _step_table(self, t):
         """The distinct steps of the sample times ``t``, the step of each interval (``which``)
-        and the table of every mode over each step (entry ``d L + j``: mode ``j`` over step
-        ``d``), kept for the last few ``t`` of at most 4096 samples (only read)."""
+        and the table of every mode over each step (entry :math:`d L + j`: mode :math:`j` over step
+        :math:`d`), kept for the last few ``t`` of at most 4096 samples (only read)."""
         key = t.tobytes() if t.size <= 4096 else None
         entry = self._steps.get(key) if key is not None else None
         if entry is None:
@@ -290,11 +290,12 @@ class ModeKalmanFilter(Estimator):
 
 @lru_cache(maxsize=64)
 def _steady_gains(system, period: float) -> tuple[np.ndarray, ...]:
-    """Stacked per-mode ``K_i``, a-priori and a-posteriori steady-state covariances of mode i
-    alone at ``period`` (Zhang & Natarajan eq. (6)), and the whitening ``W_i = L_i^-1`` of the
-    steady innovation covariance ``S_i = C_i P_i C_i' + R_i = L_i L_i'`` (for the gate's
-    ``e' S_i^-1 e = |W_i e|^2``); a function of its arguments only, so a filter keeps no state
-    between runs."""
+    """Stacked per-mode :math:`K_i`, a-priori and a-posteriori steady-state covariances of mode
+    :math:`i` alone at ``period`` (Zhang & Natarajan eq. (6)), and the whitening
+    :math:`W_i = L_i^{-1}` of the steady innovation covariance
+    :math:`S_i = C_i P_i C_i^\\top + R_i = L_i L_i^\\top` (for the gate's
+    :math:`e^\\top S_i^{-1} e = \\lVert W_i e \\rVert^2`); a function of its arguments only, so a
+    filter keeps no state between runs."""
     steps = mode_steps(system, period)
     out = [steady_state_gain(steps.F[i], system.C[i], steps.Qd[i], system.R[i])
            for i in range(system.n_modes)]

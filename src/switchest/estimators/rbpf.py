@@ -6,38 +6,42 @@ Freitas, Murphy & Russell 2000, "Rao-Blackwellised particle filtering for dynami
 networks", §3; Doucet, Gordon & Krishnamurthy 2001, "Particle filters for state estimation of
 jump Markov linear systems", IEEE Trans. Signal Processing 49(3), §III). The modes are a
 Markov chain that jumps at the sample instants and advances at every sample. Which interval
-the mode ``r_k`` of sample ``k`` governs is the ``timing`` (:doc:`/conventions`):
+the mode :math:`r_k` of sample :math:`k` governs is the ``timing`` (:doc:`/conventions`):
 
 - ``"sample"`` (switchest's convention, that of :func:`switchest.simulate` with
   switches at the samples and of Costa, Fragoso & Marques 2005, eq. (3.1)):
-  :math:`x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k`, :math:`w_k \\sim N(0, Q_d(r_k))`,
-  :math:`y_k = C(r_k) x_k + v_k`, :math:`v_k \\sim N(0, R(r_k))`. A particle ``(r_{k-1}, N(x, P))``
-  is predicted through ``r_{k-1}``'s transition, then ``r_k`` is drawn and the update uses
-  ``C(r_k)``, ``R(r_k)``.
+  :math:`x_{k+1} = F(r_k) x_k + G(r_k) u_k + w_k`, :math:`w_k \\sim \\mathcal{N}(0, Q_d(r_k))`,
+  :math:`y_k = C(r_k) x_k + v_k`, :math:`v_k \\sim \\mathcal{N}(0, R(r_k))`. A particle
+  :math:`(r_{k-1}, \\mathcal{N}(x, P))` is predicted through :math:`r_{k-1}`'s transition, then
+  :math:`r_k` is drawn and the update uses :math:`C(r_k)`, :math:`R(r_k)`.
 - ``"interval"`` (Bar-Shalom, Li & Kirubarajan 2001, §11.6):
-  :math:`x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w`, :math:`y_k = C(r_k) x_k + v`. ``r_k`` is drawn,
-  then the particle is predicted through ``r_k``'s transition and updated with ``C(r_k)``.
+  :math:`x_k = F(r_k) x_{k-1} + G(r_k) u_{k-1} + w`, :math:`y_k = C(r_k) x_k + v`. :math:`r_k` is
+  drawn, then the particle is predicted through :math:`r_k`'s transition and updated with
+  :math:`C(r_k)`.
 
-With one mode the two are the Kalman filter. ``F, G, Qd`` are the exact discretization of a
+With one mode the two are the Kalman filter. :math:`F, G, Q_d` are the exact discretization of a
 mode over the interval (:func:`switchest.discretize.mode_steps`); the proposals:
 
-- ``proposal="prior"``: ``r_k ~ pi(r_{k-1}, .)``, weight times the predictive likelihood
-  ``N(y_k; C(r_k) x-, C(r_k) P- C(r_k)' + R(r_k))``, Joseph update.
+- ``proposal="prior"``: :math:`r_k \\sim \\pi(r_{k-1}, \\cdot)`, weight times the predictive
+  likelihood :math:`\\mathcal{N}(y_k; C(r_k) x^-, C(r_k) P^- C(r_k)^\\top + R(r_k))`, Joseph
+  update.
 - ``proposal="optimal"`` (Doucet, Gordon & Krishnamurthy 2001, §III): every candidate mode's
-  predictive likelihood ``Lambda_r = N(y_k; C_r x-_r, C_r P-_r C_r' + R_r)`` (``x-, P-`` the
-  same for every candidate in the ``"sample"`` timing, predicted through the candidate's own
-  transition in the ``"interval"`` timing); ``r_k ∝ pi(r_{k-1}, r) Lambda_r``, weight times
-  ``sum_r pi(r_{k-1}, r) Lambda_r``, the candidate's updated filter kept.
+  predictive likelihood :math:`\\Lambda_r = \\mathcal{N}(y_k; C_r x^-_r, C_r P^-_r C_r^\\top + R_r)`
+  (:math:`x^-, P^-` the same for every candidate in the ``"sample"`` timing, predicted through
+  the candidate's own transition in the ``"interval"`` timing);
+  :math:`r_k \\propto \\pi(r_{k-1}, r) \\Lambda_r`, weight times
+  :math:`\\sum_r \\pi(r_{k-1}, r) \\Lambda_r`, the candidate's updated filter kept.
 
 At sample 0 the modes are drawn from ``mode_prob0`` (with the optimal proposal
-``∝ mode_prob0 Lambda``), update only. Weights are kept in the log domain; the particles are
-resampled (systematic, stratified or multinomial: Douc, Cappé & Moulines 2005) when the
-effective sample size ``1 / sum_p w_p^2`` falls below ``ess_threshold * particles``. Outputs:
-:math:`x = \\sum_p w_p x_p`, :math:`P = \\sum_p w_p (P_p + (x_p - x)(x_p - x)')`, mode probabilities
-the weights summed per mode, and the log of the unbiased estimate
-``sum_p w_{p,k-1} exp(inc_p)`` of ``p(y_k | y_{0:k-1})``. A missing component of ``y`` (NaN)
-leaves the observed ones' marginal likelihood; a fully missing sample does not reweight. A
-sample no particle's likelihood is finite for (an overflowing outlier) is treated as missing
+:math:`\\propto \\mathrm{mode\\_prob0}\\, \\Lambda`), update only. Weights are kept in the log
+domain; the particles are resampled (systematic, stratified or multinomial: Douc, Cappé &
+Moulines 2005) when the effective sample size :math:`1 / \\sum_p w_p^2` falls below
+``ess_threshold * particles``. Outputs: :math:`x = \\sum_p w_p x_p`,
+:math:`P = \\sum_p w_p (P_p + (x_p - x)(x_p - x)^\\top)`, mode probabilities the weights summed
+per mode, and the log of the unbiased estimate :math:`\\sum_p w_{p,k-1} \\exp(\\mathrm{inc}_p)` of
+:math:`p(y_k \\mid y_{0:k-1})`. A missing component of ``y`` (NaN) leaves the observed ones'
+marginal likelihood; a fully missing sample does not reweight. A sample no particle's
+likelihood is finite for (an overflowing outlier) is treated as missing
 and flagged in ``Estimate.outlier``.
 
 Randomness: ``rng`` gives one 64-bit root key when the filter is built; trial ``i`` (in the
@@ -50,7 +54,8 @@ keys it got, ``keys=``, to run it alone), and streaming with :meth:`RBPFilter.st
 :meth:`RBPFilter.run`. Both call the compiled kernel of
 :mod:`switchest.engine.rbpf`.
 
-Convention (all of switchest): ``transition[i, j]`` = P(mode j at k+1 | mode i at k).
+Convention (all of switchest): ``transition[i, j]`` =
+:math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`.
 """
 
 from __future__ import annotations
@@ -100,11 +105,12 @@ class RBPFState:
     mode_prob : ndarray, shape (N, L)
         Sum of the weights of the particles in each mode.
     loglik : ndarray, shape (N,)
-        Log of the particle estimate of ``p(y_k | y_{0:k-1})`` (0 when nothing was observed).
+        Log of the particle estimate of :math:`p(y_k \\mid y_{0:k-1})` (0 when nothing was
+        observed).
     outlier : ndarray of bool, shape (N,)
         True where no particle's likelihood was finite: the sample was treated as missing.
     ess : ndarray, shape (N,)
-        Effective sample size ``1 / sum_p w_p^2`` before resampling.
+        Effective sample size :math:`1 / \\sum_p w_p^2` before resampling.
     """
 
     k: int
@@ -142,8 +148,8 @@ class RBPFilter(Estimator):
         Importance distribution of the modes: the transition prior, or the optimal one
         (Doucet, Gordon & Krishnamurthy 2001, §III).
     timing : {"sample", "interval"}, optional
-        Which interval the mode of sample ``k`` governs besides ``y_k`` (module docstring):
-        the one after it, ``[t_k, t_{k+1})`` (``"sample"``), or the one into it
+        Which interval the mode of sample :math:`k` governs besides :math:`y_k` (module
+        docstring): the one after it, :math:`[t_k, t_{k+1})` (``"sample"``), or the one into it
         (``"interval"``, Bar-Shalom's); ``None`` (the default): the system's ``timing``, and
         another is named in a :class:`~switchest.estimators.TimingWarning`.
 
@@ -186,8 +192,9 @@ class RBPFilter(Estimator):
         return split_keys(self.root_key, math.prod(shape)).reshape(shape)
 
     def init(self, batch_shape=(), *, keys=None) -> RBPFState:
-        """Every particle at the prior ``(x0, P0)`` with weight ``1 / particles``, before the
-        first sample; ``keys`` (uint64, ``batch_shape``) default to :meth:`trial_keys`."""
+        """Every particle at the prior ``(x0, P0)`` with weight :math:`1 / \\mathrm{particles}`,
+        before the first sample; ``keys`` (uint64, ``batch_shape``) default to
+        :meth:`trial_keys`."""
         batch = tuple(batch_shape)
         Np, L = self.particles, self.system.n_modes
         self._check_particle_memory(math.prod(batch))
@@ -261,7 +268,7 @@ class RBPFilter(Estimator):
 
     def run_with_ess(self, y, u=None, t=None, *, keys=None,
                      data_timing: str | None = None) -> tuple[Estimate, np.ndarray]:
-        """:meth:`run`, and the effective sample size ``1 / sum_p w_p^2`` of every trial and
+        """:meth:`run`, and the effective sample size :math:`1 / \\sum_p w_p^2` of every trial and
         sample before resampling (shape ``(..., K)``): a diagnostic of weight degeneracy."""
         self._check_data_timing(data_timing)
         return self._run(y, u, t, keys)
@@ -284,8 +291,8 @@ class RBPFilter(Estimator):
         return self._unflatten(est, batch), out.ess.reshape(*batch, t.size)
 
     def _keys(self, keys, batch) -> np.ndarray:
-        """``keys`` checked against ``batch`` (non-negative integers below 2^64) as uint64, or
-        :meth:`trial_keys` when None."""
+        """``keys`` checked against ``batch`` (non-negative integers below :math:`2^{64}`) as
+        uint64, or :meth:`trial_keys` when None."""
         if keys is None:
             return self.trial_keys(batch)
         arr = np.asarray(keys)

@@ -1,35 +1,44 @@
 """Subsystem observers for random switching among unobservable modes (Wang et al., seed 003).
 
-Wang et al. §3: mode i observes only the sub-state ``z^i = F_i x``. Its
-sub-observer runs closed loop while ``alpha_k = i``::
+Wang et al. §3: mode :math:`i` observes only the sub-state :math:`z^i = F_i x`. Its
+sub-observer runs closed loop while :math:`\\alpha_k = i`:
 
-    dz_hat^i = A22^i z_hat^i dt + L_i (dy - C2^i z_hat^i dt)              eq. (7)
+.. math::
+
+    d\\hat z^i = A_{22}^i \\hat z^i \\, dt + L_i (dy - C_2^i \\hat z^i \\, dt)
+    \\qquad \\text{eq. (7)}
 
 and open loop otherwise, restarted at every switching instant from the combined
-estimate: ``z_hat^j_{k+1} = F_j e^{A_k T} x_hat_k`` (eq. (14)), with
-``x_hat = Phi z_hat``, ``Phi = (F'F)^{-1} F'`` (§3.2).
+estimate: :math:`\\hat z^j_{k+1} = F_j e^{A_k T} \\hat x_k` (eq. (14)), with
+:math:`\\hat x = \\Phi \\hat z`, :math:`\\Phi = (F^\\top F)^{-1} F^\\top` (§3.2).
 
-The output is Ito's ``dy = C x dt + Xi dw`` (eq. (1), Remark 1): the observer is
+The output is Ito's :math:`dy = C x \\, dt + \\Xi \\, dw` (eq. (1), Remark 1): the observer is
 fed the integrated output ``y`` on a fine time grid (``simulate(...,
 output="integrated")``, ``Trajectory.y_fine``) and uses its increments, never a
-derivative. Over a fine step ``h`` the closed-loop block is updated in innovation
-form::
+derivative. Over a fine step :math:`h` the closed-loop block is updated in innovation
+form:
 
-    z_hat <- e^{A22 h} z_hat + K_h (Delta y - C2 Psi_h z_hat),
-    Psi_h = int_0^h e^{A22 s} ds,   K_h = (1/h) int_0^h e^{A_c s} ds L
+.. math::
 
-so that the noise-free error obeys ``e <- (e^{A22 h} - K_h C2 Psi_h) e`` exactly,
-whatever the state (the error never picks up a term proportional to a growing
-``x``), and that map agrees with ``e^{A_c h}`` to second order in ``h`` (the
-``h^2`` terms coincide), as does the injected noise covariance with Proposition
+    \\begin{aligned}
+    \\hat z &\\leftarrow e^{A_{22} h} \\hat z + K_h (\\Delta y - C_2 \\Psi_h \\hat z), \\\\
+    \\Psi_h &= \\int_0^h e^{A_{22} s} \\, ds, \\qquad
+    K_h = \\frac{1}{h} \\int_0^h e^{A_c s} \\, ds \\, L
+    \\end{aligned}
+
+so that the noise-free error obeys :math:`e \\leftarrow (e^{A_{22} h} - K_h C_2 \\Psi_h) e`
+exactly, whatever the state (the error never picks up a term proportional to a growing
+:math:`x`), and that map agrees with :math:`e^{A_c h}` to second order in :math:`h` (the
+:math:`h^2` terms coincide), as does the injected noise covariance with Proposition
 1's integral. Every exponential and integral comes from
 :func:`switchest.discretize.mode_steps`.
 
-The filter state is ``s = [z_hat; x_ol]``: the stacked sub-state estimates and the
-open-loop prediction ``x_ol(t) = e^{A_k (t - kT)} x_hat_k`` that drives the open
-blocks inside the interval. Alongside it the estimator propagates ``Sigma``, the
-exact covariance of the error of ``s`` given the mode path (for a Gaussian
-initial error ``N(0, P0)``); ``P = Phi Sigma_zz Phi'`` is reported.
+The filter state is :math:`s = [\\hat z; x_{\\mathrm{ol}}]`: the stacked sub-state estimates
+and the open-loop prediction :math:`x_{\\mathrm{ol}}(t) = e^{A_k (t - kT)} \\hat x_k` that drives
+the open blocks inside the interval. Alongside it the estimator propagates :math:`\\Sigma`, the
+exact covariance of the error of :math:`s` given the mode path (for a Gaussian
+initial error :math:`\\mathcal{N}(0, \\mathrm{P0})`); :math:`P = \\Phi \\Sigma_{zz} \\Phi^\\top` is
+reported.
 
 :meth:`RSLSObserver.sample_errors` gives the observer's error at the samples of a simulated
 trajectory, :func:`fine_step_error_system` the exact sampled error system of its fine steps.
@@ -60,7 +69,7 @@ class RSLSState:
     Attributes
     ----------
     s : ndarray, shape (N, n_s + n)
-        ``[z_hat; x_ol]``.
+        :math:`[\\hat z; x_{\\mathrm{ol}}]`.
     Sigma : ndarray, shape (N, n_s + n, n_s + n)
         Covariance of the error of ``s`` given the modes.
     y_prev : ndarray, shape (N, m)
@@ -77,7 +86,8 @@ class RSLSState:
 
 @dataclass(frozen=True, eq=False)
 class _FineStep:
-    """Per-mode matrices of one fine step: ``s+ = A0 s + B nu``, ``nu = Delta y - C s``."""
+    """Per-mode matrices of one fine step: :math:`s^+ = \\mathrm{A0}\\, s + B \\nu`,
+    :math:`\\nu = \\Delta y - C s`."""
 
     A0: np.ndarray  # (L, d, d)
     B: np.ndarray  # (L, d, m)
@@ -91,14 +101,14 @@ class RSLSObserver(Estimator):
     ----------
     system : SwitchedLinearSystem
         Continuous time, no input, no process noise; ``R`` the output-noise
-        intensity ``Xi Xi'``.
+        intensity :math:`\\Xi \\Xi^\\top`.
     gains : array_like, shape (L, n, m)
         Sub-observer gains in state coordinates (columns in each mode's
         observable subspace), e.g. from :func:`switchest.analysis.subsystem_observers.place_gains`.
     T : float
-        Switching interval: modes change only at ``t[0] + kT`` (Assumption 1).
+        Switching interval: modes change only at :math:`t[0] + kT` (Assumption 1).
     x0, P0 : array_like
-        Initial estimate ``x_hat(t[0])`` ``(n,)`` and the covariance of its error ``(n, n)``.
+        Initial estimate :math:`\\hat x(t[0])` ``(n,)`` and the covariance of its error ``(n, n)``.
     shared : bool
         Modes with equal observable subspaces share one sub-observer (default;
         see :func:`switchest.analysis.subsystem_observers.subsystem_structure`).
@@ -106,7 +116,7 @@ class RSLSObserver(Estimator):
     Notes
     -----
     ``run(y, t=t_fine, modes=mode_fine)`` takes the integrated output at fine
-    instants ``t`` that include every switching instant ``t[0] + kT``, and the
+    instants ``t`` that include every switching instant :math:`t[0] + kT`, and the
     (measured, Assumption 1(d)) mode at each instant; the estimate is returned at
     every fine instant. NaN in ``y`` marks a lost sample: the steps on either
     side of it make no correction from that channel.
@@ -169,7 +179,8 @@ class RSLSObserver(Estimator):
 
     # ------------------------------------------------------------------ protocol
     def init(self, batch_shape=()) -> RSLSState:
-        """The prior ``s = [F x0; x0]``, ``Sigma = [F; I] P0 [F; I]'``, one per ``batch_shape``."""
+        """The prior :math:`s = [F \\mathrm{x0}; \\mathrm{x0}]`,
+        :math:`\\Sigma = [F; I] \\mathrm{P0} [F; I]^\\top`, one per ``batch_shape``."""
         d = self._lift.shape[0]
         m = self.system.n_outputs
         return RSLSState(
@@ -227,14 +238,14 @@ class RSLSObserver(Estimator):
         Parameters
         ----------
         y : array_like, shape (..., K, m)
-            Integrated output ``y(t_j)`` (e.g. ``Trajectory.y_fine``).
+            Integrated output :math:`y(t_j)` (e.g. ``Trajectory.y_fine``).
         u : None
             The model has no input (Wang et al. eq. (1)).
         t : array_like, shape (K,)
-            Fine instants, containing every switching instant ``t[0] + kT``.
+            Fine instants, containing every switching instant :math:`t[0] + kT`.
         modes : array_like of int, shape (K,) or (..., K)
             Mode at each instant (``Trajectory.mode_fine``), constant on each
-            ``[t[0] + kT, t[0] + (k+1)T)``.
+            :math:`[t[0] + kT, t[0] + (k+1)T)`.
         """
         if u is not None:
             raise ValueError("u must be None: Wang et al.'s model (1) has no input")
@@ -254,10 +265,10 @@ class RSLSObserver(Estimator):
         return self._unflatten(self._loop(y2, u2, t, {"mode": used}), batch)
 
     def sample_errors(self, traj) -> np.ndarray:
-        """The estimation error ``x_hat_k - x_k`` at the samples of a simulated trajectory.
+        """The estimation error :math:`\\hat x_k - x_k` at the samples of a simulated trajectory.
 
         Runs the observer on ``traj``'s integrated output on its fine grid and subtracts the
-        true state at the samples: with samples at the switching instants ``kT`` this is the
+        true state at the samples: with samples at the switching instants :math:`kT` this is the
         error of Wang et al. Theorem 1 (eq. (15)), whose moments
         :mod:`switchest.analysis.error_moments` gives exactly.
 
@@ -304,22 +315,24 @@ class RSLSObserver(Estimator):
 def fine_step_error_system(system, gains, T: float, substeps: int) -> tuple[np.ndarray, np.ndarray]:
     """The sampled error system of the observer as it runs, ``substeps`` fine steps per interval.
 
-    Wang et al. Theorem 1 (eq. (15)), ``e_{k+1} = Lambda(alpha_k) e_k + Gamma(alpha_k) d_k``,
+    Wang et al. Theorem 1 (eq. (15)),
+    :math:`e_{k+1} = \\Lambda(\\alpha_k) e_k + \\Gamma(\\alpha_k) d_k`,
     is the error of the continuous-time sub-observers
     (:func:`~switchest.analysis.subsystem_observers.error_dynamics`). :class:`RSLSObserver`
-    runs them on fine steps ``h = T / substeps``, whose error map agrees with ``e^{A_c h}`` to
-    second order in ``h`` only. This is the sampled error system of that discretization, in
-    state coordinates: column ``j`` of ``Lam[i]`` is the error after one interval in mode
-    ``i`` from the unit initial error ``e_j``, noise free, and ``W[i]`` the covariance of the
-    error the interval's output noise injects (the propagated covariance from ``P0 = 0``). The
+    runs them on fine steps :math:`h = T / \\mathrm{substeps}`, whose error map agrees with
+    :math:`e^{A_c h}` to second order in :math:`h` only. This is the sampled error system of that
+    discretization, in state coordinates: column :math:`j` of ``Lam[i]`` is the error after one
+    interval in mode :math:`i` from the unit initial error :math:`e_j`, noise free, and ``W[i]``
+    the covariance of the error the interval's output noise injects (the propagated covariance
+    from :math:`\\mathrm{P0} = 0`). The
     steady state of eq. (21) of the observer as it runs is then
     :func:`~switchest.analysis.error_moments.moment_fixed_point` of ``(Lam, W)``.
 
     Parameters
     ----------
     system : SwitchedLinearSystem
-        As for :class:`RSLSObserver`, with one sub-state per state (``n_s = n``), so that the
-        state error at ``kT`` determines the sub-state error the next interval starts from.
+        As for :class:`RSLSObserver`, with one sub-state per state (:math:`n_s = n`), so that the
+        state error at :math:`kT` determines the sub-state error the next interval starts from.
     gains : array_like, shape (L, n, m)
         Sub-observer gains in state coordinates.
     T : float

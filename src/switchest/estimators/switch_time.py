@@ -1,9 +1,9 @@
 """Kalman filtering with known modes at the samples and unknown switching times.
 
 Shankar et al. §III-§IV: the mode at each sample is known, but when the mode
-changes between ``t_{k-1}`` and ``t_k`` the instant of the switch is not. It is
+changes between :math:`t_{k-1}` and :math:`t_k` the instant of the switch is not. It is
 estimated by maximizing the likelihood of the new measurement over a grid of
-``g`` candidate instants (eq. (23)), and the filter then predicts with the
+:math:`g` candidate instants (eq. (23)), and the filter then predicts with the
 transition of the estimated instant (eqs (4)-(5), (6)-(10)).
 
 Both ``run`` (a whole record) and ``step`` (streaming) call the compiled kernel of
@@ -69,13 +69,15 @@ class SwitchTimeState:
 
 
 def switch_time_loglik(x_pred, P_pred, y, C, R, *, likelihood: str = "innovation"):
-    """Log of the switching-time likelihood ``J_k(tau)`` of Shankar et al. §IV.
+    """Log of the switching-time likelihood :math:`J_k(\\tau)` of Shankar et al. §IV.
 
-    ``likelihood="innovation"`` gives ``log N(y; C x-(tau), C P-(tau) C' + R)``, the
+    ``likelihood="innovation"`` gives
+    :math:`\\log \\mathcal{N}(y; C x^-(\\tau), C P^-(\\tau) C^\\top + R)`, the
     likelihood of the measurement given the past, whose maximizer is the
     maximum-likelihood switching time. ``likelihood="printed"`` gives the paper's
-    literal ``J_k(tau) = p(y_{k+1} | x_{k+1} = x-(tau)) = N(y; C x-(tau), R)``, which
-    ignores the prediction covariance (and so how much each hypothesis is
+    literal
+    :math:`J_k(\\tau) = p(y_{k+1} \\mid x_{k+1} = x^-(\\tau)) = \\mathcal{N}(y; C x^-(\\tau), R)`,
+    which ignores the prediction covariance (and so how much each hypothesis is
     trusted). Both are evaluated by the Kalman core; shapes broadcast. NaN entries
     of ``y`` are missing components.
     """
@@ -104,16 +106,17 @@ def marginalize_switch_time(loglik, x_up, P_up, tau):
 
     Instead of keeping the maximizer of eq. (23), the switching instant is
     integrated out with a uniform prior on the grid ``tau (g,)``: the posterior
-    weights are ``w_i = p(y | tau_i) / sum_k p(y | tau_k)`` from the innovation
+    weights are :math:`w_i = p(y \\mid \\tau_i) / \\sum_k p(y \\mid \\tau_k)` from the innovation
     log-likelihoods ``loglik (..., g)``, the updated estimates ``x_up (..., g, n)``,
     ``P_up (..., g, n, n)`` are merged by moment matching, and the likelihood of
-    the measurement is the grid mean ``(1/g) sum_i p(y | tau_i)``.
+    the measurement is the grid mean :math:`(1/g) \\sum_i p(y \\mid \\tau_i)`.
 
     Returns
     -------
     x, P, loglik, tau_mean
-        Merged mean ``(..., n)`` and covariance, ``log((1/g) sum_i p(y | tau_i))``
-        and the posterior mean switching instant ``sum_i w_i tau_i``, each ``(...)``.
+        Merged mean ``(..., n)`` and covariance,
+        :math:`\\log\\bigl((1/g) \\sum_i p(y \\mid \\tau_i)\\bigr)` and the posterior mean switching
+        instant :math:`\\sum_i w_i \\tau_i`, each ``(...)``.
     """
     log_w, log_sum = log_normalize(loglik)
     w = np.exp(log_w)
@@ -131,7 +134,7 @@ class SwitchTimeKalmanFilter(Estimator):
     x0, P0 : array_like
         Prior mean and covariance at the first sample.
     grid : int
-        Number g of candidate switching instants per interval,
+        Number :math:`g` of candidate switching instants per interval,
         :math:`\\tau_i = i T / g - T / (2 g)` (eq. (23)).
     refine : bool
         Beyond the paper: polish the grid maximum by Brent's method (golden section
@@ -140,14 +143,14 @@ class SwitchTimeKalmanFilter(Estimator):
         grid instant, with one addition: a search heading for an edge of the cell
         probes that edge (see ``refine`` in ``engine/c/switch_time.c``);
         the search stops once the maximizer is bracketed to within
-        about ``2e-4 T`` (tolerance ``1e-4 T``,
+        about :math:`2 \\cdot 10^{-4}\\, T` (tolerance :math:`10^{-4}\\, T`,
         :data:`~switchest.engine.switch_time.REFINE_TOLERANCE`) or after
         ``refine_iterations`` probes. The grid instant is kept unless a probe beats
-        it. Each probe is quantized to ``T / 2^18`` (3.8e-6 T) and its likelihood is
+        it. Each probe is quantized to :math:`T / 2^{18}` (3.8e-6 T) and its likelihood is
         exact there: its transition is composed from three flows of a table
         (:func:`switchest.discretize.offset_table`), without a matrix exponential.
     likelihood : {"innovation", "printed"}
-        Which ``J_k`` to maximize, see :func:`switch_time_loglik`.
+        Which :math:`J_k` to maximize, see :func:`switch_time_loglik`.
     refine_iterations : int
         The most probes of the search when ``refine=True`` (a cap: on the boost converter
         of Shankar et al. a search stops at its tolerance after 7-12 probes, about 4 where
@@ -155,19 +158,20 @@ class SwitchTimeKalmanFilter(Estimator):
     switch_time : {"max", "marginal"}
         ``"max"``: the grid maximizer of eq. (23) (the paper). Its covariance is
         conditional on the chosen instant, as if it were the true one: on the boost
-        converter (Table I's setting, g = 5) the normalized estimation error squared
+        converter (Table I's setting, :math:`g = 5`) the normalized estimation error squared
         (NEES) has median 3e4 where a consistent filter's is 1.4 (its mean 2), and the
-        ``± 2 std`` band of ``i_L`` is 0.03 A wide against errors of about 9 A.
+        :math:`\\pm 2\\,\\mathrm{std}` band of :math:`i_L` is 0.03 A wide against errors of about
+        9 A.
         ``"marginal"`` (beyond the paper): every grid instant is predicted and updated,
         and the hypotheses are merged with their posterior weights
         (:func:`marginalize_switch_time`), so the covariance counts the instant's
-        uncertainty (there: mean NEES 2.2 at g = 16, and a smaller RMSE); the reported
+        uncertainty (there: mean NEES 2.2 at :math:`g = 16`, and a smaller RMSE); the reported
         switching instant is the posterior mean. Needs ``likelihood="innovation"`` and
         ``refine=False``.
     inflation : float
-        ``epsilon >= 0`` added as ``epsilon I`` to every predicted covariance,
-        :math:`P_{k|k-1} = F P F' + Q_d + \\epsilon I`: the inflation of Shankar et al.'s Algorithm
-        1 (§IV, which adds it so that the bound of Assumption 2 exists), here for the grid
+        :math:`\\epsilon \\ge 0` added as :math:`\\epsilon I` to every predicted covariance,
+        :math:`P_{k|k-1} = F P F^\\top + Q_d + \\epsilon I`: the inflation of Shankar et al.'s
+        Algorithm 1 (§IV, which adds it so that the bound of Assumption 2 exists), here for the grid
         filter of Table I too (default 0: none). It is defined on the grid's whole-interval
         transitions; ``refine=True`` composes its probes from partial flows and does not
         take it.
@@ -181,7 +185,7 @@ class SwitchTimeKalmanFilter(Estimator):
 
     Notes
     -----
-    At most one switch per interval is assumed (dwell time > T, Shankar §II).
+    At most one switch per interval is assumed (dwell time :math:`> T`, Shankar §II).
 
     Examples
     --------
@@ -275,9 +279,9 @@ class SwitchTimeKalmanFilter(Estimator):
         ``(..., K)``.
 
         The returned ``switch_time`` holds the estimated absolute switching instant
-        in ``(t_{k-1}, t_k)`` at sample k, NaN where the mode did not change. The whole record
-        runs in the compiled kernel, with the transition tables of each distinct sampling step
-        (with ``refine=True`` and many distinct steps, in stretches of samples whose offset
+        in :math:`(t_{k-1}, t_k)` at sample :math:`k`, NaN where the mode did not change. The whole
+        record runs in the compiled kernel, with the transition tables of each distinct sampling
+        step (with ``refine=True`` and many distinct steps, in stretches of samples whose offset
         tables fit 256 MiB).
         """
         y2, u2, t, batch = self._prepare(y, u, t)
@@ -355,8 +359,9 @@ def _tables(system, steps: tuple, g: int, refine: bool, inflation: float = 0.0):
     switched one (:func:`~switchest.discretize.pairwise_grid`, eq. (23)) and, with ``refine``,
     the offset tables (:func:`~switchest.discretize.offset_table`); the grid ``(D, g)`` and the
     refinement levels ``(N1, N0 + 1)``. ``inflation`` (without ``refine``: every entry is then a
-    whole interval) is added as ``epsilon I`` to each ``Qd``, so the kernel's prediction
-    ``F P F' + Qd`` is Algorithm 1's ``F P F' + Qd + epsilon I`` (Shankar et al. §IV)."""
+    whole interval) is added as :math:`\\epsilon I` to each :math:`Q_d`, so the kernel's prediction
+    :math:`F P F^\\top + Q_d` is Algorithm 1's :math:`F P F^\\top + Q_d + \\epsilon I`
+    (Shankar et al. §IV)."""
     n, l = system.n_states, system.n_inputs
     parts = [mode_steps(system, h) for h in steps] + [pairwise_grid(system, h, g) for h in steps]
     levels = (0, 0)
