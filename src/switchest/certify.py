@@ -364,12 +364,10 @@ def _wang_critical_interval(spec: ModelSpec) -> Check:
     Reports eq. (20) as the paper computes it (:math:`q_{\\max} h(T) = 1`; §6's
     :math:`T_{\\max} = 0.7365`, printed truncated, hence shown truncated to four decimals with
     the full value beside it),
-
     the exact MS threshold for fast sub-observers and, with several sub-states, Example 2's
     per-sub-state thresholds. The verdict compares the sampling period with the exact
     threshold: eq. (20) is not a proven bound (for Example 1 it gives 0.0279, below the
     paper's own :math:`T = 0.03`, which is MS convergent); the detail compares it with both.
-
     """
     name = "critical switching interval T_max (i.i.d. modes)"
     paper = "Wang Theorem 3, eq. (20); Example 2"

@@ -493,7 +493,6 @@ def _binary_table(dyadic: Transition, first: int):
     dyadic flows ``first .. first + OFFSET_BITS - 1`` (batch ``(L, 2 OFFSET_BITS)``): entry
     :math:`q` composes the flows of the set bits of :math:`q`, built by doubling the table with
     one bit at a time."""
-
     L, n, l = dyadic.F.shape[0], dyadic.F.shape[-1], dyadic.G.shape[-1]
     F = np.broadcast_to(np.eye(n), (L, 1, n, n))
     G, Qd = np.zeros((L, 1, n, l)), np.zeros((L, 1, n, n))

@@ -38,7 +38,6 @@ search's probes), in numpy: each product is taken over all the intervals togethe
 entry, and Python loops only over the segments, the Taylor terms and the table's bits. An
 interval whose :math:`q` lacks a bit is composed with the identity there, which changes
 nothing: products by 1 and 0 and sums with 0 round nothing.
-
 """
 
 from __future__ import annotations
@@ -198,7 +197,6 @@ def _taylor(A, B, Q, r):
     """:math:`\\Phi(r)`, :math:`\\Gamma(r)`, :math:`Q_d(r)` by their Taylor series to ``ORDER``
     (the module docstring), for :math:`\\|A\\| r \\le 2^{-10}`; ``A, B, Q`` and the results
     entry-major, ``r (M,)``."""
-
     F = P = np.broadcast_to(np.eye(A.shape[0])[:, :, None], A.shape)  # P: A^j r^j / j!
     Mj = Q  # M_j r^j / j!
     W, G = Q * r, B * r

@@ -454,7 +454,6 @@ def mode_signal(t: np.ndarray, modes: np.ndarray) -> SwitchingSignal:
     is taken at :math:`t_k`, i.e. detected late by less than one sampling interval
     (the delayed knowledge of their Assumption 5, with :math:`\\delta \\le \\tau_{\\max}`).
 
-
     Parameters
     ----------
     t : ndarray, shape (K,)

@@ -138,7 +138,6 @@ class ModelSpec:
 
     def sample_times(self, t_end: float | None = None, *, rng=None) -> np.ndarray:
         """Sample times on :math:`[0, t_\\mathrm{end}]` (default: the file's duration)."""
-
         t_end = self._duration(t_end)
         if "period" in self.sampling:
             return periodic(self.sampling["period"], t_end)

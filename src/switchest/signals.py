@@ -104,7 +104,6 @@ class SwitchingSignal:
     def at(self, t) -> np.ndarray:
         """:math:`\\sigma(t)`, vectorized over ``t``; right-continuous (the new mode at a
         switch)."""
-
         t = float_array(t, "t")
         if np.any(np.isnan(t)):
             raise ValueError("t must not hold NaN: sigma(t) is defined at instants only")
@@ -480,7 +479,6 @@ def sample_segments(signals, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     offsets : ndarray, shape (N, K-1, S)
         Switch instants inside each interval, measured from :math:`t_k`. Intervals with
         fewer than S switches are padded with offset :math:`t_{k+1} - t_k` and their last
-
         mode, i.e. with zero-length segments, which leave the transition unchanged.
         This is the input :func:`switchest.discretize.interval` takes.
     """

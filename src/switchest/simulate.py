@@ -446,7 +446,6 @@ def _fine_parts(t, fine_dt) -> np.ndarray:
     """Fine steps per sample interval, :math:`\\lceil (t_{k+1} - t_k) / \\mathrm{fine\\_dt}
     \\rceil` and at least 1.
 
-
     Floats, so that an absurd ``fine_dt`` gives a huge count to refuse, not an overflow.
     """
     fine_dt = positive_scalar(fine_dt, "fine_dt")

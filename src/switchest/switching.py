@@ -182,7 +182,6 @@ class Dwell(SwitchingModel):
         Number of modes :math:`L \\ge 2`.
     min_dwell, max_dwell : float
         Bounds of the dwell times, :math:`0 < \\mathrm{min\\_dwell} \\le \\mathrm{max\\_dwell}`.
-
     initial_mode : int, keyword-only
         Mode on ``[0, first switch)``; default 0.
     """

@@ -148,7 +148,6 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         :math:`e^\\top S^{-1} e` a measurement may have to be used, e.g.
         ``scipy.stats.chi2.ppf(0.9999, m)``; one beyond it is treated as missing and flagged in
         the ``outlier`` column.
-
         Default: no gate.
     trial : int, optional
         The trial to estimate from a table of several (a ``trial`` column).

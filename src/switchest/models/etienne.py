@@ -79,7 +79,6 @@ class EtienneScenario:
     10's scalar condition (28), however, evaluates to +0.1640 > 0 with the same
     values and :math:`\\delta = 0.15`, :math:`\\overline{\\mu}_c = 5`,
     :math:`\\overline{\\alpha} = 3`: it is violated,
-
     although §4 reports that "the condition of Theorem 10 are verified".
     """
 

@@ -177,7 +177,6 @@ class LeeScenario:
     def input(self, t, trials: int, rng) -> np.ndarray:
         """:math:`u(t) = u_{\\max} \\sin(w t + \\phi)`, random :math:`w` and :math:`\\phi` per
         trial; (trials, K, 1)."""
-
         t = float_array(t, "t", ndim=1)
         trials = positive_int(trials, "trials")
         rng = as_rng(rng)
@@ -190,7 +189,6 @@ class LeeScenario:
 
         Half of the bound is an interfering tone — a phasor of random frequency in
         :math:`[0, 1.5 \\max(\\omega)]` and phase, the most mode-like disturbance — and half
-
         white noise uniform in the disc, drawn at every grid point. Linear
         interpolation between grid points stays inside the disc.
         """

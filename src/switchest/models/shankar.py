@@ -323,7 +323,6 @@ def vehicle_maneuver(*, T: float = 0.5, t_end: float = 10.0, u: float = 1.0) -> 
         Sampling period (0.5 s).
     t_end : float
         Horizon (10 s); the samples are :math:`0, T, \\dots, t_\\mathrm{end}`.
-
     u : float
         The constant input (1).
     """

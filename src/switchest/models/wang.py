@@ -459,7 +459,6 @@ def _coupling_constant_impedance(delta, V, line_angle: str, internal_reactance: 
                                  bus2_load: bool) -> np.ndarray:
     """:math:`-\\partial (\\text{electrical power of generator } i) / \\partial \\delta_k`
     ``(2, 2)`` of the Kron-reduced network with the loads as constant admittances."""
-
     Y = np.zeros((5, 5), dtype=complex)
     for (p, q), (R, X, Z, theta) in _LINES.items():
         z = {"printed": Z * np.exp(1j * theta), "exact": complex(R, X),

@@ -105,7 +105,6 @@ def smart_grid(tau: float = SMART_GRID_TAU) -> SwitchedLinearSystem:
         Process-noise covariance per mode :math:`B_q Q B_q^\\top`. :math:`P_G` is unstable in
         every mode (:math:`k_G > 0`), so the switched system is unstable.
 
-
     Raises
     ------
     ValueError, TypeError
