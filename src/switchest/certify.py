@@ -7,11 +7,11 @@ condition of. ``switchest check --model M.toml`` prints them; :func:`certify` re
 them, :func:`method_verdicts` what they say of each method.
 
 Every margin has one sign: positive when the condition holds, zero or negative when it
-fails (how far it is from the threshold, in the check's own quantity: ``1 - JSR``, the
+fails (how far it is from the threshold, in the check's own quantity: :math:`1 - \\mathrm{JSR}`, the
 noise bound allowed minus the one given, a PBH singular value, a decay rate).
 
 Every check finishes in bounded time and memory: a check whose estimated size is
-beyond its budget (an LMI of many states, the ``n^2 x n^2`` second-moment matrices
+beyond its budget (an LMI of many states, the :math:`n^2 \\times n^2` second-moment matrices
 on a grid) is skipped with a note saying what it needs and the limit, and the JSR
 of a large model is bounded in the spectral norm with fewer products. Verdicts
 compare a computed number with a threshold beyond that number's rounding.
@@ -143,7 +143,7 @@ def _lee(spec: ModelSpec) -> Check:
     """Lee, Ping & Shim Assumption 1, conditions (3)-(4), Assumption 3 for the ``[noise]`` bounds.
 
     Reads from the noise table ``v_max`` (eq. (2); without it the check does not apply),
-    ``x_min`` (a lower bound on ``|x(t)|``, at which (3)-(4) are evaluated), ``u_max``
+    ``x_min`` (a lower bound on :math:`|x(t)|`, at which (3)-(4) are evaluated), ``u_max``
     (needed when the system has inputs) and the detector design where given: the
     windows ``delta``, ``Delta`` (otherwise the smallest multiples of the sampling
     period satisfying (3) and (4), :func:`~switchest.analysis.lee_windows`) and
@@ -151,7 +151,8 @@ def _lee(spec: ModelSpec) -> Check:
     :func:`~switchest.analysis.min_distance_design.decay_observer_gains`; otherwise
     :func:`~switchest.analysis.min_distance_design.default_observer_gains`). Assumption 3 is
     checked against the switching model's dwell time (:func:`_lee_dwell`). The margin is
-    ``v_max_allowed - v_max``: positive exactly when (3) and (4) hold.
+    :math:`\\mathrm{v\\_max\\_allowed} - \\mathrm{v\\_max}`: positive exactly when (3) and (4)
+    hold.
     """
     name = "Lee's assumptions for the given noise bounds"
     paper = "Lee Assumptions 1-3, conditions (3)-(4)"
@@ -360,12 +361,13 @@ def _impulsive(spec: ModelSpec) -> Check:
 def _wang_critical_interval(spec: ModelSpec) -> Check:
     """Critical switching interval (Wang et al. Theorem 3, i.i.d. modes) vs the sampling period.
 
-    Reports eq. (20) as the paper computes it (``q_max h(T) = 1``; §6's ``T_max = 0.7365``,
-    printed truncated, hence shown truncated to four decimals with the full value beside it),
+    Reports eq. (20) as the paper computes it (:math:`q_{\\max} h(T) = 1`; §6's
+    :math:`T_{\\max} = 0.7365`, printed truncated, hence shown truncated to four decimals with
+    the full value beside it),
     the exact MS threshold for fast sub-observers and, with several sub-states, Example 2's
     per-sub-state thresholds. The verdict compares the sampling period with the exact
     threshold: eq. (20) is not a proven bound (for Example 1 it gives 0.0279, below the
-    paper's own T = 0.03, which is MS convergent); the detail compares it with both.
+    paper's own :math:`T = 0.03`, which is MS convergent); the detail compares it with both.
     """
     name = "critical switching interval T_max (i.i.d. modes)"
     paper = "Wang Theorem 3, eq. (20); Example 2"

@@ -34,8 +34,9 @@ def transition_for(spec: ModelSpec, T: float, *, stay: float | None = None) -> n
     """A per-sample mode transition matrix for IMM filters, from the model's switching model.
 
     ``markov`` gives its matrix; ``iid`` repeats ``p`` in every row;
-    ``markov-continuous`` gives ``expm(rates T)``; ``dwell`` and ``average-dwell``
-    stay with probability ``1 - T / mean dwell`` (at most one switch per sample)
+    ``markov-continuous`` gives :math:`\\exp(\\mathrm{rates}\\, T)`; ``dwell`` and
+    ``average-dwell`` stay with probability :math:`1 - T / \\text{mean dwell}` (at most one
+    switch per sample)
     and move uniformly to the others; ``stay`` overrides all of these.
 
     Parameters
@@ -87,17 +88,17 @@ def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
     """Sub-observer gains for Wang et al.'s observer when the user gives none.
 
     Per-mode pole placement (Wang et al. §4.2, §6;
-    :func:`~switchest.analysis.place_gains`) with one free scale ``s``: mode i's
-    observable sub-state gets the poles ``-s rho_i (1, 1.25, 1.5, ...)``,
-    ``rho_i = max(max|eig A22^i|, 1 / T)`` (as fast as the mode's own dynamics and
-    at least one time constant per switching interval). With i.i.d. switching
-    (``switching.kind = "iid"``, probabilities ``p``) ``s`` is the one of seven
+    :func:`~switchest.analysis.place_gains`) with one free scale :math:`s`: mode :math:`i`'s
+    observable sub-state gets the poles :math:`-s \\rho_i (1, 1.25, 1.5, \\dots)`,
+    :math:`\\rho_i = \\max(\\max |\\operatorname{eig} A_{22}^i|, 1 / T)` (as fast as the mode's
+    own dynamics and at least one time constant per switching interval). With i.i.d. switching
+    (``switching.kind = "iid"``, probabilities ``p``) :math:`s` is the one of seven
     log-spaced values from 0.25 to 2 that minimizes the exact steady-state mean-square error
-    ``tr Phi V Phi'`` (:func:`~switchest.analysis.steady_state`, Wang et al.
-    eq. (21) corrected) among the designs that pass the exact mean-square test
+    :math:`\\operatorname{tr} \\Phi V \\Phi^\\top` (:func:`~switchest.analysis.steady_state`,
+    Wang et al. eq. (21) corrected) among the designs that pass the exact mean-square test
     (:func:`~switchest.analysis.ms_convergence`): §5.2's design, restricted to
     this one-parameter family. Other switching models (outside Wang et al.'s
-    i.i.d. assumption) get ``s = 1``, unchecked.
+    i.i.d. assumption) get :math:`s = 1`, unchecked.
 
     Why this design rather than the others of :mod:`switchest.analysis.subsystem_observers`:
     the Kalman-Bucy gains (§4.1) need no choice but ignore the random switching —
@@ -107,8 +108,8 @@ def rsls_gains(spec: ModelSpec, T: float) -> np.ndarray:
     optimum (:func:`~switchest.analysis.optimal_gains`) needs an MS-stable start
     and a Nelder-Mead search over every gain entry (about ten minutes on
     ``wang-ieee5bus``); the one-parameter search costs a few milliseconds per
-    candidate. On ``wang-example1`` it gives ``tr V_x = 0.602`` (the full optimum
-    0.532), on ``wang-ieee5bus`` 0.0519 (the paper's first pole set 0.0517). Scales
+    candidate. On ``wang-example1`` it gives :math:`\\operatorname{tr} V_x = 0.602` (the full
+    optimum 0.532), on ``wang-ieee5bus`` 0.0519 (the paper's first pole set 0.0517). Scales
     above 2 are not tried: the gains grow like the cube of the scale and only
     amplify the output noise (on ``wang-ieee5bus`` the error at scale 2 is ten
     times that at scale 1).

@@ -67,7 +67,8 @@ OFFSET_BITS = 9  # an offset table splits T into 2^9 coarse steps, each into 2^9
 
 @dataclass(frozen=True, eq=False)
 class Transition:
-    r"""Exact one-interval transition :math:`x^+ = F x + G u + w`, :math:`w \sim N(0, Q_d)`.
+    r"""Exact one-interval transition :math:`x^+ = F x + G u + w`,
+    :math:`w \sim \mathcal{N}(0, Q_d)`.
 
     Attributes
     ----------
@@ -95,7 +96,7 @@ def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition
         Active mode on each of the S+1 segments, in order.
     offsets : array_like, shape (..., S), optional
         Switch instants measured from the start of the interval, non-decreasing,
-        within ``[0, T]``. Omit (or pass shape ``(..., 0)``) for no switch.
+        within :math:`[0, T]`. Omit (or pass shape ``(..., 0)``) for no switch.
 
     Returns
     -------
@@ -112,8 +113,8 @@ def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition
 
     Notes
     -----
-    For a discrete-time system the model passes through unchanged: ``F = A[m]``,
-    ``G = B[m]``, ``Qd = Q[m]``; then ``T`` must equal ``system.dt`` and no switch
+    For a discrete-time system the model passes through unchanged: :math:`F = A(m)`,
+    :math:`G = B(m)`, :math:`Q_d = Q(m)`; then ``T`` must equal ``system.dt`` and no switch
     may fall inside the step.
     """
     _check_system(system)
@@ -162,7 +163,7 @@ def interval(system: SwitchedLinearSystem, T, modes, offsets=None) -> Transition
 def switch_grid(T: float, g: int) -> np.ndarray:
     r"""The switching-time grid of Shankar et al.'s equation (23), :math:`\tau_i = (i - 1/2) T / g`.
 
-    The midpoints of ``g`` equal sub-intervals of ``[0, T)``, ``i = 1..g``.
+    The midpoints of ``g`` equal sub-intervals of :math:`[0, T)`, :math:`i = 1, \dots, g`.
     """
     T = positive_scalar(T, "T")
     if isinstance(g, (bool, np.bool_)) or not isinstance(g, (int, np.integer)):
@@ -190,9 +191,10 @@ def pairwise_grid(system: SwitchedLinearSystem, T: float, g: int) -> Transition:
 
 
 def pairwise_grid_nbytes(system: SwitchedLinearSystem, g: int) -> int:
-    """Bytes :func:`pairwise_grid` works in: the block exponentials of its ``2 L^2 g`` segments.
+    """Bytes :func:`pairwise_grid` works in: the block exponentials of its :math:`2 L^2 g`
+    segments.
 
-    ``_EXPM_COPIES`` arrays of the stacked ``(2n + l) x (2n + l)`` blocks are alive at
+    ``_EXPM_COPIES`` arrays of the stacked :math:`(2n + l) \\times (2n + l)` blocks are alive at
     once inside ``expm`` and the compositions; the result itself is smaller.
     """
     _check_system(system)
@@ -228,7 +230,8 @@ def sample_mode_steps(system: SwitchedLinearSystem, t) -> tuple[Transition, np.n
     """Every mode's transition over every distinct interval of the sample times ``t (K,)``.
 
     Returns the table ``(F, G, Qd)`` with batch shape ``(D L,)`` (:func:`mode_steps` of each
-    distinct step ``h_d``, concatenated: entry ``d L + j`` is mode ``j`` over ``h_d``) and
+    distinct step :math:`h_d`, concatenated: entry :math:`d L + j` is mode ``j`` over
+    :math:`h_d`) and
     ``entry (K, L)`` of int64, ``entry[k, j]`` the row of mode ``j`` over the interval into
     sample ``k`` (row 0, before the first sample, is 0 and unused): the layout the compiled
     multiple-model filters read. One sample gives a table of one unit step, never read.
@@ -289,7 +292,7 @@ def _check_system(system) -> None:
 
 
 def _check_offsets(offsets: np.ndarray, T) -> None:
-    """Switch offsets lie in ``[0, T]`` and do not decrease (``T`` broadcasts against them)."""
+    """Switch offsets lie in :math:`[0, T]` and do not decrease (``T`` broadcasts against them)."""
     if np.any(offsets < 0) or np.any(offsets > T):
         lo, hi = float(offsets.min()), float(offsets.max())
         raise ValueError(f"offsets must lie within [0, T], got {lo:g}..{hi:g}")
@@ -339,15 +342,16 @@ def _check_overflow(T, *parts) -> None:
 
 
 def _segments(system, modes, h):
-    """Phi, G_s, Qd_s for every (mode, length) pair, from one stacked Van Loan expm.
+    """:math:`\\Phi`, :math:`G_s`, :math:`Q_{d,s}` for every (mode, length) pair, from one stacked
+    Van Loan expm.
 
-    The Van Loan block holds ``e^{-A h}``: for a fast mode (``||A|| h`` large) it is
-    so large that ``Qd`` drowns in its round-off (a non-normal ``A`` with
-    ``||A|| h ~ 10`` already loses four digits). Such segments are exponentiated
-    over ``h / 2^k``, with ``||A|| h / 2^k <= 4``, and doubled ``k`` times by the
-    exact recursions ``Phi(2h) = Phi(h)^2``, ``G(2h) = Phi(h) G(h) + G(h)``,
-    ``Qd(2h) = Phi(h) Qd(h) Phi(h)' + Qd(h)`` (a sum of PSD terms, so ``Qd`` stays
-    PSD however stiff the mode).
+    The Van Loan block holds :math:`e^{-A h}`: for a fast mode (:math:`\\|A\\| h` large) it is
+    so large that :math:`Q_d` drowns in its round-off (a non-normal :math:`A` with
+    :math:`\\|A\\| h \\approx 10` already loses four digits). Such segments are exponentiated
+    over :math:`h / 2^k`, with :math:`\\|A\\| h / 2^k \\le 4`, and doubled :math:`k` times by the
+    exact recursions :math:`\\Phi(2h) = \\Phi(h)^2`, :math:`G(2h) = \\Phi(h) G(h) + G(h)`,
+    :math:`Q_d(2h) = \\Phi(h) Q_d(h) \\Phi(h)^\\top + Q_d(h)` (a sum of PSD terms, so
+    :math:`Q_d` stays PSD however stiff the mode).
     """
     M, q_scale, b_scale, a_norm = _van_loan_generators(system)
     n = system.n_states
@@ -368,9 +372,10 @@ def _segments(system, modes, h):
 
 @lru_cache(maxsize=64)
 def _van_loan_generators(system):
-    """Per-mode block generators (Q and B rescaled to the size of A) and ``||A_i||``.
+    """Per-mode block generators (Q and B rescaled to the size of A) and :math:`\\|A_i\\|`.
 
-    Scaling the Q and B blocks by ``c`` scales Qd_s and G_s by ``c`` exactly, and
+    Scaling the Q and B blocks by :math:`c` scales :math:`Q_{d,s}` and :math:`G_s` by :math:`c`
+    exactly, and
     keeps the exponential well conditioned when, e.g., Q is tiny next to A.
     """
     n, l = system.n_states, system.n_inputs
@@ -406,26 +411,27 @@ def _discrete_passthrough(system, T, modes, offsets) -> Transition:
 class OffsetTable:
     """Flows from which a switch at any offset of an interval is composed exactly.
 
-    With ``N = 2^OFFSET_BITS`` and ``h = T / N^2``, an offset ``tau`` is quantized to
-    ``(j N + q) h`` (``0 <= j < N``, ``0 <= q <= N``) and a switch from mode ``a`` to mode ``b``
-    there is the composition, in time order, of three entries of the table (Shankar et al.
-    eq. (4), ``F = exp(A_b (T - tau)) exp(A_a tau)``, and eq. (5), with the exact process
+    With :math:`N = 2^{\\mathrm{OFFSET\\_BITS}}` and :math:`h = T / N^2`, an offset :math:`\\tau`
+    is quantized to :math:`(j N + q) h` (:math:`0 \\le j < N`, :math:`0 \\le q \\le N`) and a
+    switch from mode ``a`` to mode ``b`` there is the composition, in time order, of three
+    entries of the table (Shankar et al. eq. (4),
+    :math:`F = e^{A_b (T - \\tau)} e^{A_a \\tau}`, and eq. (5), with the exact process
     noise)::
 
         coarse[a, j],  switch[a, b, q],  coarse[b, N - 1 - j]
 
-    composed as in the module docstring (``F <- Phi F``, ``G <- Phi G + G_s``,
-    ``Qd <- Phi Qd Phi' + Qd_s``).
+    composed as in the module docstring (:math:`F \\leftarrow \\Phi F`,
+    :math:`G \\leftarrow \\Phi G + G_s`, :math:`Q_d \\leftarrow \\Phi Q_d \\Phi^\\top + Q_{d,s}`).
 
     Attributes
     ----------
     T : float
         The interval length.
     coarse : Transition
-        Batch shape ``(L, N)``: mode ``i`` over ``j T / N``, ``j = 0..N-1``.
+        Batch shape ``(L, N)``: mode ``i`` over :math:`j T / N`, :math:`j = 0, \\dots, N-1`.
     switch : Transition
-        Batch shape ``(L, L, N + 1)``: a span ``T / N`` that switches from mode ``a`` to
-        mode ``b`` at ``q h``: ``a`` over ``q h``, then ``b`` over ``(N - q) h``.
+        Batch shape ``(L, L, N + 1)``: a span :math:`T / N` that switches from mode ``a`` to
+        mode ``b`` at :math:`q h`: ``a`` over :math:`q h`, then ``b`` over :math:`(N - q) h`.
     """
 
     T: float
@@ -437,11 +443,13 @@ def offset_table(system: SwitchedLinearSystem, T: float) -> OffsetTable:
     """The :class:`OffsetTable` of a continuous-time ``system`` for intervals of length ``T``
     (cached on ``(system, T)``).
 
-    The flows of one mode over ``q h`` and ``j T / N`` compose those over the dyadic lengths
-    ``2^i h``, ``i = 0..2 OFFSET_BITS - 1``, of the set bits of ``q`` or ``j N`` (the flows of
-    one mode commute), each one Van Loan exponential (:func:`interval`): ``2 OFFSET_BITS``
-    exponentials per mode, every entry exact to the rounding of a dozen products. The
-    resolution ``T / 2^(2 OFFSET_BITS)`` (3.8e-6 T) is what a switch offset is quantized to.
+    The flows of one mode over :math:`q h` and :math:`j T / N` compose those over the dyadic
+    lengths :math:`2^i h`, :math:`i = 0, \\dots, 2\\, \\mathrm{OFFSET\\_BITS} - 1`, of the set bits
+    of :math:`q` or :math:`j N` (the flows of one mode commute), each one Van Loan exponential
+    (:func:`interval`): :math:`2\\, \\mathrm{OFFSET\\_BITS}` exponentials per mode, every entry
+    exact to the rounding of a dozen products. The resolution
+    :math:`T / 2^{2\\, \\mathrm{OFFSET\\_BITS}}` (:math:`3.8 \\cdot 10^{-6}\\, T`) is what a switch
+    offset is quantized to.
     """
     T = positive_scalar(T, "T")
     _check_system(system)
@@ -455,7 +463,7 @@ def offset_table(system: SwitchedLinearSystem, T: float) -> OffsetTable:
 
 
 def offset_table_nbytes(system: SwitchedLinearSystem) -> int:
-    """Bytes of one :class:`OffsetTable`: ``L (N + L (N + 1))`` flows ``(F, G, Qd)``."""
+    """Bytes of one :class:`OffsetTable`: :math:`L (N + L (N + 1))` flows ``(F, G, Qd)``."""
     _check_system(system)
     n, l, L, N = system.n_states, system.n_inputs, system.n_modes, 2**OFFSET_BITS
     return 8 * L * (N + L * (N + 1)) * n * (2 * n + l)
@@ -481,9 +489,10 @@ def _offset_table(system: SwitchedLinearSystem, T: float) -> OffsetTable:
 
 
 def _binary_table(dyadic: Transition, first: int):
-    """``F, G, Qd`` of entries ``q = 0..2^OFFSET_BITS - 1`` from the dyadic flows ``first ..
-    first + OFFSET_BITS - 1`` (batch ``(L, 2 OFFSET_BITS)``): entry ``q`` composes the flows of
-    the set bits of ``q``, built by doubling the table with one bit at a time."""
+    """``F, G, Qd`` of entries :math:`q = 0, \\dots, 2^{\\mathrm{OFFSET\\_BITS}} - 1` from the
+    dyadic flows ``first .. first + OFFSET_BITS - 1`` (batch ``(L, 2 OFFSET_BITS)``): entry
+    :math:`q` composes the flows of the set bits of :math:`q`, built by doubling the table with
+    one bit at a time."""
     L, n, l = dyadic.F.shape[0], dyadic.F.shape[-1], dyadic.G.shape[-1]
     F = np.broadcast_to(np.eye(n), (L, 1, n, n))
     G, Qd = np.zeros((L, 1, n, l)), np.zeros((L, 1, n, n))

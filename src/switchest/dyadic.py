@@ -1,32 +1,43 @@
 """Exact transitions at any switching instant, without a matrix exponential per instant.
 
-Over a segment of length ``s`` in mode ``i`` the continuous system gives ``Phi_i(s)``,
-``Gamma_i(s) = int_0^s exp(A_i r) dr B_i`` and ``Qd_i(s) = int_0^s exp(A_i r) Q_i exp(A_i' r) dr``
-(the blocks of Shankar et al. eqs (3)-(5)). Once per mode and interval length ``T`` the
-:class:`DyadicTable` holds them at ``T / 2^k`` for ``k = 0..D`` (Van Loan, through
-:func:`switchest.discretize.interval`). Any length ``s`` is then ``q T / 2^D + r`` with
-``0 <= r < T / 2^D``: the segment is the flow over ``r`` followed by the table entries of the
-set bits of ``q``, composed exactly by the semigroup property
+Over a segment of length :math:`s` in mode :math:`i` the continuous system gives
+:math:`\\Phi_i(s)`, :math:`\\Gamma_i(s) = \\int_0^s e^{A_i r}\\, dr\\, B_i` and
+:math:`Q_{d,i}(s) = \\int_0^s e^{A_i r} Q_i e^{A_i^\\top r}\\, dr`
+(the blocks of Shankar et al. eqs (3)-(5)). Once per mode and interval length :math:`T` the
+:class:`DyadicTable` holds them at :math:`T / 2^k` for :math:`k = 0, \\dots, D` (Van Loan,
+through :func:`switchest.discretize.interval`). Any length :math:`s` is then
+:math:`q T / 2^D + r` with :math:`0 \\le r < T / 2^D`: the segment is the flow over :math:`r`
+followed by the table entries of the set bits of :math:`q`, composed exactly by the semigroup
+property
 
-    ``Phi = Phi_b Phi_a``,  ``Gamma = Phi_b Gamma_a + Gamma_b``,
-    ``Qd = Phi_b Qd_a Phi_b' + Qd_b``
+.. math::
+
+    \\Phi = \\Phi_b \\Phi_a, \\qquad \\Gamma = \\Phi_b \\Gamma_a + \\Gamma_b, \\qquad
+    Q_d = \\Phi_b Q_{d,a} \\Phi_b^\\top + Q_{d,b}
 
 (the segments of one mode commute, so the order of the bits does not matter). The remainder
-``r`` is short, ``||A_i|| r <= 2^-10``, and its flow is the Taylor series
-``Phi(r) = sum_j (A r)^j / j!``, ``Gamma(r) = sum_j A^j r^(j+1) / (j+1)! B``,
-``Qd(r) = sum_j M_j r^(j+1) / (j+1)!`` with ``M_0 = Q``, ``M_j = A M_(j-1) + M_(j-1) A'``
-(the derivatives of ``exp(A r) Q exp(A' r)`` at 0), truncated after the term of order
-``ORDER = 5``: the first omitted term is below ``(2^-10)^6 / 6! < 1e-20`` of the sum, so the
-result is exact to rounding at the instant given, not at a quantized one.
+:math:`r` is short, :math:`\\|A_i\\| r \\le 2^{-10}`, and its flow is the Taylor series
+
+.. math::
+
+    \\begin{aligned}
+    \\Phi(r) &= \\sum_j (A r)^j / j!, \\qquad \\Gamma(r) = \\sum_j A^j r^{j+1} / (j+1)!\\, B, \\\\
+    Q_d(r) &= \\sum_j M_j r^{j+1} / (j+1)!, \\qquad M_0 = Q, \\quad
+        M_j = A M_{j-1} + M_{j-1} A^\\top
+    \\end{aligned}
+
+(the derivatives of :math:`e^{A r} Q e^{A^\\top r}` at 0), truncated after the term of order
+``ORDER = 5``: the first omitted term is below :math:`(2^{-10})^6 / 6! < 10^{-20}` of the sum,
+so the result is exact to rounding at the instant given, not at a quantized one.
 
 A switched interval is a sequence of such segments, composed the same way: the exact
 transition of :func:`switchest.discretize.interval` at a few dozen small matrix products
-instead of an ``expm`` of a ``(2n + l)``-square block. :func:`interval_transitions` does it for
-many intervals at once (the clairvoyant filter's switched intervals, a switching-time search's
-probes), in numpy: each product is taken over all the intervals together, entry by entry, and
-Python loops only over the segments, the Taylor terms and the table's bits. An interval whose
-``q`` lacks a bit is composed with the identity there, which changes nothing: products by 1 and
-0 and sums with 0 round nothing.
+instead of an ``expm`` of a :math:`(2n + l)`-square block. :func:`interval_transitions` does it
+for many intervals at once (the clairvoyant filter's switched intervals, a switching-time
+search's probes), in numpy: each product is taken over all the intervals together, entry by
+entry, and Python loops only over the segments, the Taylor terms and the table's bits. An
+interval whose :math:`q` lacks a bit is composed with the identity there, which changes
+nothing: products by 1 and 0 and sums with 0 round nothing.
 """
 
 from __future__ import annotations
@@ -49,16 +60,18 @@ _REMAINDER_REACH = 2.0**-10  # largest ||A|| r of a remainder
 
 @dataclass(frozen=True, eq=False)
 class DyadicTable:
-    """Per-mode flows over ``T / 2^k``, ``k = 0..depth``, and the generators.
+    """Per-mode flows over :math:`T / 2^k`, :math:`k = 0, \\dots, \\mathrm{depth}`, and the
+    generators.
 
     Attributes
     ----------
     T : float
         The interval length.
     depth : int
-        ``D``: the finest table entry is ``T / 2^D``, with ``||A_i|| T / 2^D <= 2^-10``.
+        :math:`D`: the finest table entry is :math:`T / 2^D`, with
+        :math:`\\|A_i\\| T / 2^D \\le 2^{-10}`.
     Phi, Gamma, Qd : ndarray, shapes (L, D+1, n, n), (L, D+1, n, l), (L, D+1, n, n)
-        ``Phi_i(T / 2^k)`` etc.
+        :math:`\\Phi_i(T / 2^k)` etc.
     A, B, Q : ndarray
         The modes' generators, for the Taylor series of the remainder.
     """
@@ -163,8 +176,9 @@ def _intervals(table, modes, offsets):
 
 
 def _segment(table, generators, entries, mode, s):
-    """The flows of ``mode (M,)`` over segments of lengths ``0 <= s <= T`` (M,): the Taylor
-    series of the remainder, then the table entries of the bits of ``q = floor(s 2^D / T)``
+    """The flows of ``mode (M,)`` over segments of lengths :math:`0 \\le s \\le T` (M,): the
+    Taylor series of the remainder, then the table entries of the bits of
+    :math:`q = \\lfloor s\\, 2^D / T \\rfloor`
     (``generators``, ``entries``: those of :func:`_intervals`)."""
     depth, L = table.depth, table.Phi.shape[0]
     unit = table.T / 2.0**depth
@@ -180,8 +194,9 @@ def _segment(table, generators, entries, mode, s):
 
 
 def _taylor(A, B, Q, r):
-    """``Phi(r)``, ``Gamma(r)``, ``Qd(r)`` by their Taylor series to ``ORDER`` (the module
-    docstring), for ``||A|| r <= 2^-10``; ``A, B, Q`` and the results entry-major, ``r (M,)``."""
+    """:math:`\\Phi(r)`, :math:`\\Gamma(r)`, :math:`Q_d(r)` by their Taylor series to ``ORDER``
+    (the module docstring), for :math:`\\|A\\| r \\le 2^{-10}`; ``A, B, Q`` and the results
+    entry-major, ``r (M,)``."""
     F = P = np.broadcast_to(np.eye(A.shape[0])[:, :, None], A.shape)  # P: A^j r^j / j!
     Mj = Q  # M_j r^j / j!
     W, G = Q * r, B * r

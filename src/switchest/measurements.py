@@ -344,9 +344,9 @@ def write_measurements(path: str | Path | None, t, y, *, u=None, x=None, modes=N
     t : array_like, shape (K,)
         Sample times: finite, strictly increasing, at least one.
     y : array_like, shape (K, m) or (N, K, m)
-        Outputs, ``m >= 1``; NaN marks a missing sample, infinity is refused.
+        Outputs, :math:`m \\ge 1`; NaN marks a missing sample, infinity is refused.
     u : array_like, shape (K, l) or (N, K, l), optional
-        Inputs, finite; none (and no ``u`` column) when omitted or ``l = 0``.
+        Inputs, finite; none (and no ``u`` column) when omitted or :math:`l = 0`.
     x : array_like, shape (K, n) or (N, K, n), optional
         States, finite.
     modes : array_like of int, shape (K,) or (N, K), optional
@@ -446,13 +446,13 @@ def _one_trial(value: np.ndarray, name: str, axes: tuple[str, ...], trial: int |
 
 
 def mode_signal(t: np.ndarray, modes: np.ndarray) -> SwitchingSignal:
-    """The switching signal of a ``mode`` column: ``modes[k]`` on ``[t_k, t_{k+1})``.
+    """The switching signal of a ``mode`` column: ``modes[k]`` on :math:`[t_k, t_{k+1})`.
 
     It switches at the sample where the column changes. This is the synchronous
     mode knowledge of Etienne et al. eq. (3) as far as sampled data allow: exact
-    when the switches fall on sample instants; a switch inside ``(t_{k-1}, t_k)``
-    is taken at ``t_k``, i.e. detected late by less than one sampling interval
-    (the delayed knowledge of their Assumption 5, with ``delta <= tau_max``).
+    when the switches fall on sample instants; a switch inside :math:`(t_{k-1}, t_k)`
+    is taken at :math:`t_k`, i.e. detected late by less than one sampling interval
+    (the delayed knowledge of their Assumption 5, with :math:`\\delta \\le \\tau_{\\max}`).
 
     Parameters
     ----------

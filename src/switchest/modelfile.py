@@ -137,7 +137,7 @@ class ModelSpec:
         return self.system.timing
 
     def sample_times(self, t_end: float | None = None, *, rng=None) -> np.ndarray:
-        """Sample times on ``[0, t_end]`` (default: the file's duration)."""
+        """Sample times on :math:`[0, t_\\mathrm{end}]` (default: the file's duration)."""
         t_end = self._duration(t_end)
         if "period" in self.sampling:
             return periodic(self.sampling["period"], t_end)

@@ -150,15 +150,15 @@ def estimate_figure(
 ) -> Path:
     """An estimate to read at a glance: one panel per state, and the modes as a strip.
 
-    Each state panel shows the estimate ``x[:, i]`` with its ``± 2 std`` band, the true
-    state (``truth``, black) and the samples that measure it directly (``measured[i]``, grey
-    dots). The last panel shows the modes as a strip: a row per mode shaded by its
-    probability ``mode_prob (K, L)`` (white 0, dark 1), with the true mode (``true_mode``) as a
-    red line through its row. Estimated switching instants are ticks along the bottom edge
-    (not lines across the figure: a fast-switching system has thousands of them). One legend,
-    above the panels, names every mark. ``names``/``units`` label the axes (``x0 ..``
-    without units when empty); ``t_window = (t0, t1)`` draws only the samples in
-    ``t0 <= t <= t1``.
+    Each state panel shows the estimate ``x[:, i]`` with its :math:`\\pm 2\\, \\mathrm{std}` band,
+    the true state (``truth``, black) and the samples that measure it directly
+    (``measured[i]``, grey dots). The last panel shows the modes as a strip: a row per mode
+    shaded by its probability ``mode_prob (K, L)`` (white 0, dark 1), with the true mode
+    (``true_mode``) as a red line through its row. Estimated switching instants are ticks along
+    the bottom edge (not lines across the figure: a fast-switching system has thousands of
+    them). One legend, above the panels, names every mark. ``names``/``units`` label the axes
+    (``x0 ..`` without units when empty); ``t_window = (t0, t1)`` draws only the samples in
+    :math:`t_0 \\le t \\le t_1`.
     """
     t, x = np.asarray(t, float), np.asarray(x, float)
     n = x.shape[1]

@@ -1,6 +1,6 @@
 """Switching signals and sampling times.
 
-A switching signal sigma(t) is piecewise constant and right-continuous: it is
+A switching signal :math:`\\sigma(t)` is piecewise constant and right-continuous: it is
 stored as the switch instants ``times (S,)`` and the modes ``modes (S+1,)``, with
 ``modes[0]`` active before ``times[0]`` and ``modes[s]`` on ``[times[s-1], times[s])``.
 
@@ -102,7 +102,8 @@ class SwitchingSignal:
         return self.times.shape[0]
 
     def at(self, t) -> np.ndarray:
-        """sigma(t), vectorized over ``t``; right-continuous (the new mode at a switch)."""
+        """:math:`\\sigma(t)`, vectorized over ``t``; right-continuous (the new mode at a
+        switch)."""
         t = float_array(t, "t")
         if np.any(np.isnan(t)):
             raise ValueError("t must not hold NaN: sigma(t) is defined at instants only")
@@ -111,7 +112,7 @@ class SwitchingSignal:
     def switches_in(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         """Switches strictly inside ``(t0, t1)``: their instants and the modes they enter.
 
-        A switch exactly at ``t0`` is not returned (sigma(t0) already holds its new
+        A switch exactly at ``t0`` is not returned (:math:`\\sigma(t_0)` already holds its new
         mode), nor one at ``t1`` (it does not act on ``[t0, t1)``).
         """
         t0, t1 = (_finite_scalar(v, name) for v, name in ((t0, "t0"), (t1, "t1")))
@@ -232,12 +233,12 @@ def average_dwell_time(
 ) -> SwitchingSignal:
     """A random signal with average dwell time ``tau_a`` and chatter bound ``N0``.
 
-    The number of switches in any interval ``(s, t)`` obeys
-    ``N(s, t) <= N0 + (t - s) / tau_a`` (Hespanha & Morse's average dwell time, used
+    The number of switches in any interval :math:`(s, t)` obeys
+    :math:`N(s, t) \\le N_0 + (t - s) / \\tau_a` (Hespanha & Morse's average dwell time, used
     by Etienne et al. Definition 2 / Assumption 4). Switch attempts arrive as a
-    Poisson process of intensity ``rate`` (default ``2 / tau_a``, so the budget is
-    often exhausted and bursts of up to ``N0`` fast switches occur); an attempt is
-    accepted when a token bucket of capacity ``N0``, refilled at ``1 / tau_a`` and
+    Poisson process of intensity ``rate`` (default :math:`2 / \\tau_a`, so the budget is
+    often exhausted and bursts of up to :math:`N_0` fast switches occur); an attempt is
+    accepted when a token bucket of capacity :math:`N_0`, refilled at :math:`1 / \\tau_a` and
     spending one token per switch, holds a whole token. The result is verified with
     :func:`satisfies_average_dwell_time` before it is returned.
     """
@@ -275,14 +276,14 @@ def _check_average_dwell(tau_a, N0, rate) -> tuple[float, float, float | None]:
 
 
 def satisfies_average_dwell_time(signal: SwitchingSignal, tau_a: float, N0: float) -> bool:
-    """Check ``N(s, t) <= N0 + (t - s) / tau_a`` for every interval.
+    """Check :math:`N(s, t) \\le N_0 + (t - s) / \\tau_a` for every interval.
 
     The tightest intervals run from just before one switch to just after another,
-    so it suffices that ``j - i + 1 <= N0 + (t_j - t_i) / tau_a`` for all switch
-    pairs ``i <= j``. With ``a_j = j - t_j / tau_a`` that reads
-    ``a_j - min_{i <= j} a_i <= N0 - 1``: one pass with a running minimum, O(S).
-    A slack of ``1e-12 max(1, |t|)`` in time absorbs round-off (it exceeds the
-    rounding of ``t / tau_a`` by more than three orders of magnitude).
+    so it suffices that :math:`j - i + 1 \\le N_0 + (t_j - t_i) / \\tau_a` for all switch
+    pairs :math:`i \\le j`. With :math:`a_j = j - t_j / \\tau_a` that reads
+    :math:`a_j - \\min_{i \\le j} a_i \\le N_0 - 1`: one pass with a running minimum,
+    :math:`O(S)`. A slack of :math:`10^{-12} \\max(1, |t|)` in time absorbs round-off (it
+    exceeds the rounding of :math:`t / \\tau_a` by more than three orders of magnitude).
     """
     if not isinstance(signal, SwitchingSignal):
         raise TypeError(f"signal must be a SwitchingSignal, got {type(signal).__name__}")
@@ -306,7 +307,7 @@ def markov_continuous(
 ) -> SwitchingSignal:
     """A continuous-time Markov chain with generator ``rates``.
 
-    ``rates[i, j]`` (i != j) is the rate of jumps from mode i to j; the diagonal must
+    ``rates[i, j]`` (:math:`i \\ne j`) is the rate of jumps from mode i to j; the diagonal must
     equal minus the row sum of the off-diagonal entries (rows sum to zero). Holding
     times are exponential with rate ``-rates[i, i]``; a mode with zero outflow is
     absorbing.
@@ -380,7 +381,8 @@ def _sample_times(t) -> np.ndarray:
 def markov_at_samples(transition, t, *, rng, initial=None) -> SwitchingSignal:
     """A discrete-time Markov chain whose switches happen only at the sample instants ``t``.
 
-    ``transition[i, j]`` = P(mode j at k+1 | mode i at k), rows sum to 1. ``initial``
+    ``transition[i, j]`` = :math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i
+    \\text{ at } k)`, rows sum to 1. ``initial``
     is the mode at ``t[0]`` (an int) or a probability vector to draw it from
     (default: uniform).
     """
@@ -416,7 +418,8 @@ def _check_initial(initial, n_modes: int) -> int | np.ndarray | None:
 def iid_at_samples(p, t, *, rng) -> SwitchingSignal:
     """Modes drawn i.i.d. with probabilities ``p`` on each ``[t[k], t[k+1])``.
 
-    The random switching of Wang et al. §2 (switches only at t = kT, alpha_k i.i.d.).
+    The random switching of Wang et al. §2 (switches only at :math:`t = kT`, :math:`\\alpha_k`
+    i.i.d.).
     """
     p = check_probability_vector(p, "p")
     t = _sample_times(t)
@@ -441,7 +444,8 @@ def aperiodic(
 ) -> np.ndarray:
     """Sample times with gaps drawn uniformly in ``[tau_min, tau_max]``, up to ``t_end``.
 
-    The aperiodic sampling of Etienne et al. §2 (t_{k+1} - t_k in [tau_min, tau_max]).
+    The aperiodic sampling of Etienne et al. §2
+    (:math:`t_{k+1} - t_k \\in [\\tau_{\\min}, \\tau_{\\max}]`).
     """
     lo = positive_scalar(tau_min, "tau_min")
     hi = positive_scalar(tau_max, "tau_max")
@@ -468,13 +472,13 @@ def sample_segments(signals, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns
     -------
     mode_at : ndarray of int, shape (N, K)
-        sigma(t_k) for each trial (right-continuous).
+        :math:`\\sigma(t_k)` for each trial (right-continuous).
     modes : ndarray of int, shape (N, K-1, S+1)
-        The modes on the segments of ``[t_k, t_{k+1})``; S is the largest number of
+        The modes on the segments of :math:`[t_k, t_{k+1})`; S is the largest number of
         switches inside any one interval.
     offsets : ndarray, shape (N, K-1, S)
-        Switch instants inside each interval, measured from ``t_k``. Intervals with
-        fewer than S switches are padded with offset ``t_{k+1} - t_k`` and their last
+        Switch instants inside each interval, measured from :math:`t_k`. Intervals with
+        fewer than S switches are padded with offset :math:`t_{k+1} - t_k` and their last
         mode, i.e. with zero-length segments, which leave the transition unchanged.
         This is the input :func:`switchest.discretize.interval` takes.
     """

@@ -2,8 +2,8 @@
 
 Between consecutive grid instants the state moves by the exact transition of
 :mod:`switchest.discretize` (switches inside the interval included, process
-noise drawn from its exact covariance ``Qd``); measurements
-``y_k = C[sigma(t_k)] x(t_k) + v_k``, ``v_k ~ N(0, R[sigma(t_k)])``
+noise drawn from its exact covariance :math:`Q_d`); measurements
+:math:`y_k = C(\\sigma(t_k))\\, x(t_k) + v_k`, :math:`v_k \\sim \\mathcal{N}(0, R(\\sigma(t_k)))`
 (Shankar et al. eqs (1)-(2)). All trials advance together: the only Python loop
 runs over time.
 """
@@ -45,11 +45,12 @@ class Trajectory:
     y : ndarray, shape (N, K, m)
         Measurements (NaN marks a missing sample when a user blanks one).
     u : ndarray, shape (N, K, l)
-        Input applied on ``[t_k, t_{k+1})`` (zero-order hold).
+        Input applied on :math:`[t_k, t_{k+1})` (zero-order hold).
     mode : ndarray of int, shape (N, K)
-        The mode of each sample, the one its measurement ``y_k`` is taken in: sigma(t_k) in
-        the ``"sample"`` timing, the mode of the interval into ``t_k`` (the left limit
-        sigma(t_k-), sigma(t_0) at the first sample) in the ``"interval"`` one. The two
+        The mode of each sample, the one its measurement :math:`y_k` is taken in:
+        :math:`\\sigma(t_k)` in the ``"sample"`` timing, the mode of the interval into
+        :math:`t_k` (the left limit :math:`\\sigma(t_k^-)`, :math:`\\sigma(t_0)` at the first
+        sample) in the ``"interval"`` one. The two
         differ only at a switch exactly at a sample instant.
     signals : tuple of SwitchingSignal, length N
         The true switching signal of each trial.
@@ -93,7 +94,7 @@ class Trajectory:
         return modes, offsets
 
     def switch_times(self) -> np.ndarray:
-        """The first true switching instant inside ``(t_{k-1}, t_k)`` at sample k, ``(N, K)``.
+        """The first true switching instant inside :math:`(t_{k-1}, t_k)` at sample k, ``(N, K)``.
 
         NaN at sample 0 and where the interval holds no switch: the layout of
         ``Estimate.switch_time``, for :func:`switchest.metrics.switch_time_error`.
@@ -141,7 +142,7 @@ def simulate(
     x0 : array_like, shape (n,), or tuple (mean (n,), cov (n, n))
         Initial state, or the Gaussian it is drawn from (independently per trial).
     u : array_like, optional
-        Input held on ``[t_k, t_{k+1})``: constant ``(l,)``, per sample ``(K, l)`` or
+        Input held on :math:`[t_k, t_{k+1})`: constant ``(l,)``, per sample ``(K, l)`` or
         per trial ``(trials, K, l)``. Default zero.
     trials : int
         Number of independent runs N.
@@ -149,13 +150,16 @@ def simulate(
         Source of all randomness (signals, initial states, noises).
     fine_dt : float, optional
         Also return the path on a fine grid: each sample interval is split into
-        ``ceil((t_{k+1} - t_k) / fine_dt)`` equal steps (continuous systems only).
+        :math:`\\lceil (t_{k+1} - t_k) / \\mathrm{fine\\_dt} \\rceil` equal steps (continuous
+        systems only).
     output : {"sampled", "integrated"}
-        ``"sampled"``: ``y_k = C x(t_k) + v_k`` with ``v_k ~ N(0, R)``.
+        ``"sampled"``: :math:`y_k = C x(t_k) + v_k` with :math:`v_k \\sim \\mathcal{N}(0, R)`.
         ``"integrated"`` (continuous systems): the output is the Ito process
-        ``dz = C x dt + dv`` with ``E[dv dv'] = R dt`` (Wang et al. eq. (1), ``R = Xi Xi'``),
-        and ``y_k = z(t_k)`` with ``z(t_0) = 0``. It is simulated exactly, as the
-        extra states of ``d[x; z] = [[A, 0], [C, 0]] [x; z] dt + ...`` (see
+        :math:`dz = C x\\, dt + dv` with :math:`\\mathbb{E}[dv\\, dv^\\top] = R\\, dt` (Wang et al.
+        eq. (1), :math:`R = \\Xi \\Xi^\\top`), and :math:`y_k = z(t_k)` with :math:`z(t_0) = 0`.
+        It is simulated exactly, as the extra states of
+        :math:`d \\begin{bmatrix} x \\\\ z \\end{bmatrix} = \\begin{bmatrix} A & 0 \\\\ C & 0
+        \\end{bmatrix} \\begin{bmatrix} x \\\\ z \\end{bmatrix} dt + \\dots` (see
         :func:`integrated_output_system`); an observer uses its increments.
 
     Returns
@@ -165,8 +169,9 @@ def simulate(
     Raises
     ------
     ValueError
-        Also when the outputs would not fit in memory: ``N (K (n + m + l + 1) +
-        Kf (n + 1))`` floats against :func:`switchest._checks.memory_limit` (half
+        Also when the outputs would not fit in memory:
+        :math:`N (K (n + m + l + 1) + K_f (n + 1))` floats (:math:`K_f` the fine grid's size)
+        against :func:`switchest._checks.memory_limit` (half
         of the physical memory), estimated before anything is drawn.
 
     Notes
@@ -221,11 +226,19 @@ def simulate(
 
 
 def integrated_output_system(system: SwitchedLinearSystem) -> SwitchedLinearSystem:
-    """The system with its integrated output ``z`` appended to the state.
+    """The system with its integrated output :math:`z` appended to the state.
 
-    ``d[x; z] = [[A, 0], [C, 0]] [x; z] dt + [B; 0] u dt + [dw; dv]`` with noise
-    intensity ``blockdiag(Q, R)``: sampling it exactly gives the exact joint law of
-    the state and the Ito output ``dz = C x dt + dv`` of Wang et al. eq. (1).
+    .. math::
+
+        d \\begin{bmatrix} x \\\\ z \\end{bmatrix}
+        = \\begin{bmatrix} A & 0 \\\\ C & 0 \\end{bmatrix}
+          \\begin{bmatrix} x \\\\ z \\end{bmatrix} dt
+        + \\begin{bmatrix} B \\\\ 0 \\end{bmatrix} u\\, dt
+        + \\begin{bmatrix} dw \\\\ dv \\end{bmatrix}
+
+    with noise intensity :math:`\\operatorname{blockdiag}(Q, R)`: sampling it exactly gives the
+    exact joint law of the state and the Ito output :math:`dz = C x\\, dt + dv` of Wang et al.
+    eq. (1).
     """
     if not isinstance(system, SwitchedLinearSystem):
         raise TypeError(f"system must be a SwitchedLinearSystem, got {type(system).__name__}")
@@ -288,7 +301,7 @@ def _propagate(system, modes, offsets, grid, x, u, rng) -> np.ndarray:
 
 def _switched_steps(system, modes, offsets, grid) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """For each grid interval ``k`` with a switch inside in some trials: those trials and
-    their stacked exact steps ``[F'; G'; Qd^(1/2)']``.
+    their stacked exact steps :math:`[F^\\top; G^\\top; (Q_d^{1/2})^\\top]`.
 
     All the switched intervals are discretized at once, from the dyadic table of each
     interval length (:func:`switchest.dyadic.interval_transitions`: exact, without a matrix
@@ -321,7 +334,7 @@ def _switched_steps(system, modes, offsets, grid) -> dict[int, tuple[np.ndarray,
 
 
 def _measure(system, x, mode, rng) -> np.ndarray:
-    """``y_k = C[m] x_k + R[m]^(1/2) v_k`` for every trial and sample, one sample at a time."""
+    """:math:`y_k = C_m x_k + R_m^{1/2} v_k` for every trial and sample, one sample at a time."""
     N, K, _ = x.shape
     stacked = np.concatenate([np.swapaxes(system.C, 1, 2), np.swapaxes(psd_sqrt(system.R), 1, 2)],
                              axis=1)
@@ -338,7 +351,8 @@ def _pick(per_mode: np.ndarray, mode: np.ndarray) -> np.ndarray:
 
 
 def _stacked_step(F, G, Q_sqrt) -> np.ndarray:
-    """``[F'; G'; Q_sqrt']`` of shape (..., 2n + l, n), so ``[x, u, z] @ it`` is one step."""
+    """:math:`[F^\\top; G^\\top; Q_\\mathrm{sqrt}^\\top]` of shape (..., 2n + l, n), so
+    ``[x, u, z] @ it`` is one step."""
     return np.concatenate([np.swapaxes(a, -1, -2) for a in (F, G, Q_sqrt)], axis=-2)
 
 
@@ -429,7 +443,8 @@ def _check_size(system, trials: int, K: int, parts) -> None:
 
 
 def _fine_parts(t, fine_dt) -> np.ndarray:
-    """Fine steps per sample interval, ``ceil((t_{k+1} - t_k) / fine_dt)`` and at least 1.
+    """Fine steps per sample interval, :math:`\\lceil (t_{k+1} - t_k) / \\mathrm{fine\\_dt}
+    \\rceil` and at least 1.
 
     Floats, so that an absurd ``fine_dt`` gives a huge count to refuse, not an overflow.
     """

@@ -181,7 +181,7 @@ class Dwell(SwitchingModel):
     n_modes : int
         Number of modes :math:`L \\ge 2`.
     min_dwell, max_dwell : float
-        Bounds of the dwell times, ``0 < min_dwell <= max_dwell``.
+        Bounds of the dwell times, :math:`0 < \\mathrm{min\\_dwell} \\le \\mathrm{max\\_dwell}`.
     initial_mode : int, keyword-only
         Mode on ``[0, first switch)``; default 0.
     """
@@ -261,7 +261,7 @@ class MarkovAtSamples(SwitchingModel):
     Parameters
     ----------
     transition : array_like, shape (L, L)
-        ``transition[i, j]`` = :math:`P(\\text{mode } j \\text{ at } k+1 \\mid
+        ``transition[i, j]`` = :math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid
         \\text{mode } i \\text{ at } k)`; rows sum to 1.
     initial : int, array_like of shape (L,) or None, keyword-only
         The mode at ``t[0]``, or the probabilities it is drawn from; None (default):

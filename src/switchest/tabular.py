@@ -34,11 +34,11 @@ The methods (:data:`METHODS`), what each needs and where it finds it:
 ``rsls``
     Wang et al.'s subsystem observer for randomly switched systems
     (:class:`~switchest.estimators.RSLSObserver`). **Here the ``y`` columns hold
-    the integrated output** ``z(t) = int_{t_0}^t y`` (Wang et al. eq. (1): the Ito
-    output ``dz = C x dt + Xi dw``, e.g. ``Trajectory.y_fine`` of
+    the integrated output** :math:`z(t) = \\int_{t_0}^t y` (Wang et al. eq. (1): the Ito
+    output :math:`dz = C x\\, dt + \\Xi\\, dw`, e.g. ``Trajectory.y_fine`` of
     ``simulate(..., output="integrated")``) at fine instants ``t`` that include
     every switching instant ``t[0] + kT``; the ``mode`` column (required) gives
-    the mode at each instant. ``T`` is ``sampling.period`` or the option
+    the mode at each instant. :math:`T` is ``sampling.period`` or the option
     ``switch_interval``; gains by :func:`rsls_gains`.
 ``impulsive``
     Etienne et al.'s impulsive observer at (aperiodic) samples
@@ -120,7 +120,7 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     estimate : {"mixture", "map"}, optional
         ``imm-ev1`` only: report the moments of the mixture of the destinations' posteriors
         (``"mixture"``, the default: on the boost converter with the merged instants, NEES
-        median 1.7 and i_L RMSE 14.7 A) or the MAP destination's (``"map"``, the paper's:
+        median 1.7 and :math:`i_L` RMSE 14.7 A) or the MAP destination's (``"map"``, the paper's:
         its covariance ignores the other destinations).
     stay : float, optional
         Per-sample probability of staying in a mode (``imm``, ``imm-ev1``).
@@ -129,7 +129,7 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         and detection delay (conditions (3), (4)); each overrides the model
         file's ``[noise]`` entry of the same name.
     switch_interval : float, optional
-        ``rsls`` only: the switching interval ``T`` (Wang et al. Assumption 1);
+        ``rsls`` only: the switching interval :math:`T` (Wang et al. Assumption 1);
         overrides ``sampling.period``.
     smooth : bool
         ``imm``, ``gpb1``, ``gpb2``: fixed-interval smoothed estimates (the two-filter
@@ -145,8 +145,9 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         :class:`~switchest.estimators.TimingWarning` by the filter.
     gate : float, optional
         The Kalman-type filters' outlier gate: the largest normalized innovation squared
-        ``e' S^-1 e`` a measurement may have to be used, e.g. ``scipy.stats.chi2.ppf(0.9999,
-        m)``; one beyond it is treated as missing and flagged in the ``outlier`` column.
+        :math:`e^\\top S^{-1} e` a measurement may have to be used, e.g.
+        ``scipy.stats.chi2.ppf(0.9999, m)``; one beyond it is treated as missing and flagged in
+        the ``outlier`` column.
         Default: no gate.
     trial : int, optional
         The trial to estimate from a table of several (a ``trial`` column).

@@ -18,15 +18,21 @@ __all__ = ["ETIENNE_SCENARIO", "EtienneScenario", "etienne_academic"]
 
 
 def etienne_academic() -> SwitchedLinearSystem:
-    """The academic example of Etienne et al. §4 (also Zhang & Gao 2010)::
+    """The academic example of Etienne et al. §4 (also Zhang & Gao 2010):
 
-        A_1 = [[0.2, -0.5], [0.5, -0.3]],  B_1 = [-0.4, 1.8]',  C_1 = [1, 0]   (mode 0)
-        A_2 = [[0.2, 0.3], [-1, 0.4]],     B_2 = [0.1, 1.5]',   C_2 = [1, 0]   (mode 1)
+    .. math::
+
+        \\begin{aligned}
+        A_1 &= \\begin{bmatrix} 0.2 & -0.5 \\\\ 0.5 & -0.3 \\end{bmatrix}, &
+        B_1 &= [-0.4, 1.8]^\\top, & C_1 &= [1, 0] && \\text{(mode 0)}, \\\\
+        A_2 &= \\begin{bmatrix} 0.2 & 0.3 \\\\ -1 & 0.4 \\end{bmatrix}, &
+        B_2 &= [0.1, 1.5]^\\top, & C_2 &= [1, 0] && \\text{(mode 1)}.
+        \\end{aligned}
 
     Deterministic, as in the paper's eq. (1): no process noise, noise-free
-    samples ``y(t_k) = C x(t_k)`` (``R = 0``). ``A_1`` is stable (eigenvalues
-    ``-0.05 +/- 0.433j``), ``A_2`` is not (``0.3 +/- 0.539j``); both pairs
-    ``(A_i, C_i)`` are observable.
+    samples :math:`y(t_k) = C x(t_k)` (:math:`R = 0`). :math:`A_1` is stable (eigenvalues
+    :math:`-0.05 \\pm 0.433j`), :math:`A_2` is not (:math:`0.3 \\pm 0.539j`); both pairs
+    :math:`(A_i, C_i)` are observable.
 
     Returns
     -------
@@ -45,32 +51,34 @@ class EtienneScenario:
     Attributes
     ----------
     tau_min, tau_max : float
-        Sampling intervals ``t_{k+1} - t_k`` lie in ``[tau_min, tau_max]``
+        Sampling intervals :math:`t_{k+1} - t_k` lie in :math:`[\\tau_{\\min}, \\tau_{\\max}]`
         (Assumption 2): 0.3 and 0.4.
     dwell : float
-        Average dwell time ``s`` of the switching signal (Assumption 1): 7.
+        Average dwell time :math:`s` of the switching signal (Assumption 1): 7.
     N0 : float
         Chatter bound of Assumption 1. **Not printed**; our choice 1 is met by
         every signal whose switches are at least ``dwell`` apart. It enters only
-        the overshoot of the bounds, not the rate ``beta``.
+        the overshoot of the bounds, not the rate :math:`\\beta`.
     alpha, mu_s, mu_c : float
-        Theorem 8's fixed scalars ``alpha_`` (underlined alpha), ``mu_s`` and
-        ``mu_c_`` (underlined mu_c): 0.2, 5, 0.98.
+        Theorem 8's fixed scalars :math:`\\underline{\\alpha}`, :math:`\\mu_s` and
+        :math:`\\underline{\\mu}_c`: 0.2, 5, 0.98.
     delta : float
         Maximum delay of the mode estimate (Assumption 5), Theorem 10: 0.15.
     mu_c_bar, alpha_bar : float
-        Theorem 10's ``mu_c`` (overlined) and ``alpha`` (overlined): 5 and 3.
+        Theorem 10's :math:`\\overline{\\mu}_c` and :math:`\\overline{\\alpha}`: 5 and 3.
     controller : tuple of tuple of float
-        The "emulation based" state-feedback gains ``K_1 = [2.1124, -0.9336]``,
-        ``K_2 = [-1.3111, -1.3158]``, applied as ``u = K_{sigma_hat} x_hat``
+        The "emulation based" state-feedback gains :math:`K_1 = [2.1124, -0.9336]`,
+        :math:`K_2 = [-1.3111, -1.3158]`, applied as :math:`u = K_{\\hat{\\sigma}} \\hat{x}`
         (§3.2); :attr:`K` gives them as an array.
 
     Notes
     -----
-    Theorem 8's scalar condition (9), ``alpha > ln(mu_s)/s + ln(mu_c)/tau_max``,
-    holds for these values (0.2 > 0.1794, rate ``beta`` of (11) = 0.0103). Theorem
+    Theorem 8's scalar condition (9),
+    :math:`\\underline{\\alpha} > \\ln(\\mu_s)/s + \\ln(\\underline{\\mu}_c)/\\tau_{\\max}`,
+    holds for these values (0.2 > 0.1794, rate :math:`\\beta` of (11) = 0.0103). Theorem
     10's scalar condition (28), however, evaluates to +0.1640 > 0 with the same
-    values and ``delta = 0.15, mu_c_bar = 5, alpha_bar = 3``: it is violated,
+    values and :math:`\\delta = 0.15`, :math:`\\overline{\\mu}_c = 5`,
+    :math:`\\overline{\\alpha} = 3`: it is violated,
     although §4 reports that "the condition of Theorem 10 are verified".
     """
 

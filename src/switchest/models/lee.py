@@ -1,32 +1,40 @@
 """A demonstration system for Lee, Ping & Shim (002), which prints no numerical example.
 
 A frequency-shift-keyed carrier observed in phase and quadrature: the state is a
-phasor rotating at ``omega_1`` or ``omega_2``, both components are measured with
-bounded noise, and a small bounded input pushes it::
+phasor rotating at :math:`\\omega_1` or :math:`\\omega_2`, both components are measured with
+bounded noise, and a small bounded input pushes it:
 
-    x' = omega_i J x + b u,   y = x + v,   J = [[0, 1], [-1, 0]],  b = [0, 1]'
+.. math::
+
+    \\dot{x} = \\omega_i J x + b u, \\qquad y = x + v, \\qquad
+    J = \\begin{bmatrix} 0 & 1 \\\\ -1 & 0 \\end{bmatrix}, \\qquad b = [0, 1]^\\top
 
 Why this system
 ---------------
 Conditions (3) and (4) of Lee et al. compare the output distance between modes
-(``omega_min``) with noise terms inflated by ``mu e^{lambda Delta}``, ``E_hat`` and
-``C_max``. Each choice below makes one factor as favourable as it can be, so the
-assumptions hold at a noise level of about 10 % of the signal:
+(:math:`\\omega_{\\min}`) with noise terms inflated by :math:`\\mu e^{\\lambda \\Delta}`,
+:math:`\\hat{E}` and :math:`C_{\\max}`. Each choice below makes one factor as favourable as it
+can be, so the assumptions hold at a noise level of about 10 % of the signal:
 
-* ``A_i = omega_i J`` is skew-symmetric: ``||e^{A_i t}|| = 1`` exactly, so
-  ``mu_check = 1``, ``lambda_check = 0`` and ``(mu e^{lambda Delta} + 1)^2 = 4``, the
-  smallest value (4) allows. It also makes ``|x|`` change only through the input:
-  ``|x(t)| >= |x(0)| - ||b|| u_max t`` for any switching, an explicit ``x_min``.
-* ``C = I`` (I/Q measurement): ``U_i(t) = t I``, hence ``M_max(delta) = 1``, and the
-  observer gains ``L_i = A_i + a I`` give ``A_i - L_i C = -a I``: ``mu_hat = 1``,
-  ``lambda_hat = a``, ``E_hat = sqrt(1 + (omega_max / a)^2)``, close to 1.
-* ``omega_2 - omega_1 = 2 pi / Delta``: the Gramian ``W_12(t)`` has diagonal blocks
-  ``t I`` and off-diagonal block ``int_0^t e^{(omega_2 - omega_1) J tau} dtau``,
-  which vanishes at ``t = Delta``, so ``omega_min(Delta) = Delta`` — the largest
-  value possible. In general ``omega_min(t) = t - 2 |sin(dw t / 2)| / dw``.
+* :math:`A_i = \\omega_i J` is skew-symmetric: :math:`\\|e^{A_i t}\\| = 1` exactly, so
+  :math:`\\check{\\mu} = 1`, :math:`\\check{\\lambda} = 0` and
+  :math:`(\\mu e^{\\lambda \\Delta} + 1)^2 = 4`, the smallest value (4) allows. It also makes
+  :math:`|x|` change only through the input:
+  :math:`|x(t)| \\ge |x(0)| - \\|b\\| u_{\\max} t` for any switching, an explicit
+  :math:`x_{\\min}`.
+* :math:`C = I` (I/Q measurement): :math:`U_i(t) = t I`, hence :math:`M_{\\max}(\\delta) = 1`,
+  and the observer gains :math:`L_i = A_i + a I` give :math:`A_i - L_i C = -a I`:
+  :math:`\\hat{\\mu} = 1`, :math:`\\hat{\\lambda} = a`,
+  :math:`\\hat{E} = \\sqrt{1 + (\\omega_{\\max} / a)^2}`, close to 1.
+* :math:`\\omega_2 - \\omega_1 = 2 \\pi / \\Delta`: the Gramian :math:`W_{12}(t)` has diagonal
+  blocks :math:`t I` and off-diagonal block
+  :math:`\\int_0^t e^{(\\omega_2 - \\omega_1) J \\tau}\\, d\\tau`, which vanishes at
+  :math:`t = \\Delta`, so :math:`\\omega_{\\min}(\\Delta) = \\Delta` — the largest value
+  possible. In general :math:`\\omega_{\\min}(t) = t - 2 |\\sin(d\\omega\\, t / 2)| / d\\omega`.
 
-With only the in-phase component measured (``C = [1, 0]``) the same analysis
-allows about twenty times less noise (``M_max ~ 2``, ``mu_hat ~ 4``, ``E_hat ~ 20``).
+With only the in-phase component measured (:math:`C = [1, 0]`) the same analysis
+allows about twenty times less noise (:math:`M_{\\max} \\approx 2`,
+:math:`\\hat{\\mu} \\approx 4`, :math:`\\hat{E} \\approx 20`).
 """
 
 from __future__ import annotations
@@ -45,20 +53,21 @@ _J = np.array([[0.0, 1.0], [-1.0, 0.0]])
 
 
 def fsk_oscillator(omega=(2 * np.pi, 4 * np.pi), input_gain: float = 1.0) -> SwitchedLinearSystem:
-    """The two-mode phasor ``x' = omega_i J x + b u``, ``y = x`` (noise added by the caller).
+    """The two-mode phasor :math:`\\dot{x} = \\omega_i J x + b u`, :math:`y = x` (noise added by
+    the caller).
 
     Parameters
     ----------
     omega : pair of float
         Angular frequencies of modes 0 and 1 (rad per time unit), distinct.
     input_gain : float
-        ``b = [0, input_gain]'``.
+        :math:`b = [0, \\mathrm{input\\_gain}]^\\top`.
 
     Returns
     -------
     SwitchedLinearSystem
         Continuous time, 2 modes, 2 states, 1 input, 2 outputs, noise-free
-        (``R = 0``: the bounded noise of Lee et al. is not Gaussian; see
+        (:math:`R = 0`: the bounded noise of Lee et al. is not Gaussian; see
         :meth:`LeeScenario.noise`).
     """
     omega = float_array(omega, "omega", ndim=1)
@@ -77,23 +86,23 @@ class LeeScenario:
     Attributes
     ----------
     omega : tuple of float
-        ``(2 pi, 4 pi)``: 1 Hz and 2 Hz, beat period 1.
+        :math:`(2 \\pi, 4 \\pi)`: 1 Hz and 2 Hz, beat period 1.
     input_gain : float
-        ``||b||``.
+        :math:`\\|b\\|`.
     observer_decay : float
-        ``a`` in ``L_i = A_i + a I`` (:attr:`observer_gains`).
+        :math:`a` in :math:`L_i = A_i + a I` (:attr:`observer_gains`).
     delta, Delta : float
         Estimation window 0.25 (condition (3)) and detection delay 1 = one beat
         period (condition (4)).
     u_max, v_max : float
-        Input and noise bounds (eq. (2)). ``v_max = 0.1`` is 10 % of ``|x(0)|``.
+        Input and noise bounds (eq. (2)). ``v_max = 0.1`` is 10 % of :math:`|x(0)|`.
     x0 : tuple of float
-        Initial state, ``|x0| = 1``.
+        Initial state, :math:`|x_0| = 1`.
     horizon : float
         Length of a run.
     min_dwell, max_dwell : float
-        Dwell times of the random switching signal (:meth:`signal`), ``min_dwell >
-        delta + Delta`` (Assumption 3).
+        Dwell times of the random switching signal (:meth:`signal`),
+        :math:`\\mathrm{min\\_dwell} > \\delta + \\Delta` (Assumption 3).
     input_frequency : tuple of float
         Range of the angular frequency of the sinusoidal input (:meth:`input`).
     """
@@ -117,13 +126,15 @@ class LeeScenario:
 
     @property
     def observer_gains(self) -> np.ndarray:
-        """``L_i = A_i + a I`` (shape (2, 2, 2)), so that ``A_i - L_i C = -a I``."""
+        """:math:`L_i = A_i + a I` (shape (2, 2, 2)), so that :math:`A_i - L_i C = -a I`."""
         return np.asarray(self.omega)[:, None, None] * _J + self.observer_decay * np.eye(2)
 
     def x_min(self, horizon: float | None = None) -> float:
-        """``|x0| - ||b|| u_max horizon``: a lower bound on ``|x(t)|`` up to ``horizon``.
+        """:math:`|x_0| - \\|b\\|\\, u_{\\max}\\, \\mathrm{horizon}`: a lower bound on
+        :math:`|x(t)|` up to ``horizon``.
 
-        Exact for skew-symmetric ``A_i``: ``d|x|/dt = x'b u / |x| >= -||b|| u_max``.
+        Exact for skew-symmetric :math:`A_i`:
+        :math:`d|x|/dt = x^\\top b u / |x| \\ge -\\|b\\|\\, u_{\\max}`.
         """
         T = self.horizon if horizon is None else positive_scalar(horizon, "horizon")
         return float(np.hypot(*self.x0) - self.input_gain * self.u_max * T)
@@ -131,16 +142,20 @@ class LeeScenario:
     def interpolation_gap(self, grid_step: float, duration: float) -> float:
         """Largest gap between the noise-free output and its linear interpolation on a grid.
 
-        The detector integrates ``y`` as linear between grid points; the gap acts like
-        noise. With ``u`` held on each step, ``y'' = A_i (A_i x + b u)`` inside a step;
-        a switch inside a step adds a kink where ``y'`` jumps by ``(A_j - A_i) x``.
-        Linear interpolation of ``f`` with ``|f''| <= M`` and one kink of size ``J`` is
-        off by at most ``h^2 M / 8 + h J / 4``, so the gap is at most::
+        The detector integrates :math:`y` as linear between grid points; the gap acts like
+        noise. With :math:`u` held on each step, :math:`\\ddot{y} = A_i (A_i x + b u)` inside a
+        step; a switch inside a step adds a kink where :math:`\\dot{y}` jumps by
+        :math:`(A_j - A_i) x`. Linear interpolation of :math:`f` with :math:`|f''| \\le M` and one
+        kink of size :math:`J` is off by at most :math:`h^2 M / 8 + h J / 4`, so the gap is at
+        most:
 
-            h^2 / 8 (omega_max^2 x_max + omega_max ||b|| u_max) + h / 4 |omega_1 - omega_0| x_max
+        .. math::
 
-        with ``x_max = |x_0| + ||b|| u_max t`` (``A_i`` skew-symmetric, at most one
-        switch per step since dwell times exceed the step).
+            \\frac{h^2}{8} (\\omega_{\\max}^2 x_{\\max} + \\omega_{\\max} \\|b\\|\\, u_{\\max})
+            + \\frac{h}{4} |\\omega_1 - \\omega_0|\\, x_{\\max}
+
+        with :math:`x_{\\max} = |x_0| + \\|b\\|\\, u_{\\max} t` (:math:`A_i` skew-symmetric, at most
+        one switch per step since dwell times exceed the step).
         """
         h = positive_scalar(grid_step, "grid_step")
         w = max(self.omega)
@@ -152,7 +167,7 @@ class LeeScenario:
     def signal(self, rng) -> SwitchingSignal:
         """A random switching signal on ``[0, horizon]`` with dwell in ``[min_dwell, max_dwell]``.
 
-        The first switch comes one dwell after 0, so none falls in ``[0, delta]``.
+        The first switch comes one dwell after 0, so none falls in :math:`[0, \\delta]`.
         """
         rng = as_rng(rng)
         first = int(rng.integers(2))
@@ -160,7 +175,8 @@ class LeeScenario:
                           initial_mode=first)
 
     def input(self, t, trials: int, rng) -> np.ndarray:
-        """``u(t) = u_max sin(w t + phi)``, random ``w`` and ``phi`` per trial; (trials, K, 1)."""
+        """:math:`u(t) = u_{\\max} \\sin(w t + \\phi)`, random :math:`w` and :math:`\\phi` per
+        trial; (trials, K, 1)."""
         t = float_array(t, "t", ndim=1)
         trials = positive_int(trials, "trials")
         rng = as_rng(rng)
@@ -169,10 +185,10 @@ class LeeScenario:
         return (self.u_max * np.sin(w * t + phi))[..., None]
 
     def noise(self, t, trials: int, rng, *, v_max: float | None = None) -> np.ndarray:
-        """Bounded measurement noise ``|v(t)| <= v_max``, shape (trials, K, 2).
+        """Bounded measurement noise :math:`|v(t)| \\le v_{\\max}`, shape (trials, K, 2).
 
         Half of the bound is an interfering tone — a phasor of random frequency in
-        ``[0, 1.5 max(omega)]`` and phase, the most mode-like disturbance — and half
+        :math:`[0, 1.5 \\max(\\omega)]` and phase, the most mode-like disturbance — and half
         white noise uniform in the disc, drawn at every grid point. Linear
         interpolation between grid points stays inside the disc.
         """

@@ -1,12 +1,12 @@
 """The two systems of Shankar, Yang & Hespanha (seed 000), §V.
 
-* the boost converter of §V.A (two modes, continuous time, output ``v_0``
+* the boost converter of §V.A (two modes, continuous time, output :math:`v_0`
   sampled every 0.5 ms) and its switching scenario;
 * the two-dimensional maneuvering vehicle of §V.B (three modes differing by
   their input) and its maneuver.
 
 Both are continuous-time systems in the sense of Shankar et al. eqs (1)-(2):
-``dx/dt = A(sigma) x + B(sigma) u + w``, ``y_k = H x(t_k) + v_k``. The paper
+:math:`dx/dt = A(\\sigma) x + B(\\sigma) u + w`, :math:`y_k = H x(t_k) + v_k`. The paper
 states no process noise; each function takes it as an argument with a small
 documented default.
 """
@@ -34,14 +34,15 @@ __all__ = [
 ]
 
 BOOST_INPUT_VOLTAGE = 100.0
-"""Input voltage ``v_in`` of the boost converter, volts (Shankar et al. §V.A)."""
+"""Input voltage :math:`v_\\mathrm{in}` of the boost converter, volts (Shankar et al. §V.A)."""
 
 BOOST_SAMPLE_PERIOD = 0.5e-3
 """Sampling period of the boost converter experiments, seconds (Shankar et al. §V.A, Table I)."""
 
 
 def _intensity(value, n: int, name: str) -> np.ndarray:
-    """A noise intensity given as a scalar ``q`` (meaning ``q I_n``) or an (n, n) matrix."""
+    """A noise intensity given as a scalar :math:`q` (meaning :math:`q I_n`) or an (n, n)
+    matrix."""
     arr = float_array(value, name, ndim=(0, 2))
     if arr.ndim == 0:
         return positive_scalar(float(arr), name, allow_zero=True) * np.eye(n)
@@ -63,17 +64,23 @@ def boost_converter(
 ) -> SwitchedLinearSystem:
     """The boost converter of Shankar et al. §V.A (after their ref. [19]).
 
-    State ``x = [i_L, v_0]`` (inductor current in A, output voltage in V), input
-    ``u = v_in`` (the paper uses :data:`BOOST_INPUT_VOLTAGE` = 100 V), output
-    ``y = v_0`` (``H = [0 1]``)::
+    State :math:`x = [i_L, v_0]` (inductor current in A, output voltage in V), input
+    :math:`u = v_\\mathrm{in}` (the paper uses :data:`BOOST_INPUT_VOLTAGE` = 100 V), output
+    :math:`y = v_0` (:math:`H = [0 \\;\\; 1]`):
 
-        A(1) = [[-R1/L1, 0], [0, -1/(R0 C0)]]          (mode 0 in code)
-        A(2) = [[-R1/L1, -1/L1], [1/C0, -1/(R0 C0)]]   (mode 1 in code)
-        B(1) = B(2) = [1/L1, 0]'
+    .. math::
+
+        \\begin{aligned}
+        A(1) &= \\begin{bmatrix} -R_1/L_1 & 0 \\\\ 0 & -1/(R_0 C_0) \\end{bmatrix}
+            && \\text{(mode 0 in code)}, \\\\
+        A(2) &= \\begin{bmatrix} -R_1/L_1 & -1/L_1 \\\\ 1/C_0 & -1/(R_0 C_0) \\end{bmatrix}
+            && \\text{(mode 1 in code)}, \\\\
+        B(1) &= B(2) = [1/L_1, 0]^\\top
+        \\end{aligned}
 
     Mode 0 is the switch closed (the source charges the inductor, the capacitor
     discharges into the load), mode 1 the switch open (the inductor feeds the
-    output). The model is linear: it has no diode, so ``i_L`` may go negative in
+    output). The model is linear: it has no diode, so :math:`i_L` may go negative in
     mode 1 (it does, down to about -6 A, on the paper's 1.2 ms alternation).
 
     Parameters
@@ -83,12 +90,13 @@ def boost_converter(
         output capacitance (F); defaults are the paper's 2 ohm, 500 uH, 50 ohm,
         470 uF.
     process_noise : float or array_like, shape (2, 2)
-        Continuous-time process-noise intensity ``Q`` (a scalar ``q`` means
-        ``q I``, units A^2/s and V^2/s). **Not stated in the paper**; our default
-        ``1.0`` gives a per-sample standard deviation of about 0.02 A and 0.02 V
-        at T = 0.5 ms, a hundred times below the measurement noise.
+        Continuous-time process-noise intensity :math:`Q` (a scalar :math:`q` means
+        :math:`q I`, units :math:`\\mathrm{A}^2/\\mathrm{s}` and :math:`\\mathrm{V}^2/\\mathrm{s}`).
+        **Not stated in the paper**; our default ``1.0`` gives a per-sample standard deviation
+        of about 0.02 A and 0.02 V at :math:`T = 0.5` ms, a hundred times below the
+        measurement noise.
     measurement_variance : float
-        ``R`` in V^2; the paper's 5 V^2.
+        :math:`R` in :math:`\\mathrm{V}^2`; the paper's 5 :math:`\\mathrm{V}^2`.
 
     Returns
     -------
@@ -145,7 +153,7 @@ def boost_switching(
     min_dwell, max_dwell : float
         Range of the random gaps (0.9 ms and 1.2 ms).
     initial_mode : int
-        Mode at ``t = 0`` (0-based; the paper's Fig. 2 starts in mode 1, i.e. 0).
+        Mode at :math:`t = 0` (0-based; the paper's Fig. 2 starts in mode 1, i.e. 0).
     """
     first_dwell = positive_scalar(first_dwell, "first_dwell")
     t_change = positive_scalar(t_change, "t_change")
@@ -177,22 +185,23 @@ class BoostTable1:
 
     The one recipe of the Table I reproduction, ``switchest demo`` and
     ``examples/shankar_table1.py``: the boost converter (:func:`boost_converter`) driven by
-    ``v_in`` = :data:`BOOST_INPUT_VOLTAGE`, sampled every :data:`BOOST_SAMPLE_PERIOD`, switching
-    as :func:`boost_switching`. Unstated in the paper and chosen here: the process-noise
-    intensity, the prior ``N(x0, P0)`` (the true initial state is drawn from it and every
+    :math:`v_\\mathrm{in}` = :data:`BOOST_INPUT_VOLTAGE`, sampled every
+    :data:`BOOST_SAMPLE_PERIOD`, switching as :func:`boost_switching`. Unstated in the paper and
+    chosen here: the process-noise intensity, the prior :math:`\\mathcal{N}(x_0, P_0)` (the true
+    initial state is drawn from it and every
     filter starts from it), the IMM's transition matrix and the transient left out of the
     RMSE.
 
     Attributes
     ----------
     process_noise : float
-        Process-noise intensity ``q`` (``Q = q I``).
+        Process-noise intensity :math:`q` (:math:`Q = q I`).
     x0 : tuple of float
-        Prior mean ``[i_L, v_0]``: 0 A, 100 V.
+        Prior mean :math:`[i_L, v_0]`: 0 A, 100 V.
     P0_diagonal : tuple of float
         Prior variances.
     transition : tuple of tuple of float
-        The IMM's ``transition[i, j]``: a switch with probability about ``T`` over the mean
+        The IMM's ``transition[i, j]``: a switch with probability about :math:`T` over the mean
         gap, 0.5 ms / 1.05 ms.
     transient : int
         Samples left out of the RMSE (10 ms).
@@ -217,7 +226,7 @@ class BoostTable1:
 
     @property
     def input(self) -> np.ndarray:
-        """The constant input ``u = [v_in]``."""
+        """The constant input :math:`u = [v_\\mathrm{in}]`."""
         return np.array([BOOST_INPUT_VOLTAGE])
 
     def system(self) -> SwitchedLinearSystem:
@@ -238,13 +247,18 @@ class BoostTable1:
 def vehicle_2d(*, measurement_variance: float = 0.05, process_noise=1e-3) -> SwitchedLinearSystem:
     """The maneuvering vehicle of Shankar et al. §V.B.
 
-    State ``x = [x_1, dx_1/dt, x_2, dx_2/dt]``, scalar input ``u``::
+    State :math:`x = [x_1, dx_1/dt, x_2, dx_2/dt]`, scalar input :math:`u`:
 
-        A(1) = A(2) = A(3) = I_2 kron [[0, 1], [0, 0]]
-        B(1) = [0, 0, 0, 0]'    (mode 0: straight)
-        B(2) = [0, -1, 0, 1]'   (mode 1)
-        B(3) = [0, 1, 0, -1]'   (mode 2)
-        H = [[1, 0, 0, 0], [0, 0, 1, 0]],   R = 0.05 I_2
+    .. math::
+
+        \\begin{aligned}
+        A(1) &= A(2) = A(3) = I_2 \\otimes \\begin{bmatrix} 0 & 1 \\\\ 0 & 0 \\end{bmatrix}, \\\\
+        B(1) &= [0, 0, 0, 0]^\\top && \\text{(mode 0: straight)}, \\\\
+        B(2) &= [0, -1, 0, 1]^\\top && \\text{(mode 1)}, \\\\
+        B(3) &= [0, 1, 0, -1]^\\top && \\text{(mode 2)}, \\\\
+        H &= \\begin{bmatrix} 1 & 0 & 0 & 0 \\\\ 0 & 0 & 1 & 0 \\end{bmatrix}, \\qquad
+            R = 0.05\\, I_2
+        \\end{aligned}
 
     Its exact ZOH discretization is the paper's eq. (24).
 
@@ -253,11 +267,12 @@ def vehicle_2d(*, measurement_variance: float = 0.05, process_noise=1e-3) -> Swi
     measurement_variance : float
         Variance of each position measurement (the paper's 0.05).
     process_noise : float or array_like, shape (4, 4)
-        Continuous-time process-noise intensity ``Q`` (a scalar ``q`` means
-        ``q I_4``). **Not stated in the paper**; the default ``1e-3 I_4`` is the
+        Continuous-time process-noise intensity :math:`Q` (a scalar :math:`q` means
+        :math:`q I_4`). **Not stated in the paper**; the default :math:`10^{-3} I_4` is the
         value of the switchest IMM benchmark (issue 3). Over one sample
-        ``T = 0.5 s`` it gives the per-step covariance
-        ``1e-3 * I_2 kron [[T + T^3/3, T^2/2], [T^2/2, T]]``.
+        :math:`T = 0.5` s it gives the per-step covariance
+        :math:`10^{-3}\\, I_2 \\otimes \\begin{bmatrix} T + T^3/3 & T^2/2 \\\\ T^2/2 & T
+        \\end{bmatrix}`.
 
     Returns
     -------
@@ -283,9 +298,9 @@ class VehicleManeuver:
         Mode 1 (0 in code) until 1.65 s, mode 2 (1) until 2.75 s, mode 3 (2)
         until 3.9 s, then mode 1 (0) again.
     t : ndarray, shape (K,)
-        Sample times ``0, T, ..., t_end``.
+        Sample times :math:`0, T, \\dots, t_\\mathrm{end}`.
     u : ndarray, shape (K, 1)
-        The constant input ``u(t) = 1`` held over each sample interval.
+        The constant input :math:`u(t) = 1` held over each sample interval.
     """
 
     signal: SwitchingSignal
@@ -307,7 +322,7 @@ def vehicle_maneuver(*, T: float = 0.5, t_end: float = 10.0, u: float = 1.0) -> 
     T : float
         Sampling period (0.5 s).
     t_end : float
-        Horizon (10 s); the samples are ``0, T, ..., t_end``.
+        Horizon (10 s); the samples are :math:`0, T, \\dots, t_\\mathrm{end}`.
     u : float
         The constant input (1).
     """

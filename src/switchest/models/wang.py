@@ -5,16 +5,18 @@
 * the IEEE 5-bus power system of §6 (Example 5) with four sensor/packet-loss
   modes.
 
-Wang et al. use a continuous output, eq. (1)::
+Wang et al. use a continuous output, eq. (1):
 
-    dx = A(alpha) x dt,     dy = C(alpha) x dt + Xi(alpha) dw
+.. math::
 
-with ``w`` a standard Brownian motion and modes ``alpha_k`` i.i.d. at the
-instants ``kT`` (their Assumption 1). A :class:`SwitchedLinearSystem` stores the
-output-noise intensity ``Xi Xi'`` in ``R``: for these systems ``R`` is the
-intensity of the Brownian increment ``dy - C x dt`` (covariance ``R dt`` over
-``dt``), not the covariance of a sampled measurement. There is no process noise
-(``Q = 0``) and no input.
+    dx = A(\\alpha)\\, x\\, dt, \\qquad dy = C(\\alpha)\\, x\\, dt + \\Xi(\\alpha)\\, dw
+
+with :math:`w` a standard Brownian motion and modes :math:`\\alpha_k` i.i.d. at the
+instants :math:`kT` (their Assumption 1). A :class:`SwitchedLinearSystem` stores the
+output-noise intensity :math:`\\Xi \\Xi^\\top` in ``R``: for these systems :math:`R` is the
+intensity of the Brownian increment :math:`dy - C x\\, dt` (covariance :math:`R\\, dt` over
+:math:`dt`), not the covariance of a sampled measurement. There is no process noise
+(:math:`Q = 0`) and no input.
 """
 
 from __future__ import annotations
@@ -57,15 +59,19 @@ def wang_scalar_pair(
 ) -> SwitchedLinearSystem:
     """The two decoupled scalar systems of Wang et al. Example 1 (also Examples 2-4).
 
-    ::
+    .. math::
 
-        dx_1 = a1 x_1 dt,   dx_2 = a2 x_2 dt
-        dy   = (1{alpha = 1} c1 x_1 + 1{alpha = 2} c2 x_2) dt + sqrt(zeta) dw
+        \\begin{aligned}
+        dx_1 &= a_1 x_1\\, dt, \\qquad dx_2 = a_2 x_2\\, dt, \\\\
+        dy &= (\\mathbf{1}\\{\\alpha = 1\\}\\, c_1 x_1
+               + \\mathbf{1}\\{\\alpha = 2\\}\\, c_2 x_2)\\, dt + \\sqrt{\\zeta}\\, dw
+        \\end{aligned}
 
-    so ``A = diag(a1, a2)`` in both modes, ``C(1) = [c1, 0]`` (mode 0 in code),
-    ``C(2) = [0, c2]`` (mode 1), and the output-noise intensity
-    ``R = Xi Xi' = zeta`` in both modes. Neither mode is observable on its own
-    (Example 1: ``W(1) = [[1, 0], [a1, 0]]``, ``W(2) = [[0, 1], [0, a2]]``).
+    so :math:`A = \\operatorname{diag}(a_1, a_2)` in both modes, :math:`C(1) = [c_1, 0]` (mode 0
+    in code), :math:`C(2) = [0, c_2]` (mode 1), and the output-noise intensity
+    :math:`R = \\Xi \\Xi^\\top = \\zeta` in both modes. Neither mode is observable on its own
+    (Example 1: :math:`W(1) = \\begin{bmatrix} 1 & 0 \\\\ a_1 & 0 \\end{bmatrix}`,
+    :math:`W(2) = \\begin{bmatrix} 0 & 1 \\\\ 0 & a_2 \\end{bmatrix}`).
 
     Parameters
     ----------
@@ -75,11 +81,11 @@ def wang_scalar_pair(
         Output-noise intensity. Example 1 does not state it; the default 0.01 is
         Example 4's value for "the system in Example 1" (Example 3 uses 1).
     c1, c2 : float
-        Output gains; 1 in every example (Example 3 states ``c1 = c2 = 1``).
+        Output gains; 1 in every example (Example 3 states :math:`c_1 = c_2 = 1`).
 
     Notes
     -----
-    The mode probabilities ``Pr{alpha_k = 1} = p`` are not part of the system:
+    The mode probabilities :math:`\\Pr(\\alpha_k = 1) = p` are not part of the system:
     see :func:`wang_scalar_pair_probabilities` and :data:`WANG_EXAMPLES`.
     """
     a1, a2 = _real(a1, "a1"), _real(a2, "a2")
@@ -93,9 +99,10 @@ def wang_scalar_pair(
 
 
 def wang_scalar_pair_probabilities(p: float = 0.2) -> np.ndarray:
-    """Mode probabilities ``[p, 1 - p]`` with ``p = Pr{alpha_k = 1}`` (Wang et al. Example 1).
+    """Mode probabilities :math:`[p, 1 - p]` with :math:`p = \\Pr(\\alpha_k = 1)` (Wang et al.
+    Example 1).
 
-    ``p`` must lie in (0, 1) (Assumption 1(b): every ``p_i > 0``).
+    ``p`` must lie in :math:`(0, 1)` (Assumption 1(b): every :math:`p_i > 0`).
     """
     p = positive_scalar(p, "p")
     if p >= 1.0:
@@ -112,7 +119,7 @@ class ScalarPairExample:
     a1, a2, zeta : float
         System parameters (see :func:`wang_scalar_pair`).
     p : float
-        ``Pr{alpha_k = 1}``.
+        :math:`\\Pr(\\alpha_k = 1)`.
     T : float or None
         Switching interval; ``None`` where the example fixes no value.
     """
@@ -128,7 +135,7 @@ class ScalarPairExample:
         return wang_scalar_pair(self.a1, self.a2, self.zeta)
 
     def probabilities(self) -> np.ndarray:
-        """The example's mode probabilities ``[p, 1 - p]``."""
+        """The example's mode probabilities :math:`[p, 1 - p]`."""
         return wang_scalar_pair_probabilities(self.p)
 
 
@@ -155,22 +162,24 @@ IEEE_5BUS_A = np.array(
     ]
 )
 IEEE_5BUS_A.setflags(write=False)
-"""The linearized 5-bus ``A`` as printed in Wang et al. §6, state ``[d1, w1, d2, w2]``.
+"""The linearized 5-bus ``A`` as printed in Wang et al. §6, state
+:math:`[\\delta_1, \\omega_1, \\delta_2, \\omega_2]`.
 
 Its eigenvalues are the printed {-5.3880, 5.2302, 0, -0.1253} to the last digit.
-The paper computed with more digits than it printed: its gain for the delta_1-only
-mode, ``[20.7170, 187.0468, -123.7698, -568.3264]``, is reproduced to the printed
-digits only with the exact damping ``b_1/M_1 = 0.105263``, ``b_2/M_2 = 0.177778`` and
+The paper computed with more digits than it printed: its gain for the :math:`\\delta_1`-only
+mode, :math:`[20.7170, 187.0468, -123.7698, -568.3264]`, is reproduced to the printed
+digits only with the exact damping :math:`b_1/M_1 = 0.105263`, :math:`b_2/M_2 = 0.177778` and
 couplings ``7.79261``, ``20.38663`` (least-squares fit, within the rounding of the
 printed entries); this rounded ``A`` gives it to about 4e-3
 (tests/analysis/test_subsystem_observers.py).
 """
 
 IEEE_5BUS_SAMPLE_PERIOD = 0.6997
-"""The switching interval ``T`` Wang et al. §6 select (below their ``T_max = 0.7365``)."""
+"""The switching interval :math:`T` Wang et al. §6 select (below their
+:math:`T_\\mathrm{max} = 0.7365`)."""
 
 IEEE_5BUS_INITIAL_ERROR = (2.0, 0.0, 1.0, 0.0)
-"""The initial estimation error ``e(0)`` of Wang et al. §6 (norm 2.2361)."""
+"""The initial estimation error :math:`e(0)` of Wang et al. §6 (norm 2.2361)."""
 
 IEEE_5BUS_POLES = (-6.0, -4.5, -5.0, -5.5)
 """Observer closed-loop poles of the first design, Wang et al. §6."""
@@ -188,31 +197,40 @@ def ieee_5bus(
 ) -> SwitchedLinearSystem:
     """The IEEE 5-bus system of Wang et al. §6 (Example 5) with its four sensor modes.
 
-    State ``x = [delta_1, omega_1, delta_2, omega_2]`` (generator angle and speed
+    State :math:`x = [\\delta_1, \\omega_1, \\delta_2, \\omega_2]` (generator angle and speed
     deviations), ``A`` = the printed linearization :data:`IEEE_5BUS_A` in every
     mode (see :func:`ieee_5bus_from_tables` for why the printed one is used).
-    Sensors measure ``delta_1`` (sensor 1) and ``delta_2`` (sensor 2), the first
-    row of Table 3; their packets may be lost, which gives the modes::
+    Sensors measure :math:`\\delta_1` (sensor 1) and :math:`\\delta_2` (sensor 2), the first
+    row of Table 3; their packets may be lost, which gives the modes:
 
-        C(1) = [[1, 0, 0, 0], [0, 0, 1, 0]]   both delivered        (mode 0)
-        C(2) = [[1, 0, 0, 0], [0, 0, 0, 0]]   sensor 2 lost         (mode 1)
-        C(3) = [[0, 0, 0, 0], [0, 0, 1, 0]]   sensor 1 lost         (mode 2)
-        C(4) = 0                               both lost             (mode 3)
+    .. math::
 
-    The paper writes ``C(2) = [1, 0, 0, 0]``, ``C(3) = [0, 0, 1, 0]`` and
-    ``C(4) = [0, 0, 0, 0]`` as single rows; all modes of a switched system share
+        \\begin{aligned}
+        C(1) &= \\begin{bmatrix} 1 & 0 & 0 & 0 \\\\ 0 & 0 & 1 & 0 \\end{bmatrix}
+            && \\text{both delivered (mode 0)}, \\\\
+        C(2) &= \\begin{bmatrix} 1 & 0 & 0 & 0 \\\\ 0 & 0 & 0 & 0 \\end{bmatrix}
+            && \\text{sensor 2 lost (mode 1)}, \\\\
+        C(3) &= \\begin{bmatrix} 0 & 0 & 0 & 0 \\\\ 0 & 0 & 1 & 0 \\end{bmatrix}
+            && \\text{sensor 1 lost (mode 2)}, \\\\
+        C(4) &= 0 && \\text{both lost (mode 3)}.
+        \\end{aligned}
+
+    The paper writes :math:`C(2) = [1, 0, 0, 0]`, :math:`C(3) = [0, 0, 1, 0]` and
+    :math:`C(4) = [0, 0, 0, 0]` as single rows; all modes of a switched system share
     one output size, so a lost channel is kept as a zero row of ``C`` (its output
-    is pure noise and carries no information about ``x``). Probabilities: see
+    is pure noise and carries no information about :math:`x`). Probabilities: see
     :func:`ieee_5bus_mode_probabilities`.
 
-    ``R`` holds the output-noise intensity ``Xi Xi'`` (the output is
-    ``dy = C x dt + Xi dw``, Wang et al. eq. (1)). The paper gives the standard
-    deviations ``Xi(1) = 0.01 [1, 1]'``, ``Xi(2) = 0.011``, ``Xi(3) = 0.012``.
-    Read literally, ``Xi(1)`` is one Brownian motion driving both channels, whose
-    intensity ``1e-4 [[1, 1], [1, 1]]`` is singular (and a singular ``R`` would let
-    ``delta_1 - delta_2`` be read without noise); we read it as a standard
-    deviation of 0.01 on each of two independent channels, ``R(1) = 1e-4 I_2``.
-    ``Xi(4)`` and the intensity of a lost channel are not stated; ``std_lost``
+    ``R`` holds the output-noise intensity :math:`\\Xi \\Xi^\\top` (the output is
+    :math:`dy = C x\\, dt + \\Xi\\, dw`, Wang et al. eq. (1)). The paper gives the standard
+    deviations :math:`\\Xi(1) = 0.01 [1, 1]^\\top`, :math:`\\Xi(2) = 0.011`,
+    :math:`\\Xi(3) = 0.012`. Read literally, :math:`\\Xi(1)` is one Brownian motion driving
+    both channels, whose intensity
+    :math:`10^{-4} \\begin{bmatrix} 1 & 1 \\\\ 1 & 1 \\end{bmatrix}` is singular (and a
+    singular :math:`R` would let :math:`\\delta_1 - \\delta_2` be read without noise); we read
+    it as a standard deviation of 0.01 on each of two independent channels,
+    :math:`R(1) = 10^{-4} I_2`.
+    :math:`\\Xi(4)` and the intensity of a lost channel are not stated; ``std_lost``
     sets it (it does not affect any estimate, since the channel's row of ``C``
     is zero).
 
@@ -221,9 +239,9 @@ def ieee_5bus(
     std_normal : float
         Per-channel standard deviation in mode 0 (the paper's 0.01).
     std_delta1_only : float
-        Standard deviation of the ``delta_1`` channel in mode 1 (0.011).
+        Standard deviation of the :math:`\\delta_1` channel in mode 1 (0.011).
     std_delta2_only : float
-        Standard deviation of the ``delta_2`` channel in mode 2 (0.012).
+        Standard deviation of the :math:`\\delta_2` channel in mode 2 (0.012).
     std_lost : float
         Standard deviation of a lost channel (our choice, 0.01).
 
@@ -249,15 +267,17 @@ def ieee_5bus(
 def ieee_5bus_mode_probabilities(delivery1: float = 0.99, delivery2: float = 0.995) -> np.ndarray:
     """Mode probabilities of the 5-bus sensor modes (Wang et al. §6).
 
-    With packet delivery ratios ``xi_1`` (sensor 1, ``delta_1``) and ``xi_2``
-    (sensor 2, ``delta_2``), independent::
+    With packet delivery ratios :math:`\\xi_1` (sensor 1, :math:`\\delta_1`) and :math:`\\xi_2`
+    (sensor 2, :math:`\\delta_2`), independent:
 
-        p_1 = xi_1 xi_2,  p_2 = xi_1 (1 - xi_2),  p_3 = (1 - xi_1) xi_2,
-        p_4 = (1 - xi_1)(1 - xi_2)
+    .. math::
 
-    returned 0-based as ``[p_1, p_2, p_3, p_4]``. For the paper's 0.99 and 0.995
-    this is ``[0.98505, 0.00495, 0.00995, 0.00005]``; the paper prints the
-    rounded ``0.985, 0.005, 0.01, 5e-5``, which sum to 1.00005, not 1.
+        p_1 = \\xi_1 \\xi_2, \\quad p_2 = \\xi_1 (1 - \\xi_2), \\quad p_3 = (1 - \\xi_1) \\xi_2,
+        \\quad p_4 = (1 - \\xi_1)(1 - \\xi_2)
+
+    returned 0-based as :math:`[p_1, p_2, p_3, p_4]`. For the paper's 0.99 and 0.995
+    this is :math:`[0.98505, 0.00495, 0.00995, 0.00005]`; the paper prints the
+    rounded :math:`0.985, 0.005, 0.01, 5 \\cdot 10^{-5}`, which sum to 1.00005, not 1.
     """
     xi1 = positive_scalar(delivery1, "delivery1")
     xi2 = positive_scalar(delivery2, "delivery2")
@@ -305,19 +325,23 @@ def ieee_5bus_from_tables(
 ) -> np.ndarray:
     """The 5-bus ``A`` rebuilt from Wang et al.'s Tables 1-2 and equation (26).
 
-    Generators at buses 1-2, ``M_i dw_i/dt + b_i w_i = P_in^i - P_L^i + sum_j
-    P_ji^i`` (§6), line flows by eq. (26) exactly as printed::
+    Generators at buses 1-2,
+    :math:`M_i\\, d\\omega_i/dt + b_i \\omega_i = P_\\mathrm{in}^i - P_L^i + \\sum_j P_{ji}^i`
+    (§6), line flows by eq. (26) exactly as printed:
 
-        P_ij^j = V_j^2 / |Z_ij| cos(theta_ij) - V_i V_j / X_ij cos(theta_ij + delta_i - delta_j)
+    .. math::
 
-    with ``|Z|, theta, X`` from Table 1 and ``V, delta`` from Table 2; the load
-    buses 3-5 hold their power (``0 = H_1 x_nd + H_2 x_d``), which eliminates
-    their angles: ``x_nd = H x_d`` with ``H = -H_1^{-1} H_2`` (the paper misprints
-    it ``H_1 = -H_1^{-1} H_2``), ``A = A_1 + A_2 H``.
+        P_{ij}^j = \\frac{V_j^2}{|Z_{ij}|} \\cos(\\theta_{ij})
+            - \\frac{V_i V_j}{X_{ij}} \\cos(\\theta_{ij} + \\delta_i - \\delta_j)
+
+    with :math:`|Z|, \\theta, X` from Table 1 and :math:`V, \\delta` from Table 2; the load
+    buses 3-5 hold their power (:math:`0 = H_1 x_\\mathrm{nd} + H_2 x_d`), which eliminates
+    their angles: :math:`x_\\mathrm{nd} = H x_d` with :math:`H = -H_1^{-1} H_2` (the paper
+    misprints it :math:`H_1 = -H_1^{-1} H_2`), :math:`A = A_1 + A_2 H`.
 
     Deviation from the printed :data:`IEEE_5BUS_A` (measured in the tests):
 
-    * the damping entries ``-b_1/M_1 = -0.1053`` and ``-b_2/M_2 = -0.1778`` agree
+    * the damping entries :math:`-b_1/M_1 = -0.1053` and :math:`-b_2/M_2 = -0.1778` agree
       to the printed digits, and every row sums to zero as in the print (a
       common angle shift is an equilibrium: the eigenvalue 0);
     * the couplings do not: with Table 2's angles in degrees (the standard
@@ -338,29 +362,29 @@ def ieee_5bus_from_tables(
         Unit of Table 2's angles.
     M, b : tuple of float
         Inertias and damping of generators 1 and 2 (§6: 1.9, 0.9 and 0.2, 0.16;
-        the paper misprints ``b_2`` as a second ``b_1``).
+        the paper misprints :math:`b_2` as a second :math:`b_1`).
     impedance : {"X", "Z"}
-        Denominator of eq. (26)'s angle term: ``X_ij`` as printed, or ``|Z_ij|``
+        Denominator of eq. (26)'s angle term: :math:`X_{ij}` as printed, or :math:`|Z_{ij}|`
         (Table 1's), as in the textbook line flow. Constant-power loads only.
     line_angle : {"printed", "exact", "lossless"}
-        ``theta_ij``: Table 1's rounded angle, ``atan(X/R)`` from Table 1's ``R``
-        and ``X``, or ``pi/2`` (lossless lines, ``R = 0``). With impedance loads
-        the line impedance is ``|Z| e^{j theta}`` (printed), ``R + jX`` (exact) or
-        ``jX`` (lossless).
+        :math:`\\theta_{ij}`: Table 1's rounded angle, :math:`\\arctan(X/R)` from Table 1's
+        :math:`R` and :math:`X`, or :math:`\\pi/2` (lossless lines, :math:`R = 0`). With
+        impedance loads the line impedance is :math:`|Z| e^{j \\theta}` (printed),
+        :math:`R + jX` (exact) or :math:`jX` (lossless).
     flow : {"printed", "reversed"}
-        The sign of the angle difference in eq. (26): ``delta_i - delta_j`` as
-        printed, or ``delta_j - delta_i`` (the flow that leaves bus ``j``).
+        The sign of the angle difference in eq. (26): :math:`\\delta_i - \\delta_j` as
+        printed, or :math:`\\delta_j - \\delta_i` (the flow that leaves bus :math:`j`).
         Constant-power loads only.
     loads : {"power", "impedance"}
         Load buses holding their power (the text), or loads as constant
-        admittances ``(P_L - j Q_L) / V^2`` from Table 2, the load buses
+        admittances :math:`(P_L - j Q_L) / V^2` from Table 2, the load buses
         eliminated by Kron reduction of the network's admittance matrix and the
-        generators' electrical power ``Re(E_i conj(I_i))`` linearized.
+        generators' electrical power :math:`\\operatorname{Re}(E_i \\bar{I}_i)` linearized.
     generator_voltage : {"table", "flat"}
         Generator voltage magnitudes from Table 2, or 1 p.u.
     internal_reactance : float, optional
         A reactance (p.u.) between each generator's internal voltage and its
-        bus, the internal voltage set by Table 2's generation ``P + jQ``; not in
+        bus, the internal voltage set by Table 2's generation :math:`P + jQ`; not in
         the paper (impedance loads only).
     bus2_load : bool
         Whether bus 2's own load (Table 2: 20 MW, 10 MVAr) is a shunt admittance
@@ -370,7 +394,7 @@ def ieee_5bus_from_tables(
     Returns
     -------
     ndarray, shape (4, 4)
-        ``A`` for the state ``[delta_1, omega_1, delta_2, omega_2]``.
+        :math:`A` for the state :math:`[\\delta_1, \\omega_1, \\delta_2, \\omega_2]`.
     """
     choices = {"angle_unit": (angle_unit, ("deg", "rad")), "impedance": (impedance, ("X", "Z")),
                "line_angle": (line_angle, ("printed", "exact", "lossless")),
@@ -414,8 +438,8 @@ def _line_angle(R: float, X: float, theta: float, reading: str) -> float:
 
 
 def _coupling_constant_power(delta, V, impedance: str, line_angle: str, flow: str) -> np.ndarray:
-    """``d(power into generator i)/d(delta_k)`` ``(2, 2)`` by equation (26), load buses at constant
-    power."""
+    """:math:`\\partial (\\text{power into generator } i) / \\partial \\delta_k` ``(2, 2)`` by
+    equation (26), load buses at constant power."""
     sign = 1.0 if flow == "printed" else -1.0
     # J[j, k] = d(sum_i P_ij^j)/d(delta_k): sensitivity of the power flowing into bus j.
     J = np.zeros((5, 5))
@@ -433,8 +457,8 @@ def _coupling_constant_power(delta, V, impedance: str, line_angle: str, flow: st
 
 def _coupling_constant_impedance(delta, V, line_angle: str, internal_reactance: float | None,
                                  bus2_load: bool) -> np.ndarray:
-    """``-d(electrical power of generator i)/d(delta_k)`` ``(2, 2)`` of the Kron-reduced network
-    with the loads as constant admittances."""
+    """:math:`-\\partial (\\text{electrical power of generator } i) / \\partial \\delta_k`
+    ``(2, 2)`` of the Kron-reduced network with the loads as constant admittances."""
     Y = np.zeros((5, 5), dtype=complex)
     for (p, q), (R, X, Z, theta) in _LINES.items():
         z = {"printed": Z * np.exp(1j * theta), "exact": complex(R, X),
