@@ -83,10 +83,11 @@ class IMMFilter(ModeBankFilter):
     its posterior (Gaussian given mode-matched posteriors). Moment-matching that mixture is
     Blom & Bar-Shalom's approximation, applied after the prediction instead of before it.
 
-    ``smooth(y, u, t)`` gives the fixed-interval smoothed estimates and mode probabilities:
-    Kim's (1994) backward recursion on the IMM's mode-matched posteriors, as Murphy (1998,
-    "Switching Kalman filters", §3-4) applies it to collapsing filters
-    (:meth:`~switchest.estimators.mode_bank.ModeBankFilter.smooth`).
+    ``smooth(y, u, t)`` gives the fixed-interval smoothed estimates and mode probabilities
+    (:meth:`~switchest.estimators.mode_bank.ModeBankFilter.smooth`): by default the two-filter
+    smoother on the IMM's mode-matched posteriors (Helmick, Blair & Hoffman 1995), with
+    ``method="kim"`` Kim's (1994) backward recursion, as Murphy (1998, "Switching Kalman
+    filters", §3-4) applies it to collapsing filters.
 
     Examples
     --------

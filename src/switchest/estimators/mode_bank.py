@@ -7,8 +7,9 @@ only in the compiled kernel that takes one sample: the IMM's interaction (Blom &
 1988), GPB1's collapse (Bar-Shalom, Li & Kirubarajan §11.6.4) or GPB2's pairs of modes
 (§11.6.5). :class:`ModeBankFilter` holds what they share; a filter names its kernels.
 
-``smooth`` runs Kim's (1994) backward recursion on the filter's mode-matched posteriors
-(:func:`switchest.estimators.smoothing.smooth_mode_matched`).
+``smooth`` runs a backward pass on the filter's mode-matched posteriors: by default the
+two-filter smoother (:mod:`switchest.estimators.two_filter`), with ``method="kim"`` Kim's
+(1994) recursion (:func:`switchest.estimators.smoothing.smooth_mode_matched`).
 
 Convention (all of switchest): ``transition[i, j]`` =
 :math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`. The mode
