@@ -10,7 +10,6 @@ scripts of ``examples/`` (sphinx-gallery).
 
 from __future__ import annotations
 
-import doctest
 import os
 import sys
 from pathlib import Path
@@ -58,7 +57,6 @@ import numpy as np
 from switchest import *
 from switchest.estimators import *
 """
-doctest_default_flags = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 
 # -- plots drawn at build time ---------------------------------------------------------------
 plot_include_source = True

@@ -27,7 +27,7 @@ from switchest.discretize import mode_steps
 from switchest.engine import GATED, OK, PARTLY_GATED
 from switchest.engine.gpb import gpb2_run
 from switchest.engine.imm import imm_run
-from switchest.estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
+from switchest.estimators import ExactMixtureFilter, IMMFilter, ModeBankFilter, ModeKalmanFilter
 from switchest.estimators.gpb import GPB1Filter, GPB2Filter
 
 # These tests run each timing on systems of the default ('sample') timing on purpose, to compare
@@ -490,7 +490,5 @@ def test_bad_records_are_refused_as_by_the_imm(y, t, match):
 
 def test_the_bank_base_class_is_refused_by_name():
     """``ModeBankFilter`` names no interaction: building it says which classes to build."""
-    from switchest.estimators import ModeBankFilter
-
     with pytest.raises(TypeError, match="construct one of those"):
         ModeBankFilter(SYS2, **GOOD)
