@@ -32,6 +32,7 @@ from switchest.learn.noise_step import intensity_maps
 from switchest.learn.steps import grid_table
 from switchest.modelfile import load_model
 from switchest.simulate import simulate
+from switchest.system import SwitchedLinearSystem
 
 BOOST = Path(__file__).resolve().parents[1] / "examples" / "models" / "shankar-boost.toml"
 U = np.array([100.0])  # v_in of the file's description
@@ -185,12 +186,15 @@ def test_the_intensity_maps_are_computed_once_per_fit(boost, monkeypatch):
     assert not np.allclose(fits[True], start.Q)  # the steps moved Q
 
 
-def test_between_needs_known_modes_of_a_continuous_system(boost):
+def test_between_needs_a_continuous_system(boost):
     spec, t = boost
     sys, (x0, P0) = spec.system, spec.initial
     y = np.zeros((t.size, 1))
-    with pytest.raises(ValueError, match="switch_times='between' needs the known modes"):
-        fit(sys, y, U, t, x0=x0, P0=P0, switch_times="between")
+    discrete = SwitchedLinearSystem.discrete(np.eye(2)[None].repeat(2, axis=0), None, sys.C,
+                                             sys.Q, sys.R, dt=1.0)
+    with pytest.raises(ValueError, match="switch_times='between' needs a continuous-time"):
+        fit(discrete, y, t=np.arange(t.size, dtype=float), x0=x0, P0=P0,
+            switch_times="between")
     with pytest.raises(ValueError, match="switch_times must be 'samples' or 'between'"):
         fit(sys, y, U, t, x0=x0, P0=P0, modes=np.zeros(t.size, int), switch_times="inside")
 

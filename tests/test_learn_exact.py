@@ -166,7 +166,7 @@ def identified_system(R_scale):
     """Three modes with different A, Q, C, R whose outputs (C = I, -I and a quarter turn, on a
     state of norm 3 to 4.5) name the mode at every sample: with ``R_scale = 0.1`` a wrong mode's
     log-likelihood at a sample is 90 to 400 below the right one's, so the posterior of the modes
-    is 0 or 1 to ~1e-39 (and does not underflow to exactly 0), and GPB2 and Kim's smoother are
+    is 0 or 1 to ~1e-39 (and does not underflow to exactly 0), and GPB2 and the smoothers are
     exact to rounding; with ``R_scale = 1e-6`` the wrong modes' filtered probabilities underflow
     to exactly zero."""
     def rot(a, s):
@@ -181,7 +181,7 @@ def identified_system(R_scale):
 PI3 = np.array([[0.8, 0.15, 0.05], [0.1, 0.8, 0.1], [0.05, 0.15, 0.8]])  # asymmetric
 
 
-def kim_against_exact(R_scale):
+def approximate_against_exact(R_scale):
     system = identified_system(R_scale)
     m0, S0 = np.array([3.0, -3.0]), 0.01 * np.eye(2)
     traj = simulate(system, MarkovAtSamples(PI3, initial=0), np.arange(7.0), (m0, S0),
@@ -190,36 +190,36 @@ def kim_against_exact(R_scale):
     exact = expectation(system, PI3, m0, S0, data, exact=True)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the divergence warning of the broken case
-        kim = expectation(system, PI3, m0, S0, data)
+        approx = expectation(system, PI3, m0, S0, data)
     assert np.all((exact.weight < 1e-30) | (exact.weight > 1 - 1e-15))  # identified
     for name in ("weight", "step_weight", "pairs"):
-        np.testing.assert_allclose(getattr(kim, name), getattr(exact, name), rtol=RTOL,
+        np.testing.assert_allclose(getattr(approx, name), getattr(exact, name), rtol=RTOL,
                                    atol=1e-15, err_msg=name)
     # moments given a mode: compared where that mode has the weight (elsewhere each method
     # keeps its own stand-in, multiplied by a weight below 1e-30 in every M-step)
     F, G = exact.table.F[exact.entry], exact.table.G[exact.entry]
-    e, k = (step_residual_moments(F, G, data.u, m) for m in (exact, kim))
-    pairs = [(getattr(exact, name), getattr(kim, name), exact.weight > 0.5)
+    e, k = (step_residual_moments(F, G, data.u, m) for m in (exact, approx))
+    pairs = [(getattr(exact, name), getattr(approx, name), exact.weight > 0.5)
              for name in ("x", "P")]
-    pairs += [(getattr(exact, name), getattr(kim, name), exact.step_weight > 0.5)
+    pairs += [(getattr(exact, name), getattr(approx, name), exact.step_weight > 0.5)
               for name in ("x1", "P1", "x0", "P0", "cross")] + [(e, k, exact.step_weight > 0.5)]
     for name, (a, b, held) in zip(("x", "P", "x1", "P1", "x0", "P0", "cross", "E[w w']"), pairs):
         np.testing.assert_allclose(b[held], a[held], rtol=RTOL, atol=RTOL * np.abs(a).max(),
                                    err_msg=name)
-    np.testing.assert_allclose(kim.loglik, exact.loglik, rtol=RTOL)
+    np.testing.assert_allclose(approx.loglik, exact.loglik, rtol=RTOL)
 
 
-def test_kim_e_step_equals_the_exact_one_where_the_modes_are_identified():
-    """Where the modes are known from the data, Kim's E-step must be the exact one quantity by
-    quantity: a convention mismatch (which mode drives the interval into k + 1, lag moments
-    conditioned on the wrong mode) would show here at O(1)."""
-    kim_against_exact(0.1)
+def test_approximate_e_step_equals_the_exact_one_where_the_modes_are_identified():
+    """Where the modes are known from the data, the two-filter E-step must be the exact one,
+    quantity by quantity: a convention mismatch (which mode drives the interval into k + 1, lag
+    moments conditioned on the wrong mode) would show here at O(1)."""
+    approximate_against_exact(0.1)
 
 
-def test_kim_e_step_equals_the_exact_one_with_filtered_probabilities_exactly_zero():
+def test_approximate_e_step_equals_the_exact_one_with_filtered_probabilities_exactly_zero():
     """A mode whose filtered probability is exactly 0 makes its pairs impossible in every lane:
-    the backward pass skips their RTS steps, and their weight must still be written (-inf)."""
-    kim_against_exact(1e-6)
+    the smoother's weights and moments of those pairs must still be finite, of weight 0."""
+    approximate_against_exact(1e-6)
 
 
 def kim_lagged_oracle(xf, Pf, pf, u, F, G, Qd, trans, pi):
@@ -281,7 +281,7 @@ def test_kim_lagged_outputs_with_three_modes_equal_the_numpy_formulas():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    ({"e_step": "gpb2"}, "e_step must be 'kim' or 'exact'"),
+    ({"e_step": "gpb2"}, "e_step must be 'two-filter' or 'exact'"),
     ({"e_step": "exact", "y": np.zeros((17, 1))}, r"L\^K = 2\^17 .* more than 65536"),
 ])
 def test_bad_e_step_is_refused_by_name(kwargs, match):

@@ -844,7 +844,7 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
                          "the prior of the state at the first sample, which fit holds fixed")
     data = read_trials(args.data, spec, args.trial)
     start = start_transition(spec, data["t"])
-    switch_times = args.switch_times or _switch_times(spec, data["mode"] is not None)
+    switch_times = args.switch_times or _switch_times(spec)
     columns = (TextColumn("EM"), BarColumn(), MofNCompleteColumn(),
                TextColumn("log-likelihood {task.fields[loglik]}"), TimeElapsedColumn())
     with (warnings.catch_warnings(record=True) as caught,
@@ -860,19 +860,12 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
                          task, completed=i + 1, total=max(args.max_iter, i + 1),
                          loglik=f"{loglik:.10g}"))
     _print_fit_warnings(caught, result.loglik)
-    if data["mode"] is None and _switch_times(spec, True) == "between":
-        _say(Console(stderr=True, soft_wrap=True, highlight=False), "warning",
-             f"the model's switching model ({spec.switching.kind}) switches between the samples; "
-             "without a mode column fit holds each mode over the interval after its sample "
-             "(--switch-times between needs the known modes), and the noise it fits takes up "
-             "the difference")
     fitted, note = fitted_model(spec, result, args.estimate, Path(args.data))
     save_model(fitted, out)
     trace = result.loglik
     modes = "known modes (mode column)" if data["mode"] is not None else "unknown modes"
-    if data["mode"] is not None:
-        modes += (f", switches between the samples (instants marginalized on a grid of "
-                  f"{args.grid})" if switch_times == "between" else ", switches at the samples")
+    modes += (f", switches between the samples (instants marginalized on a grid of "
+              f"{args.grid})" if switch_times == "between" else ", switches at the samples")
     stop = ("converged" if result.converged else
             f"[yellow]stopped at --max-iter {args.max_iter} without converging[/yellow]")
     runs = f"{data['trials']} trials x " if data["trials"] > 1 else ""
@@ -897,11 +890,10 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
     return 0
 
 
-def _switch_times(spec, known: bool) -> str:
-    """``fit``'s default ``--switch-times``: ``between`` for known modes of a continuous-time
-    model whose switching model switches in continuous time (not at the samples), else
-    ``samples``."""
-    between = (known and spec.system.is_continuous and spec.switching is not None
+def _switch_times(spec) -> str:
+    """``fit``'s default ``--switch-times``: ``between`` for a continuous-time model whose
+    switching model switches in continuous time (not at the samples), else ``samples``."""
+    between = (spec.system.is_continuous and spec.switching is not None
                and not spec.switching.at_samples)
     return "between" if between else "samples"
 
@@ -1051,8 +1043,8 @@ def _parser() -> _Parser:
                        help="estimated matrices tied across the modes, comma-separated among "
                             "A, B, C, Q, R (default: none, each mode its own)")
     p_fit.add_argument("--switch-times", choices=("samples", "between"), default=None,
-                       help="known modes: whether the switches fall at the samples or between "
-                            "them (instants marginalized on a grid); default between for a "
+                       help="whether the switches fall at the samples or between them "
+                            "(instants marginalized on a grid); default between for a "
                             "continuous-time model whose switching model switches in "
                             "continuous time, else samples")
     p_fit.add_argument("--grid", type=_positive, default=16,

@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..engine import OK, raise_for_status, warn_for_repairs
-from ..engine.imm import imm_run_per_trial
+from ..engine import GATED, OK, raise_for_status, warn_for_repairs
+from ..engine.imm import IMMOutput, imm_run, imm_run_per_trial
 from ..engine.kalman import KalmanOutput, kalman_run
 
-__all__ = ["imm_logliks", "kalman_logliks", "kalman_posteriors"]
+__all__ = ["imm_logliks", "imm_posteriors", "kalman_logliks", "kalman_posteriors"]
 
 
 def kalman_posteriors(y, u, F, G, Qd, trans, C, R, mode, x0, P0) -> KalmanOutput:
@@ -53,6 +53,20 @@ def imm_logliks(y, u, F, G, Qd, trans, C, R, out_index, log_transition, x0, P0,
     """
     return _logliks(imm_run_per_trial(y, u, F, G, Qd, trans, C, R, out_index, log_transition,
                                       x0, P0, log_prob0, timing=timing))
+
+
+def imm_posteriors(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
+                   gate, timing: str) -> tuple[IMMOutput, np.ndarray]:
+    """One model's IMM along the table ``F, G, Qd`` a caller built, with its mode-matched
+    posteriors after every sample (the arguments of :func:`switchest.engine.imm.imm_run`,
+    Bar-Shalom, Li & Kirubarajan §11.6.6, ``modes_out=True``), for a smoother that takes the
+    same transitions, and the samples its gate rejected in every mode ``(N, K)``; raises the
+    package's error for a failed covariance and warns of a repaired one."""
+    out = imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, gate=gate,
+                  timing=timing, modes_out=True)
+    raise_for_status(out.status)
+    warn_for_repairs(out)
+    return out, out.flag == GATED
 
 
 def _logliks(out) -> np.ndarray | None:

@@ -1,6 +1,6 @@
 """The end of a fit with unknown modes: direct ascent of the E-step's log-likelihood.
 
-With unknown modes, Kim's E-step (:mod:`~switchest.learn.expectation`) is approximate, and the
+With unknown modes, the E-step (:mod:`~switchest.learn.chain`) is approximate, and the
 fixed point of EM with it is not a maximum of the log-likelihood it reports (the pair chain's
 IMM): near the optimum its M-steps can lower that likelihood and stall away from the top, where
 the observed information is not even negative definite. :func:`ascend` therefore finishes the

@@ -62,7 +62,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         modes=None, estimate: Iterable[str] = ("transition", "Q", "R"),
         shared: Iterable[str] = (), switch_times: str = "samples", grid: int = 16,
         gate: float | str | None = "auto", max_iter: int = 200, tol: float = 1e-3, rng=None,
-        e_step: str = "kim", progress: Callable[[int, float], object] | None = None
+        e_step: str = "two-filter", progress: Callable[[int, float], object] | None = None
         ) -> FitResult:
     """Fit the transition matrix and the noise covariances (and optionally ``A``, ``B``, ``C``)
     of a switched linear system to measurements, by expectation-maximization.
@@ -92,7 +92,8 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         The known mode at each sample (mode :math:`r_k` drives the interval into ``k + 1`` and
         the measurement at ``k``, as ``switchest.simulate`` draws them). With them and
         ``switch_times="samples"`` the E-step is exact and the log-likelihood never decreases;
-        without them Kim's smoother gives an approximate E-step, or enumeration an exact one
+        without them the IMM and two-filter smoother of the chain of mode pairs give an
+        approximate E-step, or enumeration an exact one
         (``e_step``), in the same timing (the package's, :doc:`/conventions`), and the first
         mode has the uniform prior.
     estimate : iterable of str
@@ -104,12 +105,14 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         must then be equal in every mode). ``A`` and ``B`` estimated together are tied
         together or not at all.
     switch_times : {"samples", "between"}
-        Where the switches of known modes fall. ``"samples"``: at the sample instants, the
-        mode of a sample held over the interval after it. ``"between"`` (a continuous-time
-        system with ``modes``): inside the intervals, at unknown instants, once per interval
-        at most, each marginalized over the grid of Shankar et al. eq. (23)
-        (:mod:`~switchest.learn.between`: the switch-time Kalman filter and Kim's smoother;
-        an approximate E-step, ended by direct ascent as ``e_step="kim"``).
+        Where the switches fall. ``"samples"``: at the sample instants, the mode of a sample
+        held over the interval after it. ``"between"`` (a continuous-time system): inside the
+        intervals, at unknown instants, once per interval at most, each marginalized over the
+        grid of Shankar et al. eq. (23); with ``modes`` by the switch-time Kalman filter
+        (:mod:`~switchest.learn.between`), without them by the IMM and the two-filter
+        smoother on the chain of (mode before, mode after, instant)
+        (:mod:`~switchest.learn.between_unknown`); an approximate E-step either way, ended by
+        direct ascent as ``e_step="two-filter"``.
     grid : int
         :math:`g`, the switch instants per interval of ``switch_times="between"``.
     gate : float, "auto" or None
@@ -135,10 +138,10 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     rng : numpy.random.Generator, int or None
         Draws the starting transition matrix when none is given with unknown modes (unused
         otherwise).
-    e_step : {"kim", "exact"}
+    e_step : {"two-filter", "exact"}
         The E-step of unknown modes (with known modes it is exact whatever this says):
-        ``"kim"``, the IMM on the chain of mode pairs and Kim's smoother
-        (:mod:`~switchest.learn.expectation`; approximate, any record length): EM stops at
+        ``"two-filter"``, the IMM on the chain of mode pairs and the two-filter smoother
+        (:mod:`~switchest.learn.chain`; approximate, any record length): EM stops at
         the first step that lowers that IMM's log-likelihood (the step is rejected: EM with an
         approximate E-step need not climb), and the fit continues from there by direct ascent
         of the same log-likelihood over the transition matrix, ``Q`` and ``R``
@@ -167,7 +170,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
     ValueError
         For a bad value, naming it: ``y`` beyond the floating-point range of a covariance (the
         trial and sample), a ``shared`` matrix not estimated or with different starting
-        values, ``switch_times="between"`` without modes or for a discrete system, and a
+        values, ``switch_times="between"`` for a discrete system or with ``e_step="exact"``, and a
         fit whose likelihood overflows (naming the largest measurement).
 
     Warns
@@ -177,7 +180,7 @@ def fit(system: SwitchedLinearSystem, y, u=None, t=None, *, transition=None, x0,
         is below one sample (unknown modes), whose parameters keep their starting values; a mode
         whose pair ``(C, A)`` is unobservable, whose ``Q`` is not identifiable from ``y``. Also
         when the log-likelihood decreases from one iteration to the next with an exact E-step
-        (naming the iteration and the drop: digits lost, or a partial M-step), when Kim's
+        (naming the iteration and the drop: digits lost, or a partial M-step), when the
         approximate E-step stopped EM with ``A``, ``B`` or ``C`` estimated (no ascent
         follows, so the fit need not be a maximum), and when the fitted model's innovations
         after the mode changes are implausibly large for it (known modes, ``switch_times=
@@ -226,7 +229,7 @@ def _fit(system, y, u, t, transition, x0, P0, modes, estimate, shared, switch_ti
     max_iter = positive_int(max_iter, "max_iter")
     tol = positive_scalar(tol, "tol")
     L = system.n_modes
-    exact = _exact(e_step, data, L)
+    exact = _exact(e_step, data, L, grid)
     transition = _start_transition(transition, data, L, rng)
     allowed = transition > 0  # the entries that may be nonzero: the start's zeros are held
     _warn_unobservable(system, wanted, tied)
@@ -378,9 +381,6 @@ def _grid(switch_times, grid, system: SwitchedLinearSystem, data: Record) -> int
     if not system.is_continuous:
         raise ValueError("switch_times='between' needs a continuous-time system (a "
                          "discrete-time one switches at its steps)")
-    if data.modes is None:
-        raise ValueError("switch_times='between' needs the known modes (modes=...): the "
-                         "E-step of unknown modes holds the mode over each interval")
     return grid
 
 
@@ -392,14 +392,19 @@ def _gate(gate, m: int) -> float | None:
     return None if gate is None else positive_scalar(gate, "gate")
 
 
-def _exact(e_step, data: Record, L: int) -> bool:
+def _exact(e_step, data: Record, L: int, grid: int | None) -> bool:
     """Whether the E-step of unknown modes enumerates the mode sequences (``e_step``)."""
-    if e_step not in ("kim", "exact"):
-        raise ValueError(f"e_step must be 'kim' or 'exact', got {e_step!r}")
+    if e_step not in ("two-filter", "exact"):
+        raise ValueError(f"e_step must be 'two-filter' or 'exact', got {e_step!r}")
+    if e_step == "exact" and grid is not None and data.modes is None:
+        raise ValueError("e_step='exact' enumerates mode sequences that switch at the samples; "
+                         "with switch_times='between' the E-step of unknown modes is the IMM "
+                         "and two-filter smoother of the chain of switch instants: use "
+                         "e_step='two-filter'")
     K = data.shape[1]
     if e_step == "exact" and data.modes is None and L**K > MAX_SEQUENCES:
         raise ValueError(f"e_step='exact' enumerates L^K = {L}^{K} mode sequences per trial, "
-                         f"more than {MAX_SEQUENCES}; use e_step='kim' or shorter records")
+                         f"more than {MAX_SEQUENCES}; use e_step='two-filter' or shorter records")
     return e_step == "exact"
 
 

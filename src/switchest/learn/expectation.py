@@ -14,19 +14,11 @@ system whose switches fall inside the intervals: :mod:`~switchest.learn.between`
 Every E-step runs its filter with the filters' outlier gate: a sample it rejects is missing for
 the smoother and the maximization steps (``Moments.y``, ``Moments.outlier``).
 
-Unknown modes: Kim's smoother (Kim 1994, §2.2) on the chain of consecutive mode pairs
-:math:`s_k = (r_{k-1}, r_k)`. In the package's timing (``timing="sample"``, :doc:`/conventions`)
-:math:`r_k` drives the interval :math:`k \\to k+1`; the pair :math:`s_{k+1} = (r_k, r_{k+1})` then
-holds both the mode that drives the interval into ``k + 1`` (:math:`r_k`: ``F``, ``G``, ``Qd``)
-and the mode that sees sample ``k + 1`` (:math:`r_{k+1}`: ``C``, ``R``), so the pair chain is a
-switched system of :math:`L^2` modes in Bar-Shalom's timing (``timing="interval"``), Markov with
-:math:`P(s_{k+1} = (b, c) \\mid s_k = (a, b')) = [b = b']\\, \\pi_{bc}`, and an exact rewriting of
-the model (the pairs GPB2 merges, Bar-Shalom, Li & Kirubarajan §11.6.5). The IMM on it
-(:class:`~switchest.estimators.IMMFilter`, one mode-matched filter per pair) and Kim's smoother
-give :math:`P(s_{k+1} \\mid Y)`, that is :math:`\\xi_k(a, c) = P(r_k = a, r_{k+1} = c \\mid Y)`, and
-the lag-one moments given :math:`s_{k+1}`, whose mixture over ``c`` is the moment given the
-driving mode :math:`r_k = a`. The E-step is approximate: the exact posterior is a mixture of
-:math:`L^K` Gaussians.
+Unknown modes: the IMM and the two-filter smoother on the chain of consecutive mode pairs
+:math:`s_{k+1} = (r_k, r_{k+1})`, or with switches inside the intervals of (mode before, mode
+after, instant) (:mod:`~switchest.learn.chain`): approximate, the exact posterior being a mixture
+of :math:`L^K` Gaussians. The pair chain's IMM (:class:`~switchest.estimators.IMMFilter` on the
+pair system of :func:`_pair_chain`) gives the likelihood.
 
 Unknown modes, exact (``exact=True``, short records): the posterior enumerated over every mode
 sequence ``r`` (Ackerson & Fu 1970; Bar-Shalom, Li & Kirubarajan §11.6.3), in the package's
@@ -49,16 +41,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._linalg import log_normalize, mixture_moments
+from .._linalg import log_normalize
 from ..discretize import sample_mode_steps
 from ..estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
-from ..estimators.smoothing import smooth_filtered, smooth_mode_matched
+from ..estimators.smoothing import smooth_mode_matched
 from ..estimators.tables import imm_logliks, kalman_logliks
 from ..system import SwitchedLinearSystem
 from .between import between_log_likelihood, known_between
+from .chain import chain_log_likelihood, chain_moments, instant_chain, pair_chain
 from .data import Record
 from .markov_step import mode_term
-from .moments import Moments
+from .moments import Moments, mode_mixture
 from .steps import sample_table
 
 __all__ = ["MAX_SEQUENCES", "Moments", "expectation", "log_likelihood", "log_likelihoods"]
@@ -76,8 +69,9 @@ def expectation(system: SwitchedLinearSystem, transition: np.ndarray, x0, P0,
     """The E-step under ``system`` and ``transition``: exact for known modes switching at the
     samples; with ``grid`` (known modes of a continuous-time system switching inside the
     intervals) the switch-time filter's with the instants marginalized over a grid of that
-    many (:func:`~switchest.learn.between.known_between`); for unknown modes Kim's, or with
-    ``exact`` the enumeration of every mode sequence. ``gate`` is the filters' outlier gate
+    many (:func:`~switchest.learn.between.known_between`); for unknown modes the chain's
+    (:func:`~switchest.learn.chain.chain_moments`, with ``grid`` on the chain of instants), or
+    with ``exact`` the enumeration of every mode sequence. ``gate`` is the filters' outlier gate
     (:class:`~switchest.estimators.ModeKalmanFilter`): the samples it rejects are missing for
     the smoother and the maximization steps (``Moments.y``, ``Moments.outlier``)."""
     if data.modes is not None:
@@ -86,16 +80,21 @@ def expectation(system: SwitchedLinearSystem, transition: np.ndarray, x0, P0,
         return _known(system, transition, x0, P0, data, gate)
     if exact:
         return _enumerated(system, transition, x0, P0, data, gate)
-    return _unknown(system, transition, x0, P0, data, gate)
+    chain = (pair_chain(system, transition, data.t) if grid is None else
+             instant_chain(system, transition, data.t, grid))
+    return chain_moments(chain, data, x0, P0, system.n_modes, gate)
 
 
 def log_likelihood(system: SwitchedLinearSystem, transition, x0, P0, data: Record, *,
                    exact: bool = False, grid: int | None = None) -> float:
     """The log-likelihood :attr:`Moments.loglik` reports, without the smoother (and without a
     gate: give the record of the E-step's measurements, ``Moments.y``)."""
-    if data.modes is not None:
-        if grid is not None:
+    if grid is not None:
+        if data.modes is not None:
             return between_log_likelihood(system, transition, x0, P0, data, grid=grid)
+        return chain_log_likelihood(instant_chain(system, transition, data.t, grid), data, x0,
+                                    P0)
+    if data.modes is not None:
         out = ModeKalmanFilter(system, x0, P0).run(data.y, data.u, data.t, modes=data.modes)
         return float(out.loglik.sum()) + mode_term(transition, data.modes)
     if exact:
@@ -124,7 +123,7 @@ def log_likelihoods(candidates, x0, P0, data: Record, *, exact: bool = False,
     at a time (each candidate's filter its own tables).
     """
     candidates = list(candidates)
-    if (exact and data.modes is None) or (grid is not None and data.modes is not None):
+    if (exact and data.modes is None) or grid is not None:
         return np.array([_or_nan(log_likelihood, s, pi, x0, P0, data, exact=exact, grid=grid)
                          for s, pi in candidates])
     size = max(1, _LANES // data.shape[0])
@@ -254,66 +253,6 @@ def _pair_markov(transition: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return chain, np.where(a == b, 1.0 / L, 0.0)
 
 
-def _unknown(system, transition, x0, P0, data: Record, gate) -> Moments:
-    """Kim's E-step on the pair chain (module docstring)."""
-    N, K = data.shape
-    L = system.n_modes
-    fwd = _pair_filter(system, transition, x0, P0, gate).run_modes(data.y, data.u, data.t)
-    s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
-                        fwd.Qd, fwd.trans, fwd.transition, lagged=True, timing="interval")
-    prob = s.mode_prob  # (N, K, L^2): P(s_k = (a, b) | Y)
-    a, b = np.divmod(np.arange(L * L), L)
-    weight = prob @ np.eye(L)[b]  # P(r_k = b | Y), (N, K, L)
-    n = system.n_states
-    step_weight = prob[:, 1:] @ np.eye(L)[a]
-    with np.errstate(over="ignore", invalid="ignore"):  # a diverged smoother: refused below
-        x, P = _given(prob, weight, np.eye(L)[b], s.x_modes, s.P_modes)
-        # the interval k -> k+1, driven by r_k = a: the pairs (a, c) at k + 1, their joint
-        # moments of (x_{k+1}, x_k) (covariance [[P_{k+1|K}, C_k], [C_k', P_{k|K}]], C_k the
-        # lag-one cross)
-        joint_x = np.concatenate([s.x_modes[:, 1:], s.lag_x], axis=-1)
-        joint_P = np.block([[s.P_modes[:, 1:], s.lag_cross],
-                            [np.swapaxes(s.lag_cross, -1, -2), s.lag_P]])
-        jx, jP = _given(prob[:, 1:], step_weight, np.eye(L)[a], joint_x, joint_P)
-    _refuse_diverged(x, P, jx, jP)
-    pairs = prob[:, 1:].sum(axis=(0, 1)).reshape(L, L)
-    table, entry = sample_table(system, data.t)
-    outlier = fwd.estimate.outlier
-    return Moments(
-        loglik=float(fwd.estimate.loglik.sum()), weight=weight, x=x, P=P,
-        step_weight=step_weight, x1=jx[..., :n], P1=jP[..., :n, :n], x0=jx[..., n:],
-        P0=jP[..., n:, n:], cross=jP[..., :n, n:], table=table, entry=entry[1:], pairs=pairs,
-        y=_masked(data.y, outlier), outlier=outlier)
-
-
-def _refuse_diverged(x, P, jx, jP) -> None:
-    """Refuse moments Kim's smoother left non-finite: its backward pass is unstable where a mode
-    leaves a strongly contracting direction unobserved (the boost converter), and the E-step
-    then has nothing to give the M-step."""
-    bad = ~(np.isfinite(x).all(axis=-1) & np.isfinite(P).all(axis=(-2, -1)))  # (N, K, L)
-    bad_steps = ~(np.isfinite(jx).all(axis=-1) & np.isfinite(jP).all(axis=(-2, -1)))
-    if bad.any() or bad_steps.any():
-        samples = int(bad.any(axis=-1).sum() + bad_steps.any(axis=-1).sum())
-        raise ValueError(
-            "the unknown-mode E-step diverged: Kim's smoother on the mode-pair chain (the "
-            f"approximation fit uses when the modes are unknown) gave non-finite moments at "
-            f"{samples} sample(s); on this system it cannot learn without the modes: give them "
-            "(a mode column, or modes=) to fit along the known modes")
-
-
-def _given(prob, weight, member, x, P):
-    """Moments given each mode: the mixture of the components (mode pairs, or mode sequences)
-    that hold it. ``prob (N, K', S)`` the components' probabilities, ``member (..., S, L)``
-    (broadcast against them) which components hold each mode, ``weight (N, K', L)`` the sums
-    :math:`P(\\text{mode} \\mid Y)`; a mode of weight zero gets the mixture of all components (it
-    carries no weight)."""
-    w = prob[..., :, None] * member  # (N, K', S, L)
-    none = weight <= 0.0
-    cond = np.where(none[:, :, None], prob[..., :, None],
-                    w / np.where(none, 1.0, weight)[:, :, None])
-    return mixture_moments(cond, x, P)
-
-
 def _chunks(data: Record, L: int) -> list[slice]:
     """Trials in blocks of at most :data:`_ROWS` (sequence, trial) rows (at least one trial)."""
     N, K = data.shape
@@ -360,7 +299,7 @@ def _enumerated_block(system, transition, x0, P0, y, u, t) -> dict[str, np.ndarr
     smoothed_x = np.moveaxis(rts.x.reshape(S, N, K, n), 0, 2)  # (N, K, S, n)
     smoothed_P = np.moveaxis(rts.P.reshape(S, N, K, n, n), 0, 2)
     through = np.moveaxis(onehot, 0, 1)[None]  # (1, K, S, L): the sequences through each mode
-    x, P = _given(w[:, None], weight, through, smoothed_x, smoothed_P)
+    x, P = mode_mixture(w[:, None], weight, through, smoothed_x, smoothed_P)
     # the pair (x_{k+1}, x_k) of each sequence, jointly Gaussian: mean (x_{k+1|K}, x_{k|K}),
     # covariance [[P_{k+1|K}, C_k], [C_k', P_{k|K}]], C_k = Cov(x_{k+1}, x_k | r, Y)
     lag_x = np.moveaxis(rts.lag_x[:, :, 0].reshape(S, N, K - 1, n), 0, 2)
@@ -369,7 +308,7 @@ def _enumerated_block(system, transition, x0, P0, y, u, t) -> dict[str, np.ndarr
     joint_x = np.concatenate([smoothed_x[:, 1:], lag_x], axis=-1)
     joint_P = np.block([[smoothed_P[:, 1:], cross], [np.swapaxes(cross, -1, -2), lag_P]])
     # the interval k -> k+1 is driven by r_k: the sequences through each mode at k
-    jx, jP = _given(w[:, None], weight[:, :-1], through[:, :-1], joint_x, joint_P)
+    jx, jP = mode_mixture(w[:, None], weight[:, :-1], through[:, :-1], joint_x, joint_P)
     return {"loglik": loglik, "weight": weight, "pair": pair, "x": x, "P": P,
             "x1": jx[..., :n], "P1": jP[..., :n, :n], "x0": jx[..., n:], "P0": jP[..., n:, n:],
             "cross": jP[..., :n, n:]}

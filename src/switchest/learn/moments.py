@@ -7,9 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._linalg import mixture_moments
 from .steps import StepTable
 
-__all__ = ["Moments"]
+__all__ = ["Moments", "mode_mixture"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,3 +70,16 @@ class Moments:
     pairs: np.ndarray
     y: np.ndarray
     outlier: np.ndarray
+
+
+def mode_mixture(prob, weight, member, x, P) -> tuple[np.ndarray, np.ndarray]:
+    """Moments given each mode: the mixture of the components (mode pairs, chain members or
+    mode sequences) that hold it. ``prob (N, K', S)`` the components' probabilities,
+    ``member (..., S, L)`` (broadcast against them) which components hold each mode,
+    ``weight (N, K', L)`` the sums :math:`P(\\text{mode} \\mid Y)`; a mode of weight zero gets
+    the mixture of all components (it carries no weight)."""
+    w = prob[..., :, None] * member  # (N, K', S, L)
+    none = weight <= 0.0
+    cond = np.where(none[:, :, None], prob[..., :, None],
+                    w / np.where(none, 1.0, weight)[:, :, None])
+    return mixture_moments(cond, x, P)

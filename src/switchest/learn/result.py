@@ -33,8 +33,8 @@ class FitResult:
     iterations : int
         Number of iterations in ``loglik``: accepted E-steps, then those of the ascent.
     ascent_from : int or None
-        With an approximate E-step (unknown modes and Kim's, or switches between the
-        samples), the index of ``loglik`` where the direct ascent
+        With an approximate E-step (unknown modes with ``e_step="two-filter"``, or switches
+        between the samples), the index of ``loglik`` where the direct ascent
         (:mod:`~switchest.learn.ascent`) begins, from the last EM iterate (EM stops at the
         first step that would lower the likelihood, and that step is not in ``loglik``). None
         when the fit was EM throughout.
