@@ -2,11 +2,20 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm, solve_continuous_lyapunov
 
 from switchest import SwitchedLinearSystem
-from switchest.discretize import interval, mode_steps, pairwise_grid, switch_grid
+from switchest.discretize import (
+    STEP_ULPS,
+    distinct_steps,
+    interval,
+    mode_steps,
+    pairwise_grid,
+    switch_grid,
+)
 
 
 def random_system(rng, n=3, l=2, L=3):
@@ -180,3 +189,37 @@ def test_fast_non_normal_modes_keep_an_accurate_psd_noise_covariance(speed):
     np.testing.assert_allclose(tr.Qd[0], Qd, rtol=1e-12, atol=1e-12 * np.abs(Qd).max())
     np.testing.assert_allclose(tr.G[0], np.linalg.solve(A, (F - np.eye(3)) @ B), rtol=1e-12)
     assert np.linalg.eigvalsh(tr.Qd[0]).min() > 0
+
+
+def test_rounded_steps_are_one_step():
+    """The boost converter's 0.1 s at 0.5 ms: ``np.arange`` rounding gives steps a few units in
+    the last place apart, which are one step (one discretization, not seven)."""
+    t = np.cumsum(np.full(200, 5e-4))
+    t = np.concatenate([[0.0], t])
+    assert np.unique(np.diff(t)).size > 1
+    steps, which = distinct_steps(t)
+    assert steps.size == 1 and np.all(which == 0)
+    np.testing.assert_allclose(steps, 5e-4, rtol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.sampled_from([0.1, 0.25, 0.4, 1.0]), min_size=1, max_size=40),
+       st.floats(0.0, 1e4), st.integers(0, 2**31))
+def test_distinct_steps_group_only_rounding(choices, start, seed):
+    """Every interval's step is within the rounding tolerance of its own length, the steps are
+    ascending and further apart than it, and intervals of different lengths (the choices)
+    never share a step."""
+    rng = np.random.default_rng(seed)
+    lengths = np.array(choices) * (1 + 1e-15 * rng.standard_normal(len(choices)))
+    t = start + np.concatenate([[0.0], np.cumsum(lengths)])
+    steps, which = distinct_steps(t)
+    tol = STEP_ULPS * np.spacing(np.abs(t).max())
+    assert np.all(np.abs(steps[which] - np.diff(t)) <= tol)
+    assert np.all(np.diff(steps) > tol)
+    for c in set(choices):
+        assert np.unique(which[np.isclose(np.diff(t), c, rtol=1e-6)]).size == 1
+
+
+def test_one_sample_has_no_step():
+    steps, which = distinct_steps([3.0])
+    assert steps.size == 0 and which.size == 0

@@ -360,10 +360,11 @@ def test_boost_converter_warns_of_its_unobservable_mode_and_fits_R():
                   P0=spec.initial[1], modes=traj.mode[:1, :50], estimate=("Q",), max_iter=2)
     said = [str(w.message) for w in caught]
     assert any(re.match(r"mode 0: the pair \(C, A\) is unobservable", m) for m in said)
-    # and mode 0's Q, unidentifiable, leaves the observed information singular: no SE for it
-    # (whether mode 1's entries keep theirs turns on the last bits of a curvature near zero)
+    # and mode 0's Q, unidentifiable, leaves the observed information singular: no standard
+    # error for it that claims any precision (which entries keep a vast one turns on the last
+    # bits of curvatures near zero; the true Q is I)
     assert any("observed information" in m and "is not positive definite" in m for m in said)
-    assert np.all(np.isnan(res.se["Q"][0]))
+    assert not np.any(res.se["Q"][0] < 10.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # Q is not estimated: no observability warning
         res = fit(start, traj.y, np.array([100.0]), t, x0=spec.initial[0], P0=spec.initial[1],

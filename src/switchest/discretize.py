@@ -44,6 +44,7 @@ from .system import SwitchedLinearSystem
 
 __all__ = [
     "Transition",
+    "distinct_steps",
     "interval",
     "switch_grid",
     "pairwise_grid",
@@ -226,18 +227,53 @@ def _mode_steps(system: SwitchedLinearSystem, T: float) -> Transition:
     return interval(system, T, np.arange(system.n_modes)[:, None])
 
 
+STEP_ULPS = 8
+"""Sampling steps closer than this many units in the last place of the largest sample time are
+one step (:func:`distinct_steps`)."""
+
+
+def distinct_steps(t) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct sampling steps of the sample times ``t (K,)``, ascending, and the index of
+    each interval's step ``(K-1,)``.
+
+    Steps that differ by at most :data:`STEP_ULPS` units in the last place of the largest
+    :math:`|t|` are one step, the smallest standing for all: the times themselves carry that
+    rounding (``np.arange(K) * h`` gives steps a few units apart), and each distinct step costs
+    its own matrix exponentials. The transitions then differ from those of each interval's own
+    rounded length by that relative amount, times :math:`\\lVert A h \\rVert`.
+    """
+    t = np.asarray(t, dtype=float)
+    length = np.diff(t)
+    if length.size == 0:
+        return length, np.zeros(0, dtype=np.intp)
+    order = np.argsort(length, kind="stable")
+    ordered = length[order]
+    tol = STEP_ULPS * np.spacing(np.abs(t).max())
+    starts = [0]
+    while True:  # each step stands for the steps within tol above it
+        nxt = int(np.searchsorted(ordered, ordered[starts[-1]] + tol, side="right"))
+        if nxt >= ordered.size:
+            break
+        starts.append(nxt)
+    group = np.zeros(ordered.size, dtype=np.intp)
+    group[starts[1:]] = 1
+    which = np.empty(length.size, dtype=np.intp)
+    which[order] = np.cumsum(group)
+    return ordered[starts], which
+
+
 def sample_mode_steps(system: SwitchedLinearSystem, t) -> tuple[Transition, np.ndarray]:
     """Every mode's transition over every distinct interval of the sample times ``t (K,)``.
 
     Returns the table ``(F, G, Qd)`` with batch shape ``(D L,)`` (:func:`mode_steps` of each
-    distinct step :math:`h_d`, concatenated: entry :math:`d L + j` is mode ``j`` over
-    :math:`h_d`) and
+    distinct step :math:`h_d` of :func:`distinct_steps`, concatenated: entry :math:`d L + j` is
+    mode ``j`` over :math:`h_d`) and
     ``entry (K, L)`` of int64, ``entry[k, j]`` the row of mode ``j`` over the interval into
     sample ``k`` (row 0, before the first sample, is 0 and unused): the layout the compiled
     multiple-model filters read. One sample gives a table of one unit step, never read.
     """
     t = np.asarray(t, dtype=float)
-    steps, which = np.unique(np.diff(t), return_inverse=True)
+    steps, which = distinct_steps(t)
     if steps.size == 0:  # one sample: update only, the table is not read
         steps = np.ones(1)
     table = [mode_steps(system, h) for h in steps]

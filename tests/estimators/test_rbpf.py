@@ -220,7 +220,10 @@ def test_streaming_step_reproduces_run(proposal, timing):
         for name, value in (("combined_x", whole.x), ("combined_P", whole.P),
                             ("mode_prob", whole.mode_prob), ("loglik", whole.loglik),
                             ("ess", ess)):
-            np.testing.assert_array_equal(getattr(state, name), value[:, k], err_msg=name)
+            # the step discretizes each dt as given, the run each distinct step once
+            # (steps a few units in the last place apart are one: distinct_steps)
+            np.testing.assert_allclose(getattr(state, name), value[:, k], rtol=1e-12,
+                                       atol=1e-14, err_msg=name)
     assert state.k == T_IRREGULAR.size
     np.testing.assert_allclose(np.exp(state.log_weight).sum(-1), 1.0, rtol=1e-12)
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_memory, float_array, positive_scalar
-from ..discretize import pairwise_grid, switch_grid
+from ..discretize import distinct_steps, pairwise_grid, switch_grid
 from ..engine import raise_for_status, warn_for_repairs
 from ..engine.imm_ev1 import imm_ev1_run, imm_ev1_step
 from .base import Estimate, Estimator
@@ -232,7 +232,7 @@ class IMMEV1Filter(Estimator):
         """
         y2, u2, t, batch = self._prepare(y, u, t)
         sys = self.system
-        steps, which = np.unique(np.diff(t), return_inverse=True)
+        steps, which = distinct_steps(t)
         F, G, Qd, tau = self._transitions(steps if steps.size else None)
         table = np.zeros(t.size, dtype=np.int64)
         table[1:] = which

@@ -27,7 +27,7 @@ from .._checks import (
     positive_scalar,
 )
 from ..analysis.steady_state_kalman import steady_state_gain
-from ..discretize import mode_steps, segment_transitions
+from ..discretize import distinct_steps, mode_steps, segment_transitions
 from ..dyadic import dyadic_table, interval_transitions
 from ..engine import GATED, raise_for_status, warn_for_repairs
 from ..engine.kalman import KalmanRun, kalman_steady_run, kalman_steady_step, kalman_step
@@ -226,7 +226,10 @@ class ModeKalmanFilter(Estimator):
             for d in np.unique(which[cols]):  # intervals with a switch, by their length
                 at = which[cols] == d
                 r, c = rows[at], cols[at]
-                tr = interval_transitions(dyadic_table(sys, steps[d]), seg_m[r, c], seg_o[r, c])
+                # a switch at the end of an interval up to the rounding the step stands for
+                # (distinct_steps) is at the end of the step
+                offsets = np.minimum(seg_o[r, c], steps[d])
+                tr = interval_transitions(dyadic_table(sys, steps[d]), seg_m[r, c], offsets)
                 trans[r, c + 1] = sum(len(a) for a in F) + np.arange(r.size)
                 F.append(tr.F)
                 G.append(tr.G)
@@ -249,7 +252,7 @@ class ModeKalmanFilter(Estimator):
             elif np.all(length == length[0]):  # periodic sampling: one step, nothing to sort
                 steps, which = length[:1], np.zeros(length.size, dtype=np.intp)
             else:
-                steps, which = np.unique(length, return_inverse=True)
+                steps, which = distinct_steps(t)
             table = [mode_steps(sys, h) for h in steps]
             entry = (steps, which, *(np.concatenate([getattr(s, a) for s in table])
                                      for a in ("F", "G", "Qd")))

@@ -31,6 +31,7 @@ from .._checks import (
 from .._linalg import log_normalize, mixture_moments
 from ..discretize import (
     OFFSET_BITS,
+    distinct_steps,
     interval,
     mode_steps,
     offset_table,
@@ -294,16 +295,14 @@ class SwitchTimeKalmanFilter(Estimator):
         )
         prev = np.concatenate([modes[:, :1], modes[:, :-1]], axis=1)
         held = np.concatenate([u2[:, :1], u2[:, :-1]], axis=1)  # u[:, k-1] over interval k
-        into = np.concatenate([[np.nan], np.diff(t)])  # the interval into each sample
         per_step = offset_table_nbytes(self.system) if self.refine else 0
-        distinct = np.unique(into[1:]).size
+        distinct = distinct_steps(t)[0].size
         span = K if per_step * distinct <= _TABLE_BUDGET else max(1, _TABLE_BUDGET // per_step)
         x, P = np.tile(self.x0, (N, 1)), np.tile(self.P0, (N, 1, 1))
         parts = []
         for k0 in range(0, K, span):
             k1 = min(K, k0 + span)
-            valid = into[k0:k1][~np.isnan(into[k0:k1])]
-            steps, which = np.unique(valid, return_inverse=True)
+            steps, which = distinct_steps(t[max(k0 - 1, 0):k1])  # the intervals into k0..k1-1
             which = np.concatenate([[0], which]) if k0 == 0 else which
             out = self._kernel(y2[:, k0:k1], held[:, k0:k1], which, modes[:, k0:k1],
                                prev[:, k0:k1], steps, x, P, predict_first=k0 > 0)

@@ -56,14 +56,15 @@ def imm_logliks(y, u, F, G, Qd, trans, C, R, out_index, log_transition, x0, P0,
 
 
 def imm_posteriors(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, *,
-                   gate, timing: str) -> tuple[IMMOutput, np.ndarray]:
+                   gate, timing: str, modes_out: bool = True) -> tuple[IMMOutput, np.ndarray]:
     """One model's IMM along the table ``F, G, Qd`` a caller built, with its mode-matched
     posteriors after every sample (the arguments of :func:`switchest.engine.imm.imm_run`,
-    Bar-Shalom, Li & Kirubarajan §11.6.6, ``modes_out=True``), for a smoother that takes the
-    same transitions, and the samples its gate rejected in every mode ``(N, K)``; raises the
-    package's error for a failed covariance and warns of a repaired one."""
+    Bar-Shalom, Li & Kirubarajan §11.6.6; without them if not ``modes_out``), for a smoother
+    that takes the same transitions, and the samples its gate rejected in every mode
+    ``(N, K)``; raises the package's error for a failed covariance and warns of a repaired
+    one."""
     out = imm_run(y, u, F, G, Qd, trans, C, R, log_transition, x0, P0, log_prob0, gate=gate,
-                  timing=timing, modes_out=True)
+                  timing=timing, modes_out=modes_out)
     raise_for_status(out.status)
     warn_for_repairs(out)
     return out, out.flag == GATED

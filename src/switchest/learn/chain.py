@@ -157,19 +157,20 @@ def _chain(system, table, trans, first, second, component, entry, move) -> ModeC
                      system.C[second], system.R[second])
 
 
-def _forward(chain: ModeChain, data: Record, x0, P0, gate: float):
-    """The IMM on the chain, with its mode-matched posteriors, and its outlier flags."""
+def _forward(chain: ModeChain, data: Record, x0, P0, gate: float, modes_out: bool = True):
+    """The IMM on the chain, with its mode-matched posteriors (``modes_out``), and its outlier
+    flags."""
     with np.errstate(divide="ignore"):  # log 0 = -inf: an impossible member
         log_matrix, log_prior = np.log(chain.matrix), np.log(chain.prior)
     t = chain.table
     return imm_posteriors(data.y, data.u, t.F, t.G, t.Qd, chain.trans, chain.C, chain.R,
                           log_matrix, np.asarray(x0, dtype=float), np.asarray(P0, dtype=float),
-                          log_prior, gate=gate, timing="interval")
+                          log_prior, gate=gate, timing="interval", modes_out=modes_out)
 
 
 def chain_log_likelihood(chain: ModeChain, data: Record, x0, P0) -> float:
     """The log-likelihood :func:`chain_moments` reports, without the smoother or a gate."""
-    return float(_forward(chain, data, x0, P0, math.inf)[0].loglik.sum())
+    return float(_forward(chain, data, x0, P0, math.inf, modes_out=False)[0].loglik.sum())
 
 
 def chain_moments(chain: ModeChain, data: Record, x0, P0, L: int,

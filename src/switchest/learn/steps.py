@@ -27,7 +27,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..discretize import Transition, interval, pairwise_grid, sample_mode_steps, switch_grid
+from ..discretize import (
+    Transition,
+    distinct_steps,
+    interval,
+    pairwise_grid,
+    sample_mode_steps,
+    switch_grid,
+)
 from ..system import SwitchedLinearSystem
 
 __all__ = ["StepTable", "grid_table", "sample_table"]
@@ -108,5 +115,5 @@ def grid_table(system: SwitchedLinearSystem, t: np.ndarray, g: int
 def _steps(t: np.ndarray) -> np.ndarray:
     """The distinct sampling steps of ``t``, as :func:`~switchest.discretize.sample_mode_steps`
     orders them (a unit step for one sample)."""
-    steps = np.unique(np.diff(np.asarray(t, dtype=float)))
+    steps = distinct_steps(t)[0]
     return steps if steps.size else np.ones(1)
