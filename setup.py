@@ -23,7 +23,7 @@ from setuptools.command.build_py import build_py
 
 ENGINE = Path("src/switchest/engine")
 PORTABLE = os.environ.get("SWITCHEST_PORTABLE", "0") not in ("", "0")
-FLAGS = ["-O3", "-std=c11", "-fno-math-errno", "-ffp-contract=off"]
+FLAGS = ["-O3", "-std=c11", "-D_DEFAULT_SOURCE", "-fno-math-errno", "-ffp-contract=off"]
 if not PORTABLE:
     FLAGS.append("-march=native")
 

@@ -390,6 +390,6 @@ se_int se_filter_bank(SE_FILTER_BANK_PARAMETERS)
         se_bank_close_block(n, L, B, i0, nb, &s, out);
     }
 done:
-    free(ar.base);
+    se_arena_close(&ar);
     return status;
 }

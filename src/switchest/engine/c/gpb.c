@@ -205,6 +205,6 @@ se_int se_gpb2_bank(SE_GPB2_BANK_PARAMETERS)
 #undef XP
 #undef PP
 done:
-    free(ar.base);
+    se_arena_close(&ar);
     return status;
 }

@@ -701,6 +701,6 @@ se_int se_viterbi_bank(SE_VITERBI_BANK_PARAMETERS)
         se_scatter_modes(n, L, B, 1, x, P, i0, nb, x_last, P_last);
     }
 done:
-    free(ar.base);
+    se_arena_close(&ar);
     return status;
 }

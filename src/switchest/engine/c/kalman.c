@@ -645,7 +645,7 @@ se_int se_kalman_filter(SE_KALMAN_FILTER_PARAMETERS)
         }
     }
 done:
-    free(ar.base);
+    se_arena_close(&ar);
     return status;
 }
 
@@ -755,6 +755,6 @@ se_int se_steady_filter(SE_STEADY_FILTER_PARAMETERS)
                              t + 1, x_out, P_out, loglik_out, flag_out);
         }
     }
-    free(ar.base);
+    se_arena_close(&ar);
     return SE_OK;
 }

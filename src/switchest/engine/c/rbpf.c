@@ -651,6 +651,6 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
         }
     }
 done:
-    free(ar.base);
+    se_arena_close(&ar);
     return status;
 }

@@ -17,6 +17,10 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__unix__) || defined(__APPLE__)
+#include <sys/mman.h>
+#define SE_HAVE_MMAP 1
+#endif
 
 typedef int64_t se_int;
 
@@ -63,7 +67,7 @@ static inline void se_report_start(double *report)
  * 64 bytes so that every array starts on a cache line. A kernel carves its arrays twice with
  * the same calls: a first pass with base NULL only adds up the size (se_carve returns NULL),
  * se_arena_open then allocates a zeroed block of that size and asks for the second pass, which
- * carves it; the kernel frees ar.base before it returns:
+ * carves it; the kernel closes the arena before it returns:
  *
  *     se_arena ar = {NULL, 0};
  *     do
@@ -71,11 +75,22 @@ static inline void se_report_start(double *report)
  *     while (se_arena_open(&ar));
  *     if (ar.base == NULL)
  *         return SE_NO_MEMORY;
- */
+ *     ...
+ *     se_arena_close(&ar);
+ *
+ * A block of SE_MAPPED_BYTES or more is mapped from the system (mmap, zeroed pages) and
+ * unmapped at the close, not taken from malloc's heap: glibc raises its mmap threshold to the
+ * size of the largest block freed, so later blocks of that size came from the heap, between
+ * the Python objects allocated from call to call, and the freed blocks were not reused (a fit
+ * that filters hundreds of candidate models, each call's scratch a few hundred KiB, grew by
+ * about 1 MiB per call to 450 MiB). */
 typedef struct {
     char *base;
     size_t used;
+    size_t mapped; /* the size of a mapped block, 0 for one from aligned_alloc */
 } se_arena;
+
+#define SE_MAPPED_BYTES ((size_t)1 << 18)
 
 static inline void *se_carve(se_arena *arena, se_int count, size_t size)
 {
@@ -107,12 +122,37 @@ static inline int se_arena_open(se_arena *arena)
     if (arena->base != NULL)
         return 0;
     size_t bytes = arena->used ? arena->used : 64;
-    arena->base = (char *)aligned_alloc(64, bytes);
     arena->used = 0;
+#ifdef SE_HAVE_MMAP
+    if (bytes >= SE_MAPPED_BYTES) {
+        void *block = mmap(NULL, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+        if (block == MAP_FAILED)
+            return 0;
+        arena->base = (char *)block; /* page aligned, zeroed by the system */
+        arena->mapped = bytes;
+        return 1;
+    }
+#endif
+    arena->base = (char *)aligned_alloc(64, bytes);
     if (arena->base == NULL)
         return 0;
     memset(arena->base, 0, bytes);
     return 1;
+}
+
+/* Release the arena's block (either kind; nothing if none was allocated). */
+static inline void se_arena_close(se_arena *arena)
+{
+#ifdef SE_HAVE_MMAP
+    if (arena->mapped) {
+        munmap(arena->base, arena->mapped);
+        arena->mapped = 0;
+        arena->base = NULL;
+        return;
+    }
+#endif
+    free(arena->base);
+    arena->base = NULL;
 }
 
 #endif

@@ -721,7 +721,7 @@ se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS)
         }
     }
 done:
-    free(arena.base);
+    se_arena_close(&arena);
     return status;
 }
 

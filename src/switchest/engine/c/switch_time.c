@@ -1011,6 +1011,6 @@ se_int se_switch_time_filter(SE_SWITCH_TIME_FILTER_PARAMETERS)
         }
     }
 done:
-    free(ar.base);
+    se_arena_close(&ar);
     return status;
 }

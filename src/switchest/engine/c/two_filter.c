@@ -582,6 +582,6 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         }
     }
 done:
-    free(arena.base);
+    se_arena_close(&arena);
     return status;
 }
