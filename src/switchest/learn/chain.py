@@ -81,7 +81,14 @@ from .data import Record
 from .moments import Moments, mode_mixture
 from .steps import StepTable, grid_table, sample_table
 
-__all__ = ["ModeChain", "chain_log_likelihood", "chain_moments", "instant_chain", "pair_chain"]
+__all__ = [
+    "ModeChain",
+    "chain_log_likelihood",
+    "chain_moments",
+    "chain_transition",
+    "instant_chain",
+    "pair_chain",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,12 +154,19 @@ def instant_chain(system: SwitchedLinearSystem, transition, t, g: int) -> ModeCh
     return _chain(system, table, trans, first, second, np.arange(first.size), trans[1:], move)
 
 
-def _chain(system, table, trans, first, second, component, entry, move) -> ModeChain:
-    """The chain of members ``first``, ``second`` entered with probability ``move`` from any
-    member that ends in their ``first`` mode."""
-    L = system.n_modes
+def chain_transition(first, second, move, L: int) -> tuple[np.ndarray, np.ndarray]:
+    """The transition matrix of a chain whose members ``first``, ``second`` ``(M,)`` are entered
+    with probability ``move (M,)`` from any member that ends in their ``first`` mode, and its
+    prior at sample 0: :math:`(r_0, r_0)` with :math:`r_0` uniform over the ``L`` modes
+    (module docstring)."""
     matrix = np.where(second[:, None] == first[None, :], move[None, :], 0.0)
-    prior = np.where(first == second, 1.0 / L, 0.0)
+    return matrix, np.where(first == second, 1.0 / L, 0.0)
+
+
+def _chain(system, table, trans, first, second, component, entry, move) -> ModeChain:
+    """The chain of members ``first``, ``second`` entered with probability ``move``
+    (:func:`chain_transition`)."""
+    matrix, prior = chain_transition(first, second, move, system.n_modes)
     return ModeChain(table, trans, first, second, component, entry, matrix, prior,
                      system.C[second], system.R[second])
 

@@ -48,7 +48,13 @@ from ..estimators.smoothing import smooth_mode_matched
 from ..estimators.tables import imm_logliks, kalman_logliks
 from ..system import SwitchedLinearSystem
 from .between import between_log_likelihood, known_between
-from .chain import chain_log_likelihood, chain_moments, instant_chain, pair_chain
+from .chain import (
+    chain_log_likelihood,
+    chain_moments,
+    chain_transition,
+    instant_chain,
+    pair_chain,
+)
 from .data import Record
 from .markov_step import mode_term
 from .moments import Moments, mode_mixture
@@ -246,11 +252,10 @@ def _pair_chain(system: SwitchedLinearSystem, transition
 def _pair_markov(transition: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The pair chain's transition matrix, :math:`P((b, c) \\mid (a, b')) = [b = b']\\, \\pi_{bc}`,
     and its prior at sample 0, :math:`(r_0, r_0)` with :math:`r_0` uniform
-    (:func:`_pair_chain`)."""
+    (:func:`_pair_chain`; :func:`~switchest.learn.chain.chain_transition`)."""
     L = transition.shape[0]
     a, b = np.divmod(np.arange(L * L), L)
-    chain = np.where(a[None, :] == b[:, None], transition[b][:, b], 0.0)
-    return chain, np.where(a == b, 1.0 / L, 0.0)
+    return chain_transition(a, b, transition[a, b], L)
 
 
 def _chunks(data: Record, L: int) -> list[slice]:
