@@ -6,8 +6,9 @@ The equations, numbered as the kernel's steps, are the module docstring of
 :mod:`switchest.estimators.two_filter` (Helmick, Blair & Hoffman 1995): 1. the measurement
 ``N(y_{k+1}; C_l x', R_l) beta_l(k+1)(x')`` (``_measure``), 2. the dynamics, the Gaussian
 integral through ``F_l``, ``G_l u_k``, ``Qd_l`` (``_dynamics``), 3. the log-linear pooling over
-the next mode, weighed by each message's evidence under a reference Gaussian (``_pool``), and
-the posterior of a Gaussian and a message (``_posterior``). Here every system ``I + P Omega``,
+the next mode, weighed by each message's evidence under a reference Gaussian, whose pairs also
+give the smoothed probabilities of the next mode (``_pool``), and the posterior of a Gaussian
+and a message (``_posterior``). Here every system ``I + P Omega``,
 ``I + Omega Qd`` is solved by ``numpy.linalg.solve`` (LAPACK's LU with partial pivoting) and
 its determinant taken by ``slogdet``; the measurement by a Cholesky factor of ``R`` over the
 observed components: a different route from the kernel's (se_innovation's equilibrated
@@ -69,6 +70,7 @@ def two_filter_smooth(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transi
         observed &= ~np.asarray(outlier, dtype=bool)[..., None]
     trans = np.broadcast_to(trans, (N, K, L))
     x_s, P_s, log_s = x_modes.copy(), P_modes.copy(), log_mu.copy()
+    pair = log_mu.copy()  # the mode probabilities of sample k + 1 from the pairs (k, k + 1)
     Omega, omega, c = np.zeros((N, L, n, n)), np.zeros((N, L, n)), np.zeros((N, L))
     for k in range(K - 2, -1, -1):
         entry = trans[:, k + 1]  # (N, L): mode l's transition into k+1
@@ -76,15 +78,17 @@ def two_filter_smooth(x_modes, P_modes, mode_prob, y, u, F, G, Qd, trans, transi
         alpha = _measure(Omega, omega, c, y[:, k + 1], observed[:, k + 1], C, R)
         if timing == "interval":
             delta = _dynamics(*alpha, F[entry], g, Qd[entry])
-            Omega, omega, c = _pool(x_modes[:, k], P_modes[:, k], delta, log_pi)
+            Omega, omega, c, pair[:, k + 1] = _pool(x_modes[:, k], P_modes[:, k], delta,
+                                                    log_pi, log_mu[:, k])
         else:
             Fi = F[entry]
             x_pred = np.einsum("nlij,nlj->nli", Fi, x_modes[:, k]) + g
             P_pred = symmetrize(Fi @ P_modes[:, k] @ np.swapaxes(Fi, -1, -2) + Qd[entry])
-            pooled = _pool(x_pred, P_pred, alpha, log_pi)
+            *pooled, pair[:, k + 1] = _pool(x_pred, P_pred, alpha, log_pi, log_mu[:, k])
             Omega, omega, c = _dynamics(*pooled, Fi, g, Qd[entry])
         log_z, x_s[:, k], P_s[:, k] = _posterior(x_modes[:, k], P_modes[:, k], Omega, omega, c)
         log_s[:, k] = log_mu[:, k] + log_z
+    log_s[:, 1:-1] = pair[:, 1:-1]  # the last sample keeps the filtered probabilities
     prob_s = np.exp(log_normalize(log_s)[0])
     if not (np.all(np.isfinite(x_s)) and np.all(np.isfinite(P_s)) and np.all(np.isfinite(prob_s))):
         raise np.linalg.LinAlgError(
@@ -130,9 +134,11 @@ def _dynamics(Omega, omega, c, F, g, Qd):
     return (symmetrize(Ft @ Omega_t @ F), np.einsum("...ij,...j->...i", Ft, omega_t - Og), c_new)
 
 
-def _pool(x_ref, P_ref, messages, log_pi):
+def _pool(x_ref, P_ref, messages, log_pi, log_mu):
     """The messages of the next modes ``l`` collapsed into one per mode ``i`` (step 3), weighed
-    and scaled under the reference Gaussians ``N(x_ref[:, i], P_ref[:, i])``."""
+    and scaled under the reference Gaussians ``N(x_ref[:, i], P_ref[:, i])``; last, the log
+    smoothed probabilities of the next mode from the pairs,
+    ``log sum_i mu_i pi_il Z_il`` (``log_mu (N, L)`` = log mu_i), up to a constant."""
     Omega, omega, c = messages  # (N, L_l, ...)
     log_z = _posterior(x_ref[:, :, None], P_ref[:, :, None], Omega[:, None], omega[:, None],
                        c[:, None])[0]  # (N, L_i, L_l)
@@ -141,7 +147,8 @@ def _pool(x_ref, P_ref, messages, log_pi):
     Omega_p = symmetrize(np.einsum("nil,nlab->niab", w, Omega))
     omega_p = np.einsum("nil,nla->nia", w, omega)
     base = _posterior(x_ref, P_ref, Omega_p, omega_p, np.zeros(total.shape))[0]
-    return Omega_p, omega_p, total - base
+    pair = np.logaddexp.reduce(log_mu[:, :, None] + log_pi[None] + log_z, axis=1)
+    return Omega_p, omega_p, total - base, pair
 
 
 def _posterior(x, P, Omega, omega, c):

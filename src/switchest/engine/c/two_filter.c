@@ -29,9 +29,13 @@
  *
  * The posterior of N(x, P) and a message (evidence_): M = I + P Omega, P_s = M^-1 P,
  * x_s = x + P_s r, r = omega - Omega x, and
- * log Z = c - x' Omega x / 2 + omega' x + r' P_s r / 2 - log |M| / 2; the smoothed mode
- * probabilities are mu_i(k|K) ∝ mu_i(k|k) Z_i. At k = K-1 the smoothed posterior is the
- * filtered one (beta = 1).
+ * log Z = c - x' Omega x / 2 + omega' x + r' P_s r / 2 - log |M| / 2. At k = K-1 the smoothed
+ * posterior is the filtered one (beta = 1). The smoothed mode probabilities of sample k + 1
+ * come from the pairs (mode i at k, mode l at k + 1) of step 3,
+ * mu_l(k+1|K) ∝ sum_i mu_i(k|k) pi_il Z_il (pool_'s pair: the update with y_{k+1} is then
+ * exact given the filter's posteriors at k, not the filter's own mixture at k + 1), but for
+ * the last sample, whose smoothed estimate is the filtered one; those of sample 0 are
+ * mu_i(0|K) ∝ mu_i(0|0) Z_i, Z_i the pooled message's evidence.
  *
  * The two systems solved, I + P Omega and I + Omega Qd, are not symmetric; both are
  * I + (positive semidefinite)(positive semidefinite), whose eigenvalues are those of
@@ -334,6 +338,13 @@ static void evidence_(se_int n, se_int B, const double *restrict x, const double
         log_z[b] = c[b] - 0.5 * xOx[b] + ox[b] + 0.5 * rPr[b] - 0.5 * ws->log_det[b];
 }
 
+/* log(exp(a) + exp(b)), -inf where both are */
+static inline double log_add(double a, double b)
+{
+    const double top = a > b ? a : b;
+    return top == -INFINITY ? top : top + log1p(exp(-fabs(a - b)));
+}
+
 /* Step 3 (the mixture over the next mode): for every mode i, the messages l (Omega (L, n, n, B),
  * omega (L, n, B), c (L, B)) weighed under the reference N(x_ref[i], P_ref[i]) (x_ref (L, n, B),
  * P_ref (L, n, n, B)): a_l = log pi_il + log Z_il (evidence_; a pair of pi_il = 0 is not
@@ -341,16 +352,22 @@ static void evidence_(se_int n, se_int B, const double *restrict x, const double
  * Op[i] = sum_l w_l Omega_l, op[i] = sum_l w_l omega_l, and cp[i] = logsumexp(a) - base[i],
  * base[i] = log Z of the pooled message with c = 0 under the reference. base (L, B) is
  * written; with x_s, P_s (L, ..) not NULL the posterior of that evidence too (the "interval"
- * timing's smoothed posterior, whose reference is the filtered one). */
+ * timing's smoothed posterior, whose reference is the filtered one).
+ * pair (L, B) gathers the smoothed log probabilities of the next mode from the pairs,
+ * pair[l] = log sum_i mu_i(k|k) pi_il Z_il (lmu (L, B) = log mu_i(k|k); the evidence of
+ * message l under mode i's reference is the pair's, Z_il = p(y_{k+1..} | r_k = i, r_{k+1} = l,
+ * y_{0..k}) up to a constant of k), up to one constant over l. */
 static void pool_(se_int n, se_int L, se_int B, const double *restrict x_ref,
                   const double *restrict P_ref, const double *restrict Omega,
                   const double *restrict omega, const double *restrict c,
-                  const double *restrict log_transition, se_int nb, double *restrict Op,
-                  double *restrict op, double *restrict cp, double *restrict base,
-                  double *restrict x_s, double *restrict P_s, const pool_ws *pw,
-                  const solve_ws *ws)
+                  const double *restrict log_transition, const double *restrict lmu, se_int nb,
+                  double *restrict Op, double *restrict op, double *restrict cp,
+                  double *restrict base, double *restrict x_s, double *restrict P_s,
+                  double *restrict pair, const pool_ws *pw, const solve_ws *ws)
 {
     const se_int nn = n * n;
+    for (se_int e = 0; e < L * B; e++)
+        pair[e] = -INFINITY;
     for (se_int i = 0; i < L; i++) {
         const double *xi = x_ref + i * n * B, *Pi = P_ref + i * nn * B;
         for (se_int j = 0; j < L; j++) {
@@ -363,8 +380,10 @@ static void pool_(se_int n, se_int L, se_int B, const double *restrict x_ref,
             }
             evidence_(n, B, xi, Pi, Omega + j * nn * B, omega + j * n * B, c + j * B, nb, aj,
                       NULL, NULL, ws);
-            for (se_int b = 0; b < nb; b++)
+            for (se_int b = 0; b < nb; b++) {
                 aj[b] += lt;
+                pair[j * B + b] = log_add(pair[j * B + b], lmu[i * B + b] + aj[b]);
+            }
         }
         se_log_normalize(L, B, pw->a, pw->w, pw->total, nb);
         double *Opi = Op + i * nn * B, *opi = op + i * n * B;
@@ -430,8 +449,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         return SE_OK;
     const se_int B = se_lanes(lanes, N), nn = n * n;
     double *Om, *om, *c, *Od, *od, *cd, *Fl, *Gl, *Ql, *g, *ul, *yk, *obs;
-    double *n_obs, *Cl, *Rl, *xf, *Pf, *lmu, *xp, *Pp, *FP, *xs, *xo, *Po, *lz, *base, *prob;
-    double *total;
+    double *n_obs, *Cl, *Rl, *xf, *Pf, *lmu, *xp, *Pp, *FP, *xs, *xo, *Po, *lz, *xq, *Pq, *lq;
+    double *pair, *base, *prob, *total;
     se_int *idx;
     solve_ws sw;
     measure_ws mw;
@@ -467,6 +486,10 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         xo = se_doubles(&arena, L * n * B); /* the smoothed posteriors at k */
         Po = se_doubles(&arena, L * nn * B);
         lz = se_doubles(&arena, L * B);
+        xq = se_doubles(&arena, L * n * B); /* those at k + 1, written once pair is known */
+        Pq = se_doubles(&arena, L * nn * B);
+        lq = se_doubles(&arena, L * B);
+        pair = se_doubles(&arena, L * B);
         base = se_doubles(&arena, L * B);
         prob = se_doubles(&arena, L * B);
         total = se_doubles(&arena, B);
@@ -503,15 +526,11 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         memset(Om, 0, sizeof(double) * (size_t)(L * nn * B)); /* beta(K-1) = 1 */
         memset(om, 0, sizeof(double) * (size_t)(L * n * B));
         memset(c, 0, sizeof(double) * (size_t)(L * B));
-        /* k = K-1: smoothed = filtered */
-        se_gather_modes(n, L, B, K, x_f + (K - 1) * L * n, P_f + (K - 1) * L * nn, i0, nb, xf,
-                        Pf);
-        se_gather_rows(L, B, K, log_prob_f + (K - 1) * L, i0, nb, lmu);
-        if (!write_(n, L, B, K, Ns, xf, Pf, lmu, prob, total, i0, nb, K - 1, x_s, P_s,
-                    prob_s, &cw, x_c, P_c, mode_c)) {
-            status = SE_NOT_FINITE;
-            goto done;
-        }
+        /* k = K-1: the smoothed posteriors are the filtered ones (beta = 1), held (xq, Pq, lq)
+         * until the pairs of step K-2 give their mode probabilities */
+        se_gather_modes(n, L, B, K, x_f + (K - 1) * L * n, P_f + (K - 1) * L * nn, i0, nb, xq,
+                        Pq);
+        se_gather_rows(L, B, K, log_prob_f + (K - 1) * L, i0, nb, lq);
         for (se_int k = K - 2; k >= 0; k--) {
             for (se_int j = 0; j < L; j++) /* mode j's transition into k + 1, g_j = G_j u_k */
                 se_gather_transition(n, l, L, B, T, TK, F, G, Qd, trans, i0, nb, k + 1, j, idx,
@@ -548,8 +567,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
                               Od + j * nn * B, od + j * n * B, cd + j * B, &sw);
                 /* step 3 under the filtered posteriors, whose pooled evidence is the smoothed
                  * posterior's: log Z_i = c_i + base_i */
-                pool_(n, L, B, xf, Pf, Od, od, cd, log_transition, nb, Om, om, c, base, xo,
-                      Po, &pw, &sw);
+                pool_(n, L, B, xf, Pf, Od, od, cd, log_transition, lmu, nb, Om, om, c, base,
+                      xo, Po, pair, &pw, &sw);
                 for (se_int e = 0; e < L * B; e++)
                     lz[e] = c[e] + base[e];
             } else {
@@ -561,8 +580,8 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
                 }
                 /* step 3 at x_{k+1} under the predictions, then step 2 through mode i's
                  * transition, then the posterior of the filtered Gaussian */
-                pool_(n, L, B, xp, Pp, Om, om, c, log_transition, nb, Od, od, cd, base, NULL,
-                      NULL, &pw, &sw);
+                pool_(n, L, B, xp, Pp, Om, om, c, log_transition, lmu, nb, Od, od, cd, base,
+                      NULL, NULL, pair, &pw, &sw);
                 for (se_int i = 0; i < L; i++) {
                     dynamics_(n, B, Od + i * nn * B, od + i * n * B, cd + i * B,
                               Fl + i * nn * B, g + i * n * B, Ql + i * nn * B, nb,
@@ -572,13 +591,27 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
                               Po + i * nn * B, &sw);
                 }
             }
-            for (se_int e = 0; e < L * B; e++) /* log mu_i(k|K) = log mu_i(k|k) + log Z_i + const */
-                lz[e] += lmu[e];
-            if (!write_(n, L, B, K, Ns, xo, Po, lz, prob, total, i0, nb, k, x_s, P_s, prob_s,
-                        &cw, x_c, P_c, mode_c)) {
+            /* sample k + 1 with the mode probabilities of the pairs (k, k + 1); the last
+             * sample keeps the filtered ones: its smoothed estimate is the filtered estimate */
+            if (!write_(n, L, B, K, Ns, xq, Pq, k == K - 2 ? lq : pair, prob, total, i0, nb,
+                        k + 1, x_s, P_s, prob_s, &cw, x_c, P_c, mode_c)) {
                 status = SE_NOT_FINITE;
                 goto done;
             }
+            for (se_int e = 0; e < L * B; e++) /* log mu_i(k|K) = log mu_i(k|k) + log Z_i + const */
+                lq[e] = lz[e] + lmu[e];
+            double *swap = xq; /* sample k is held next */
+            xq = xo;
+            xo = swap;
+            swap = Pq;
+            Pq = Po;
+            Po = swap;
+        }
+        /* sample 0 (or the only one) with the probabilities of its own combination */
+        if (!write_(n, L, B, K, Ns, xq, Pq, lq, prob, total, i0, nb, 0, x_s, P_s, prob_s, &cw,
+                    x_c, P_c, mode_c)) {
+            status = SE_NOT_FINITE;
+            goto done;
         }
     }
 done:
