@@ -302,15 +302,21 @@ def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatc
     assert sum(1 for cell in first_cells if len(cell) >= 4) >= 5  # labels, not slivers
 
 
-def test_estimate_smooths_the_boost_converter(tmp_path):
+def test_estimate_smooths_the_boost_converter(tmp_path, capsys):
     """Issue 35: Kim's smoother wrote states of 1e127 here and exited 0; the two-filter smoother
-    (the default) gives finite estimates within the filtered ones' range."""
+    (the default) gives finite estimates within the filtered ones' range, and says that its
+    model of the switches (at the samples) is not the file's (between them)."""
     model = EXAMPLES / "shankar-boost.toml"
     data, filtered, smoothed = tmp_path / "d.csv", tmp_path / "f.csv", tmp_path / "s.csv"
     assert main(["simulate", "--model", str(model), "--seed", "1", "--out", str(data)]) == 0
+    said = {}
     for out, extra in ((filtered, []), (smoothed, ["--smooth"])):
+        capsys.readouterr()
         assert main(["estimate", "--model", str(model), "--data", str(data), "--method", "imm",
                      *extra, "--out", str(out)]) == 0
+        said[out] = capsys.readouterr().err
+    assert "the model switches between the samples" in said[smoothed]
+    assert "the model switches between the samples" not in said[filtered]
     f, s = pd.read_csv(filtered), pd.read_csv(smoothed)
     assert np.all(np.isfinite(s[["x0", "x1"]].to_numpy()))
     assert np.median(s["std_x1"]) < np.median(f["std_x1"])  # the whole record knows more
