@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from boost_warnings import boost_fit_warnings_ignored
 
 from switchest.cli import main
 from switchest.discretize import interval, switch_grid
@@ -207,11 +208,7 @@ def test_boost_fit_recovers_R_from_a_wrong_start(boost):
     sys, (x0, P0) = spec.system, spec.initial
     traj = simulate(sys, spec.switching, t, spec.initial, U, trials=6, rng=11)
     start = sys.replace(Q=0.5 * sys.Q, R=2 * sys.R)
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", "mode 0: the pair")  # i_L unobservable in mode 0
-        for unidentified in ("the observed information is not positive definite",
-                             "the fit lies on the boundary"):  # Q, which the data do not inform
-            warnings.filterwarnings("ignore", unidentified)
+    with boost_fit_warnings_ignored():
         res = fit(start, traj.y, U, t, x0=x0, P0=P0, modes=traj.mode, estimate=("R", "Q"),
                   shared=("R",), switch_times="between")
     assert res.converged and res.switch_times == "between" and res.shared == ("R",)
