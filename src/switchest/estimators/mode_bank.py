@@ -405,8 +405,9 @@ def _warn_if_diverged(filtered: Estimate, smoothed) -> None:
     grow geometrically towards the start of the record.
     """
     spread = np.trace(filtered.P, axis1=-2, axis2=-1)
-    grown = np.trace(smoothed.P, axis1=-2, axis2=-1) / spread
-    moved = np.sum((smoothed.x - filtered.x) ** 2, axis=-1) / spread
+    with np.errstate(over="ignore"):  # a diverged estimate squares to inf: said below
+        grown = np.trace(smoothed.P, axis1=-2, axis2=-1) / spread
+        moved = np.sum((smoothed.x - filtered.x) ** 2, axis=-1) / spread
     worst = np.nanmax(np.maximum(grown, moved), initial=0.0)
     if not worst <= _DIVERGED:
         k = int(np.unravel_index(np.nanargmax(np.maximum(grown, moved)), grown.shape)[-1])
