@@ -315,8 +315,8 @@ def test_estimate_smooths_the_boost_converter(tmp_path, capsys):
         assert main(["estimate", "--model", str(model), "--data", str(data), "--method", "imm",
                      *extra, "--out", str(out)]) == 0
         said[out] = capsys.readouterr().err
-    assert "the model switches between the samples" in said[smoothed]
-    assert "the model switches between the samples" not in said[filtered]
+    assert "switches fall between the samples" in said[smoothed]
+    assert "switches fall between the samples" not in said[filtered]
     f, s = pd.read_csv(filtered), pd.read_csv(smoothed)
     assert np.all(np.isfinite(s[["x0", "x1"]].to_numpy()))
     assert np.median(s["std_x1"]) < np.median(f["std_x1"])  # the whole record knows more

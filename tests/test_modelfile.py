@@ -231,3 +231,12 @@ def test_the_timing_key_is_read_written_and_checked(tmp_path):
     path.write_text('timing = "intervals"\n' + text)
     with pytest.raises(ValueError, match="timing: expected one of 'sample', 'interval'"):
         load_model(path)
+
+
+@pytest.mark.parametrize("name, between", [
+    ("shankar-boost", True),  # continuous time, dwell-time switching in continuous time
+    ("wang-example1", False),  # continuous time, switching at the samples
+    ("zhang-two-mode", False),  # discrete time
+])
+def test_whether_the_switches_fall_between_the_samples(name, between):
+    assert load_model(EXAMPLES / f"{name}.toml").switches_between_samples is between

@@ -621,11 +621,6 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
     table.to_csv(out, index=False)
     console.print(f"{len(table)} samples estimated with {args.method}: "
                   f"[bold]{escape(str(out))}[/bold]")
-    if args.smooth and _switch_times(spec) == "between":
-        _say(errors, "warning", f"the model switches between the samples, {args.method}'s "
-             "smoother at them: on such data the smoothed estimate need not be closer than "
-             "the filtered one (boost converter: state RMSE 1.07-1.09 times the filtered); "
-             "compare both, or use --method switch-time")
     if "outlier" in table and table["outlier"].any():
         _say(errors, "warning", f"{int(table['outlier'].sum())} of {len(table)} measurements "
              "were rejected by the filter's outlier gate and treated as missing (column "
@@ -849,7 +844,8 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
                          "the prior of the state at the first sample, which fit holds fixed")
     data = read_trials(args.data, spec, args.trial)
     start = start_transition(spec, data["t"])
-    switch_times = args.switch_times or _switch_times(spec)
+    switch_times = args.switch_times or ("between" if spec.switches_between_samples
+                                         else "samples")
     columns = (TextColumn("EM"), BarColumn(), MofNCompleteColumn(),
                TextColumn("log-likelihood {task.fields[loglik]}"), TimeElapsedColumn())
     with (warnings.catch_warnings(record=True) as caught,
@@ -893,14 +889,6 @@ def _cmd_fit(args: argparse.Namespace, console: Console) -> int:
                ylabel="log-likelihood", title=f"{Path(args.model).name}: EM, {modes}")
         console.print(f"figure: {escape(str(plot))}")
     return 0
-
-
-def _switch_times(spec) -> str:
-    """``fit``'s default ``--switch-times``: ``between`` for a continuous-time model whose
-    switching model switches in continuous time (not at the samples), else ``samples``."""
-    between = (spec.system.is_continuous and spec.switching is not None
-               and not spec.switching.at_samples)
-    return "between" if between else "samples"
 
 
 # ---------------------------------------------------------------------- the parser and main

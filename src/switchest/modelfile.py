@@ -136,6 +136,13 @@ class ModelSpec:
         """The system's timing, the file's top-level ``timing``."""
         return self.system.timing
 
+    @property
+    def switches_between_samples(self) -> bool:
+        """Whether the switches fall between the samples: a continuous-time system whose
+        switching model switches in continuous time, not at the samples."""
+        sw = self.switching
+        return self.system.is_continuous and sw is not None and not sw.at_samples
+
     def sample_times(self, t_end: float | None = None, *, rng=None) -> np.ndarray:
         """Sample times on :math:`[0, t_\\mathrm{end}]` (default: the file's duration)."""
         t_end = self._duration(t_end)

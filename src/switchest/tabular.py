@@ -133,7 +133,11 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         overrides ``sampling.period``.
     smooth : bool
         ``imm``, ``gpb1``, ``gpb2``: fixed-interval smoothed estimates (the two-filter
-        smoother, given the whole record) instead of filtered ones.
+        smoother, given the whole record) instead of filtered ones. These smoothers model
+        the switches at the samples: on a model file whose switches fall between them
+        (:attr:`~switchest.modelfile.ModelSpec.switches_between_samples`, the boost
+        converter's) an :class:`ImplausibleEstimateWarning` says the smoothed estimate need
+        not beat the filtered one.
     particles, seed : int, optional
         ``rbpf`` only: the number of particles (default 1000) and the seed of its random
         numbers (default 0).
@@ -180,12 +184,18 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     est = entry.run(estimator, meas["y"], meas["u"], meas["t"], modes=modes, smooth=smooth)
     if entry.innovation_check:
         _warn_if_inconsistent(spec, meas, est, modes, method)
+    if smooth and spec.switches_between_samples:
+        warnings.warn(f"the model file's switches fall between the samples, {method}'s "
+                      "smoother models them at the samples: on such data the smoothed "
+                      "estimate need not be closer than the filtered one; compare both, or "
+                      "use method 'switch-time'", ImplausibleEstimateWarning, stacklevel=2)
     return _table(meas["t"], est)
 
 
 class ImplausibleEstimateWarning(UserWarning):
-    """The filter's residuals do not match the covariance it claims: the model does not fit
-    the data (:func:`switchest.metrics.innovation_consistency`)."""
+    """The estimate does not fit the model file or the data: the filter's residuals do not
+    match the covariance it claims (:func:`switchest.metrics.innovation_consistency`), or a
+    smoother's model of the switches is not the file's."""
 
 
 

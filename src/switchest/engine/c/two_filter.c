@@ -182,9 +182,10 @@ static se_int full_(se_int n, se_int m, se_int B, const double *restrict C,
     return SE_OK;
 }
 
-/* The work arrays of pool_: the log-weights a, the weights w (L, B), their total (B,). */
+/* The work arrays of pool_: the log-weights a (L, B) of one mode i, the weights w (L, L, B) of
+ * every mode (row i, normalized), a total (B,), and s (L, B) the log of each mode's share. */
 typedef struct {
-    double *a, *w, *total;
+    double *a, *w, *total, *s;
 } pool_ws;
 
 /* M = I + X Y per lane, X, Y (n, n, B) row-major. */
@@ -338,13 +339,6 @@ static void evidence_(se_int n, se_int B, const double *restrict x, const double
         log_z[b] = c[b] - 0.5 * xOx[b] + ox[b] + 0.5 * rPr[b] - 0.5 * ws->log_det[b];
 }
 
-/* log(exp(a) + exp(b)), -inf where both are */
-static inline double log_add(double a, double b)
-{
-    const double top = a > b ? a : b;
-    return top == -INFINITY ? top : top + log1p(exp(-fabs(a - b)));
-}
-
 /* Step 3 (the mixture over the next mode): for every mode i, the messages l (Omega (L, n, n, B),
  * omega (L, n, B), c (L, B)) weighed under the reference N(x_ref[i], P_ref[i]) (x_ref (L, n, B),
  * P_ref (L, n, n, B)): a_l = log pi_il + log Z_il (evidence_; a pair of pi_il = 0 is not
@@ -353,10 +347,12 @@ static inline double log_add(double a, double b)
  * base[i] = log Z of the pooled message with c = 0 under the reference. base (L, B) is
  * written; with x_s, P_s (L, ..) not NULL the posterior of that evidence too (the "interval"
  * timing's smoothed posterior, whose reference is the filtered one).
- * pair (L, B) gathers the smoothed log probabilities of the next mode from the pairs,
+ * pair (L, B) is written with the smoothed log probabilities of the next mode from the pairs,
  * pair[l] = log sum_i mu_i(k|k) pi_il Z_il (lmu (L, B) = log mu_i(k|k); the evidence of
  * message l under mode i's reference is the pair's, Z_il = p(y_{k+1..} | r_k = i, r_{k+1} = l,
- * y_{0..k}) up to a constant of k), up to one constant over l. */
+ * y_{0..k}) up to a constant of k), up to one constant over l: from the weights already
+ * normalized, pi_il Z_il = w_il exp(t_i), t_i = logsumexp_l a_l, so
+ * pair[l] = log sum_i exp(s_i) w_il with s_i = log mu_i(k|k) + t_i. */
 static void pool_(se_int n, se_int L, se_int B, const double *restrict x_ref,
                   const double *restrict P_ref, const double *restrict Omega,
                   const double *restrict omega, const double *restrict c,
@@ -366,8 +362,6 @@ static void pool_(se_int n, se_int L, se_int B, const double *restrict x_ref,
                   double *restrict pair, const pool_ws *pw, const solve_ws *ws)
 {
     const se_int nn = n * n;
-    for (se_int e = 0; e < L * B; e++)
-        pair[e] = -INFINITY;
     for (se_int i = 0; i < L; i++) {
         const double *xi = x_ref + i * n * B, *Pi = P_ref + i * nn * B;
         for (se_int j = 0; j < L; j++) {
@@ -380,20 +374,34 @@ static void pool_(se_int n, se_int L, se_int B, const double *restrict x_ref,
             }
             evidence_(n, B, xi, Pi, Omega + j * nn * B, omega + j * n * B, c + j * B, nb, aj,
                       NULL, NULL, ws);
-            for (se_int b = 0; b < nb; b++) {
+            for (se_int b = 0; b < nb; b++)
                 aj[b] += lt;
-                pair[j * B + b] = log_add(pair[j * B + b], lmu[i * B + b] + aj[b]);
-            }
         }
-        se_log_normalize(L, B, pw->a, pw->w, pw->total, nb);
+        double *wi = pw->w + i * L * B;
+        se_log_normalize(L, B, pw->a, wi, pw->total, nb);
+        for (se_int b = 0; b < nb; b++)
+            pw->s[i * B + b] = lmu[i * B + b] + pw->total[b];
         double *Opi = Op + i * nn * B, *opi = op + i * n * B;
-        se_lane_product(1, L, nn, B, pw->w, 0, 1, Omega, nn, 1, nb, Opi);
-        se_lane_product(1, L, n, B, pw->w, 0, 1, omega, n, 1, nb, opi);
+        se_lane_product(1, L, nn, B, wi, 0, 1, Omega, nn, 1, nb, Opi);
+        se_lane_product(1, L, n, B, wi, 0, 1, omega, n, 1, nb, opi);
         evidence_(n, B, xi, Pi, Opi, opi, ws->zero, nb, base + i * B,
                   x_s ? x_s + i * n * B : NULL, P_s ? P_s + i * nn * B : NULL, ws);
         for (se_int b = 0; b < nb; b++)
             cp[i * B + b] = pw->total[b] - base[i * B + b];
     }
+    double *top = pw->total; /* pair[l] = top + log sum_i exp(s_i - top) w_il */
+    for (se_int b = 0; b < nb; b++)
+        top[b] = -INFINITY;
+    for (se_int i = 0; i < L; i++)
+        for (se_int b = 0; b < nb; b++)
+            top[b] = pw->s[i * B + b] > top[b] ? pw->s[i * B + b] : top[b];
+    for (se_int i = 0; i < L; i++)
+        for (se_int b = 0; b < nb; b++)
+            pw->s[i * B + b] = top[b] == -INFINITY ? 0.0 : exp(pw->s[i * B + b] - top[b]);
+    se_lane_product(1, L, L, B, pw->s, 0, 1, pw->w, L, 1, nb, pair); /* sum_i e_i w_il */
+    for (se_int l = 0; l < L; l++)
+        for (se_int b = 0; b < nb; b++)
+            pair[l * B + b] = top[b] == -INFINITY ? -INFINITY : top[b] + log(pair[l * B + b]);
 }
 
 /* The combined moments of a sample's smoothed mixture (se_combine): x (n, B), P (n, n, B),
@@ -494,8 +502,9 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         prob = se_doubles(&arena, L * B);
         total = se_doubles(&arena, B);
         pw.a = se_doubles(&arena, L * B);
-        pw.w = se_doubles(&arena, L * B);
+        pw.w = se_doubles(&arena, L * L * B);
         pw.total = se_doubles(&arena, B);
+        pw.s = se_doubles(&arena, L * B);
         cw.x = se_doubles(&arena, n * B);
         cw.P = se_doubles(&arena, nn * B);
         cw.best = se_ints(&arena, B);
