@@ -24,13 +24,13 @@ from boost_warnings import boost_fit_warnings_ignored
 from switchest.cli import main
 from switchest.discretize import interval, switch_grid
 from switchest.estimators import ModeKalmanFilter
+from switchest.estimators.step_tables import grid_table
 from switchest.learn import fit
 from switchest.learn.between import instant_posteriors
 from switchest.learn.data import record
 from switchest.learn.em import _maximize
 from switchest.learn.expectation import expectation
 from switchest.learn.noise_step import intensity_maps
-from switchest.learn.steps import grid_table
 from switchest.modelfile import load_model
 from switchest.simulate import simulate
 from switchest.system import SwitchedLinearSystem

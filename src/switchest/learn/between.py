@@ -51,8 +51,9 @@ marginalized.
   :math:`m_i^s = (I + P_i \\Lambda)^{-1} (m_i + P_i \\eta)` (the product of the two Gaussians),
   and :math:`x_k` given :math:`x_{k+1}` by the RTS step through :math:`F(\\tau_i)`: the interval
   is a mixture of :math:`g` components, component ``i`` through the grid's row
-  :math:`(r_k, r_{k+1}, \\tau_i)` of :func:`~switchest.learn.steps.grid_table`, with weight
-  :math:`P(\\tau_i \\mid Y)` (an interval without a switch: one component, its mode's own row).
+  :math:`(r_k, r_{k+1}, \\tau_i)` of :func:`~switchest.estimators.step_tables.grid_table`, with
+  weight :math:`P(\\tau_i \\mid Y)` (an interval without a switch: one component, its mode's
+  own row).
 
 Each instant's posterior is exact given the others (it equals the normalized likelihood of the
 whole record over the grid, one Kalman filter per instant, to 1e-7); holding the others at
@@ -81,12 +82,12 @@ from ..dyadic import dyadic_table, interval_transitions
 from ..estimators import SwitchTimeKalmanFilter
 from ..estimators.kalman import kf_predict, kf_update
 from ..estimators.smoothing import smooth_mode_matched
+from ..estimators.step_tables import grid_table
 from ..estimators.tables import kalman_posteriors
 from ..system import SwitchedLinearSystem
 from .data import Record
 from .markov_step import mode_term
 from .moments import Moments
-from .steps import grid_table
 
 __all__ = ["between_log_likelihood", "instant_posteriors", "known_between"]
 

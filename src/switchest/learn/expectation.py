@@ -44,21 +44,16 @@ import numpy as np
 from .._linalg import log_normalize
 from ..discretize import sample_mode_steps
 from ..estimators import ExactMixtureFilter, IMMFilter, ModeKalmanFilter
+from ..estimators.mode_chains import chain_transition, instant_chain, pair_chain
 from ..estimators.smoothing import smooth_mode_matched
+from ..estimators.step_tables import sample_table
 from ..estimators.tables import imm_logliks, kalman_logliks
 from ..system import SwitchedLinearSystem
 from .between import between_log_likelihood, known_between
-from .chain import (
-    chain_log_likelihood,
-    chain_moments,
-    chain_transition,
-    instant_chain,
-    pair_chain,
-)
+from .chain import chain_log_likelihood, chain_moments
 from .data import Record
 from .markov_step import mode_term
 from .moments import Moments, mode_mixture
-from .steps import sample_table
 
 __all__ = ["MAX_SEQUENCES", "Moments", "expectation", "log_likelihood", "log_likelihoods"]
 
@@ -252,7 +247,7 @@ def _pair_chain(system: SwitchedLinearSystem, transition
 def _pair_markov(transition: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The pair chain's transition matrix, :math:`P((b, c) \\mid (a, b')) = [b = b']\\, \\pi_{bc}`,
     and its prior at sample 0, :math:`(r_0, r_0)` with :math:`r_0` uniform
-    (:func:`_pair_chain`; :func:`~switchest.learn.chain.chain_transition`)."""
+    (:func:`_pair_chain`; :func:`~switchest.estimators.mode_chains.chain_transition`)."""
     L = transition.shape[0]
     a, b = np.divmod(np.arange(L * L), L)
     return chain_transition(a, b, transition[a, b], L)

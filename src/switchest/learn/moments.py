@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._linalg import mixture_moments
-from .steps import StepTable
+from ..estimators.step_tables import StepTable
 
 __all__ = ["Moments", "mode_mixture"]
 

@@ -14,8 +14,8 @@ noise) stays noise-free: only the block on the other components is fitted.
   1982 §4, "missing observations"), a sample missing all of them contributes the current ``R``:
   a proper EM step, not a drop.
 - ``Q``: the E-step's intervals move through the rows of a
-  :class:`~switchest.learn.steps.StepTable`, each row ``r`` with its own :math:`Q_{d,r}`; with
-  :math:`n_r = \\sum w` the weight of the components through row ``r`` and
+  :class:`~switchest.estimators.step_tables.StepTable`, each row ``r`` with its own
+  :math:`Q_{d,r}`; with :math:`n_r = \\sum w` the weight of the components through row ``r`` and
   :math:`S_r = \\sum w\\, \\mathbb{E}[w w^\\top \\mid Y]` of
   :math:`w = x_{k+1} - F_r x_k - G_r u_k`
   (:math:`\\mathbb{E}[w w^\\top] = e e^\\top + P_1 - F C^\\top - C F^\\top + F P_0 F^\\top`,
@@ -43,9 +43,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize
 
+from ..estimators.step_tables import StepTable
 from ..system import SwitchedLinearSystem
 from .expectation import Moments
-from .steps import StepTable
 
 __all__ = ["fit_Q", "fit_R", "groups", "intensity_maps", "row_sums", "step_residual_moments",
            "support"]

@@ -1,4 +1,6 @@
-"""The exact transitions an E-step's intervals move through, each with the segments it covers.
+"""The exact transitions the intervals of a chain of members move through (the filters on the
+chains of :mod:`~switchest.estimators.mode_chains`, and the E-steps of :mod:`switchest.learn`),
+each with the segments it covers.
 
 A row of a :class:`StepTable` is one interval of length ``h`` that starts in mode ``a`` and
 switches to mode ``b`` at offset :math:`\\tau` (:math:`a = b`: no switch):
@@ -6,9 +8,9 @@ switches to mode ``b`` at offset :math:`\\tau` (:math:`a = b`: no switch):
 :math:`F = e^{A_b (h - \\tau)} e^{A_a \\tau}` and ``G`` the zero-order hold of Shankar et al.
 eqs (4)-(5), and :math:`Q_d = \\Phi_b Q_{d,a}(\\tau) \\Phi_b^\\top + Q_{d,b}(h - \\tau)` the exact
 covariance of the integrated noise (Van Loan 1978; :mod:`switchest.discretize`, the one place
-where matrix exponentials are taken). The maximization steps read the segments to rebuild a
-row under other parameters: :math:`Q_d` is linear in the intensities :math:`Q_a` and :math:`Q_b`
-of the two segments (:func:`switchest.learn.noise_step.fit_Q`).
+where matrix exponentials are taken). The maximization steps of :mod:`switchest.learn` read the
+segments to rebuild a row under other parameters: :math:`Q_d` is linear in the intensities
+:math:`Q_a` and :math:`Q_b` of the two segments (:func:`switchest.learn.noise_step.fit_Q`).
 
 Two layouts, both built from :mod:`switchest.discretize`'s cached tables:
 
