@@ -113,8 +113,8 @@ def test_cli_check_states_the_margin_sign_and_ends_with_the_methods(capsys, monk
     words = " ".join(out.split())  # the closing line, unwrapped
     assert words.endswith("where none is defined) methods whose conditions hold: rsls; "
                           "fail: min-distance; undecided or not applicable: kalman, "
-                          "switch-time, impulsive; no conditions checked: imm, gpb1, gpb2, "
-                          "rbpf, imm-ev1")
+                          "switch-time, impulsive; no conditions checked: imm, imm-between, gpb1, "
+                          "gpb2, rbpf, imm-ev1")
     assert max(map(len, out.splitlines())) <= 80
     # the paper under each condition rather than a fifth column: 50 lines, not the 70 of five
     assert len(out.splitlines()) <= 55

@@ -227,7 +227,8 @@ def test_the_multiple_model_methods_from_the_shell(tmp_path, capsys):
     pd.testing.assert_frame_equal(tables["rbpf"], tables["rbpf-again"])
     capsys.readouterr()
     assert main([*args, "--method", "kalman", "--smooth", "--out", str(tmp_path / "k.csv")]) == 2
-    assert "smooth applies to method 'imm' or 'gpb1' or 'gpb2' only" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert "smooth applies to method 'imm' or 'imm-between' or 'gpb1' or 'gpb2' only" in said
     assert main([*args, "--method", "imm", "--particles", "9", "--out",
                  str(tmp_path / "i.csv")]) == 2
     assert "particles applies to method 'rbpf' only" in capsys.readouterr().err
@@ -305,21 +306,36 @@ def test_tables_fit_80_columns_and_keep_every_label(tmp_path, capsys, monkeypatc
 def test_estimate_smooths_the_boost_converter(tmp_path, capsys):
     """Issue 35: Kim's smoother wrote states of 1e127 here and exited 0; the two-filter smoother
     (the default) gives finite estimates within the filtered ones' range, and says that its
-    model of the switches (at the samples) is not the file's (between them)."""
+    model of the switches (at the samples) is not the file's (between them), naming
+    ``imm-between``, whose smoother models them there and beats its filter."""
     model = EXAMPLES / "shankar-boost.toml"
-    data, filtered, smoothed = tmp_path / "d.csv", tmp_path / "f.csv", tmp_path / "s.csv"
+    data = tmp_path / "d.csv"
     assert main(["simulate", "--model", str(model), "--seed", "1", "--out", str(data)]) == 0
-    said = {}
-    for out, extra in ((filtered, []), (smoothed, ["--smooth"])):
-        capsys.readouterr()
-        assert main(["estimate", "--model", str(model), "--data", str(data), "--method", "imm",
-                     *extra, "--out", str(out)]) == 0
-        said[out] = capsys.readouterr().err
-    assert "switches fall between the samples" in said[smoothed]
-    assert "switches fall between the samples" not in said[filtered]
-    f, s = pd.read_csv(filtered), pd.read_csv(smoothed)
-    assert np.all(np.isfinite(s[["x0", "x1"]].to_numpy()))
-    assert np.median(s["std_x1"]) < np.median(f["std_x1"])  # the whole record knows more
+    said, tables = {}, {}
+    for method in ("imm", "imm-between"):
+        for extra in ([], ["--smooth"]):
+            out = tmp_path / f"{method}{len(extra)}.csv"
+            capsys.readouterr()
+            assert main(["estimate", "--model", str(model), "--data", str(data), "--method",
+                         method, *extra, "--out", str(out)]) == 0
+            said[method, bool(extra)] = capsys.readouterr().err
+            tables[method, bool(extra)] = pd.read_csv(out)
+    assert "switches fall between the samples" in said["imm", True]
+    assert "use method 'imm-between'" in said["imm", True]
+    assert not any("switches fall between the samples" in said[key] for key in
+                   [("imm", False), ("imm-between", False), ("imm-between", True)])
+    for method in ("imm", "imm-between"):
+        f, s = tables[method, False], tables[method, True]
+        assert np.all(np.isfinite(s[["x0", "x1"]].to_numpy()))
+        assert np.median(s["std_x1"]) < np.median(f["std_x1"])  # the whole record knows more
+    truth = pd.read_csv(data)[["x0", "x1"]].to_numpy()
+
+    def rmse(key):
+        return np.sqrt(np.mean((tables[key][["x0", "x1"]].to_numpy() - truth) ** 2, axis=0))
+
+    assert np.all(rmse(("imm-between", True)) < rmse(("imm-between", False)))
+    assert np.all(rmse(("imm-between", False)) < rmse(("imm", False)))
+    assert tables["imm-between", True]["switch_time"].notna().sum() > 10
 
 
 def test_estimate_writes_the_outlier_flags_and_counts_them(tmp_path, capsys):

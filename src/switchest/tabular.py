@@ -132,12 +132,13 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
         ``rsls`` only: the switching interval :math:`T` (Wang et al. Assumption 1);
         overrides ``sampling.period``.
     smooth : bool
-        ``imm``, ``gpb1``, ``gpb2``: fixed-interval smoothed estimates (the two-filter
-        smoother, given the whole record) instead of filtered ones. These smoothers model
-        the switches at the samples: on a model file whose switches fall between them
+        ``imm``, ``imm-between``, ``gpb1``, ``gpb2``: fixed-interval smoothed estimates (the
+        two-filter smoother, given the whole record) instead of filtered ones. Those of
+        ``imm``, ``gpb1`` and ``gpb2`` model the switches at the samples: on a model file whose
+        switches fall between them
         (:attr:`~switchest.modelfile.ModelSpec.switches_between_samples`, the boost
         converter's) an :class:`ImplausibleEstimateWarning` says the smoothed estimate need
-        not beat the filtered one.
+        not beat the filtered one and names ``imm-between``, whose chain models them there.
     particles, seed : int, optional
         ``rbpf`` only: the number of particles (default 1000) and the seed of its random
         numbers (default 0).
@@ -184,11 +185,12 @@ def estimate_table(spec: ModelSpec, data: pd.DataFrame | str | Path, *, method: 
     est = entry.run(estimator, meas["y"], meas["u"], meas["t"], modes=modes, smooth=smooth)
     if entry.innovation_check:
         _warn_if_inconsistent(spec, meas, est, modes, method)
-    if smooth and spec.switches_between_samples:
+    if smooth and spec.switches_between_samples and not entry.between_samples:
         warnings.warn(f"the model file's switches fall between the samples, {method}'s "
                       "smoother models them at the samples: on such data the smoothed "
-                      "estimate need not be closer than the filtered one; compare both, or "
-                      "use method 'switch-time'", ImplausibleEstimateWarning, stacklevel=2)
+                      "estimate need not be closer than the filtered one; use method "
+                      "'imm-between', whose smoother models them between the samples",
+                      ImplausibleEstimateWarning, stacklevel=2)
     return _table(meas["t"], est)
 
 

@@ -22,6 +22,7 @@ from switchest.analysis import steady_state_gain
 from switchest.discretize import mode_steps
 from switchest.estimators import (
     METHOD_NAMES,
+    BetweenSamplesIMMFilter,
     Estimate,
     Estimator,
     GPB1Filter,
@@ -136,6 +137,12 @@ def read_imm(est, s) -> dict:
             "loglik": s.loglik}
 
 
+def read_imm_between(est, s) -> dict:
+    """The modes' probabilities: the members' summed over those that end in each mode."""
+    prob = np.exp(s.log_prob) @ np.eye(est.system.n_modes)[est.member_modes[:, 1]]
+    return {"x": s.combined_x, "P": s.combined_P, "mode_prob": prob, "loglik": s.loglik}
+
+
 def read_rbpf(est, s) -> dict:
     return {"x": s.combined_x, "P": s.combined_P, "mode_prob": s.mode_prob, "loglik": s.loglik}
 
@@ -219,6 +226,10 @@ CASES = {
     "imm": Case(
         "imm", lambda s: IMMFilter(s, TRANSITION, X0, P0), switched, (0.25, 0.2), no_keywords,
         read_imm, lambda one, ss: (IMMFilter(one, [[1.0]], X0, P0), P0)),
+    "imm-between": Case(
+        "imm-between", lambda s: BetweenSamplesIMMFilter(s, TRANSITION, X0, P0, grid=3),
+        switched, (0.25, 0.2), no_keywords, read_imm_between,
+        lambda one, ss: (BetweenSamplesIMMFilter(one, [[1.0]], X0, P0, grid=3), P0)),
     "gpb1": Case(
         "gpb1", lambda s: GPB1Filter(s, TRANSITION, X0, P0), switched, (0.25, 0.2),
         no_keywords, read_imm, lambda one, ss: (GPB1Filter(one, [[1.0]], X0, P0), P0)),

@@ -61,8 +61,8 @@ def test_every_row_names_an_estimator_and_a_builder(entry):
 
 
 def test_options_are_looked_up_by_method():
-    assert methods_with("grid") == ("switch-time", "imm-ev1")
-    assert methods_with("smooth") == ("imm", "gpb1", "gpb2")
+    assert methods_with("grid") == ("switch-time", "imm-between", "imm-ev1")
+    assert methods_with("smooth") == ("imm", "imm-between", "gpb1", "gpb2")
     assert methods_with("proposal") == ()  # a constructor's keyword, no user option
 
 
@@ -90,8 +90,8 @@ def test_build_passes_the_constructors_keywords_on(boost):
 def test_build_refuses_what_does_not_apply(boost):
     spec, data = boost
     t = data["t"].to_numpy()
-    with pytest.raises(ValueError, match="grid applies to method 'switch-time' or 'imm-ev1' only, "
-                                         "got method 'kalman'"):
+    with pytest.raises(ValueError, match="grid applies to method 'switch-time' or 'imm-between' "
+                                         "or 'imm-ev1' only, got method 'kalman'"):
         get_method("kalman").build(spec, t, grid=3)
     with pytest.raises(TypeError, match=r"takes the seed of its random numbers as seed=, got "
                                         r"rng="):
@@ -142,8 +142,8 @@ def test_run_refuses_what_the_method_cannot_take():
     with pytest.raises(ValueError, match="method 'impulsive' needs signals, the switching "
                                          "signal, or modes"):
         get_method("impulsive").run(rec, y, u, t)
-    with pytest.raises(ValueError, match=r"smooth applies to method 'imm' or 'gpb1' or 'gpb2' "
-                                         r"only, got method 'kalman'"):
+    with pytest.raises(ValueError, match=r"smooth applies to method 'imm' or 'imm-between' or "
+                                         r"'gpb1' or 'gpb2' only, got method 'kalman'"):
         get_method("kalman").run(rec, y, u, t, modes=np.zeros(4, int), smooth=True)
     with pytest.raises(TypeError, match="smooth must be True or False, got str"):
         get_method("imm").run(rec, y, u, t, smooth="yes")
@@ -171,8 +171,8 @@ def test_a_new_method_is_one_registry_row(boost, monkeypatch, tmp_path, capsys):
     toy = estimate_table(spec, data, method="toy", stay=0.8, timing="sample")
     imm = estimate_table(spec, data, method="imm", stay=0.8, timing="sample")
     pd.testing.assert_frame_equal(toy, imm, check_exact=True)
-    with pytest.raises(ValueError, match="grid applies to method 'switch-time' or 'imm-ev1' "
-                                         "only, got method 'toy'"):
+    with pytest.raises(ValueError, match="grid applies to method 'switch-time' or 'imm-between' "
+                                         "or 'imm-ev1' only, got method 'toy'"):
         get_method("toy").build(spec, data["t"].to_numpy(), grid=3)
     with pytest.raises(ValueError, match="timing applies to method 'imm' or 'gpb1' or 'gpb2' or "
                                          "'rbpf' or 'toy' only, got method 'kalman'"):

@@ -38,7 +38,7 @@ from .base import Estimate, Estimator, _with_mode_model_parameters
 from .smoothing import smooth_filtered
 from .two_filter import two_filter_smooth
 
-__all__ = ["IMMState", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"]
+__all__ = ["IMMState", "Members", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"]
 
 _DIVERGED = 1e4  # smoothed spread beyond this many times the filtered one: the smoother diverged
 _CACHED_TABLES = 8  # step lengths (or records' sample times) whose checked tables a filter keeps
@@ -83,6 +83,35 @@ class IMMState:
 
 
 
+class Members(NamedTuple):
+    """What the bank's filters are matched to: ``M`` members, each measured through one mode.
+    Without a chain (:mod:`~switchest.estimators.mode_chains`) the members are the modes.
+
+    Attributes
+    ----------
+    C, R : ndarray, shapes (M, m, n), (M, m, m)
+        Each member's measurement.
+    transition : ndarray, shape (M, M)
+        ``transition[i, j]``: the probability of member ``j`` at the next sample given member
+        ``i`` now.
+    log_transition, log_prob0 : ndarray, shapes (M, M), (M,)
+        Its logarithm and that of the members' prior probabilities at the first sample
+        (``-inf``: impossible).
+    mode : ndarray of int64, shape (M,)
+        The mode each member is in at its sample (measures it).
+    timing : {"sample", "interval"}
+        The timing the bank's kernels run in.
+    """
+
+    C: np.ndarray
+    R: np.ndarray
+    transition: np.ndarray
+    log_transition: np.ndarray
+    log_prob0: np.ndarray
+    mode: np.ndarray
+    timing: str
+
+
 class ModeMatchedRun(NamedTuple):
     """A filtered record with the per-mode Gaussians after each sample's update and the model
     that produced them: the input of a smoother over the modes.
@@ -91,23 +120,26 @@ class ModeMatchedRun(NamedTuple):
     ----------
     estimate : Estimate
         The filter's output with the batch axes flattened to one, ``(N, K, ...)``.
-    x_modes, P_modes : ndarray, shapes (N, K, L, n), (N, K, L, n, n)
-        Mode-matched posteriors after each sample's update (GPB2: the merged Gaussians).
-    mode_prob : ndarray, shape (N, K, L)
-        Mode probabilities after each sample's update.
+    x_modes, P_modes : ndarray, shapes (N, K, M, n), (N, K, M, n, n)
+        Member-matched posteriors after each sample's update (GPB2: the merged Gaussians;
+        the members are the ``L`` modes but on a chain, :class:`Members`).
+    mode_prob : ndarray, shape (N, K, M)
+        Member probabilities after each sample's update.
     u : ndarray, shape (N, K, l)
         The inputs, ``u[:, k]`` held over the interval into sample ``k + 1``.
     F, G, Qd : ndarray, shapes (M, n, n), (M, n, l), (M, n, n)
         The table of exact transitions.
-    trans : ndarray of int64, shape (K, L)
-        ``trans[k, j]``: mode :math:`j`'s transition into sample :math:`k` (row 0 unused).
-    transition : ndarray, shape (L, L)
+    trans : ndarray of int64, shape (K, M)
+        ``trans[k, j]``: member :math:`j`'s transition into sample :math:`k` (row 0 unused).
+    transition : ndarray, shape (M, M)
         ``transition[i, j]`` =
-        :math:`\\Pr(\\text{mode } j \\text{ at } k+1 \\mid \\text{mode } i \\text{ at } k)`.
+        :math:`\\Pr(\\text{member } j \\text{ at } k+1 \\mid \\text{member } i \\text{ at } k)`.
     batch : tuple of int
         The batch shape of ``y``, ``N`` its product (to restore it in a result).
     y : ndarray, shape (N, K, m)
         The measurements (NaN: missing).
+    t : ndarray, shape (K,)
+        The sample times.
     """
 
     estimate: Estimate
@@ -122,6 +154,7 @@ class ModeMatchedRun(NamedTuple):
     transition: np.ndarray
     batch: tuple[int, ...]
     y: np.ndarray
+    t: np.ndarray
 
 
 @_with_mode_model_parameters
@@ -195,13 +228,28 @@ class ModeBankFilter(Estimator):
         self._set_mode_prior(transition, mode_prob0)
         self._set_timing(timing)
         self._gate = math.inf if self.gate is None else self.gate
-        # the tables that do not change, checked and converted once for every run and step
-        self._bank = Bank(system.C, system.R, self._log_transition, self.x0, self.P0,
-                          self._log_p0, gate=self._gate, interaction=self._interaction,
-                          timing=self.timing)
+        self._start_bank()
+
+    def _start_bank(self) -> None:
+        """Check and convert once, for every run and step, the tables that do not change."""
+        sys = self.system
+        members = self._members = self._bank_members()
+        self._bank = Bank(members.C, members.R, members.log_transition, self.x0, self.P0,
+                          members.log_prob0, gate=self._gate, interaction=self._interaction,
+                          timing=members.timing)
         self._tables: dict = {}  # dt -> the bank's table of one sample (of the cached steps)
-        self._dims = system.n_modes, system.n_states, system.n_outputs, system.n_inputs
+        self._dims = members.mode.size, sys.n_states, sys.n_outputs, sys.n_inputs
+        # each member's mode as a 0/1 matrix (M, L), None when the members are the modes
+        M, L = members.mode.size, sys.n_modes
+        same = M == L and np.array_equal(members.mode, np.arange(L))
+        self._member_modes = None if same else np.eye(L)[members.mode]
         self._records: dict = {}  # t's bytes -> (F, G, Qd, trans, the bank's table)
+
+    def _bank_members(self) -> Members:
+        """The members of the bank: the system's modes, in the filter's timing."""
+        sys = self.system
+        return Members(sys.C, sys.R, self.transition, self._log_transition, self._log_p0,
+                       np.arange(sys.n_modes), self.timing)
 
     # ------------------------------------------------------------------ the kernels
     def _kernel_run(self, y, u, table: BankTable, modes_out: bool) -> IMMOutput:
@@ -210,32 +258,38 @@ class ModeBankFilter(Estimator):
 
     def _step_table(self, dt) -> BankTable:
         """The bank's table of one sample predicted over ``dt`` (None: update only, the table
-        not read): every mode's own transition (:func:`switchest.discretize.mode_steps`),
-        checked once per step length."""
+        not read; else :meth:`_step_rows`), checked once per step length."""
         key = dt if dt is None or type(dt) in _STEP_TYPES else _UNCACHED
         table = self._tables.get(key)
         if table is None:
-            sys = self.system
-            L, n, l = sys.n_modes, sys.n_states, sys.n_inputs
+            M, n, _, l = self._dims
             if dt is None:  # update only: the transition table is not read
-                F, G, Qd = np.zeros((L, n, n)), np.zeros((L, n, l)), np.zeros((L, n, n))
+                F, G, Qd = np.zeros((1, n, n)), np.zeros((1, n, l)), np.zeros((1, n, n))
+                rows = np.zeros(M, dtype=np.int64)
             else:
-                steps = mode_steps(sys, positive_scalar(dt, "dt"))
-                F, G, Qd = steps.F, steps.G, steps.Qd
-            table = self._bank.table(F, G, Qd, np.arange(L))
+                F, G, Qd, rows = self._step_rows(positive_scalar(dt, "dt"))
+            table = self._bank.table(F, G, Qd, rows)
             if key is not _UNCACHED:
                 if len(self._tables) >= _CACHED_TABLES:
                     self._tables.clear()
                 self._tables[key] = table
         return table
 
+    def _step_rows(self, dt: float):
+        """``F, G, Qd`` of one sample predicted over ``dt`` and each member's row of them:
+        every mode's own transition (:func:`switchest.discretize.mode_steps`)."""
+        steps = mode_steps(self.system, dt)
+        return steps.F, steps.G, steps.Qd, np.arange(self.system.n_modes)
+
     # ------------------------------------------------------------------ the protocol
     def init(self, batch_shape=()) -> IMMState:
-        """Every mode starts from the prior ``(x0, P0)`` with probability ``mode_prob0``."""
-        L = self.system.n_modes
-        x, P = self._prior_copies((*batch_shape, L))
+        """Every member starts from the prior ``(x0, P0)`` with its prior probability
+        (``mode_prob0`` for the modes)."""
+        M = self._dims[0]
+        x, P = self._prior_copies((*batch_shape, M))
         combined_x, combined_P = self._prior_copies(batch_shape)
-        return IMMState(x=x, P=P, log_prob=np.broadcast_to(self._log_p0, (*batch_shape, L)).copy(),
+        log_p0 = self._members.log_prob0
+        return IMMState(x=x, P=P, log_prob=np.broadcast_to(log_p0, (*batch_shape, M)).copy(),
                         loglik=np.zeros(batch_shape), outlier=np.zeros(batch_shape, dtype=bool),
                         combined_x=combined_x, combined_P=combined_P)
 
@@ -296,7 +350,7 @@ class ModeBankFilter(Estimator):
         self._check_data_timing(data_timing)
         y2, u2, t, batch = self._prepare(y, u, t)
         table = self._record_table(t)[-1]
-        return self._unflatten(self._estimate(self._kernel_run(y2, u2, table, False)), batch)
+        return self._unflatten(self._estimate(self._kernel_run(y2, u2, table, False), t), batch)
 
     def run_modes(self, y, u=None, t=None) -> ModeMatchedRun:
         """:meth:`run`, also returning the mode-matched Gaussians after each sample's update,
@@ -304,19 +358,20 @@ class ModeBankFilter(Estimator):
         flattened): what a smoother over the modes needs."""
         y2, u2, t, batch = self._prepare(y, u, t)
         N, K, _ = y2.shape
-        n, L = self.system.n_states, self.system.n_modes
-        check_memory(8 * N * K * L * (n * n + n),
-                     f"{type(self).__name__} mode-matched posteriors of y of shape {y2.shape} "
-                     f"(N K L (n^2 + n) floats, n = {n}, L = {L})")
+        M, n = self._dims[:2]
+        check_memory(8 * N * K * M * (n * n + n),
+                     f"{type(self).__name__} member-matched posteriors of y of shape {y2.shape} "
+                     f"(N K M (n^2 + n) floats, n = {n}, M = {M} members)")
         F, G, Qd, trans, table = self._record_table(t)
         out = self._kernel_run(y2, u2, table, True)
-        return ModeMatchedRun(self._estimate(out), out.x_modes, out.P_modes, out.mode_prob,
+        return ModeMatchedRun(self._estimate(out, t), out.x_modes, out.P_modes, out.mode_prob,
                               np.ascontiguousarray(u2), F.copy(), G.copy(), Qd.copy(),
-                              trans.copy(), self.transition, tuple(batch), y2)
+                              trans.copy(), self._members.transition, tuple(batch), y2, t)
 
     def _table(self, t):
-        """``F, G, Qd`` of each mode and distinct sampling step, and ``trans (K, L)``, the entry
-        of mode ``j`` into sample ``k`` (:func:`switchest.discretize.sample_mode_steps`)."""
+        """``F, G, Qd`` of each mode and distinct sampling step, and ``trans (K, M)``, the entry
+        of member (mode) ``j`` into sample ``k``
+        (:func:`switchest.discretize.sample_mode_steps`)."""
         table, trans = sample_mode_steps(self.system, t)
         return table.F, table.G, table.Qd, trans
 
@@ -368,29 +423,45 @@ class ModeBankFilter(Estimator):
             raise ValueError(f"method must be 'two-filter' or 'kim', got {method!r}")
         self._check_data_timing(data_timing)
         fwd = self.run_modes(y, u, t)
+        members = self._members
         if method == "kim":
             s = smooth_filtered(fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.u, fwd.F, fwd.G,
                                 fwd.Qd, fwd.trans, fwd.transition, modes_out=False,
-                                timing=self.timing)
+                                timing=members.timing)
             _warn_if_diverged(fwd.estimate, s)
-            x, P, prob, mode = s.x, s.P, s.mode_prob, s.mode
         else:
-            sys = self.system
             s = two_filter_smooth(
                 fwd.x_modes, fwd.P_modes, fwd.mode_prob, fwd.y, fwd.u, fwd.F, fwd.G, fwd.Qd,
-                fwd.trans, fwd.transition, sys.C, sys.R, outlier=fwd.estimate.outlier,
-                timing=self.timing, modes_out=False)
-            x, P, prob, mode = s.x, s.P, s.mode_prob, s.mode
-        return self._unflatten(Estimate(x=x, P=P, mode_prob=prob, mode=mode), fwd.batch)
+                fwd.trans, fwd.transition, members.C, members.R, outlier=fwd.estimate.outlier,
+                timing=members.timing, modes_out=False)
+        prob, mode = self._mode_probabilities(s.mode_prob, s.mode)
+        return self._unflatten(Estimate(x=s.x, P=s.P, mode_prob=prob, mode=mode,
+                                        switch_time=self._switch_time(s.mode_prob, fwd.t)),
+                               fwd.batch)
 
-    @staticmethod
-    def _estimate(out: IMMOutput) -> Estimate:
-        """The :class:`Estimate` of a kernel's output, after raising for its status and warning
-        about repaired covariances."""
+    def _mode_probabilities(self, prob, mode):
+        """The modes' probabilities and the most probable mode of the members' ``prob
+        (..., M)`` and most probable member ``mode``: the sums over the members in each mode."""
+        if self._member_modes is None:
+            return prob, mode
+        prob = prob @ self._member_modes
+        return prob, np.argmax(prob, axis=-1)
+
+    def _switch_time(self, member_prob, t) -> np.ndarray | None:
+        """The estimated switching instant in each interval from the members' probabilities
+        ``(N, K, M)`` at the sample times ``t``: none when the members are modes switching at the
+        samples."""
+        return None
+
+    def _estimate(self, out: IMMOutput, t) -> Estimate:
+        """The :class:`Estimate` of a kernel's output over the sample times ``t``, after raising
+        for its status and warning about repaired covariances."""
         raise_for_status(out.status)
         warn_for_repairs(out)
-        return Estimate(x=out.x, P=out.P, mode_prob=out.mode_prob, mode=out.mode,
-                        loglik=out.loglik, outlier=out.flag == GATED)
+        prob, mode = self._mode_probabilities(out.mode_prob, out.mode)
+        return Estimate(x=out.x, P=out.P, mode_prob=prob, mode=mode,
+                        switch_time=self._switch_time(out.mode_prob, t), loglik=out.loglik,
+                        outlier=out.flag == GATED)
 
 
 def _warn_if_diverged(filtered: Estimate, smoothed) -> None:

@@ -94,14 +94,19 @@ def pair_chain(system: SwitchedLinearSystem, transition, t) -> ModeChain:
     return _chain(system, table, entry[:, a], a, b, a, entry[1:], transition[a, b])
 
 
-def instant_members(L: int, g: int) -> tuple[np.ndarray, np.ndarray]:
-    """The modes before and after the interval of each member ``(M,)`` of the instant chain of
-    ``L`` modes on a grid of ``g`` instants (:func:`instant_chain`): the ``L`` members that stay,
-    then each switching pair ``(a, b)``, :math:`a \\ne b` in row-major order, at each instant."""
+def instant_members(transition, g: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The members ``(M,)`` of the instant chain of the ``L`` modes of ``transition (L, L)`` on
+    a grid of ``g`` instants (:func:`instant_chain`): the mode before and after the interval of
+    each and the probability of entering it from a member that ends in its mode before,
+    :math:`\\pi_{ab} g^{-[a \\ne b]}`. The ``L`` members that stay come first, then each
+    switching pair ``(a, b)``, :math:`a \\ne b` in row-major order, at the grid's instants in
+    order (member ``L + p g + i``: pair ``p`` at instant ``i``)."""
+    L = transition.shape[0]
     a, b = np.divmod(np.arange(L * L), L)
     a, b = a[a != b], b[a != b]
-    return (np.concatenate([np.arange(L), np.repeat(a, g)]),
-            np.concatenate([np.arange(L), np.repeat(b, g)]))
+    first = np.concatenate([np.arange(L), np.repeat(a, g)])
+    second = np.concatenate([np.arange(L), np.repeat(b, g)])
+    return first, second, transition[first, second] / np.where(first != second, g, 1)
 
 
 def instant_chain(system: SwitchedLinearSystem, transition, t, g: int) -> ModeChain:
@@ -110,10 +115,9 @@ def instant_chain(system: SwitchedLinearSystem, transition, t, g: int) -> ModeCh
     the order of :func:`instant_members`, a component each."""
     L = system.n_modes
     table, entry, switched = grid_table(system, t, g)
-    first, second = instant_members(L, g)
+    first, second, move = instant_members(transition, g)
     a, b = first[L::g], second[L::g]
     trans = np.concatenate([entry, switched[:, a, b].reshape(len(t), -1)], axis=1)
-    move = transition[first, second] / np.where(first != second, g, 1)
     return _chain(system, table, trans, first, second, np.arange(first.size), trans[1:], move)
 
 

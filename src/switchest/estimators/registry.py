@@ -79,6 +79,9 @@ class Method:
         True when its covariance is that of its innovations given the model (Kalman updates
         along the given modes), so that :func:`switchest.tabular.estimate_table` warns when
         the data do not fit the model file.
+    between_samples : bool
+        True when the method models switches inside the sampling intervals (a continuous-time
+        system's), not only at the samples.
     """
 
     name: str
@@ -91,6 +94,7 @@ class Method:
     builder: str = ".from_model:build_filter"
     inputs: bool = True
     innovation_check: bool = False
+    between_samples: bool = False
 
     @property
     def estimator(self) -> type[Estimator]:
@@ -226,9 +230,16 @@ _TABLE = {m.name: m for m in (
     Method("switch-time", ".switch_time:SwitchTimeKalmanFilter", "modes", "unused",
            ("grid", "refine", "switch_time", "gate"),
            "Kalman filter with the modes known at the samples and gridded maximum-likelihood "
-           "switching times", "Shankar et al. (000), §III-§IV, eq. (23)", innovation_check=True),
+           "switching times", "Shankar et al. (000), §III-§IV, eq. (23)", innovation_check=True,
+           between_samples=True),
     Method("imm", ".imm:IMMFilter", None, "required", ("stay", "smooth", "timing", "gate"),
            "interacting multiple model filter; modes unknown", "Blom & Bar-Shalom (1988)"),
+    Method("imm-between", ".imm_between:BetweenSamplesIMMFilter", None, "required",
+           ("grid", "stay", "smooth", "gate"),
+           "IMM on the chain of (mode before, mode after, switching instant on a grid): a "
+           "continuous-time system switching between the samples; modes unknown",
+           "beyond Shankar et al. (000), eqs (3)-(5) and (23); Blom & Bar-Shalom (1988)",
+           between_samples=True),
     Method("gpb1", ".gpb:GPB1Filter", None, "required", ("stay", "smooth", "timing", "gate"),
            "first-order generalized pseudo-Bayesian filter (one Gaussian kept); modes unknown",
            "Bar-Shalom, Li & Kirubarajan (2001), §11.6.4"),
@@ -241,7 +252,7 @@ _TABLE = {m.name: m for m in (
     Method("imm-ev1", ".imm_ev1:IMMEV1Filter", None, "optional",
            ("grid", "switch_time", "estimate", "stay", "gate"),
            "IMM extended-Viterbi filter with switching-time estimation; modes unknown",
-           "Shankar et al. (000), Algorithm 1"),
+           "Shankar et al. (000), Algorithm 1", between_samples=True),
     Method("min-distance", ".min_distance:MinimumDistanceDetector", None, "unused",
            ("v_max", "delta", "Delta"),
            "minimum-distance mode estimation and switching detection on a uniform time grid",
