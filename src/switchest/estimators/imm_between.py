@@ -57,6 +57,7 @@ import numpy as np
 
 from .._checks import positive_int
 from ..discretize import switch_grid
+from ..system import SwitchedLinearSystem
 from .base import _with_mode_model_parameters
 from .mode_bank import Members, ModeBankFilter
 from .mode_chains import chain_transition, instant_chain, instant_members
@@ -115,7 +116,7 @@ class BetweenSamplesIMMFilter(ModeBankFilter):
 
     def __init__(self, system, transition, x0, P0, *, grid: int = 5, mode_prob0=None,
                  gate: float | None = None):
-        if getattr(system, "is_continuous", True) is False:
+        if isinstance(system, SwitchedLinearSystem) and not system.is_continuous:
             raise ValueError("system must be continuous-time: a discrete-time system switches at "
                              "its samples (use IMMFilter)")
         self.grid = positive_int(grid, "grid")
@@ -125,7 +126,7 @@ class BetweenSamplesIMMFilter(ModeBankFilter):
         """The members of the instant chain, in Bar-Shalom's timing (module docstring)."""
         sys, L = self.system, self.system.n_modes
         first, second, move = instant_members(self.transition, self.grid)
-        self.member_modes = np.stack([first, second], axis=1)
+        self.member_modes = np.stack([first, second], axis=1)  # (read by users of step)
         matrix, _ = chain_transition(first, second, move, L)
         prob0 = np.where(first == second, self.mode_prob0[first], 0.0)
         with np.errstate(divide="ignore"):  # log 0 = -inf: an impossible member

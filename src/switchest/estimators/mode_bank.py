@@ -38,7 +38,8 @@ from .base import Estimate, Estimator, _with_mode_model_parameters
 from .smoothing import smooth_filtered
 from .two_filter import two_filter_smooth
 
-__all__ = ["IMMState", "Members", "ModeBankFilter", "ModeMatchedRun", "SmootherDivergenceWarning"]
+__all__ = ["IMMState", "Members", "ModeBankFilter", "ModeMatchedRun",
+           "SmootherDivergenceWarning"]
 
 _DIVERGED = 1e4  # smoothed spread beyond this many times the filtered one: the smoother diverged
 _CACHED_TABLES = 8  # step lengths (or records' sample times) whose checked tables a filter keeps
@@ -228,19 +229,15 @@ class ModeBankFilter(Estimator):
         self._set_mode_prior(transition, mode_prob0)
         self._set_timing(timing)
         self._gate = math.inf if self.gate is None else self.gate
-        self._start_bank()
-
-    def _start_bank(self) -> None:
-        """Check and convert once, for every run and step, the tables that do not change."""
-        sys = self.system
+        # the tables that do not change, checked and converted once for every run and step
         members = self._members = self._bank_members()
         self._bank = Bank(members.C, members.R, members.log_transition, self.x0, self.P0,
                           members.log_prob0, gate=self._gate, interaction=self._interaction,
                           timing=members.timing)
         self._tables: dict = {}  # dt -> the bank's table of one sample (of the cached steps)
-        self._dims = members.mode.size, sys.n_states, sys.n_outputs, sys.n_inputs
+        self._dims = members.mode.size, system.n_states, system.n_outputs, system.n_inputs
         # each member's mode as a 0/1 matrix (M, L), None when the members are the modes
-        M, L = members.mode.size, sys.n_modes
+        M, L = members.mode.size, system.n_modes
         same = M == L and np.array_equal(members.mode, np.arange(L))
         self._member_modes = None if same else np.eye(L)[members.mode]
         self._records: dict = {}  # t's bytes -> (F, G, Qd, trans, the bank's table)

@@ -313,10 +313,10 @@ def _summary(p: dict, results, out: Path) -> Summary:
         "filter's mode-matched posteriors. The IMM on the switching instants runs on the chain "
         "of (mode before, mode after, instant on a grid of 5 per interval), the exact model of "
         "a switch between two samples, where the IMM and GPB switch at the samples: its "
-        "smoother's model of the switches is the data's. Kim's (1994) smoother, its former default, diverges "
-        "on the boost converter: with the switch closed the inductor current is unobserved and "
-        "e^{A T} shrinks it by 0.14 per sample, so its backward step (J ~ F^-1 there) "
-        "multiplies the mismatch between the merged pairs at every sample.",
+        "smoother's model of the switches is the data's. Kim's (1994) smoother, its former "
+        "default, diverges on the boost converter: with the switch closed the inductor current "
+        "is unobserved and e^{A T} shrinks it by 0.14 per sample, so its backward step "
+        "(J ~ F^-1 there) multiplies the mismatch between the merged pairs at every sample.",
     ]
     return Summary("bakeoff", "Bake-off — every estimator on the same data", setup, rows, notes,
                    [fig])
