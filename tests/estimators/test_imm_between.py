@@ -2,14 +2,20 @@
 interval against an enumeration of its members written here, and on the boost converter of
 Shankar et al. better than the IMM, its smoother better than its filter."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
 
 from switchest import SwitchedLinearSystem
 from switchest.discretize import interval
-from switchest.estimators import BetweenSamplesIMMFilter, IMMEV1Filter, IMMFilter
+from switchest.estimators import BetweenSamplesIMMFilter, IMMEV1Filter, IMMFilter, get_method
+from switchest.modelfile import load_model
 from switchest.models.shankar import BoostTable1
+from switchest.simulate import simulate
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "models"
 
 A = np.array([[[-0.5, 1.0], [-1.0, -0.2]], [[-2.0, 0.0], [0.3, -0.7]], [[0.1, 2.0], [-2.0, 0.1]]])
 B = np.array([[[0.0], [1.0]], [[1.0], [0.5]], [[0.2], [0.0]]])
@@ -165,3 +171,24 @@ def test_on_the_boost_converter_the_switching_instants_are_found(boost_run):
     assert error["chain"] < 0.2 and error["chain smoothed"] < 0.2
     assert max(error["chain"], error["chain smoothed"]) < error["imm-ev1"]
     assert found["chain smoothed"] > found["chain"]
+
+
+@pytest.mark.parametrize("name, stay", [("shankar-boost", None), ("shankar-vehicle", 0.9)])
+def test_shipped_models_switching_between_the_samples_smooth_better_than_filtered(name, stay):
+    """The shipped models whose switches fall between the samples and whose noise is Gaussian,
+    simulated from their own files (20 trials; the vehicle's schedule has no transition matrix:
+    stay 0.9): the smoothed estimates are finite and the median over the trials of the smoothed
+    state RMSE over the filtered one is below 1 for every state component (seen 0.69, 0.86 on
+    the boost converter, 0.31-0.67 on the vehicle)."""
+    spec = load_model(EXAMPLES / f"{name}.toml")
+    t = spec.sample_times()
+    traj = simulate(spec.system, lambda r: spec.signal(r, t), t, spec.initial, u=spec.input,
+                    trials=20, rng=3)
+    entry = get_method("imm-between")
+    est = entry.build(spec, t, **({} if stay is None else {"stay": stay}))
+    filtered = entry.run(est, traj.y, spec.input, t)
+    smoothed = entry.run(est, traj.y, spec.input, t, smooth=True)
+    assert np.all(np.isfinite(smoothed.x)) and np.all(np.isfinite(smoothed.P))
+    rmse = {e: np.sqrt(((v.x - traj.x) ** 2).mean(axis=1))
+            for e, v in (("filtered", filtered), ("smoothed", smoothed))}
+    assert np.all(np.median(rmse["smoothed"] / rmse["filtered"], axis=0) < 1.0)
