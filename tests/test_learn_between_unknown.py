@@ -155,3 +155,24 @@ def test_boost_round_trip_without_the_mode_column(tmp_path, capsys):
     assert R == pytest.approx(load_model(fitted).system.R[0, 0, 0], rel=1e-5)
     assert 0.04 * 5 < se < 0.15 * 5 and abs(R - 5.0) <= 2 * se
     assert re.search(r"transition 0→1 │ \S+ │ \S+ │", out)
+
+
+def test_fit_at_the_samples_of_a_file_that_switches_between_them_warns(tmp_path, capsys):
+    """Without the modes no check of the data tells a fit at the samples that the file's
+    switches fall between them (the E-step's mixture absorbs them): the CLI says so from the
+    model file, and not when the timing is the file's."""
+    data = tmp_path / "boost.csv"
+    assert main(["simulate", "--model", str(BOOST), "--duration", "0.02", "--seed", "2",
+                 "--out", str(data)]) == 0
+    pd.read_csv(data).drop(columns=["mode"]).to_csv(data, index=False)
+    said = {}
+    for timing in ("samples", "between"):
+        capsys.readouterr()
+        with boost_fit_warnings_ignored():
+            assert main(["fit", "--model", str(BOOST), "--data", str(data), "--estimate", "R",
+                         "--switch-times", timing, "--grid", "2", "--max-iter", "2",
+                         "--out", str(tmp_path / f"{timing}.toml")]) == 0
+        said[timing] = " ".join(capsys.readouterr().err.split())
+    assert "warning: the model file's switches fall between the samples" in said["samples"]
+    assert "--switch-times between models them" in said["samples"]
+    assert "switches fall between the samples" not in said["between"]
