@@ -118,7 +118,7 @@ class BetweenSamplesIMMFilter(ModeBankFilter):
                  gate: float | None = None):
         if isinstance(system, SwitchedLinearSystem) and not system.is_continuous:
             raise ValueError("system must be continuous-time: a discrete-time system switches at "
-                             "its samples (use IMMFilter)")
+                             "its samples: IMMFilter (method 'imm') models it")
         self.grid = positive_int(grid, "grid")
         super().__init__(system, transition, x0, P0, mode_prob0=mode_prob0, gate=gate)
 
