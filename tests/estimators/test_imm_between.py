@@ -192,3 +192,23 @@ def test_shipped_models_switching_between_the_samples_smooth_better_than_filtere
     rmse = {e: np.sqrt(((v.x - traj.x) ** 2).mean(axis=1))
             for e, v in (("filtered", filtered), ("smoothed", smoothed))}
     assert np.all(np.median(rmse["smoothed"] / rmse["filtered"], axis=0) < 1.0)
+
+
+def test_irregular_samples_and_a_missing_one_stream_as_they_run():
+    """Irregular sampling steps (one chain of instants per distinct step) and a NaN sample:
+    ``step`` with each step's ``dt`` gives ``run``'s estimate, finite, and the smoother's too."""
+    rng = np.random.default_rng(0)
+    t = np.cumsum(np.r_[0.0, 0.2 + 0.3 * rng.random(29)])
+    y, u = rng.standard_normal((3, 30, 1)), rng.standard_normal((3, 30, 1))
+    y[1, 5] = np.nan
+    imm = BetweenSamplesIMMFilter(SYS, TRANSITION, X0, P0, grid=3, gate=20.0)
+    est = imm.run(y, u, t)
+    state, streamed = imm.init((3,)), []
+    for k in range(t.size):
+        state = imm.step(state, y[:, k], u[:, max(k - 1, 0)],
+                         dt=None if k == 0 else t[k] - t[k - 1])
+        streamed.append(state.combined_x)
+    np.testing.assert_allclose(np.stack(streamed, axis=1), est.x, rtol=1e-10, atol=1e-12)
+    smoothed = imm.smooth(y, u, t)
+    assert np.all(np.isfinite(est.x)) and np.all(np.isfinite(smoothed.x))
+    assert np.all(np.isnan(smoothed.switch_time[:, 0]))
