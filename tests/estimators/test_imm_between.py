@@ -212,3 +212,15 @@ def test_irregular_samples_and_a_missing_one_stream_as_they_run():
     smoothed = imm.smooth(y, u, t)
     assert np.all(np.isfinite(est.x)) and np.all(np.isfinite(smoothed.x))
     assert np.all(np.isnan(smoothed.switch_time[:, 0]))
+
+
+def test_a_system_without_input():
+    """No input (l = 0, Wang et al.'s models): the grid's rows have input matrices of no column;
+    filtered and smoothed as with one."""
+    free = SwitchedLinearSystem.continuous(A, None, C, Q=0.1 * np.eye(2), R=R)
+    rng = np.random.default_rng(4)
+    t, y = 0.3 * np.arange(12), rng.standard_normal((2, 12, 1))
+    imm = BetweenSamplesIMMFilter(free, TRANSITION, X0, P0, grid=2)
+    est, smoothed = imm.run(y, None, t), imm.smooth(y, None, t)
+    assert est.x.shape == smoothed.x.shape == (2, 12, 2)
+    assert np.all(np.isfinite(est.x)) and np.all(np.isfinite(smoothed.x))

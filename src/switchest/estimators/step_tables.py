@@ -100,8 +100,9 @@ def grid_table(system: SwitchedLinearSystem, t: np.ndarray, g: int
     grids = [pairwise_grid(system, h, g) for h in steps]  # (L, L, g) each, eq. (23)
     a, b, _ = np.meshgrid(np.arange(L), np.arange(L), np.arange(g), indexing="ij")
     tau = np.concatenate([np.broadcast_to(switch_grid(h, g), (L, L, g)).ravel() for h in steps])
+    rows = L * L * g  # of each step's grid (explicit: G has no columns without an input)
     table = StepTable(
-        *(np.concatenate([getattr(base, name)] + [getattr(p, name).reshape(-1, *getattr(
+        *(np.concatenate([getattr(base, name)] + [getattr(p, name).reshape(rows, *getattr(
             p, name).shape[3:]) for p in grids]) for name in ("F", "G", "Qd")),
         length=np.concatenate([base.length, np.repeat(steps, L * L * g)]),
         modes=np.concatenate([base.modes,
