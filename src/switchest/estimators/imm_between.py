@@ -129,10 +129,7 @@ class BetweenSamplesIMMFilter(ModeBankFilter):
         self.member_modes = np.stack([first, second], axis=1)  # (read by users of step)
         matrix, _ = chain_transition(first, second, move, L)
         prob0 = np.where(first == second, self.mode_prob0[first], 0.0)
-        with np.errstate(divide="ignore"):  # log 0 = -inf: an impossible member
-            log_matrix, log_prob0 = np.log(matrix), np.log(prob0)
-        return Members(sys.C[second], sys.R[second], matrix, log_matrix, log_prob0, second,
-                       "interval")
+        return Members(sys.C[second], sys.R[second], matrix, prob0, second, "interval")
 
     def _table(self, t):
         """The instant chain's rows over the record ``t`` and each member's row into each

@@ -95,9 +95,8 @@ class Members(NamedTuple):
     transition : ndarray, shape (M, M)
         ``transition[i, j]``: the probability of member ``j`` at the next sample given member
         ``i`` now.
-    log_transition, log_prob0 : ndarray, shapes (M, M), (M,)
-        Its logarithm and that of the members' prior probabilities at the first sample
-        (``-inf``: impossible).
+    prob0 : ndarray, shape (M,)
+        The members' prior probabilities at the first sample.
     mode : ndarray of int64, shape (M,)
         The mode each member is in at its sample (measures it).
     timing : {"sample", "interval"}
@@ -107,8 +106,7 @@ class Members(NamedTuple):
     C: np.ndarray
     R: np.ndarray
     transition: np.ndarray
-    log_transition: np.ndarray
-    log_prob0: np.ndarray
+    prob0: np.ndarray
     mode: np.ndarray
     timing: str
 
@@ -231,8 +229,11 @@ class ModeBankFilter(Estimator):
         self._gate = math.inf if self.gate is None else self.gate
         # the tables that do not change, checked and converted once for every run and step
         members = self._members = self._bank_members()
-        self._bank = Bank(members.C, members.R, members.log_transition, self.x0, self.P0,
-                          members.log_prob0, gate=self._gate, interaction=self._interaction,
+        with np.errstate(divide="ignore"):  # log 0 = -inf: an impossible member or move
+            log_transition = np.log(members.transition)
+            self._log_prob0 = np.log(members.prob0)
+        self._bank = Bank(members.C, members.R, log_transition, self.x0, self.P0,
+                          self._log_prob0, gate=self._gate, interaction=self._interaction,
                           timing=members.timing)
         self._tables: dict = {}  # dt -> the bank's table of one sample (of the cached steps)
         self._dims = members.mode.size, system.n_states, system.n_outputs, system.n_inputs
@@ -245,8 +246,8 @@ class ModeBankFilter(Estimator):
     def _bank_members(self) -> Members:
         """The members of the bank: the system's modes, in the filter's timing."""
         sys = self.system
-        return Members(sys.C, sys.R, self.transition, self._log_transition, self._log_p0,
-                       np.arange(sys.n_modes), self.timing)
+        return Members(sys.C, sys.R, self.transition, self.mode_prob0, np.arange(sys.n_modes),
+                       self.timing)
 
     # ------------------------------------------------------------------ the kernels
     def _kernel_run(self, y, u, table: BankTable, modes_out: bool) -> IMMOutput:
@@ -285,8 +286,8 @@ class ModeBankFilter(Estimator):
         M = self._dims[0]
         x, P = self._prior_copies((*batch_shape, M))
         combined_x, combined_P = self._prior_copies(batch_shape)
-        log_p0 = self._members.log_prob0
-        return IMMState(x=x, P=P, log_prob=np.broadcast_to(log_p0, (*batch_shape, M)).copy(),
+        return IMMState(x=x, P=P,
+                        log_prob=np.broadcast_to(self._log_prob0, (*batch_shape, M)).copy(),
                         loglik=np.zeros(batch_shape), outlier=np.zeros(batch_shape, dtype=bool),
                         combined_x=combined_x, combined_P=combined_P)
 
