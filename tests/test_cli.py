@@ -338,6 +338,20 @@ def test_estimate_smooths_the_boost_converter(tmp_path, capsys):
     assert tables["imm-between", True]["switch_time"].notna().sum() > 10
 
 
+def test_the_engines_repair_warning_is_one_line(tmp_path, capsys):
+    """The IEEE 5-bus file (unstable A, Q = 0) makes imm-between repair a covariance: the CLI
+    says it as one ``warning:`` line, not as Python's warning with file, line and source."""
+    model = EXAMPLES / "wang-ieee5bus.toml"
+    data, out = tmp_path / "d.csv", tmp_path / "e.csv"
+    assert main(["simulate", "--model", str(model), "--seed", "0", "--out", str(data)]) == 0
+    capsys.readouterr()
+    assert main(["estimate", "--model", str(model), "--data", str(data), "--method",
+                 "imm-between", "--out", str(out)]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert any(line.startswith("warning: the state covariance P is singular") for line in lines)
+    assert not any("RuntimeWarning" in line or ".py:" in line for line in lines)
+
+
 def test_estimate_writes_the_outlier_flags_and_counts_them(tmp_path, capsys):
     model = EXAMPLES / "shankar-boost.toml"
     data, out = tmp_path / "d.csv", tmp_path / "e.csv"

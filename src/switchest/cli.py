@@ -613,11 +613,7 @@ def _cmd_estimate(args: argparse.Namespace, console: Console) -> int:
             raise _UsageError(str(exc).replace("t_window", "--window")) from None
     errors = Console(stderr=True, soft_wrap=True, highlight=False)
     for warning in caught:
-        if issubclass(warning.category, (ImplausibleEstimateWarning, TimingWarning)):
-            _say(errors, "warning", str(warning.message))
-        else:
-            warnings.showwarning(warning.message, warning.category, warning.filename,
-                                 warning.lineno)
+        _say(errors, "warning", str(warning.message))
     table.to_csv(out, index=False)
     console.print(f"{len(table)} samples estimated with {args.method}: "
                   f"[bold]{escape(str(out))}[/bold]")
@@ -1077,7 +1073,10 @@ def main(argv: list[str] | None = None) -> int:
         args = _parser().parse_args(argv)
         args.command_line = shlex.join(["switchest", *argv])
         debug = args.debug
-        return args.run(args, Console())
+        with warnings.catch_warnings():
+            if not debug:  # each warning one line; --debug keeps Python's form
+                warnings.showwarning = lambda message, *_: _say(errors, "warning", str(message))
+            return args.run(args, Console())
     except _UsageError as exc:
         _say(errors, "error", str(exc))
         return 2
