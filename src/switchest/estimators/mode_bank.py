@@ -403,8 +403,9 @@ class ModeBankFilter(Estimator):
           (:mod:`switchest.estimators.two_filter`; Helmick, Blair & Hoffman 1995). No
           smoothed mode-matched covariance exceeds the filtered one, so it cannot diverge
           where the filter does not; its mode probabilities lie 0.002-0.007 (mean absolute
-          error) from the exact smoothed ones after GPB2, 0.005-0.015 after the IMM, on small
-          problems where Kim's are 0.03-0.09 off.
+          error) from the exact smoothed ones after GPB2, 0.005-0.015 after the IMM (whose
+          filtered ones are 0.008-0.019 from the exact filtered ones), on small problems where
+          Kim's are 0.03-0.09 off.
         - ``method="kim"``: Kim's recursion (Kim 1994, §2.2; for collapsing filters Murphy
           1998, §3-4), the pairs (mode :math:`j` at :math:`k`, mode :math:`i` at :math:`k + 1`)
           weighed by :math:`\\mu_{ji}(k|K) = \\mu_i(k+1|K) \\mu_j(k|k) \\pi_{ji} / (\\sum_{j'}
