@@ -168,39 +168,14 @@ void se_observe(se_int m, se_int B, const double *restrict y, se_int nb, double 
         }
 }
 
-/* o[c] = sum_k X_k[c] Y_k[c] for the w lanes c < w, from 0, its terms added in the order of k
- * (w a constant where it is inlined: the w sums stay in registers over k) */
-static inline void se_dot_chunk(se_int w, se_int q, const double *restrict X, se_int sx,
-                                const double *restrict Y, se_int sy, double *restrict o)
-{
-    double acc[16];
-    for (se_int c = 0; c < w; c++)
-        acc[c] = 0.0;
-    for (se_int k = 0; k < q; k++) {
-        const double *Xk = X + k * sx, *Yk = Y + k * sy;
-        for (se_int c = 0; c < w; c++)
-            acc[c] += Xk[c] * Yk[c];
-    }
-    for (se_int c = 0; c < w; c++)
-        o[c] = acc[c];
-}
-
 /* o[b] = sum_k X_k[b] Y_k[b] per lane, k = 0 .. q-1, X_k = X + k sx and Y_k = Y + k sy being
  * lane rows (.., B) (strides in doubles): one entry of a product of lane matrices (F P, P C',
- * K R, a mixture's mean), from 0, its terms added in the order of k. The sums of 16 lanes at a
- * time, then of 8 (a block of few trials), then of one, stay in registers over k (summed into
- * o in memory, every term loaded and stored again: 1.5-2x the time on n = 4); the same
- * additions in the same order in every lane. */
+ * K R, a mixture's mean), from 0, its terms added in the order of k (se_lane_accumulate,
+ * linalg.h). */
 static inline void se_lane_dot(se_int q, const double *restrict X, se_int sx,
                                const double *restrict Y, se_int sy, se_int nb, double *restrict o)
 {
-    se_int b = 0;
-    for (; b + 16 <= nb; b += 16)
-        se_dot_chunk(16, q, X + b, sx, Y + b, sy, o + b);
-    for (; b + 8 <= nb; b += 8)
-        se_dot_chunk(8, q, X + b, sx, Y + b, sy, o + b);
-    for (; b < nb; b++)
-        se_dot_chunk(1, q, X + b, sx, Y + b, sy, o + b);
+    se_lane_accumulate(q, NULL, 0, X, sx, Y, sy, nb, o);
 }
 
 /* ---- time update --------------------------------------------------------------------------- */
@@ -416,11 +391,7 @@ static inline se_int innovation_(SE_INNOVATION_PARAMETERS)
                 const double *Rac = R + (a * m + c) * B, *oc = obs + c * B;
                 for (se_int b = 0; b < nb; b++)
                     o[b] = Rac[b] * oc[b];
-                for (se_int i = 0; i < n; i++) {
-                    const double *Cai = C + (a * n + i) * B, *Pic = PCt + (i * m + c) * B;
-                    for (se_int b = 0; b < nb; b++)
-                        o[b] += Cai[b] * Pic[b];
-                }
+                se_lane_accumulate(n, o, 0, C + a * n * B, B, PCt + c * B, m * B, nb, o);
                 double unit = a == c ? 1.0 : 0.0;
                 for (se_int b = 0; b < nb; b++)
                     o[b] = o[b] * oa[b] + unit * (1.0 - oa[b]);
@@ -622,23 +593,13 @@ static inline void correct_(se_int n, se_int m, se_int B, double *restrict x,
         for (se_int j = 0; j < n; j++) {
             double *o = AP + (i * n + j) * B;
             const double *Pij = P + (i * n + j) * B;
-            for (se_int b = 0; b < nb; b++)
-                o[b] = Pij[b];
-            for (se_int a = 0; a < m; a++) {
-                const double *Kia = K + (i * m + a) * B, *Pja = PCt + (j * m + a) * B;
-                for (se_int b = 0; b < nb; b++)
-                    o[b] -= Kia[b] * Pja[b];
-            }
+            se_lane_accumulate(m, Pij, 1, K + i * m * B, B, PCt + j * m * B, B, nb, o);
         }
     for (se_int i = 0; i < n; i++) /* T = K R - A P C' */
         for (se_int c = 0; c < m; c++) {
             double *o = T + (i * m + c) * B;
             se_lane_dot(m, K + i * m * B, B, R + c * B, m * B, nb, o);
-            for (se_int j = 0; j < n; j++) {
-                const double *APij = AP + (i * n + j) * B, *Ccj = C + (c * n + j) * B;
-                for (se_int b = 0; b < nb; b++)
-                    o[b] -= APij[b] * Ccj[b];
-            }
+            se_lane_accumulate(n, o, 1, AP + i * n * B, B, C + c * n * B, B, nb, o);
         }
     se_symmetric_sum(n, m, B, AP, T, K, nb, P); /* P = A P + T K' */
 }
@@ -1156,6 +1117,26 @@ void se_merge(se_int n, se_int L, se_int B, const double *restrict w, const doub
     se_moments(n, L, B, w, x, P, nb, xm, Pm);
 }
 
+/* o[c] = sum_i w_i[c] (P_i[c] + (xr_i[c] - mr[c]) (xc_i[c] - mc[c])) for the w lanes c < w,
+ * i = 0 .. L-1 (w_i = w + i B, P_i = P + i sP, xr_i = xr + i sx, xc_i = xc + i sx), its terms
+ * added in the order of i, the w sums in registers (SE_LANE_CHUNKS) */
+static inline void moment_chunk_(se_int w, se_int L, se_int B, const double *restrict wt,
+                                 const double *restrict P, se_int sP, const double *restrict xr,
+                                 const double *restrict xc, se_int sx, const double *restrict mr,
+                                 const double *restrict mc, double *restrict o)
+{
+    double acc[16];
+    for (se_int c = 0; c < w; c++)
+        acc[c] = 0.0;
+    for (se_int i = 0; i < L; i++) {
+        const double *wi = wt + i * B, *Pi = P + i * sP, *xri = xr + i * sx, *xci = xc + i * sx;
+        for (se_int c = 0; c < w; c++)
+            acc[c] += wi[c] * (Pi[c] + (xri[c] - mr[c]) * (xci[c] - mc[c]));
+    }
+    for (se_int c = 0; c < w; c++)
+        o[c] = acc[c];
+}
+
 /* Mean xm (n, B) and covariance Pm (n, n, B) of the mixture sum_i w_i N(x_i, P_i) per lane,
  * the deviations taken from its mean; upper triangle computed, then mirrored. */
 void se_moments(se_int n, se_int L, se_int B, const double *restrict w, const double *restrict x,
@@ -1166,17 +1147,16 @@ void se_moments(se_int n, se_int L, se_int B, const double *restrict w, const do
     for (se_int r = 0; r < n; r++)
         for (se_int c = r; c < n; c++) {
             double *o = Pm + (r * n + c) * B;
-            const double *mr = xm + r * B, *mc = xm + c * B;
-            for (se_int b = 0; b < nb; b++)
-                o[b] = 0.0;
-            for (se_int i = 0; i < L; i++) {
-                const double *wi = w + i * B, *Pirc = P + ((i * n + r) * n + c) * B;
-                const double *xir = x + (i * n + r) * B, *xic = x + (i * n + c) * B;
-                for (se_int b = 0; b < nb; b++)
-                    o[b] += wi[b] * (Pirc[b] + (xir[b] - mr[b]) * (xic[b] - mc[b]));
-            }
+            const double *mr = xm + r * B, *mc = xm + c * B, *Prc = P + (r * n + c) * B;
+            const double *xr = x + r * B, *xc = x + c * B;
+            se_int b = 0;
+#define SE_MOMENT_CHUNK(width)                                                                   \
+    moment_chunk_((width), L, B, w + b, Prc + b, n * n * B, xr + b, xc + b, n * B, mr + b,       \
+                  mc + b, o + b)
+            SE_LANE_CHUNKS(b, nb, SE_MOMENT_CHUNK);
+#undef SE_MOMENT_CHUNK
             double *t = Pm + (c * n + r) * B;
-            for (se_int b = 0; b < nb; b++)
+            for (b = 0; b < nb; b++)
                 t[b] = o[b];
         }
 }
