@@ -1282,25 +1282,16 @@ void se_lu_solve(se_int n, se_int q, se_int B, const double *restrict LU,
 {
     for (se_int j = 0; j < n; j++)
         se_swap_rows(q, B, j, piv, X, nb);
-    for (se_int r = 1; r < n; r++)
-        for (se_int p = 0; p < r; p++) {
-            const double *Lrp = LU + (r * n + p) * B;
-            for (se_int c = 0; c < q; c++) {
-                double *Xr = X + (r * q + c) * B;
-                const double *Xp = X + (p * q + c) * B;
-                for (se_int b = 0; b < nb; b++)
-                    Xr[b] -= Lrp[b] * Xp[b];
-            }
+    for (se_int r = 1; r < n; r++) /* X_r -= sum_{p < r} L_rp X_p, in the order of p */
+        for (se_int c = 0; c < q; c++) {
+            double *Xr = X + (r * q + c) * B;
+            se_lane_accumulate(r, Xr, 1, LU + r * n * B, B, X + c * B, q * B, nb, Xr);
         }
-    for (se_int r = n - 1; r >= 0; r--) {
-        for (se_int p = r + 1; p < n; p++) {
-            const double *Urp = LU + (r * n + p) * B;
-            for (se_int c = 0; c < q; c++) {
-                double *Xr = X + (r * q + c) * B;
-                const double *Xp = X + (p * q + c) * B;
-                for (se_int b = 0; b < nb; b++)
-                    Xr[b] -= Urp[b] * Xp[b];
-            }
+    for (se_int r = n - 1; r >= 0; r--) { /* X_r = (X_r - sum_{p > r} U_rp X_p) / U_rr */
+        for (se_int c = 0; c < q; c++) {
+            double *Xr = X + (r * q + c) * B;
+            se_lane_accumulate(n - 1 - r, Xr, 1, LU + (r * n + r + 1) * B, B,
+                               X + ((r + 1) * q + c) * B, q * B, nb, Xr);
         }
         const double *Urr = LU + (r * n + r) * B;
         for (se_int c = 0; c < q; c++) {
