@@ -958,23 +958,38 @@ done:
 void se_log_normalize(se_int L, se_int B, double *restrict a, double *restrict prob,
                       double *restrict total, se_int nb)
 {
+    se_log_normalize_rows(B, NULL, L, a, prob, total, nb);
+}
+
+/* se_log_normalize over the count rows rows[0 .. count-1] of a and prob (their order), the
+ * others' -inf left out (they are neither read nor written: their probabilities are 0 where
+ * the caller keeps them so); rows NULL: the rows 0 .. count-1. Without the rows of -inf the
+ * result is the same, bit for bit: exp(-inf) = 0 adds nothing to the sum. */
+void se_log_normalize_rows(se_int B, const se_int *restrict rows, se_int count,
+                           double *restrict a, double *restrict prob, double *restrict total,
+                           se_int nb)
+{
     for (se_int b = 0; b < nb; b++) {
         double top = -INFINITY;
-        for (se_int j = 0; j < L; j++)
+        for (se_int t = 0; t < count; t++) {
+            const se_int j = rows ? rows[t] : t;
             top = a[j * B + b] > top ? a[j * B + b] : top;
+        }
         if (top == -INFINITY) {
-            for (se_int j = 0; j < L; j++)
-                prob[j * B + b] = 0.0;
+            for (se_int t = 0; t < count; t++)
+                prob[(rows ? rows[t] : t) * B + b] = 0.0;
             total[b] = -INFINITY;
             continue;
         }
         double acc = 0.0;
-        for (se_int j = 0; j < L; j++) {
+        for (se_int t = 0; t < count; t++) {
+            const se_int j = rows ? rows[t] : t;
             prob[j * B + b] = exp(a[j * B + b] - top);
             acc += prob[j * B + b];
         }
         double log_acc = log(acc);
-        for (se_int j = 0; j < L; j++) {
+        for (se_int t = 0; t < count; t++) {
+            const se_int j = rows ? rows[t] : t;
             a[j * B + b] = (a[j * B + b] - top) - log_acc;
             prob[j * B + b] /= acc;
         }

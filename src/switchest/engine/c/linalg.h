@@ -399,6 +399,12 @@ int se_repair(se_int n, se_int B, double *restrict P, se_int b, int indefinite_o
 void se_log_normalize(se_int L, se_int B, double *restrict a, double *restrict prob,
                       double *restrict total, se_int nb);
 
+/* the same over the rows rows[0 .. count-1] of a and prob only (rows NULL: 0 .. count-1);
+ * the others are neither read nor written */
+void se_log_normalize_rows(se_int B, const se_int *restrict rows, se_int count,
+                           double *restrict a, double *restrict prob, double *restrict total,
+                           se_int nb);
+
 /* IMM interaction in place: x (L, n, B), P (L, n, n, B), prob, log_prob (L, B),
  * transition, log_transition (L, L, B); log_c (L, B) written; w (L, L, B), xm (L, n, B),
  * Pm (L, n, n, B) scratch */

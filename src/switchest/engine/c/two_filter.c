@@ -183,10 +183,46 @@ static se_int full_(se_int n, se_int m, se_int B, const double *restrict C,
 }
 
 /* The work arrays of pool_: the log-weights a (L, B) of one mode i, the weights w (L, L, B) of
- * every mode (row i, normalized), a total (B,), and s (L, B) the log of each mode's share. */
+ * every mode (row i, normalized), a total (B,), s (L, B) the log of each mode's share, and the
+ * next modes rows (L,) that mode i can move to (pi_il > 0). */
 typedef struct {
     double *a, *w, *total, *s;
+    se_int *rows;
 } pool_ws;
+
+/* o[c] = sum_t wt[rows[t], c] M[rows[t], c] for the w lanes c < w, from 0, in the order of t,
+ * the w sums in registers (SE_LANE_CHUNKS); the rows of M size * B apart */
+static inline void pooled_chunk_(se_int w, se_int count, const se_int *restrict rows, se_int B,
+                                 se_int size, const double *restrict wt,
+                                 const double *restrict M, double *restrict o)
+{
+    double acc[16];
+    for (se_int c = 0; c < w; c++)
+        acc[c] = 0.0;
+    for (se_int t = 0; t < count; t++) {
+        const double *wj = wt + rows[t] * B, *Mj = M + rows[t] * size * B;
+        for (se_int c = 0; c < w; c++)
+            acc[c] += wj[c] * Mj[c];
+    }
+    for (se_int c = 0; c < w; c++)
+        o[c] = acc[c];
+}
+
+/* out (size, B) = sum_t wt[rows[t]] M[rows[t]] per lane: the messages M (L, size, B) of the
+ * next modes a mode can move to, weighed by wt (L, B); the same sums, bit for bit, as over
+ * every next mode with the others' weights 0. */
+static void pooled_(se_int count, const se_int *restrict rows, se_int B, se_int size,
+                    const double *restrict wt, const double *restrict M, se_int nb,
+                    double *restrict out)
+{
+    for (se_int e = 0; e < size; e++) {
+        se_int b = 0;
+#define SE_POOLED_CHUNK(w)                                                                       \
+    pooled_chunk_((w), count, rows, B, size, wt + b, M + e * B + b, out + e * B + b)
+        SE_LANE_CHUNKS(b, nb, SE_POOLED_CHUNK);
+#undef SE_POOLED_CHUNK
+    }
+}
 
 /* M = I + X Y per lane, X, Y (n, n, B) row-major. */
 static void identity_plus(se_int n, se_int B, const double *restrict X, const double *restrict Y,
@@ -341,9 +377,10 @@ static void evidence_(se_int n, se_int B, const double *restrict x, const double
 
 /* Step 3 (the mixture over the next mode): for every mode i, the messages l (Omega (L, n, n, B),
  * omega (L, n, B), c (L, B)) weighed under the reference N(x_ref[i], P_ref[i]) (x_ref (L, n, B),
- * P_ref (L, n, n, B)): a_l = log pi_il + log Z_il (evidence_; a pair of pi_il = 0 is not
- * computed, a_l = -inf), w = exp(a - logsumexp(a)) (zero if every a_l is -inf), pooled
- * Op[i] = sum_l w_l Omega_l, op[i] = sum_l w_l omega_l, and cp[i] = logsumexp(a) - base[i],
+ * P_ref (L, n, n, B)): a_l = log pi_il + log Z_il (evidence_), w = exp(a - logsumexp(a))
+ * (zero if every a_l is -inf), pooled Op[i] = sum_l w_l Omega_l, op[i] = sum_l w_l omega_l
+ * (the sums over the l of pi_il > 0 only: a pair of pi_il = 0 has a_l = -inf and w_l = 0, and
+ * is neither computed nor summed; a chain of switching instants has half its pairs so), and cp[i] = logsumexp(a) - base[i],
  * base[i] = log Z of the pooled message with c = 0 under the reference. base (L, B) is
  * written; with x_s, P_s (L, ..) not NULL the posterior of that evidence too (the "interval"
  * timing's smoothed posterior, whose reference is the filtered one).
@@ -364,26 +401,28 @@ static void pool_(se_int n, se_int L, se_int B, const double *restrict x_ref,
     const se_int nn = n * n;
     for (se_int i = 0; i < L; i++) {
         const double *xi = x_ref + i * n * B, *Pi = P_ref + i * nn * B;
+        double *wi = pw->w + i * L * B;
+        se_int count = 0; /* the next modes of pi_il > 0; the others have weight 0 */
         for (se_int j = 0; j < L; j++) {
             const double lt = log_transition[i * L + j];
-            double *aj = pw->a + j * B;
             if (lt == -INFINITY) {
                 for (se_int b = 0; b < nb; b++)
-                    aj[b] = -INFINITY;
+                    wi[j * B + b] = 0.0;
                 continue;
             }
+            double *aj = pw->a + j * B;
+            pw->rows[count++] = j;
             evidence_(n, B, xi, Pi, Omega + j * nn * B, omega + j * n * B, c + j * B, nb, aj,
                       NULL, NULL, ws);
             for (se_int b = 0; b < nb; b++)
                 aj[b] += lt;
         }
-        double *wi = pw->w + i * L * B;
-        se_log_normalize(L, B, pw->a, wi, pw->total, nb);
+        se_log_normalize_rows(B, pw->rows, count, pw->a, wi, pw->total, nb);
         for (se_int b = 0; b < nb; b++)
             pw->s[i * B + b] = lmu[i * B + b] + pw->total[b];
         double *Opi = Op + i * nn * B, *opi = op + i * n * B;
-        se_lane_product(1, L, nn, B, wi, 0, 1, Omega, nn, 1, nb, Opi);
-        se_lane_product(1, L, n, B, wi, 0, 1, omega, n, 1, nb, opi);
+        pooled_(count, pw->rows, B, nn, wi, Omega, nb, Opi);
+        pooled_(count, pw->rows, B, n, wi, omega, nb, opi);
         evidence_(n, B, xi, Pi, Opi, opi, ws->zero, nb, base + i * B,
                   x_s ? x_s + i * n * B : NULL, P_s ? P_s + i * nn * B : NULL, ws);
         for (se_int b = 0; b < nb; b++)
@@ -505,6 +544,7 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
         pw.w = se_doubles(&arena, L * L * B);
         pw.total = se_doubles(&arena, B);
         pw.s = se_doubles(&arena, L * B);
+        pw.rows = se_ints(&arena, L);
         cw.x = se_doubles(&arena, n * B);
         cw.P = se_doubles(&arena, nn * B);
         cw.best = se_ints(&arena, B);
