@@ -660,13 +660,7 @@ static void whitened_norm(se_int m, se_int B, const double *restrict e,
     for (se_int b = 0; b < nb; b++)
         nis[b] = 0.0;
     for (se_int a = 0; a < m; a++) {
-        for (se_int b = 0; b < nb; b++)
-            v[b] = 0.0;
-        for (se_int c = 0; c < a + 1; c++) { /* W is lower triangular */
-            const double *Wac = W + (a * m + c) * B, *ec = e + c * B;
-            for (se_int b = 0; b < nb; b++)
-                v[b] += Wac[b] * ec[b];
-        }
+        se_lane_accumulate(a + 1, NULL, 0, W + a * m * B, B, e, B, nb, v); /* W lower */
         for (se_int b = 0; b < nb; b++)
             nis[b] += v[b] * v[b];
     }

@@ -187,18 +187,8 @@ void se_predict_mean(se_int n, se_int l, se_int B, double *restrict x, const dou
 {
     for (se_int i = 0; i < n; i++) {
         double *xi = xs + i * B;
-        for (se_int b = 0; b < nb; b++)
-            xi[b] = 0.0;
-        for (se_int j = 0; j < n; j++) {
-            const double *Fij = F + (i * n + j) * B, *xj = x + j * B;
-            for (se_int b = 0; b < nb; b++)
-                xi[b] += Fij[b] * xj[b];
-        }
-        for (se_int j = 0; j < l; j++) {
-            const double *Gij = G + (i * l + j) * B, *uj = u + j * B;
-            for (se_int b = 0; b < nb; b++)
-                xi[b] += Gij[b] * uj[b];
-        }
+        se_lane_accumulate(n, NULL, 0, F + i * n * B, B, x, B, nb, xi);
+        se_lane_accumulate(l, xi, 0, G + i * l * B, B, u, B, nb, xi);
     }
     for (se_int i = 0; i < n; i++)
         for (se_int b = 0; b < nb; b++)
@@ -253,15 +243,7 @@ void se_residual(se_int n, se_int m, se_int B, const double *restrict x,
                  double *restrict e)
 {
     for (se_int a = 0; a < m; a++) {
-        double *ea = e + a * B;
-        const double *ya = y + a * B;
-        for (se_int b = 0; b < nb; b++)
-            ea[b] = ya[b];
-        for (se_int j = 0; j < n; j++) {
-            const double *Caj = C + (a * n + j) * B, *xj = x + j * B;
-            for (se_int b = 0; b < nb; b++)
-                ea[b] -= Caj[b] * xj[b];
-        }
+        se_lane_accumulate(n, y + a * B, 1, C + a * n * B, B, x, B, nb, e + a * B);
     }
 }
 
@@ -307,11 +289,7 @@ static inline void se_forward_lanes(se_int m, se_int B, const double *restrict c
         const double *sa = scale + a * B;
         for (se_int b = 0; b < nb; b++)
             va[b] *= sa[b];
-        for (se_int c = 0; c < a; c++) {
-            const double *Lac = chol + (a * m + c) * B, *vc = v + c * B;
-            for (se_int b = 0; b < nb; b++)
-                va[b] -= Lac[b] * vc[b];
-        }
+        se_lane_accumulate(a, va, 1, chol + a * m * B, B, v, B, nb, va);
         se_divide_by_pivot(m, B, chol, inv, a, va, nb);
     }
 }
@@ -322,11 +300,8 @@ static inline void se_backward_lanes(se_int m, se_int B, const double *restrict 
 {
     for (se_int a = m - 1; a >= 0; a--) {
         double *va = v + a * B;
-        for (se_int c = a + 1; c < m; c++) {
-            const double *Lca = chol + (c * m + a) * B, *vc = v + c * B;
-            for (se_int b = 0; b < nb; b++)
-                va[b] -= Lca[b] * vc[b];
-        }
+        se_lane_accumulate(m - 1 - a, va, 1, chol + ((a + 1) * m + a) * B, m * B,
+                           v + (a + 1) * B, B, nb, va);
         se_divide_by_pivot(m, B, chol, inv, a, va, nb);
     }
     for (se_int a = 0; a < m; a++)
@@ -342,11 +317,7 @@ static void se_whiten(se_int m, se_int B, const double *restrict e, const double
 {
     se_copy_lanes(m, 1, B, e, nb, z);
     se_forward_lanes(m, B, chol, scale, NULL, z, nb);
-    for (se_int b = 0; b < nb; b++)
-        nis[b] = 0.0;
-    for (se_int a = 0; a < m; a++)
-        for (se_int b = 0; b < nb; b++)
-            nis[b] += z[a * B + b] * z[a * B + b];
+    se_lane_accumulate(m, NULL, 0, z, B, z, B, nb, nis);
 }
 
 /* Innovation of y against (x, P) over each lane's observed components.
@@ -474,13 +445,7 @@ int se_factor(se_int m, se_int B, double *restrict chol, double *restrict scale,
         }
     for (se_int j = 0; j < m; j++) { /* Cholesky, column by column */
         double *Ljj = chol + (j * m + j) * B;
-        for (se_int b = 0; b < nb; b++)
-            pivot[b] = Ljj[b];
-        for (se_int p = 0; p < j; p++) {
-            const double *Ljp = chol + (j * m + p) * B;
-            for (se_int b = 0; b < nb; b++)
-                pivot[b] -= Ljp[b] * Ljp[b];
-        }
+        se_lane_accumulate(j, Ljj, 1, chol + j * m * B, B, chol + j * m * B, B, nb, pivot);
         for (se_int b = 0; b < nb; b++) {
             pos &= pivot[b] > 0.0;
             double root = sqrt(pivot[b]);
@@ -489,11 +454,7 @@ int se_factor(se_int m, se_int B, double *restrict chol, double *restrict scale,
         }
         for (se_int i = j + 1; i < m; i++) {
             double *Lij = chol + (i * m + j) * B;
-            for (se_int p = 0; p < j; p++) {
-                const double *Lip = chol + (i * m + p) * B, *Ljp = chol + (j * m + p) * B;
-                for (se_int b = 0; b < nb; b++)
-                    Lij[b] -= Lip[b] * Ljp[b];
-            }
+            se_lane_accumulate(j, Lij, 1, chol + i * m * B, B, chol + j * m * B, B, nb, Lij);
             for (se_int b = 0; b < nb; b++)
                 Lij[b] /= Ljj[b];
         }

@@ -408,33 +408,13 @@ static void rts_pair(se_int n, se_int B, const double *restrict xj, const double
         for (se_int b = 0; b < nb; b++)
             e[a * B + b] = x_next[a * B + b] - xp[a * B + b];
     for (se_int r = 0; r < n; r++) { /* x = x_j + J (x_next - x_pred) */
-        double *restrict xr = x + r * B;
-        for (se_int b = 0; b < nb; b++)
-            xr[b] = xj[r * B + b];
-        for (se_int a = 0; a < n; a++) {
-            const double *restrict Jra = gain + (r * n + a) * B;
-            const double *restrict ea = e + a * B;
-            for (se_int b = 0; b < nb; b++)
-                xr[b] += Jra[b] * ea[b];
-        }
+        se_lane_accumulate(n, xj + r * B, 0, gain + r * n * B, B, e, B, nb, x + r * B);
     }
     for (se_int r = 0; r < n; r++) /* D = P_next - sub */
         for (se_int c = 0; c < n; c++)
             for (se_int b = 0; b < nb; b++)
                 D[(r * n + c) * B + b] = P_next[(r * n + c) * B + b] - sub[(r * n + c) * B + b];
-    for (se_int r = 0; r < n; r++) { /* T = J D */
-        for (se_int c = 0; c < n; c++) {
-            double *restrict Trc = T + (r * n + c) * B;
-            for (se_int b = 0; b < nb; b++)
-                Trc[b] = 0.0;
-            for (se_int a = 0; a < n; a++) {
-                const double *restrict Jra = gain + (r * n + a) * B;
-                const double *restrict Dac = D + (a * n + c) * B;
-                for (se_int b = 0; b < nb; b++)
-                    Trc[b] += Jra[b] * Dac[b];
-            }
-        }
-    }
+    se_lane_product(n, n, n, B, gain, n, 1, D, n, 1, nb, T); /* T = J D */
     se_symmetric_sum(n, n, B, base, T, gain, nb, P); /* P = base + J D J' */
 }
 
