@@ -380,10 +380,11 @@ static void evidence_(se_int n, se_int B, const double *restrict x, const double
  * P_ref (L, n, n, B)): a_l = log pi_il + log Z_il (evidence_), w = exp(a - logsumexp(a))
  * (zero if every a_l is -inf), pooled Op[i] = sum_l w_l Omega_l, op[i] = sum_l w_l omega_l
  * (the sums over the l of pi_il > 0 only: a pair of pi_il = 0 has a_l = -inf and w_l = 0, and
- * is neither computed nor summed; a chain of switching instants has half its pairs so), and cp[i] = logsumexp(a) - base[i],
- * base[i] = log Z of the pooled message with c = 0 under the reference. base (L, B) is
- * written; with x_s, P_s (L, ..) not NULL the posterior of that evidence too (the "interval"
- * timing's smoothed posterior, whose reference is the filtered one).
+ * is neither computed nor summed; a chain of switching instants has half its pairs so), and
+ * cp[i] = logsumexp(a) - base[i], base[i] = log Z of the pooled message with c = 0 under the
+ * reference. base (L, B) is written; with x_s, P_s (L, ..) not NULL the posterior of that
+ * evidence too (the "interval" timing's smoothed posterior, whose reference is the filtered
+ * one).
  * pair (L, B) is written with the smoothed log probabilities of the next mode from the pairs,
  * pair[l] = log sum_i mu_i(k|k) pi_il Z_il (lmu (L, B) = log mu_i(k|k); the evidence of
  * message l under mode i's reference is the pair's, Z_il = p(y_{k+1..} | r_k = i, r_{k+1} = l,
