@@ -32,6 +32,8 @@ engine_library = ("switchest_engine", {
     "sources": [str(ENGINE / "c" / name) for name in SHARED],
     "include_dirs": [str(ENGINE / "c")],
     "cflags": [*FLAGS, "-fPIC"],  # linked into shared modules
+    # a header edit rebuilds the library too: its static inline functions are in the headers
+    "obj_deps": {"": [str(path) for path in sorted((ENGINE / "c").glob("*.h"))]},
 })
 
 extensions = [
