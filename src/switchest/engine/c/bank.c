@@ -139,50 +139,36 @@ static void se_report_sample(se_int n, se_int L, se_int B, se_int K, const doubl
 static void se_bank_carve(se_arena *ar, se_bank_scratch *s, se_int n, se_int m, se_int l,
                           se_int L, se_int B, int pairs)
 {
-    const size_t d = sizeof(double);
     const se_int F = pairs ? L * L : L; /* filters per sample: modes, or pairs of modes */
     const se_int bank = pairs ? 0 : 1, gpb = pairs ? 1 : 0;
-    s->x = se_carve(ar, L * n * B, d);
-    s->P = se_carve(ar, L * n * n * B, d);
-    s->log_prob = se_carve(ar, L * B, d);
-    s->prob = se_carve(ar, L * B, d);
-    s->xp = se_carve(ar, gpb * F * n * B, d);
-    s->Pp = se_carve(ar, gpb * F * n * n * B, d);
-    s->Fl = se_carve(ar, n * n * B, d);
-    s->Gl = se_carve(ar, n * l * B, d);
-    s->Ql = se_carve(ar, n * n * B, d);
-    s->Cl = se_carve(ar, L * m * n * B, d);
-    s->Rl = se_carve(ar, L * m * m * B, d);
-    s->yl = se_carve(ar, m * B, d);
-    s->ul = se_carve(ar, l * B, d);
-    s->obs = se_carve(ar, m * B, d);
-    s->n_obs = se_carve(ar, B, d);
-    s->e = se_carve(ar, F * m * B, d);
-    s->z = se_carve(ar, F * m * B, d);
-    s->scale = se_carve(ar, F * m * B, d);
-    s->PCt = se_carve(ar, F * n * m * B, d);
-    s->chol = se_carve(ar, F * m * m * B, d);
-    s->nis = se_carve(ar, F * B, d);
-    s->loglik = se_carve(ar, F * B, d);
-    s->prior_w = se_carve(ar, gpb * F * B, d);
-    s->a = se_carve(ar, F * B, d);
-    s->w = se_carve(ar, (pairs ? L : L * L) * B, d);
-    s->log_mu = se_carve(ar, gpb * L * B, d);
-    s->work = se_carve(ar, 3 * B, d);
-    s->xs = se_carve(ar, n * B, d);
-    s->log_c = se_carve(ar, bank * L * B, d);
-    s->pi = se_carve(ar, bank * L * L * B, d);
-    s->log_pi = se_carve(ar, bank * L * L * B, d);
-    s->xm = se_carve(ar, bank * L * n * B, d);
-    s->Pm = se_carve(ar, bank * L * n * n * B, d);
-    s->total = se_carve(ar, B, d);
-    s->xc = se_carve(ar, n * B, d);
-    s->Pc = se_carve(ar, n * n * B, d);
-    s->idx = se_carve(ar, B, sizeof(se_int));
-    s->best = se_carve(ar, B, sizeof(se_int));
-    s->use = se_carve(ar, F * B, 1);
-    s->flag = se_carve(ar, B, 1);
-    s->bad = se_carve(ar, B, 1);
+    SE_DOUBLES(ar, L * n * B, &s->x);
+    SE_DOUBLES(ar, L * n * n * B, &s->P);
+    SE_DOUBLES(ar, L * B, &s->log_prob, &s->prob);
+    SE_DOUBLES(ar, gpb * F * n * B, &s->xp);
+    SE_DOUBLES(ar, gpb * F * n * n * B, &s->Pp);
+    SE_DOUBLES(ar, n * n * B, &s->Fl, &s->Ql, &s->Pc);
+    SE_DOUBLES(ar, n * l * B, &s->Gl);
+    SE_DOUBLES(ar, L * m * n * B, &s->Cl);
+    SE_DOUBLES(ar, L * m * m * B, &s->Rl);
+    SE_DOUBLES(ar, m * B, &s->yl, &s->obs);
+    SE_DOUBLES(ar, l * B, &s->ul);
+    SE_DOUBLES(ar, B, &s->n_obs, &s->total);
+    SE_DOUBLES(ar, F * m * B, &s->e, &s->z, &s->scale);
+    SE_DOUBLES(ar, F * n * m * B, &s->PCt);
+    SE_DOUBLES(ar, F * m * m * B, &s->chol);
+    SE_DOUBLES(ar, F * B, &s->nis, &s->loglik, &s->a);
+    SE_DOUBLES(ar, gpb * F * B, &s->prior_w);
+    SE_DOUBLES(ar, (pairs ? L : L * L) * B, &s->w);
+    SE_DOUBLES(ar, gpb * L * B, &s->log_mu);
+    SE_DOUBLES(ar, 3 * B, &s->work);
+    SE_DOUBLES(ar, n * B, &s->xs, &s->xc);
+    SE_DOUBLES(ar, bank * L * B, &s->log_c);
+    SE_DOUBLES(ar, bank * L * L * B, &s->pi, &s->log_pi);
+    SE_DOUBLES(ar, bank * L * n * B, &s->xm);
+    SE_DOUBLES(ar, bank * L * n * n * B, &s->Pm);
+    SE_INTS(ar, B, &s->idx, &s->best);
+    SE_FLAGS(ar, F * B, &s->use);
+    SE_FLAGS(ar, B, &s->flag, &s->bad);
     se_carve_update(ar, n, m, B, &s->upd);
 }
 

@@ -440,62 +440,42 @@ static void layout(const dims *s, se_int n_hyp, se_arena *ar, scratch *t)
 {
     const size_t n = (size_t)s->n, m = (size_t)s->m, l = (size_t)s->l, L = (size_t)s->L;
     const size_t g = (size_t)s->g, B = (size_t)s->B, W = (size_t)s->W;
-    const size_t D = sizeof(double), I = sizeof(se_int), U = sizeof(uint8_t);
-    t->x = se_carve(ar, L * n * B, D);
-    t->P = se_carve(ar, L * n * n * B, D);
-    t->xc = se_carve(ar, n * B, D); /* the mixture over the destinations (combined) */
-    t->Pc = se_carve(ar, n * n * B, D);
-    t->best = se_carve(ar, B, I);
-    t->x_new = se_carve(ar, L * n * B, D);
-    t->P_new = se_carve(ar, L * n * n * B, D);
-    t->log_w = se_carve(ar, L * B, D);
-    t->prob = se_carve(ar, L * B, D);
-    t->total = se_carve(ar, B, D);
-    t->offset = se_carve(ar, L * B, D);
-    t->a = se_carve(ar, L * B, D);
-    t->J = se_carve(ar, L * L * g * B, D);
-    t->log_b = se_carve(ar, L * L * B, D);
-    t->w = se_carve(ar, L * L * g * B, D);
-    t->tau_pair = se_carve(ar, L * L * B, D);
-    t->w_lanes = se_carve(ar, g * B, D);
-    t->xg = se_carve(ar, g * n * B, D);
-    t->Pg = se_carve(ar, g * n * n * B, D);
-    t->Cl = se_carve(ar, L * m * n * B, D);
-    t->Rl = se_carve(ar, L * m * m * B, D);
-    t->yw = se_carve(ar, m * W, D);
-    t->uw = se_carve(ar, l * W, D);
-    t->yh = se_carve(ar, m * W, D);
-    t->obs = se_carve(ar, m * W, D);
-    t->n_obs = se_carve(ar, W, D);
-    t->J_lanes = se_carve(ar, W, D);
-    t->C1 = se_carve(ar, m * n * W, D); /* the likelihood pass's lanes */
-    t->R1 = se_carve(ar, m * m * W, D);
-    t->C2 = se_carve(ar, m * n * W, D); /* the update pass's lanes */
-    t->R2 = se_carve(ar, m * m * W, D);
-    t->H1 = se_carve(ar, m * n * W, D);
-    t->Gy1 = se_carve(ar, m * l * W, D);
-    t->S1 = se_carve(ar, m * m * W, D);
-    t->zero = se_carve(ar, n * n * W, D);
-    t->pred.xs = se_carve(ar, n * W, D);
-    t->pred.Ps = se_carve(ar, n * n * W, D);
-    t->pred.Fl = se_carve(ar, n * n * W, D);
-    t->pred.Gl = se_carve(ar, n * l * W, D);
-    t->pred.Ql = se_carve(ar, n * n * W, D);
-    t->pred.FP = se_carve(ar, n * n * W, D);
-    t->pred.xv = se_carve(ar, n * W, D);
+    /* xc, Pc: the mixture over the destinations (combined); C1, R1: the likelihood pass's lanes;
+     * C2, R2: the update pass's */
+    SE_DOUBLES(ar, L * n * B, &t->x, &t->x_new);
+    SE_DOUBLES(ar, L * n * n * B, &t->P, &t->P_new);
+    SE_DOUBLES(ar, n * B, &t->xc);
+    SE_DOUBLES(ar, n * n * B, &t->Pc);
+    SE_DOUBLES(ar, L * B, &t->log_w, &t->prob, &t->offset, &t->a);
+    SE_DOUBLES(ar, B, &t->total);
+    SE_DOUBLES(ar, L * L * g * B, &t->J, &t->w);
+    SE_DOUBLES(ar, L * L * B, &t->log_b, &t->tau_pair);
+    SE_DOUBLES(ar, g * B, &t->w_lanes);
+    SE_DOUBLES(ar, g * n * B, &t->xg);
+    SE_DOUBLES(ar, g * n * n * B, &t->Pg);
+    SE_DOUBLES(ar, L * m * n * B, &t->Cl);
+    SE_DOUBLES(ar, L * m * m * B, &t->Rl);
+    SE_DOUBLES(ar, m * W, &t->yw, &t->yh, &t->obs);
+    SE_DOUBLES(ar, l * W, &t->uw);
+    SE_DOUBLES(ar, W, &t->n_obs, &t->J_lanes);
+    SE_DOUBLES(ar, m * n * W, &t->C1, &t->C2);
+    SE_DOUBLES(ar, m * m * W, &t->R1, &t->R2, &t->S1);
+    SE_DOUBLES(ar, m * n * W, &t->H1);
+    SE_DOUBLES(ar, m * l * W, &t->Gy1);
+    SE_DOUBLES(ar, n * n * W, &t->zero, &t->pred.Ps, &t->pred.Fl, &t->pred.Ql, &t->pred.FP);
+    SE_DOUBLES(ar, n * W, &t->pred.xs, &t->pred.xv);
+    SE_DOUBLES(ar, n * l * W, &t->pred.Gl);
     se_carve_innovation(ar, n, m, W, &t->inn);
     se_carve_update(ar, n, m, W, &t->fix);
-    t->hypotheses = se_carve(ar, (size_t)n_hyp * 3, I);
-    t->chosen = se_carve(ar, L * B, I);
-    t->best_k = se_carve(ar, L * L * B, I);
-    t->source = se_carve(ar, W, I);
-    t->entry = se_carve(ar, W, I);
-    t->source2 = se_carve(ar, W, I);
-    t->entry2 = se_carve(ar, W, I);
-    t->outlier = se_carve(ar, B, U);
-    t->use = se_carve(ar, L * L * g * B, U);
-    t->update_use = se_carve(ar, L * B, U);
-    t->use_lanes = se_carve(ar, W, U);
+    SE_INTS(ar, B, &t->best);
+    SE_INTS(ar, (size_t)n_hyp * 3, &t->hypotheses);
+    SE_INTS(ar, L * B, &t->chosen);
+    SE_INTS(ar, L * L * B, &t->best_k);
+    SE_INTS(ar, W, &t->source, &t->entry, &t->source2, &t->entry2);
+    SE_FLAGS(ar, B, &t->outlier);
+    SE_FLAGS(ar, L * L * g * B, &t->use);
+    SE_FLAGS(ar, L * B, &t->update_use);
+    SE_FLAGS(ar, W, &t->use_lanes);
 }
 
 /* Filter N trials over K samples with the IMM-EV1 of Shankar et al., Algorithm 1.

@@ -251,15 +251,12 @@ typedef struct {
 static inline void se_carve_innovation(se_arena *arena, se_int n, se_int m, se_int B,
                                        se_innovation_ws *ws)
 {
-    ws->e = se_doubles(arena, m * B);
-    ws->PCt = se_doubles(arena, n * m * B);
-    ws->chol = se_doubles(arena, m * m * B);
-    ws->scale = se_doubles(arena, m * B);
-    ws->z = se_doubles(arena, m * B);
-    ws->nis = se_doubles(arena, B);
-    ws->loglik = se_doubles(arena, B);
-    ws->work = se_doubles(arena, 3 * B);
-    ws->bad = se_flags(arena, B);
+    SE_DOUBLES(arena, m * B, &ws->e, &ws->scale, &ws->z);
+    SE_DOUBLES(arena, n * m * B, &ws->PCt);
+    SE_DOUBLES(arena, m * m * B, &ws->chol);
+    SE_DOUBLES(arena, B, &ws->nis, &ws->loglik);
+    SE_DOUBLES(arena, 3 * B, &ws->work);
+    SE_FLAGS(arena, B, &ws->bad);
 }
 
 /* se_innovation (Shankar et al. eq. (8)) with its workspace ws, whose nis and loglik get the
@@ -358,12 +355,10 @@ typedef struct {
 static inline void se_carve_update(se_arena *arena, se_int n, se_int m, se_int B,
                                    se_update_ws *ws)
 {
-    ws->gain = se_doubles(arena, n * m * B);
-    ws->T = se_doubles(arena, n * m * B);
-    ws->AP = se_doubles(arena, n * n * B);
-    ws->prior = se_doubles(arena, n * n * B);
-    ws->root = se_doubles(arena, n * B);
-    ws->lost = se_flags(arena, B);
+    SE_DOUBLES(arena, n * m * B, &ws->gain, &ws->T);
+    SE_DOUBLES(arena, n * n * B, &ws->AP, &ws->prior);
+    SE_DOUBLES(arena, n * B, &ws->root);
+    SE_FLAGS(arena, B, &ws->lost);
 }
 
 /* The measurement update of every filter, in the lanes where use[b], with its covariance rule:

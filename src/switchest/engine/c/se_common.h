@@ -70,9 +70,10 @@ static inline void se_report_start(double *report)
  * carves it; the kernel closes the arena before it returns:
  *
  *     se_arena ar = {NULL, 0};
- *     do
- *         x = se_doubles(&ar, n * B), ...;
- *     while (se_arena_open(&ar));
+ *     do {
+ *         SE_DOUBLES(&ar, n * B, &x, &xs);
+ *         ...
+ *     } while (se_arena_open(&ar));
  *     if (ar.base == NULL)
  *         return SE_NO_MEMORY;
  *     ...
@@ -114,6 +115,18 @@ static inline uint8_t *se_flags(se_arena *arena, se_int count)
 {
     return (uint8_t *)se_carve(arena, count, 1);
 }
+
+/* Carve several arrays of one size: SE_DOUBLES(&ar, n * B, &x, &xs) points x and xs at arrays
+ * of n * B doubles, in that order (SE_INTS and SE_FLAGS likewise). */
+#define SE_CARVE_EACH(type, arena, count, ...)                                                \
+    do {                                                                                      \
+        type *restrict *const se_out_[] = {__VA_ARGS__};                                      \
+        for (size_t se_i_ = 0; se_i_ < sizeof se_out_ / sizeof se_out_[0]; se_i_++)           \
+            *se_out_[se_i_] = (type *)se_carve((arena), (count), sizeof(type));               \
+    } while (0)
+#define SE_DOUBLES(arena, count, ...) SE_CARVE_EACH(double, arena, count, __VA_ARGS__)
+#define SE_INTS(arena, count, ...) SE_CARVE_EACH(se_int, arena, count, __VA_ARGS__)
+#define SE_FLAGS(arena, count, ...) SE_CARVE_EACH(uint8_t, arena, count, __VA_ARGS__)
 
 /* After the counting pass: allocate the zeroed block and return 1 (carve it now); after the
  * carving pass, or if the allocation failed (ar.base stays NULL), return 0. */

@@ -114,12 +114,9 @@ typedef struct {
  * triangle is read). */
 static void gain_scratch(se_arena *a, se_int n, se_int B, gain_scratch_t *s)
 {
-    s->FP = se_doubles(a, n * n * B);
-    s->xs = se_doubles(a, n * B);
-    s->chol = se_doubles(a, n * n * B);
-    s->scale = se_doubles(a, n * B);
-    s->work = se_doubles(a, 2 * B);
-    s->root = se_doubles(a, n * B);
+    SE_DOUBLES(a, n * n * B, &s->FP, &s->chol);
+    SE_DOUBLES(a, n * B, &s->xs, &s->scale, &s->root);
+    SE_DOUBLES(a, 2 * B, &s->work);
 }
 
 /* The work arrays of rts_pair for n states and B lanes, in its order: e, D, T. */
@@ -129,9 +126,8 @@ typedef struct {
 
 static void pair_scratch(se_arena *a, se_int n, se_int B, pair_scratch_t *s)
 {
-    s->e = se_doubles(a, n * B);
-    s->D = se_doubles(a, n * n * B);
-    s->T = se_doubles(a, n * n * B);
+    SE_DOUBLES(a, n * B, &s->e);
+    SE_DOUBLES(a, n * n * B, &s->D, &s->T);
 }
 
 /* The work arrays of rts_joseph for n states and B lanes, in its order (joseph_scratch):
@@ -149,20 +145,13 @@ typedef struct {
 
 static void joseph_scratch(se_arena *a, se_int n, se_int B, joseph_scratch_t *s)
 {
-    s->Pp = se_doubles(a, n * n * B);
-    s->FP = se_doubles(a, n * n * B);
-    s->xs = se_doubles(a, n * B);
+    SE_DOUBLES(a, n * n * B, &s->Pp, &s->FP);
+    SE_DOUBLES(a, n * B, &s->xs);
     se_carve_innovation(a, n, n, B, &s->inn);
-    s->T = se_doubles(a, n * n * B);
-    s->AP = se_doubles(a, n * n * B);
-    s->prior = se_doubles(a, n * n * B);
-    s->root = se_doubles(a, n * B);
-    s->lost = se_flags(a, B);
-    s->x = se_doubles(a, n * B);
-    s->eye = se_doubles(a, n * n * B);
-    s->zero = se_doubles(a, n * n * B);
-    s->obs = se_doubles(a, n * B);
-    s->n_obs = se_doubles(a, B);
+    SE_DOUBLES(a, n * n * B, &s->T, &s->AP, &s->prior, &s->eye, &s->zero);
+    SE_DOUBLES(a, n * B, &s->root, &s->x, &s->obs);
+    SE_FLAGS(a, B, &s->lost);
+    SE_DOUBLES(a, B, &s->n_obs);
 }
 
 /* joseph_scratch's constant arrays, once the arena (zeroed) is carved: eye, obs, n_obs. */
@@ -528,56 +517,39 @@ se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS)
     if (N == 0 || K == 0)
         return SE_OK; /* nothing to smooth: SE_OK with only the report written */
     do { /* size the arena, then carve it */
-        xf = se_doubles(&arena, L * n * B); /* filtered at k */
-        Pf = se_doubles(&arena, L * n * n * B);
-        xn = se_doubles(&arena, L * n * B); /* smoothed at k + 1 */
-        Pn = se_doubles(&arena, L * n * n * B);
-        xk = se_doubles(&arena, L * n * B); /* smoothed at k */
-        Pk = se_doubles(&arena, L * n * n * B);
-        lpf = se_doubles(&arena, L * B);
-        lpn = se_doubles(&arena, L * B);
-        lpk = se_doubles(&arena, L * B);
-        prob = se_doubles(&arena, L * B);
-        back = se_doubles(&arena, L * L * B); /* back[i, j] = log P(r_k = j | r_{k+1} = i, y_0..k) */
-        x_pair = se_doubles(&arena, L * n * B);
-        P_pair = se_doubles(&arena, L * n * n * B);
-        gain_pair = se_doubles(&arena, L * n * n * B); /* each pair's J (read when lagged) */
-        redo = se_flags(&arena, L * B); /* redo[i]: lanes of pair (j, i) for Joseph's form */
-        log_w = se_doubles(&arena, L * B);
-        w = se_doubles(&arena, L * B);
-        total = se_doubles(&arena, B);
-        best = se_ints(&arena, B);
-        idx = se_ints(&arena, B);
-        xc = se_doubles(&arena, n * B);
-        Pc = se_doubles(&arena, n * n * B);
-        ul = se_doubles(&arena, l * B);
-        Fl = se_doubles(&arena, L * n * n * B);
-        Gl = se_doubles(&arena, L * n * l * B);
-        Ql = se_doubles(&arena, L * n * n * B);
+        /* per mode: filtered at k (xf, Pf, lpf), smoothed at k + 1 (xn, Pn, lpn) and at k (xk,
+         * Pk, lpk); per pair: x_pair, P_pair and the pair's J, gain_pair (read when lagged);
+         * back[i, j] = log P(r_k = j | r_{k+1} = i, y_0..k); redo[i]: the lanes of pair (j, i)
+         * for Joseph's form */
+        SE_DOUBLES(&arena, L * n * B, &xf, &xn, &xk, &x_pair);
+        SE_DOUBLES(&arena, L * n * n * B, &Pf, &Pn, &Pk, &P_pair, &gain_pair);
+        SE_DOUBLES(&arena, L * n * n * B, &Fl, &Ql);
+        SE_DOUBLES(&arena, L * n * l * B, &Gl);
+        SE_DOUBLES(&arena, L * B, &lpf, &lpn, &lpk, &prob, &log_w, &w);
+        SE_DOUBLES(&arena, L * L * B, &back);
+        SE_FLAGS(&arena, L * B, &redo);
+        SE_DOUBLES(&arena, B, &total);
+        SE_INTS(&arena, B, &best, &idx);
+        SE_DOUBLES(&arena, n * B, &xc);
+        SE_DOUBLES(&arena, n * n * B, &Pc);
+        SE_DOUBLES(&arena, l * B, &ul);
         /* the direct form's prediction and gain of the moving mode (rts_gain) */
-        xp = se_doubles(&arena, n * B);
-        Pp = se_doubles(&arena, n * n * B);
-        gain = se_doubles(&arena, n * n * B);
-        failed = se_flags(&arena, B);
-        use = se_flags(&arena, B); /* all lanes (set to 1 below) */
+        SE_DOUBLES(&arena, n * B, &xp);
+        SE_DOUBLES(&arena, n * n * B, &Pp, &gain);
+        SE_FLAGS(&arena, B, &failed, &use); /* use: all lanes (set to 1 below) */
         gain_scratch(&arena, n, B, &scratch);
         joseph_scratch(&arena, n, B, &joseph);
         pair_scratch(&arena, n, B, &pair);
         /* Joseph's form (redo_): the conditional's x_pred, covariance and gain, a pair's x, P,
          * and the lanes it is taken in */
-        conditional.xp = se_doubles(&arena, n * B);
-        conditional.P = se_doubles(&arena, n * n * B);
-        conditional.J = se_doubles(&arena, n * n * B);
-        conditional.x = se_doubles(&arena, n * B);
-        conditional.Pr = se_doubles(&arena, n * n * B);
-        conditional.use = se_flags(&arena, B);
+        SE_DOUBLES(&arena, n * B, &conditional.xp, &conditional.x);
+        SE_DOUBLES(&arena, n * n * B, &conditional.P, &conditional.J, &conditional.Pr);
+        SE_FLAGS(&arena, B, &conditional.use);
         /* per mode i at k + 1: weight, mean, scatter of the pairs' x_ji, mean P_ji and gain */
-        acc_w = se_doubles(&arena, L * B);
-        acc_x = se_doubles(&arena, L * n * B);
-        acc_M = se_doubles(&arena, L * n * n * B);
-        acc_P = se_doubles(&arena, L * n * n * B);
-        acc_J = se_doubles(&arena, L * n * n * B);
-        delta = se_doubles(&arena, n);
+        SE_DOUBLES(&arena, L * B, &acc_w);
+        SE_DOUBLES(&arena, L * n * B, &acc_x);
+        SE_DOUBLES(&arena, L * n * n * B, &acc_M, &acc_P, &acc_J);
+        SE_DOUBLES(&arena, n, &delta);
     } while (se_arena_open(&arena));
     if (arena.base == NULL)
         return SE_NO_MEMORY;

@@ -77,16 +77,11 @@ typedef struct {
 /* solve_ws carved from the arena */
 static void carve_solve(se_arena *a, se_int n, se_int B, solve_ws *s)
 {
-    s->M = se_doubles(a, n * n * B);
-    s->piv = se_ints(a, n * B);
-    s->best = se_doubles(a, B);
-    s->log_det = se_doubles(a, B);
-    s->X = se_doubles(a, n * (n + 1) * B);
-    s->T = se_doubles(a, n * n * B);
-    s->v = se_doubles(a, n * B);
-    s->w = se_doubles(a, n * B);
-    s->p = se_doubles(a, n * B);
-    s->zero = se_doubles(a, B);
+    SE_DOUBLES(a, n * n * B, &s->M, &s->T);
+    SE_INTS(a, n * B, &s->piv);
+    SE_DOUBLES(a, B, &s->best, &s->log_det, &s->zero);
+    SE_DOUBLES(a, n * (n + 1) * B, &s->X);
+    SE_DOUBLES(a, n * B, &s->v, &s->w, &s->p);
 }
 
 /* The work arrays of measure_: se_innovation's (inn), its zero state x0 (n, B) and covariance
@@ -102,12 +97,11 @@ typedef struct {
 static void carve_measure(se_arena *a, se_int n, se_int m, se_int B, measure_ws *s)
 {
     se_carve_innovation(a, n, m, B, &s->inn);
-    s->x0 = se_doubles(a, n * B);
-    s->P0 = se_doubles(a, n * n * B);
-    s->Ct = se_doubles(a, n * m * B);
-    s->V = se_doubles(a, n * m * B);
-    s->inv = se_doubles(a, m * B);
-    s->use = se_flags(a, B);
+    SE_DOUBLES(a, n * B, &s->x0);
+    SE_DOUBLES(a, n * n * B, &s->P0);
+    SE_DOUBLES(a, n * m * B, &s->Ct, &s->V);
+    SE_DOUBLES(a, m * B, &s->inv);
+    SE_FLAGS(a, B, &s->use);
 }
 
 /* What measure_ computes of mode l's C_l, R_l alone when every component is observed, the same
@@ -124,11 +118,10 @@ typedef struct {
 /* full_ws of L modes carved from the arena, each array stacked over the modes */
 static void carve_full(se_arena *a, se_int n, se_int m, se_int L, se_int B, full_ws *s)
 {
-    s->chol = se_doubles(a, L * m * m * B);
-    s->scale = se_doubles(a, L * m * B);
-    s->log_det = se_doubles(a, L * 2 * B);
-    s->Ct = se_doubles(a, L * n * m * B);
-    s->V = se_doubles(a, L * n * m * B);
+    SE_DOUBLES(a, L * m * m * B, &s->chol);
+    SE_DOUBLES(a, L * m * B, &s->scale);
+    SE_DOUBLES(a, L * 2 * B, &s->log_det);
+    SE_DOUBLES(a, L * n * m * B, &s->Ct, &s->V);
 }
 
 /* mode j's full_ws in the stacked one */
@@ -507,48 +500,26 @@ se_int se_two_filter_backward(SE_TWO_FILTER_PARAMETERS)
     combine_ws cw;
     se_arena arena = {NULL, 0};
     do {
-        Om = se_doubles(&arena, L * nn * B); /* beta_l(k+1), alpha_l (step 1), then beta_i(k) */
-        om = se_doubles(&arena, L * n * B);
-        c = se_doubles(&arena, L * B);
-        Od = se_doubles(&arena, L * nn * B); /* delta_l ("interval"), pooled ("sample") */
-        od = se_doubles(&arena, L * n * B);
-        cd = se_doubles(&arena, L * B);
-        Fl = se_doubles(&arena, L * nn * B); /* each mode's transition into k + 1 */
-        Gl = se_doubles(&arena, L * n * l * B);
-        Ql = se_doubles(&arena, L * nn * B);
-        g = se_doubles(&arena, L * n * B);
-        idx = se_ints(&arena, B);
-        ul = se_doubles(&arena, l * B);
-        yk = se_doubles(&arena, m * B);
-        obs = se_doubles(&arena, m * B);
-        n_obs = se_doubles(&arena, B);
-        Cl = se_doubles(&arena, L * m * n * B);
-        Rl = se_doubles(&arena, L * m * m * B);
-        xf = se_doubles(&arena, L * n * B); /* the filtered posteriors at k */
-        Pf = se_doubles(&arena, L * nn * B);
-        lmu = se_doubles(&arena, L * B);
-        xp = se_doubles(&arena, L * n * B); /* "sample": the predictions into k + 1 */
-        Pp = se_doubles(&arena, L * nn * B);
-        FP = se_doubles(&arena, nn * B);
-        xs = se_doubles(&arena, n * B);
-        xo = se_doubles(&arena, L * n * B); /* the smoothed posteriors at k */
-        Po = se_doubles(&arena, L * nn * B);
-        lz = se_doubles(&arena, L * B);
-        xq = se_doubles(&arena, L * n * B); /* those at k + 1, written once pair is known */
-        Pq = se_doubles(&arena, L * nn * B);
-        lq = se_doubles(&arena, L * B);
-        pair = se_doubles(&arena, L * B);
-        base = se_doubles(&arena, L * B);
-        prob = se_doubles(&arena, L * B);
-        total = se_doubles(&arena, B);
-        pw.a = se_doubles(&arena, L * B);
-        pw.w = se_doubles(&arena, L * L * B);
-        pw.total = se_doubles(&arena, B);
-        pw.s = se_doubles(&arena, L * B);
-        pw.rows = se_ints(&arena, L);
-        cw.x = se_doubles(&arena, n * B);
-        cw.P = se_doubles(&arena, nn * B);
-        cw.best = se_ints(&arena, B);
+        /* per mode: the information triples (matrix, vector, constant) Om, om, c of
+         * beta_l(k+1), alpha_l (step 1), then beta_i(k), and Od, od, cd of delta_l ("interval")
+         * or the pooled one ("sample"); each mode's transition into k + 1, Fl, Gl, Ql, g; the
+         * filtered posteriors at k, xf, Pf, lmu; "sample"'s predictions into k + 1, xp, Pp; the
+         * smoothed posteriors at k, xo, Po, lz, and at k + 1 (written once pair is known), xq,
+         * Pq, lq */
+        SE_DOUBLES(&arena, L * nn * B, &Om, &Od, &Fl, &Ql, &Pf, &Pp, &Po, &Pq);
+        SE_DOUBLES(&arena, L * n * B, &om, &od, &g, &xf, &xp, &xo, &xq);
+        SE_DOUBLES(&arena, L * B, &c, &cd, &lmu, &lz, &lq, &pair, &base, &prob, &pw.a, &pw.s);
+        SE_DOUBLES(&arena, L * n * l * B, &Gl);
+        SE_DOUBLES(&arena, L * m * n * B, &Cl);
+        SE_DOUBLES(&arena, L * m * m * B, &Rl);
+        SE_DOUBLES(&arena, l * B, &ul);
+        SE_DOUBLES(&arena, m * B, &yk, &obs);
+        SE_DOUBLES(&arena, B, &n_obs, &total, &pw.total);
+        SE_DOUBLES(&arena, nn * B, &FP, &cw.P);
+        SE_DOUBLES(&arena, n * B, &xs, &cw.x);
+        SE_INTS(&arena, B, &idx, &cw.best);
+        SE_DOUBLES(&arena, L * L * B, &pw.w);
+        SE_INTS(&arena, L, &pw.rows);
         carve_solve(&arena, n, B, &sw);
         carve_measure(&arena, n, m, B, &mw);
         carve_full(&arena, n, m, L, B, &fw);
