@@ -34,6 +34,27 @@ _KIM = "the smoother"  # named when its arrays disagree in shape
 _TWO_FILTER = "the two-filter smoother"  # likewise
 
 
+cdef tuple forward_shapes(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f,
+                          cnp.ndarray u, cnp.ndarray F, cnp.ndarray G, cnp.ndarray Qd,
+                          cnp.ndarray trans, cnp.ndarray log_transition, str what):
+    """Check what both backward passes read of the forward filter and the model: the filtered
+    posteriors x_f (N, K, L, n), P_f, log_prob_f, the inputs u (N, K, l), the transitions F, G,
+    Qd (M, ...), their table trans (T, TK, L) and log_transition (L, L); returns
+    ``(N, K, L, n, l, M, T, TK)``."""
+    shaped(x_f, 4, -1, -1, -1, -1, -1, what)
+    cdef se_int N = x_f.shape[0], K = x_f.shape[1], L = x_f.shape[2], n = x_f.shape[3]
+    shaped(P_f, 5, N, K, L, n, n, what)
+    shaped(log_prob_f, 3, N, K, L, -1, -1, what)
+    shaped(u, 3, N, K, -1, -1, -1, what)
+    shaped(F, 3, -1, n, n, -1, -1, what)
+    cdef se_int l = u.shape[2], M = F.shape[0]
+    shaped(G, 3, M, n, l, -1, -1, what)
+    shaped(Qd, 3, M, n, n, -1, -1, what)
+    shaped(trans, 3, -1, K, L, -1, -1, what)
+    shaped(log_transition, 2, L, L, -1, -1, -1, what)
+    return N, K, L, n, l, M, trans.shape[0], trans.shape[1]
+
+
 def kim_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f, cnp.ndarray u,
                  cnp.ndarray F, cnp.ndarray G, cnp.ndarray Qd, cnp.ndarray trans,
                  cnp.ndarray log_transition, se_int lanes, bint sample_timing,
@@ -45,23 +66,13 @@ def kim_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f, cnp.n
     ``se_kim_backward``, engine/c/smoother.h, checked by
     :func:`switchest.engine.smoother.kim_smooth`); returns the status code (``MemoryError`` if
     the scratch cannot be allocated)."""
-    shaped(x_f, 4, -1, -1, -1, -1, -1, _KIM)
-    cdef se_int N = x_f.shape[0], K = x_f.shape[1], L = x_f.shape[2], n = x_f.shape[3]
-    shaped(u, 3, N, K, -1, -1, -1, _KIM)
-    cdef se_int l = u.shape[2]
-    shaped(F, 3, -1, n, n, -1, -1, _KIM)
-    cdef se_int M = F.shape[0]
-    shaped(trans, 3, -1, K, L, -1, -1, _KIM)
-    cdef se_int T = trans.shape[0], TK = trans.shape[1]
+    cdef se_int N, K, L, n, l, M, T, TK
+    N, K, L, n, l, M, T, TK = forward_shapes(x_f, P_f, log_prob_f, u, F, G, Qd, trans,
+                                             log_transition, _KIM)
     shaped(x_s, 4, -1, K, L, n, -1, _KIM)
     cdef se_int Ns = x_s.shape[0]
     shaped(pair_out, 4, N, -1, L, L, -1, _KIM)
     cdef se_int J = pair_out.shape[1]
-    shaped(P_f, 5, N, K, L, n, n, _KIM)
-    shaped(log_prob_f, 3, N, K, L, -1, -1, _KIM)
-    shaped(G, 3, M, n, l, -1, -1, _KIM)
-    shaped(Qd, 3, M, n, n, -1, -1, _KIM)
-    shaped(log_transition, 2, L, L, -1, -1, -1, _KIM)
     shaped(x_out, 3, N, K, n, -1, -1, _KIM)
     shaped(P_out, 4, N, K, n, n, -1, _KIM)
     shaped(prob_out, 3, N, K, L, -1, -1, _KIM)
@@ -114,22 +125,12 @@ def two_filter_backward(cnp.ndarray x_f, cnp.ndarray P_f, cnp.ndarray log_prob_f
     ``se_two_filter_backward``, engine/c/two_filter.h, checked by
     :func:`switchest.engine.two_filter.two_filter_run`); returns the status code
     (``MemoryError`` if the scratch cannot be allocated)."""
-    shaped(x_f, 4, -1, -1, -1, -1, -1, _TWO_FILTER)
-    cdef se_int N = x_f.shape[0], K = x_f.shape[1], L = x_f.shape[2], n = x_f.shape[3]
+    cdef se_int N, K, L, n, l, M, T, TK
+    N, K, L, n, l, M, T, TK = forward_shapes(x_f, P_f, log_prob_f, u, F, G, Qd, trans,
+                                             log_transition, _TWO_FILTER)
     shaped(y, 3, N, K, -1, -1, -1, _TWO_FILTER)
     cdef se_int m = y.shape[2]
-    shaped(u, 3, N, K, -1, -1, -1, _TWO_FILTER)
-    cdef se_int l = u.shape[2]
-    shaped(F, 3, -1, n, n, -1, -1, _TWO_FILTER)
-    cdef se_int M = F.shape[0]
-    shaped(trans, 3, -1, K, L, -1, -1, _TWO_FILTER)
-    cdef se_int T = trans.shape[0], TK = trans.shape[1]
-    shaped(P_f, 5, N, K, L, n, n, _TWO_FILTER)
-    shaped(log_prob_f, 3, N, K, L, -1, -1, _TWO_FILTER)
     shaped(outlier, 2, N, K, -1, -1, -1, _TWO_FILTER)
-    shaped(G, 3, M, n, l, -1, -1, _TWO_FILTER)
-    shaped(Qd, 3, M, n, n, -1, -1, _TWO_FILTER)
-    shaped(log_transition, 2, L, L, -1, -1, -1, _TWO_FILTER)
     shaped(C, 3, L, m, n, -1, -1, _TWO_FILTER)
     shaped(R, 3, L, m, m, -1, -1, _TWO_FILTER)
     shaped(x_s, 4, -1, K, L, n, -1, _TWO_FILTER)
