@@ -26,6 +26,10 @@ PORTABLE = os.environ.get("SWITCHEST_PORTABLE", "0") not in ("", "0")
 FLAGS = ["-O3", "-std=c11", "-D_DEFAULT_SOURCE", "-fno-math-errno", "-ffp-contract=off"]
 if not PORTABLE:
     FLAGS.append("-march=native")
+# libm linked by name, at the end of the link (after the static library that calls it): the
+# modules call its log and exp; unlinked, those stayed unversioned, bound at load time to
+# whichever libm the process had, and to glibc's oldest versions of them
+LINK = ["-lm"] if os.name == "posix" else []
 
 SHARED = ["linalg.c", "bank.c"]  # the C files of several families: one static library
 engine_library = ("switchest_engine", {
@@ -45,6 +49,7 @@ extensions = [
         + [str(ENGINE / "_common.pxd")],  # rebuilds too
         define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
         extra_compile_args=FLAGS,
+        extra_link_args=LINK,
     )
     for pyx in sorted(ENGINE.glob("_*.pyx"))
 ]
