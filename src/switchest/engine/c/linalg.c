@@ -930,31 +930,43 @@ void se_log_normalize_rows(se_int B, const se_int *restrict rows, se_int count,
                            double *restrict a, double *restrict prob, double *restrict total,
                            se_int nb)
 {
-    for (se_int b = 0; b < nb; b++) {
-        double top = -INFINITY;
+    enum { W = 64 }; /* lanes at a time, each row's lanes innermost: the maximum, the sum and
+                      * the division over contiguous lanes (the same operations per lane, in the
+                      * same order, as lane by lane) */
+    double top[W], acc[W], log_acc[W];
+    for (se_int b0 = 0; b0 < nb; b0 += W) {
+        const se_int w = nb - b0 < W ? nb - b0 : W;
+        for (se_int b = 0; b < w; b++) {
+            top[b] = -INFINITY;
+            acc[b] = 0.0;
+        }
+        for (se_int t = 0; t < count; t++) {
+            const double *restrict at = a + (rows ? rows[t] : t) * B + b0;
+            for (se_int b = 0; b < w; b++)
+                top[b] = at[b] > top[b] ? at[b] : top[b];
+        }
         for (se_int t = 0; t < count; t++) {
             const se_int j = rows ? rows[t] : t;
-            top = a[j * B + b] > top ? a[j * B + b] : top;
+            const double *restrict at = a + j * B + b0;
+            double *restrict pt = prob + j * B + b0;
+            for (se_int b = 0; b < w; b++) {
+                pt[b] = top[b] == -INFINITY ? 0.0 : exp(at[b] - top[b]);
+                acc[b] += pt[b];
+            }
         }
-        if (top == -INFINITY) {
-            for (se_int t = 0; t < count; t++)
-                prob[(rows ? rows[t] : t) * B + b] = 0.0;
-            total[b] = -INFINITY;
-            continue;
+        for (se_int b = 0; b < w; b++) {
+            log_acc[b] = top[b] == -INFINITY ? 0.0 : log(acc[b]);
+            total[b0 + b] = top[b] + log_acc[b];
         }
-        double acc = 0.0;
         for (se_int t = 0; t < count; t++) {
             const se_int j = rows ? rows[t] : t;
-            prob[j * B + b] = exp(a[j * B + b] - top);
-            acc += prob[j * B + b];
+            double *restrict at = a + j * B + b0, *restrict pt = prob + j * B + b0;
+            for (se_int b = 0; b < w; b++)
+                if (top[b] != -INFINITY) {
+                    at[b] = (at[b] - top[b]) - log_acc[b];
+                    pt[b] /= acc[b];
+                }
         }
-        double log_acc = log(acc);
-        for (se_int t = 0; t < count; t++) {
-            const se_int j = rows ? rows[t] : t;
-            a[j * B + b] = (a[j * B + b] - top) - log_acc;
-            prob[j * B + b] /= acc;
-        }
-        total[b] = top + log_acc;
     }
 }
 
