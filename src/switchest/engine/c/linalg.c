@@ -1180,28 +1180,31 @@ void se_lane_product(se_int p, se_int q, se_int r, se_int B, const double *restr
 }
 
 /* The rows j and piv[j, b] of each lane's X (n, q, B) exchanged, in the lanes that chose another
- * row than j (none, usually: I + P Omega is dominated by its diagonal, so one vector pass that
- * finds no such lane saves the lane-by-lane loop with its branch). */
+ * row than j: nothing where no lane did (I + P Omega is often dominated by its diagonal: one
+ * pass finds it), else for each row r below j up to the last one chosen, a pass over every
+ * lane that swaps where piv[j, b] = r and keeps the others (a blend over contiguous lanes). */
 static void se_swap_rows(se_int q, se_int B, se_int j, const se_int *restrict piv,
                          double *restrict X, se_int nb)
 {
-    const se_int *pj = piv + j * B;
+    const se_int *restrict pj = piv + j * B;
     se_int moved = 0;
     for (se_int b = 0; b < nb; b++)
         moved |= pj[b] ^ j;
     if (!moved)
         return;
-    for (se_int b = 0; b < nb; b++) {
-        const se_int r = pj[b];
-        if (r == j)
-            continue;
+    se_int last = j;
+    for (se_int b = 0; b < nb; b++)
+        last = pj[b] > last ? pj[b] : last;
+    for (se_int r = j + 1; r <= last; r++)
         for (se_int c = 0; c < q; c++) {
-            double *Xj = X + (j * q + c) * B + b, *Xr = X + (r * q + c) * B + b;
-            const double a = *Xj;
-            *Xj = *Xr;
-            *Xr = a;
+            double *restrict Xj = X + (j * q + c) * B, *restrict Xr = X + (r * q + c) * B;
+            for (se_int b = 0; b < nb; b++) {
+                const double a = Xj[b], z = Xr[b];
+                const int swap = pj[b] == r;
+                Xj[b] = swap ? z : a;
+                Xr[b] = swap ? a : z;
+            }
         }
-    }
 }
 
 /* LU factorization with partial pivoting of each lane's A (n, n), in place (Golub & Van Loan,
