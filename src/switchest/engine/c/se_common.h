@@ -101,21 +101,6 @@ static inline void *se_carve(se_arena *arena, se_int count, size_t size)
     return p;
 }
 
-static inline double *se_doubles(se_arena *arena, se_int count)
-{
-    return (double *)se_carve(arena, count, sizeof(double));
-}
-
-static inline se_int *se_ints(se_arena *arena, se_int count)
-{
-    return (se_int *)se_carve(arena, count, sizeof(se_int));
-}
-
-static inline uint8_t *se_flags(se_arena *arena, se_int count)
-{
-    return (uint8_t *)se_carve(arena, count, 1);
-}
-
 /* Carve several arrays of one size: SE_DOUBLES(&ar, n * B, &x, &xs) points x and xs at arrays
  * of n * B doubles, in that order (SE_INTS and SE_FLAGS likewise). */
 #define SE_CARVE_EACH(type, arena, count, ...)                                                \
