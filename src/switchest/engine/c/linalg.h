@@ -142,16 +142,18 @@ void se_copy_lanes(se_int p, se_int q, se_int B, const double *restrict source, 
                    double *restrict out);
 
 /* o[c] = start[c] + sum_k X_k[c] Y_k[c] (minus: start[c] - ...; start NULL: from 0) for the w
- * lanes c < w, its terms added in the order of k (w a constant where it is inlined: the w sums
- * stay in registers over k). o may be start. */
-static inline void se_chunk_accumulate(se_int w, se_int q, const double *start, int minus,
-                                       const double *restrict X, se_int sx,
-                                       const double *restrict Y, se_int sy, double *o)
+ * lanes c < w, k = rows[t] for t = 0 .. q-1 (rows NULL: k = t), X_k = X + k sx, Y_k = Y + k sy,
+ * its terms added in the order of t (w a constant where it is inlined: the w sums stay in
+ * registers over t). o may be start. */
+static inline void se_chunk_accumulate(se_int w, se_int q, const se_int *restrict rows,
+                                       const double *start, int minus, const double *restrict X,
+                                       se_int sx, const double *restrict Y, se_int sy, double *o)
 {
     double acc[16];
     for (se_int c = 0; c < w; c++)
         acc[c] = start ? start[c] : 0.0;
-    for (se_int k = 0; k < q; k++) {
+    for (se_int t = 0; t < q; t++) {
+        const se_int k = rows ? rows[t] : t;
         const double *Xk = X + k * sx, *Yk = Y + k * sy;
         if (minus)
             for (se_int c = 0; c < w; c++)
@@ -182,21 +184,32 @@ static inline void se_chunk_accumulate(se_int w, se_int q, const double *start, 
     } while (0)
 
 /* o[b] = start[b] + sum_k X_k[b] Y_k[b] per lane (minus: start[b] - ...; start NULL: from 0),
- * k = 0 .. q-1, X_k = X + k sx and Y_k = Y + k sy being lane rows (.., B) (strides in doubles),
- * its terms added in the order of k: the same additions in the same order in every lane as
- * o[b] += X_k[b] Y_k[b] over k in memory, but each chunk's sums (SE_LANE_CHUNKS) stay in
- * registers over k (in memory every term is loaded and stored again: 1.5-2x the time on
- * n = 4). o may be start. Always inlined: each call site's start and minus are then constants
- * (as a shared copy it ran 3 % more instructions in the two-filter pass). */
+ * k = rows[t] for t = 0 .. q-1 (rows NULL: k = t), X_k = X + k sx and Y_k = Y + k sy being lane
+ * rows (.., B) (strides in doubles), its terms added in the order of t: the same additions in
+ * the same order in every lane as o[b] += X_k[b] Y_k[b] over t in memory, but each chunk's sums
+ * (SE_LANE_CHUNKS) stay in registers over t (in memory every term is loaded and stored again:
+ * 1.5-2x the time on n = 4). o may be start. Always inlined: each call site's rows, start and
+ * minus are then constants (as a shared copy it ran 3 % more instructions in the two-filter
+ * pass). */
+__attribute__((always_inline)) static inline void
+se_lane_accumulate_rows(se_int q, const se_int *restrict rows, const double *start, int minus,
+                        const double *restrict X, se_int sx, const double *restrict Y, se_int sy,
+                        se_int nb, double *o)
+{
+    se_int b = 0;
+#define SE_ACCUMULATE_CHUNK(w)                                                                   \
+    se_chunk_accumulate((w), q, rows, start ? start + b : NULL, minus, X + b, sx, Y + b, sy,    \
+                        o + b)
+    SE_LANE_CHUNKS(b, nb, SE_ACCUMULATE_CHUNK);
+#undef SE_ACCUMULATE_CHUNK
+}
+
+/* se_lane_accumulate_rows over every k = 0 .. q-1 */
 __attribute__((always_inline)) static inline void
 se_lane_accumulate(se_int q, const double *start, int minus, const double *restrict X, se_int sx,
                    const double *restrict Y, se_int sy, se_int nb, double *o)
 {
-    se_int b = 0;
-#define SE_ACCUMULATE_CHUNK(w)                                                                   \
-    se_chunk_accumulate((w), q, start ? start + b : NULL, minus, X + b, sx, Y + b, sy, o + b)
-    SE_LANE_CHUNKS(b, nb, SE_ACCUMULATE_CHUNK);
-#undef SE_ACCUMULATE_CHUNK
+    se_lane_accumulate_rows(q, NULL, start, minus, X, sx, Y, sy, nb, o);
 }
 
 /* out = base + X Y' per lane, for X, Y (n, q, B) whose sum is symmetric (Qd + (F P) F',

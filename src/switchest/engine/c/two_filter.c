@@ -183,24 +183,6 @@ typedef struct {
     se_int *rows;
 } pool_ws;
 
-/* o[c] = sum_t wt[rows[t], c] M[rows[t], c] for the w lanes c < w, from 0, in the order of t,
- * the w sums in registers (SE_LANE_CHUNKS); the rows of M size * B apart */
-static inline void pooled_chunk_(se_int w, se_int count, const se_int *restrict rows, se_int B,
-                                 se_int size, const double *restrict wt,
-                                 const double *restrict M, double *restrict o)
-{
-    double acc[16];
-    for (se_int c = 0; c < w; c++)
-        acc[c] = 0.0;
-    for (se_int t = 0; t < count; t++) {
-        const double *wj = wt + rows[t] * B, *Mj = M + rows[t] * size * B;
-        for (se_int c = 0; c < w; c++)
-            acc[c] += wj[c] * Mj[c];
-    }
-    for (se_int c = 0; c < w; c++)
-        o[c] = acc[c];
-}
-
 /* out (size, B) = sum_t wt[rows[t]] M[rows[t]] per lane: the messages M (L, size, B) of the
  * next modes a mode can move to, weighed by wt (L, B); the same sums, bit for bit, as over
  * every next mode with the others' weights 0. */
@@ -208,13 +190,9 @@ static void pooled_(se_int count, const se_int *restrict rows, se_int B, se_int 
                     const double *restrict wt, const double *restrict M, se_int nb,
                     double *restrict out)
 {
-    for (se_int e = 0; e < size; e++) {
-        se_int b = 0;
-#define SE_POOLED_CHUNK(w)                                                                       \
-    pooled_chunk_((w), count, rows, B, size, wt + b, M + e * B + b, out + e * B + b)
-        SE_LANE_CHUNKS(b, nb, SE_POOLED_CHUNK);
-#undef SE_POOLED_CHUNK
-    }
+    for (se_int e = 0; e < size; e++)
+        se_lane_accumulate_rows(count, rows, NULL, 0, wt, B, M + e * B, size * B, nb,
+                                out + e * B);
 }
 
 /* M = I + X Y per lane, X, Y (n, n, B) row-major. */
