@@ -458,9 +458,8 @@ static void layout(const dims *s, se_int n_hyp, se_arena *ar, scratch *t)
     SE_DOUBLES(ar, m * W, &t->yw, &t->yh, &t->obs);
     SE_DOUBLES(ar, l * W, &t->uw);
     SE_DOUBLES(ar, W, &t->n_obs, &t->J_lanes);
-    SE_DOUBLES(ar, m * n * W, &t->C1, &t->C2);
+    SE_DOUBLES(ar, m * n * W, &t->C1, &t->C2, &t->H1);
     SE_DOUBLES(ar, m * m * W, &t->R1, &t->R2, &t->S1);
-    SE_DOUBLES(ar, m * n * W, &t->H1);
     SE_DOUBLES(ar, m * l * W, &t->Gy1);
     SE_DOUBLES(ar, n * n * W, &t->zero, &t->pred.Ps, &t->pred.Fl, &t->pred.Ql, &t->pred.FP);
     SE_DOUBLES(ar, n * W, &t->pred.xs, &t->pred.xv);

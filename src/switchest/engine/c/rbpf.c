@@ -520,7 +520,7 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
     do { /* size the arena, then carve it (zeroed: work.inn.bad must start at 0) */
         SE_DOUBLES(&ar, n * B, &x, &x_to, &mats.xs);
         SE_DOUBLES(&ar, n * n * B, &P, &P_to, &mats.Fl, &mats.Ql, &mats.AP);
-        SE_DOUBLES(&ar, B, &logw, &w, &n_obs, &pos);
+        SE_DOUBLES(&ar, B, &logw, &w, &n_obs, &pos, &inc);
         SE_DOUBLES(&ar, 1, &total);
         SE_DOUBLES(&ar, m * B, &yl, &obs);
         SE_DOUBLES(&ar, l * B, &ul);
@@ -534,7 +534,6 @@ se_int se_particle_filter(SE_PARTICLE_FILTER_PARAMETERS)
         SE_DOUBLES(&ar, n_copies * n * n * B, &Pc);
         SE_DOUBLES(&ar, n_cand * B, &terms);
         SE_DOUBLES(&ar, L, &pick_w, &prob);
-        SE_DOUBLES(&ar, B, &inc);
         SE_DOUBLES(&ar, n, &xm);
         SE_DOUBLES(&ar, n * n, &Pm);
         SE_INTS(&ar, B, &mode, &mode_to, &mats.idx, &anc);

@@ -130,7 +130,7 @@ static void pair_scratch(se_arena *a, se_int n, se_int B, pair_scratch_t *s)
     SE_DOUBLES(a, n * n * B, &s->D, &s->T);
 }
 
-/* The work arrays of rts_joseph for n states and B lanes, in its order (joseph_scratch):
+/* The work arrays of rts_joseph for n states and B lanes (carved by joseph_scratch):
  * P_pred, F P, xs (se_predict); inn, se_innovation's workspace (se_carve_innovation);
  * T, AP, prior (se_correct); root, lost (se_joseph_lost); x (the mean
  * se_correct leaves unchanged); the lanes' identity and zero (n, n), obs ones (n, B) and
@@ -145,11 +145,9 @@ typedef struct {
 
 static void joseph_scratch(se_arena *a, se_int n, se_int B, joseph_scratch_t *s)
 {
-    SE_DOUBLES(a, n * n * B, &s->Pp, &s->FP);
-    SE_DOUBLES(a, n * B, &s->xs);
+    SE_DOUBLES(a, n * n * B, &s->Pp, &s->FP, &s->T, &s->AP, &s->prior, &s->eye, &s->zero);
+    SE_DOUBLES(a, n * B, &s->xs, &s->root, &s->x, &s->obs);
     se_carve_innovation(a, n, n, B, &s->inn);
-    SE_DOUBLES(a, n * n * B, &s->T, &s->AP, &s->prior, &s->eye, &s->zero);
-    SE_DOUBLES(a, n * B, &s->root, &s->x, &s->obs);
     SE_FLAGS(a, B, &s->lost);
     SE_DOUBLES(a, B, &s->n_obs);
 }
@@ -518,12 +516,11 @@ se_int se_kim_backward(SE_KIM_BACKWARD_PARAMETERS)
         return SE_OK; /* nothing to smooth: SE_OK with only the report written */
     do { /* size the arena, then carve it */
         /* per mode: filtered at k (xf, Pf, lpf), smoothed at k + 1 (xn, Pn, lpn) and at k (xk,
-         * Pk, lpk); per pair: x_pair, P_pair and the pair's J, gain_pair (read when lagged);
-         * back[i, j] = log P(r_k = j | r_{k+1} = i, y_0..k); redo[i]: the lanes of pair (j, i)
-         * for Joseph's form */
+         * Pk, lpk), its transition (Fl, Gl, Ql); per pair: x_pair, P_pair and the pair's J,
+         * gain_pair (read when lagged); back[i, j] = log P(r_k = j | r_{k+1} = i, y_0..k);
+         * redo[i]: the lanes of pair (j, i) for Joseph's form */
         SE_DOUBLES(&arena, L * n * B, &xf, &xn, &xk, &x_pair);
-        SE_DOUBLES(&arena, L * n * n * B, &Pf, &Pn, &Pk, &P_pair, &gain_pair);
-        SE_DOUBLES(&arena, L * n * n * B, &Fl, &Ql);
+        SE_DOUBLES(&arena, L * n * n * B, &Pf, &Pn, &Pk, &P_pair, &gain_pair, &Fl, &Ql);
         SE_DOUBLES(&arena, L * n * l * B, &Gl);
         SE_DOUBLES(&arena, L * B, &lpf, &lpn, &lpk, &prob, &log_w, &w);
         SE_DOUBLES(&arena, L * L * B, &back);
